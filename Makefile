@@ -1,0 +1,31 @@
+# cadfeat — `make demo` and `make test` set everything up themselves (Python 3.11).
+PYTHON ?= python3
+VENV   ?= .venv
+PY      = $(VENV)/bin/python
+STAMP   = $(VENV)/.cadfeat-installed
+
+.PHONY: setup demo test lint bench clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[dev]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(PY) -m cadfeat.demo
+
+test: $(STAMP)
+	$(PY) -m ruff check cadfeat tests benchmarks parts
+	$(PY) -m pytest -q
+
+lint: $(STAMP)
+	$(PY) -m ruff check cadfeat tests benchmarks parts
+
+bench: $(STAMP)
+	$(PY) benchmarks/run_all.py
+
+clean:
+	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info

@@ -1,0 +1,378 @@
+"""The camera: OpenCV intrinsics, lens distortion, thin-lens optics and named presets.
+
+Frames and units follow DESIGN.md: the OpenCV camera frame (x right, y down, z forward),
+millimetres in 3-D, pixels in the image. Projection is the OpenCV model (the same numbers as
+``cv2.projectPoints``) with the distortion vector ``(k1, k2, p1, p2, k3)``; the thesis writes the
+same pinhole model as eq. A.1-A.7 and uses Bouguet's ``kc`` for the distortion (Table A.1).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cadfeat.errors import CadfeatError
+
+#: Depth (mm) below which a point counts as at or behind the camera centre; projection clamps to it.
+MIN_DEPTH_MM = 1e-6
+
+
+class CameraError(CadfeatError):
+    """A camera definition or calibration file is invalid."""
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A calibrated camera with optics for depth of field.
+
+    Intrinsics are in pixels (``fx, fy, cx, cy``; ``width x height`` image), ``dist`` is OpenCV's
+    ``(k1, k2, p1, p2, k3)``. The optics are those of the thin-lens depth-of-field model (eq. 3.4-3.6):
+    ``focal_length_mm`` (f_C), ``f_number`` N (or ``aperture_mm``, the entrance-pupil diameter
+    a_C = f_C / N), ``focus_distance_mm`` (object distance in exact focus, measured along the optical
+    axis) and ``blur_circle_mm`` c, the largest acceptable blur-circle diameter on the sensor. When
+    ``blur_circle_mm`` is not given it defaults to two pixel pitches, ``2 * focal_length_mm / fx``.
+    """
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+    dist: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    focal_length_mm: float = 8.0
+    f_number: float | None = None
+    aperture_mm: float | None = None
+    focus_distance_mm: float = 300.0
+    blur_circle_mm: float | None = None
+    name: str = "custom"
+    source: str = field(default="", compare=False)
+
+    def __post_init__(self) -> None:
+        dist = tuple(float(d) for d in self.dist)
+        if len(dist) == 4:
+            dist = (*dist, 0.0)
+        if len(dist) != 5:
+            raise CameraError(f"camera '{self.name}': dist must have 4 or 5 values (k1, k2, p1, p2[, k3])")
+        object.__setattr__(self, "dist", dist)
+        for key in ("fx", "fy", "width", "height", "focal_length_mm", "focus_distance_mm"):
+            value = getattr(self, key)
+            if not np.isfinite(value) or value <= 0:
+                raise CameraError(f"camera '{self.name}': {key} must be a positive number, got {value!r}")
+        if self.f_number is None and self.aperture_mm is None:
+            object.__setattr__(self, "f_number", 4.0)
+        if self.f_number is not None and self.aperture_mm is not None:
+            expected = self.focal_length_mm / self.f_number
+            if not np.isclose(expected, self.aperture_mm, rtol=1e-6):
+                raise CameraError(
+                    f"camera '{self.name}': give f_number or aperture_mm, not both inconsistent "
+                    f"(f/{self.f_number} means aperture {expected:.4g} mm, got {self.aperture_mm})"
+                )
+        if self.aperture_mm is None:
+            object.__setattr__(self, "aperture_mm", self.focal_length_mm / float(self.f_number))
+        if self.f_number is None:
+            object.__setattr__(self, "f_number", self.focal_length_mm / float(self.aperture_mm))
+        if self.aperture_mm <= 0:
+            raise CameraError(f"camera '{self.name}': aperture_mm must be positive, got {self.aperture_mm}")
+        if self.blur_circle_mm is None:
+            object.__setattr__(self, "blur_circle_mm", 2.0 * self.pixel_pitch_mm)
+        if self.focus_distance_mm <= self.focal_length_mm:
+            raise CameraError(
+                f"camera '{self.name}': focus_distance_mm ({self.focus_distance_mm}) must exceed "
+                f"focal_length_mm ({self.focal_length_mm})"
+            )
+
+    # ------------------------------------------------------------------ intrinsics
+    @property
+    def K(self) -> np.ndarray:
+        """The 3x3 OpenCV camera matrix (pixels), eq. A.3 with f_C/s_x = fx."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def dist_coeffs(self) -> np.ndarray:
+        """Distortion as the (5,) array ``cv2.projectPoints`` takes."""
+        return np.asarray(self.dist, dtype=float)
+
+    @property
+    def has_distortion(self) -> bool:
+        return bool(np.any(self.dist_coeffs != 0.0))
+
+    @property
+    def pixel_pitch_mm(self) -> float:
+        """Horizontal pixel pitch s_x in mm (focal length over fx)."""
+        return self.focal_length_mm / self.fx
+
+    @property
+    def fov_rad(self) -> float:
+        """Field-of-view angle α of the smaller sensor dimension (eq. 3.1), radians.
+
+        For a principal point off centre the half-angle to the nearer border is used, so the cone
+        stays inside the sensor.
+        """
+        half_x = min(self.cx, self.width - self.cx) / self.fx
+        half_y = min(self.cy, self.height - self.cy) / self.fy
+        return 2.0 * float(np.arctan(min(half_x, half_y)))
+
+    # ------------------------------------------------------------------ optics (eq. 3.4-3.6)
+    @property
+    def image_distance_mm(self) -> float:
+        """d_C: back nodal point to image plane (thin lens focused at ``focus_distance_mm``), mm."""
+        f, s = self.focal_length_mm, self.focus_distance_mm
+        return f * s / (s - f)
+
+    @property
+    def hyperfocal_distance_mm(self) -> float:
+        """Focus distance beyond which the far plane D1 is at infinity, mm (f²/(N c) + f)."""
+        f = self.focal_length_mm
+        return f * f / (self.f_number * self.blur_circle_mm) + f
+
+    @property
+    def depth_of_field_mm(self) -> tuple[float, float]:
+        """(D2, D1): near and far planes of acceptable focus (eq. 3.5, 3.4), mm; D1 may be ``inf``."""
+        a, f, d, c = self.aperture_mm, self.focal_length_mm, self.image_distance_mm, self.blur_circle_mm
+        near = a * f * d / (a * (d - f) + c * f)
+        denom = a * (d - f) - c * f
+        far = a * f * d / denom if denom > 0 else float("inf")
+        return float(near), float(far)
+
+    # ------------------------------------------------------------------ projection
+    def project(self, points_cam: np.ndarray) -> np.ndarray:
+        """Project camera-frame points (..., 3) in mm to pixels (..., 2), as ``cv2.projectPoints``.
+
+        Points at or behind the camera (Z ≤ ``MIN_DEPTH_MM``) are clamped to that depth so the result
+        stays finite; measures flag them separately.
+        """
+        return self.distort_normalized(self.normalize(points_cam))
+
+    @staticmethod
+    def normalize(points_cam: np.ndarray) -> np.ndarray:
+        """Pinhole normalised coordinates (X/Z, Y/Z), (..., 2), with the depth clamp of ``project``."""
+        p = np.asarray(points_cam, dtype=float)
+        z = np.maximum(p[..., 2], MIN_DEPTH_MM)
+        return p[..., :2] / z[..., None]
+
+    def distort_normalized(self, xy: np.ndarray) -> np.ndarray:
+        """Apply OpenCV distortion and the camera matrix to normalised coordinates (..., 2) → px."""
+        x, y = xy[..., 0], xy[..., 1]
+        xd, yd = self._distort(x, y)
+        return np.stack([self.fx * xd + self.cx, self.fy * yd + self.cy], axis=-1)
+
+    def _distort(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        k1, k2, p1, p2, k3 = self.dist
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+        yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+        return xd, yd
+
+    def distortion_jacobian(self, xy: np.ndarray) -> np.ndarray:
+        """∂(u, v)/∂(x, y): pixels per unit normalised coordinate, (..., 2, 2), distortion included."""
+        x, y = xy[..., 0], xy[..., 1]
+        k1, k2, p1, p2, k3 = self.dist
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        dradial_dr2 = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)
+        dxd_dx = radial + 2.0 * x * x * dradial_dr2 + 2.0 * p1 * y + 6.0 * p2 * x
+        dxd_dy = 2.0 * x * y * dradial_dr2 + 2.0 * p1 * x + 2.0 * p2 * y
+        dyd_dx = 2.0 * x * y * dradial_dr2 + 2.0 * p1 * x + 2.0 * p2 * y
+        dyd_dy = radial + 2.0 * y * y * dradial_dr2 + 6.0 * p1 * y + 2.0 * p2 * x
+        jac = np.empty(x.shape + (2, 2))
+        jac[..., 0, 0] = self.fx * dxd_dx
+        jac[..., 0, 1] = self.fx * dxd_dy
+        jac[..., 1, 0] = self.fy * dyd_dx
+        jac[..., 1, 1] = self.fy * dyd_dy
+        return jac
+
+    def in_image(self, pixels: np.ndarray, margin_px: float = 0.0) -> np.ndarray:
+        """Boolean mask of pixels inside the image by at least ``margin_px``."""
+        u, v = pixels[..., 0], pixels[..., 1]
+        return (u >= margin_px) & (v >= margin_px) & (u <= self.width - margin_px) & (
+            v <= self.height - margin_px
+        )
+
+    # ------------------------------------------------------------------ construction
+    def replace(self, **changes: Any) -> Camera:
+        """A copy with some fields changed (validated again)."""
+        if "f_number" in changes and "aperture_mm" not in changes:
+            changes["aperture_mm"] = None
+        if "aperture_mm" in changes and "f_number" not in changes:
+            changes["f_number"] = None
+        return dataclasses.replace(self, **changes)
+
+    def without_distortion(self) -> Camera:
+        """The same camera as an ideal pinhole (the thesis simulations, chapter 5)."""
+        return self.replace(dist=(0.0, 0.0, 0.0, 0.0, 0.0), name=f"{self.name} (pinhole)")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data form (JSON/TOML friendly)."""
+        d = dataclasses.asdict(self)
+        d["dist"] = list(self.dist)
+        return d
+
+    @classmethod
+    def preset(cls, name: str) -> Camera:
+        """A named camera from ``PRESETS`` (see ``cadfeat.camera.PRESETS`` for sources)."""
+        key = name.strip().lower()
+        if key not in PRESETS:
+            raise CameraError(f"unknown camera preset {name!r}; allowed: {', '.join(sorted(PRESETS))}")
+        return cls(**PRESETS[key])
+
+    @classmethod
+    def from_opencv_file(cls, path: str | Path, **optics: Any) -> Camera:
+        """Load an OpenCV calibration (``cv2.FileStorage`` YAML/XML/JSON) with camera matrix and distortion.
+
+        Reads ``camera_matrix`` (or ``K``/``cameraMatrix``), ``distortion_coefficients`` (or ``D``/
+        ``dist_coeffs``/``distCoeffs``) and ``image_width``/``image_height`` (or ``width``/``height``,
+        or an ``image_size`` pair). Optics (``focal_length_mm``, ``f_number``, ...) are keyword arguments.
+        """
+        return cls(**{**read_opencv_calibration(path), **optics})
+
+
+_MATRIX_KEYS = ("camera_matrix", "K", "cameraMatrix", "intrinsics")
+_DIST_KEYS = ("distortion_coefficients", "D", "dist_coeffs", "distCoeffs", "distortion")
+
+
+def read_opencv_calibration(path: str | Path) -> dict[str, Any]:
+    """Parse a ``cv2.FileStorage`` calibration file into ``Camera`` keyword arguments."""
+    import cv2
+
+    path = Path(path)
+    if not path.is_file():
+        raise CameraError(f"{path}: calibration file not found")
+    try:
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    except cv2.error as exc:
+        raise CameraError(f"{path}: not a readable OpenCV FileStorage file ({exc})") from exc
+    if not fs.isOpened():
+        raise CameraError(f"{path}: not a readable OpenCV FileStorage file")
+    try:
+        K = _first_matrix(fs, _MATRIX_KEYS)
+        if K is None or K.shape != (3, 3):
+            raise CameraError(f"{path}: needs a 3x3 camera matrix under one of {', '.join(_MATRIX_KEYS)}")
+        dist = _first_matrix(fs, _DIST_KEYS)
+        dist = np.zeros(5) if dist is None else dist.ravel()
+        if dist.size not in (4, 5):
+            raise CameraError(f"{path}: distortion must have 4 or 5 values (k1, k2, p1, p2[, k3]); "
+                              f"got {dist.size}")
+        width, height = _image_size(fs, path)
+    finally:
+        fs.release()
+    return dict(fx=float(K[0, 0]), fy=float(K[1, 1]), cx=float(K[0, 2]), cy=float(K[1, 2]),
+                width=width, height=height, dist=tuple(float(v) for v in dist), name=path.stem,
+                source=str(path))
+
+
+def _first_matrix(fs: Any, keys: tuple[str, ...]) -> np.ndarray | None:
+    for key in keys:
+        node = fs.getNode(key)
+        if node.empty():
+            continue
+        mat = node.mat()
+        if mat is None and node.isSeq():
+            mat = np.array([node.at(i).real() for i in range(node.size())])
+        if mat is not None:
+            return np.asarray(mat, dtype=float)
+    return None
+
+
+def _image_size(fs: Any, path: Path) -> tuple[int, int]:
+    w, h = fs.getNode("image_width"), fs.getNode("image_height")
+    if w.empty() or h.empty():
+        w, h = fs.getNode("width"), fs.getNode("height")
+    if not (w.empty() or h.empty()):
+        return int(w.real()), int(h.real())
+    size = fs.getNode("image_size")
+    if not size.empty():
+        mat = size.mat()
+        vals = mat.ravel() if mat is not None else [size.at(i).real() for i in range(size.size())]
+        return int(vals[0]), int(vals[1])
+    raise CameraError(f"{path}: needs image_width and image_height (or image_size)")
+
+
+def write_opencv_calibration(camera: Camera, path: str | Path) -> None:
+    """Write ``camera`` as an OpenCV FileStorage calibration (YAML, XML or JSON by extension)."""
+    import cv2
+
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    fs.write("image_width", int(camera.width))
+    fs.write("image_height", int(camera.height))
+    fs.write("camera_matrix", camera.K)
+    fs.write("distortion_coefficients", camera.dist_coeffs.reshape(1, 5))
+    fs.release()
+
+
+# Each preset documents its source. Optics not given by a source are stated as assumptions.
+PRESETS: dict[str, dict[str, Any]] = {
+    "dalsa-cad1-128a": dict(
+        name="dalsa-cad1-128a",
+        fx=231.4119, fy=231.25, cx=64.2, cy=61.5, width=128, height=128,
+        dist=(-1.4487, -1.3175, 0.0006845, 0.0006845, 0.0),
+        focal_length_mm=3.5, f_number=5.6, focus_distance_mm=45.0,
+        source="Shademan 2005, Table A.2 (Bouguet calibration: fc, cc, kc(1..4)) and §6.2 "
+               "(DALSA CA-D1-0128A, 128x128 px at 16 µm, Rodenstock 3.5 mm lens). f/5.6 and a 45 mm "
+               "focus distance are assumptions: depth of field ≈ 28.6-106 mm covers the thesis's "
+               "28-60 mm working distances (§5.2).",
+    ),
+    "basler-aca1300-200um-8mm": dict(
+        name="basler-aca1300-200um-8mm",
+        fx=1666.67, fy=1666.67, cx=640.0, cy=512.0, width=1280, height=1024,
+        focal_length_mm=8.0, f_number=4.0, focus_distance_mm=300.0,
+        source="Basler ace acA1300-200um datasheet: 1280x1024 px, 4.8 µm pixels (e2v EV76C560); "
+               "with an 8 mm C-mount lens fx = 8 / 0.0048 px. Ideal principal point, no distortion.",
+    ),
+    "flir-bfs-u3-51s5m-12mm": dict(
+        name="flir-bfs-u3-51s5m-12mm",
+        fx=3472.22, fy=3472.22, cx=1224.0, cy=1024.0, width=2448, height=2048,
+        focal_length_mm=12.0, f_number=5.6, focus_distance_mm=500.0,
+        source="FLIR Blackfly S BFS-U3-51S5M datasheet: 2448x2048 px, 3.45 µm pixels (Sony IMX250); "
+               "with a 12 mm lens fx = 12 / 0.00345 px. Ideal principal point, no distortion.",
+    ),
+    "realsense-d435-rgb": dict(
+        name="realsense-d435-rgb",
+        fx=615.0, fy=615.0, cx=320.0, cy=240.0, width=640, height=480,
+        focal_length_mm=1.93, f_number=2.0, focus_distance_mm=300.0,
+        source="Intel RealSense D435 datasheet, colour stream at 640x480 (69°x42° FOV, 1.4 µm pixels "
+               "binned x2); typical factory intrinsics fx≈fy≈615 px. Fixed focus; f/2 assumed.",
+    ),
+}
+
+
+def camera_from_dict(data: dict[str, Any], origin: str = "camera") -> Camera:
+    """Build a camera from plain data: ``{"preset": name, ...overrides}`` or explicit fields.
+
+    ``origin`` names where the data came from (file and section) for error messages.
+    """
+    data = dict(data)
+    allowed = {f.name for f in dataclasses.fields(Camera)} | {"preset", "calibration"}
+    unknown = sorted(set(data) - allowed)
+    if unknown:
+        raise CameraError(f"{origin}: unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(allowed))}")
+    try:
+        if "preset" in data:
+            base = Camera.preset(data.pop("preset")).to_dict()
+        elif "calibration" in data:
+            base = read_opencv_calibration(data.pop("calibration"))
+        else:
+            base = {}
+        merged = {**base, **data}
+        if "f_number" in data and "aperture_mm" not in data:
+            merged["aperture_mm"] = None
+        if "aperture_mm" in data and "f_number" not in data:
+            merged["f_number"] = None
+        if "dist" in merged:
+            merged["dist"] = tuple(merged["dist"])
+        return Camera(**merged)
+    except TypeError as exc:
+        raise CameraError(f"{origin}: {exc}") from exc
+    except CameraError as exc:
+        raise CameraError(f"{origin}: {exc}") from exc
+
+
+def dumps(camera: Camera) -> str:
+    """JSON text of a camera (for results files)."""
+    return json.dumps(camera.to_dict(), indent=2)
