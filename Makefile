@@ -18,7 +18,8 @@ demo: $(STAMP)
 	$(PY) -m cadfeat.demo
 
 test: $(STAMP)
-	$(PY) -m ruff check cadfeat tests benchmarks parts
+	CADFEAT_CHROMIUM="$$(tools/ensure_chromium.sh)" && export CADFEAT_CHROMIUM && \
+	$(PY) -m ruff check cadfeat tests benchmarks parts && \
 	$(PY) -m pytest -q
 
 lint: $(STAMP)
