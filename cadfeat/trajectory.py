@@ -245,12 +245,21 @@ def _to_array(value: Any, shape: tuple[int | None, ...], what: str) -> np.ndarra
     return a
 
 
+def _to_one_or_more_vec3(value: Any) -> np.ndarray:
+    what = "[x, y, z] or a list of [x, y, z] triples"
+    try:
+        return _to_array(value, (3,), what)
+    except TypeError:
+        return _to_array(value, (None, 3), what)
+
+
 Float = Annotated[float, ArgType("number", _to_float)]
 Int = Annotated[int, ArgType("integer", _to_int)]
 Vec3 = Annotated[ArrayLike, ArgType("[x, y, z] (3 numbers)", lambda v: _to_array(v, (3,), "3 numbers [x, y, z]"))]
 Vec3List = Annotated[ArrayLike, ArgType("list of [x, y, z]",
                                         lambda v: _to_array(v, (None, 3), "a list of [x, y, z] triples"))]
 FloatList = Annotated[ArrayLike, ArgType("list of numbers", lambda v: _to_array(v, (None,), "a list of numbers"))]
+OneOrMoreVec3 = Annotated[ArrayLike, ArgType("[x, y, z] or list of [x, y, z]", _to_one_or_more_vec3)]
 PoseList = Annotated[ArrayLike, ArgType("list of 4x4 matrices",
                                         lambda v: _to_array(v, (None, 4, 4), "a list of 4x4 matrices"))]
 
@@ -282,6 +291,10 @@ def straight_approach(start: Vec3, end: Vec3, target: Vec3, n: Int = 50, duratio
     """Straight line from ``start`` to ``end`` (mm) at constant speed, looking at ``target``."""
     times = _check_common("straight_approach", n, duration_s)
     start, end, target = (np.asarray(a, dtype=float) for a in (start, end, target))
+    seg = end - start
+    closest = start + np.clip((target - start) @ seg / max(seg @ seg, 1e-300), 0.0, 1.0) * seg
+    _check("straight_approach", np.linalg.norm(target - closest) > 1e-9,
+           f"the line from start to end passes through the target {target.tolist()}")
     s = times / duration_s
     positions = start + s[:, None] * (end - start)
     velocity = np.broadcast_to((end - start) / duration_s, positions.shape)
@@ -349,7 +362,7 @@ def raster_scan(centre: Vec3, width_mm: Float, length_mm: Float, standoff_mm: Fl
     _check("raster_scan", standoff_mm > 0, f"standoff_mm must be > 0, got {standoff_mm}")
     centre = np.asarray(centre, dtype=float)
     ys = np.linspace(-length_mm / 2, length_mm / 2, lines) if lines > 1 else np.zeros(1)
-    xs = np.where(np.arange(lines) % 2 == 0, -1.0, 1.0)[:, None] * np.array([-width_mm / 2, width_mm / 2])
+    xs = np.where(np.arange(lines) % 2 == 0, 1.0, -1.0)[:, None] * np.array([-width_mm / 2, width_mm / 2])
     corners = np.stack([xs.ravel(), np.repeat(ys, 2), np.zeros(2 * lines)], 1) + centre + [0.0, 0.0, standoff_mm]
     seg = np.diff(corners, axis=0)
     seg = seg[np.linalg.norm(seg, axis=1) > 0]
@@ -366,7 +379,7 @@ def raster_scan(centre: Vec3, width_mm: Float, length_mm: Float, standoff_mm: Fl
 
 
 def waypoints(times_s: FloatList, n: Int = 50, poses: PoseList | None = None, positions: Vec3List | None = None,
-              targets: Vec3List | None = None, up: Vec3 = (0.0, 0.0, 1.0)) -> Trajectory:
+              targets: OneOrMoreVec3 | None = None, up: Vec3 = (0.0, 0.0, 1.0)) -> Trajectory:
     """Interpolate K key poses at ``times_s`` (K,): linear in position, scipy ``Slerp`` in rotation.
 
     Key poses are ``poses`` (K, 4, 4) ``T_task_cam``, or ``positions`` (K, 3) with ``targets`` (K, 3, or
