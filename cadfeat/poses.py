@@ -89,12 +89,12 @@ def look_at(eye: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) 
     Raises ``CadfeatError`` when eye and target coincide.
     """
     eye, target, up = (np.asarray(a, dtype=float) for a in (eye, target, up))
-    z, x, y = _look_at_axes(eye, target, up)
+    z, x, y, _ = _look_at_axes(eye, target, up)
     return make_T(np.stack([x, y, z], axis=-1), eye)
 
 
 def _look_at_axes(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Unit camera axes (z, x, y) in the task frame for ``look_at``."""
+    """Unit camera axes (z, x, y) in the task frame for ``look_at``, and the ``up`` actually used."""
     d = target - eye
     dist = np.linalg.norm(d, axis=-1, keepdims=True)
     if np.any(dist <= 0.0) or not np.all(np.isfinite(dist)):
@@ -103,7 +103,7 @@ def _look_at_axes(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> tuple[
     u = _effective_up(z, up)
     x = np.cross(z, u)
     x /= np.linalg.norm(x, axis=-1, keepdims=True)
-    return z, x, np.cross(z, x)
+    return z, x, np.cross(z, x), u
 
 
 def _effective_up(z: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -131,8 +131,7 @@ def look_at_screws(eye: ArrayLike, target: ArrayLike, eye_velocity: ArrayLike,
     eye, target, up = (np.asarray(a, dtype=float) for a in (eye, target, up))
     eye_dot = np.asarray(eye_velocity, dtype=float)
     d_dot = np.asarray(target_velocity, dtype=float) - eye_dot
-    z, x, y = _look_at_axes(eye, target, up)
-    u = _effective_up(z, up)
+    z, x, y, u = _look_at_axes(eye, target, up)
     dist = np.linalg.norm(target - eye, axis=-1, keepdims=True)
     z_dot = (d_dot - z * np.sum(z * d_dot, axis=-1, keepdims=True)) / dist
     wz = np.sum(y * np.cross(z_dot, u), axis=-1) / np.linalg.norm(np.cross(z, u), axis=-1)

@@ -94,7 +94,7 @@ def test_points_in_camera_frames_project_like_cv2_with_extrinsics():
 
 
 # ---------------------------------------------------------------------- exponential / logarithm
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(v=vec3, axis=unit, theta=angle)
 def test_exp_matches_expm_and_log_inverts_it(v, axis, theta):
     xi = np.concatenate([v, axis * theta])
@@ -105,7 +105,7 @@ def test_exp_matches_expm_and_log_inverts_it(v, axis, theta):
     np.testing.assert_allclose(back, xi, rtol=0, atol=1e-8 * (1 + np.linalg.norm(v)))
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(v=vec3, axis=unit, theta=angle)
 def test_log_then_exp_is_identity_on_transforms(v, axis, theta):
     T = make_T(Rotation.from_rotvec(axis * theta).as_matrix(), v)
@@ -147,7 +147,7 @@ def test_twist_between():
 
 
 # ---------------------------------------------------------------------- look-at
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(eye=vec3, offset=vec3, up=vec3)
 def test_look_at_aims_at_target_with_up_upwards(eye, offset, up):
     if np.linalg.norm(offset) < 1.0 or np.linalg.norm(up) < 1e-3:
