@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,15 @@ MIN_DEPTH_MM = 1e-6
 
 class CameraError(CadfeatError):
     """A camera definition or calibration file is invalid."""
+
+
+_POSITIVE_FIELDS = ("fx", "fy", "focal_length_mm", "focus_distance_mm")
+_OPTIONAL_POSITIVE_FIELDS = ("f_number", "aperture_mm", "blur_circle_mm")
+
+
+def _is_real(value: Any) -> bool:
+    """A real number (int, float, numpy scalar) and not a bool."""
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool | np.bool_)
 
 
 @dataclass(frozen=True)
@@ -54,16 +64,45 @@ class Camera:
     source: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
-        dist = tuple(float(d) for d in self.dist)
-        if len(dist) == 4:
-            dist = (*dist, 0.0)
-        if len(dist) != 5:
-            raise CameraError(f"camera '{self.name}': dist must have 4 or 5 values (k1, k2, p1, p2[, k3])")
-        object.__setattr__(self, "dist", dist)
-        for key in ("fx", "fy", "width", "height", "focal_length_mm", "focus_distance_mm"):
+        self._check_numbers()
+        dist = self.dist
+        if isinstance(dist, str) or not hasattr(dist, "__len__") or len(dist) not in (4, 5) or \
+                not all(_is_real(d) and math.isfinite(d) for d in dist):
+            raise CameraError(f"camera '{self.name}': dist must be 4 or 5 finite numbers (k1, k2, p1, p2[, k3]), "
+                              f"got {dist!r}")
+        dist = tuple(float(d) for d in dist)
+        object.__setattr__(self, "dist", dist if len(dist) == 5 else (*dist, 0.0))
+        if not (0.0 <= self.cx <= self.width and 0.0 <= self.cy <= self.height):
+            raise CameraError(f"camera '{self.name}': principal point (cx, cy) = ({self.cx}, {self.cy}) must lie "
+                              f"inside the {self.width}x{self.height} image")
+        self._resolve_aperture()
+        if self.blur_circle_mm is None:
+            object.__setattr__(self, "blur_circle_mm", 2.0 * self.pixel_pitch_mm)
+        if self.focus_distance_mm <= self.focal_length_mm:
+            raise CameraError(
+                f"camera '{self.name}': focus_distance_mm ({self.focus_distance_mm}) must exceed "
+                f"focal_length_mm ({self.focal_length_mm})"
+            )
+
+    def _check_numbers(self) -> None:
+        """Every numeric field is a finite real number (positive where it must be); sizes are integers."""
+        for key in _POSITIVE_FIELDS + _OPTIONAL_POSITIVE_FIELDS + ("cx", "cy"):
             value = getattr(self, key)
-            if not np.isfinite(value) or value <= 0:
+            if value is None and key in _OPTIONAL_POSITIVE_FIELDS:
+                continue
+            if not _is_real(value) or not math.isfinite(value):
+                raise CameraError(f"camera '{self.name}': {key} must be a finite number, got {value!r}")
+            if key not in ("cx", "cy") and value <= 0:
                 raise CameraError(f"camera '{self.name}': {key} must be a positive number, got {value!r}")
+            object.__setattr__(self, key, float(value))
+        for key in ("width", "height"):
+            value = getattr(self, key)
+            if not _is_real(value) or not float(value).is_integer() or value < 1:
+                raise CameraError(f"camera '{self.name}': {key} must be a positive integer (pixels), got {value!r}")
+            object.__setattr__(self, key, int(value))
+
+    def _resolve_aperture(self) -> None:
+        """Fill ``f_number`` / ``aperture_mm`` from each other (a_C = f_C / N, eq. 3.4); default f/4."""
         if self.f_number is None and self.aperture_mm is None:
             object.__setattr__(self, "f_number", 4.0)
         if self.f_number is not None and self.aperture_mm is not None:
@@ -77,15 +116,6 @@ class Camera:
             object.__setattr__(self, "aperture_mm", self.focal_length_mm / float(self.f_number))
         if self.f_number is None:
             object.__setattr__(self, "f_number", self.focal_length_mm / float(self.aperture_mm))
-        if self.aperture_mm <= 0:
-            raise CameraError(f"camera '{self.name}': aperture_mm must be positive, got {self.aperture_mm}")
-        if self.blur_circle_mm is None:
-            object.__setattr__(self, "blur_circle_mm", 2.0 * self.pixel_pitch_mm)
-        if self.focus_distance_mm <= self.focal_length_mm:
-            raise CameraError(
-                f"camera '{self.name}': focus_distance_mm ({self.focus_distance_mm}) must exceed "
-                f"focal_length_mm ({self.focal_length_mm})"
-            )
 
     # ------------------------------------------------------------------ intrinsics
     @property
@@ -238,7 +268,12 @@ _DIST_KEYS = ("distortion_coefficients", "D", "dist_coeffs", "distCoeffs", "dist
 
 
 def read_opencv_calibration(path: str | Path) -> dict[str, Any]:
-    """Parse a ``cv2.FileStorage`` calibration file into ``Camera`` keyword arguments."""
+    """Parse a calibration file into ``Camera`` keyword arguments.
+
+    Reads what ``cv2.FileStorage`` reads (YAML, XML, JSON): matrices stored by OpenCV
+    (``!!opencv-matrix``), ROS ``camera_calibration`` files (``{rows, cols, data}`` maps) or plain
+    (nested) lists. Raises ``CameraError`` naming the file and the expected keys.
+    """
     import cv2
 
     path = Path(path)
@@ -246,15 +281,17 @@ def read_opencv_calibration(path: str | Path) -> dict[str, Any]:
         raise CameraError(f"{path}: calibration file not found")
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-    except cv2.error as exc:
+    except (cv2.error, SystemError) as exc:  # the parser's error surfaces as SystemError in some builds
         raise CameraError(f"{path}: not a readable OpenCV FileStorage file ({exc})") from exc
     if not fs.isOpened():
         raise CameraError(f"{path}: not a readable OpenCV FileStorage file")
     try:
-        K = _first_matrix(fs, _MATRIX_KEYS)
+        K = _first_matrix(fs, _MATRIX_KEYS, path)
+        if K is not None and K.size == 9:
+            K = K.reshape(3, 3)
         if K is None or K.shape != (3, 3):
             raise CameraError(f"{path}: needs a 3x3 camera matrix under one of {', '.join(_MATRIX_KEYS)}")
-        dist = _first_matrix(fs, _DIST_KEYS)
+        dist = _first_matrix(fs, _DIST_KEYS, path)
         dist = np.zeros(5) if dist is None else dist.ravel()
         if dist.size not in (4, 5):
             raise CameraError(f"{path}: distortion must have 4 or 5 values (k1, k2, p1, p2[, k3]); "
@@ -267,16 +304,39 @@ def read_opencv_calibration(path: str | Path) -> dict[str, Any]:
                 source=str(path))
 
 
-def _first_matrix(fs: Any, keys: tuple[str, ...]) -> np.ndarray | None:
+def _first_matrix(fs: Any, keys: tuple[str, ...], path: Path) -> np.ndarray | None:
+    import cv2
+
     for key in keys:
         node = fs.getNode(key)
         if node.empty():
             continue
-        mat = node.mat()
-        if mat is None and node.isSeq():
-            mat = np.array([node.at(i).real() for i in range(node.size())])
-        if mat is not None:
-            return np.asarray(mat, dtype=float)
+        try:
+            mat = _node_array(node)
+        except (ValueError, cv2.error) as exc:  # ragged lists, rows x cols not matching data, odd nodes
+            raise CameraError(f"{path}: {key}: not a numeric matrix ({exc})") from exc
+        if mat is None:
+            raise CameraError(f"{path}: {key}: not a numeric matrix")
+        return mat
+    return None
+
+
+def _node_array(node: Any) -> np.ndarray | None:
+    """Numbers of a FileStorage node: an OpenCV matrix, a ``{rows, cols, data}`` map or a (nested) list."""
+    if node.isMap():
+        if not node.getNode("dt").empty():
+            return np.asarray(node.mat(), dtype=float)
+        data = node.getNode("data")
+        values = None if data.empty() else _node_array(data)
+        rows, cols = node.getNode("rows"), node.getNode("cols")
+        if values is not None and not rows.empty() and not cols.empty():
+            values = values.reshape(int(rows.real()), int(cols.real()))
+        return values
+    if node.isSeq():
+        items = [_node_array(node.at(i)) for i in range(node.size())]
+        return None if any(item is None for item in items) else np.array(items, dtype=float)
+    if node.isInt() or node.isReal():
+        return np.array(node.real())
     return None
 
 
@@ -288,10 +348,10 @@ def _image_size(fs: Any, path: Path) -> tuple[int, int]:
         return int(w.real()), int(h.real())
     size = fs.getNode("image_size")
     if not size.empty():
-        mat = size.mat()
-        vals = mat.ravel() if mat is not None else [size.at(i).real() for i in range(size.size())]
-        return int(vals[0]), int(vals[1])
-    raise CameraError(f"{path}: needs image_width and image_height (or image_size)")
+        vals = _first_matrix(fs, ("image_size",), path)
+        if vals is not None and vals.size == 2:
+            return int(vals.ravel()[0]), int(vals.ravel()[1])
+    raise CameraError(f"{path}: needs image_width and image_height (or image_size = [width, height])")
 
 
 def write_opencv_calibration(camera: Camera, path: str | Path) -> None:

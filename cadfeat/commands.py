@@ -22,3 +22,26 @@ def cameras(args: argparse.Namespace) -> int:
               f"f={cam.focal_length_mm:g} mm f/{cam.f_number:g}, focus {cam.focus_distance_mm:g} mm")
         print(f"    {cam.source}")
     return 0
+
+
+@command("trajectories", _no_args)
+def trajectories(args: argparse.Namespace) -> int:
+    """List the library trajectory kinds with their arguments (for [trajectory] in study files)."""
+    from cadfeat.trajectory import TRAJECTORY_KINDS, kind_arguments
+
+    for kind, func in TRAJECTORY_KINDS.items():
+        summary = " ".join((func.__doc__ or "").strip().split("\n\n")[0].split())
+        print(f"{kind}: {summary}")
+        for a in kind_arguments(kind):
+            default = "required" if a.required else "optional" if a.default is None else \
+                f"default {_plain(a.default)}"
+            print(f"    {a.name:<20} {a.arg_type.description:<34} {default}")
+    print('Or a CSV file of poses: csv = "path.csv" (see cadfeat.trajectory for the columns).')
+    return 0
+
+
+def _plain(value: object) -> str:
+    """A default value as it would be written in a TOML study file."""
+    if isinstance(value, tuple):
+        return "[" + ", ".join(f"{v:g}" for v in value) + "]"
+    return f"{value:g}" if isinstance(value, float) else str(value)
