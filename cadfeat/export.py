@@ -97,6 +97,22 @@ def _interface_static(values: dict[str, str]) -> Iterator[None]:
                 Interface_Static.SetCVal_s(name, value)
 
 
+@contextlib.contextmanager
+def _interface_static_int(values: dict[str, int]) -> Iterator[None]:
+    """Like ``_interface_static`` for integer parameters."""
+    from OCP.Interface import Interface_Static
+
+    old = {name: Interface_Static.IVal_s(name) for name in values}
+    try:
+        for name, value in values.items():
+            if not Interface_Static.SetIVal_s(name, value):
+                raise ExportError(f"OCCT refused {name} = {value!r}")
+        yield
+    finally:
+        for name, value in old.items():
+            Interface_Static.SetIVal_s(name, value)
+
+
 def shape_volume_mm3(shape: Any) -> float:
     """Volume of a solid (or of all solids of a compound) in mm³, from OCCT mass properties."""
     from OCP.BRepGProp import BRepGProp
@@ -155,12 +171,13 @@ def step_length_unit(path: str | os.PathLike[str]) -> str:
     return units.pop()
 
 
-def export_step(shape: Any, path: str | os.PathLike[str]) -> Path:
+def export_step(shape: Any, path: str | os.PathLike[str], write_pcurves: bool = True) -> Path:
     """Write ``shape`` (geometry in mm) to a STEP AP214 file in MILLIMETRES and check the written unit.
 
     The unit is set explicitly (OCCT ``Interface_Static``: ``xstep.cascade.unit`` = ``write.step.unit`` =
     ``"MM"``, ``write.step.schema`` = ``"AP214IS"``) — not left to the process-wide default — and the
-    written file's ``SI_UNIT`` line is read back (``step_length_unit``). Returns the path.
+    written file's ``SI_UNIT`` line is read back (``step_length_unit``). ``write_pcurves=False`` leaves out
+    the faces' 2-D parameter curves (a smaller file; readers rebuild them). Returns the path.
     Raises ``ExportError`` if OCCT cannot translate or write the shape, or the file is not in mm.
     """
     from OCP.IFSelect import IFSelect_RetDone
@@ -170,7 +187,7 @@ def export_step(shape: Any, path: str | os.PathLike[str]) -> Path:
     occ = _occ_shape(shape)
     writer = STEPControl_Writer()  # creating the writer initialises the STEP parameters
     settings = {"write.step.schema": STEP_SCHEMA, "xstep.cascade.unit": "MM", "write.step.unit": "MM"}
-    with _interface_static(settings):
+    with _interface_static(settings), _interface_static_int({"write.surfacecurve.mode": int(write_pcurves)}):
         writer.Model(True)  # a fresh model picks up the schema and unit
         if writer.Transfer(occ, STEPControl_AsIs) != IFSelect_RetDone:
             raise ExportError(f"{path}: OCCT could not translate the shape to STEP")
@@ -239,9 +256,12 @@ def check_solid(shape: Any) -> list[str]:
             result = analyzer.Result(subs.FindKey(i))
             if result is None:
                 continue
-            for status in result.Status():
-                if status != BRepCheck_NoError:
-                    problems.append(f"{label} {i}: {status.name}")
+            statuses = list(result.Status())
+            result.InitContextIterator()  # statuses found in the context of an ancestor (e.g. shell in solid)
+            while result.MoreShapeInContext():
+                statuses += list(result.StatusOnShape())
+                result.NextShapeInContext()
+            problems += sorted({f"{label} {i}: {s.name}" for s in statuses if s != BRepCheck_NoError})
     if not analyzer.IsValid() and not problems:
         problems.append("BRepCheck_Analyzer: shape is not valid")
     if n_solids == 0:
@@ -384,8 +404,6 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
     bore-radius differences, depth difference and the axis tilt times the hole depth (how far the tilt
     moves the far end) all ≤ ``tol_mm``; ``kind`` and ``through`` equal.
     """
-    from cadfeat.features import extract_holes, holes_to_arrays, match_holes
-
     step_path = Path(step_path)
     unit = step_length_unit(step_path)
     if unit != "MM":
@@ -400,6 +418,8 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
         if rel > volume_rtol:
             raise ExportError(f"{step_path}: volume {volume:.9f} mm^3 differs from the design's "
                               f"{expected_volume_mm3:.9f} mm^3 (relative {rel:.2e} > {volume_rtol:.0e})")
+    from cadfeat.features import extract_holes, holes_to_arrays, match_holes
+
     expected = list(expected_holes)
     found = extract_holes(shape)
     if len(found) != len(expected):
