@@ -22,8 +22,8 @@ import contextlib
 import hashlib
 import os
 import re
+import secrets
 import shutil
-import tempfile
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -491,7 +491,8 @@ def staged_output(final_dir: str | os.PathLike[str]) -> Iterator[Path]:
     if final_dir.exists() and not final_dir.is_dir():
         raise CadfeatError(f"{final_dir}: output path exists and is not a folder")
     final_dir.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{final_dir.name}.staging-", dir=final_dir.parent))
+    stage = _sibling(final_dir, "staging")
+    stage.mkdir()  # (not mkdtemp: the published folder gets the usual permissions)
     try:
         yield stage
     except BaseException:
@@ -500,17 +501,25 @@ def staged_output(final_dir: str | os.PathLike[str]) -> Iterator[Path]:
     _publish(stage, final_dir)
 
 
+def _sibling(final_dir: Path, role: str) -> Path:
+    """An unused hidden path beside ``final_dir``: ``.<name>.<role>-<pid>-<random>``."""
+    while True:
+        path = final_dir.parent / f".{final_dir.name}.{role}-{os.getpid()}-{secrets.token_hex(4)}"
+        if not path.exists():
+            return path
+
+
 def _publish(stage: Path, final_dir: Path) -> None:
     """Rename ``stage`` to ``final_dir``, replacing an existing folder; roll back if the swap fails."""
     old = None
     try:
         if final_dir.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{final_dir.name}.old-", dir=final_dir.parent))
-            os.replace(final_dir, old)  # onto an empty folder: allowed by rename(2)
-        os.replace(stage, final_dir)
+            old = _sibling(final_dir, "old")
+            os.rename(final_dir, old)
+        os.rename(stage, final_dir)
     except BaseException:
         if old is not None and not final_dir.exists():
-            os.replace(old, final_dir)
+            os.rename(old, final_dir)
             old = None
         shutil.rmtree(stage, ignore_errors=True)
         raise

@@ -9,7 +9,9 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import math
+import os
 import re
+import stat
 import struct
 from pathlib import Path
 
@@ -223,6 +225,9 @@ def test_staged_output_publishes_on_success(plate, tmp_path):
     assert sorted(_snapshot(final)) == ["part.step", "sub/notes.txt"]  # the old folder was replaced
     assert step_length_unit(final / "part.step") == "MM"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging or backup folder left
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert stat.S_IMODE(final.stat().st_mode) == 0o777 & ~umask  # like a folder made by mkdir
 
 
 @pytest.mark.parametrize("error", [RuntimeError("boom"), KeyboardInterrupt()])
