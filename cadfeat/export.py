@@ -427,7 +427,7 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
     if not expected:
         return RoundTrip(step_path, sha256_file(step_path), unit, 0, 0.0, 0.0, 0.0, 0.0, volume, rel)
     try:
-        perm = np.asarray(match_holes(expected, found, tol_mm=max(tol_mm, 1e-9)))
+        perm = np.asarray(match_holes(expected, found))  # pair by geometry (0.5 mm), then measure
     except CadfeatError as exc:
         raise ExportError(f"{step_path}: re-extracted holes do not match the design: {exc}") from exc
     matched = [found[i] for i in perm]

@@ -415,7 +415,8 @@ def redrill(shape: Any, moves: Sequence[HoleMove]) -> cq.Solid:
 
     Validates before any CAD work that each new centre lies on its hole's host face plane (≤ 1e-6 mm).
     Afterwards checks that the cut removed exactly the new holes' volume (they lie inside the material
-    and do not overlap), that through holes still come out at the same depth, and that the solid is valid.
+    and do not overlap), that through holes still come out at the same depth (the part is as thick at
+    the new centre), and that the solid is valid.
     Raises ``CadfeatError`` naming the hole otherwise.
     """
     from cadfeat.export import check_solid, shape_volume_mm3
@@ -428,9 +429,6 @@ def redrill(shape: Any, moves: Sequence[HoleMove]) -> cq.Solid:
     profiles = [hole_profile(shape, m.hole).scaled(m.radius_mm / m.hole.radius_mm) for m in moves]
     filled = fill_holes(shape, [m.hole for m in moves])
     tools = [_revolved(p, m.centre, np.asarray(m.hole.axis, float)) for p, m in zip(profiles, moves, strict=True)]
-    for profile, move in zip(profiles, moves, strict=True):
-        if move.hole.through:
-            _check_through(filled, move, profile.depth_mm)
     result = _single_solid(_unify(filled.cut(*tools)), "re-drilling the holes")
     removed = shape_volume_mm3(filled) - shape_volume_mm3(result)
     expected = sum(p.volume_mm3 for p in profiles)
@@ -438,6 +436,9 @@ def redrill(shape: Any, moves: Sequence[HoleMove]) -> cq.Solid:
         raise CadfeatError(f"re-drilling {', '.join(_label(m.hole) for m in moves)} removed {removed:.9g} mm^3 "
                            f"instead of {expected:.9g} mm^3: a new hole breaks out of the part or overlaps "
                            "another hole")
+    for profile, move in zip(profiles, moves, strict=True):
+        if move.hole.through:
+            _check_through(filled, move, profile.depth_mm)
     if problems := check_solid(result):
         raise CadfeatError(f"re-drilling gave an invalid solid: {'; '.join(problems[:5])}")
     return result

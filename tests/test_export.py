@@ -126,12 +126,15 @@ def test_verify_roundtrip_names_the_mismatch(plate, plate_step):
     designed = extract_holes(plate)
     moved = [dataclasses.replace(designed[0], centre=designed[0].centre + [1e-3, 0, 0], name="H7"),
              *designed[1:]]
-    with pytest.raises(ExportError, match=r"H7.*centre|H7|no candidate|match"):
+    with pytest.raises(ExportError, match=r"plate.step: hole H7 at .*: centre error 1.000e-03 mm > 1e-06"):
         verify_step_roundtrip(plate_step, moved)
     wider = [dataclasses.replace(designed[1], radius_mm=designed[1].radius_mm + 1e-4, name="H2"),
              designed[0], *designed[2:]]
-    with pytest.raises(ExportError, match="H2"):
+    with pytest.raises(ExportError, match=r"hole H2 at .*: radius error 1.000e-04 mm"):
         verify_step_roundtrip(plate_step, wider)
+    far = [dataclasses.replace(designed[0], centre=designed[0].centre + [0, 0, 5.0], name="H3"), *designed[1:]]
+    with pytest.raises(ExportError, match="do not match the design.*H3"):
+        verify_step_roundtrip(plate_step, far)
     with pytest.raises(ExportError, match="volume"):
         verify_step_roundtrip(plate_step, designed, expected_volume_mm3=analytic_plate_volume() * (1 + 1e-7))
     with pytest.raises(ExportError, match="4 designed"):

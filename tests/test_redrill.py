@@ -206,10 +206,24 @@ def test_redrill_rejects_bad_moves(part, by_name):
         redrill(part.shape, [HoleMove(a, np.array([-30.0, -20.0, T + 1e-4]), 4.0)])
     with pytest.raises(CadfeatError, match="radius_mm must be > 0"):
         HoleMove(a, np.array([-30.0, -20.0, T]), 0.0)
-    with pytest.raises(CadfeatError, match="breaks out of the part or overlaps"):  # onto hole B
-        redrill(part.shape, [HoleMove(a, np.array([-25.0, 12.0, T]), 4.0)])
+    with pytest.raises(CadfeatError, match="breaks out of the part or overlaps"):  # into hole B
+        redrill(part.shape, [HoleMove(a, np.array([-25.0, 10.0, T]), 4.0)])
     with pytest.raises(CadfeatError, match="breaks out of the part or overlaps"):  # over the plate's edge
         redrill(part.shape, [HoleMove(a, np.array([-38.0, -20.0, T]), 4.0)])
+
+
+def test_redrill_refuses_a_through_hole_that_would_not_come_out():
+    import cadquery as cq
+
+    from cadfeat.features import extract_holes
+
+    plate = cq.Workplane().box(80, 60, 10, centered=(True, True, False)).faces(">Z").workplane().hole(6)
+    stepped = plate.union(cq.Workplane().box(20, 60, 5, centered=(False, True, False)).translate((20, 0, -5))).val()
+    (hole,) = extract_holes(stepped)
+    assert hole.through and hole.depth_mm == pytest.approx(10.0, abs=1e-9)
+    assert check_solid(redrill(stepped, [HoleMove(hole, np.array([10.0, 0.0, 10.0]), 3.0)])) == []
+    with pytest.raises(CadfeatError, match="not 10 mm thick at the new centre"):  # over the 15 mm step
+        redrill(stepped, [HoleMove(hole, np.array([30.0, 0.0, 10.0]), 3.0)])
 
 
 def test_input_step_is_never_modified(tmp_path):
