@@ -212,6 +212,48 @@ def test_redrill_rejects_bad_moves(part, by_name):
         redrill(part.shape, [HoleMove(a, np.array([-38.0, -20.0, T]), 4.0)])
 
 
+def test_redrill_on_a_tilted_face_equals_the_direct_build():
+    """A blind hole drilled normal to a 45° chamfer face, moved along that face and made smaller."""
+    import cadquery as cq
+
+    from cadfeat.features import extract_holes
+
+    def on_chamfer():
+        block = cq.Workplane().box(40, 40, 20, centered=(True, True, False)).faces(">Z").edges(">X").chamfer(12)
+        face = block.faces(cq.selectors.DirectionMinMaxSelector(cq.Vector(1, 0, 1)))
+        return face.workplane(centerOption="CenterOfBoundBox")
+
+    original = on_chamfer().hole(4.0, 5.0).val()
+    (hole,) = extract_holes(original)
+    new_centre = np.array(on_chamfer().plane.toWorldCoords((3.0, -4.0)).toTuple())
+    moved = redrill(original, [HoleMove(hole, new_centre, 1.5)])
+    assert check_solid(moved) == []
+    _same_solid(moved, on_chamfer().pushPoints([(3.0, -4.0)]).hole(3.0, 5.0).val())
+
+
+def test_redrill_keeps_the_drill_point_angle():
+    """A blind hole with a 118° drill point: the bore is rescaled, the cylinder depth and tip angle kept."""
+    import cadquery as cq
+
+    from cadfeat.features import extract_holes
+
+    half_tip = math.radians(59.0)
+
+    def drilled(x: float, y: float, r: float):
+        section = [(0, 10), (r, 10), (r, 4), (0, 4 - r / math.tan(half_tip))]  # (radius, z) in the XZ plane
+        tool = cq.Workplane("XZ").polyline(section).close().revolve(360, (0, 0, 0), (0, 1, 0)).translate((x, y, 0))
+        return cq.Workplane().box(40, 40, 10, centered=(True, True, False)).cut(tool).val()
+
+    original = drilled(0.0, 0.0, 3.0)
+    (hole,) = extract_holes(original)
+    profile = hole_profile(original, hole)
+    assert profile.conical.tolist() == [False, True]
+    np.testing.assert_allclose(profile.segments, [[0, 6, 3, 3], [6, 6 + 3 / math.tan(half_tip), 3, 0]], atol=1e-9)
+    moved = redrill(original, [HoleMove(hole, np.array([8.0, 5.0, 10.0]), 2.0)])
+    assert check_solid(moved) == []
+    _same_solid(moved, drilled(8.0, 5.0, 2.0))
+
+
 def test_redrill_refuses_a_through_hole_that_would_not_come_out():
     import cadquery as cq
 
