@@ -236,7 +236,7 @@ def check_solid(shape: Any) -> list[str]:
     (e.g. ``"face 3: BRepCheck_SelfIntersectingWire"``); also reports a shape without any solid and a
     non-positive volume (an inside-out solid).
     """
-    from OCP.BRepCheck import BRepCheck_Analyzer, BRepCheck_NoError
+    from OCP.BRepCheck import BRepCheck_Analyzer
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL, TopAbs_SOLID, TopAbs_VERTEX, TopAbs_WIRE
     from OCP.TopExp import TopExp
     from OCP.TopTools import TopTools_IndexedMapOfShape
@@ -244,30 +244,40 @@ def check_solid(shape: Any) -> list[str]:
     occ = _occ_shape(shape)
     problems: list[str] = []
     analyzer = BRepCheck_Analyzer(occ)
-    kinds = (("vertex", TopAbs_VERTEX), ("edge", TopAbs_EDGE), ("wire", TopAbs_WIRE), ("face", TopAbs_FACE),
-             ("shell", TopAbs_SHELL), ("solid", TopAbs_SOLID))
-    n_solids = 0
-    for label, kind in kinds:
-        subs = TopTools_IndexedMapOfShape()
-        TopExp.MapShapes_s(occ, kind, subs)
-        if kind == TopAbs_SOLID:
-            n_solids = subs.Extent()
-        for i in range(1, subs.Extent() + 1):
-            result = analyzer.Result(subs.FindKey(i))
-            if result is None:
-                continue
-            statuses = list(result.Status())
-            result.InitContextIterator()  # statuses found in the context of an ancestor (e.g. shell in solid)
-            while result.MoreShapeInContext():
-                statuses += list(result.StatusOnShape())
-                result.NextShapeInContext()
-            problems += sorted({f"{label} {i}: {s.name}" for s in statuses if s != BRepCheck_NoError})
-    if not analyzer.IsValid() and not problems:
-        problems.append("BRepCheck_Analyzer: shape is not valid")
-    if n_solids == 0:
+    if not analyzer.IsValid():  # name the problems (the per-sub-shape walk is slow: only when needed)
+        for label, kind in (("vertex", TopAbs_VERTEX), ("edge", TopAbs_EDGE), ("wire", TopAbs_WIRE),
+                            ("face", TopAbs_FACE), ("shell", TopAbs_SHELL), ("solid", TopAbs_SOLID)):
+            problems += _statuses(analyzer, occ, label, kind)
+        problems = problems or ["BRepCheck_Analyzer: shape is not valid"]
+    solids = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(occ, TopAbs_SOLID, solids)
+    if solids.Extent() == 0:
         problems.append("no solid in the shape")
     elif (volume := shape_volume_mm3(occ)) <= 0.0:
         problems.append(f"non-positive volume {volume:.6g} mm^3 (inside-out solid)")
+    return problems
+
+
+def _statuses(analyzer: Any, occ: Any, label: str, kind: Any) -> list[str]:
+    """Non-``NoError`` BRepCheck statuses of the sub-shapes of one kind, also those found in the context
+    of an ancestor (e.g. a shell that is not closed in its solid)."""
+    from OCP.BRepCheck import BRepCheck_NoError
+    from OCP.TopExp import TopExp
+    from OCP.TopTools import TopTools_IndexedMapOfShape
+
+    subs = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(occ, kind, subs)
+    problems = []
+    for i in range(1, subs.Extent() + 1):
+        result = analyzer.Result(subs.FindKey(i))
+        if result is None:
+            continue
+        statuses = list(result.Status())
+        result.InitContextIterator()
+        while result.MoreShapeInContext():
+            statuses += list(result.StatusOnShape())
+            result.NextShapeInContext()
+        problems += sorted({f"{label} {i}: {s.name}" for s in statuses if s != BRepCheck_NoError})
     return problems
 
 

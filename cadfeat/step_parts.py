@@ -392,9 +392,13 @@ def fill_holes(shape: Any, holes: Sequence[Hole]) -> cq.Solid:
 
     Checks that the volume grew by exactly the filled profiles' volume (rel ``VOLUME_RTOL``).
     """
+    return _fill(shape, holes, [hole_profile(shape, h) for h in holes])
+
+
+def _fill(shape: Any, holes: Sequence[Hole], profiles: Sequence[HoleProfile]) -> cq.Solid:
+    """``fill_holes`` with the holes' profiles already read."""
     from cadfeat.export import shape_volume_mm3
 
-    profiles = [hole_profile(shape, h) for h in holes]
     if not holes:
         return _single_solid(shape, "the part")
     plugs = [_revolved(p, np.asarray(h.centre, float), np.asarray(h.axis, float)) for p, h in zip(profiles, holes,
@@ -426,8 +430,9 @@ def redrill(shape: Any, moves: Sequence[HoleMove]) -> cq.Solid:
         return _single_solid(shape, "the part")
     for move in moves:
         _check_on_host_plane(move)
-    profiles = [hole_profile(shape, m.hole).scaled(m.radius_mm / m.hole.radius_mm) for m in moves]
-    filled = fill_holes(shape, [m.hole for m in moves])
+    old_profiles = [hole_profile(shape, m.hole) for m in moves]
+    profiles = [p.scaled(m.radius_mm / m.hole.radius_mm) for p, m in zip(old_profiles, moves, strict=True)]
+    filled = _fill(shape, [m.hole for m in moves], old_profiles)
     tools = [_revolved(p, m.centre, np.asarray(m.hole.axis, float)) for p, m in zip(profiles, moves, strict=True)]
     result = _single_solid(_unify(filled.cut(*tools)), "re-drilling the holes")
     removed = shape_volume_mm3(filled) - shape_volume_mm3(result)
