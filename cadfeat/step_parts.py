@@ -71,7 +71,7 @@ class StepPart:
             except ValueError:
                 raise CadfeatError(f"{self.path}: hole position {spec!r} is not 'x,y,z' in mm; "
                                    f"available holes: {self.describe_holes()}") from None
-        if isinstance(spec, int | np.integer) or isinstance(spec, str):
+        if isinstance(spec, int | np.integer | str):
             return self._by_name(spec)
         return self._by_position(np.asarray(spec, dtype=float), tol_mm)
 
