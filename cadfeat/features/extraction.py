@@ -1,0 +1,518 @@
+"""Hole extraction from an OCCT B-rep (imported lazily by ``cadfeat.features.extract_holes``).
+
+Algorithm (DESIGN.md "Known pitfalls"):
+
+1. Classify every face: cylinders and cones are *concave* when the material lies outside them, i.e.
+   the orientation-aware face normal (``BRepGProp_Face``, pointing out of the material) points towards
+   the axis. Convex cylinders (bosses, pins, outer fillets) are dropped.
+2. Union concave cylinders/cones that share an edge and are coaxial (OCCT may split one cylinder into
+   several faces, with axes pointing either way). Planar faces perpendicular to that axis whose every
+   edge is shared with such faces (counterbore steps, flat bottoms) join the group.
+3. A group is a hole if its cylinders of one radius close over 360° (the union of their angular
+   spans), so partial cylinders (fillets, slot ends) are not holes.
+4. The group's boundary edges (shared with faces outside the group) form loops; loops that go round
+   the axis are the hole's ends. An end is *open* when the point on the axis just beyond it is outside
+   the solid (``BRepClass3d_SolidClassifier``). One open end: blind; two: through (the entrance is
+   chosen as documented in ``extract_holes``). The axis is oriented from the hole out of the material.
+5. The host face of an end is the outside face sharing most of its loop length; the centre is where
+   the axis meets the host surface; the outline of planar host faces is sampled from the B-rep.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from OCP.BRep import BRep_Tool
+from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Surface
+from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
+from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+from OCP.BRepGProp import BRepGProp, BRepGProp_Face
+from OCP.BRepTools import BRepTools, BRepTools_WireExplorer
+from OCP.GCPnts import GCPnts_QuasiUniformDeflection
+from OCP.Geom import Geom_Line
+from OCP.GeomAbs import GeomAbs_Cone, GeomAbs_Cylinder, GeomAbs_Line, GeomAbs_Plane
+from OCP.GeomAPI import GeomAPI_IntCS
+from OCP.gp import gp_Dir, gp_Lin, gp_Pnt, gp_Vec
+from OCP.GProp import GProp_GProps
+from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_OUT, TopAbs_REVERSED, TopAbs_VERTEX, TopAbs_WIRE
+from OCP.TopExp import TopExp
+from OCP.TopoDS import TopoDS
+from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape, TopTools_IndexedMapOfShape
+
+from cadfeat.features import OUTLINE_CHORD_ERROR_MM, FaceOutline, Hole
+
+ANGLE_TOL_RAD = 1e-7  # parallel axes / normals
+LINEAR_TOL_MM = 1e-6  # coaxial lines, equal radii
+CLASSIFY_STEP_MM = 1e-4  # step beyond an end along the axis for the inside/outside test
+SAMPLE_DEFLECTION_MM = OUTLINE_CHORD_ERROR_MM / 2
+MIN_CURVE_POINTS = 17  # per curved edge, so that a loop's angular gaps stay small
+ENCIRCLING_MAX_GAP_RAD = np.pi / 4
+AREA_RTOL = 1e-6
+
+
+def _xyz(p: gp_Pnt | gp_Vec | gp_Dir) -> np.ndarray:
+    return np.array([p.X(), p.Y(), p.Z()])
+
+
+class _UnionFind:
+    def __init__(self) -> None:
+        self.parent: dict[int, int] = {}
+
+    def find(self, a: int) -> int:
+        self.parent.setdefault(a, a)
+        while self.parent[a] != a:
+            self.parent[a] = self.parent[self.parent[a]]
+            a = self.parent[a]
+        return a
+
+    def union(self, a: int, b: int) -> None:
+        ra, rb = self.find(a), self.find(b)
+        if ra != rb:
+            self.parent[max(ra, rb)] = min(ra, rb)
+
+    def groups(self) -> list[list[int]]:
+        out: dict[int, list[int]] = {}
+        for a in sorted(self.parent):
+            out.setdefault(self.find(a), []).append(a)
+        return list(out.values())
+
+
+@dataclass
+class _Topology:
+    """Indexed faces/edges/vertices of a shape (0-based, in ``cadquery.Shape.Faces()`` order) and adjacency."""
+
+    faces: list
+    edges: list
+    edge_faces: list[list[int]]
+    face_edges: list[list[int]]
+    edge_vertices: list[tuple[int, ...]]
+    vertex_points: np.ndarray
+
+    @classmethod
+    def build(cls, shape) -> _Topology:
+        def indexed(kind):
+            m = TopTools_IndexedMapOfShape()
+            TopExp.MapShapes_s(shape, kind, m)
+            return m
+
+        fmap, emap, vmap = indexed(TopAbs_FACE), indexed(TopAbs_EDGE), indexed(TopAbs_VERTEX)
+        faces = [TopoDS.Face_s(fmap.FindKey(i)) for i in range(1, fmap.Extent() + 1)]
+        edges = [TopoDS.Edge_s(emap.FindKey(i)) for i in range(1, emap.Extent() + 1)]
+        anc = TopTools_IndexedDataMapOfShapeListOfShape()
+        TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, anc)
+        edge_faces: list[list[int]] = [[] for _ in edges]
+        for i in range(1, anc.Extent() + 1):
+            e = emap.FindIndex(anc.FindKey(i)) - 1
+            edge_faces[e] = sorted({fmap.FindIndex(f) - 1 for f in anc.FindFromIndex(i)})
+        face_edges: list[list[int]] = [[] for _ in faces]
+        for e, fs in enumerate(edge_faces):
+            for f in fs:
+                face_edges[f].append(e)
+        edge_vertices = [tuple(sorted({vmap.FindIndex(TopExp.FirstVertex_s(e)) - 1,
+                                       vmap.FindIndex(TopExp.LastVertex_s(e)) - 1})) for e in edges]
+        vertex_points = np.array([_xyz(BRep_Tool.Pnt_s(TopoDS.Vertex_s(vmap.FindKey(i))))
+                                  for i in range(1, vmap.Extent() + 1)]).reshape(-1, 3)
+        return cls(faces, edges, edge_faces, face_edges, edge_vertices, vertex_points)
+
+
+def _face_normal_at_mid(face) -> tuple[np.ndarray, np.ndarray, tuple[float, float, float, float]]:
+    """Point (3,) and outward unit normal (3,) at the middle of the face's UV box, and the UV box."""
+    bounds = BRepTools.UVBounds_s(face)
+    u, v = 0.5 * (bounds[0] + bounds[1]), 0.5 * (bounds[2] + bounds[3])
+    p, n = gp_Pnt(), gp_Vec()
+    BRepGProp_Face(face).Normal(u, v, p, n)
+    normal = _xyz(n)
+    return _xyz(p), normal / np.linalg.norm(normal), bounds
+
+
+@dataclass
+class _Revolution:
+    """A cylindrical or conical face: axis (loc, d), radius r0 at loc growing as ``tan_angle`` along d."""
+
+    face: int
+    is_cone: bool
+    loc: np.ndarray
+    d: np.ndarray
+    r0: float
+    tan_angle: float
+    concave: bool
+    x_dir: np.ndarray
+    y_dir: np.ndarray
+    u_bounds: tuple[float, float]
+
+    def t(self, points: np.ndarray) -> np.ndarray:
+        return (points - self.loc) @ self.d
+
+    def radius_at(self, point: np.ndarray) -> float:
+        return max(0.0, self.r0 + float(self.t(point)) * self.tan_angle)
+
+    def coaxial(self, other: _Revolution) -> bool:
+        return (np.linalg.norm(np.cross(self.d, other.d)) < ANGLE_TOL_RAD
+                and np.linalg.norm(np.cross(other.loc - self.loc, self.d)) < LINEAR_TOL_MM)
+
+
+def _revolution(index: int, face) -> _Revolution | None:
+    surf = BRepAdaptor_Surface(face)
+    kind = surf.GetType()
+    if kind == GeomAbs_Cylinder:
+        g = surf.Cylinder()
+        r0, tan_angle, is_cone = g.Radius(), 0.0, False
+    elif kind == GeomAbs_Cone:
+        g = surf.Cone()
+        r0, tan_angle, is_cone = g.RefRadius(), float(np.tan(g.SemiAngle())), True
+    else:
+        return None
+    pos = g.Position()
+    loc, d = _xyz(pos.Location()), _xyz(pos.Direction())
+    p, n, bounds = _face_normal_at_mid(face)
+    radial = p - (loc + ((p - loc) @ d) * d)
+    return _Revolution(index, is_cone, loc, d, r0, tan_angle, bool(n @ radial < 0.0),
+                       _xyz(pos.XDirection()), _xyz(pos.YDirection()), (bounds[0], bounds[1]))
+
+
+def _perpendicular_frame(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    helper = np.eye(3)[int(np.argmin(np.abs(d)))]
+    e1 = np.cross(d, helper)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(d, e1)
+
+
+def _closes_full_turn(cylinders: Sequence[_Revolution], d: np.ndarray) -> bool:
+    """Whether the union of the cylinders' angular spans about axis ``d`` covers 360°."""
+    e1, e2 = _perpendicular_frame(d)
+    intervals = []
+    for c in cylinders:
+        u0, u1 = c.u_bounds
+        length = u1 - u0
+        if length >= 2 * np.pi - ANGLE_TOL_RAD:
+            return True
+        sense = np.sign(np.cross(c.x_dir, c.y_dir) @ d)
+        u_start = u0 if sense > 0 else u1
+        w = np.cos(u_start) * c.x_dir + np.sin(u_start) * c.y_dir
+        intervals.append((float(np.arctan2(w @ e2, w @ e1)) % (2 * np.pi), length))
+    intervals.sort()
+    start, reach = intervals[0][0], intervals[0][0] + intervals[0][1]
+    for s, length in intervals[1:]:
+        if s > reach + 1e-6:
+            return False
+        reach = max(reach, s + length)
+    return reach >= start + 2 * np.pi - 1e-6
+
+
+def _sample_edge(edge, deflection: float = SAMPLE_DEFLECTION_MM, min_points: int = 2) -> np.ndarray:
+    """Points (K, 3) along the edge in its parameter order (chord error ≤ deflection); empty if degenerate."""
+    if BRep_Tool.Degenerated_s(edge):
+        return np.zeros((0, 3))
+    curve = BRepAdaptor_Curve(edge)
+    u0, u1 = curve.FirstParameter(), curve.LastParameter()
+    if curve.GetType() == GeomAbs_Line:
+        params = [u0, u1]
+    else:
+        q = GCPnts_QuasiUniformDeflection(curve, deflection, u0, u1)
+        params = [q.Parameter(i) for i in range(1, q.NbPoints() + 1)] if q.IsDone() else []
+        if len(params) < max(min_points, MIN_CURVE_POINTS):
+            params = np.linspace(u0, u1, max(min_points, MIN_CURVE_POINTS)).tolist()
+    return np.array([_xyz(curve.Value(u)) for u in params])
+
+
+def _face_area(face) -> float:
+    """Area (mm²) of a face (GProp)."""
+    props = GProp_GProps()
+    BRepGProp.SurfaceProperties_s(face, props)
+    return props.Mass()
+
+
+def _outer_area(face) -> float:
+    """Area (mm²) enclosed by the face's outer wire, i.e. the face with its inner wires filled.
+
+    Used to rank host faces independently of the holes and cut-outs they carry (so that the entrance
+    of a through hole does not flip when other holes are added to one side of a plate).
+    """
+    maker = BRepBuilderAPI_MakeFace(BRep_Tool.Surface_s(face), BRepTools.OuterWire_s(face), True)
+    return _face_area(maker.Face()) if maker.IsDone() else _face_area(face)
+
+
+@dataclass
+class _End:
+    """An open end of a hole: rim loop, outward sense along the group axis, host face and rim."""
+
+    edges: list[int]
+    sense: float
+    host: int
+    centre: np.ndarray
+    axis: np.ndarray
+    radius: float
+    wall: _Revolution
+    area: float = field(default=0.0)
+
+
+class _Extractor:
+    def __init__(self, shape, prefer_direction: Sequence[float] | None) -> None:
+        self.shape = shape.wrapped
+        self.topo = _Topology.build(self.shape)
+        self.prefer = None if prefer_direction is None else np.asarray(prefer_direction, dtype=float)
+        self.samples: dict[int, np.ndarray] = {}
+        self.areas: dict[int, float] = {}
+        self.classifier = BRepClass3d_SolidClassifier(self.shape)
+        self.revs = {i: r for i, f in enumerate(self.topo.faces) if (r := _revolution(i, f)) is not None}
+
+    # -------------------------------------------------------------------------------------- helpers
+    def edge_points(self, e: int) -> np.ndarray:
+        if e not in self.samples:
+            self.samples[e] = _sample_edge(self.topo.edges[e])
+        return self.samples[e]
+
+    def area(self, f: int) -> float:
+        """Outer-wire area of face f (mm², cached)."""
+        if f not in self.areas:
+            self.areas[f] = _outer_area(self.topo.faces[f])
+        return self.areas[f]
+
+    def is_outside(self, point: np.ndarray) -> bool:
+        self.classifier.Perform(gp_Pnt(*map(float, point)), 1e-7)
+        return self.classifier.State() == TopAbs_OUT
+
+    # ------------------------------------------------------------------------------------- grouping
+    def groups(self) -> list[list[int]]:
+        """Connected sets of coaxial concave cylinders/cones plus their perpendicular planar steps."""
+        concave = {i: r for i, r in self.revs.items() if r.concave}
+        uf = _UnionFind()
+        for i in concave:
+            uf.find(i)
+        for fs in self.topo.edge_faces:
+            for a in fs:
+                for b in fs:
+                    if a < b and a in concave and b in concave and concave[a].coaxial(concave[b]):
+                        uf.union(a, b)
+        for f, face in enumerate(self.topo.faces):
+            if f not in self.revs and BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane:
+                self._join_planar_step(f, face, concave, uf)
+        return [g for g in uf.groups() if any(f in concave for f in g)]
+
+    def _join_planar_step(self, f: int, face, concave: dict[int, _Revolution], uf: _UnionFind) -> None:
+        neighbours = set()
+        for e in self.topo.face_edges[f]:
+            if BRep_Tool.Degenerated_s(self.topo.edges[e]):
+                continue
+            others = [g for g in self.topo.edge_faces[e] if g != f]
+            if not others or any(g not in concave for g in others):
+                return
+            neighbours.update(others)
+        if not neighbours:
+            return
+        revs = [concave[g] for g in sorted(neighbours)]
+        _, normal, _ = _face_normal_at_mid(face)
+        if (np.linalg.norm(np.cross(normal, revs[0].d)) > ANGLE_TOL_RAD
+                or not all(revs[0].coaxial(r) for r in revs[1:])):
+            return
+        for r in revs:
+            uf.union(f, r.face)
+
+    # --------------------------------------------------------------------------------------- a hole
+    def hole(self, group: list[int]) -> tuple[Hole, set[int]] | None:
+        """The hole of a face group (None if it is not a hole) and the edges of all its open rims."""
+        revs = [self.revs[f] for f in group if f in self.revs]
+        cylinders = [r for r in revs if not r.is_cone]
+        if not cylinders:
+            return None
+        by_radius: dict[float, list[_Revolution]] = {}
+        for c in cylinders:
+            key = next((k for k in by_radius if abs(k - c.r0) < LINEAR_TOL_MM), c.r0)
+            by_radius.setdefault(key, []).append(c)
+        ref = cylinders[0]
+        if not any(_closes_full_turn(cs, ref.d) for cs in by_radius.values()):
+            return None
+        members = set(group)
+        face_edges = sorted({e for f in group for e in self.topo.face_edges[f]})
+        rim = [e for e in face_edges if any(g not in members for g in self.topo.edge_faces[e])]
+        pts = [self.edge_points(e) for e in face_edges]
+        vidx = sorted({v for e in face_edges for v in self.topo.edge_vertices[e]})
+        all_pts = np.concatenate(pts + [self.topo.vertex_points[vidx]])
+        t_mid = float(ref.t(all_pts).mean())
+        ends = [end for loop in self._loops(rim, ref) if (end := self._open_end(loop, ref, t_mid, members))]
+        if not ends:
+            return None
+        entrance = self._entrance(ends)
+        exits = [e for e in ends if e.sense != entrance.sense]
+        depth = self._depth(entrance, exits, ref, all_pts)
+        bore = min(c.r0 for c in cylinders)
+        if entrance.wall.is_cone:
+            kind = "countersink"
+        elif entrance.radius > bore + LINEAR_TOL_MM:
+            kind = "counterbore"
+        else:
+            kind = "plain"
+        hole = Hole(centre=entrance.centre + 0.0, axis=entrance.axis + 0.0, radius_mm=entrance.radius,
+                    bore_radius_mm=bore, depth_mm=depth, through=bool(exits), kind=kind,
+                    host_face=entrance.host, outline=None)
+        return hole, {e for end in ends for e in end.edges}
+
+    def _loops(self, rim: list[int], ref: _Revolution) -> list[list[int]]:
+        """Rim edges joined by shared vertices; only loops that go round the axis are kept."""
+        uf = _UnionFind()
+        by_vertex: dict[int, int] = {}
+        for e in rim:
+            uf.find(e)
+            for v in self.topo.edge_vertices[e]:
+                if v in by_vertex:
+                    uf.union(e, by_vertex[v])
+                by_vertex[v] = e
+        e1, e2 = _perpendicular_frame(ref.d)
+        loops = []
+        for loop in uf.groups():
+            p = np.concatenate([self.edge_points(e) for e in loop]) - ref.loc
+            if len(p) < 3:
+                continue
+            angles = np.sort(np.arctan2(p @ e2, p @ e1))
+            gaps = np.diff(np.append(angles, angles[0] + 2 * np.pi))
+            if gaps.max() < ENCIRCLING_MAX_GAP_RAD:
+                loops.append(loop)
+        return loops
+
+    def _open_end(self, loop: list[int], ref: _Revolution, t_mid: float, members: set[int]) -> _End | None:
+        p = np.concatenate([self.edge_points(e) for e in loop])
+        t = ref.t(p)
+        sense = 1.0 if t.mean() >= t_mid else -1.0
+        t_extreme = float(t.max() if sense > 0 else t.min())
+        if not self.is_outside(ref.loc + (t_extreme + sense * CLASSIFY_STEP_MM) * ref.d):
+            return None
+        weights: dict[int, float] = {}
+        walls: set[int] = set()
+        for e in loop:
+            q = self.edge_points(e)
+            length = float(np.linalg.norm(np.diff(q, axis=0), axis=1).sum()) if len(q) > 1 else 0.0
+            for g in self.topo.edge_faces[e]:
+                if g in members:
+                    walls.add(g)
+                else:
+                    weights[g] = weights.get(g, 0.0) + length
+        host = min(weights, key=lambda g: (-weights[g], g))
+        centre = self._axis_meets_face(host, ref, p)
+        wall = self.revs[min(w for w in walls if w in self.revs)]
+        return _End(loop, sense, host, centre, sense * ref.d, wall.radius_at(centre), wall, self.area(host))
+
+    def _axis_meets_face(self, f: int, ref: _Revolution, rim_points: np.ndarray) -> np.ndarray:
+        """Where the hole axis meets the host surface (nearest the rim); the rim's mean axis point otherwise."""
+        face = self.topo.faces[f]
+        t_rim = float(ref.t(rim_points).mean())
+        if BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane:
+            p, n, _ = _face_normal_at_mid(face)
+            dn = float(ref.d @ n)
+            if abs(dn) > ANGLE_TOL_RAD:
+                return ref.loc + ((p - ref.loc) @ n / dn) * ref.d
+        inter = GeomAPI_IntCS(Geom_Line(gp_Lin(gp_Pnt(*ref.loc), gp_Dir(*ref.d))), BRep_Tool.Surface_s(face))
+        if inter.IsDone() and inter.NbPoints() > 0:
+            cands = np.array([_xyz(inter.Point(i)) for i in range(1, inter.NbPoints() + 1)])
+            return cands[int(np.argmin(np.abs(ref.t(cands) - t_rim)))]
+        return ref.loc + t_rim * ref.d
+
+    def _entrance(self, ends: list[_End]) -> _End:
+        """The entrance rim: larger radius, then prefer_direction, then larger host area, then (z, y, x)."""
+        best = ends[0]
+        for other in ends[1:]:
+            if self._better(other, best):
+                best = other
+        return best
+
+    def _better(self, a: _End, b: _End) -> bool:
+        if abs(a.radius - b.radius) > LINEAR_TOL_MM:
+            return a.radius > b.radius
+        if self.prefer is not None:
+            da, db = float(a.axis @ self.prefer), float(b.axis @ self.prefer)
+            if abs(da - db) > ANGLE_TOL_RAD:
+                return da > db
+        if abs(a.area - b.area) > AREA_RTOL * max(a.area, b.area):
+            return a.area > b.area
+        ka = tuple(np.round(a.axis[::-1], _ORDER))
+        kb = tuple(np.round(b.axis[::-1], _ORDER))
+        return ka > kb
+
+    @staticmethod
+    def _depth(entrance: _End, exits: list[_End], ref: _Revolution, all_pts: np.ndarray) -> float:
+        """Along the axis: to the farthest exit centre (through) or to the deepest point (blind)."""
+        t_c = float(ref.t(entrance.centre))
+        if exits:
+            return max(abs(t_c - float(ref.t(e.centre))) for e in exits)
+        return float(np.max(entrance.sense * (t_c - ref.t(all_pts))))
+
+    # ------------------------------------------------------------------------------------- outlines
+    def outline(self, f: int, rim_edges: set[int]) -> FaceOutline | None:
+        """Outline of a planar face; inner wires made only of extracted holes' rim edges are left out."""
+        face = self.topo.faces[f]
+        surf = BRepAdaptor_Surface(face)
+        if surf.GetType() != GeomAbs_Plane:
+            return None
+        plane = surf.Plane()
+        origin = _xyz(plane.Location())
+        _, n, _ = _face_normal_at_mid(face)
+        x = _xyz(plane.Position().XDirection())
+        u = x - (x @ n) * n
+        u /= np.linalg.norm(u)
+        v = np.cross(n, u)
+        outer_wire = BRepTools.OuterWire_s(face)
+        wmap = TopTools_IndexedMapOfShape()
+        TopExp.MapShapes_s(face, TopAbs_WIRE, wmap)
+        emap = TopTools_IndexedMapOfShape()
+        TopExp.MapShapes_s(self.shape, TopAbs_EDGE, emap)
+        outer, keepouts = None, []
+        for i in range(1, wmap.Extent() + 1):
+            wire = TopoDS.Wire_s(wmap.FindKey(i))
+            poly = _ccw(_wire_polygon(wire, face, origin, u, v))
+            if wire.IsSame(outer_wire):
+                outer = poly
+                continue
+            wire_edges = TopTools_IndexedMapOfShape()
+            TopExp.MapShapes_s(wire, TopAbs_EDGE, wire_edges)
+            ids = {emap.FindIndex(wire_edges.FindKey(j)) - 1 for j in range(1, wire_edges.Extent() + 1)}
+            if not ids <= rim_edges:
+                keepouts.append(poly)
+        keepouts.sort(key=lambda k: tuple(np.round(k.mean(axis=0), _ORDER)))
+        return FaceOutline(origin=origin, u=u, v=v, outer=outer, keepouts=tuple(keepouts))
+
+
+_ORDER = 9
+
+
+def _wire_polygon(wire, face, origin: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The wire as a closed polygon (K, 2) in face coordinates (the last point not repeated)."""
+    chunks = []
+    explorer = BRepTools_WireExplorer(wire, face)
+    while explorer.More():
+        edge = explorer.Current()
+        pts = _sample_edge(edge)
+        if len(pts):
+            if edge.Orientation() == TopAbs_REVERSED:
+                pts = pts[::-1]
+            chunks.append(pts[:-1])
+        explorer.Next()
+    p = np.concatenate(chunks) - origin
+    return np.stack([p @ u, p @ v], axis=-1)
+
+
+def _ccw(poly: np.ndarray) -> np.ndarray:
+    x, y = poly[:, 0], poly[:, 1]
+    signed_area = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    return poly if signed_area >= 0 else poly[::-1]
+
+
+def extract_holes(shape, prefer_direction: Sequence[float] | None = None) -> list[Hole]:
+    """See ``cadfeat.features.extract_holes``; ``shape`` is a ``cadquery.Shape``."""
+    ex = _Extractor(shape, prefer_direction)
+    found = [h for g in ex.groups() if (h := ex.hole(g)) is not None]
+    rim_edges = set().union(*(edges for _, edges in found)) if found else set()
+    outlines: dict[int, FaceOutline | None] = {}
+    holes = []
+    for hole, _ in found:
+        if hole.host_face not in outlines:
+            outlines[hole.host_face] = ex.outline(hole.host_face, rim_edges)
+        holes.append(_with_outline(hole, outlines[hole.host_face]))
+    holes.sort(key=lambda h: (tuple(np.round(h.axis, _ORDER)), tuple(np.round(h.centre, _ORDER))))
+    return holes
+
+
+def _with_outline(hole: Hole, outline: FaceOutline | None) -> Hole:
+    from dataclasses import replace
+
+    return replace(hole, outline=outline)
