@@ -19,11 +19,11 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	CADFEAT_CHROMIUM="$$(tools/ensure_chromium.sh)" && export CADFEAT_CHROMIUM && \
-	$(PY) -m ruff check cadfeat tests benchmarks parts && \
+	$(PY) -m ruff check cadfeat tests benchmarks $(wildcard parts studies) && \
 	$(PY) -m pytest -q
 
 lint: $(STAMP)
-	$(PY) -m ruff check cadfeat tests benchmarks parts
+	$(PY) -m ruff check cadfeat tests benchmarks $(wildcard parts studies)
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py
