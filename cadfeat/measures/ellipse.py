@@ -27,11 +27,13 @@ the centre, zero axes and angle 0.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from cadfeat.camera import MIN_DEPTH_MM, Camera
+from cadfeat.measures.lens import distort_terms
 
 
 @dataclass(frozen=True)
@@ -63,6 +65,20 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.where(norm > 0, norm, 1.0)
 
 
+def rim_conic_xyz(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, nx: np.ndarray, ny: np.ndarray, nz: np.ndarray,
+                  nc: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Rim conic entries (a, b, c, d, e, f) from components: centre (X, Y, Z), unit normal (nx, ny, nz),
+    nc = n·c and q = ‖c‖² − R² (camera frame, mm)."""
+    nc2 = nc * nc
+    qx, qy, qz = q * nx, q * ny, q * nz
+    return (nc2 - nx * (2.0 * nc * X - qx),
+            ny * (qx - nc * X) - nc * nx * Y,
+            nc2 - ny * (2.0 * nc * Y - qy),
+            nz * (qx - nc * X) - nc * nx * Z,
+            nz * (qy - nc * Y) - nc * ny * Z,
+            nc2 - nz * (2.0 * nc * Z - qz))
+
+
 def rim_conic(centre_cam: ArrayLike, normal_cam: ArrayLike, radius_mm: ArrayLike) -> tuple[np.ndarray, ...]:
     """Entries (a, b, c, d, e, f) of the rim's normalised-image conic a x² + 2b xy + c y² + 2d x + 2e y + f."""
     c = np.asarray(centre_cam, dtype=float)
@@ -70,15 +86,7 @@ def rim_conic(centre_cam: ArrayLike, normal_cam: ArrayLike, radius_mm: ArrayLike
     R = np.asarray(radius_mm, dtype=float)
     nc = np.sum(n * c, axis=-1)
     q = np.sum(c * c, axis=-1) - R * R
-    nc2 = nc * nc
-    n0, n1, n2 = n[..., 0], n[..., 1], n[..., 2]
-    c0, c1, c2 = c[..., 0], c[..., 1], c[..., 2]
-    return (nc2 - 2.0 * nc * n0 * c0 + q * n0 * n0,
-            -nc * (n0 * c1 + c0 * n1) + q * n0 * n1,
-            nc2 - 2.0 * nc * n1 * c1 + q * n1 * n1,
-            -nc * (n0 * c2 + c0 * n2) + q * n0 * n2,
-            -nc * (n1 * c2 + c1 * n2) + q * n1 * n2,
-            nc2 - 2.0 * nc * n2 * c2 + q * n2 * n2)
+    return rim_conic_xyz(c[..., 0], c[..., 1], c[..., 2], n[..., 0], n[..., 1], n[..., 2], nc, q)
 
 
 def sphere_conic(centre_cam: ArrayLike, radius_mm: ArrayLike) -> tuple[np.ndarray, ...]:
@@ -90,51 +98,73 @@ def sphere_conic(centre_cam: ArrayLike, radius_mm: ArrayLike) -> tuple[np.ndarra
     return c0 * c0 - q, c0 * c1, c1 * c1 - q, c0 * c2, c1 * c2, c2 * c2 - q
 
 
-def conic_to_ellipse(camera: Camera, conic: tuple[np.ndarray, ...], in_front: np.ndarray,
-                     fallback_cam: np.ndarray) -> Ellipse:
-    """Pixel ellipse of a normalised-image conic (a, b, c, d, e, f); see the module docstring.
+class EllipseParts(NamedTuple):
+    """Component arrays of pixel ellipses: centre (u, v), full axes (major, minor), angle, bounding-box
+    half-widths (hu, hv) and validity. Invalid entries have centre (0, 0), zero axes and angle."""
 
-    ``in_front`` (...) marks conics whose 3-D source lies wholly in front of the camera;
-    ``fallback_cam`` (..., 3) is projected as the centre of invalid ellipses.
+    u: np.ndarray
+    v: np.ndarray
+    major: np.ndarray
+    minor: np.ndarray
+    angle: np.ndarray
+    hu: np.ndarray
+    hv: np.ndarray
+    valid: np.ndarray
+
+
+def ellipse_parts(camera: Camera, conic: tuple[np.ndarray, ...], in_front: np.ndarray) -> EllipseParts:
+    """Pixel ellipse of a normalised-image conic (a, b, c, d, e, f) (module docstring), component arrays.
+
+    ``in_front`` marks conics whose 3-D source lies wholly in front of the camera.
     """
     a, b, c, d, e, f = conic
     det = a * c - b * b
-    ok = in_front & (np.abs(det) > 0)
+    ok = in_front & (det != 0)
     det = np.where(ok, det, 1.0)
     x0 = (b * e - c * d) / det
     y0 = (b * d - a * e) / det
     k = f + d * x0 + e * y0
-    ok &= np.abs(k) > 0
+    ok &= k != 0
     s = -1.0 / np.where(ok, k, 1.0)
-    ma, mb, mc = a * s, b * s, c * s  # M = A / (−k) in normalised coordinates
-    xy0 = np.stack([x0, y0], axis=-1)
+    ma, mb, mc = a * s, b * s, c * s  # M = A / (−k): (x − x0)ᵀ M (x − x0) = 1, normalised coordinates
+    u, v, d00, d01, d10, d11 = distort_terms(camera, x0, y0)
     if camera.has_distortion:
-        D = camera.distortion_jacobian(xy0)
-        centre = camera.distort_normalized(xy0)
-        ma, mb, mc = _congruent_inverse(ma, mb, mc, D)
+        ma, mb, mc = _congruent_inverse(ma, mb, mc, d00, d01, d10, d11)
     else:
-        centre = np.stack([camera.fx * x0 + camera.cx, camera.fy * y0 + camera.cy], axis=-1)
-        ma, mb, mc = ma / (camera.fx * camera.fx), mb / (camera.fx * camera.fy), mc / (camera.fy * camera.fy)
+        ma, mb, mc = ma / (d00 * d00), mb / (d00 * d11), mc / (d11 * d11)
     half_tr = 0.5 * (ma + mc)
     root = np.hypot(0.5 * (ma - mc), mb)
-    lam_big, lam_small = half_tr + root, half_tr - root
+    lam_small = half_tr - root
     ok &= lam_small > 0
-    lam_big, lam_small = np.where(ok, lam_big, 1.0), np.where(ok, lam_small, 1.0)
-    axes = np.stack([2.0 / np.sqrt(lam_small), 2.0 / np.sqrt(lam_big)], axis=-1)
-    angle = 0.5 * np.arctan2(2.0 * mb, ma - mc) + 0.5 * np.pi  # major axis ⟂ eigenvector of λ_big
-    angle = np.mod(angle + 0.5 * np.pi, np.pi) - 0.5 * np.pi
-    okx = ok[..., None]
-    centre = np.where(okx, centre, camera.project(fallback_cam))
-    return Ellipse(centre_px=centre, axes_px=np.where(okx, axes, 0.0), angle_rad=np.where(ok, angle, 0.0), valid=ok)
+    lam_big, lam_small = np.where(ok, half_tr + root, 1.0), np.where(ok, lam_small, 1.0)
+    det_m = lam_big * lam_small
+    angle = 0.5 * np.arctan2(2.0 * mb, ma - mc)  # eigenvector of λ_big = minor-axis direction
+    angle = np.where(angle < 0, angle + 0.5 * np.pi, angle - 0.5 * np.pi)  # major axis, in [−π/2, π/2)
+    zero = np.zeros_like(det_m)
+    return EllipseParts(
+        u=np.where(ok, u, zero), v=np.where(ok, v, zero),
+        major=np.where(ok, 2.0 / np.sqrt(lam_small), zero), minor=np.where(ok, 2.0 / np.sqrt(lam_big), zero),
+        angle=np.where(ok, angle, zero),
+        hu=np.where(ok, np.sqrt(np.abs(mc / det_m)), zero), hv=np.where(ok, np.sqrt(np.abs(ma / det_m)), zero),
+        valid=ok)
 
 
-def _congruent_inverse(ma: np.ndarray, mb: np.ndarray, mc: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Entries of D⁻ᵀ M D⁻¹ for symmetric M = [[ma, mb], [mb, mc]] and D (..., 2, 2)."""
-    d00, d01, d10, d11 = D[..., 0, 0], D[..., 0, 1], D[..., 1, 0], D[..., 1, 1]
+def conic_to_ellipse(camera: Camera, conic: tuple[np.ndarray, ...], in_front: np.ndarray,
+                     fallback_cam: np.ndarray) -> Ellipse:
+    """``Ellipse`` of a normalised-image conic; invalid ones are centred on ``camera.project(fallback_cam)``."""
+    parts = ellipse_parts(camera, conic, in_front)
+    okx = parts.valid[..., None]
+    centre = np.where(okx, np.stack([parts.u, parts.v], axis=-1), camera.project(fallback_cam))
+    return Ellipse(centre_px=centre, axes_px=np.stack([parts.major, parts.minor], axis=-1),
+                   angle_rad=parts.angle, valid=parts.valid)
+
+
+def _congruent_inverse(ma: np.ndarray, mb: np.ndarray, mc: np.ndarray, d00: np.ndarray, d01: np.ndarray,
+                       d10: np.ndarray, d11: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Entries of D⁻ᵀ M D⁻¹ for symmetric M = [[ma, mb], [mb, mc]] and D = [[d00, d01], [d10, d11]]."""
     det = d00 * d11 - d01 * d10
     det = np.where(det != 0, det, 1.0)
     i00, i01, i10, i11 = d11 / det, -d01 / det, -d10 / det, d00 / det  # D⁻¹
-    # (D⁻ᵀ M D⁻¹)_{pq} = Σ_rs i_{rp} M_{rs} i_{sq}
     t00 = ma * i00 + mb * i10
     t01 = ma * i01 + mb * i11
     t10 = mb * i00 + mc * i10

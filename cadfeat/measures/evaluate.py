@@ -22,15 +22,19 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from cadfeat.camera import Camera
+from cadfeat.camera import MIN_DEPTH_MM, Camera
 from cadfeat.errors import CadfeatError
-from cadfeat.measures.ellipse import hole_ellipse
-from cadfeat.measures.focus import focus_margin
-from cadfeat.measures.fov import fov_cone_margin, image_margin_from_ellipse
-from cadfeat.measures.jacobian import diagnostics_from_gram, image_jacobian
-from cadfeat.measures.resolution import margin_from_ellipse
+from cadfeat.measures.ellipse import ellipse_parts, rim_conic_xyz
+from cadfeat.measures.focus import focus_margin_depth
+from cadfeat.measures.fov import image_margin_px
+from cadfeat.measures.jacobian import diagnostics_from_gram, jacobian_columns
+from cadfeat.measures.lens import distort_terms
+from cadfeat.measures.resolution import minor_axis_margin
 from cadfeat.measures.resolvability import resolvability_from_parts, scale_screws
-from cadfeat.measures.visibility import facing_margin, occluded
+from cadfeat.measures.visibility import occluded
+
+#: Feature-poses per slab in ``evaluate`` (temporaries of 16k doubles = 128 kB stay in the L2 cache).
+BLOCK_ELEMENTS = 16384
 
 
 @dataclass(frozen=True)
@@ -95,41 +99,68 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
     """All measures (``Measures``) of holes (centres (N, 3) mm, axes (N, 3) out of the material, radii (N,) mm,
     part frame) seen from poses ``T_cam_part`` (L, 4, 4) moving with ``screws`` (L, 6) = (v mm/s, ω rad/s)
     in the camera frame. ``occlusion_mesh``: optional ``trimesh.Trimesh`` of the part (part frame) for the
-    ray occlusion test of ``visible``."""
+    ray occlusion test of ``visible``.
+
+    Works on contiguous (L, N) component arrays (X, Y, Z, n_x, …, each one (L, 3) @ (3, N) product) rather
+    than (L, N, 3) stacks; same formulas as the public per-measure functions (tests compare them). Large
+    batches are cut into slabs of about ``BLOCK_ELEMENTS`` feature-poses (whole blocks of poses, each slab
+    fully batched) so the temporaries stay in the CPU cache; the results are concatenated."""
     T, s, c, n, r = _check_inputs(T_cam_part, screws, centres, axes, radii)
-    R = T[:, :3, :3]
-    Rt = np.swapaxes(R, 1, 2)
-    P = c @ Rt + T[:, None, :3, 3]  # (L, N, 3) centres in the camera frames
-    Nrm = n @ Rt  # (L, N, 3) axes in the camera frames
-    ell = hole_ellipse(camera, P, Nrm, r)
-    fov_px = image_margin_from_ellipse(camera, ell)
-    facing = facing_margin(P, Nrm)
+    step = max(1, BLOCK_ELEMENTS // max(1, c.shape[0]))
+    if T.shape[0] <= step:
+        return _evaluate(camera, T, s, c, n, r, min_axis_px, rotation_length_mm, occlusion_mesh)
+    slabs = [_evaluate(camera, T[i:i + step], s[i:i + step], c, n, r, min_axis_px, rotation_length_mm,
+                       occlusion_mesh) for i in range(0, T.shape[0], step)]
+    return Measures(**{f.name: np.concatenate([getattr(m, f.name) for m in slabs]) for f in fields(Measures)})
+
+
+def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray,
+              min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any) -> Measures:
+    """``evaluate`` on one slab of poses (validated inputs)."""
+    R, t = T[:, :3, :3], T[:, :3, 3]
+    X, Y, Z = (R[:, i, :] @ c.T + t[:, i, None] for i in range(3))  # centres in the camera frames (L, N)
+    nx, ny, nz = (R[:, i, :] @ n.T for i in range(3))  # axes in the camera frames
+    rt = np.einsum("lji,lj->li", R, t)  # Rᵀ t = −(camera centre in the part frame)
+    nc = np.sum(n * c, axis=-1) + rt @ n.T  # n·c in the camera frame
+    dist2 = np.sum(c * c, axis=-1) + 2.0 * (rt @ c.T) + np.sum(t * t, axis=-1)[:, None]
+    dist = np.sqrt(np.maximum(dist2, 0.0))
+    in_front = Z - r * np.sqrt(np.maximum(1.0 - nz * nz, 0.0)) > MIN_DEPTH_MM
+    ell = ellipse_parts(camera, rim_conic_xyz(X, Y, Z, nx, ny, nz, nc, dist2 - r * r), in_front)
+    fov_px = image_margin_px(camera, ell.u, ell.v, ell.hu, ell.hv, ell.valid)
+    safe = np.where(dist > 0, dist, 1.0)
+    facing = np.where(dist > 0, -nc / safe, -1.0)
     visible = ell.valid & (facing > 0) & (fov_px >= 0)
     if occlusion_mesh is not None:
-        cam_in_part = -np.einsum("lji,lj->li", R, T[:, :3, 3])  # −Rᵀ t
-        visible &= ~occluded(occlusion_mesh, cam_in_part, c, n)
-    per_pose = _jacobian_measures(camera, P, visible, s, rotation_length_mm)
+        visible &= ~occluded(occlusion_mesh, -rt, c, n)
+    inv_z = 1.0 / np.maximum(Z, MIN_DEPTH_MM)
+    x, y = X * inv_z, Y * inv_z
+    up, vp, *D = distort_terms(camera, x, y)
+    per_pose = _jacobian_measures(x, y, inv_z, D, visible, s, rotation_length_mm)
     return Measures(
-        fov=fov_cone_margin(camera, P), fov_px=fov_px, focus=focus_margin(camera, P),
-        resolution_px=margin_from_ellipse(camera, ell, min_axis_px), minor_axis_px=ell.minor_px,
-        facing=facing, visible=visible, centre_px=ell.centre_px, axes_px=ell.axes_px, angle_rad=ell.angle_rad,
+        fov=np.where(dist > 0, Z / safe, -1.0) - np.cos(0.5 * camera.fov_rad), fov_px=fov_px,
+        focus=focus_margin_depth(camera, Z),
+        resolution_px=minor_axis_margin(camera, ell.minor, ell.valid, min_axis_px), minor_axis_px=ell.minor,
+        facing=facing, visible=visible,
+        centre_px=np.stack([np.where(ell.valid, ell.u, up), np.where(ell.valid, ell.v, vp)], axis=-1),
+        axes_px=np.stack([ell.major, ell.minor], axis=-1), angle_rad=ell.angle,
         **per_pose,
     )
 
 
-def _jacobian_measures(camera: Camera, P: np.ndarray, visible: np.ndarray, screws: np.ndarray,
-                       rotation_length_mm: float) -> dict[str, np.ndarray]:
-    """Diagnostics and Λ per pose from the visible features' Jacobians (module docstring)."""
+def _jacobian_measures(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list, visible: np.ndarray,
+                       screws: np.ndarray, rotation_length_mm: float) -> dict[str, np.ndarray]:
+    """Diagnostics and Λ per pose from the visible features' Jacobians (module docstring).
+
+    The Jacobian is held transposed, Jᵀ (L, 6, 2N) (rows of one column contiguous), so JᵀJ is one batched
+    (6, 2N) @ (2N, 6) product: Σ_j J_jᵀ J_j over the point blocks; row order within 2N is irrelevant."""
     L, N = visible.shape
-    J = image_jacobian(camera, P)  # (L, N, 2, 6)
-    J *= visible[..., None, None]
-    Js = J.reshape(L, 2 * N, 6)
-    image_speed = np.linalg.norm(np.einsum("lmk,lk->lm", Js, screws), axis=-1)
+    w = visible.astype(float)
+    Dw = [d * w for d in D]  # zero weight → zero rows
+    Jt = np.stack(jacobian_columns(x, y, inv_z, Dw), axis=1).reshape(L, 6, 2 * N)
+    image_speed = np.linalg.norm((screws[:, None, :] @ Jt)[:, 0, :], axis=-1)
     if rotation_length_mm != 1.0:
-        Js = Js.copy()
-        Js[..., 3:] /= rotation_length_mm
-    G = np.swapaxes(Js, 1, 2) @ Js
-    diag = diagnostics_from_gram(G)
-    lam = resolvability_from_parts(Js, image_speed, scale_screws(screws, rotation_length_mm),
+        Jt[:, 3:, :] /= rotation_length_mm
+    diag = diagnostics_from_gram(Jt @ np.swapaxes(Jt, 1, 2))
+    lam = resolvability_from_parts(np.swapaxes(Jt, 1, 2), image_speed, scale_screws(screws, rotation_length_mm),
                                    diag["singular"], diag["sigma_min"])
     return {**diag, "resolvability": lam}

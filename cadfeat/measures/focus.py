@@ -27,7 +27,11 @@ def focus_margin(camera: Camera, points_cam: ArrayLike) -> np.ndarray:
     (focused at or beyond the hyperfocal distance) the margin is (Z − D2)/D2. Points behind the camera
     give finite values below −2 D2 / scale (strongly negative).
     """
+    return focus_margin_depth(camera, np.asarray(points_cam, dtype=float)[..., 2])
+
+
+def focus_margin_depth(camera: Camera, z: np.ndarray) -> np.ndarray:
+    """``focus_margin`` of depths z (...) mm."""
     near, far = camera.depth_of_field_mm
-    z = np.asarray(points_cam, dtype=float)[..., 2]
     margin = z - near if not np.isfinite(far) else np.minimum(z - near, far - z)
     return margin / focus_scale_mm(camera)

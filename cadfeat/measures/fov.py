@@ -30,16 +30,21 @@ def fov_cone_margin(camera: Camera, points_cam: ArrayLike) -> np.ndarray:
     return cos_beta - np.cos(0.5 * camera.fov_rad)
 
 
-def image_margin_from_ellipse(camera: Camera, ellipse: Ellipse) -> np.ndarray:
-    """Smallest distance (px) from the ellipse's bounding box to the image border (image = [0, W]×[0, H],
-    as ``Camera.in_image``); ≥ 0 when the whole rim is inside. Clipped below at ``behind_px`` (far outside),
-    which invalid ellipses (rim not in front of the camera) get."""
-    u, v = ellipse.centre_px[..., 0], ellipse.centre_px[..., 1]
-    h = ellipse.half_extent_px
-    hu, hv = h[..., 0], h[..., 1]
+def image_margin_px(camera: Camera, u: np.ndarray, v: np.ndarray, hu: np.ndarray, hv: np.ndarray,
+                    valid: np.ndarray) -> np.ndarray:
+    """Smallest distance (px) from an ellipse's bounding box (centre u, v; half-widths hu, hv) to the image
+    border (image = [0, W]×[0, H], as ``Camera.in_image``); ≥ 0 when the whole rim is inside. Clipped below
+    at ``behind_px`` (far outside), which invalid ellipses (rim not in front of the camera) get."""
     margin = np.minimum(np.minimum(u - hu, camera.width - u - hu), np.minimum(v - hv, camera.height - v - hv))
     low = behind_px(camera)
-    return np.where(ellipse.valid, np.clip(margin, low, None), low)
+    return np.where(valid, np.maximum(margin, low), low)
+
+
+def image_margin_from_ellipse(camera: Camera, ellipse: Ellipse) -> np.ndarray:
+    """``image_margin_px`` of an ``Ellipse``."""
+    h = ellipse.half_extent_px
+    return image_margin_px(camera, ellipse.centre_px[..., 0], ellipse.centre_px[..., 1], h[..., 0], h[..., 1],
+                           ellipse.valid)
 
 
 def fov_image_margin_px(camera: Camera, centre_cam: ArrayLike, normal_cam: ArrayLike,

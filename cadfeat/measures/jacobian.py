@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cadfeat.camera import MIN_DEPTH_MM, Camera
+from cadfeat.measures.lens import Array, distort_terms
 
 #: A stacked Jacobian counts as singular (rank < 6) when σ_min ≤ SINGULAR_RTOL · σ_max.
 SINGULAR_RTOL = 1e-6
@@ -25,28 +26,30 @@ SINGULAR_RTOL = 1e-6
 CONDITION_CAP = 1e12
 
 
-def normalised_interaction(points_cam: ArrayLike) -> np.ndarray:
-    """Interaction matrix L (..., 2, 6) of normalised coordinates (x, y) = (X/Z, Y/Z), eq. 4.10–4.11.
+def _comb(da: Array, a: Array, db: Array, b: Array) -> Array:
+    """da·a + db·b, skipping terms whose coefficient is the scalar 0 (the undistorted case)."""
+    if np.isscalar(db) and db == 0.0:
+        return da * a
+    if np.isscalar(da) and da == 0.0:
+        return db * b
+    return da * a + db * b
 
-    ``ẋ = L [v, ω]`` with ``L = [[-1/Z, 0, x/Z, xy, -(1+x²), y], [0, -1/Z, y/Z, 1+y², -xy, -x]]``.
-    """
-    P = np.asarray(points_cam, dtype=float)
-    inv_z = 1.0 / np.maximum(P[..., 2], MIN_DEPTH_MM)
-    x, y = P[..., 0] * inv_z, P[..., 1] * inv_z
-    L = np.empty(P.shape[:-1] + (2, 6))
-    L[..., 0, 0] = -inv_z
-    L[..., 0, 1] = 0.0
-    L[..., 0, 2] = x * inv_z
-    L[..., 0, 3] = x * y
-    L[..., 0, 4] = -(1.0 + x * x)
-    L[..., 0, 5] = y
-    L[..., 1, 0] = 0.0
-    L[..., 1, 1] = -inv_z
-    L[..., 1, 2] = y * inv_z
-    L[..., 1, 3] = 1.0 + y * y
-    L[..., 1, 4] = -L[..., 0, 3]
-    L[..., 1, 5] = -x
-    return L
+
+def jacobian_columns(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: tuple[Array, Array, Array, Array],
+                     ) -> list[Array]:
+    """The 12 entries of J = D · L (eq. 4.9–4.11) as separate arrays, ordered column by column:
+    [J_u0, J_v0, J_u1, J_v1, …, J_u5, J_v5]. x, y normalised coordinates, inv_z = 1/Z (1/mm), D = (d00, d01,
+    d10, d11) the pixel distortion Jacobian (arrays, or scalars without distortion; weights may be folded
+    into D). L = [[-1/Z, 0, x/Z, xy, -(1+x²), y], [0, -1/Z, y/Z, 1+y², -xy, -x]]."""
+    d00, d01, d10, d11 = D
+    xy = x * y
+    l0 = (-inv_z, 0.0, x * inv_z, xy, -(1.0 + x * x), y)
+    l1 = (0.0, -inv_z, y * inv_z, 1.0 + y * y, -xy, -x)
+    cols: list[Array] = []
+    for a, b in zip(l0, l1, strict=True):
+        cols.append(_comb(d00, a, d01, b) if not (np.isscalar(a) and a == 0.0) else _comb(0.0, a, d01, b))
+        cols.append(_comb(d10, a, d11, b) if not (np.isscalar(a) and a == 0.0) else _comb(0.0, a, d11, b))
+    return cols
 
 
 def image_jacobian(camera: Camera, points_cam: ArrayLike) -> np.ndarray:
@@ -57,13 +60,12 @@ def image_jacobian(camera: Camera, points_cam: ArrayLike) -> np.ndarray:
     ``Camera.project`` under small camera motions. Units: px/mm (v columns) and px/rad (ω columns).
     """
     P = np.asarray(points_cam, dtype=float)
-    L = normalised_interaction(P)
-    if camera.has_distortion:
-        D = camera.distortion_jacobian(Camera.normalize(P))
-        return D @ L
-    L[..., 0, :] *= camera.fx
-    L[..., 1, :] *= camera.fy
-    return L
+    inv_z = 1.0 / np.maximum(P[..., 2], MIN_DEPTH_MM)
+    x, y = P[..., 0] * inv_z, P[..., 1] * inv_z
+    D = distort_terms(camera, x, y)[2:]
+    cols = [np.broadcast_to(c, x.shape) for c in jacobian_columns(x, y, inv_z, D)]
+    J = np.stack(cols, axis=-1).reshape(x.shape + (6, 2))
+    return np.swapaxes(J, -1, -2).copy()
 
 
 def stacked_jacobian(camera: Camera, points_cam: ArrayLike, weights: ArrayLike | None = None) -> np.ndarray:

@@ -14,10 +14,15 @@ from cadfeat.camera import MIN_DEPTH_MM, Camera
 from cadfeat.measures.ellipse import Ellipse, hole_ellipse, sphere_conic, sphere_ellipse
 
 
-def margin_from_ellipse(camera: Camera, ellipse: Ellipse, min_axis_px: float) -> np.ndarray:
+def minor_axis_margin(camera: Camera, minor_px: np.ndarray, valid: np.ndarray, min_axis_px: float) -> np.ndarray:
     """Minor full axis − ``min_axis_px`` (px), with the invalid-ellipse penalty of the module docstring."""
     penalty = float(max(camera.width, camera.height))
-    return np.where(ellipse.valid, ellipse.minor_px - min_axis_px, -min_axis_px - penalty)
+    return np.where(valid, minor_px - min_axis_px, -min_axis_px - penalty)
+
+
+def margin_from_ellipse(camera: Camera, ellipse: Ellipse, min_axis_px: float) -> np.ndarray:
+    """``minor_axis_margin`` of an ``Ellipse``."""
+    return minor_axis_margin(camera, ellipse.minor_px, ellipse.valid, min_axis_px)
 
 
 def resolution_margin_px(camera: Camera, centre_cam: ArrayLike, normal_cam: ArrayLike, radius_mm: ArrayLike,
