@@ -30,7 +30,7 @@ from cadfeat.measures.fov import image_margin_px
 from cadfeat.measures.jacobian import diagnostics_from_gram, jacobian_columns
 from cadfeat.measures.lens import distort_terms
 from cadfeat.measures.resolution import minor_axis_margin
-from cadfeat.measures.resolvability import resolvability_from_parts, scale_screws
+from cadfeat.measures.resolvability import check_length, resolvability_from_parts, scale_screws
 from cadfeat.measures.visibility import occluded
 
 #: Feature-poses per slab in ``evaluate`` (temporaries of 16k doubles = 128 kB stay in the L2 cache).
@@ -106,6 +106,9 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
     batches are cut into slabs of about ``BLOCK_ELEMENTS`` feature-poses (whole blocks of poses, each slab
     fully batched) so the temporaries stay in the CPU cache; the results are concatenated."""
     T, s, c, n, r = _check_inputs(T_cam_part, screws, centres, axes, radii)
+    check_length(rotation_length_mm)
+    if not np.isfinite(min_axis_px):
+        raise CadfeatError(f"evaluate: min_axis_px must be a finite number of pixels, got {min_axis_px!r}")
     L, N = T.shape[0], c.shape[0]
     out = _allocate(L, N)
     step = max(1, BLOCK_ELEMENTS // max(1, N))
