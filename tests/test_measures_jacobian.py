@@ -156,3 +156,17 @@ def test_resolvability_grows_with_cube_edge():
         pts = transform_points(T_cam_part[:, None], _cube(d)[None])
         H.append(measures.resolvability(measures.stacked_jacobian(cam, pts), screws).sum())
     assert np.all(np.diff(H) > 0), H
+
+
+@pytest.mark.parametrize("dist", [(0, 0, 0, 0, 0), (-0.3, 0, 0, 0, 0), (-0.2, 0.05, 0, 0, 0),
+                                  (-0.21, 0.08, 0.0013, -0.0021, -0.012), (0.1, 0.0, 0.002, 0.001, 0.0)])
+def test_lens_kernel_matches_camera(dist):
+    from cadfeat.measures.lens import distort_terms
+
+    cam = _camera(tuple(float(d) for d in dist))
+    xy = RNG.uniform(-0.5, 0.5, (50, 2))
+    u, v, *D = distort_terms(cam, xy[:, 0], xy[:, 1])
+    np.testing.assert_allclose(np.stack([u, v], axis=-1), cam.distort_normalized(xy), rtol=1e-13)
+    ref = cam.distortion_jacobian(xy)
+    for k, d in enumerate(D):
+        np.testing.assert_allclose(np.broadcast_to(d, (50,)), ref[:, k // 2, k % 2], rtol=1e-12, atol=1e-9)

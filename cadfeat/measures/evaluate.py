@@ -27,7 +27,7 @@ from cadfeat.errors import CadfeatError
 from cadfeat.measures.ellipse import ellipse_parts, rim_conic_xyz
 from cadfeat.measures.focus import focus_margin_depth
 from cadfeat.measures.fov import image_margin_px
-from cadfeat.measures.jacobian import diagnostics_from_gram, jacobian_columns
+from cadfeat.measures.jacobian import diagnostics_from_gram, fill_jacobian
 from cadfeat.measures.lens import distort_terms
 from cadfeat.measures.resolution import minor_axis_margin
 from cadfeat.measures.resolvability import check_length, resolvability_from_parts, scale_screws
@@ -163,13 +163,13 @@ def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np
     out["axes_px"][..., 1] = ell.minor
     inv_z = 1.0 / np.maximum(Z, MIN_DEPTH_MM)
     x, y = X * inv_z, Y * inv_z
-    up, vp, *D = distort_terms(camera, x, y)
+    D = distort_terms(camera, x, y, positions=False)[2:]
     centre = out["centre_px"]
     centre[..., 0] = ell.u
     centre[..., 1] = ell.v
     if not ell.valid.all():  # invalid ellipses: the (depth-clamped) projection of the centre
         bad = ~ell.valid
-        centre[bad] = np.stack([up[bad], vp[bad]], axis=-1)
+        centre[bad] = camera.distort_normalized(np.stack([x[bad], y[bad]], axis=-1))
     _jacobian_measures(x, y, inv_z, D, visible, s, rotation_length_mm, out)
 
 
@@ -181,10 +181,9 @@ def _jacobian_measures(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list,
     (6, 2N) @ (2N, 6) product: Σ_j J_jᵀ J_j over the point blocks; row order within 2N is irrelevant."""
     L, N = visible.shape
     w = visible.astype(float)
-    Dw = [d * w for d in D]  # zero weight → zero rows
+    Dw = [d * w if not (np.isscalar(d) and d == 0.0) else 0.0 for d in D]  # zero weight → zero rows
     Jt = np.empty((L, 12, N))
-    for k, col in enumerate(jacobian_columns(x, y, inv_z, Dw)):  # the 12 entries of the 2×6 blocks
-        Jt[:, k] = col
+    fill_jacobian([Jt[:, j] for j in range(12)], x, y, inv_z, Dw)  # the 12 entries of the 2×6 blocks
     Jt = Jt.reshape(L, 6, 2 * N)
     image_speed = np.linalg.norm(np.einsum("lk,lkm->lm", screws, Jt), axis=-1)
     if rotation_length_mm != 1.0:
