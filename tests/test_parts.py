@@ -142,9 +142,9 @@ def test_bad_build_errors(tmp_path, body, match):
 def test_same_stem_different_dirs_do_not_clash(tmp_path):
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
-    body = GOOD_HEAD + "def build(size_mm):\n    return cq.Workplane().box({}, 1)\n"
-    pa = load_part(write(tmp_path / "a", "p.py", body.format("size_mm, 1")))
-    pb = load_part(write(tmp_path / "b", "p.py", body.format("1, size_mm")))
+    body = GOOD_HEAD + "def build(size_mm):\n    return cq.Workplane().box(DIMS, 1)\n"
+    pa = load_part(write(tmp_path / "a", "p.py", body.replace("DIMS", "size_mm, 1")))
+    pb = load_part(write(tmp_path / "b", "p.py", body.replace("DIMS", "1, size_mm")))
     assert pa.build().BoundingBox().xlen == pytest.approx(10.0)
     assert pb.build().BoundingBox().ylen == pytest.approx(10.0)
 
