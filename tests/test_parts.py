@@ -46,6 +46,8 @@ def assert_holes_match(holes, expected, tol=TOL_MM):
     assert d[rows, cols].max() <= tol, f"centre error {d[rows, cols].max():.3g} mm"
     assert np.abs(r[rows] - er[cols]).max() <= tol
     assert np.abs(a[rows] - ea[cols] / np.linalg.norm(ea[cols], axis=1, keepdims=True)).max() <= 1e-12
+    for i, j in zip(rows, cols, strict=True):
+        assert holes[i].kind == expected[j].get("kind", holes[i].kind)
 
 
 def test_library_is_not_empty():
