@@ -5,7 +5,9 @@
 
 from __future__ import annotations
 
-from cadfeat.render.camera_views import CameraViewRenderer, render_camera_views
+from cadfeat.render.camera_views import CameraViewRenderer, draw_hole_overlay, render_camera_views
+from cadfeat.render.part_views import render_comparison, render_part
 from cadfeat.render.scene import RenderError, new_plotter, shape_polydata, use_egl
 
-__all__ = ["CameraViewRenderer", "RenderError", "new_plotter", "render_camera_views", "shape_polydata", "use_egl"]
+__all__ = ["CameraViewRenderer", "RenderError", "draw_hole_overlay", "new_plotter", "render_camera_views",
+           "render_comparison", "render_part", "shape_polydata", "use_egl"]
