@@ -171,3 +171,43 @@ def test_build_shape_timeout_and_errors(tmp_path):
         build_shape(bad, None, timeout_s=60)
     with pytest.raises(CadfeatError, match="out of bounds"):
         build_shape(bad, {"size_mm": 99.0})
+
+
+# ---------------------------------------------------------------------------------- STEP round trip
+@pytest.mark.parametrize("name", ["nema17_mount", "pipe_flange_dn50", "l_bracket"])
+def test_step_round_trip_identical_holes(tmp_path, name):
+    """export_step → import_step → the same holes (1e-9 mm), kinds and through flags, and the same volume."""
+    from cadfeat.export import export_step, shape_volume_mm3, verify_step_roundtrip
+
+    part = load_part(PARTS_DIR / f"{name}.py")
+    params = parameter_sets(part)[2]
+    solid = part.build(**params)
+    path = export_step(solid, tmp_path / f"{name}.step")
+    rt = verify_step_roundtrip(path, part.holes(**params), tol_mm=1e-9, prefer_direction=part.view_direction,
+                               expected_volume_mm3=shape_volume_mm3(solid))
+    assert rt.n_holes == len(part.expected_holes(**params)) and rt.unit == "MM"
+
+
+# ------------------------------------------------------------------------------------------ the CLI
+def test_cli_lists_parts(tmp_path, capsys):
+    from cadfeat.cli import main
+
+    assert main(["parts"]) == 0
+    out = capsys.readouterr().out
+    for path in PART_PATHS:
+        assert f"{path.stem}: " in out
+    assert "bolt_circle_radius_mm = 9.65 mm in [8.5, 16]" in out and "hole_count = 5 in [3, 8] (integer)" in out
+    assert main(["parts", str(PARTS_DIR / "thesis_single_hole.py"), "--holes"]) == 0
+    assert "hole 0: centre (0.000, 0.000, 0.000) mm, axis (0.000, 0.000, 1.000), r 3.700 mm" in capsys.readouterr().out
+    write(tmp_path, "broken.py", "def build(:\n")
+    assert main(["parts", str(tmp_path)]) == 2
+    assert "broken.py:1: syntax error" in capsys.readouterr().err
+
+
+def test_import_stays_light():
+    import subprocess
+    import sys
+
+    code = "import sys, cadfeat.parts, cadfeat.design_map; print('cadquery' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
