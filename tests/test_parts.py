@@ -74,6 +74,19 @@ def test_part_metadata(path):
         assert p.description and p.lower <= p.default <= p.upper
 
 
+def test_scripts_run_unchanged_in_cq_editor():
+    """Executed as cq-editor does (a global ``show_object``), a script shows exactly one solid."""
+    import runpy
+
+    import cadquery as cq
+
+    for path in PART_PATHS:
+        shown = []
+        runpy.run_path(str(path), init_globals={"show_object": shown.append})
+        assert len(shown) == 1 and isinstance(shown[0], cq.Workplane), path.name
+        assert len(shown[0].val().Solids()) == 1
+
+
 def test_build_returns_one_solid_and_validates():
     part = load_part(PARTS_DIR / "thesis_single_hole.py")
     solid = part.build(radius_mm=2.0)
