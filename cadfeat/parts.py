@@ -343,6 +343,7 @@ def build_shape(part: Part, params: Mapping[str, Any] | None = None, timeout_s: 
         try:
             status, payload = receive.recv()
         except EOFError:
+            proc.join(5.0)
             raise PartBuildError(f"{part.path}: build({_fmt(values)}) worker died "
                                  f"(exit code {proc.exitcode})") from None
     finally:

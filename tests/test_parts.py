@@ -184,6 +184,9 @@ def test_build_shape_timeout_and_errors(tmp_path):
         build_shape(bad, None, timeout_s=60)
     with pytest.raises(CadfeatError, match="out of bounds"):
         build_shape(bad, {"size_mm": 99.0})
+    dies = load_part(write(tmp_path, "dies.py", GOOD_HEAD + "import os\ndef build(size_mm):\n    os._exit(3)\n"))
+    with pytest.raises(PartBuildError, match=r"worker died \(exit code 3\)"):
+        build_shape(dies, {}, timeout_s=60)
 
 
 # ---------------------------------------------------------------------------------- STEP round trip
