@@ -127,6 +127,9 @@ def write(tmp_path: Path, name: str, text: str) -> Path:
      r"PARAMETERS\['a'\] lacks 'bounds'"),
     ("outside.py", 'PARAMETERS = {"a": {"default": 3.0, "bounds": (0, 2)}}\ndef build(a): pass\n',
      r"PARAMETERS\['a'\]: default 3 is outside bounds \[0, 2\]"),
+    ("signature.py", 'PARAMETERS = {"a": {"default": 1.0, "bounds": (0, 2)}}\ndef build(b): pass\n',
+     r"signature\.py: build\(b\) does not match PARAMETERS \(a\): not accepted: a; required but not in "
+     r"PARAMETERS: b"),
     ("importfail.py", "import math\nmath.sqrt(-1)\n", r"importfail\.py:2: importing the part script raised ValueError"),
 ])
 def test_bad_script_load_errors(tmp_path, name, body, match):
@@ -134,9 +137,17 @@ def test_bad_script_load_errors(tmp_path, name, body, match):
         load_part(write(tmp_path, name, body))
 
 
-def test_missing_file(tmp_path):
-    with pytest.raises(CadfeatError, match="part script not found"):
+def test_missing_file_and_library_names(tmp_path):
+    with pytest.raises(CadfeatError, match=r"part script not found \(library parts: .*thesis_hub"):
         load_part(tmp_path / "nothing.py")
+    assert load_part("thesis_hub").path == (PARTS_DIR / "thesis_hub.py").resolve()
+
+
+def test_part_pickles_by_path():
+    import pickle
+
+    part = pickle.loads(pickle.dumps(load_part("thesis_single_hole")))
+    assert part.name == "thesis_single_hole" and len(part.holes(radius_mm=2.0)) == 1
 
 
 @pytest.mark.parametrize("body, match", [
