@@ -194,6 +194,14 @@ class Part:
 
         return extract_holes(self.build(**overrides), prefer_direction=self.view_direction)
 
+    def holes_timed(self, params: Mapping[str, Any] | None = None, timeout_s: float | None = None) -> list[Hole]:
+        """``holes(**params)``, built in a worker process with a time limit when ``timeout_s`` is given."""
+        if timeout_s is None:
+            return self.holes(**dict(params or {}))
+        from cadfeat.features import extract_holes
+
+        return extract_holes(build_shape(self, params, timeout_s), prefer_direction=self.view_direction)
+
     def expected_holes(self, **overrides: Any) -> list[dict] | None:
         """The script's analytic holes (``expected_holes(**params)``: dicts centre, axis, radius_mm), or None."""
         func = getattr(self.module, "expected_holes", None)

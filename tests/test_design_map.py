@@ -141,3 +141,15 @@ def test_axis_derivative_of_a_tilting_hole(tmp_path):
     assert dm.linear_by == {"tilt_rad": False, "x_mm": True}
     _, axes, _ = dm.predict({"tilt_rad": 0.35})
     np.testing.assert_allclose(axes[0], [math.sin(0.35), 0, math.cos(0.35)], atol=1e-3)
+
+
+def test_worker_builds_give_the_same_map_and_feature_matrix():
+    """Builds in time-limited worker processes (BRep transfer) give the same map as in-process builds."""
+    part = load_part(PARTS_DIR / "thesis_single_hole.py")
+    local = design_map(part, ["hole_x_mm", "radius_mm"])
+    remote = design_map(part, ["hole_x_mm", "radius_mm"], timeout_s=120)
+    np.testing.assert_allclose(remote.dC, local.dC, atol=1e-12)
+    np.testing.assert_allclose(remote.dR, local.dR, atol=1e-12)
+    rows, matrix = local.feature_matrix()
+    assert rows == ["H1.x", "H1.y", "H1.z", "H1.r"]
+    np.testing.assert_allclose(matrix, [[1, 0], [0, 0], [0, 0], [0, 1]], atol=1e-9)  # uncoupled (§2.2.4)
