@@ -179,7 +179,8 @@ class LinearFeatureModel:
     """Hole features linear in the design variables (exact for holes placed by parameters).
 
     ``c(x) = centres0 + dC @ (x - x0)`` with ``dC`` (N,3,P) mm per unit, ``r(x) = radii0 + dR @ (x - x0)``
-    (N,P); axes are constant. ``holes`` are the reference holes at ``x0`` (outlines for the constraints).
+    (N,P); axes ``a0 + dA @ (x - x0)`` normalised (``dA`` (N,3,P), default zero: constant axes).
+    ``holes`` are the reference holes at ``x0`` (outlines for the constraints).
     """
 
     holes: list[Hole]
@@ -187,6 +188,7 @@ class LinearFeatureModel:
     dC: np.ndarray
     dR: np.ndarray
     names: list[str] = field(default_factory=list)
+    dA: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.holes = list(self.holes)
@@ -194,17 +196,19 @@ class LinearFeatureModel:
         n, p = len(self.holes), self.x0.size
         self.dC = np.asarray(self.dC, dtype=float).reshape(n, 3, p)
         self.dR = np.asarray(self.dR, dtype=float).reshape(n, p)
+        self.dA = np.zeros((n, 3, p)) if self.dA is None else np.asarray(self.dA, dtype=float).reshape(n, 3, p)
         self.centres0, self.axes0, self.radii0 = holes_to_arrays(self.holes)
 
     @classmethod
     def from_design_map(cls, dm: Any, names: Sequence[str], x0: Sequence[float]) -> LinearFeatureModel:
         """From a ``cadfeat.design_map.DesignMap`` built at parameters ``x0`` for ``names`` (columns in that
-        order). ``dm.holes0``, ``dm.dC`` (N,3,P), ``dm.dR`` (N,P)."""
+        order). ``dm.holes0``, ``dm.dC`` (N,3,P), ``dm.dR`` (N,P), ``dm.dA`` (N,3,P) if present."""
         x0 = np.asarray(x0, dtype=float)
         dC, dR = np.asarray(dm.dC, dtype=float), np.asarray(dm.dR, dtype=float)
         if dC.shape[-1] != len(names) or dR.shape[-1] != len(names) or x0.size != len(names):
             raise CadfeatError(f"design map has {dC.shape[-1]} parameter columns, expected {len(names)} ({names})")
-        return cls(list(dm.holes0), x0, dC, dR, list(names))
+        dA = getattr(dm, "dA", None)
+        return cls(list(dm.holes0), x0, dC, dR, list(names), None if dA is None else np.asarray(dA, dtype=float))
 
     @classmethod
     def from_rebuild(cls, rebuild: Callable[[np.ndarray], list[Hole]], x0: np.ndarray, steps: np.ndarray,
@@ -238,7 +242,11 @@ class LinearFeatureModel:
         dX = np.asarray(X, dtype=float) - self.x0
         centres = self.centres0 + np.einsum("nkp,bp->bnk", self.dC, dX)
         radii = self.radii0 + dX @ self.dR.T
-        axes = np.broadcast_to(self.axes0, centres.shape)
+        if np.any(self.dA):
+            axes = self.axes0 + np.einsum("nkp,bp->bnk", self.dA, dX)
+            axes = axes / np.linalg.norm(axes, axis=-1, keepdims=True)
+        else:
+            axes = np.broadcast_to(self.axes0, centres.shape)
         return centres, axes, radii
 
     def moved_mask(self) -> np.ndarray:

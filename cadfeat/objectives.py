@@ -2,7 +2,10 @@
 
 Per pose k, each measure is first reduced over the N features (``feature_reduce``; default ``"min"``, the
 worst feature, because the thesis's visual constraints — FOV eq. 3.3, focus eq. 3.6, resolution eq. 3.22 —
-must hold for *every* feature; the thesis does not state its per-pose reduction). Resolvability Λ_k
+must hold for *every* feature; the thesis does not state its per-pose reduction). Only the features the
+design can change count (``feature_mask``: the moving holes; all features when none moves) — a fixed hole's
+FOV/focus/resolution cannot be improved, and as the worst feature it would flatten the objective.
+Resolvability Λ_k
 (eq. 4.27–4.32) is already one number per pose. Then over the L poses (``aggregate``):
 
 - ``"sum"``: g = Σ_k Λ_k — the thesis (eq. 3.24 for FOV/FOC/RES, eq. 4.33 for Λ);
@@ -134,16 +137,20 @@ def _reduce_features(values: np.ndarray, how: str) -> np.ndarray:
     return {"min": np.min, "mean": np.mean, "sum": np.sum}[how](values, axis=-1)
 
 
-def per_pose_values(measures: Any, config: ObjectiveConfig) -> dict[str, np.ndarray]:
-    """Per-pose value (..., L) of each chosen measure: features reduced by ``config.feature_reduce``."""
+def per_pose_values(measures: Any, config: ObjectiveConfig,
+                    feature_mask: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Per-pose value (..., L) of each chosen measure: the features selected by ``feature_mask`` (N,) bool
+    (default all) reduced by ``config.feature_reduce``; resolvability uses every feature (the Jacobian)."""
     out = {}
+    mask = None if feature_mask is None or not np.any(feature_mask) else np.asarray(feature_mask, dtype=bool)
     for m in config.measures:
         if m == "resolvability":
             out[m] = np.asarray(measures.resolvability, dtype=float)
             continue
         attr = {"fov": "fov" if config.fov_measure == "cone" else "fov_px", "focus": "focus",
                 "resolution": "resolution_px"}[m]
-        out[m] = _reduce_features(np.asarray(getattr(measures, attr), dtype=float), config.feature_reduce)
+        values = np.asarray(getattr(measures, attr), dtype=float)
+        out[m] = _reduce_features(values if mask is None else values[..., mask], config.feature_reduce)
     return out
 
 
@@ -163,13 +170,14 @@ def aggregate(values: np.ndarray, how: str, beta: float = 20.0, unit: float = 1.
     raise CadfeatError(f"objective.aggregate: {how!r} is not one of {', '.join(AGGREGATES)}")
 
 
-def objective_values(measures: Any, config: ObjectiveConfig,
-                     units: Mapping[str, float] | None = None) -> dict[str, float]:
+def objective_values(measures: Any, config: ObjectiveConfig, units: Mapping[str, float] | None = None,
+                     feature_mask: np.ndarray | None = None) -> dict[str, float]:
     """The aggregated objectives {g_FOV, g_FOC, g_RES, g_DIR} (those chosen) of one ``Measures``; ``units``
-    (measure → natural unit, ``natural_units``) sets the smooth-min scale (1 if not given)."""
+    (measure → natural unit, ``natural_units``) sets the smooth-min scale (1 if not given);
+    ``feature_mask`` as in ``per_pose_values``."""
     units = units or {}
     out = {}
-    for m, v in per_pose_values(measures, config).items():
+    for m, v in per_pose_values(measures, config, feature_mask).items():
         out[MEASURES[m]] = float(aggregate(v, config.aggregate, config.smoothmin_beta, units.get(m, 1.0)))
     return out
 

@@ -53,6 +53,7 @@ class Problem:
         n = len(model.holes)
         self.fixed_mask = np.zeros(n, dtype=bool) if fixed_mask is None else np.asarray(fixed_mask, dtype=bool)
         self.occlusion_mesh = occlusion_mesh
+        self.feature_mask = ~self.fixed_mask if (~self.fixed_mask).any() else None
         self.T_cam_part = invert_T(np.asarray(trajectory.T_task_cam, dtype=float)) @ self.T_task_part
         self.screws = np.asarray(trajectory.velocity_screws(), dtype=float)
         self.cset = ConstraintSet(model.holes, constraint_config, self.fixed_mask)
@@ -97,7 +98,7 @@ class Problem:
         """Raw aggregated objectives (K,) in ``names`` order from hole features."""
         m = self.measures_from_features(centres, axes, radii)
         cfg = self.objective_config
-        values = per_pose_values(m, cfg)
+        values = per_pose_values(m, cfg, self.feature_mask)
         return np.array([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k]) for k in cfg.measures])
 
     def features_constraints(self, centres: np.ndarray, radii: np.ndarray, g: np.ndarray) -> np.ndarray:

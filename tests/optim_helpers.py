@@ -3,6 +3,7 @@ functions (no camera, no CAD)."""
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -44,3 +45,54 @@ def box(*bounds, x0=None, sizes=None):
                           sizes.get(i) if sizes else None) for i, (lo, hi) in enumerate(bounds)]
     x0 = np.array([(lo + hi) / 2 for lo, hi in bounds]) if x0 is None else np.asarray(x0, float)
     return DesignSpace(variables, x0)
+
+
+# ------------------------------------------------------------------------------- a small CAD problem
+PLATE = (80.0, 60.0, 5.0)
+
+
+def plate_with_holes(centres_xy, radii):
+    """A CadQuery plate 80 × 60 × 5 mm (top face z = 0) with through holes at ``centres_xy`` (mm)."""
+    import cadquery as cq
+
+    sx, sy, sz = PLATE
+    solid = cq.Solid.makeBox(sx, sy, sz, cq.Vector(-sx / 2, -sy / 2, -sz))
+    cuts = [cq.Solid.makeCylinder(float(r), sz + 2, cq.Vector(float(x), float(y), -sz - 1))
+            for (x, y), r in zip(centres_xy, radii, strict=True)]
+    return solid.cut(*cuts)
+
+
+def two_hole_rebuild(x):
+    """x = (x1, y1, x2, y2, d): two holes of diameter d on the plate; returns the extracted holes."""
+    from cadfeat.features import extract_holes
+
+    x = np.asarray(x, float)
+    return extract_holes(plate_with_holes([(x[0], x[1]), (x[2], x[3])], [x[4] / 2] * 2),
+                         prefer_direction=(0, 0, 1))
+
+
+@functools.lru_cache(maxsize=8)
+def _two_hole_model(x0: tuple, span: tuple):
+    from cadfeat.design_space import LinearFeatureModel
+
+    return LinearFeatureModel.from_rebuild(two_hole_rebuild, np.array(x0), 1e-3 * np.array(span),
+                                           names=["x1", "y1", "x2", "y2", "d"])
+
+
+def two_hole_problem(measures=("resolution",), combine="weighted", aggregate="sum", n=12, x0=(-20, 10, 20, -10, 4),
+                     feature_reduce="min", edge=2.0, ligament=2.0, d_bounds=(2.0, 8.0), **objective):
+    """Two holes on a plate seen by a camera moving above it: a real ``Problem`` (CAD → linear map)."""
+    from cadfeat.camera import Camera
+    from cadfeat.constraints import ConstraintConfig
+    from cadfeat.trajectory import straight_approach
+
+    variables = [Variable("x1", -35, 35), Variable("y1", -25, 25), Variable("x2", -35, 35), Variable("y2", -25, 25),
+                 Variable("d", *d_bounds, "mm", "diameter")]
+    space = DesignSpace(variables, np.asarray(x0, float))
+    model = _two_hole_model(tuple(x0), tuple(space.span))
+    camera = Camera.preset("basler-aca1300-200um-8mm")
+    traj = straight_approach((-40, -30, 320), (40, 30, 260), (0, 0, 0), n=n)
+    cfg = ObjectiveConfig(measures=tuple(measures), combine=combine, aggregate=aggregate,
+                          feature_reduce=feature_reduce, **objective)
+    return Problem(space, model, camera, traj, np.eye(4), cfg,
+                   ConstraintConfig(edge_distance_mm=edge, ligament_mm=ligament), [False, False])
