@@ -80,7 +80,8 @@ def _two_hole_model(x0: tuple, span: tuple):
 
 
 def two_hole_problem(measures=("resolution",), combine="weighted", aggregate="sum", n=12, x0=(-20, 10, 20, -10, 4),
-                     feature_reduce="min", edge=2.0, ligament=2.0, d_bounds=(2.0, 8.0), **objective):
+                     feature_reduce="min", edge=2.0, ligament=2.0, d_bounds=(2.0, 8.0), heights=(320.0, 260.0),
+                     **objective):
     """Two holes on a plate seen by a camera moving above it: a real ``Problem`` (CAD → linear map)."""
     from cadfeat.camera import Camera
     from cadfeat.constraints import ConstraintConfig
@@ -91,7 +92,7 @@ def two_hole_problem(measures=("resolution",), combine="weighted", aggregate="su
     space = DesignSpace(variables, np.asarray(x0, float))
     model = _two_hole_model(tuple(x0), tuple(space.span))
     camera = Camera.preset("basler-aca1300-200um-8mm")
-    traj = straight_approach((-40, -30, 320), (40, 30, 260), (0, 0, 0), n=n)
+    traj = straight_approach((-40, -30, heights[0]), (40, 30, heights[1]), (0, 0, 0), n=n)
     cfg = ObjectiveConfig(measures=tuple(measures), combine=combine, aggregate=aggregate,
                           feature_reduce=feature_reduce, **objective)
     return Problem(space, model, camera, traj, np.eye(4), cfg,
