@@ -10,8 +10,12 @@ the report only reads the numbers, it does not check them.
 
 from __future__ import annotations
 
+import atexit
+import functools
 import hashlib
 import importlib.metadata
+import shutil
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -210,3 +214,13 @@ def build_case(out_dir: str | Path, n_poses: int = 30, n_sweep: int = 21) -> tup
 
 def file_digest(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+@functools.cache
+def shared_case() -> tuple[Path, dict[str, Any], Any]:
+    """``build_case`` once per test process (several test modules use it): (out_dir, results, context).
+    Callers must not mutate the results (deep-copy first)."""
+    out = Path(tempfile.mkdtemp(prefix="cadfeat-report-case-"))
+    atexit.register(shutil.rmtree, out, True)
+    results, context = build_case(out)
+    return out, results, context

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from report_fixture import build_case
+from report_fixture import shared_case
 from report_html import parse_report
 
 import cadfeat
@@ -29,10 +29,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
-def case(tmp_path_factory):
-    out = tmp_path_factory.mktemp("case")
-    results, context = build_case(out)
-    return out, results, context
+def case():
+    return shared_case()
 
 
 @pytest.fixture(scope="module")
