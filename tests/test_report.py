@@ -267,3 +267,20 @@ def test_import_is_light():
             "print(sorted(m for m in ('cadquery', 'pyvista', 'matplotlib', 'vtk') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_cli_report_from_results_json(case, tmp_path):
+    """`cadfeat report results.json` writes the page beside it (JSON round trip of the results)."""
+    import json
+
+    from cadfeat.cli import main
+
+    _, results, _ = case
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps(results))
+    assert main(["report", str(path)]) == 0
+    page = parse_report(tmp_path / "report.html")
+    assert len(page.images) == 6 and len(page.tables["features"]) == 4
+    (tmp_path / "bad.json").write_text("[1, 2")
+    assert main(["report", str(tmp_path / "bad.json")]) == 2
+    assert main(["report", str(tmp_path / "missing.json")]) == 2

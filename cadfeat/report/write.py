@@ -7,6 +7,7 @@ data is replaced by a note and a logged warning: writing the report never stops 
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import time
@@ -14,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from cadfeat.errors import CadfeatError
 from cadfeat.report import tables
 from cadfeat.report.context import ReportContext
 from cadfeat.report.html import esc, figure, fmt, note, page, section
@@ -43,6 +45,21 @@ def write_report(out_dir: str | Path, results: dict, context: ReportContext | No
     and trajectory for the renders (without it the report has no renders, only a note).
     """
     return build_report(out_dir, results, context).path
+
+
+def read_results(path: str | Path) -> dict:
+    """Read a results.json; a missing or malformed file raises CadfeatError naming it."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise CadfeatError(f"{path}: results file not found (written by `cadfeat run` as results.json)") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CadfeatError(f"{path}: not a readable JSON results file: {exc}") from None
+    if not isinstance(data, dict):
+        raise CadfeatError(f"{path}: a results file holds a JSON object (keys study, measures, ...), "
+                           f"got {type(data).__name__}")
+    return data
 
 
 def build_report(out_dir: str | Path, results: dict, context: ReportContext | None = None) -> ReportOutput:
