@@ -74,6 +74,12 @@ def summary(results: dict) -> str:
         parts.append(f'<p class="big">Combined objective ({esc(obj.get("combine", "?"))}, aggregate '
                      f'{esc(obj.get("aggregate", "?"))}): <span id="combined-before">{esc(fmt(cb))}</span> → '
                      f'<span id="combined-after">{esc(fmt(ca))}</span></p>')
+    changes = objective_changes(obj)
+    if changes:
+        parts.append("<p>" + "; ".join(f"{esc(name)} {esc(fmt(b))} → {esc(fmt(a))}"
+                                       + (f" ({'+' if pct >= 0 else '−'}{esc(fmt(abs(pct), 3))} %)"
+                                          if pct is not None else "")
+                                       for name, b, a, pct in changes) + ".</p>")
     parts += [moves_table(moves), variables_table(results), objectives_table(results)]
     return "".join(p for p in parts if p)
 
@@ -110,19 +116,27 @@ def variables_table(results: dict) -> str:
                  "variables")
 
 
-def objectives_table(results: dict) -> str:
-    """Each objective before and after, with the change (objectives are margins: larger is better)."""
-    obj = results.get("objectives") or {}
+def objective_changes(obj: dict) -> list[tuple[str, Any, Any, float | None]]:
+    """(name, before, after, relative change in % of |before| or None) for each named objective."""
     before, after = obj.get("before") or {}, obj.get("after") or {}
     names = list(obj.get("names") or []) or list(dict.fromkeys([*before, *after]))
-    if not names:
-        return ""
-    rows = []
+    out = []
     for name in names:
         b, a = before.get(name), after.get(name)
         ok = all(isinstance(x, int | float) and not isinstance(x, bool) for x in (a, b))
+        out.append((str(name), b, a, 100.0 * (a - b) / abs(b) if ok and b != 0 else None))
+    return out
+
+
+def objectives_table(results: dict) -> str:
+    """Each objective before and after, with the change (objectives are margins: larger is better)."""
+    changes = objective_changes(results.get("objectives") or {})
+    if not changes:
+        return ""
+    rows = []
+    for name, b, a, rel in changes:
+        ok = all(isinstance(x, int | float) and not isinstance(x, bool) for x in (a, b))
         change = a - b if ok else None
-        rel = 100.0 * change / abs(b) if ok and b != 0 else None
         rows.append("".join([text(name), num(b), num(a), num(change, _change_css(b, a)), num(rel, digits=3)]))
     return table(["objective", "before", "after", "change", "change (%)"], rows, "objectives")
 
