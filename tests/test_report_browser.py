@@ -60,16 +60,29 @@ def _run(args: list[str], home: Path) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def browser_report(tmp_path_factory):
+    """The full report of the plate study, renders included (cadfeat.render, off-screen)."""
     _, results, context = shared_case()
     out = tmp_path_factory.mktemp("browser")
     path = write_report(out / "study", copy.deepcopy(results), context)
     return path, tmp_path_factory.mktemp("chromium-home")
 
 
+def test_report_has_the_renders(browser_report):
+    """Part before/after and the camera views at the first, middle and last sample, each non-blank."""
+    path, _ = browser_report
+    srcs = parse_report(path).images
+    renders = [s for s in srcs if Path(s).stem.startswith(("before", "after", "view_"))]
+    assert len(renders) == 2 + 2 * 3, srcs
+    for src in renders:
+        grey = np.asarray(Image.open(path.parent / src).convert("L"), dtype=float)
+        assert grey.std() > 10.0, f"{src} looks blank"
+    assert "not rendered" not in path.read_text()
+
+
 def test_every_image_loads_in_chromium(browser_report, tmp_path):
     path, home = browser_report
     n_images = len(parse_report(path).images)
-    assert n_images >= 6
+    assert n_images == 6 + 8  # plots + renders
     copy_dir = tmp_path / "copy"
     shutil.copytree(path.parent, copy_dir)
     page = copy_dir / path.name
