@@ -34,11 +34,17 @@ class Plot:
 
 
 def _figure(ncols: int = 1, nrows: int = 1, size: tuple[float, float] = (7.0, 4.2)) -> tuple[Any, Any]:
-    """A pyplot-free Figure (no global state) with its axes."""
+    """A pyplot-free Figure (no global state) with its axes.
+
+    Fixed margins in inches instead of constrained/tight layout: the layout engines cost about half of
+    the plotting time (they draw every figure twice)."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=size, dpi=DPI, layout="constrained")
+    width, height = size
+    fig = Figure(figsize=size, dpi=DPI)
     axes = fig.subplots(nrows, ncols, squeeze=False, sharex=ncols == 1 and nrows > 1)
+    fig.subplots_adjust(left=0.85 / width, right=1 - 0.25 / width, bottom=0.6 / height, top=1 - 0.4 / height,
+                        wspace=0.75 / (width / ncols), hspace=0.35 / (height / nrows) if nrows > 1 else 0.2)
     return fig, axes
 
 
