@@ -296,3 +296,39 @@ def test_cli_report_from_results_json(case, tmp_path):
     (tmp_path / "bad.json").write_text("[1, 2")
     assert main(["report", str(tmp_path / "bad.json")]) == 2
     assert main(["report", str(tmp_path / "missing.json")]) == 2
+
+
+def _evaluation(results: dict) -> dict:
+    """What `cadfeat evaluate` writes: the current design only (no after, no optimisation data)."""
+    out = _lean(results, keep=("per_pose",))
+    out["evaluation_only"] = True
+    for key in ("constraints", "design_matrix", "variables"):
+        out.pop(key)
+    out["holes"].pop("after")
+    out["measures"].pop("after")
+    out["objectives"] = {k: v for k, v in out["objectives"].items() if k in ("names", "combine", "aggregate",
+                                                                              "before")}
+    return out
+
+
+def test_evaluation_only_report(case, tmp_path, monkeypatch):
+    _, results, context = case
+    fake = _fake_render(fail=False)
+    fake.render_part = lambda shape, path, holes=None, **kw: Image.new("RGB", (40, 30), "gray").save(path) or path
+    monkeypatch.setitem(sys.modules, "cadfeat.render", fake)
+    monkeypatch.setattr(cadfeat, "render", fake, raising=False)
+    ctx = ReportContext(shape_before=context.shape_before, holes_before=context.holes_before,
+                        camera=context.camera, trajectory=context.trajectory, sample_indices=[5])
+    evaluation = _evaluation(results)
+    built = build_report(tmp_path, evaluation, ctx)
+    page = parse_report(built.path)
+    raw = built.path.read_text()
+    assert "cadfeat evaluation" in raw and "nothing was optimised" in raw
+    assert sorted(page.images) == ["img/motion.png", "img/part.png", "img/pose_measures.png", "img/tracks.png",
+                                   "img/view_current_0.png"]
+    before = evaluation["measures"]["before"]["per_feature"]
+    for row, f in zip(page.tables["features"], before, strict=True):
+        assert len(row.cells) == 1 + len(FEATURE_COLUMNS)
+        assert [_value(c) for c in row.cells[1:]] == [f[k] for k, _ in FEATURE_COLUMNS]
+    values = {r.cells[0].text: _value(r.cells[1]) for r in page.tables["objectives"]}
+    assert values == evaluation["objectives"]["before"]

@@ -73,6 +73,11 @@ def _times(results: dict, which: str, n: int) -> np.ndarray:
     return t if t is not None and t.shape == (n,) else np.arange(n, dtype=float)
 
 
+def _design_label(results: dict, which: str) -> str:
+    """ "current" for an evaluation-only result (one design), else before/after."""
+    return "current" if which == "before" and not (results.get("measures") or {}).get("after") else which
+
+
 def _feature_names(results: dict, which: str, n: int) -> list[str]:
     feats = (_measures(results, which) or {}).get("per_feature") or []
     names = [str(f.get("name") or f"#{f.get('index', i)}") for i, f in enumerate(feats)]
@@ -108,7 +113,7 @@ def plot_feature_tracks(results: dict, img_dir: Path) -> Plot | None:
         else:
             ax.invert_yaxis()
         ax.set_aspect("equal")
-        ax.set_title(f"{which}: hole centres in the image")
+        ax.set_title(f"{_design_label(results, which)}: hole centres in the image")
         ax.set_xlabel("u (px)")
         ax.set_ylabel("v (px)")
     axes[0][-1].legend(fontsize=7, loc="best")
@@ -257,7 +262,8 @@ def _before_after(ax: Any, results: dict, key: str) -> None:
     for which, colour, style in (("before", BEFORE, "--"), ("after", AFTER, "-")):
         y = _per_pose(results, which, key)
         if y is not None and y.ndim == 1:
-            ax.plot(_times(results, which, len(y)), y, style, color=colour, lw=1.5, label=which)
+            ax.plot(_times(results, which, len(y)), y, style, color=colour, lw=1.5,
+                    label=_design_label(results, which))
 
 
 def _rectangle(width: float, height: float) -> Any:

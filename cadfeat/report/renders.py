@@ -59,11 +59,15 @@ def _fail(renders: Renders, what: str, exc: BaseException) -> None:
 
 
 def make_renders(context: ReportContext | None, results: dict, img_dir: str | Path) -> Renders:
-    """Render the before/after comparison and the camera views at ``context.samples()`` into ``img_dir``."""
+    """Render the before/after comparison and the camera views at ``context.samples()`` into ``img_dir``.
+
+    With only ``shape_before`` (an evaluation, nothing optimised) the part and its views are rendered once,
+    under the key "current".
+    """
     img_dir = Path(img_dir)
     img_dir.mkdir(parents=True, exist_ok=True)
     renders = Renders()
-    if context is None or context.shape_before is None or context.shape_after is None:
+    if context is None or context.shape_before is None:
         renders.notes.append("Renders skipped: the report was written without the part shapes "
                              "(no report context), e.g. from results.json alone.")
         return renders
@@ -78,6 +82,30 @@ def make_renders(context: ReportContext | None, results: dict, img_dir: str | Pa
         _fail(renders, "camera for the renders", exc)
         camera = None
     holes_b, holes_a = list(context.holes_before or []), list(context.holes_after or [])
+    if context.shape_after is None:
+        designs = [("current", context.shape_before, holes_b)]
+        _render_part(renders, render, context, img_dir)
+    else:
+        designs = [("before", context.shape_before, holes_b), ("after", context.shape_after, holes_a)]
+        _render_comparison(renders, render, context, camera, img_dir)
+    samples = context.samples()
+    if camera is None or not samples:
+        renders.notes.append("Camera views skipped: no camera or trajectory in the report context.")
+        return renders
+    renders.samples = samples
+    renders.sample_times_s = [float(context.trajectory.times_s[i]) for i in samples]
+    T_cam_part = context.T_cam_part(samples)
+    for which, shape, holes in designs:
+        try:
+            paths = render.render_camera_views(shape, holes, camera, T_cam_part, img_dir, f"view_{which}")
+            renders.views[which] = _inside(paths, img_dir)
+        except Exception as exc:
+            _fail(renders, f"camera views ({which})", exc)
+    return renders
+
+
+def _render_comparison(renders: Renders, render, context: ReportContext, camera, img_dir: Path) -> None:
+    holes_b, holes_a = list(context.holes_before or []), list(context.holes_after or [])
     fixed = list(context.fixed_mask) if context.fixed_mask is not None else [False] * len(holes_b)
     try:
         out = render.render_comparison(context.shape_before, context.shape_after, holes_b, holes_a, fixed,
@@ -86,17 +114,11 @@ def make_renders(context: ReportContext | None, results: dict, img_dir: str | Pa
         renders.comparison = {k: p for k, p in zip(out, _inside(out.values(), img_dir), strict=True)}
     except Exception as exc:
         _fail(renders, "before/after part renders", exc)
-    samples = context.samples()
-    if camera is None or not samples:
-        renders.notes.append("Camera views skipped: no camera or trajectory in the report context.")
-        return renders
-    renders.samples = samples
-    renders.sample_times_s = [float(context.trajectory.times_s[i]) for i in samples]
-    T_cam_part = context.T_cam_part(samples)
-    for which, shape, holes in (("before", context.shape_before, holes_b), ("after", context.shape_after, holes_a)):
-        try:
-            paths = render.render_camera_views(shape, holes, camera, T_cam_part, img_dir, f"view_{which}")
-            renders.views[which] = _inside(paths, img_dir)
-        except Exception as exc:
-            _fail(renders, f"camera views ({which})", exc)
-    return renders
+
+
+def _render_part(renders: Renders, render, context: ReportContext, img_dir: Path) -> None:
+    holes = list(context.holes_before) if context.holes_before is not None else None
+    try:
+        renders.comparison = {"current": Path(render.render_part(context.shape_before, img_dir / "part.png", holes))}
+    except Exception as exc:
+        _fail(renders, "part render", exc)

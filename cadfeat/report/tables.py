@@ -26,6 +26,12 @@ def _by_index(items: Sequence[dict] | None) -> dict[Any, dict]:
     return {it.get("index", i): it for i, it in enumerate(items or []) if isinstance(it, dict)}
 
 
+def is_evaluation(results: dict) -> bool:
+    """True for results of ``cadfeat evaluate`` (one design, no "after")."""
+    return bool(results.get("evaluation_only")) or not ((results.get("measures") or {}).get("after")
+                                                         or (results.get("objectives") or {}).get("after"))
+
+
 def _change_css(before: Any, after: Any) -> str:
     if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in (before, after)):
         return ""
@@ -61,6 +67,8 @@ def summary(results: dict) -> str:
     if results.get("interrupted"):
         parts.append(note("The optimisation was interrupted: these are the best results found before it "
                           "stopped, not a converged optimum.", "warning"))
+    if is_evaluation(results):
+        return _evaluation_summary(results)
     moves = hole_moves(results)
     moved = [m for m in moves if m["moved_mm"] > MOVE_TOL_MM or abs(m["diameter_after"] - m["diameter_before"])
              > MOVE_TOL_MM]
@@ -82,6 +90,23 @@ def summary(results: dict) -> str:
                                        for name, b, a, pct in changes) + ".</p>")
     parts += [moves_table(moves), variables_table(results), objectives_table(results)]
     return "".join(p for p in parts if p)
+
+
+def _evaluation_summary(results: dict) -> str:
+    """Summary of an evaluation (no optimisation): the current design's objectives."""
+    obj = results.get("objectives") or {}
+    n_holes = len((results.get("holes") or {}).get("before") or [])
+    pose = (results.get("trajectory") or {}).get("pose")
+    where = f"at trajectory sample {esc(pose)}" if pose is not None else "along the whole trajectory"
+    out = f'<p class="big">Evaluation of the current design ({n_holes} holes) {where}; nothing was optimised.</p>'
+    if obj.get("combined_before") is not None:
+        out += (f'<p class="big">Combined objective: <span id="combined-before">'
+                f'{esc(fmt(obj["combined_before"]))}</span></p>')
+    before = obj.get("before") or {}
+    if before:
+        rows = ["".join([text(k), num(v)]) for k, v in before.items()]
+        out += table(["objective", "value"], rows, "objectives")
+    return out
 
 
 def moves_table(moves: list[dict]) -> str:
@@ -149,15 +174,21 @@ def feature_table(results: dict) -> str:
     after = _by_index((m.get("after") or {}).get("per_feature"))
     if not before and not after:
         return ""
-    header: list[str | tuple[str, int]] = ["hole", *((h, 2) for _, h in FEATURE_COLUMNS)]
-    header2 = [""] + ["before", "after"] * len(FEATURE_COLUMNS)
+    designs = [(w, d) for w, d in (("before", before), ("after", after)) if d]
+    labels = ["current"] if is_evaluation(results) and len(designs) == 1 else [w for w, _ in designs]
+    width = len(designs)
+    header: list[str | tuple[str, int]] = ["hole", *((h, width) for _, h in FEATURE_COLUMNS)]
+    header2 = [""] + labels * len(FEATURE_COLUMNS)
     rows = []
     for index in dict.fromkeys([*before, *after]):
         fb, fa = before.get(index, {}), after.get(index, {})
         cells = [text(_label(fa or fb, index))]
         for key, _ in FEATURE_COLUMNS:
             b, a = fb.get(key), fa.get(key)
-            cells += [num(b), num(a, "" if key == "worst_pose" else _change_css(b, a))]
+            if before:
+                cells.append(num(b))
+            if after:
+                cells.append(num(a, "" if key == "worst_pose" or not before else _change_css(b, a)))
         rows.append("".join(cells))
     return table(header, rows, "features", header2=header2)
 

@@ -95,7 +95,8 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
 def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot], notes: list[str],
               timings: dict[str, float]) -> str:
     study = results.get("study") or {}
-    title = f"cadfeat report — {study.get('name') or 'study'}"
+    kind = "evaluation" if tables.is_evaluation(results) else "report"
+    title = f"cadfeat {kind} — {study.get('name') or 'study'}"
     subtitle = f"Part {study.get('part') or '?'}" + (f": {study['description']}" if study.get("description") else "")
     rel = _relative(out_dir)
     builders: list[tuple[str, str, Callable[[], str]]] = [
@@ -137,7 +138,8 @@ def _relative(out_dir: Path) -> Callable[[Path], str]:
 def _renders_section(renders: Renders, rel: Callable[[Path], str]) -> str:
     if not renders.comparison:
         return note("No renders of the part: " + ("; ".join(renders.notes) or "rendering unavailable."))
-    captions = {"before": "Before: the original layout.",
+    captions = {"current": "The current design (evaluation: nothing was moved).",
+                "before": "Before: the original layout.",
                 "after": "After: moved holes with arrows from the old to the new centre, fixed holes marked, "
                          "the camera trajectory with frusta."}
     figs = "".join(figure(rel(p), captions.get(k, k), f"part {k}") for k, p in renders.comparison.items())
