@@ -19,7 +19,7 @@ import cadquery as cq
 
 DESCRIPTION = "Brake-disc-like hub: bore + 5 x 100 stud holes fixed; disc-face and radial hub target holes"
 PARAMETERS = {
-    "target_circle_radius_mm": {"default": 61.0, "bounds": (58.0, 64.0), "unit": "mm",
+    "target_circle_radius_mm": {"default": 61.0, "bounds": (60.0, 64.0), "unit": "mm",
                                 "description": "radius of the circle of disc-face target holes"},
     "target_phase_rad": {"default": 0.0, "bounds": (-0.5, 0.5), "unit": "rad",
                          "description": "angle of the first disc-face target hole from +x"},

@@ -8,6 +8,7 @@ holes EXTRACTED from the built B-rep at 1e-9 mm; hand-written bad scripts for th
 from __future__ import annotations
 
 import textwrap
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -61,6 +62,34 @@ def test_part_holes_equal_drawing(path):
     assert part.module.expected_holes is not None, "every library part documents its holes"
     for params in parameter_sets(part):
         assert_holes_match(part.holes(**params), part.expected_holes(**params))
+
+
+def _separated(expected, gap_mm=0.2) -> bool:
+    """Whether no two analytic holes with parallel axes come closer than ``gap_mm`` (rim to rim)."""
+    c = np.array([e["centre"] for e in expected], dtype=float)
+    a = np.array([e["axis"] for e in expected], dtype=float)
+    r = np.array([e["radius_mm"] for e in expected], dtype=float)
+    d = np.linalg.norm(c[:, None] - c[None], axis=-1)
+    parallel = np.abs(a @ a.T) > 1 - 1e-9
+    close = parallel & (d < r[:, None] + r[None] + gap_mm)
+    return not np.any(np.triu(close, 1))
+
+
+@pytest.mark.parametrize("path", PART_PATHS, ids=[p.stem for p in PART_PATHS])
+def test_part_holes_random_designs(path):
+    """Random designs within the bounds (seeded): every design whose holes do not overlap (a feasible
+    layout; overlapping ones are for the ligament constraint to reject) is extracted exactly."""
+    part = load_part(path)
+    rng = np.random.default_rng(zlib.crc32(path.stem.encode()))
+    checked = 0
+    for _ in range(4):
+        params = {n: int(rng.integers(p.lower, p.upper + 1)) if p.is_int else float(rng.uniform(p.lower, p.upper))
+                  for n, p in part.parameters.items()}
+        expected = part.expected_holes(**params)
+        if _separated(expected):
+            assert_holes_match(part.holes(**params), expected)
+            checked += 1
+    assert checked
 
 
 @pytest.mark.parametrize("path", PART_PATHS, ids=[p.stem for p in PART_PATHS])
