@@ -58,8 +58,8 @@ def build(target_circle_radius_mm, target_phase_rad, target_count, radial_target
 
 def expected_holes(target_circle_radius_mm, target_phase_rad, target_count, radial_target_z_mm, target_radius_mm):
     up = (0.0, 0.0, 1.0)
-    out = [{"centre": (0.0, 0.0, HUB_TOP), "axis": up, "radius_mm": BORE_R}]
-    out += [{"centre": (x, y, DISC_T), "axis": up, "radius_mm": STUD_R} for x, y in studs()]
+    out = [{"centre": (0.0, 0.0, HUB_TOP), "axis": up, "radius_mm": BORE_R, "fixed": True}]
+    out += [{"centre": (x, y, DISC_T), "axis": up, "radius_mm": STUD_R, "fixed": True} for x, y in studs()]
     out += [{"centre": (x, y, DISC_T), "axis": up, "radius_mm": target_radius_mm}
             for x, y in targets(target_circle_radius_mm, target_phase_rad, target_count)]
     out.append({"centre": (HUB_R, 0.0, radial_target_z_mm), "axis": (1.0, 0.0, 0.0), "radius_mm": target_radius_mm})

@@ -58,7 +58,7 @@ def build(base_hole_spacing_mm, base_hole_y_mm, target_upright_x_mm, target_upri
 def expected_holes(base_hole_spacing_mm, base_hole_y_mm, target_upright_x_mm, target_upright_z_mm, target_base_x_mm,
                    target_radius_mm):
     front, up = (0.0, -1.0, 0.0), (0.0, 0.0, 1.0)
-    out = [{"centre": (sx * 15.0, 0.0, CB_Z), "axis": front, "radius_mm": CB_R, "kind": "counterbore"}
+    out = [{"centre": (sx * 15.0, 0.0, CB_Z), "axis": front, "radius_mm": CB_R, "kind": "counterbore", "fixed": True}
            for sx in (-1, 1)]
     out += [{"centre": (sx * base_hole_spacing_mm / 2, base_hole_y_mm, T), "axis": up, "radius_mm": CS_R,
              "kind": "countersink"} for sx in (-1, 1)]

@@ -116,6 +116,25 @@ def test_scripts_run_unchanged_in_cq_editor():
         assert len(shown[0].val().Solids()) == 1
 
 
+@pytest.mark.parametrize("name, n_fixed", [("industrial_plate", 7), ("nema17_mount", 5), ("l_bracket", 2),
+                                           ("pipe_flange_dn50", 5), ("brake_disc_hub", 6), ("thesis_hub", 1),
+                                           ("thesis_array_2d", 0)])
+def test_fixed_mask_marks_the_documented_functional_holes(name, n_fixed):
+    part = load_part(PARTS_DIR / f"{name}.py")
+    params = parameter_sets(part)[1]
+    holes = part.holes(**params)
+    mask = part.fixed_mask(holes, params)
+    assert mask.sum() == n_fixed
+    from cadfeat.design_map import design_map
+
+    free = [n for n, p in part.parameters.items() if not p.is_int]
+    if name == "pipe_flange_dn50":  # no parameter moves a fixed hole, every other hole is moved by one
+        dm = design_map(part, free, at=params)
+        moved = sorted({i for v in dm.moved_by.values() for i in v})
+        assert not mask[moved].any()
+        assert set(moved) | set(np.flatnonzero(mask)) == set(range(len(holes)))
+
+
 def test_build_returns_one_solid_and_validates():
     part = load_part(PARTS_DIR / "thesis_single_hole.py")
     solid = part.build(radius_mm=2.0)
