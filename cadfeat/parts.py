@@ -9,7 +9,7 @@ A part script is a plain Python file (``parts/*.py``) that also runs unchanged i
     FIXED_HOLES = "..."               # optional: which holes are functional (may not move)
 
     def build(**params) -> cq.Workplane: ...
-    def expected_holes(**params) -> list[dict]: ...   # optional: analytic holes, for tests
+    def expected_holes(**params) -> list[dict]: ...   # optional: analytic holes (tests), "fixed" flags
 
     if "show_object" in globals():    # cq-editor
         show_object(build(**{k: v["default"] for k, v in PARAMETERS.items()}))
