@@ -286,3 +286,51 @@ def test_import_stays_light():
     code = "import sys, cadfeat.parts, cadfeat.design_map; print('cadquery' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+# ------------------------------------------------------------------- STEP re-drill vs parametric rebuild
+REDRILL_CASES = {
+    "nema17_mount": {"target_face_x_mm": 25.5, "target_face_z_mm": 38.0, "target_base_x_mm": -7.0,
+                     "base_hole_x_mm": 27.0},
+    "l_bracket": {"base_hole_spacing_mm": 40.0, "base_hole_y_mm": -30.0, "target_upright_z_mm": 30.0},
+}
+
+
+@pytest.mark.parametrize("name", list(REDRILL_CASES))
+def test_step_redrill_equals_parametric_rebuild(tmp_path, name):
+    """Two independent CAD paths to the same design: re-drilling the STEP export of the default design
+    (``step_parts.redrill``) and rebuilding the part script at the new parameters give the same holes
+    (1e-9 mm, kinds, depths) and the same volume (1e-9 relative)."""
+    from cadfeat.export import export_step
+    from cadfeat.step_parts import HoleMove, load_step, redrill
+
+    part = load_part(PARTS_DIR / f"{name}.py")
+    new = REDRILL_CASES[name]
+    step = load_step(export_step(part.build(), tmp_path / f"{name}.step"), part.view_direction)
+    moves = [HoleMove(step.select(list(a["centre"]), tol_mm=1e-9), np.array(b["centre"], float), b["radius_mm"])
+             for a, b in zip(part.expected_holes(), part.expected_holes(**new), strict=True)
+             if not np.allclose(a["centre"], b["centre"], rtol=0, atol=0)]
+    assert len(moves) >= 3
+    result = redrill(step.shape, moves)
+    reference = part.build(**new)
+    assert abs(result.Volume() - reference.Volume()) <= 1e-9 * reference.Volume()
+    from cadfeat.features import extract_holes
+
+    redrilled = extract_holes(result, prefer_direction=part.view_direction)
+    assert_holes_match(redrilled, part.expected_holes(**new))
+    depth = {tuple(np.round(h.centre, 6)): (h.depth_mm, h.through) for h in part.holes(**new)}
+    for h in redrilled:
+        d, through = depth[tuple(np.round(h.centre, 6))]
+        assert abs(h.depth_mm - d) <= 1e-9 and h.through == through
+
+
+def test_redrill_refuses_a_hole_on_a_curved_face(tmp_path):
+    """The brake hub's radial hole enters a cylindrical face: re-drilling says so instead of guessing."""
+    from cadfeat.export import export_step
+    from cadfeat.step_parts import HoleMove, load_step, redrill
+
+    part = load_part(PARTS_DIR / "brake_disc_hub.py")
+    step = load_step(export_step(part.build(), tmp_path / "hub.step"), part.view_direction)
+    hole = step.select([35.0, 0.0, 18.0], tol_mm=1e-9)
+    with pytest.raises(CadfeatError, match=r"\(35, 0, 18\).*not perpendicular to its axis"):
+        redrill(step.shape, [HoleMove(hole, np.array([35.0, 0.0, 20.0]), hole.radius_mm)])
