@@ -128,7 +128,9 @@ class Problem:
         def per_design(a: np.ndarray) -> np.ndarray:  # (L, B·N) → (B, L, N)
             return np.moveaxis(a.reshape(L, B, N), 1, 0)
         arrays = {k: per_design(getattr(m, k)) for k in ("fov", "fov_px", "focus", "resolution_px", "visible")}
-        if "resolvability" in cfg.measures:
+        if "resolvability" in cfg.measures and B == 1:  # evaluate's own Λ is the design's
+            arrays["resolvability"] = np.asarray(m.resolvability)[None]
+        elif "resolvability" in cfg.measures:
             R, t = self.T_cam_part[:, :3, :3], self.T_cam_part[:, :3, 3]
             pts = np.einsum("lij,bnj->blni", R, centres) + t[None, :, None, :]
             J = measures.stacked_jacobian(self.camera, pts.reshape(B * L, N, 3),

@@ -42,6 +42,8 @@ LOCAL_SOLVERS = ("SLSQP", "trust-constr")
 @dataclass(frozen=True)
 class OptimizerConfig:
     """Solver settings. ``fd_step``: finite-difference step as a fraction of each variable's range;
+    ``eager_gradients``: evaluate the finite-difference stencil in the same batch as every value request
+    (fewer, larger batches: faster on feature models, more evaluations);
     ``ftol``: local solver tolerance; ``de_*``: differential evolution; ``pop_size``/``n_gen``: NSGA-II."""
 
     method: str = "multistart"
@@ -51,6 +53,7 @@ class OptimizerConfig:
     local_solver: str = "SLSQP"
     snap_standard_sizes: bool = True
     fd_step: float = 1e-5
+    eager_gradients: bool = False
     ftol: float = 1e-9
     de_maxiter: int = 60
     de_popsize: int = 12
