@@ -14,7 +14,7 @@ what must be kept, what to optimise and how (README, "Study files", has a full a
                    both: standard_diameters_mm, fixed = [selectors], patterns = [[selectors], ...]
     [constraints]  edge_distance_mm, ligament_mm, volume_change_max_percent, symmetry
     [objective]    measures, aggregate, combine, weights, thresholds, min_axis_px, rotation_length_mm,
-                   smoothmin_beta
+                   smoothmin_beta, normalisation (initial | natural | none), fov_measure (cone | image)
     [optimizer]    method, starts, maxiter, seed, local_solver, snap_standard_sizes
 
 Everything is checked before any work is done (``load_study``): unknown sections and keys, types, ranges,
@@ -71,6 +71,8 @@ COMBINES = ("weighted", "maxmin", "constraint", "pareto")
 METHODS = ("multistart", "local", "global", "pareto")
 LOCAL_SOLVERS = ("SLSQP", "trust-constr")
 SYMMETRIES = ("none", "x", "y", "xy")
+NORMALISATIONS = ("initial", "natural", "none")
+FOV_MEASURES = ("cone", "image")
 SCRIPT_SUFFIXES = (".py",)
 STEP_SUFFIXES = (".step", ".stp")
 
@@ -213,7 +215,9 @@ class ObjectiveSpec:
     thresholds: Mapping[str, float] = field(default_factory=dict)
     min_axis_px: float = 5.0
     rotation_length_mm: float = 1.0
-    smoothmin_beta: float = 10.0
+    smoothmin_beta: float = 20.0
+    normalisation: str = "initial"
+    fov_measure: str = "cone"
 
 
 @dataclass(frozen=True)
@@ -685,7 +689,9 @@ def _objective_section(t: _Table) -> ObjectiveSpec:
         measures=tuple(measures), aggregate=aggregate, combine=combine, weights=weights, thresholds=thresholds,
         min_axis_px=t.number("min_axis_px", 5.0, 0.0, lo_open=True),
         rotation_length_mm=t.number("rotation_length_mm", 1.0, 0.0, lo_open=True),
-        smoothmin_beta=t.number("smoothmin_beta", 10.0, 0.0, lo_open=True),
+        smoothmin_beta=t.number("smoothmin_beta", 20.0, 0.0, lo_open=True),
+        normalisation=t.string("normalisation", "initial", NORMALISATIONS),
+        fov_measure=t.string("fov_measure", "cone", FOV_MEASURES),
     )
 
 
@@ -762,7 +768,8 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
                                                "symmetry"]))
     objective = _objective_section(_Table(top.raw("objective", {}), "objective", label,
                                           ["measures", "aggregate", "combine", "weights", "thresholds",
-                                           "min_axis_px", "rotation_length_mm", "smoothmin_beta"]))
+                                           "min_axis_px", "rotation_length_mm", "smoothmin_beta",
+                                           "normalisation", "fov_measure"]))
     optimizer = _optimizer_section(_Table(top.raw("optimizer", {}), "optimizer", label,
                                           ["method", "starts", "maxiter", "seed", "local_solver",
                                            "snap_standard_sizes"]), info.seed)
