@@ -23,6 +23,8 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import importlib.util
+import io
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -97,7 +99,7 @@ def _num(x: Any) -> str:
 
 # ------------------------------------------------------------------------------------------ scoring
 def measure_holes(setup: Any, holes: Sequence[Any], trajectory: Any = None) -> Any:
-    """``measures.evaluate`` of real holes (part frame) along the study's trajectory."""
+    """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``)."""
     from cadfeat import measures
     from cadfeat.features import holes_to_arrays
 
@@ -109,25 +111,17 @@ def measure_holes(setup: Any, holes: Sequence[Any], trajectory: Any = None) -> A
                              rotation_length_mm=o.rotation_length_mm)
 
 
-def score(setup: Any, m: Any) -> tuple[dict[str, float], float | None]:
-    """The aggregated objectives of ``Measures`` and their combined value (larger is better) — computed
-    the same way as the optimiser's (its normalisation and combination)."""
-    from cadfeat.objectives import combine, objective_values
+def score(setup: Any, holes: Sequence[Any]) -> tuple[dict[str, float], float | None]:
+    """The aggregated objectives of real holes and their combined value (larger is better), computed exactly
+    as the optimiser does (``Problem.features_objectives`` / ``combined_from``: same normalisation)."""
+    from cadfeat.features import holes_to_arrays
 
     problem = setup.problem
-    config = problem.objective_config if hasattr(problem, "objective_config") else None
-    if config is None:
-        from cadfeat.study_setup import objective_config
-
-        config = objective_config(setup.config)
-    units = getattr(problem, "units", None)
-    values = objective_values(m, config, units)
-    normaliser = getattr(problem, "normaliser", None)
-    if config.combine == "pareto" or normaliser is None:
+    G = problem.features_objectives(*holes_to_arrays(list(holes)))
+    values = dict(zip(problem.names, map(float, G), strict=True))
+    if setup.config.objective.combine == "pareto":
         return values, None
-    names = list(values)
-    G = np.array([float(normaliser.normalise({k: values[k]})[k]) for k in names])
-    return values, float(combine(G, config, names))
+    return values, float(problem.combined_from(G))
 
 
 # ------------------------------------------------------------------------------------------ optimise
@@ -147,6 +141,8 @@ def _optimise(setup: Any, progress: StudyProgress, label: str = "") -> tuple[Any
         if progress.best_x is None:
             raise
         res = _Interrupted(progress.best_x, progress.best_f)
+    if getattr(res, "interrupted", False) and not getattr(res, "history", None) and progress.best_x is None:
+        raise KeyboardInterrupt  # stopped before the optimiser evaluated any design: nothing to write
     return res, bool(getattr(res, "interrupted", False))
 
 
@@ -225,11 +221,41 @@ def _rebuild(setup: Any, x: np.ndarray) -> tuple[Any, list[Any], float]:
 
 
 def _checks(setup: Any, shape: Any, holes: Sequence[Any], where: str) -> list[dict[str, Any]]:
+    """Every kept requirement measured on the solid ``shape`` whose holes are ``holes`` (design order).
+
+    ``verify_on_brep`` re-extracts holes without a preferred direction (a through hole may then be reported
+    from its other end), so the design and reference holes are given to it in that same convention, paired
+    with the design order by their axis lines."""
     from cadfeat.constraints import verify_on_brep
 
-    checks = verify_on_brep(shape, list(holes), setup.constraints, setup.fixed_mask, reference=setup.holes0,
+    design = _pair_by_axis(holes, _extract_plain(shape), f"{where} holes")
+    reference = _pair_by_axis(setup.holes0, _extract_plain(setup.shape0), "original holes")
+    checks = verify_on_brep(shape, design, setup.constraints, setup.fixed_mask, reference=reference,
                             reference_shape=setup.shape0)
     return [{**c.to_dict(), "checked_on": where} for c in checks]
+
+
+def _pair_by_axis(reference: Sequence[Any], holes: Sequence[Any], what: str, tol_mm: float = 1e-3) -> list[Any]:
+    """``holes`` reordered to pair with ``reference`` hole by hole: same axis line (parallel axes, either
+    sign, centre on the reference's axis line within ``tol_mm``), nearest centre first."""
+    if len(holes) != len(reference):
+        raise CadfeatError(f"{what}: {len(holes)} holes found, {len(reference)} designed")
+    c1 = np.array([h.centre for h in holes], float).reshape(-1, 3)
+    a1 = np.array([h.axis for h in holes], float).reshape(-1, 3)
+    out, used = [], set()
+    for i, h in enumerate(reference):
+        c0, a0 = np.asarray(h.centre, float), np.asarray(h.axis, float)
+        d = c1 - c0
+        off_line = np.linalg.norm(d - np.outer(d @ a0, a0), axis=1)
+        parallel = np.abs(a1 @ a0) > 1 - 1e-9
+        ok = [k for k in np.argsort(np.linalg.norm(d, axis=1)) if parallel[k] and off_line[k] <= tol_mm
+              and k not in used]
+        if not ok:
+            raise CadfeatError(f"{what}: no hole on the axis of design hole {h.name or i + 1} at "
+                               f"{np.round(c0, 6).tolist()}")
+        used.add(ok[0])
+        out.append(holes[ok[0]])
+    return out
 
 
 def _fail_on(checks: Sequence[Mapping[str, Any]], label: str) -> None:
@@ -323,18 +349,17 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
     with prog.phase("setup"):
         scene = load_scene(config)
         combos = int_grid(config) if config.study.part_kind == "script" else [{}]
-        if len(combos) == 1:
-            setups = [setup_study(config, combos[0]) if config.study.part_kind == "step"
-                      else setup_script(config, combos[0], scene)]
-        else:
-            setups = [setup_script(config, c, scene) for c in combos]
-        base = setups[0]
-        if len(combos) > 1:  # "before" = the part's own integer values
+        if config.study.part_kind == "step":
+            setups = [setup_study(config)]
+        else:  # "before" = the part's own integer values; the others share its objective scales
             defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
-            base = next((s for s in setups if s.int_values == defaults), setups[0])
+            base = setup_script(config, defaults, scene)
+            setups = [base] + [setup_script(config, c, scene, base.problem.normaliser) for c in combos
+                               if c != defaults]
+        base = setups[0]
         x0 = base.space.x0
         m0 = measure_holes(base, base.holes0)
-        obj0, comb0 = score(base, m0)
+        obj0, comb0 = score(base, base.holes0)
     best = None
     interrupted = False
     history: list[dict[str, Any]] = []
@@ -360,7 +385,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
     with prog.phase("rebuild"):
         shape1, holes1, pred_err = _rebuild(setup, x1)
         m1 = measure_holes(setup, holes1)
-        obj1, comb1 = score(setup, m1)
+        obj1, comb1 = score(setup, holes1)
         checks = _checks(setup, shape1, holes1, "brep")
     with prog.phase("analyse"):
         sweep = _sweep(setup)
@@ -423,11 +448,13 @@ def _write_outputs(config: StudyConfig, out: Path, results: dict[str, Any], shap
         export_step,
         export_stl,
         import_step,
+        shape_volume_mm3,
         staged_output,
         verify_step_roundtrip,
     )
 
     setup = shapes["setup"]
+    t0 = time.perf_counter()
     with staged_output(out) as stage:
         problems = check_solid(shapes["shape1"])
         if problems:
@@ -435,7 +462,10 @@ def _write_outputs(config: StudyConfig, out: Path, results: dict[str, Any], shap
         for name, shape in (("original.step", shapes["shape0"]), ("optimised.step", shapes["shape1"])):
             export_step(shape, stage / name)
             normalise_step_timestamp(stage / name)
-        trip = verify_step_roundtrip(stage / "optimised.step", shapes["holes1"], tol_mm=ROUNDTRIP_TOL_MM)
+        # (the rebuild's holes extracted the way verify_step_roundtrip extracts them: no preferred direction)
+        trip = verify_step_roundtrip(stage / "optimised.step", _extract_plain(shapes["shape1"]),
+                                     tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=shape_volume_mm3(shapes["shape1"]),
+                                     volume_rtol=1e-7)
         reimported = import_step(stage / "optimised.step")
         step_holes = _order_like(shapes["holes1"], setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
         step_checks = _checks(setup, reimported, step_holes, "step")
@@ -451,11 +481,17 @@ def _write_outputs(config: StudyConfig, out: Path, results: dict[str, Any], shap
             "step_roundtrip_max_axis_error_rad": trip.max_axis_error_rad, "brep_valid": True,
             "stl_watertight": True, "tolerance_mm": ROUNDTRIP_TOL_MM}
         results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl")]
-        results["timings_s"] = dict(prog.timings)
+        results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
         results["versions"] = versions()
         write_json(stage / "results.json", results)
         _report(stage, results, shapes, prog)
     return out
+
+
+def _extract_plain(shape: Any) -> list[Any]:
+    from cadfeat.features import extract_holes
+
+    return extract_holes(shape)
 
 
 def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], prog: StudyProgress) -> None:
@@ -599,12 +635,12 @@ def format_table(results: Mapping[str, Any], pose: int | None = None) -> str:
     pp = m["per_pose"]
     res = np.asarray([np.nan if v is None else v for v in pp["resolvability"]], float)
     cond = np.asarray([np.inf if v is None else v for v in pp["condition"]], float)
-    console = Console(record=True, width=110, force_terminal=False)
-    with console.capture():
-        console.print(table)
-        console.print(f"resolvability Λ (px/mm): min {np.nanmin(res):.6g}, mean {np.nanmean(res):.6g}; "
-                      f"Jacobian condition: max {np.max(cond):.6g}; poses with < 3 visible features: "
-                      f"{int(np.sum(np.asarray(pp['visible']) < 3))}")
-        for name, g in results["objectives"]["before"].items():
-            console.print(f"{name} = {_num(g)} ({results['objectives']['aggregate']} over the trajectory)")
-    return console.export_text().rstrip()
+    buffer = io.StringIO()
+    console = Console(file=buffer, width=110, force_terminal=False, color_system=None)
+    console.print(table)
+    console.print(f"resolvability Λ (px/mm): min {np.nanmin(res):.6g}, mean {np.nanmean(res):.6g}; "
+                  f"Jacobian condition: max {np.max(cond):.6g}; poses with < 3 visible features: "
+                  f"{int(np.sum(np.asarray(pp['visible']) < 3))}")
+    for name, g in results["objectives"]["before"].items():
+        console.print(f"{name} = {_num(g)} ({results['objectives']['aggregate']} over the trajectory)")
+    return buffer.getvalue().rstrip()

@@ -27,7 +27,7 @@ class StudyProgress:
         self.best_f = np.inf
         self.iterations = 0
         self._progress: Any = None
-        self._task: Any = None
+        self._tasks: list[Any] = []
         self._t0 = time.perf_counter()
 
     def __enter__(self) -> StudyProgress:
@@ -55,18 +55,17 @@ class StudyProgress:
     def phase(self, name: str, total: float | None = None) -> Iterator[None]:
         """Time a phase (accumulated under ``name``) and show it while it runs."""
         t0 = time.perf_counter()
-        if self._progress is not None:
-            self._task = self._progress.add_task(name, total=total, info="")
+        task = self._progress.add_task(name, total=total, info="") if self._progress is not None else None
+        self._tasks.append(task)
         try:
             yield
         finally:
+            self._tasks.pop()
             dt = time.perf_counter() - t0
             self.timings[name] = self.timings.get(name, 0.0) + dt
-            if self._progress is not None:
-                task = self._task
+            if task is not None:
                 self._progress.update(task, completed=total if total is not None else 1, total=total or 1,
                                       info=f"{dt:.2f} s")
-                self._task = None
 
     def iteration(self, *args: Any, **kwargs: Any) -> None:
         """Optimiser callback: accepts a dict (``iteration``, ``f``, ``x``, ...), keyword arguments, or
@@ -84,7 +83,7 @@ class StudyProgress:
         feasible = info.get("feasible", True)
         if f is not None and x is not None and bool(feasible) and np.isfinite(f) and f < self.best_f:
             self.best_f, self.best_x = float(f), np.array(x, dtype=float)
-        if self._progress is not None and self._task is not None:
+        if self._progress is not None and self._tasks and self._tasks[-1] is not None:
             best = f"best {self.best_f:.6g}" if np.isfinite(self.best_f) else ""
             phase = info.get("phase", "")
-            self._progress.update(self._task, info=f"iter {self.iterations} {phase} {best}".strip())
+            self._progress.update(self._tasks[-1], info=f"iter {self.iterations} {phase} {best}".strip())

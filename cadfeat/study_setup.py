@@ -107,15 +107,15 @@ def optimizer_config(config: StudyConfig) -> Any:
                            local_solver=o.local_solver, snap_standard_sizes=o.snap_standard_sizes)
 
 
-def _problem(args: Mapping[str, Any], config: StudyConfig) -> tuple[Any, Any]:
-    """The ``Problem`` and its ``ConstraintConfig``."""
+def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Any = None) -> tuple[Any, Any]:
+    """The ``Problem`` and its ``ConstraintConfig`` (``normaliser``: share another problem's scales)."""
     from cadfeat.export import shape_volume_mm3
     from cadfeat.problem import Problem
 
     movable = np.flatnonzero(~np.asarray(args["fixed_mask"], bool))
     cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]))
     problem = Problem(args["space"], args["model"], args["camera"], args["trajectory"], args["T_task_part"],
-                      objective_config(config), cc, args["fixed_mask"])
+                      objective_config(config), cc, args["fixed_mask"], normaliser=normaliser)
     return problem, cc
 
 
@@ -155,8 +155,9 @@ def int_grid(config: StudyConfig) -> list[dict[str, int]]:
 
 
 def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = None,
-                 scene: tuple[Any, Any, np.ndarray] | None = None) -> StudySetup:
-    """Setup of a part-script study with the integer parameters at ``int_values`` (default: their defaults)."""
+                 scene: tuple[Any, Any, np.ndarray] | None = None, normaliser: Any = None) -> StudySetup:
+    """Setup of a part-script study with the integer parameters at ``int_values`` (default: their defaults);
+    ``normaliser``: the objective scales of another setup (so that integer combinations compare)."""
     from cadfeat.design_map import design_map
     from cadfeat.design_space import DesignSpace, LinearFeatureModel, Variable
     from cadfeat.parts import load_part
@@ -202,7 +203,7 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
         fixed[j] = True
     args = dict(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                 fixed_mask=fixed, holes=holes0, shape0=shape0)
-    problem, cc = _problem(args, config)
+    problem, cc = _problem(args, config, normaliser)
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part, shape0=shape0,
                       holes0=holes0, fixed_mask=fixed, movable_mask=moved, space=space, model=model,
                       problem=problem, constraints=cc, rebuild_shape=lambda x: part.build(**values(x)),
