@@ -37,7 +37,7 @@ from cadfeat.study_outputs import (
     file_entry,
     hole_dict,
     measures_summary,
-    normalise_step_timestamp,
+    normalise_step_header,
     now_iso,
     plain,
     versions,
@@ -461,7 +461,7 @@ def _write_outputs(config: StudyConfig, out: Path, results: dict[str, Any], shap
             raise CadfeatError(f"{config.label}: the rebuilt optimum is not a valid solid: {'; '.join(problems[:3])}")
         for name, shape in (("original.step", shapes["shape0"]), ("optimised.step", shapes["shape1"])):
             export_step(shape, stage / name)
-            normalise_step_timestamp(stage / name)
+            normalise_step_header(stage / name, f"{config.study.name} {name[:-5]}")
         # (the rebuild's holes extracted the way verify_step_roundtrip extracts them: no preferred direction)
         trip = verify_step_roundtrip(stage / "optimised.step", _extract_plain(shapes["shape1"]),
                                      tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=shape_volume_mm3(shapes["shape1"]),

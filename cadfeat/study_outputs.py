@@ -2,8 +2,8 @@
 
 Everything here is plain data in, plain data out: holes → dicts, ``Measures`` arrays → per-feature and
 per-pose summaries, floats rounded to ``DIGITS`` significant digits so that the same seed gives the same
-file byte for byte (only ``created`` and ``timings_s`` vary). STEP headers carry a fixed time stamp for the
-same reason (``normalise_step_timestamp``; the run time is ``created`` in results.json).
+file byte for byte (only ``created`` and ``timings_s`` vary). STEP headers carry a fixed time stamp and
+product name for the same reason (``normalise_step_header``; the run time is ``created`` in results.json).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ __all__ = [
     "file_entry",
     "hole_dict",
     "measures_summary",
-    "normalise_step_timestamp",
+    "normalise_step_header",
     "plain",
     "versions",
     "write_json",
@@ -36,6 +36,7 @@ DIGITS = 10
 """Significant digits of floats in results.json (1e-10 relative: far below any tolerance used)."""
 STEP_TIMESTAMP = "1970-01-01T00:00:00"
 """Time stamp written into STEP headers (or ``SOURCE_DATE_EPOCH`` if set): reproducible files."""
+_PRODUCT = re.compile(rb"'Open CASCADE STEP translator[^']*'")
 _FILE_NAME = re.compile(rb"(FILE_NAME\s*\(\s*'(?:[^']|'')*'\s*,\s*')([^']*)(')")
 
 
@@ -117,18 +118,20 @@ def measures_summary(m: Any, names: Sequence[str], times_s: np.ndarray, min_axis
     return plain({"per_feature": per_feature, "per_pose": per_pose})
 
 
-def normalise_step_timestamp(path: str | os.PathLike[str]) -> None:
-    """Replace the time stamp of a STEP file's ``FILE_NAME`` header by ``STEP_TIMESTAMP`` (or the time of
-    ``SOURCE_DATE_EPOCH``) so that the same design gives a byte-identical file."""
+def normalise_step_header(path: str | os.PathLike[str], product: str) -> None:
+    """Make a written STEP file reproducible: the ``FILE_NAME`` time stamp becomes ``STEP_TIMESTAMP`` (or the
+    time of ``SOURCE_DATE_EPOCH``) and OCCT's per-process counter in the product name ("Open CASCADE STEP
+    translator 7.9 2") becomes ``product`` — the same design then gives a byte-identical file."""
     path = Path(path)
     stamp = STEP_TIMESTAMP
     if os.environ.get("SOURCE_DATE_EPOCH", "").isdigit():
         stamp = _dt.datetime.fromtimestamp(int(os.environ["SOURCE_DATE_EPOCH"]), _dt.UTC).strftime("%Y-%m-%dT%H:%M:%S")
     data = path.read_bytes()
-    head, rest = data[:4096], data[4096:]
-    new_head, n = _FILE_NAME.subn(lambda mt: mt.group(1) + stamp.encode() + mt.group(3), head, count=1)
-    if n:
-        path.write_bytes(new_head + rest)
+    head, rest = data[:16384], data[16384:]
+    head = _FILE_NAME.sub(lambda mt: mt.group(1) + stamp.encode() + mt.group(3), head, count=1)
+    name = product.replace("'", "").encode()
+    head = _PRODUCT.sub(b"'" + name + b"'", head)
+    path.write_bytes(head + rest)
 
 
 def file_entry(path: Path, root: Path) -> dict[str, Any]:
