@@ -396,11 +396,35 @@ def part_parameters(path: str | Path) -> dict[str, PartParameter]:
     if node is None:
         raise StudyError(f"{path}: PARAMETERS: missing; allowed: a module-level dict "
                          "{name: {default, bounds, unit, description}}")
+    if _mutated(tree):
+        return _parameters_by_loading(path)
     try:
         table = ast.literal_eval(node)
     except ValueError:
         return _parameters_by_loading(path)
     return _parse_parameters(table, path)
+
+
+_MUTATORS = {"update", "setdefault", "pop", "popitem", "clear", "__setitem__"}
+
+
+def _mutated(tree: ast.Module) -> bool:
+    """Whether module-level code (outside functions/classes) changes ``PARAMETERS`` after assigning it:
+    ``PARAMETERS[k] = ...``, ``del PARAMETERS[k]``, ``PARAMETERS.update(...)``, or a second assignment."""
+    assigned = 0
+    for stmt in tree.body:
+        if isinstance(stmt, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            continue
+        for n in ast.walk(stmt):
+            if isinstance(n, ast.Name) and n.id == "PARAMETERS" and isinstance(n.ctx, ast.Store):
+                assigned += 1
+            elif isinstance(n, ast.Subscript) and isinstance(n.value, ast.Name) and n.value.id == "PARAMETERS" \
+                    and isinstance(n.ctx, ast.Store | ast.Del):
+                return True
+            elif isinstance(n, ast.Attribute) and isinstance(n.value, ast.Name) and n.value.id == "PARAMETERS" \
+                    and n.attr in _MUTATORS:
+                return True
+    return assigned > 1
 
 
 def _parameters_by_loading(path: Path) -> dict[str, PartParameter]:
@@ -548,6 +572,9 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
         echo["holes"] = [{"select": list(h.select) if isinstance(h.select, tuple) else h.select, "move": h.move,
                           "resize": h.resize, "max_offset_mm": h.max_offset_mm} for h in holes]
     std = None
+    if t.has("standard_diameters_mm") and info.part_kind == "script":
+        t.fail("design.standard_diameters_mm", "only for STEP parts (a script part's sizes are its parameters)",
+               "design.parameters.<name>.standard_sizes")
     if t.has("standard_diameters_mm"):
         value = t.raw("standard_diameters_mm")
         if not isinstance(value, list) or not value or not all(_is_num(v) and v > 0 and math.isfinite(v)

@@ -71,6 +71,18 @@ def test_part_parameters_read_without_running_script(tmp_path):
     assert (params["b"].lower, params["b"].upper) == (1, 3)
 
 
+def test_part_parameters_built_by_code_are_loaded(tmp_path, monkeypatch):
+    """A PARAMETERS table filled by module-level code is not taken from its (empty) literal: the part is loaded."""
+    import cadfeat.study_schema as schema
+
+    script = tmp_path / "p.py"
+    script.write_text("PARAMETERS = {}\nfor k in ('a', 'b'):\n    PARAMETERS[k] = {'default': 1.0, 'bounds': (0, 2)}\n")
+    seen = []
+    monkeypatch.setattr(schema, "_parameters_by_loading", lambda path: seen.append(path) or {})
+    part_parameters(script)
+    assert seen == [script]
+
+
 def test_dict_input_and_to_dict_roundtrip(tmp_path):
     (tmp_path / "study_plate.py").write_text(PLATE.read_text())
     cfg = load_study(copy.deepcopy(BASE), base_dir=tmp_path)
@@ -338,8 +350,12 @@ def test_fixed_hole_also_movable(tmp_path):
 
 
 def test_bad_standard_diameters(tmp_path):
-    fails(study(tmp_path, design={"standard_diameters_mm": [3, -1]}), "s.toml", "design.standard_diameters_mm",
-          "positive diameters")
+    data = copy.deepcopy(BASE)
+    data["study"]["part"] = str(STEP)
+    data["design"] = {"holes": [{"select": 1}], "standard_diameters_mm": [3, -1]}
+    fails(write_toml(tmp_path / "t.toml", data), "t.toml", "design.standard_diameters_mm", "positive diameters")
+    fails(study(tmp_path, design={"standard_diameters_mm": [3, 4]}), "s.toml", "design.standard_diameters_mm",
+          "design.parameters.<name>.standard_sizes")
 
 
 def test_pattern_needs_two_holes(tmp_path):
