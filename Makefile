@@ -15,9 +15,11 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
+	tools/ensure_system.sh
 	$(PY) -m cadfeat.demo
 
 test: $(STAMP)
+	tools/ensure_system.sh
 	CADFEAT_CHROMIUM="$$(tools/ensure_chromium.sh)" && export CADFEAT_CHROMIUM && \
 	$(PY) -m ruff check cadfeat tests benchmarks $(wildcard parts studies) && \
 	$(PY) -m pytest -q

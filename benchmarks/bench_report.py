@@ -1,0 +1,100 @@
+"""Benchmark: writing the whole report of a study, split into renders, plots and HTML.
+
+The study is the four-hole plate of tests/report_fixture.py (CadQuery build + hole extraction, a 21-point
+one-variable sweep of the batched measures over a 30-pose trajectory, CAD rebuild, STEP export). Timed: the
+study itself (wall time), ``build_report`` with the study's ReportContext (renders by ``cadfeat.render``
+when it renders here, the matplotlib plots, the HTML), and — the baseline measured in the same run — one
+evaluation of the measures of the same study (all poses, all holes).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT))
+
+
+def _load(name: str, path: Path):
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _median_s(func, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        func()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def main(quick: bool = False) -> str:
+    from cadfeat.features import holes_to_arrays
+    from cadfeat.poses import invert_T
+    from cadfeat.report import build_report
+
+    machine = _load("run_all", HERE / "run_all.py").machine_description()
+    fixture = _load("report_fixture", ROOT / "tests" / "report_fixture.py")
+    repeats = 1 if quick else 3
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        results, ctx = fixture.build_case(Path(tmp) / "study")
+        study_s = time.perf_counter() - start
+
+        T_cam_part = invert_T(ctx.trajectory.T_task_cam)
+        screws = ctx.trajectory.velocity_screws()
+        arrays = holes_to_arrays(ctx.holes_after)
+        fixture.evaluate(ctx.camera, T_cam_part, screws, *arrays)  # warm-up (imports)
+        baseline_s = _median_s(lambda: fixture.evaluate(ctx.camera, T_cam_part, screws, *arrays), 50)
+
+        runs = [build_report(Path(tmp) / f"report{i}", results, ctx) for i in range(repeats)]
+    phases = {k: statistics.median(r.timings_s[k] for r in runs) for k in ("renders", "plots", "html")}
+    total = sum(phases.values())
+    out = runs[-1]
+    n_renders = len(out.images) - sum(1 for p in out.images if p.stem in {
+        "tracks", "pose_measures", "motion", "convergence", "sweep", "pareto"})
+    n_plots = len(out.images) - n_renders
+    rows = [
+        ("baseline: one measures evaluation (30 poses x 4 holes)", baseline_s),
+        (f"report: renders ({n_renders} images)", phases["renders"]),
+        (f"report: plots ({n_plots} PNGs)", phases["plots"]),
+        ("report: HTML", phases["html"]),
+        ("report: total", total),
+        ("study without the report (build, sweep, rebuild, STEP export)", study_s),
+    ]
+    lines = [
+        "## Writing the report (bench_report)",
+        "",
+        f"Machine: {machine}. Median of {repeats} report runs; baseline median of 50 evaluations with "
+        f"cadfeat.measures.evaluate. Ratio: time / baseline.",
+        "",
+        "| phase | time (ms) | ratio to baseline |",
+        "|---|---:|---:|",
+    ]
+    lines += [f"| {name} | {1e3 * s:.1f} | {s / baseline_s:.0f} |" for name, s in rows]
+    per_render = f"{phases['renders'] / n_renders:.2f} s per render" if n_renders else "no renders (see notes)"
+    lines += [
+        "",
+        f"Share of the study's wall time taken by the report: {100 * total / (study_s + total):.0f} % "
+        f"({total:.2f} s of {study_s + total:.2f} s); {per_render}; "
+        f"{phases['plots'] / max(n_plots, 1):.2f} s per plot.",
+    ]
+    if out.notes:
+        lines += ["", "Notes: " + "; ".join(out.notes)]
+    section = "\n".join(lines) + "\n"
+    (HERE / "results").mkdir(exist_ok=True)
+    (HERE / "results" / "bench_report.md").write_text(section)
+    return section
+
+
+if __name__ == "__main__":
+    print(main(quick="--quick" in sys.argv))

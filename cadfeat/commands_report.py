@@ -1,0 +1,27 @@
+"""``cadfeat report RESULTS_JSON [--out DIR]``: (re)write report.html from a study's results.json."""
+
+from __future__ import annotations
+
+import argparse
+
+from cadfeat.cli import command
+
+
+def _arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("results", help="results.json written by `cadfeat run` or `cadfeat evaluate`")
+    parser.add_argument("--out", default=None, help="directory for report.html and img/ (default: beside the "
+                                                    "results file)")
+
+
+@command("report", _arguments)
+def report(args: argparse.Namespace) -> int:
+    """Write report.html (plots and tables; no renders: those need the study's shapes) from a results.json."""
+    from pathlib import Path
+
+    from cadfeat.report import read_results, write_report
+
+    results_path = Path(args.results)
+    results = read_results(results_path)
+    path = write_report(Path(args.out) if args.out else results_path.parent, results, None)
+    print(path)
+    return 0

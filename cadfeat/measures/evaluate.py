@@ -1,0 +1,196 @@
+"""All measures of a feature layout along a trajectory in one batched call (the optimiser's hot path).
+
+``evaluate`` transforms the N features (part frame) into the L camera frames and computes every
+per-pose, per-feature margin (FOV cone and image, focus, resolution, facing, visibility), the hole
+ellipses, and the per-pose Jacobian diagnostics and resolvability — no Python loop over poses or
+features. The stacked Jacobian is never formed as (L, 2N, 6) for full-rank poses: JᵀJ (L, 6, 6) is
+summed from the per-point 2×6 blocks, its eigenvalues give σ_min / condition / manipulability, and
+Λ = ‖J γ̇‖/‖γ̃‖ (``resolvability``); only rank-deficient poses build J̃ and take a pseudo-inverse.
+
+Jacobian weighting: a feature's two Jacobian rows count (weight 1) only where it is ``visible`` (in
+front of the camera, facing it, its rim inside the image, and not occluded when a mesh is given); the
+rows of invisible features are zero — the estimator could not measure them. The diagnostics use the
+scaled Jacobian J̃ = J diag(1, 1, 1, 1/ℓ, 1/ℓ, 1/ℓ) (ℓ = ``rotation_length_mm``), so every column is in px/mm;
+with the default ℓ = 1 mm that is the thesis's J.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from cadfeat.camera import MIN_DEPTH_MM, Camera
+from cadfeat.errors import CadfeatError
+from cadfeat.measures.ellipse import ellipse_parts, rim_conic_xyz
+from cadfeat.measures.focus import focus_margin_depth
+from cadfeat.measures.fov import image_margin_px
+from cadfeat.measures.jacobian import diagnostics_from_gram, fill_jacobian
+from cadfeat.measures.lens import distort_terms
+from cadfeat.measures.resolution import minor_axis_margin
+from cadfeat.measures.resolvability import check_length, resolvability_from_parts, scale_screws
+from cadfeat.measures.visibility import occluded
+
+#: Feature-poses per slab in ``evaluate`` (temporaries of 16k doubles = 128 kB stay in the L2 cache).
+BLOCK_ELEMENTS = 16384
+
+
+@dataclass(frozen=True)
+class Measures:
+    """Every measure of N features at L poses. Margins: positive = satisfied (see each module).
+
+    Per pose and feature (L, N): ``fov`` cone margin (eq. 3.3), ``fov_px`` image margin (px), ``focus``
+    (eq. 3.6, normalised), ``resolution_px`` (minor axis − min_axis_px), ``minor_axis_px``, ``facing``
+    (cos), ``visible`` (bool), ``centre_px`` (L, N, 2), ``axes_px`` (L, N, 2), ``angle_rad``.
+    Per pose (L,): ``sigma_min``, ``condition``, ``manipulability`` (eq. 4.20–4.21), ``singular`` (bool),
+    ``resolvability`` Λ_k (eq. 4.32, px/mm).
+    """
+
+    fov: np.ndarray
+    fov_px: np.ndarray
+    focus: np.ndarray
+    resolution_px: np.ndarray
+    minor_axis_px: np.ndarray
+    facing: np.ndarray
+    visible: np.ndarray
+    centre_px: np.ndarray
+    axes_px: np.ndarray
+    angle_rad: np.ndarray
+    sigma_min: np.ndarray
+    condition: np.ndarray
+    manipulability: np.ndarray
+    singular: np.ndarray
+    resolvability: np.ndarray
+
+    def as_dict(self) -> dict[str, np.ndarray]:
+        """The arrays by field name."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+def _check_inputs(T_cam_part: ArrayLike, screws: ArrayLike, centres: ArrayLike, axes: ArrayLike,
+                  radii: ArrayLike) -> tuple[np.ndarray, ...]:
+    T = np.asarray(T_cam_part, dtype=float)
+    s = np.asarray(screws, dtype=float)
+    c = np.asarray(centres, dtype=float)
+    n = np.asarray(axes, dtype=float)
+    r = np.asarray(radii, dtype=float)
+    if T.ndim != 3 or T.shape[1:] != (4, 4):
+        raise CadfeatError(f"evaluate: T_cam_part must have shape (L, 4, 4), got {T.shape}")
+    L = T.shape[0]
+    if s.shape != (L, 6):
+        raise CadfeatError(f"evaluate: screws must have shape (L, 6) = ({L}, 6), got {s.shape}")
+    if c.ndim != 2 or c.shape[1] != 3 or n.shape != c.shape or r.shape != c.shape[:1]:
+        raise CadfeatError(f"evaluate: centres (N, 3), axes (N, 3) and radii (N,) must agree, got {c.shape}, "
+                           f"{n.shape}, {r.shape}")
+    for name, a in (("T_cam_part", T), ("screws", s), ("centres", c), ("axes", n), ("radii", r)):
+        if not np.all(np.isfinite(a)):
+            raise CadfeatError(f"evaluate: {name} must be finite")
+    norm = np.linalg.norm(n, axis=-1)
+    if np.any(norm == 0) or np.any(r <= 0):
+        raise CadfeatError("evaluate: axes must be non-zero and radii positive (mm)")
+    return T, s, c, n / norm[:, None], r
+
+
+def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: ArrayLike, axes: ArrayLike,
+             radii: ArrayLike, *, min_axis_px: float = 5.0, rotation_length_mm: float = 1.0,
+             occlusion_mesh: Any = None) -> Measures:
+    """All measures (``Measures``) of holes (centres (N, 3) mm, axes (N, 3) out of the material, radii (N,) mm,
+    part frame) seen from poses ``T_cam_part`` (L, 4, 4) moving with ``screws`` (L, 6) = (v mm/s, ω rad/s)
+    in the camera frame. ``occlusion_mesh``: optional ``trimesh.Trimesh`` of the part (part frame) for the
+    ray occlusion test of ``visible``.
+
+    Works on contiguous (L, N) component arrays (X, Y, Z, n_x, …, each one (L, 3) @ (3, N) product) rather
+    than (L, N, 3) stacks; same formulas as the public per-measure functions (tests compare them). Large
+    batches are cut into slabs of about ``BLOCK_ELEMENTS`` feature-poses (whole blocks of poses, each slab
+    fully batched) so the temporaries stay in the CPU cache; the results are concatenated."""
+    T, s, c, n, r = _check_inputs(T_cam_part, screws, centres, axes, radii)
+    check_length(rotation_length_mm)
+    if not np.isfinite(min_axis_px):
+        raise CadfeatError(f"evaluate: min_axis_px must be a finite number of pixels, got {min_axis_px!r}")
+    L, N = T.shape[0], c.shape[0]
+    out = _allocate(L, N)
+    step = max(1, BLOCK_ELEMENTS // max(1, N))
+    for i in range(0, L, step):  # slabs of whole pose blocks (cache blocking), each fully batched
+        sl = slice(i, i + step)
+        _evaluate(camera, T[sl], s[sl], c, n, r, min_axis_px, rotation_length_mm, occlusion_mesh,
+                  {k: v[sl] for k, v in out.items()})
+    return Measures(**out)
+
+
+_PER_FEATURE = ("fov", "fov_px", "focus", "resolution_px", "minor_axis_px", "facing", "angle_rad")
+_PER_POSE = ("sigma_min", "condition", "manipulability", "resolvability")
+
+
+def _allocate(L: int, N: int) -> dict[str, np.ndarray]:
+    out = {k: np.empty((L, N)) for k in _PER_FEATURE}
+    out.update({k: np.empty(L) for k in _PER_POSE})
+    out.update(visible=np.empty((L, N), dtype=bool), singular=np.empty(L, dtype=bool),
+               centre_px=np.empty((L, N, 2)), axes_px=np.empty((L, N, 2)))
+    return out
+
+
+def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray,
+              min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any, out: dict[str, np.ndarray]) -> None:
+    """``evaluate`` on one slab of poses (validated inputs), written into the views ``out``."""
+    R, t = T[:, :3, :3], T[:, :3, 3]
+    X, Y, Z = (R[:, i, :] @ c.T + t[:, i, None] for i in range(3))  # centres in the camera frames (L, N)
+    nx, ny, nz = (R[:, i, :] @ n.T for i in range(3))  # axes in the camera frames
+    rt = np.einsum("lji,lj->li", R, t)  # Rᵀ t = −(camera centre in the part frame)
+    nc = np.sum(n * c, axis=-1) + rt @ n.T  # n·c in the camera frame
+    dist2 = np.sum(c * c, axis=-1) + 2.0 * (rt @ c.T) + np.sum(t * t, axis=-1)[:, None]
+    dist = np.sqrt(np.maximum(dist2, 0.0))
+    in_front = Z - r * np.sqrt(np.maximum(1.0 - nz * nz, 0.0)) > MIN_DEPTH_MM
+    ell = ellipse_parts(camera, rim_conic_xyz(X, Y, Z, nx, ny, nz, nc, dist2 - r * r), in_front)
+    fov_px = out["fov_px"]
+    fov_px[...] = image_margin_px(camera, ell.u, ell.v, ell.hu, ell.hv, ell.valid)
+    inv_dist = 1.0 / np.where(dist > 0, dist, 1.0)
+    facing = out["facing"]
+    np.multiply(nc, -inv_dist, out=facing)
+    visible = out["visible"]
+    np.greater(facing, 0.0, out=visible)
+    visible &= ell.valid
+    visible &= fov_px >= 0
+    if occlusion_mesh is not None:
+        visible &= ~occluded(occlusion_mesh, -rt, c, n)
+    np.subtract(Z * inv_dist, np.cos(0.5 * camera.fov_rad), out=out["fov"])
+    out["focus"][...] = focus_margin_depth(camera, Z)
+    out["resolution_px"][...] = minor_axis_margin(camera, ell.minor, ell.valid, min_axis_px)
+    out["minor_axis_px"][...] = ell.minor
+    out["angle_rad"][...] = ell.angle
+    out["axes_px"][..., 0] = ell.major
+    out["axes_px"][..., 1] = ell.minor
+    inv_z = 1.0 / np.maximum(Z, MIN_DEPTH_MM)
+    x, y = X * inv_z, Y * inv_z
+    D = distort_terms(camera, x, y, positions=False)[2:]
+    centre = out["centre_px"]
+    centre[..., 0] = ell.u
+    centre[..., 1] = ell.v
+    if not ell.valid.all():  # invalid ellipses: the (depth-clamped) projection of the centre
+        bad = ~ell.valid
+        centre[bad] = camera.distort_normalized(np.stack([x[bad], y[bad]], axis=-1))
+    _jacobian_measures(x, y, inv_z, D, visible, s, rotation_length_mm, out)
+
+
+def _jacobian_measures(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list, visible: np.ndarray,
+                       screws: np.ndarray, rotation_length_mm: float, out: dict[str, np.ndarray]) -> None:
+    """Diagnostics and Λ per pose from the visible features' Jacobians (module docstring), into ``out``.
+
+    The Jacobian is held transposed, Jᵀ (L, 6, 2N) (rows of one column contiguous), so JᵀJ is one batched
+    (6, 2N) @ (2N, 6) product: Σ_j J_jᵀ J_j over the point blocks; row order within 2N is irrelevant."""
+    L, N = visible.shape
+    w = visible.astype(float)
+    Dw = [d * w if not (np.isscalar(d) and d == 0.0) else 0.0 for d in D]  # zero weight → zero rows
+    Jt = np.empty((L, 12, N))
+    fill_jacobian([Jt[:, j] for j in range(12)], x, y, inv_z, Dw)  # the 12 entries of the 2×6 blocks
+    Jt = Jt.reshape(L, 6, 2 * N)
+    image_speed = np.linalg.norm(np.einsum("lk,lkm->lm", screws, Jt), axis=-1)
+    if rotation_length_mm != 1.0:
+        Jt[:, 3:, :] /= rotation_length_mm
+    diag = diagnostics_from_gram(Jt @ np.swapaxes(Jt, 1, 2))
+    out["resolvability"][...] = resolvability_from_parts(np.swapaxes(Jt, 1, 2), image_speed,
+                                                         scale_screws(screws, rotation_length_mm),
+                                                         diag["singular"], diag["sigma_min"])
+    for key, value in diag.items():
+        out[key][...] = value

@@ -1,0 +1,37 @@
+"""Focus: depth-of-field margin (thesis eq. 3.4–3.6).
+
+Near and far planes D2, D1 (``Camera.depth_of_field_mm``) come from the thin lens: focal length f,
+aperture a = f/N, image distance d (from the focus distance) and blur circle c; D1 = ∞ at or past the
+hyperfocal distance. A point at depth Z (its distance along the optical axis, (r_A − r_C)·ν_C of
+eq. 3.6) is in focus when D2 ≤ Z ≤ D1.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from cadfeat.camera import Camera
+
+
+def focus_scale_mm(camera: Camera) -> float:
+    """Normalising half-width of the depth of field, mm: (D1 − D2)/2, or D2 when D1 = ∞."""
+    near, far = camera.depth_of_field_mm
+    return 0.5 * (far - near) if np.isfinite(far) else near
+
+
+def focus_margin(camera: Camera, points_cam: ArrayLike) -> np.ndarray:
+    """min(Z − D2, D1 − Z) / ((D1 − D2)/2) (...) for points (..., 3) mm, camera frame (dimensionless).
+
+    1 in the middle of the depth of field, 0 on the near/far planes, negative outside. With D1 = ∞
+    (focused at or beyond the hyperfocal distance) the margin is (Z − D2)/D2. Points behind the camera
+    give finite values below −2 D2 / scale (strongly negative).
+    """
+    return focus_margin_depth(camera, np.asarray(points_cam, dtype=float)[..., 2])
+
+
+def focus_margin_depth(camera: Camera, z: np.ndarray) -> np.ndarray:
+    """``focus_margin`` of depths z (...) mm."""
+    near, far = camera.depth_of_field_mm
+    margin = z - near if not np.isfinite(far) else np.minimum(z - near, far - z)
+    return margin / focus_scale_mm(camera)

@@ -1,0 +1,13 @@
+"""Off-screen renders (PyVista on EGL): part views before/after and synthetic camera images.
+
+``import cadfeat.render`` is light: PyVista, VTK and CadQuery are imported inside the functions.
+"""
+
+from __future__ import annotations
+
+from cadfeat.render.camera_views import CameraViewRenderer, draw_hole_overlay, render_camera_views
+from cadfeat.render.part_views import render_comparison, render_part
+from cadfeat.render.scene import RenderError, new_plotter, shape_polydata, use_egl
+
+__all__ = ["CameraViewRenderer", "RenderError", "draw_hole_overlay", "new_plotter", "render_camera_views",
+           "render_comparison", "render_part", "shape_polydata", "use_egl"]

@@ -1,0 +1,205 @@
+"""Synthetic camera images: what the study's camera sees, with its real intrinsics and pose.
+
+The VTK camera is set from the OpenCV model (DESIGN.md frames, eq. A.1–A.7 of the thesis):
+
+- pose: ``T_part_cam = inv(T_cam_part)``; position = its translation, focal point one unit along the
+  camera's +z column, view-up = −y column (OpenCV y points down in the image);
+- vertical view angle ``2·atan(height / (2·fy))``, explicit aspect ratio ``(width/height)·(fy/fx)``
+  (so fx ≠ fy is exact);
+- principal point through ``vtkCamera.SetWindowCenter``: OpenCV puts pixel centres at integer
+  coordinates, VTK at half-integers, so ``(cx + ½, height − cy − ½)`` in VTK window coordinates
+  becomes the window centre ``(1 − 2(cx + ½)/w, 2(cy + ½)/h − 1)``.
+
+Lens distortion is applied after rendering by remapping the pinhole image (``cv2.remap`` with the
+maps from ``cv2.undistortPoints``), so a hole's rim lands where ``Camera.project`` puts it.
+The part is light grey, lit from the camera; hole faces are dark; the background is black. Anti-aliasing
+is off (each pixel samples its centre), which keeps edges unbiased: the dark hole regions found by
+thresholding agree with the exact rim ellipses to ~0.2 px (tests/test_render_camera.py).
+One plotter serves any number of poses (``CameraViewRenderer``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cadfeat.poses import invert_T
+from cadfeat.render.scene import (
+    RenderError,
+    add_part,
+    cell_colours,
+    hole_cell_labels,
+    new_plotter,
+    screenshot,
+    shape_polydata,
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.camera import Camera
+    from cadfeat.features import Hole
+
+BACKGROUND_BLACK = (0.0, 0.0, 0.0)
+ELLIPSE_COLOUR_RGB = (40, 220, 60)
+CENTRE_COLOUR_RGB = (255, 60, 40)
+
+
+def set_vtk_camera(vtk_camera: Any, camera: Camera, T_cam_part: np.ndarray, near_far_mm: tuple[float, float]) -> None:
+    """Point a ``vtkCamera`` like the OpenCV camera ``camera`` at pose ``T_cam_part`` (pinhole part only)."""
+    T = invert_T(np.asarray(T_cam_part, dtype=float))
+    position, z_axis, y_axis = T[:3, 3], T[:3, 2], T[:3, 1]
+    vtk_camera.SetPosition(*position)
+    vtk_camera.SetFocalPoint(*(position + z_axis))
+    vtk_camera.SetViewUp(*(-y_axis))
+    vtk_camera.SetViewAngle(math.degrees(2.0 * math.atan(camera.height / (2.0 * camera.fy))))
+    vtk_camera.SetUseHorizontalViewAngle(False)
+    vtk_camera.SetExplicitAspectRatio(camera.width / camera.height * camera.fy / camera.fx)
+    vtk_camera.SetUseExplicitAspectRatio(True)
+    vtk_camera.SetWindowCenter(1.0 - 2.0 * (camera.cx + 0.5) / camera.width,
+                               2.0 * (camera.cy + 0.5) / camera.height - 1.0)
+    vtk_camera.SetClippingRange(*near_far_mm)
+
+
+def near_far_mm(points_part: np.ndarray, T_cam_part: np.ndarray) -> tuple[float, float]:
+    """Clipping range (mm) enclosing ``points_part`` (M, 3) seen from ``T_cam_part``."""
+    z = points_part @ T_cam_part[:3, :3].T[:, 2] + T_cam_part[2, 3]
+    far = max(float(z.max()) * 1.05, 1.0)
+    return max(float(z.min()) * 0.95, far * 1e-4, 1e-3), far
+
+
+class CameraViewRenderer:
+    """Renders a part as the study's camera sees it; ONE off-screen plotter for all poses.
+
+    ``render(T_cam_part)`` returns a (height, width, 3) uint8 RGB image; ``overlay=True`` draws the
+    predicted hole ellipses (``cadfeat.measures.hole_ellipse``) and projected centres (``Camera.project``).
+    Call ``close()`` (or use as a context manager) to free the OpenGL context.
+    """
+
+    def __init__(self, shape: Any, holes: Sequence[Hole], camera: Camera, *, mesh: Any = None) -> None:
+        self.camera = camera
+        self.holes = list(holes)
+        self.mesh = shape_polydata(shape) if mesh is None else mesh
+        self._corners = _box_corners(np.asarray(self.mesh.bounds))
+        self._maps = _distortion_maps(camera) if camera.has_distortion else None
+        self.plotter = new_plotter((camera.width, camera.height), background=BACKGROUND_BLACK, lighting="none")
+        self.plotter.disable_anti_aliasing()  # point sampling at pixel centres: MSAA's resolve biases edges ~¼ px
+        import pyvista as pv
+
+        self.plotter.add_light(pv.Light(light_type="headlight", intensity=0.75))
+        labels = hole_cell_labels(self.mesh, self.holes)
+        add_part(self.plotter, self.mesh, cell_colours(labels, None), ambient=0.3, diffuse=0.75, specular=0.0)
+
+    def render(self, T_cam_part: np.ndarray, overlay: bool = False) -> np.ndarray:
+        """The camera image at pose ``T_cam_part`` (4, 4) (maps part to camera frame, mm)."""
+        T = np.asarray(T_cam_part, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise RenderError(f"T_cam_part must be a finite 4x4 transform, got shape {T.shape}")
+        set_vtk_camera(self.plotter.camera, self.camera, T, near_far_mm(self._corners, T))
+        image = screenshot(self.plotter)
+        if image.shape[:2] != (self.camera.height, self.camera.width):
+            raise RenderError(f"rendered {image.shape[1]}x{image.shape[0]} px, expected "
+                              f"{self.camera.width}x{self.camera.height}")
+        if self._maps is not None:
+            import cv2
+
+            image = cv2.remap(image, *self._maps, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+        if overlay and self.holes:
+            image = draw_hole_overlay(image, self.camera, self.holes, T)
+        return image
+
+    def close(self) -> None:
+        self.plotter.close()
+
+    def __enter__(self) -> CameraViewRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _box_corners(bounds: np.ndarray) -> np.ndarray:
+    """The 8 corners (8, 3) of the axis-aligned box ``bounds = (xmin, xmax, ymin, ymax, zmin, zmax)``."""
+    xs, ys, zs = bounds[0:2], bounds[2:4], bounds[4:6]
+    return np.array(np.meshgrid(xs, ys, zs, indexing="ij")).reshape(3, -1).T
+
+
+def _distortion_maps(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """``cv2.remap`` maps taking the pinhole render to the distorted image (float32, (h, w) each).
+
+    For every distorted pixel, ``cv2.undistortPoints`` (with P = K) gives the pinhole pixel it shows.
+    """
+    import cv2
+
+    u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
+    pts = np.stack([u.ravel(), v.ravel()], axis=-1)[:, None, :]
+    und = cv2.undistortPoints(pts, camera.K, camera.dist_coeffs, P=camera.K).reshape(camera.height, camera.width, 2)
+    return und[..., 0].astype(np.float32), und[..., 1].astype(np.float32)
+
+
+def predicted_ellipses(camera: Camera, holes: Sequence[Hole], T_cam_part: np.ndarray) -> Any:
+    """``cadfeat.measures.hole_ellipse`` of the holes' entrance rims at one pose ``T_cam_part`` (4, 4)."""
+    from cadfeat.features import holes_to_arrays
+    from cadfeat.measures import hole_ellipse
+
+    centres, axes, radii = holes_to_arrays(holes)
+    R, t = T_cam_part[:3, :3], T_cam_part[:3, 3]
+    return hole_ellipse(camera, centres @ R.T + t, axes @ R.T, radii)
+
+
+def draw_hole_overlay(image: np.ndarray, camera: Camera, holes: Sequence[Hole], T_cam_part: np.ndarray) -> np.ndarray:
+    """Copy of ``image`` with each hole's predicted rim ellipse (green, ``measures.hole_ellipse``), its
+    projected centre (red cross, ``Camera.project``) and its name. Holes whose rim is not wholly in
+    front of the camera (invalid ellipse) are skipped."""
+    import cv2
+
+    from cadfeat.features import holes_to_arrays
+
+    out = np.ascontiguousarray(image.copy())
+    centres, _, _ = holes_to_arrays(holes)
+    ellipses = predicted_ellipses(camera, holes, T_cam_part)
+    centre_px = camera.project(centres @ T_cam_part[:3, :3].T + T_cam_part[:3, 3])
+    shift = 4  # cv2 sub-pixel drawing: coordinates scaled by 2**shift
+    scale = 1 << shift
+    limit = 4.0 * max(camera.width, camera.height)  # cv2 drawing needs bounded integers
+    for j in np.flatnonzero(np.asarray(ellipses.valid)):
+        c, ax = np.asarray(ellipses.centre_px)[j], np.asarray(ellipses.axes_px)[j]
+        if not (np.all(np.isfinite(c)) and np.all(np.abs(c) < limit) and 0 < ax[0] < limit):
+            continue
+        angle = math.degrees(float(np.asarray(ellipses.angle_rad)[j]))
+        cv2.ellipse(out, (int(round(c[0] * scale)), int(round(c[1] * scale))),
+                    (int(round(ax[0] / 2 * scale)), int(round(ax[1] / 2 * scale))), angle, 0, 360,
+                    ELLIPSE_COLOUR_RGB, 1, cv2.LINE_AA, shift)
+        p = np.round(centre_px[j]).astype(int)
+        cv2.drawMarker(out, (int(p[0]), int(p[1])), CENTRE_COLOUR_RGB, cv2.MARKER_CROSS, 7, 1)
+        cv2.putText(out, holes[j].name or str(j), (int(p[0]) + 6, int(p[1]) - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                    CENTRE_COLOUR_RGB, 1, cv2.LINE_AA)
+    return out
+
+
+def render_camera_views(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray,
+                        out_dir: str | Path, prefix: str = "view", *, overlay: bool = True) -> list[Path]:
+    """Synthetic camera images at poses ``T_cam_part`` (K, 4, 4), one PNG each (``{prefix}_{k:03d}.png``).
+
+    One plotter renders all K poses (only the VTK camera changes between images).
+    """
+    import cv2
+
+    T = np.asarray(T_cam_part, dtype=float)
+    if T.ndim == 2:
+        T = T[None]
+    if T.ndim != 3 or T.shape[1:] != (4, 4):
+        raise RenderError(f"T_cam_part must have shape (K, 4, 4), got {T.shape}")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    with CameraViewRenderer(shape, holes, camera) as renderer:
+        for k, pose in enumerate(T):
+            path = out / f"{prefix}_{k:03d}.png"
+            image = renderer.render(pose, overlay=overlay)
+            if not cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR)):
+                raise RenderError(f"cannot write {path}")
+            paths.append(path)
+    return paths

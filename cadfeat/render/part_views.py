@@ -1,0 +1,341 @@
+"""Pictures of a part: a single view, and the before/after comparison of a redesign (like thesis Fig. 1.2c).
+
+The comparison renders both parts from ONE viewpoint (fitted to both parts, the camera trajectory
+and its frusta), so the two PNGs can be laid side by side or flipped between. Moved holes are
+highlighted, with arrows from the old to the new rim centre and the old rim drawn as a ghost ring;
+fixed holes are blue and labelled; the camera path is a polyline with camera frusta (from the
+real intrinsics) at a few samples; a legend names the colours.
+
+Units: millimetres, part frame. Trajectory poses are ``T_task_cam``; with ``T_task_part`` they are
+brought into the part frame (``T_part_cam = T_task_part⁻¹ T_task_cam``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cadfeat.poses import invert_T
+from cadfeat.render.scene import (
+    HOLE_DARK,
+    PICTURE_ANGULAR_TOLERANCE_RAD,
+    PICTURE_TOLERANCE_MM,
+    RenderError,
+    add_part,
+    cell_colours,
+    hole_cell_labels,
+    new_plotter,
+    shape_polydata,
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pyvista as pv
+
+    from cadfeat.camera import Camera
+    from cadfeat.features import Hole
+
+MOVED_BEFORE = (0.95, 0.55, 0.10)   # orange: a hole that will move / its old place
+MOVED_AFTER = (0.10, 0.70, 0.25)    # green: a moved hole at its new place
+FIXED = (0.15, 0.35, 0.90)          # blue: a hole that may not move
+ARROW = (0.85, 0.10, 0.10)
+PATH = (0.55, 0.20, 0.70)
+LEGEND_GREY = (0.55, 0.55, 0.58)    # the part's swatch in the legend (PART_GREY is invisible on white)
+FRUSTUM = (0.35, 0.35, 0.40)
+#: Centre or radius changes (mm) above this count as a move.
+MOVE_TOL_MM = 1e-6
+DEFAULT_VIEW = (1.0, -1.3, 1.1)     # from front-right-above, when nothing better is known
+
+
+def _unit(v: Sequence[float], what: str) -> np.ndarray:
+    v = np.asarray(v, dtype=float).reshape(-1)
+    n = float(np.linalg.norm(v)) if v.shape == (3,) else 0.0
+    if not np.isfinite(n) or n == 0.0:
+        raise RenderError(f"{what} must be a non-zero 3-vector (x, y, z), got {v.tolist()}")
+    return v / n
+
+
+def default_view_direction(holes: Sequence[Hole]) -> np.ndarray:
+    """Direction (part frame, unit) from the part towards the viewer: the mean hole axis tilted
+    towards ``DEFAULT_VIEW`` so the part shows depth; ``DEFAULT_VIEW`` without holes."""
+    iso = _unit(DEFAULT_VIEW, "DEFAULT_VIEW")
+    if not holes:
+        return iso
+    mean_axis = np.mean([h.axis for h in holes], axis=0)
+    if np.linalg.norm(mean_axis) < 1e-6:
+        return iso
+    mean_axis = _unit(mean_axis, "mean hole axis")
+    d = mean_axis + 0.6 * (iso - np.dot(iso, mean_axis) * mean_axis)
+    if np.linalg.norm(d - mean_axis) < 1e-6:
+        d = mean_axis + 0.6 * _unit(np.cross(mean_axis, [1.0, 0.0, 0.0]) if abs(mean_axis[0]) < 0.9
+                                    else np.cross(mean_axis, [0.0, 1.0, 0.0]), "tilt")
+    return _unit(d, "view direction")
+
+
+def _view_up(direction: np.ndarray) -> tuple[float, float, float]:
+    return (0.0, 1.0, 0.0) if abs(direction[2]) > 0.95 else (0.0, 0.0, 1.0)
+
+
+def _fit_view(plotter: pv.Plotter, points: np.ndarray, direction: np.ndarray, zoom: float = 1.2) -> None:
+    """Look along ``-direction`` at the box of ``points`` (M, 3), zoomed so all of it is in view."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
+    plotter.camera_position = [tuple(centre + direction * 4.0 * radius), tuple(centre), _view_up(direction)]
+    plotter.reset_camera(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
+    plotter.camera.zoom(zoom)
+
+
+def _label_points(plotter: pv.Plotter, points: np.ndarray, labels: list[str], colour: Sequence[float]) -> None:
+    if len(labels):
+        plotter.add_point_labels(points, labels, font_size=14, text_color=colour, shape_color="white",
+                                 shape_opacity=0.75, show_points=False, always_visible=True)
+
+
+def render_part(shape: Any, path: str | Path, holes: Sequence[Hole] | None = None, *,
+                view_direction: Sequence[float] | None = None, size: tuple[int, int] = (900, 700)) -> Path:
+    """A PNG of ``shape`` from ``view_direction`` (part frame, towards the viewer), holes dark and labelled.
+
+    ``holes=None`` extracts them (``cadfeat.features.extract_holes``). Returns the PNG path.
+    """
+    from cadfeat.features import extract_holes
+
+    holes = extract_holes(shape) if holes is None else list(holes)
+    direction = default_view_direction(holes) if view_direction is None else _unit(view_direction, "view_direction")
+    mesh = _picture_mesh(shape)
+    plotter = new_plotter(size)
+    try:
+        plotter.enable_anti_aliasing("ssaa")
+        add_part(plotter, mesh, cell_colours(hole_cell_labels(mesh, holes), None), specular=0.2)
+        _label_points(plotter, _label_anchor(holes, mesh), [_hole_name(h, j) for j, h in enumerate(holes)],
+                      (0.1, 0.1, 0.1))
+        _fit_view(plotter, np.asarray(mesh.points), direction)
+        return _save(plotter, path)
+    finally:
+        plotter.close()
+
+
+def _picture_mesh(shape: Any) -> Any:
+    return shape_polydata(shape, PICTURE_TOLERANCE_MM, PICTURE_ANGULAR_TOLERANCE_RAD)
+
+
+def _hole_name(hole: Hole, index: int) -> str:
+    return hole.name or f"#{index}"
+
+
+def _label_anchor(holes: Sequence[Hole], mesh: Any) -> np.ndarray:
+    """Where a hole's label sits: beside its rim, a little out of the face (mm)."""
+    if not holes:
+        return np.zeros((0, 3))
+    scale = 0.02 * float(np.linalg.norm(np.ptp(np.asarray(mesh.points), axis=0)))
+    return np.array([h.centre + h.axis * scale + _perpendicular(h.axis) * (1.6 * h.radius_mm + scale)
+                     for h in holes])
+
+
+def _perpendicular(axis: np.ndarray) -> np.ndarray:
+    other = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    p = np.cross(axis, other)
+    return p / np.linalg.norm(p)
+
+
+def _save(plotter: pv.Plotter, path: str | Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    plotter.screenshot(str(path))
+    return path
+
+
+# ------------------------------------------------------------------------------------ comparison
+
+
+def _trajectory_in_part(trajectory: Any, T_task_part: np.ndarray | None) -> np.ndarray | None:
+    """Camera poses T_part_cam (L, 4, 4) from a ``Trajectory`` or an (L, 4, 4) array of T_task_cam."""
+    if trajectory is None:
+        return None
+    T = np.asarray(getattr(trajectory, "T_task_cam", trajectory), dtype=float)
+    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) == 0:
+        raise RenderError(f"trajectory must be a Trajectory or (L, 4, 4) poses, got shape {T.shape}")
+    if T_task_part is not None:
+        T = invert_T(np.asarray(T_task_part, dtype=float))[None] @ T
+    return T
+
+
+def frustum_lines(camera: Camera | None, T_part_cam: np.ndarray, depth_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """Camera frusta as line segments: points (K·5, 3) and VTK line cells, for poses (K, 4, 4).
+
+    The apex is the camera centre, the base the image rectangle at depth ``depth_mm`` (rays
+    ``K⁻¹ [u, v, 1]`` through the image corners; a 60° square pyramid without a camera).
+    """
+    if camera is None:
+        h = np.tan(np.pi / 6)
+        corners = np.array([[-h, -h, 1.0], [h, -h, 1.0], [h, h, 1.0], [-h, h, 1.0]])
+    else:
+        w, h = camera.width, camera.height
+        uv1 = np.array([[0, 0, 1], [w, 0, 1], [w, h, 1], [0, h, 1]], dtype=float)
+        corners = uv1 @ np.linalg.inv(camera.K).T
+    local = np.vstack([np.zeros(3), corners * depth_mm])                  # (5, 3) camera frame
+    pts = np.einsum("kij,mj->kmi", T_part_cam[:, :3, :3], local) + T_part_cam[:, None, :3, 3]
+    seg = np.array([[0, 1], [0, 2], [0, 3], [0, 4], [1, 2], [2, 3], [3, 4], [4, 1]])
+    offsets = (np.arange(len(T_part_cam)) * 5)[:, None, None]
+    cells = np.concatenate([np.full((len(T_part_cam), len(seg), 1), 2), seg[None] + offsets], axis=-1)
+    return pts.reshape(-1, 3), cells.ravel()
+
+
+def _moved_mask(before: Sequence[Hole], after: Sequence[Hole]) -> np.ndarray:
+    from cadfeat.features import holes_to_arrays
+
+    c0, _, r0 = holes_to_arrays(before)
+    c1, _, r1 = holes_to_arrays(after)
+    return (np.linalg.norm(c1 - c0, axis=-1) > MOVE_TOL_MM) | (np.abs(r1 - r0) > MOVE_TOL_MM)
+
+
+def _ring(centre: np.ndarray, axis: np.ndarray, radius: float, n: int = 96) -> np.ndarray:
+    u = _perpendicular(axis)
+    w = np.cross(axis, u)
+    phi = np.linspace(0.0, 2.0 * np.pi, n + 1)
+    return centre + radius * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * w)
+
+
+class _Scene:
+    """What both comparison images share: meshes, colours, overlays and the fitted viewpoint."""
+
+    def __init__(self, shape_before: Any, shape_after: Any, holes_before: Sequence[Hole],
+                 holes_after: Sequence[Hole], fixed: Sequence[bool], T_part_cam: np.ndarray | None,
+                 camera: Camera | None, n_frusta: int) -> None:
+        if not (len(holes_before) == len(holes_after) == len(fixed)):
+            raise RenderError(f"render_comparison: holes_before ({len(holes_before)}), holes_after "
+                              f"({len(holes_after)}) and fixed ({len(fixed)}) must have the same length "
+                              "(hole i before corresponds to hole i after)")
+        self.before, self.after = list(holes_before), list(holes_after)
+        self.fixed = np.asarray(fixed, dtype=bool)
+        self.moved = _moved_mask(self.before, self.after) & ~self.fixed
+        self.mesh_before, self.mesh_after = _picture_mesh(shape_before), _picture_mesh(shape_after)
+        pts = np.vstack([self.mesh_before.points, self.mesh_after.points])
+        self.size_mm = float(np.linalg.norm(np.ptp(pts, axis=0)))
+        self.T_part_cam = T_part_cam
+        self.frusta = None
+        if T_part_cam is not None:
+            pts = np.vstack([pts, T_part_cam[:, :3, 3]])
+            k = min(max(int(n_frusta), 0), len(T_part_cam))
+            if k:
+                idx = np.unique(np.linspace(0, len(T_part_cam) - 1, k).round().astype(int))
+                self.frusta = frustum_lines(camera, T_part_cam[idx], 0.12 * self.size_mm)
+                pts = np.vstack([pts, self.frusta[0]])
+        self.bounds_points = pts
+        self.direction = default_view_direction(self.after)
+        if T_part_cam is not None:
+            self.direction = _side_view(self.direction, self.mesh_after.center, T_part_cam[:, :3, 3])
+
+    def hole_colours(self, after: bool) -> list[tuple[float, float, float]]:
+        moved = MOVED_AFTER if after else MOVED_BEFORE
+        return [FIXED if f else moved if m else HOLE_DARK for f, m in zip(self.fixed, self.moved, strict=True)]
+
+    def draw(self, plotter: pv.Plotter, after: bool) -> None:
+        import pyvista as pv
+
+        mesh = self.mesh_after if after else self.mesh_before
+        holes = self.after if after else self.before
+        add_part(plotter, mesh, cell_colours(hole_cell_labels(mesh, holes), self.hole_colours(after)), specular=0.2)
+        lift = 0.004 * self.size_mm
+        colours = self.hole_colours(after)
+        for j in np.flatnonzero(self.moved | self.fixed):  # a translucent disc over each highlighted rim
+            h = holes[j]
+            plotter.add_mesh(pv.Disc(center=h.centre + h.axis * lift, inner=0.0, outer=h.radius_mm, normal=h.axis,
+                                     c_res=64), color=colours[j], opacity=0.8)
+        if after:
+            for j in np.flatnonzero(self.moved):
+                old, new = self.before[j], self.after[j]
+                plotter.add_mesh(pv.lines_from_points(_ring(old.centre + old.axis * lift, old.axis, old.radius_mm)),
+                                 color=MOVED_BEFORE, line_width=3)
+                self._arrow(plotter, old.centre + old.axis * 2 * lift, new.centre + new.axis * 2 * lift)
+        fixed_idx = np.flatnonzero(self.fixed)
+        _label_points(plotter, _label_anchor([holes[j] for j in fixed_idx], mesh),
+                      [f"fixed {_hole_name(holes[j], j)}" for j in fixed_idx], FIXED)
+        moved_idx = np.flatnonzero(self.moved)
+        _label_points(plotter, _label_anchor([holes[j] for j in moved_idx], mesh),
+                      [_hole_name(holes[j], j) for j in moved_idx], MOVED_AFTER if after else MOVED_BEFORE)
+        if self.T_part_cam is not None:
+            path = pv.lines_from_points(self.T_part_cam[:, :3, 3])
+            plotter.add_mesh(path, color=PATH, line_width=3)
+            plotter.add_mesh(pv.PolyData(self.T_part_cam[:1, :3, 3]), color=PATH, point_size=12,
+                             render_points_as_spheres=True)
+        if self.frusta is not None:
+            plotter.add_mesh(pv.PolyData(self.frusta[0], lines=self.frusta[1]), color=FRUSTUM, line_width=1.5)
+        plotter.add_legend(self._legend(after), bcolor="white", border=True, size=(0.26, 0.2), loc="upper left",
+                           face="rectangle")
+
+    def _arrow(self, plotter: pv.Plotter, start: np.ndarray, end: np.ndarray) -> None:
+        import pyvista as pv
+
+        d = end - start
+        length = float(np.linalg.norm(d))
+        if length < 1e-9:
+            return
+        head = min(0.4 * length, 0.05 * self.size_mm)
+        tip_base = end - d / length * head
+        plotter.add_mesh(pv.Line(start, tip_base).tube(radius=0.006 * self.size_mm), color=ARROW)
+        plotter.add_mesh(pv.Cone(center=tip_base + d / length * head / 2, direction=d, height=head,
+                                 radius=0.016 * self.size_mm, resolution=24), color=ARROW)
+
+    def _legend(self, after: bool) -> list[list[Any]]:
+        entries: list[list[Any]] = [["part", LEGEND_GREY]]
+        if self.moved.any():
+            entries.append(["moved hole (new place)" if after else "hole to move", MOVED_AFTER if after
+                            else MOVED_BEFORE])
+            if after:
+                entries += [["old place", MOVED_BEFORE], ["move old -> new", ARROW]]
+        if self.fixed.any():
+            entries.append(["fixed hole", FIXED])
+        if (~self.fixed & ~self.moved).any():
+            entries.append(["unchanged hole", HOLE_DARK])
+        if self.T_part_cam is not None:
+            entries.append(["camera path (dot: start)", PATH])
+        if self.frusta is not None:
+            entries.append(["camera frusta", FRUSTUM])
+        return entries
+
+
+def _side_view(direction: np.ndarray, centre: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """Tilt ``direction`` half-way towards the normal of the plane through the part centre and the camera
+    path, so the path is seen beside the part rather than across it."""
+    pts = np.vstack([centre, path]) - np.mean(np.vstack([centre, path]), axis=0)
+    normal = np.linalg.svd(pts, full_matrices=False)[2][-1]
+    if np.linalg.matrix_rank(pts, tol=1e-6 * (1.0 + np.abs(pts).max())) < 2:
+        return direction  # path and centre on one line: no plane
+    normal = normal if np.dot(normal, direction) >= 0 else -normal
+    return _unit(direction + normal, "view direction")
+
+
+def render_comparison(shape_before: Any, shape_after: Any, holes_before: Sequence[Hole], holes_after: Sequence[Hole],
+                      fixed: Sequence[bool], out_dir: str | Path, *, trajectory: Any = None,
+                      camera: Camera | None = None, T_task_part: np.ndarray | None = None, n_frusta: int = 5,
+                      size: tuple[int, int] = (1000, 760)) -> dict[str, Path]:
+    """Before/after PNGs from the same viewpoint: ``{"before": out_dir/before.png, "after": out_dir/after.png}``.
+
+    ``holes_before[i]`` and ``holes_after[i]`` are the same hole (index correspondence), ``fixed[i]``
+    marks holes that may not move. ``trajectory`` (a ``Trajectory`` or (L, 4, 4) ``T_task_cam``) is
+    drawn as a polyline with ``n_frusta`` camera frusta (from ``camera``'s intrinsics), placed in the
+    part frame with ``T_task_part`` (identity when None).
+    """
+    scene = _Scene(shape_before, shape_after, holes_before, holes_after, fixed,
+                   _trajectory_in_part(trajectory, T_task_part), camera, n_frusta)
+    out = Path(out_dir)
+    paths = {}
+    camera_position = None
+    for key in ("before", "after"):
+        plotter = new_plotter(size)
+        try:
+            plotter.enable_anti_aliasing("ssaa")
+            scene.draw(plotter, after=key == "after")
+            if camera_position is None:
+                _fit_view(plotter, scene.bounds_points, scene.direction)
+                camera_position = plotter.camera_position
+            else:
+                plotter.camera_position = camera_position
+            plotter.renderer.ResetCameraClippingRange()
+            paths[key] = _save(plotter, out / f"{key}.png")
+        finally:
+            plotter.close()
+    return paths

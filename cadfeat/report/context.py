@@ -1,0 +1,52 @@
+"""What the report needs besides results.json: the shapes, holes, camera and trajectory of the study."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class ReportContext:
+    """Live objects of a study that the renders need (results.json holds only plain data).
+
+    ``shape_before``/``shape_after`` are CadQuery shapes (or Workplanes), ``holes_before``/``holes_after``
+    lists of ``cadfeat.features.Hole`` in the part frame (mm), ``fixed_mask`` one bool per hole (True = the
+    study kept it fixed), ``camera`` a ``cadfeat.camera.Camera``, ``trajectory`` a
+    ``cadfeat.trajectory.Trajectory`` of ``T_task_cam`` poses, ``T_task_part`` the (4, 4) part pose in the
+    task frame (identity when None) and ``sample_indices`` the trajectory samples whose camera views are
+    rendered (default: first, middle and last). Every field may be None: what cannot be drawn is skipped
+    with a note in the report.
+    """
+
+    shape_before: Any = None
+    shape_after: Any = None
+    holes_before: Sequence[Any] | None = None
+    holes_after: Sequence[Any] | None = None
+    fixed_mask: Sequence[bool] | None = None
+    camera: Any = None
+    trajectory: Any = None
+    T_task_part: np.ndarray | None = None
+    sample_indices: Sequence[int] | None = None
+
+    def samples(self) -> list[int]:
+        """Trajectory sample indices for the camera views: ``sample_indices`` (clipped, unique, sorted)
+        or first/middle/last."""
+        if self.trajectory is None:
+            return []
+        n = len(self.trajectory)
+        if n == 0:
+            return []
+        chosen = self.sample_indices if self.sample_indices is not None else (0, n // 2, n - 1)
+        return sorted({min(max(int(i) + (n if int(i) < 0 else 0), 0), n - 1) for i in chosen})
+
+    def T_cam_part(self, indices: Sequence[int]) -> np.ndarray:
+        """(K, 4, 4) part-to-camera transforms at the given samples: ``inv(T_task_cam) @ T_task_part``."""
+        from cadfeat.poses import invert_T
+
+        T_task_part = np.eye(4) if self.T_task_part is None else np.asarray(self.T_task_part, dtype=float)
+        T_task_cam = np.asarray(self.trajectory.T_task_cam, dtype=float)[list(indices)]
+        return invert_T(T_task_cam) @ T_task_part

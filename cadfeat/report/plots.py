@@ -1,0 +1,279 @@
+"""Matplotlib plots of a study's results (PNG, Agg, deterministic file names in ``img/``).
+
+Each ``plot_*`` function reads only the results dict (the keys of results.json, see contracts.md), writes
+one PNG and returns a ``Plot``, or returns None when its data is absent (a study without a sweep has no
+sweep plot). ``make_plots`` runs them all; a plot that fails on malformed data is skipped with a logged
+warning, it never stops the report.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+#: Colours of the two designs in every plot.
+BEFORE, AFTER = "#7f7f7f", "#d62728"
+DPI = 110
+
+
+@dataclass(frozen=True)
+class Plot:
+    """A written plot: ``key`` (also the file stem), a title and caption for the report, the PNG path."""
+
+    key: str
+    title: str
+    caption: str
+    path: Path
+
+
+def _figure(ncols: int = 1, nrows: int = 1, size: tuple[float, float] = (7.0, 4.2)) -> tuple[Any, Any]:
+    """A pyplot-free Figure (no global state) with its axes.
+
+    Fixed margins in inches instead of constrained/tight layout: the layout engines cost about half of
+    the plotting time (they draw every figure twice)."""
+    from matplotlib.figure import Figure
+
+    width, height = size
+    fig = Figure(figsize=size, dpi=DPI)
+    axes = fig.subplots(nrows, ncols, squeeze=False, sharex=ncols == 1 and nrows > 1)
+    fig.subplots_adjust(left=0.85 / width, right=1 - 0.25 / width, bottom=0.6 / height, top=1 - 0.4 / height,
+                        wspace=0.75 / (width / ncols), hspace=0.35 / (height / nrows) if nrows > 1 else 0.2)
+    return fig, axes
+
+
+def _save(fig: Any, img_dir: Path, key: str) -> Path:
+    path = Path(img_dir) / f"{key}.png"
+    fig.savefig(path, format="png", metadata={"Software": None})  # no version stamp: identical bytes per run
+    return path
+
+
+def _measures(results: dict, which: str) -> dict | None:
+    m = (results.get("measures") or {}).get(which)
+    return m if isinstance(m, dict) else None
+
+
+def _per_pose(results: dict, which: str, key: str) -> np.ndarray | None:
+    m = _measures(results, which)
+    values = ((m or {}).get("per_pose") or {}).get(key)
+    if values is None:
+        return None
+    a = np.asarray(values, dtype=float)
+    return a if a.size else None
+
+
+def _times(results: dict, which: str, n: int) -> np.ndarray:
+    t = _per_pose(results, which, "time_s")
+    return t if t is not None and t.shape == (n,) else np.arange(n, dtype=float)
+
+
+def _design_label(results: dict, which: str) -> str:
+    """ "current" for an evaluation-only result (one design), else before/after."""
+    return "current" if which == "before" and not (results.get("measures") or {}).get("after") else which
+
+
+def _feature_names(results: dict, which: str, n: int) -> list[str]:
+    feats = (_measures(results, which) or {}).get("per_feature") or []
+    names = [str(f.get("name") or f"#{f.get('index', i)}") for i, f in enumerate(feats)]
+    return names if len(names) == n else [f"#{i}" for i in range(n)]
+
+
+# ------------------------------------------------------------------------------------------------ the plots
+def plot_feature_tracks(results: dict, img_dir: Path) -> Plot | None:
+    """Image-plane tracks of the hole centres along the trajectory, before | after, with the image border
+    (thesis Fig. 5.7). From ``measures.{before,after}.per_pose.centre_px`` (L, N, 2) and ``camera``."""
+    tracks = {w: _per_pose(results, w, "centre_px") for w in ("before", "after")}
+    tracks = {w: a for w, a in tracks.items() if a is not None and a.ndim == 3 and a.shape[-1] == 2}
+    if not tracks:
+        return None
+    cam = results.get("camera") or {}
+    width, height = cam.get("width"), cam.get("height")
+    fig, axes = _figure(len(tracks), 1, (5.2 * len(tracks), 4.6))
+    cmap = _colours(max(a.shape[1] for a in tracks.values()))
+    for ax, (which, a) in zip(axes[0], tracks.items(), strict=True):
+        if width and height:
+            ax.add_patch(_rectangle(width, height))
+        if which == "after" and "before" in tracks and tracks["before"].shape == a.shape:
+            for j in range(a.shape[1]):  # the original tracks, faint, for comparison
+                ax.plot(tracks["before"][:, j, 0], tracks["before"][:, j, 1], ":", color=cmap[j], lw=1.0, alpha=0.6)
+        for j, name in enumerate(_feature_names(results, which, a.shape[1])):
+            ax.plot(a[:, j, 0], a[:, j, 1], "-", color=cmap[j], lw=1.4, label=name)
+            ax.plot(a[0, j, 0], a[0, j, 1], "o", color=cmap[j], ms=4)
+            ax.plot(a[-1, j, 0], a[-1, j, 1], "s", color=cmap[j], ms=4)
+        if width and height:
+            pad = 0.05 * max(width, height)
+            ax.set_xlim(min(-pad, np.nanmin(a[..., 0]) - pad), max(width + pad, np.nanmax(a[..., 0]) + pad))
+            ax.set_ylim(max(height + pad, np.nanmax(a[..., 1]) + pad), min(-pad, np.nanmin(a[..., 1]) - pad))
+        else:
+            ax.invert_yaxis()
+        ax.set_aspect("equal")
+        ax.set_title(f"{_design_label(results, which)}: hole centres in the image")
+        ax.set_xlabel("u (px)")
+        ax.set_ylabel("v (px)")
+    axes[0][-1].legend(fontsize=7, loc="best")
+    return Plot("tracks", "Feature tracks in the image",
+                "Projected hole centres along the trajectory (circle = first sample, square = last; dotted "
+                "in the after panel: before); the box is the image border (cf. thesis Fig. 5.7).",
+                _save(fig, img_dir, "tracks"))
+
+
+def plot_pose_measures(results: dict, img_dir: Path) -> Plot | None:
+    """Worst-feature FOV, focus and resolution margins per pose, before vs after."""
+    rows = [("fov_min", "FOV cone margin"), ("focus_min", "focus margin"), ("resolution_px_min", "resolution (px)")]
+    present = [(k, label) for k, label in rows
+               if any(_per_pose(results, w, k) is not None for w in ("before", "after"))]
+    if not present:
+        return None
+    fig, axes = _figure(1, len(present), (7.0, 2.2 * len(present) + 0.6))
+    for ax, (key, label) in zip(axes[:, 0], present, strict=True):
+        _before_after(ax, results, key)
+        ax.axhline(0.0, color="k", lw=0.8)
+        ax.set_ylabel(label)
+    axes[-1, 0].set_xlabel("time (s)")
+    axes[0, 0].legend(fontsize=8)
+    return Plot("pose_measures", "Measures along the trajectory",
+                "Worst margin over the holes at each pose (positive = satisfied), before vs after.",
+                _save(fig, img_dir, "pose_measures"))
+
+
+def plot_motion(results: dict, img_dir: Path) -> Plot | None:
+    """Directional motion resolvability Λ (eq. 4.32) and σ_min of the stacked Jacobian per pose."""
+    present = [(k, label) for k, label in (("resolvability", "Λ (px per unit motion)"), ("sigma_min", "σ_min (px)"))
+               if any(_per_pose(results, w, k) is not None for w in ("before", "after"))]
+    if not present:
+        return None
+    fig, axes = _figure(1, len(present), (7.0, 2.4 * len(present) + 0.6))
+    for ax, (key, label) in zip(axes[:, 0], present, strict=True):
+        _before_after(ax, results, key)
+        ax.set_ylabel(label)
+    axes[-1, 0].set_xlabel("time (s)")
+    axes[0, 0].legend(fontsize=8)
+    return Plot("motion", "Motion resolvability along the trajectory",
+                "Λ (eq. 4.27-4.32) and the smallest singular value of the stacked image Jacobian "
+                "(eq. 4.20), before vs after.", _save(fig, img_dir, "motion"))
+
+
+def plot_convergence(results: dict, img_dir: Path) -> Plot | None:
+    """Objective value per optimiser iteration (feasible points filled, infeasible hollow)."""
+    history = [h for h in results.get("history") or [] if isinstance(h, dict) and h.get("f") is not None]
+    if len(history) < 1:
+        return None
+    it = np.array([h.get("iteration", i) for i, h in enumerate(history)], dtype=float)
+    f = np.array([h["f"] for h in history], dtype=float)
+    feasible = np.array([bool(h.get("feasible", True)) for h in history])
+    fig, axes = _figure(1, 1, (7.0, 3.6))
+    ax = axes[0, 0]
+    ax.plot(it, f, "-", color="#1f77b4", lw=1.0, alpha=0.6)
+    ax.plot(it[feasible], f[feasible], "o", color="#1f77b4", ms=3.5, label="feasible")
+    if (~feasible).any():
+        ax.plot(it[~feasible], f[~feasible], "o", mfc="none", color="#1f77b4", ms=3.5, label="infeasible")
+    best = np.minimum.accumulate(np.where(feasible, f, np.inf))
+    if np.isfinite(best).any():
+        ax.step(it, best, where="post", color=AFTER, lw=1.5, label="best feasible so far")
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("objective (minimised)")
+    ax.legend(fontsize=8)
+    return Plot("convergence", "Convergence", "Objective per evaluation of the optimiser and the best "
+                "feasible value so far.", _save(fig, img_dir, "convergence"))
+
+
+def plot_sweep(results: dict, img_dir: Path) -> Plot | None:
+    """Objectives vs the one design variable of a one-variable study (thesis Figs. 5.10, 5.11)."""
+    sweep = results.get("sweep")
+    if not isinstance(sweep, dict) or not sweep.get("values") or not sweep.get("objectives"):
+        return None
+    x = np.asarray(sweep["values"], dtype=float)
+    curves = {str(k): np.asarray(v, dtype=float) for k, v in sweep["objectives"].items() if len(v) == len(x)}
+    if not curves:
+        return None
+    name = str(sweep.get("variable", "parameter"))
+    var = next((v for v in results.get("variables") or [] if v.get("name") == name), {})
+    fig, axes = _figure(1, len(curves), (7.0, 2.0 * len(curves) + 0.8))
+    for ax, (obj, y) in zip(axes[:, 0], curves.items(), strict=True):
+        ax.plot(x, y, "-", color="#1f77b4", lw=1.5)
+        for key, colour in (("before", BEFORE), ("after", AFTER)):
+            if isinstance(var.get(key), int | float):
+                ax.axvline(var[key], color=colour, ls="--", lw=1.2, label=key)
+        ax.set_ylabel(obj)
+    unit = f" ({var['unit']})" if var.get("unit") else ""
+    axes[-1, 0].set_xlabel(f"{name}{unit}")
+    if var:
+        axes[0, 0].legend(fontsize=8)
+    return Plot("sweep", f"Objectives vs {name}", "Each objective over the range of the design variable "
+                "(cf. thesis Figs. 5.10, 5.11); dashed lines: the original and the chosen value.",
+                _save(fig, img_dir, "sweep"))
+
+
+def plot_pareto(results: dict, img_dir: Path) -> Plot | None:
+    """The Pareto front (first two objectives on the axes, a third as colour) with the chosen point."""
+    pareto = results.get("pareto")
+    if not isinstance(pareto, dict) or not pareto.get("points"):
+        return None
+    pts = np.asarray(pareto["points"], dtype=float)
+    if pts.ndim != 2 or pts.shape[1] < 2:
+        return None
+    names = [str(n) for n in pareto.get("names") or []] or [f"f{i}" for i in range(pts.shape[1])]
+    fig, axes = _figure(1, 1, (6.0, 4.6))
+    ax = axes[0, 0]
+    if pts.shape[1] > 2:
+        sc = ax.scatter(pts[:, 0], pts[:, 1], c=pts[:, 2], s=18, cmap="viridis")
+        fig.colorbar(sc, ax=ax, label=names[2])
+    else:
+        ax.scatter(pts[:, 0], pts[:, 1], color="#1f77b4", s=18)
+    chosen = pareto.get("chosen")
+    if isinstance(chosen, int) and 0 <= chosen < len(pts):
+        ax.plot(pts[chosen, 0], pts[chosen, 1], "*", color=AFTER, ms=16, mec="k", label="chosen")
+        ax.legend(fontsize=8)
+    ax.set_xlabel(names[0])
+    ax.set_ylabel(names[1])
+    return Plot("pareto", "Pareto front", f"Non-dominated designs ({len(pts)} points); the star is the "
+                "chosen design.", _save(fig, img_dir, "pareto"))
+
+
+PLOTTERS: tuple[Callable[[dict, Path], Plot | None], ...] = (
+    plot_feature_tracks, plot_pose_measures, plot_motion, plot_convergence, plot_sweep, plot_pareto)
+
+
+def make_plots(results: dict, img_dir: str | Path) -> tuple[list[Plot], list[str]]:
+    """Write every plot whose data is present; returns the plots and notes about plots that failed."""
+    img_dir = Path(img_dir)
+    img_dir.mkdir(parents=True, exist_ok=True)
+    plots, notes = [], []
+    for plotter in PLOTTERS:
+        try:
+            plot = plotter(results, img_dir)
+        except Exception as exc:  # a malformed field must not stop the report
+            log.warning("report: %s skipped: %s", plotter.__name__, exc)
+            notes.append(f"{plotter.__name__} skipped: {exc}")
+            continue
+        if plot is not None:
+            plots.append(plot)
+    return plots, notes
+
+
+# ------------------------------------------------------------------------------------------------ helpers
+def _before_after(ax: Any, results: dict, key: str) -> None:
+    for which, colour, style in (("before", BEFORE, "--"), ("after", AFTER, "-")):
+        y = _per_pose(results, which, key)
+        if y is not None and y.ndim == 1:
+            ax.plot(_times(results, which, len(y)), y, style, color=colour, lw=1.5,
+                    label=_design_label(results, which))
+
+
+def _rectangle(width: float, height: float) -> Any:
+    from matplotlib.patches import Rectangle
+
+    return Rectangle((0, 0), width, height, fill=False, ec="k", lw=1.2)
+
+
+def _colours(n: int) -> Sequence[Any]:
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab10" if n <= 10 else "tab20"]
+    return [cmap(i % cmap.N) for i in range(max(n, 1))]

@@ -1,0 +1,176 @@
+"""Assemble report.html: summary, renders, tables, plots and provenance; images beside it in ``img/``.
+
+The page is self-contained (inline CSS, no scripts, images linked relatively) and opens from the file
+system without a server. A section whose data is absent is left out; a section that fails on malformed
+data is replaced by a note and a logged warning: writing the report never stops a study.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from cadfeat.errors import CadfeatError
+from cadfeat.report import tables
+from cadfeat.report.context import ReportContext
+from cadfeat.report.html import esc, figure, fmt, note, page, section
+from cadfeat.report.plots import Plot, make_plots
+from cadfeat.report.renders import Renders, make_renders
+
+log = logging.getLogger(__name__)
+
+REPORT_NAME = "report.html"
+IMG_DIR = "img"
+
+
+@dataclass
+class ReportOutput:
+    """What ``build_report`` wrote: the page, its images, notes, and the time per phase (s)."""
+
+    path: Path
+    images: list[Path] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+
+def write_report(out_dir: str | Path, results: dict, context: ReportContext | None = None) -> Path:
+    """Write ``out_dir/report.html`` (images in ``out_dir/img/``) for a study's results; returns its path.
+
+    ``results`` has the keys of results.json (contracts.md); ``context`` holds the shapes, holes, camera
+    and trajectory for the renders (without it the report has no renders, only a note).
+    """
+    return build_report(out_dir, results, context).path
+
+
+def read_results(path: str | Path) -> dict:
+    """Read a results.json; a missing or malformed file raises CadfeatError naming it."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise CadfeatError(f"{path}: results file not found (written by `cadfeat run` as results.json)") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CadfeatError(f"{path}: not a readable JSON results file: {exc}") from None
+    if not isinstance(data, dict):
+        raise CadfeatError(f"{path}: a results file holds a JSON object (keys study, measures, ...), "
+                           f"got {type(data).__name__}")
+    return data
+
+
+def build_report(out_dir: str | Path, results: dict, context: ReportContext | None = None) -> ReportOutput:
+    """``write_report`` that also returns the images, notes and the time of renders, plots and HTML."""
+    out_dir = Path(out_dir)
+    img_dir = out_dir / IMG_DIR
+    img_dir.mkdir(parents=True, exist_ok=True)
+    timings: dict[str, float] = {}
+
+    start = time.perf_counter()
+    renders = make_renders(context, results, img_dir)
+    timings["renders"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    plots, plot_notes = make_plots(results, img_dir)
+    timings["plots"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    notes = renders.notes + plot_notes
+    document = _document(out_dir, results, renders, plots, notes, timings)
+    path = out_dir / REPORT_NAME
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(document, encoding="utf-8")
+    os.replace(tmp, path)
+    timings["html"] = time.perf_counter() - start
+
+    images = [*renders.comparison.values(), *(p for ps in renders.views.values() for p in ps),
+              *(p.path for p in plots)]
+    return ReportOutput(path, images, notes, timings)
+
+
+# ------------------------------------------------------------------------------------------------ sections
+def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot], notes: list[str],
+              timings: dict[str, float]) -> str:
+    study = results.get("study") or {}
+    kind = "evaluation" if tables.is_evaluation(results) else "report"
+    title = f"cadfeat {kind} — {study.get('name') or 'study'}"
+    subtitle = f"Part {study.get('part') or '?'}" + (f": {study['description']}" if study.get("description") else "")
+    rel = _relative(out_dir)
+    builders: list[tuple[str, str, Callable[[], str]]] = [
+        ("summary", "Summary", lambda: tables.summary(results)),
+        ("setup", "Study, camera and trajectory", lambda: tables.setup_table(results)),
+        ("renders", "The part before and after", lambda: _renders_section(renders, rel)),
+        ("views", "What the camera sees", lambda: _views_section(renders, rel)),
+        ("features", "Per-feature measures (worst over the trajectory)", lambda: _features_section(results)),
+        ("requirements", "Kept requirements (checked on the rebuilt geometry)",
+         lambda: tables.constraints_table(results)),
+        ("design-matrix", "Design matrix", lambda: tables.design_matrix_table(results)),
+        ("plots", "Plots", lambda: "".join(f"<h3>{esc(p.title)}</h3>" + figure(rel(p.path), p.caption)
+                                           for p in plots)),
+        ("normalisation", "Normalisation of the objectives", lambda: tables.normalisation_note(results)),
+        ("files", "Exported files", lambda: tables.files_table(results) + tables.verification_table(results)),
+        ("provenance", "Versions and timings", lambda: _provenance(results, timings)),
+    ]
+    sections = []
+    for sid, heading, build in builders:
+        try:
+            body = build()
+        except Exception as exc:  # malformed results: say so, keep the rest of the report
+            log.warning("report: section %s failed: %s", sid, exc)
+            notes.append(f"section '{heading}' could not be built: {type(exc).__name__}: {exc}")
+            body = note(f"This section could not be built: {type(exc).__name__}: {exc}", "warning")
+        if body:
+            sections.append(section(heading, body, sid))
+    if notes:
+        sections.append(section("Notes", "".join(note(n) for n in notes), "notes"))
+    return page(title, subtitle, sections)
+
+
+def _relative(out_dir: Path) -> Callable[[Path], str]:
+    def rel(path: Path) -> str:
+        return Path(os.path.relpath(Path(path).resolve(), out_dir.resolve())).as_posix()
+    return rel
+
+
+def _renders_section(renders: Renders, rel: Callable[[Path], str]) -> str:
+    if not renders.comparison:
+        return note("No renders of the part: " + ("; ".join(renders.notes) or "rendering unavailable."))
+    captions = {"current": "The current design (evaluation: nothing was moved).",
+                "before": "Before: the original layout.",
+                "after": "After: moved holes with arrows from the old to the new centre, fixed holes marked, "
+                         "the camera trajectory with frusta."}
+    figs = "".join(figure(rel(p), captions.get(k, k), f"part {k}") for k, p in renders.comparison.items())
+    return f'<div class="pair">{figs}</div>'
+
+
+def _views_section(renders: Renders, rel: Callable[[Path], str]) -> str:
+    if not renders.views:
+        return note("No camera views: " + ("; ".join(renders.notes) or "rendering unavailable.")) \
+            if renders.samples else ""
+    out = ["<p>Synthetic images with the study camera's intrinsics at trajectory samples; predicted hole "
+           "ellipses overlaid.</p>"]
+    for i, (sample, t) in enumerate(zip(renders.samples, renders.sample_times_s, strict=True)):
+        figs = "".join(figure(rel(paths[i]), f"{which}: sample {sample} (t = {fmt(t)} s)", f"{which} view {sample}")
+                       for which, paths in renders.views.items() if i < len(paths))
+        out.append(f'<div class="pair">{figs}</div>')
+    return "".join(out)
+
+
+def _features_section(results: dict) -> str:
+    body = tables.feature_table(results)
+    if not body:
+        return ""
+    return ("<p>Worst margin of each hole over the trajectory (cf. thesis Table 5.1). Margins: positive = "
+            "satisfied; FOV cone margin cos β − cos(α/2) (eq. 3.1-3.3), focus margin relative to half the depth "
+            "of field (eq. 3.4-3.6), resolution = minor ellipse axis − required (px); worst pose = trajectory "
+            "sample of the smallest margin.</p>" + body)
+
+
+def _provenance(results: dict, timings: dict[str, float]) -> str:
+    report_t = {f"report: {k}": v for k, v in timings.items()}
+    return (tables.key_value_table(results.get("versions"), "versions", ("library", "version"))
+            + tables.key_value_table({**(results.get("timings_s") or {}), **report_t}, "timings",
+                                     ("phase", "seconds")))

@@ -1,0 +1,240 @@
+"""Part scripts and the parts library.
+
+References: each part script's ``expected_holes(**params)`` — the analytic hole centres / axes / radii
+written from the part's drawing (the docstring), independently of its build code — compared with the
+holes EXTRACTED from the built B-rep at 1e-9 mm; hand-written bad scripts for the error messages.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.optimize import linear_sum_assignment
+
+from cadfeat.errors import CadfeatError
+from cadfeat.features import holes_to_arrays
+from cadfeat.parts import PARTS_DIR, PartBuildError, build_shape, find_parts, load_part
+
+TOL_MM = 1e-9
+PART_PATHS = find_parts(PARTS_DIR)
+
+
+def parameter_sets(part) -> list[dict]:
+    """Defaults, and every parameter at 25 % and at 75 % of its range (integers rounded)."""
+    sets = [part.defaults()]
+    for frac in (0.25, 0.75):
+        values = {}
+        for name, p in part.parameters.items():
+            v = p.lower + frac * (p.upper - p.lower)
+            values[name] = int(round(v)) if p.is_int else v
+        sets.append(values)
+    return sets
+
+
+def assert_holes_match(holes, expected, tol=TOL_MM):
+    """Extracted holes equal the analytic ones (optimal pairing by centre distance)."""
+    c, a, r = holes_to_arrays(holes)
+    ec = np.array([e["centre"] for e in expected], dtype=float)
+    ea = np.array([e["axis"] for e in expected], dtype=float)
+    er = np.array([e["radius_mm"] for e in expected], dtype=float)
+    assert len(holes) == len(expected), f"{len(holes)} holes extracted, {len(expected)} expected"
+    d = np.linalg.norm(c[:, None, :] - ec[None, :, :], axis=-1)
+    rows, cols = linear_sum_assignment(d)
+    assert d[rows, cols].max() <= tol, f"centre error {d[rows, cols].max():.3g} mm"
+    assert np.abs(r[rows] - er[cols]).max() <= tol
+    assert np.abs(a[rows] - ea[cols] / np.linalg.norm(ea[cols], axis=1, keepdims=True)).max() <= 1e-12
+    for i, j in zip(rows, cols, strict=True):
+        assert holes[i].kind == expected[j].get("kind", holes[i].kind)
+
+
+def test_library_is_not_empty():
+    assert len(PART_PATHS) >= 8
+
+
+@pytest.mark.parametrize("path", PART_PATHS, ids=[p.stem for p in PART_PATHS])
+def test_part_holes_equal_drawing(path):
+    part = load_part(path)
+    assert part.description and part.parameters
+    assert part.module.expected_holes is not None, "every library part documents its holes"
+    for params in parameter_sets(part):
+        assert_holes_match(part.holes(**params), part.expected_holes(**params))
+
+
+@pytest.mark.parametrize("path", PART_PATHS, ids=[p.stem for p in PART_PATHS])
+def test_part_metadata(path):
+    part = load_part(path)
+    text = path.read_text()
+    assert 'if "show_object" in globals()' in text  # runs unchanged in cq-editor
+    assert part.view_direction is not None and np.isclose(np.linalg.norm(part.view_direction), 1.0)
+    assert part.fixed_holes, "FIXED_HOLES documents the functional holes (or says none)"
+    for p in part.parameters.values():
+        assert p.description and p.lower <= p.default <= p.upper
+
+
+def test_scripts_run_unchanged_in_cq_editor():
+    """Executed as cq-editor does (a global ``show_object``), a script shows exactly one solid."""
+    import runpy
+
+    import cadquery as cq
+
+    for path in PART_PATHS:
+        shown = []
+        runpy.run_path(str(path), init_globals={"show_object": shown.append})
+        assert len(shown) == 1 and isinstance(shown[0], cq.Workplane), path.name
+        assert len(shown[0].val().Solids()) == 1
+
+
+def test_build_returns_one_solid_and_validates():
+    part = load_part(PARTS_DIR / "thesis_single_hole.py")
+    solid = part.build(radius_mm=2.0)
+    assert solid.isValid() and len(solid.Solids()) == 1
+    with pytest.raises(CadfeatError, match=r"unknown parameter\(s\) 'radius'.*allowed: radius_mm, hole_x_mm"):
+        part.build(radius=2.0)
+    with pytest.raises(CadfeatError, match=r"'radius_mm' = 9 is out of bounds; allowed: a number in \[1, 6\] mm"):
+        part.build(radius_mm=9)
+    with pytest.raises(CadfeatError, match="not a number"):
+        part.build(radius_mm="3")
+    hub = load_part(PARTS_DIR / "thesis_hub.py")
+    assert hub.parameters["hole_count"].is_int
+    with pytest.raises(CadfeatError, match="'hole_count' = 4.5 is not an integer"):
+        hub.build(hole_count=4.5)
+    assert len(hub.holes(hole_count=4.0)) == 5
+
+
+# ------------------------------------------------------------------------------------ bad scripts
+GOOD_HEAD = '''
+import cadquery as cq
+PARAMETERS = {"size_mm": {"default": 10.0, "bounds": (5.0, 20.0), "unit": "mm", "description": "edge"}}
+'''
+
+
+def write(tmp_path: Path, name: str, text: str) -> Path:
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+@pytest.mark.parametrize("name, body, match", [
+    ("syntax.py", "x = (1,\ndef build(:\n", r"syntax\.py:\d+: syntax error"),
+    ("nobuild.py", GOOD_HEAD, r"nobuild\.py: no build\(\*\*params\) function"),
+    ("noparams.py", "def build():\n    return None\n", r"noparams\.py: no PARAMETERS dict"),
+    ("badkey.py", 'PARAMETERS = {"a": {"default": 1.0, "bounds": (0, 2), "units": "mm"}}\ndef build(a): pass\n',
+     r"badkey\.py: PARAMETERS\['a'\] has unknown key\(s\) 'units'; allowed: default, bounds, unit, description"),
+    ("nobounds.py", 'PARAMETERS = {"a": {"default": 1.0}}\ndef build(a): pass\n',
+     r"PARAMETERS\['a'\] lacks 'bounds'"),
+    ("outside.py", 'PARAMETERS = {"a": {"default": 3.0, "bounds": (0, 2)}}\ndef build(a): pass\n',
+     r"PARAMETERS\['a'\]: default 3 is outside bounds \[0, 2\]"),
+    ("signature.py", 'PARAMETERS = {"a": {"default": 1.0, "bounds": (0, 2)}}\ndef build(b): pass\n',
+     r"signature\.py: build\(b\) does not match PARAMETERS \(a\): not accepted: a; required but not in "
+     r"PARAMETERS: b"),
+    ("importfail.py", "import math\nmath.sqrt(-1)\n", r"importfail\.py:2: importing the part script raised ValueError"),
+])
+def test_bad_script_load_errors(tmp_path, name, body, match):
+    with pytest.raises(CadfeatError, match=match):
+        load_part(write(tmp_path, name, body))
+
+
+def test_missing_file_and_library_names(tmp_path):
+    with pytest.raises(CadfeatError, match=r"part script not found \(library parts: .*thesis_hub"):
+        load_part(tmp_path / "nothing.py")
+    assert load_part("thesis_hub").path == (PARTS_DIR / "thesis_hub.py").resolve()
+
+
+def test_part_pickles_by_path():
+    import pickle
+
+    part = pickle.loads(pickle.dumps(load_part("thesis_single_hole")))
+    assert part.name == "thesis_single_hole" and len(part.holes(radius_mm=2.0)) == 1
+
+
+@pytest.mark.parametrize("body, match", [
+    ("def build(size_mm):\n    raise RuntimeError('kernel said no')\n",
+     r"build\(size_mm=12\.0\) raised RuntimeError: kernel said no"),
+    ("def build(size_mm):\n    return None\n", r"build\(size_mm=12\.0\) returned None"),
+    ("def build(size_mm):\n    return 42\n", r"returned int; it must return a cadquery Workplane"),
+    ("def build(size_mm):\n    return cq.Workplane().box(1, 1, 1).faces('>Z')\n", r"returned 0 solids"),
+    ("def build(size_mm):\n    return cq.Workplane().box(1, 1, 1).add(cq.Workplane().sphere(5).translate((9, 0, 0)))\n",
+     r"returned 2 solids"),
+])
+def test_bad_build_errors(tmp_path, body, match):
+    part = load_part(write(tmp_path, "bad_build.py", GOOD_HEAD + body))
+    with pytest.raises(PartBuildError, match=match):
+        part.build(size_mm=12.0)
+
+
+def test_same_stem_different_dirs_do_not_clash(tmp_path):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    body = GOOD_HEAD + "def build(size_mm):\n    return cq.Workplane().box(DIMS, 1)\n"
+    pa = load_part(write(tmp_path / "a", "p.py", body.replace("DIMS", "size_mm, 1")))
+    pb = load_part(write(tmp_path / "b", "p.py", body.replace("DIMS", "1, size_mm")))
+    assert pa.build().BoundingBox().xlen == pytest.approx(10.0)
+    assert pb.build().BoundingBox().ylen == pytest.approx(10.0)
+
+
+# ------------------------------------------------------------------------------- worker-process builds
+def test_build_shape_in_worker_equals_in_process():
+    part = load_part(PARTS_DIR / "thesis_hub.py")
+    params = {"bolt_circle_radius_mm": 11.0, "phase_rad": 0.3}
+    remote = build_shape(part, params, timeout_s=60)
+    local = part.build(**params)
+    assert remote.Volume() == pytest.approx(local.Volume(), rel=1e-12)
+    from cadfeat.features import extract_holes
+    assert_holes_match(extract_holes(remote), part.expected_holes(**params))
+
+
+def test_build_shape_timeout_and_errors(tmp_path):
+    slow = load_part(write(tmp_path, "slow.py", GOOD_HEAD + "import time\ndef build(size_mm):\n    time.sleep(60)\n"))
+    with pytest.raises(PartBuildError, match="exceeded the time limit of 1 s"):
+        build_shape(slow, {}, timeout_s=1.0)
+    bad = load_part(write(tmp_path, "raises.py", GOOD_HEAD + "def build(size_mm):\n    raise ValueError('nope')\n"))
+    with pytest.raises(PartBuildError, match=r"raises\.py: build\(size_mm=10\.0\) raised ValueError: nope"):
+        build_shape(bad, None, timeout_s=60)
+    with pytest.raises(CadfeatError, match="out of bounds"):
+        build_shape(bad, {"size_mm": 99.0})
+    dies = load_part(write(tmp_path, "dies.py", GOOD_HEAD + "import os\ndef build(size_mm):\n    os._exit(3)\n"))
+    with pytest.raises(PartBuildError, match=r"worker died \(exit code 3\)"):
+        build_shape(dies, {}, timeout_s=60)
+
+
+# ---------------------------------------------------------------------------------- STEP round trip
+@pytest.mark.parametrize("name", ["nema17_mount", "pipe_flange_dn50", "l_bracket"])
+def test_step_round_trip_identical_holes(tmp_path, name):
+    """export_step → import_step → the same holes (1e-9 mm), kinds and through flags, and the same volume."""
+    from cadfeat.export import export_step, shape_volume_mm3, verify_step_roundtrip
+
+    part = load_part(PARTS_DIR / f"{name}.py")
+    params = parameter_sets(part)[2]
+    solid = part.build(**params)
+    path = export_step(solid, tmp_path / f"{name}.step")
+    rt = verify_step_roundtrip(path, part.holes(**params), tol_mm=1e-9, prefer_direction=part.view_direction,
+                               expected_volume_mm3=shape_volume_mm3(solid))
+    assert rt.n_holes == len(part.expected_holes(**params)) and rt.unit == "MM"
+
+
+# ------------------------------------------------------------------------------------------ the CLI
+def test_cli_lists_parts(tmp_path, capsys):
+    from cadfeat.cli import main
+
+    assert main(["parts"]) == 0
+    out = capsys.readouterr().out
+    for path in PART_PATHS:
+        assert f"{path.stem}: " in out
+    assert "bolt_circle_radius_mm = 9.65 mm in [8.5, 16]" in out and "hole_count = 5 in [3, 8] (integer)" in out
+    assert main(["parts", str(PARTS_DIR / "thesis_single_hole.py"), "--holes"]) == 0
+    assert "hole 0: centre (0.000, 0.000, 0.000) mm, axis (0.000, 0.000, 1.000), r 3.700 mm" in capsys.readouterr().out
+    write(tmp_path, "broken.py", "def build(:\n")
+    assert main(["parts", str(tmp_path)]) == 2
+    assert "broken.py:1: syntax error" in capsys.readouterr().err
+
+
+def test_import_stays_light():
+    import subprocess
+    import sys
+
+    code = "import sys, cadfeat.parts, cadfeat.design_map; print('cadquery' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"

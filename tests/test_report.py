@@ -1,0 +1,334 @@
+"""report.html and its plots, from a results dict computed on a real CadQuery plate (tests/report_fixture.py).
+
+Independent references: the page is read back with html.parser and compared with the results dict; file
+hashes with hashlib on the exported files; the hole move with the construction value of the rebuilt plate;
+PNGs decoded with Pillow (pixel variance); escaping by searching the raw text.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import logging
+import subprocess
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+from report_fixture import shared_case
+from report_html import parse_report
+
+import cadfeat
+from cadfeat.report import ReportContext, build_report, write_report
+from cadfeat.report.tables import FEATURE_COLUMNS
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def case():
+    return shared_case()
+
+
+@pytest.fixture(scope="module")
+def report(case, tmp_path_factory):
+    """The report of the plate study without renders (context None): plots and tables only."""
+    _, results, _ = case
+    out = tmp_path_factory.mktemp("report")
+    built = build_report(out, copy.deepcopy(results), None)
+    return built, parse_report(built.path), results
+
+
+def _lean(results: dict, keep: tuple[str, ...] = ()) -> dict:
+    """A deep copy without the data of the plots (except ``keep``): for tests about tables and renders."""
+    out = copy.deepcopy(results)
+    for key in ("history", "sweep", "pareto"):
+        if key not in keep:
+            out[key] = None
+    if "per_pose" not in keep:
+        for block in out["measures"].values():
+            block["per_pose"] = {}
+    return out
+
+
+def _png_std(path: Path) -> float:
+    return float(np.asarray(Image.open(path).convert("L"), dtype=float).std())
+
+
+def _value(cell) -> float:
+    assert cell.value is not None, f"cell {cell.text!r} has no data-value"
+    return cell.value
+
+
+# ------------------------------------------------------------------------------------------------ structure
+def test_every_image_exists_and_is_relative(report):
+    built, page, _ = report
+    assert page.images, "the report has no images"
+    for src in page.images:
+        assert not Path(src).is_absolute() and not src.startswith(("http:", "https:", "file:")), src
+        assert (built.path.parent / src).is_file(), f"missing image {src}"
+    assert page.scripts == 0, "report.html must not need JavaScript"
+
+
+def test_all_plots_written_non_blank(report):
+    built, _, _ = report
+    names = sorted(p.name for p in built.images)
+    assert names == sorted(f"{k}.png" for k in ("tracks", "pose_measures", "motion", "convergence", "sweep",
+                                                "pareto"))
+    for path in built.images:
+        img = Image.open(path)
+        assert img.width > 300 and img.height > 200
+        assert _png_std(path) > 10.0, f"{path.name} looks blank"
+    assert built.notes == ["Renders skipped: the report was written without the part shapes (no report context), "
+                           "e.g. from results.json alone."]
+
+
+def test_plots_are_deterministic(report, tmp_path):
+    built, _, results = report
+    again = build_report(tmp_path, copy.deepcopy(results), None)
+    for a, b in zip(sorted(built.images), sorted(again.images), strict=True):
+        assert a.name == b.name and a.read_bytes() == b.read_bytes(), a.name
+
+
+# ------------------------------------------------------------------------------------------------ numbers
+def test_feature_table_matches_results(report):
+    _, page, results = report
+    rows = page.tables["features"]
+    before = results["measures"]["before"]["per_feature"]
+    after = results["measures"]["after"]["per_feature"]
+    assert [r.cells[0].text for r in rows] == [f["name"] for f in after]
+    for row, fb, fa in zip(rows, before, after, strict=True):
+        for k, (key, _) in enumerate(FEATURE_COLUMNS):
+            cb, ca = row.cells[1 + 2 * k], row.cells[2 + 2 * k]
+            assert _value(cb) == pytest.approx(fb[key], rel=1e-15)
+            assert _value(ca) == pytest.approx(fa[key], rel=1e-15)
+            assert float(ca.text) == pytest.approx(fa[key], rel=1e-3, abs=1e-12)  # shown with 4 digits
+
+
+def test_objectives_and_combined(report):
+    _, page, results = report
+    obj = results["objectives"]
+    rows = {r.cells[0].text: r.cells for r in page.tables["objectives"]}
+    assert list(rows) == obj["names"]
+    for name, cells in rows.items():
+        assert _value(cells[1]) == obj["before"][name] and _value(cells[2]) == obj["after"][name]
+        assert _value(cells[3]) == pytest.approx(obj["after"][name] - obj["before"][name])
+        if obj["after"][name] > obj["before"][name]:
+            assert cells[3].css == "better"
+    assert float(page.by_id["combined-before"]) == pytest.approx(obj["combined_before"], rel=1e-3)
+    assert float(page.by_id["combined-after"]) == pytest.approx(obj["combined_after"], rel=1e-3)
+
+
+def test_moves_table_against_the_cad_rebuild(report):
+    """Hole A was rebuilt shifted by dx_A along x: the report's move is |dx_A|, the others 0 (CAD extraction)."""
+    _, page, results = report
+    dx = results["variables"][0]["after"]
+    assert dx != 0.0
+    rows = {r.cells[0].text: r for r in page.tables["moves"]}
+    assert _value(rows["A"].cells[4]) == pytest.approx(abs(dx), abs=1e-6)
+    assert rows["A"].css == "moved"
+    for name in "BCD":
+        assert _value(rows[name].cells[4]) == pytest.approx(0.0, abs=1e-6)
+    assert _value(rows["C"].cells[5]) == pytest.approx(10.0, abs=1e-6)  # Ø of the 5 mm radius hole
+    var = page.tables["variables"][0].cells
+    assert var[0].text == "dx_A" and _value(var[5]) == dx
+
+
+def test_constraints_design_matrix_files(report, case):
+    out, results, _ = case
+    _, page, _ = report
+    rows = page.tables["constraints"]
+    assert len(rows) == len(results["constraints"])
+    for row, c in zip(rows, results["constraints"], strict=True):
+        assert row.cells[0].text == c["name"]
+        assert _value(row.cells[4]) == c["margin"]
+        assert row.css == ("ok" if c["ok"] else "violated")
+    assert page.by_id["coupling-verdict"] == "uncoupled"
+    matrix = [[_value(c) for c in r.cells[1:]] for r in page.tables["design-matrix"]]
+    assert matrix == results["design_matrix"]["matrix"]
+    files = {r.cells[0].text: r.cells for r in page.tables["files"]}
+    for name in ("original.step", "optimised.step"):
+        data = (out / name).read_bytes()
+        assert files[name][2].text == hashlib.sha256(data).hexdigest()
+        assert _value(files[name][1]) == len(data)
+    assert {r.cells[0].text for r in page.tables["versions"]} == {"numpy", "cadquery", "matplotlib"}
+    assert {"report: plots", "report: renders", "build"} <= {r.cells[0].text for r in page.tables["timings"]}
+
+
+# ------------------------------------------------------------------------------------------------ edge cases
+def test_strings_are_escaped(case, tmp_path):
+    _, results, _ = case
+    results = _lean(results)
+    evil = '<script>alert("x")</script>'
+    results["measures"]["after"]["per_feature"][0]["name"] = evil
+    results["constraints"][0]["name"] = evil
+    results["files"][0]["name"] = evil
+    raw = write_report(tmp_path, results, None).read_text()
+    assert "<script" not in raw
+    assert "&lt;script&gt;alert(&quot;x&quot;)&lt;/script&gt;" in raw
+    assert "plate_&lt;demo&gt; &amp; co" in raw  # the study name of the fixture
+    page = parse_report(tmp_path / "report.html")
+    assert page.tables["features"][0].cells[0].text == evil
+
+
+def test_violated_requirement_and_interrupted_warning(case, tmp_path):
+    _, results, _ = case
+    results = _lean(results)
+    results["constraints"][1].update(value=3.0, margin=-2.0, ok=False)
+    results["interrupted"] = True
+    page = parse_report(write_report(tmp_path, results, None))
+    classes = [r.css for r in page.tables["constraints"]]
+    assert classes[1] == "violated" and classes.count("violated") == 1
+    assert page.tables["constraints"][1].cells[-1].text == "VIOLATED"
+    text = "".join(page.text)
+    assert "interrupted" in text and "1 of 5 kept requirements are violated" in text
+
+
+def test_absent_data_skips_plots_and_sections(tmp_path, caplog):
+    results = {"study": {"name": "bare"}, "sweep": None, "pareto": None, "history": [], "interrupted": False}
+    with caplog.at_level(logging.WARNING):
+        built = build_report(tmp_path, results, None)
+    assert built.path.is_file() and built.images == []
+    assert not list((tmp_path / "img").iterdir())
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    page = parse_report(built.path)
+    assert page.images == [] and "features" not in page.tables
+
+
+def test_malformed_section_becomes_a_note(case, tmp_path, caplog):
+    _, results, _ = case
+    results = _lean(results, keep=("sweep",))
+    results["design_matrix"]["matrix"] = [[1.0, 2.0], [3.0]]  # ragged
+    results["sweep"]["values"] = "not numbers"
+    with caplog.at_level(logging.WARNING):
+        built = build_report(tmp_path, results, None)
+    raw = built.path.read_text()
+    assert "This section could not be built" in raw and "plot_sweep skipped" in raw
+    assert "features" in parse_report(built.path).tables  # the rest is still there
+    assert any("design-matrix" in r.getMessage() for r in caplog.records)
+
+
+# ------------------------------------------------------------------------------------------------ renders
+def _fake_render(fail: bool) -> types.ModuleType:
+    """Stand-in for cadfeat.render (the render helper's module) following contracts.md."""
+    mod = types.ModuleType("cadfeat.render")
+
+    def _png(path: Path, seed: int) -> Path:
+        rng = np.random.default_rng(seed)
+        Image.fromarray(rng.integers(0, 255, (60, 80, 3), dtype=np.uint8)).save(path)
+        return path
+
+    def render_comparison(shape_before, shape_after, holes_before, holes_after, fixed, out_dir, *, trajectory=None,
+                          camera=None, T_task_part=None, n_frusta=5):
+        if fail:
+            raise RuntimeError("no EGL display")
+        assert len(fixed) == len(holes_before) and trajectory is not None and camera is not None
+        out_dir = Path(out_dir)
+        return {"before": _png(out_dir / "part_before.png", 1), "after": _png(out_dir / "part_after.png", 2)}
+
+    def render_camera_views(shape, holes, camera, T_cam_part, out_dir, prefix, *, overlay=True):
+        if fail:
+            raise RuntimeError("no EGL display")
+        assert T_cam_part.shape[1:] == (4, 4)
+        mod.calls.append(np.asarray(T_cam_part))
+        return [_png(Path(out_dir) / f"{prefix}_{k}.png", k) for k in range(len(T_cam_part))]
+
+    mod.render_comparison, mod.render_camera_views, mod.calls = render_comparison, render_camera_views, []
+    return mod
+
+
+def test_render_wiring(case, tmp_path, monkeypatch):
+    _, results, context = case
+    fake = _fake_render(fail=False)
+    monkeypatch.setitem(sys.modules, "cadfeat.render", fake)
+    monkeypatch.setattr(cadfeat, "render", fake, raising=False)
+    built = build_report(tmp_path, _lean(results), context)
+    page = parse_report(built.path)
+    L = len(context.trajectory)
+    assert context.samples() == [0, L // 2, L - 1]
+    # the camera views are rendered at inv(T_task_cam) @ T_task_part of the chosen samples
+    expected = np.linalg.inv(context.trajectory.T_task_cam[[0, L // 2, L - 1]])
+    np.testing.assert_allclose(fake.calls[0], expected, atol=1e-9)
+    for name in ("part_before.png", "part_after.png", "view_before_0.png", "view_after_2.png"):
+        assert f"img/{name}" in page.images
+    for src in page.images:
+        assert (tmp_path / src).is_file()
+    assert len(page.images) == 2 + 6
+
+
+def test_render_failure_still_writes_the_report(case, tmp_path, monkeypatch, caplog):
+    _, results, context = case
+    fake = _fake_render(fail=True)
+    monkeypatch.setitem(sys.modules, "cadfeat.render", fake)
+    monkeypatch.setattr(cadfeat, "render", fake, raising=False)
+    ctx = ReportContext(**{**context.__dict__, "sample_indices": [-1, 3]})
+    assert ctx.samples() == [3, len(context.trajectory) - 1]
+    with caplog.at_level(logging.WARNING):
+        path = write_report(tmp_path, _lean(results, keep=("history",)), ctx)
+    raw = path.read_text()
+    assert "No renders of the part" in raw and "no EGL display" in raw
+    assert sum("not rendered" in r.getMessage() for r in caplog.records) == 3
+    assert parse_report(path).images == ["img/convergence.png"]  # the plot, no renders
+
+
+def test_import_is_light():
+    code = ("import sys, cadfeat.report; "
+            "print(sorted(m for m in ('cadquery', 'pyvista', 'matplotlib', 'vtk') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_cli_report_from_results_json(case, tmp_path):
+    """`cadfeat report results.json` writes the page beside it (JSON round trip of the results)."""
+    import json
+
+    from cadfeat.cli import main
+
+    _, results, _ = case
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps(_lean(results, keep=("pareto",))))
+    assert main(["report", str(path)]) == 0
+    page = parse_report(tmp_path / "report.html")
+    assert page.images == ["img/pareto.png"] and len(page.tables["features"]) == 4
+    (tmp_path / "bad.json").write_text("[1, 2")
+    assert main(["report", str(tmp_path / "bad.json")]) == 2
+    assert main(["report", str(tmp_path / "missing.json")]) == 2
+
+
+def _evaluation(results: dict) -> dict:
+    """What `cadfeat evaluate` writes: the current design only (no after, no optimisation data)."""
+    out = _lean(results, keep=("per_pose",))
+    out["evaluation_only"] = True
+    for key in ("constraints", "design_matrix", "variables"):
+        out.pop(key)
+    out["holes"].pop("after")
+    out["measures"].pop("after")
+    out["objectives"] = {k: v for k, v in out["objectives"].items() if k in ("names", "combine", "aggregate",
+                                                                              "before")}
+    return out
+
+
+def test_evaluation_only_report(case, tmp_path, monkeypatch):
+    _, results, context = case
+    fake = _fake_render(fail=False)
+    fake.render_part = lambda shape, path, holes=None, **kw: Image.new("RGB", (40, 30), "gray").save(path) or path
+    monkeypatch.setitem(sys.modules, "cadfeat.render", fake)
+    monkeypatch.setattr(cadfeat, "render", fake, raising=False)
+    ctx = ReportContext(shape_before=context.shape_before, holes_before=context.holes_before,
+                        camera=context.camera, trajectory=context.trajectory, sample_indices=[5])
+    evaluation = _evaluation(results)
+    built = build_report(tmp_path, evaluation, ctx)
+    page = parse_report(built.path)
+    raw = built.path.read_text()
+    assert "cadfeat evaluation" in raw and "nothing was optimised" in raw
+    assert sorted(page.images) == ["img/motion.png", "img/part.png", "img/pose_measures.png", "img/tracks.png",
+                                   "img/view_current_0.png"]
+    before = evaluation["measures"]["before"]["per_feature"]
+    for row, f in zip(page.tables["features"], before, strict=True):
+        assert len(row.cells) == 1 + len(FEATURE_COLUMNS)
+        assert [_value(c) for c in row.cells[1:]] == [f[k] for k, _ in FEATURE_COLUMNS]
+    values = {r.cells[0].text: _value(r.cells[1]) for r in page.tables["objectives"]}
+    assert values == evaluation["objectives"]["before"]

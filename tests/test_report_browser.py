@@ -1,0 +1,107 @@
+"""report.html in a real browser: headless Chromium loads every image and paints a non-blank page.
+
+Chromium comes from ``$CADFEAT_CHROMIUM`` or PATH (``tools/ensure_chromium.sh`` installs Debian's package;
+``make test`` runs it). Not skipped when missing: the test fails and says how to install it. The check
+of the images runs on a COPY of the report with a small script added (the report itself has no script):
+on ``load`` it writes, for each ``<img>``, ``complete && naturalWidth > 0`` into the DOM that
+``--dump-dom`` prints.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+from report_fixture import shared_case
+from report_html import parse_report
+
+from cadfeat.report import write_report
+
+CHECK_SCRIPT = """<script>
+window.addEventListener('load', function () {
+  var out = Array.prototype.map.call(document.images, function (im) {
+    return {src: im.getAttribute('src'), ok: im.complete && im.naturalWidth > 0, w: im.naturalWidth};
+  });
+  var pre = document.createElement('pre');
+  pre.id = 'imgcheck';
+  pre.textContent = JSON.stringify(out);
+  document.body.appendChild(pre);
+});
+</script>"""
+
+
+def chromium() -> str:
+    """Path of a Chromium executable, or fail pointing to tools/ensure_chromium.sh."""
+    exe = os.environ.get("CADFEAT_CHROMIUM", "").strip()
+    if exe and Path(exe).is_file():
+        return exe
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        found = shutil.which(name)
+        if found:
+            return found
+    pytest.fail("no headless Chromium for the report test: run tools/ensure_chromium.sh (installs Debian's "
+                "chromium) or set CADFEAT_CHROMIUM to a Chromium/Chrome executable")
+
+
+def _run(args: list[str], home: Path) -> subprocess.CompletedProcess:
+    cmd = [chromium(), "--headless", "--disable-gpu", "--no-sandbox", "--disable-dev-shm-usage",
+           "--no-first-run", "--hide-scrollbars", f"--user-data-dir={home / 'profile'}", *args]
+    env = {**os.environ, "HOME": str(home)}
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env, check=False)
+
+
+@pytest.fixture(scope="module")
+def browser_report(tmp_path_factory):
+    """The full report of the plate study, renders included (cadfeat.render, off-screen)."""
+    _, results, context = shared_case()
+    out = tmp_path_factory.mktemp("browser")
+    path = write_report(out / "study", copy.deepcopy(results), context)
+    return path, tmp_path_factory.mktemp("chromium-home")
+
+
+def test_report_has_the_renders(browser_report):
+    """Part before/after and the camera views at the first, middle and last sample, each non-blank."""
+    path, _ = browser_report
+    srcs = parse_report(path).images
+    renders = [s for s in srcs if Path(s).stem.startswith(("before", "after", "view_"))]
+    assert len(renders) == 2 + 2 * 3, srcs
+    for src in renders:
+        grey = np.asarray(Image.open(path.parent / src).convert("L"), dtype=float)
+        assert grey.std() > 10.0, f"{src} looks blank"
+    assert "not rendered" not in path.read_text()
+
+
+def test_every_image_loads_in_chromium(browser_report, tmp_path):
+    path, home = browser_report
+    n_images = len(parse_report(path).images)
+    assert n_images == 6 + 8  # plots + renders
+    copy_dir = tmp_path / "copy"
+    shutil.copytree(path.parent, copy_dir)
+    page = copy_dir / path.name
+    page.write_text(page.read_text().replace("</body>", CHECK_SCRIPT + "</body>"))
+    proc = _run(["--virtual-time-budget=15000", "--dump-dom", page.as_uri()], home)
+    match = re.search(r'<pre id="imgcheck">(.*?)</pre>', proc.stdout, re.S)
+    assert match, f"Chromium printed no image check (exit {proc.returncode}): {proc.stderr[-2000:]}"
+    checks = json.loads(match.group(1).replace("&quot;", '"').replace("&amp;", "&"))
+    assert len(checks) == n_images
+    broken = [c["src"] for c in checks if not c["ok"]]
+    assert not broken, f"images that did not load in Chromium: {broken}"
+
+
+def test_page_is_not_blank_in_chromium(browser_report, tmp_path):
+    path, home = browser_report
+    shot = tmp_path / "shot.png"
+    proc = _run(["--window-size=1200,1600", f"--screenshot={shot}", path.as_uri()], home)
+    assert shot.is_file(), f"no screenshot (exit {proc.returncode}): {proc.stderr[-2000:]}"
+    grey = np.asarray(Image.open(shot).convert("L"), dtype=float)
+    assert grey.shape == (1600, 1200)
+    ink = (grey < 200).mean()  # text, table rules, plots
+    assert grey.std() > 20.0 and 0.02 < ink < 0.8, (grey.std(), ink)
