@@ -51,6 +51,7 @@ __all__ = ["EXPORTS_DIR", "StudyResult", "evaluate_study", "run_study"]
 EXPORTS_DIR = Path("exports")
 """Default parent of a study's output folder: ``exports/<study name>/`` (relative to the current folder)."""
 SWEEP_SAMPLES = 41
+OUTLINE_ROUNDS = 4
 ROUNDTRIP_TOL_MM = 1e-6
 PREDICTION_TOL_MM = 1e-6
 OUTPUT_FILES = ("original.step", "optimised.step", "optimised.stl", "results.json")
@@ -156,6 +157,53 @@ class _Interrupted:
     interrupted: bool = True
     pareto: dict[str, Any] | None = None
     n_evals: int = 0
+
+
+def _outlines_differ(a: Sequence[Any], b: Sequence[Any], tol_mm: float = 1e-6) -> bool:
+    """Whether the host-face outlines of paired holes differ (outer polygon or keep-outs, mm)."""
+    for h, g in zip(a, b, strict=True):
+        oa, ob = h.outline, g.outline
+        if (oa is None) != (ob is None):
+            return True
+        if oa is None:
+            continue
+        pa, pb = np.asarray(oa.outer, float), np.asarray(ob.outer, float)
+        if pa.shape != pb.shape or np.abs(pa - pb).max(initial=0.0) > tol_mm:
+            return True
+        ka, kb = list(oa.keepouts), list(ob.keepouts)
+        if len(ka) != len(kb) or any(np.asarray(x).shape != np.asarray(y).shape or
+                                     np.abs(np.asarray(x) - np.asarray(y)).max(initial=0.0) > tol_mm
+                                     for x, y in zip(ka, kb, strict=True)):
+            return True
+    return False
+
+
+def _refresh_outlines(setup: Any, res: Any, scene: Any, normaliser: Any, prog: StudyProgress,
+                      label: str) -> tuple[Any, Any, list[dict[str, Any]]]:
+    """The optimiser's 2-D constraints use the host-face outlines of the design it was linearised at; when a
+    parameter also changes the faces (e.g. a block that grows with the hole spacing), rebuild at the
+    optimum, linearise again there (new outlines) and re-optimise from it, until the outlines agree (at
+    most ``OUTLINE_ROUNDS`` rounds; a round is kept only if it improves the objective)."""
+    from cadfeat.study_setup import setup_script
+
+    history: list[dict[str, Any]] = []
+    for k in range(OUTLINE_ROUNDS):
+        x = np.asarray(res.x_best, float)
+        try:
+            _, holes, _ = _rebuild(setup, x)
+        except CadfeatError:
+            break
+        if not _outlines_differ(setup.model.holes, holes):
+            break
+        names = setup.space.names
+        new = setup_script(setup.config, setup.int_values, scene, normaliser, at=dict(zip(names, x, strict=True)))
+        res2, stopped = _optimise(new, prog, label)
+        history += _history(res2, f"{label} outlines round {k + 1}".strip())
+        if float(res2.f_best) < float(res.f_best) - 1e-12:
+            setup, res = new, res2
+        if stopped:
+            break
+    return setup, res, history
 
 
 def _history(res: Any, label: str) -> list[dict[str, Any]]:
@@ -375,6 +423,9 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                 interrupted = True
                 break
             history += _history(res, label)
+            if not stopped and config.study.part_kind == "script":
+                s, res, extra = _refresh_outlines(s, res, scene, base.problem.normaliser, prog, label)
+                history += extra
             if best is None or float(res.f_best) < float(best[1].f_best):
                 best = (s, res)
             if stopped:

@@ -155,9 +155,11 @@ def int_grid(config: StudyConfig) -> list[dict[str, int]]:
 
 
 def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = None,
-                 scene: tuple[Any, Any, np.ndarray] | None = None, normaliser: Any = None) -> StudySetup:
+                 scene: tuple[Any, Any, np.ndarray] | None = None, normaliser: Any = None,
+                 at: Mapping[str, Any] | None = None) -> StudySetup:
     """Setup of a part-script study with the integer parameters at ``int_values`` (default: their defaults);
-    ``normaliser``: the objective scales of another setup (so that integer combinations compare)."""
+    ``normaliser``: the objective scales of another setup (so that integer combinations compare); ``at``:
+    linearise at these continuous parameter values instead of the part's defaults."""
     from cadfeat.design_map import design_map
     from cadfeat.design_space import DesignSpace, LinearFeatureModel, Variable
     from cadfeat.parts import load_part
@@ -167,8 +169,8 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     specs = [p for p in config.design.parameters if not p.is_int]
     ints = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
     ints.update({k: int(v) for k, v in (int_values or {}).items()})
-    at = {**part.defaults(), **ints}
     names = [p.name for p in specs]
+    at = {**part.defaults(), **ints, **{k: float(v) for k, v in (at or {}).items() if k in names}}
 
     def values(x: np.ndarray) -> dict[str, Any]:
         out = dict(at)
