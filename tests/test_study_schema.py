@@ -158,6 +158,8 @@ def test_unknown_key(tmp_path, section, key):
     ("optimizer", "method", "annealing", "multistart, local, global, pareto"),
     ("optimizer", "local_solver", "BFGS", "SLSQP, trust-constr"),
     ("constraints", "symmetry", "radial", "none, x, y, xy"),
+    ("objective", "normalisation", "max", "initial, natural, none"),
+    ("objective", "fov_measure", "sphere", "cone, image"),
     ("objective", "measures", ["fov", "sharpness"], "fov, focus, resolution, resolvability"),
 ])
 def test_bad_enum(tmp_path, section, key, value, allowed):
