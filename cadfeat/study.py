@@ -179,7 +179,7 @@ def _outlines_differ(a: Sequence[Any], b: Sequence[Any], tol_mm: float = 1e-6) -
 
 
 def _refresh_outlines(setup: Any, res: Any, scene: Any, normaliser: Any, prog: StudyProgress,
-                      label: str) -> tuple[Any, Any, list[dict[str, Any]]]:
+                      label: str) -> tuple[Any, Any, list[dict[str, Any]], bool]:
     """The optimiser's 2-D constraints use the host-face outlines of the design it was linearised at; when a
     parameter also changes the faces (e.g. a block that grows with the hole spacing), rebuild at the
     optimum, linearise again there (new outlines) and re-optimise from it, until the outlines agree (at
@@ -187,23 +187,27 @@ def _refresh_outlines(setup: Any, res: Any, scene: Any, normaliser: Any, prog: S
     from cadfeat.study_setup import setup_script
 
     history: list[dict[str, Any]] = []
+    stopped = False
     for k in range(OUTLINE_ROUNDS):
         x = np.asarray(res.x_best, float)
         try:
             _, holes, _ = _rebuild(setup, x)
+            if not _outlines_differ(setup.model.holes, holes):
+                break
+            names = setup.space.names
+            new = setup_script(setup.config, setup.int_values, scene, normaliser,
+                               at=dict(zip(names, x, strict=True)))
+            res2, stopped = _optimise(new, prog, label)
         except CadfeatError:
             break
-        if not _outlines_differ(setup.model.holes, holes):
-            break
-        names = setup.space.names
-        new = setup_script(setup.config, setup.int_values, scene, normaliser, at=dict(zip(names, x, strict=True)))
-        res2, stopped = _optimise(new, prog, label)
+        except KeyboardInterrupt:  # keep the design of the previous round
+            return setup, res, history, True
         history += _history(res2, f"{label} outlines round {k + 1}".strip())
         if float(res2.f_best) < float(res.f_best) - 1e-12:
             setup, res = new, res2
         if stopped:
             break
-    return setup, res, history
+    return setup, res, history, stopped
 
 
 def _history(res: Any, label: str) -> list[dict[str, Any]]:
@@ -253,13 +257,16 @@ def _predicted_holes(setup: Any, x: np.ndarray) -> list[Any]:
             for i, h in enumerate(setup.model.holes)]
 
 
-def _rebuild(setup: Any, x: np.ndarray) -> tuple[Any, list[Any], float]:
+def _rebuild(setup: Any, x: np.ndarray, verified: Sequence[Any] | None = None) -> tuple[Any, list[Any], float]:
     """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
-    deviation from the feature model's prediction (mm)."""
+    deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
+    loop extracted at ``x``, in model order) when given."""
     from cadfeat.features import holes_to_arrays
 
     shape = setup.rebuild_shape(x)
     predicted = _predicted_holes(setup, x)
+    if verified is not None and len(verified) == len(predicted):
+        predicted = [dataclasses.replace(v, name=p.name) for v, p in zip(verified, predicted, strict=True)]
     holes = _order_like(predicted, setup.rebuild_holes(shape), 0.5, "CAD rebuild of the optimum")
     holes = [dataclasses.replace(h, name=p.name) if p.name else h for h, p in zip(holes, predicted, strict=True)]
     c0, _, r0 = holes_to_arrays(predicted)
@@ -398,14 +405,15 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         scene = load_scene(config)
         combos = int_grid(config) if config.study.part_kind == "script" else [{}]
         if config.study.part_kind == "step":
-            setups = [setup_study(config)]
+            base = setup_study(config)
+            setups = [base]
         else:  # "before" = the part's own integer values; the others share its objective scales
             defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
             base = setup_script(config, defaults, scene)
             setups = [base] + [setup_script(config, c, scene, base.problem.normaliser) for c in combos
                                if c != defaults]
-        base = setups[0]
-        x0 = base.space.x0
+            if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
+                setups = setups[1:]
         m0 = measure_holes(base, base.holes0)
         obj0, comb0 = score(base, base.holes0)
     best = None
@@ -424,7 +432,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                 break
             history += _history(res, label)
             if not stopped and config.study.part_kind == "script":
-                s, res, extra = _refresh_outlines(s, res, scene, base.problem.normaliser, prog, label)
+                s, res, extra, stopped = _refresh_outlines(s, res, scene, base.problem.normaliser, prog, label)
                 history += extra
             if best is None or float(res.f_best) < float(best[1].f_best):
                 best = (s, res)
@@ -434,7 +442,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
     setup, res = best
     x1 = np.asarray(res.x_best, float)
     with prog.phase("rebuild"):
-        shape1, holes1, pred_err = _rebuild(setup, x1)
+        shape1, holes1, pred_err = _rebuild(setup, x1, getattr(res, "holes", None))
         m1 = measure_holes(setup, holes1)
         obj1, comb1 = score(setup, holes1)
         checks = _checks(setup, shape1, holes1, "brep")
@@ -472,9 +480,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                       "linear_feature_map": bool(setup.linear), "prediction_error_mm": pred_err,
                       "integer_combinations": len(setups)},
         "interrupted": bool(interrupted),
-        "x0": x0,
     }
-    results.pop("x0")
     shapes = {"shape0": base.shape0, "shape1": shape1, "holes0": base.holes0, "holes1": holes1, "setup": setup,
               "base": base}
     return results, shapes
