@@ -592,6 +592,9 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
             m = measure_holes(ev, holes, traj)
             values = _plain_objectives(config, m)
         summary = measures_summary(m, names, traj.times_s, config.objective.min_axis_px, _half_image(camera))
+        if pose is not None:  # pose indices of the full trajectory
+            for f in summary["per_feature"]:
+                f["worst_pose"] = pose
         results = {
             "cadfeat_version": _version(), "created": now_iso(), "evaluation_only": True,
             "study": {"name": config.study.name, "file": str(config.file) if config.file else None,
