@@ -559,9 +559,10 @@ def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], pro
 
     setup = shapes["setup"]
     n = len(setup.trajectory)
+    fixed = getattr(setup, "fixed_mask", None)
     context = report.ReportContext(
         shape_before=shapes["shape0"], shape_after=shapes["shape1"], holes_before=shapes["holes0"],
-        holes_after=shapes["holes1"], fixed_mask=np.asarray(setup.fixed_mask, bool), camera=setup.camera,
+        holes_after=shapes["holes1"], fixed_mask=np.asarray(fixed, bool), camera=setup.camera,
         trajectory=setup.trajectory, T_task_part=setup.T_task_part,
         sample_indices=sorted({0, n // 4, n // 2, (3 * n) // 4, n - 1}))
     with prog.phase("report"):
@@ -581,11 +582,12 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
     with StudyProgress(config.study.name, enabled=not quiet) as prog:
         with prog.phase("setup"):
             camera, traj, T_task_part = load_scene(config)
-            shape, holes, fixed, names = _current_design(config)
-        if pose is not None:
-            if not 0 <= pose < len(traj):
+            if pose is not None and not 0 <= pose < len(traj):
                 raise StudyError(f"{config.label}: --pose {pose}: allowed: 0..{len(traj) - 1} "
                                  f"(the trajectory has {len(traj)} samples)")
+            shape, holes, fixed, names = _current_design(config)
+        full_traj = traj
+        if pose is not None:
             traj = _single_pose(traj, pose)
         ev = _EvalSetup(config, camera, traj, T_task_part, holes, fixed)
         with prog.phase("measures"):
@@ -615,6 +617,13 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
 
         with staged_output(out_dir) as stage:
             write_json(stage / "results.json", results)
+            same = {**results,
+                    "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
+                    "measures": {"before": summary, "after": summary},
+                    "objectives": {**results["objectives"], "after": values}}
+            shapes = {"shape0": shape, "shape1": shape, "holes0": holes, "holes1": holes,
+                      "setup": _EvalSetup(config, camera, full_traj, T_task_part, holes, fixed)}
+            _report(stage, same, shapes, prog)
     return plain(results)
 
 

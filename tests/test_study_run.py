@@ -261,7 +261,8 @@ def test_step_study_end_to_end(tmp_path, monkeypatch):
         assert edge >= EDGE_MM - 1e-6
 
 
-def test_evaluate_prints_table_and_writes(tmp_path, capsys):
+def test_evaluate_prints_table_and_writes(tmp_path, capsys, monkeypatch):
+    no_report(monkeypatch)
     results = evaluate_study(copy.deepcopy(SMALL), tmp_path / "ev", echo=True)
     text = capsys.readouterr().out
     assert "FOV cone" in text and "worst pose" in text and "resolvability" in text
