@@ -1,14 +1,41 @@
-"""``make demo``: the flagship study (replaced by the real study runner once it exists)."""
+"""``make demo`` / ``python -m cadfeat.demo``: run the flagship study (the NEMA 17 motor mount) and say where
+the revised STEP/STL files and the report are, with a short before/after summary."""
 
 from __future__ import annotations
 
-from cadfeat.camera import Camera
+import argparse
+import sys
+import time
+from pathlib import Path
+
+FLAGSHIP = Path(__file__).resolve().parent.parent / "studies" / "nema17_mount.toml"
 
 
-def main() -> int:
-    cam = Camera.preset("dalsa-cad1-128a")
-    near, far = cam.depth_of_field_mm
-    print(f"camera {cam.name}: depth of field {near:.1f}-{far:.1f} mm")
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m cadfeat.demo", description=__doc__)
+    parser.add_argument("--out", default=None, help="output folder (default exports/nema17_mount/)")
+    parser.add_argument("--quiet", action="store_true", help="no progress display")
+    args = parser.parse_args(argv)
+
+    from cadfeat.errors import CadfeatError
+    from cadfeat.study import run_study
+
+    t0 = time.perf_counter()
+    try:
+        result = run_study(FLAGSHIP, args.out, quiet=args.quiet)
+    except CadfeatError as exc:
+        print(f"cadfeat demo: error: {exc}", file=sys.stderr)
+        return 2
+    print()
+    print(result.summary())
+    out = result.out_dir
+    print()
+    print(f"revised part:   {out / 'optimised.step'}  (and {out / 'optimised.stl'})")
+    print(f"original part:  {out / 'original.step'}")
+    report = out / "report.html"
+    print(f"report:         {report if report.exists() else '(cadfeat.report not available)'}")
+    print(f"all numbers:    {out / 'results.json'}")
+    print(f"done in {time.perf_counter() - t0:.1f} s")
     return 0
 
 

@@ -1,0 +1,102 @@
+"""Benchmark: wall time of the flagship study (studies/nema17_mount.toml) by phase.
+
+Runs ``run_study`` on the flagship into a temporary folder (with the report unless ``quick``) and reports
+each phase's wall time (results.json ``timings_s``). Baseline, measured in the same run: one CAD rebuild +
+hole extraction of the part at a design; the table gives the time the optimiser would have spent if each
+of its evaluations had rebuilt the CAD model (n_evals × rebuild), and the ratio to the time it actually
+spent on features ("CAD in the outer loop, features in the inner loop", DESIGN.md).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT))
+FLAGSHIP = ROOT / "studies" / "nema17_mount.toml"
+
+
+def _load(name: str, path: Path):
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def main(quick: bool = False) -> str:
+    import numpy as np
+
+    from cadfeat import study as study_mod
+    from cadfeat.study_schema import load_study
+    from cadfeat.study_setup import setup_script
+
+    machine = _load("run_all", HERE / "run_all.py").machine_description()
+    saved = study_mod._report
+    if quick:
+        study_mod._report = lambda *a, **k: None
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            result = study_mod.run_study(FLAGSHIP, Path(tmp) / "out", quiet=True)
+            total = time.perf_counter() - t0
+            report_s = None
+            if (Path(tmp) / "out" / "report.html").exists():
+                report_s = total - sum(result.results["timings_s"].values())
+    finally:
+        study_mod._report = saved
+    timings = result.results["timings_s"]
+    n_evals = result.results["optimizer"]["n_evals"]
+
+    setup = setup_script(load_study(FLAGSHIP))
+    x = setup.space.x0
+    rebuilds = []
+    for _ in range(3 if quick else 7):
+        start = time.perf_counter()
+        setup.rebuild_holes(setup.rebuild_shape(x))
+        rebuilds.append(time.perf_counter() - start)
+    t_rebuild = statistics.median(rebuilds)
+    start = time.perf_counter()
+    for _ in range(20):
+        setup.problem.objective(x)
+    t_feature = (time.perf_counter() - start) / 20
+    cad_equivalent = n_evals * t_rebuild
+
+    lines = [
+        "## Study wall time by phase: flagship NEMA 17 mount (bench_study)",
+        "",
+        f"Machine: {machine}. One run of `cadfeat run studies/nema17_mount.toml`"
+        f"{' without the report (quick)' if quick else ''}; total {total:.1f} s.",
+        "",
+        "| phase | wall time (s) |",
+        "|---|---:|",
+    ]
+    for phase in ("setup", "optimise", "rebuild", "analyse", "export"):
+        if phase in timings:
+            lines.append(f"| {phase} | {timings[phase]:.2f} |")
+    if report_s is not None:
+        lines.append(f"| report (rest of the run) | {report_s:.2f} |")
+    lines += [
+        "",
+        f"Baseline (same run): one CAD rebuild + hole extraction of the mount = {1e3 * t_rebuild:.1f} ms "
+        f"(median of {len(rebuilds)}); one objective evaluation on features = {1e3 * t_feature:.2f} ms "
+        f"(ratio {t_rebuild / t_feature:.0f}x).",
+        f"The optimiser made {n_evals} evaluations in {timings.get('optimise', float('nan')):.2f} s; rebuilding the "
+        f"CAD model at each would have cost ≈ {cad_equivalent:.1f} s "
+        f"({cad_equivalent / max(timings.get('optimise', np.nan), 1e-9):.0f}x the feature-based optimisation).",
+        "",
+    ]
+    text = "\n".join(lines)
+    out = HERE / "results" / "bench_study.md"
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(text + "\n")
+    return text
+
+
+if __name__ == "__main__":
+    print(main(quick="--quick" in sys.argv))

@@ -1,0 +1,158 @@
+"""The pieces of a study's ``results.json`` (contracts: "results.json") and deterministic output files.
+
+Everything here is plain data in, plain data out: holes → dicts, ``Measures`` arrays → per-feature and
+per-pose summaries, floats rounded to ``DIGITS`` significant digits so that the same seed gives the same
+file byte for byte (only ``created`` and ``timings_s`` vary). STEP headers carry a fixed time stamp and
+product name for the same reason (``normalise_step_header``; the run time is ``created`` in results.json).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import os
+import platform
+import re
+from collections.abc import Mapping, Sequence
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "DIGITS",
+    "file_entry",
+    "hole_dict",
+    "measures_summary",
+    "normalise_step_header",
+    "plain",
+    "versions",
+    "write_json",
+]
+
+DIGITS = 10
+"""Significant digits of floats in results.json (1e-10 relative: far below any tolerance used)."""
+STEP_TIMESTAMP = "1970-01-01T00:00:00"
+"""Time stamp written into STEP headers (or ``SOURCE_DATE_EPOCH`` if set): reproducible files."""
+_PRODUCT = re.compile(rb"'Open CASCADE STEP translator[^']*'")
+_FILE_NAME = re.compile(rb"(FILE_NAME\s*\(\s*'(?:[^']|'')*'\s*,\s*')([^']*)(')")
+
+
+def plain(value: Any, digits: int = DIGITS) -> Any:
+    """JSON-ready copy: numpy → Python, floats rounded to ``digits`` significant digits, non-finite → None,
+    tuples → lists, Paths → str. Integers stay integers."""
+    if isinstance(value, Mapping):
+        return {str(k): plain(v, digits) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [plain(v, digits) for v in value]
+    if isinstance(value, np.ndarray):
+        return plain(value.tolist(), digits)
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        x = float(value)
+        if not math.isfinite(x):
+            return None
+        return 0.0 if x == 0 else float(f"{x:.{digits}g}")
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def write_json(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path:
+    """Write ``data`` as deterministic JSON (sorted keys, 2-space indent, trailing newline)."""
+    path = Path(path)
+    path.write_text(json.dumps(plain(data), indent=2, sort_keys=True, ensure_ascii=False, allow_nan=False) + "\n",
+                    encoding="utf-8")
+    return path
+
+
+def hole_dict(hole: Any, index: int, fixed: bool, movable: bool) -> dict[str, Any]:
+    """One hole as results.json ``H`` = {index, name, centre_mm, axis, radius_mm, depth_mm, through, kind,
+    fixed, movable} (part frame, mm)."""
+    return {
+        "index": int(index), "name": hole.name or f"H{index + 1}",
+        "centre_mm": np.asarray(hole.centre, float).tolist(), "axis": np.asarray(hole.axis, float).tolist(),
+        "radius_mm": float(hole.radius_mm), "depth_mm": float(hole.depth_mm), "through": bool(hole.through),
+        "kind": str(hole.kind), "fixed": bool(fixed), "movable": bool(movable),
+    }
+
+
+def _arr(m: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    value = getattr(m, name, None)
+    return np.full(shape, np.nan) if value is None else np.asarray(value, dtype=float)
+
+
+def worst_poses(m: Any, min_axis_px: float, half_image_px: float) -> np.ndarray:
+    """(N,) index of each feature's worst pose: the smallest of its FOV image margin (in units of the half
+    image size), focus margin and resolution margin (in units of ``min_axis_px``) — all dimensionless, 0 at
+    the limit — with invisible samples counted as −∞."""
+    fov_px = np.asarray(m.fov_px, float)
+    L, N = fov_px.shape
+    score = np.minimum.reduce([fov_px / max(half_image_px, 1.0), _arr(m, "focus", (L, N)),
+                               _arr(m, "resolution_px", (L, N)) / max(min_axis_px, 1e-9)])
+    score = np.where(np.asarray(m.visible, bool), np.nan_to_num(score, nan=-np.inf), -np.inf)
+    return np.argmin(score, axis=0) if L else np.zeros(N, int)
+
+
+def measures_summary(m: Any, names: Sequence[str], times_s: np.ndarray, min_axis_px: float,
+                     half_image_px: float) -> dict[str, Any]:
+    """results.json ``M``: per-feature minima over the trajectory and per-pose series (contracts)."""
+    fov = np.asarray(m.fov, float)
+    L, N = fov.shape
+    fov_px, focus = _arr(m, "fov_px", (L, N)), _arr(m, "focus", (L, N))
+    res = _arr(m, "resolution_px", (L, N))
+    visible = np.asarray(m.visible, bool)
+    worst = worst_poses(m, min_axis_px, half_image_px)
+    per_feature = [{"index": j, "name": names[j], "fov_min": fov[:, j].min(), "fov_px_min": fov_px[:, j].min(),
+                    "focus_min": focus[:, j].min(), "resolution_px_min": res[:, j].min(),
+                    "visible_frac": visible[:, j].mean(), "worst_pose": int(worst[j])} for j in range(N)]
+    per_pose = {"time_s": np.asarray(times_s, float), "resolvability": _arr(m, "resolvability", (L,)),
+                "sigma_min": _arr(m, "sigma_min", (L,)), "condition": _arr(m, "condition", (L,)),
+                "fov_min": fov.min(axis=1), "focus_min": focus.min(axis=1), "resolution_px_min": res.min(axis=1),
+                "visible": visible.sum(axis=1), "centre_px": _arr(m, "centre_px", (L, N, 2))}
+    return plain({"per_feature": per_feature, "per_pose": per_pose})
+
+
+def normalise_step_header(path: str | os.PathLike[str], product: str) -> None:
+    """Make a written STEP file reproducible: the ``FILE_NAME`` time stamp becomes ``STEP_TIMESTAMP`` (or the
+    time of ``SOURCE_DATE_EPOCH``) and OCCT's per-process counter in the product name ("Open CASCADE STEP
+    translator 7.9 2") becomes ``product`` — the same design then gives a byte-identical file."""
+    path = Path(path)
+    stamp = STEP_TIMESTAMP
+    if os.environ.get("SOURCE_DATE_EPOCH", "").isdigit():
+        stamp = _dt.datetime.fromtimestamp(int(os.environ["SOURCE_DATE_EPOCH"]), _dt.UTC).strftime("%Y-%m-%dT%H:%M:%S")
+    data = path.read_bytes()
+    head, rest = data[:16384], data[16384:]
+    head = _FILE_NAME.sub(lambda mt: mt.group(1) + stamp.encode() + mt.group(3), head, count=1)
+    name = product.replace("'", "").encode()
+    head = _PRODUCT.sub(b"'" + name + b"'", head)
+    path.write_bytes(head + rest)
+
+
+def file_entry(path: Path, root: Path) -> dict[str, Any]:
+    """``{name, bytes, sha256}`` of a written file (name relative to the output folder)."""
+    from cadfeat.export import sha256_file
+
+    return {"name": path.relative_to(root).as_posix(), "bytes": path.stat().st_size, "sha256": sha256_file(path)}
+
+
+def versions() -> dict[str, str]:
+    """Versions of Python and the libraries a study depends on."""
+    out = {"python": platform.python_version()}
+    for lib in ("cadfeat", "numpy", "scipy", "cadquery", "cadquery-ocp", "trimesh", "opencv-python-headless",
+                "pymoo", "pyvista", "rich"):
+        try:
+            out[lib] = metadata.version(lib)
+        except metadata.PackageNotFoundError:
+            continue
+    return out
+
+
+def now_iso() -> str:
+    """The current UTC time, ISO 8601 to the second."""
+    return _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")

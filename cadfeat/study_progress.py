@@ -1,0 +1,89 @@
+"""Terminal progress of a study (rich): one line per phase with its time, and the optimiser's iterations.
+
+``StudyProgress`` also records the wall time of every phase (``timings_s`` of results.json) and the best
+design the optimiser reported so far (kept if the run is interrupted with Ctrl-C).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+import numpy as np
+
+__all__ = ["StudyProgress"]
+
+
+class StudyProgress:
+    """Phases and optimiser iterations on the terminal (nothing if ``enabled`` is false)."""
+
+    def __init__(self, title: str, enabled: bool = True) -> None:
+        self.title = title
+        self.enabled = enabled
+        self.timings: dict[str, float] = {}
+        self.best_x: np.ndarray | None = None
+        self.best_f = np.inf
+        self.iterations = 0
+        self._progress: Any = None
+        self._tasks: list[Any] = []
+        self._t0 = time.perf_counter()
+
+    def __enter__(self) -> StudyProgress:
+        if self.enabled:
+            from rich.console import Console
+            from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+            self._progress = Progress(SpinnerColumn(), TextColumn("[bold]{task.description}"), BarColumn(),
+                                      TextColumn("{task.fields[info]}"), TimeElapsedColumn(),
+                                      console=Console(stderr=True), transient=False)
+            self._progress.__enter__()
+            self._progress.console.print(f"[bold]cadfeat[/bold] study {self.title}")
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.timings["total"] = time.perf_counter() - self._t0
+        if self._progress is not None:
+            self._progress.__exit__(*exc)
+
+    def log(self, text: str) -> None:
+        if self._progress is not None:
+            self._progress.console.print(text)
+
+    @contextlib.contextmanager
+    def phase(self, name: str, total: float | None = None) -> Iterator[None]:
+        """Time a phase (accumulated under ``name``) and show it while it runs."""
+        t0 = time.perf_counter()
+        task = self._progress.add_task(name, total=total, info="") if self._progress is not None else None
+        self._tasks.append(task)
+        try:
+            yield
+        finally:
+            self._tasks.pop()
+            dt = time.perf_counter() - t0
+            self.timings[name] = self.timings.get(name, 0.0) + dt
+            if task is not None:
+                self._progress.update(task, completed=total if total is not None else 1, total=total or 1,
+                                      info=f"{dt:.2f} s")
+
+    def iteration(self, *args: Any, **kwargs: Any) -> None:
+        """Optimiser callback: accepts a dict (``iteration``, ``f``, ``x``, ...), keyword arguments, or
+        positional ``(x, f)``; keeps the best design seen."""
+        info: dict[str, Any] = {}
+        for a in args:
+            if isinstance(a, Mapping):
+                info.update(a)
+        info.update(kwargs)
+        if not info and len(args) >= 2:
+            info = {"x": args[0], "f": args[1]}
+        self.iterations += 1
+        f = info.get("f", info.get("f_best"))
+        x = info.get("x", info.get("x_best"))
+        feasible = info.get("feasible", True)
+        if f is not None and x is not None and bool(feasible) and np.isfinite(f) and f < self.best_f:
+            self.best_f, self.best_x = float(f), np.array(x, dtype=float)
+        if self._progress is not None and self._tasks and self._tasks[-1] is not None:
+            best = f"best {self.best_f:.6g}" if np.isfinite(self.best_f) else ""
+            phase = info.get("phase", "")
+            self._progress.update(self._tasks[-1], info=f"iter {self.iterations} {phase} {best}".strip())

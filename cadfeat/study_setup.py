@@ -1,0 +1,312 @@
+"""From a validated ``StudyConfig`` to everything the optimiser and the exporter need (DESIGN.md data flow).
+
+``setup_study(config)`` loads the part (a CadQuery script via ``cadfeat.parts.load_part`` or a STEP file via
+``cadfeat.step_parts.load_step``), the camera, the trajectory and the part pose, then builds the design
+space and the feature model:
+
+- script parts: the geometric design matrix of the varying parameters (``design_map``: finite differences
+  of real CAD rebuilds) → ``LinearFeatureModel``; integer parameters are NOT variables of the continuous
+  optimiser (a hole count changes the topology): the study enumerates their values (``int_grid``) and
+  builds one setup per combination;
+- STEP parts: the selected holes → ``HoleMoveModel`` (in-plane offsets (s, t) mm in the host face frame,
+  optionally the diameter), patterns moving together, mirror pairs for ``constraints.symmetry``.
+
+Holes that no variable moves, and the holes listed in ``design.fixed``, are fixed (``fixed_mask``); a fixed
+hole that a design parameter moves is a ``StudyError``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cadfeat.study_schema import StudyConfig, StudyError
+
+__all__ = ["MAX_INT_COMBINATIONS", "StudySetup", "int_grid", "setup_study"]
+
+MAX_INT_COMBINATIONS = 64
+"""Largest number of integer-parameter combinations a study enumerates."""
+SYMMETRY_NORMALS = {"x": [(1.0, 0.0, 0.0)], "y": [(0.0, 1.0, 0.0)], "xy": [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]}
+
+
+@dataclass
+class StudySetup:
+    """The loaded study: part, camera, trajectory, design space, feature model, problem.
+
+    ``rebuild_shape(x)`` is the real CAD model at design ``x``; ``rebuild_holes(x)`` its extracted holes;
+    ``values(x)`` the design as named values (part parameters for scripts, with integers as ``int``).
+    """
+
+    config: StudyConfig
+    camera: Any
+    trajectory: Any                 # Trajectory (T_task_cam)
+    T_task_part: np.ndarray
+    shape0: Any
+    holes0: list[Any]
+    fixed_mask: np.ndarray          # (N,) bool
+    movable_mask: np.ndarray        # (N,) bool
+    space: Any                      # DesignSpace
+    model: Any                      # FeatureModel
+    problem: Any                    # Problem
+    constraints: Any                # ConstraintConfig
+    rebuild_shape: Callable[[np.ndarray], Any]
+    rebuild_holes: Callable[[Any], list[Any]]
+    values: Callable[[np.ndarray], dict[str, Any]]
+    linear: bool = True
+    int_values: dict[str, int] = field(default_factory=dict)
+    part: Any = None
+
+    @property
+    def hole_names(self) -> list[str]:
+        return [h.name or f"H{i + 1}" for i, h in enumerate(self.holes0)]
+
+
+# ----------------------------------------------------------------------------------------- common
+def load_scene(config: StudyConfig) -> tuple[Any, Any, np.ndarray]:
+    """Camera, trajectory (T_task_cam) and T_task_part of a study."""
+    return config.camera.build(), config.trajectory.build(), config.part_pose.T_task_part
+
+
+def objective_config(config: StudyConfig) -> Any:
+    from cadfeat.objectives import ObjectiveConfig
+
+    o = config.objective
+    return ObjectiveConfig(measures=tuple(o.measures), aggregate=o.aggregate, combine=o.combine,
+                           weights=dict(o.weights), thresholds=dict(o.thresholds), smoothmin_beta=o.smoothmin_beta,
+                           min_axis_px=o.min_axis_px, rotation_length_mm=o.rotation_length_mm,
+                           normalisation=o.normalisation, fov_measure=o.fov_measure)
+
+
+def constraint_config(config: StudyConfig, holes: Sequence[Any] = (), movable: Sequence[int] = (),
+                      volume_mm3: float | None = None) -> Any:
+    """``constraints.ConstraintConfig`` of a study; ``symmetry`` becomes the mirror pairs among the movable
+    ``holes`` (about the part's x = 0 / y = 0 planes); ``volume_mm3`` is the original part volume."""
+    from cadfeat.constraints import ConstraintConfig, SymmetryPair
+
+    c = config.constraints
+    frac = None if c.volume_change_max_percent is None else c.volume_change_max_percent / 100.0
+    pairs = tuple(SymmetryPair(i, j, (0.0, 0.0, 0.0), normal)
+                  for i, j, normal in _mirror_pairs(holes, movable, (), c.symmetry))
+    if c.symmetry != "none" and not pairs:
+        raise StudyError(f"{config.label}: constraints.symmetry: no two movable holes mirror each other about the "
+                         f"plane(s) {c.symmetry} = 0 of the part; allowed: none, or a symmetry the part has")
+    return ConstraintConfig(edge_distance_mm=c.edge_distance_mm, ligament_mm=c.ligament_mm,
+                            volume_change_max_frac=frac, part_volume_mm3=volume_mm3, symmetry=pairs)
+
+
+def optimizer_config(config: StudyConfig) -> Any:
+    from cadfeat.optimize import OptimizerConfig
+
+    o = config.optimizer
+    return OptimizerConfig(method=o.method, starts=o.starts, maxiter=o.maxiter, seed=o.seed,
+                           local_solver=o.local_solver, snap_standard_sizes=o.snap_standard_sizes)
+
+
+def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Any = None) -> tuple[Any, Any]:
+    """The ``Problem`` and its ``ConstraintConfig`` (``normaliser``: share another problem's scales)."""
+    from cadfeat.export import shape_volume_mm3
+    from cadfeat.problem import Problem
+
+    movable = np.flatnonzero(~np.asarray(args["fixed_mask"], bool))
+    cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]))
+    problem = Problem(args["space"], args["model"], args["camera"], args["trajectory"], args["T_task_part"],
+                      objective_config(config), cc, args["fixed_mask"], normaliser=normaliser)
+    return problem, cc
+
+
+def _select(config: StudyConfig, holes: Sequence[Any], spec: Any, key: str, tol_mm: float = 0.01) -> int:
+    """Index of the hole a selector names: 1-based index, name ("H2" or the hole's name), or position."""
+    listing = ", ".join(f"{h.name or f'H{i + 1}'} ({', '.join(f'{x:.6g}' for x in h.centre)})"
+                        for i, h in enumerate(holes)) or "none"
+    if isinstance(spec, int):
+        if 1 <= spec <= len(holes):
+            return spec - 1
+    elif isinstance(spec, str):
+        for i, h in enumerate(holes):
+            if spec in (h.name, f"H{i + 1}", f"h{i + 1}", str(i + 1)):
+                return i
+    else:
+        centres = np.array([h.centre for h in holes], dtype=float).reshape(-1, 3)
+        if len(centres):
+            d = np.linalg.norm(centres - np.asarray(spec, float), axis=1)
+            if d.min() <= tol_mm:
+                return int(np.argmin(d))
+    raise StudyError(f"{config.label}: {key}: no hole {list(spec) if isinstance(spec, tuple) else spec!r} in "
+                     f"{config.study.part}; allowed: a 1-based index 1..{len(holes)}, a name or a position within "
+                     f"{tol_mm:g} mm of one of: {listing}")
+
+
+# ----------------------------------------------------------------------------------------- scripts
+def int_grid(config: StudyConfig) -> list[dict[str, int]]:
+    """Every combination of the varying integer parameters (one empty dict if there are none)."""
+    ints = [p for p in config.design.parameters if p.is_int]
+    ranges = [range(int(p.lower), int(p.upper) + 1) for p in ints]
+    combos = [dict(zip([p.name for p in ints], values, strict=True)) for values in itertools.product(*ranges)]
+    if len(combos) > MAX_INT_COMBINATIONS:
+        raise StudyError(f"{config.label}: design.parameters: {len(combos)} combinations of the integer parameters "
+                         f"{', '.join(p.name for p in ints)}; allowed: at most {MAX_INT_COMBINATIONS} (narrow "
+                         "their bounds)")
+    return combos
+
+
+def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = None,
+                 scene: tuple[Any, Any, np.ndarray] | None = None, normaliser: Any = None,
+                 at: Mapping[str, Any] | None = None) -> StudySetup:
+    """Setup of a part-script study with the integer parameters at ``int_values`` (default: their defaults);
+    ``normaliser``: the objective scales of another setup (so that integer combinations compare); ``at``:
+    linearise at these continuous parameter values instead of the part's defaults."""
+    from cadfeat.design_map import design_map
+    from cadfeat.design_space import DesignSpace, LinearFeatureModel, Variable
+    from cadfeat.parts import load_part
+
+    camera, trajectory, T_task_part = scene or load_scene(config)
+    part = load_part(config.study.part_path)
+    specs = [p for p in config.design.parameters if not p.is_int]
+    ints = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
+    ints.update({k: int(v) for k, v in (int_values or {}).items()})
+    names = [p.name for p in specs]
+    at = {**part.defaults(), **ints, **{k: float(v) for k, v in (at or {}).items() if k in names}}
+
+    def values(x: np.ndarray) -> dict[str, Any]:
+        out = dict(at)
+        for name, value in zip(names, np.asarray(x, float).reshape(-1), strict=True):
+            out[name] = int(round(value)) if part.parameters[name].is_int else float(value)
+        return out
+
+    shape0 = part.build(**at)
+    if not names:  # only integer parameters vary: nothing continuous to optimise at this combination
+        raise StudyError(f"{config.label}: design.parameters: only integer parameters "
+                         f"({', '.join(ints)}) vary; allowed: at least one continuous parameter of {config.study.part}")
+    dm = design_map(part, names, at=at)
+    holes0 = list(dm.holes0)
+    x0 = np.array([float(at[n]) for n in names])
+    model = LinearFeatureModel.from_design_map(dm, names, x0)
+    variables = []
+    for p in specs:
+        resizes = np.abs(np.asarray(dm.dR)[:, names.index(p.name)]).max(initial=0.0) > 0
+        variables.append(Variable(p.name, float(p.lower), float(p.upper), p.unit or "mm",
+                                  "diameter" if resizes else "position", p.standard_sizes))
+    space = DesignSpace(variables, np.clip(x0, [v.lower for v in variables], [v.upper for v in variables]))
+    moved = np.zeros(len(holes0), bool)
+    for name in names:
+        moved[list(dm.moved_by.get(name, []))] = True
+    fixed = ~moved
+    for i, spec in enumerate(config.design.fixed):
+        j = _select(config, holes0, spec, f"design.fixed[{i}]")
+        if moved[j]:
+            movers = [n for n in names if j in dm.moved_by.get(n, [])]
+            raise StudyError(f"{config.label}: design.fixed[{i}]: hole {holes0[j].name or j + 1} is moved by the "
+                             f"design parameter(s) {', '.join(movers)}; allowed: holes no design parameter moves")
+        fixed[j] = True
+    args = dict(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
+                fixed_mask=fixed, holes=holes0, shape0=shape0)
+    problem, cc = _problem(args, config, normaliser)
+    return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part, shape0=shape0,
+                      holes0=holes0, fixed_mask=fixed, movable_mask=moved, space=space, model=model,
+                      problem=problem, constraints=cc, rebuild_shape=lambda x: part.build(**values(x)),
+                      rebuild_holes=lambda shape: _extract(shape, part.view_direction), values=values,
+                      linear=bool(getattr(dm, "linear", True)), int_values=ints, part=part)
+
+
+def _extract(shape: Any, prefer_direction: Any = None) -> list[Any]:
+    from cadfeat.features import extract_holes
+
+    return extract_holes(shape, prefer_direction=prefer_direction)
+
+
+# ----------------------------------------------------------------------------------------- STEP
+def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = None) -> StudySetup:
+    """Setup of a STEP study: the selected holes move in their host face planes (``HoleMoveModel``)."""
+    from cadfeat.design_space import HoleMoveModel
+    from cadfeat.step_parts import load_step, redrill
+
+    camera, trajectory, T_task_part = scene or load_scene(config)
+    step = load_step(config.study.part_path)
+    holes0 = list(step.holes)
+    design = config.design
+    movable = [_select(config, holes0, h.select, f"design.holes[{i}].select") for i, h in enumerate(design.holes)]
+    if len(set(movable)) != len(movable):
+        raise StudyError(f"{config.label}: design.holes: two selectors name the same hole; allowed: each hole once")
+    resize = {h.resize for h in design.holes}
+    if len(resize) > 1:
+        raise StudyError(f"{config.label}: design.holes: resize differs between holes; allowed: the same resize for "
+                         "every movable hole (make the others fixed)")
+    fixed_idx = [_select(config, holes0, s, f"design.fixed[{i}]") for i, s in enumerate(design.fixed)]
+    for i, j in enumerate(fixed_idx):
+        if j in movable:
+            raise StudyError(f"{config.label}: design.fixed[{i}]: hole {holes0[j].name} is also in design.holes; "
+                             "allowed: fixed holes that are not movable")
+    patterns = [[_select(config, holes0, s, f"design.patterns[{i}][{k}]") for k, s in enumerate(p)]
+                for i, p in enumerate(design.patterns)]
+    for i, p in enumerate(patterns):
+        if not set(p) <= set(movable):
+            raise StudyError(f"{config.label}: design.patterns[{i}]: every hole of a pattern must be in design.holes; "
+                             f"allowed: holes {', '.join(holes0[j].name for j in movable)}")
+    mirrors = _mirror_pairs(holes0, movable, patterns, config.constraints.symmetry)
+    model = HoleMoveModel(holes0, movable, diameter=resize.pop(), patterns=patterns, mirrors=mirrors)
+    space = model.design_space(standard_sizes=design.standard_diameters_mm)
+    space = _limit_offsets(space, holes0, design, movable)
+    movable_mask = np.zeros(len(holes0), bool)
+    movable_mask[movable] = True
+    fixed = ~movable_mask
+    args = dict(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
+                fixed_mask=fixed, holes=holes0, shape0=step.shape)
+    problem, cc = _problem(args, config)
+
+    def rebuild_holes(shape: Any) -> list[Any]:
+        holes = _extract(shape)
+        return [dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(holes)]
+
+    return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
+                      shape0=step.shape, holes0=holes0, fixed_mask=fixed, movable_mask=movable_mask, space=space,
+                      model=model, problem=problem, constraints=cc,
+                      rebuild_shape=lambda x: redrill(step.shape, model.hole_moves(x)),
+                      rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step)
+
+
+def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Sequence[int]) -> Any:
+    """Per-hole ``max_offset_mm`` (and ``move = false``: position pinned to ±1 µm) applied to the (s, t)
+    bounds of ``HoleMoveModel.design_space``."""
+    from cadfeat.design_space import DesignSpace
+
+    limits = {}
+    for spec, j in zip(design.holes, movable, strict=True):
+        label = holes[j].name or f"H{j + 1}"
+        limit = 1e-3 if not spec.move else spec.max_offset_mm
+        if limit is not None:
+            limits[f"{label}.s"] = limits[f"{label}.t"] = float(limit)
+    variables = []
+    for v in space.variables:
+        if v.name in limits:
+            m = limits[v.name]
+            v = dataclasses.replace(v, lower=max(v.lower, -m), upper=min(v.upper, m))
+        variables.append(v)
+    return DesignSpace(variables, space.x0)
+
+
+def _mirror_pairs(holes: Sequence[Any], movable: Sequence[int], patterns: Sequence[Sequence[int]],
+                  symmetry: str, tol_mm: float = 1e-6) -> list[tuple[int, int, tuple[float, float, float]]]:
+    """(leader, follower, plane normal) for movable holes that mirror each other about x = 0 / y = 0."""
+    pairs: list[tuple[int, int, tuple[float, float, float]]] = []
+    taken = {i for p in patterns for i in p[1:]}
+    for normal in SYMMETRY_NORMALS.get(symmetry, []):
+        M = np.eye(3) - 2 * np.outer(normal, normal)
+        for a in movable:
+            for b in movable:
+                if a < b and a not in taken and b not in taken and \
+                        np.linalg.norm(M @ holes[a].centre - holes[b].centre) < tol_mm:
+                    pairs.append((a, b, normal))
+                    taken.add(b)
+    return pairs
+
+
+def setup_study(config: StudyConfig, int_values: Mapping[str, int] | None = None) -> StudySetup:
+    """The setup of a study (script or STEP part)."""
+    if config.study.part_kind == "step":
+        return setup_step(config)
+    return setup_script(config, int_values)

@@ -1,0 +1,57 @@
+"""Shared helpers of the study tests: a base study table and a TOML writer."""
+
+from __future__ import annotations
+
+import copy
+import json
+from pathlib import Path
+
+DATA = Path(__file__).parent / "data"
+PLATE = DATA / "study_plate.py"
+STEP = DATA / "plate_holes.step"
+
+BASE = {
+    "study": {"name": "plate", "part": "study_plate.py", "seed": 3},
+    "camera": {"preset": "dalsa-cad1-128a"},
+    "part_pose": {"position_mm": [0, 0, 0]},
+    "trajectory": {"kind": "straight_approach", "start": [0, 0, 300], "end": [0, 0, 150], "target": [0, 0, 0],
+                   "n": 10},
+    "design": {"parameters": {"x0": {"lower": -15, "upper": -5}, "count": {}}},
+    "constraints": {"edge_distance_mm": 2.0},
+    "objective": {"measures": ["fov", "resolvability"], "aggregate": "sum", "combine": "maxmin"},
+    "optimizer": {"method": "multistart", "starts": 2},
+}
+
+
+def toml_value(v: object) -> str:
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + "}"
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    return json.dumps(v)
+
+
+def write_toml(path: Path, data: dict) -> Path:
+    lines = []
+    for section, table in data.items():
+        lines.append(f"[{section}]")
+        lines += [f"{k} = {toml_value(v)}" for k, v in table.items()]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def study(tmp_path: Path, **changes: dict) -> Path:
+    """The base study written to tmp_path/s.toml with section tables updated (None deletes a key)."""
+    data = copy.deepcopy(BASE)
+    for section, table in changes.items():
+        if table is None:
+            data.pop(section)
+            continue
+        data.setdefault(section, {})
+        for k, v in table.items():
+            if v is None:
+                data[section].pop(k, None)
+            else:
+                data[section][k] = v
+    (tmp_path / "study_plate.py").write_text(PLATE.read_text())
+    return write_toml(tmp_path / "s.toml", data)

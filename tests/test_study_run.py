@@ -1,0 +1,295 @@
+"""End-to-end studies: outputs, independent checks of the exported STEP, determinism, interruption.
+
+The kept requirements are re-checked here WITHOUT the optimiser's constraint code: the holes are
+re-extracted from the written optimised.step and the edge distances / ligaments are computed from the
+plate's known outline (tests/data/study_plate.py: a 60 x 40 mm plate centred on the origin).
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from study_helpers import DATA, PLATE, STEP
+
+from cadfeat import study as study_mod
+from cadfeat.study import evaluate_study, run_study
+
+PLATE_HALF = (30.0, 20.0)   # study_plate.py: 60 x 40 mm, centred
+FIXED_HOLE = (-22.0, -12.0, 2.0)
+EDGE_MM, LIGAMENT_MM = 3.0, 2.5
+ALLOWED_EXTRA = {"report.html", "img"}
+RESULT_KEYS = {"cadfeat_version", "created", "study", "inputs", "camera", "trajectory", "variables", "holes",
+               "objectives", "measures", "constraints", "design_matrix", "history", "sweep", "pareto", "files",
+               "timings_s", "versions", "interrupted", "verification"}
+
+SMALL = {
+    "study": {"name": "small_plate", "part": str(PLATE), "seed": 7},
+    "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 200.0},
+    "trajectory": {"kind": "straight_approach", "start": [-60.0, -80.0, 260.0], "end": [40.0, -40.0, 180.0],
+                   "target": [0.0, 0.0, 6.0], "n": 12, "duration_s": 2.0},
+    "design": {"parameters": {"x0": {"lower": -18.0, "upper": -4.0}, "y0": {"lower": -8.0, "upper": 12.0}}},
+    "constraints": {"edge_distance_mm": EDGE_MM, "ligament_mm": LIGAMENT_MM},
+    "objective": {"measures": ["fov", "resolution", "resolvability"], "aggregate": "sum", "combine": "maxmin",
+                  "rotation_length_mm": 50.0},
+    "optimizer": {"method": "multistart", "starts": 2, "maxiter": 25},
+}
+
+
+def sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def no_report(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Skip the (slow, separately tested) report rendering in runs that check other things."""
+    monkeypatch.setattr(study_mod, "_report", lambda *a, **k: None)
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("run") / "small"
+    before = sha(PLATE)
+    result = run_study(copy.deepcopy(SMALL), out, quiet=True)
+    return result, out, before
+
+
+def test_outputs_exactly_the_expected_files(small_run):
+    result, out, _ = small_run
+    assert result.out_dir == out
+    names = {p.name for p in out.iterdir()}
+    assert {"original.step", "optimised.step", "optimised.stl", "results.json"} <= names
+    assert names - {"original.step", "optimised.step", "optimised.stl", "results.json"} <= ALLOWED_EXTRA
+    assert not [p for p in out.parent.iterdir() if p.name.startswith(".")]  # no staging folders left
+
+
+def test_results_json_keys_and_files(small_run):
+    result, out, _ = small_run
+    data = json.loads((out / "results.json").read_text())
+    assert RESULT_KEYS <= set(data)
+    assert data["study"] == result.results["study"] and data["variables"] == result.results["variables"]
+    for entry in data["files"]:
+        path = out / entry["name"]
+        assert path.stat().st_size == entry["bytes"] and sha(path) == entry["sha256"]
+    assert data["interrupted"] is False
+    assert data["study"]["part_kind"] == "script"
+    assert data["verification"]["step_roundtrip_max_error_mm"] <= 1e-6
+    assert [v["name"] for v in data["variables"]] == ["x0", "y0"]
+    for v in data["variables"]:
+        assert v["lower"] - 1e-9 <= v["after"] <= v["upper"] + 1e-9
+    assert all(c["ok"] for c in data["constraints"])
+    assert {c["checked_on"] for c in data["constraints"]} == {"brep", "step"}
+    obj = data["objectives"]
+    assert obj["combined_after"] >= obj["combined_before"] - 1e-9
+    assert set(obj["before"]) == set(obj["after"]) == set(obj["names"])
+    n = len(data["holes"]["after"])
+    assert len(data["measures"]["after"]["per_feature"]) == n
+    assert len(data["measures"]["after"]["per_pose"]["resolvability"]) == data["trajectory"]["n_samples"] == 12
+
+
+def test_exported_step_keeps_every_requirement(small_run):
+    """Independent of the optimiser: re-extract the holes of optimised.step, measure edge distances to the
+    known plate outline and the ligaments between holes, and find the fixed dowel hole unchanged."""
+    from cadfeat.export import import_step
+    from cadfeat.features import extract_holes
+
+    _, out, _ = small_run
+    holes = extract_holes(import_step(out / "optimised.step"), prefer_direction=(0, 0, 1))
+    assert len(holes) == 4
+    c = np.array([h.centre for h in holes])
+    r = np.array([h.radius_mm for h in holes])
+    np.testing.assert_allclose(c[:, 2], 6.0, atol=1e-9)  # all on the top face
+    edge = np.minimum(PLATE_HALF[0] - np.abs(c[:, 0]), PLATE_HALF[1] - np.abs(c[:, 1])) - r
+    assert edge.min() >= EDGE_MM - 1e-6
+    gaps = np.linalg.norm(c[:, None, :2] - c[None, :, :2], axis=-1) - r[:, None] - r[None, :]
+    assert gaps[np.triu_indices(4, 1)].min() >= LIGAMENT_MM - 1e-6
+    fixed = np.linalg.norm(c[:, :2] - np.array(FIXED_HOLE[:2]), axis=1)
+    k = int(np.argmin(fixed))
+    assert fixed[k] < 1e-9 and abs(r[k] - FIXED_HOLE[2]) < 1e-9
+    # the row holes are equally spaced at the part's pitch (10 mm), on one line y = y0
+    row = np.delete(c, k, axis=0)
+    row = row[np.argsort(row[:, 0])]
+    np.testing.assert_allclose(np.diff(row[:, 0]), 10.0, atol=1e-9)
+    np.testing.assert_allclose(row[:, 1], row[0, 1], atol=1e-9)
+
+
+def test_results_match_the_exported_step(small_run):
+    from cadfeat.export import import_step
+    from cadfeat.features import extract_holes
+
+    result, out, _ = small_run
+    after = {v["name"]: v["after"] for v in result.results["variables"]}
+    holes = extract_holes(import_step(out / "optimised.step"), prefer_direction=(0, 0, 1))
+    xs = sorted(h.centre[0] for h in holes if abs(h.centre[0] - FIXED_HOLE[0]) > 1e-6)
+    assert abs(xs[0] - after["x0"]) < 1e-6
+    ys = [h.centre[1] for h in holes if abs(h.centre[0] - FIXED_HOLE[0]) > 1e-6]
+    assert max(abs(y - after["y0"]) for y in ys) < 1e-6
+
+
+def test_input_part_unchanged(small_run):
+    _, _, before = small_run
+    assert sha(PLATE) == before
+
+
+@pytest.mark.slow
+def test_same_seed_same_results(tmp_path, monkeypatch):
+    no_report(monkeypatch)
+    a = run_study(copy.deepcopy(SMALL), tmp_path / "a", quiet=True, seed=3)
+    b = run_study(copy.deepcopy(SMALL), tmp_path / "b", quiet=True, seed=3)
+    ja = json.loads((tmp_path / "a" / "results.json").read_text())
+    jb = json.loads((tmp_path / "b" / "results.json").read_text())
+    for j in (ja, jb):
+        j.pop("created")
+        j.pop("timings_s")
+    assert ja == jb
+    assert a.results["study"]["seed"] == 3 and ja["inputs"]["optimizer"]["seed"] == 3
+    for name in ("original.step", "optimised.step", "optimised.stl"):
+        assert sha(tmp_path / "a" / name) == sha(tmp_path / "b" / name)
+    assert b.out_dir == tmp_path / "b"
+
+
+def test_interrupt_before_any_design_writes_nothing(tmp_path, monkeypatch):
+    import cadfeat.optimize as optimize
+
+    def stop(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(optimize, "optimise", stop)
+    monkeypatch.setattr(optimize, "solve_with_cad", stop)
+    before = sha(PLATE)
+    with pytest.raises(KeyboardInterrupt):
+        run_study(copy.deepcopy(SMALL), tmp_path / "out", quiet=True)
+    assert list(tmp_path.iterdir()) == []  # no output folder, no staging folder
+    assert sha(PLATE) == before
+
+
+def test_interrupt_keeps_best_design(tmp_path, monkeypatch):
+    """Ctrl-C during the optimisation (raised from the progress callback after a few iterations): the best
+    design so far is verified and written, marked ``interrupted``."""
+    import cadfeat.optimize as optimize
+
+    no_report(monkeypatch)
+    real = optimize.optimise
+
+    def interrupted(problem, config, progress=None, **kw):
+        count = {"n": 0}
+
+        def tick(entry):
+            if progress is not None:
+                progress(entry)
+            count["n"] += 1
+            if count["n"] >= 3:
+                raise KeyboardInterrupt
+
+        return real(problem, config, tick, **kw)
+
+    monkeypatch.setattr(optimize, "optimise", interrupted)
+    result = run_study(copy.deepcopy(SMALL), tmp_path / "out", quiet=True)
+    data = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert data["interrupted"] is True and result.results["interrupted"] is True
+    assert all(c["ok"] for c in data["constraints"])
+    assert (tmp_path / "out" / "optimised.step").exists()
+
+
+def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
+    """A failure after the optimiser (here: the STEP round trip) leaves the old output folder untouched."""
+    from cadfeat.export import ExportError
+
+    no_report(monkeypatch)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("old")
+
+    def broken(*a, **k):
+        raise ExportError("simulated round-trip mismatch")
+
+    monkeypatch.setattr("cadfeat.export.verify_step_roundtrip", broken)
+    with pytest.raises(ExportError):
+        run_study(copy.deepcopy(SMALL), out, quiet=True)
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
+
+
+@pytest.mark.slow
+def test_integer_parameter_stays_int(tmp_path, monkeypatch):
+    """``count`` (an int parameter) is enumerated, never turned into a float: the CAD model is built with an
+    int, results.json holds ints, and the exported STEP has the chosen number of row holes."""
+    from cadfeat.export import import_step
+    from cadfeat.features import extract_holes
+
+    no_report(monkeypatch)
+    data = copy.deepcopy(SMALL)
+    data["design"]["parameters"]["count"] = {"lower": 2, "upper": 3}
+    result = run_study(data, tmp_path / "out", quiet=True)
+    var = {v["name"]: v for v in json.loads((tmp_path / "out" / "results.json").read_text())["variables"]}
+    assert type(var["count"]["before"]) is int and type(var["count"]["after"]) is int
+    assert var["count"]["before"] == 3 and var["count"]["after"] in (2, 3)
+    assert result.results["optimizer"]["integer_combinations"] == 2
+    holes = extract_holes(import_step(tmp_path / "out" / "optimised.step"))
+    assert len(holes) == var["count"]["after"] + 1
+
+
+@pytest.mark.slow
+def test_step_study_end_to_end(tmp_path, monkeypatch):
+    """A STEP part: two plain holes move on the top face of tests/data/plate_holes.step; the others are fixed
+    and come back unchanged in the re-imported STEP."""
+    from cadfeat.export import import_step
+    from cadfeat.features import extract_holes
+
+    no_report(monkeypatch)
+    data = copy.deepcopy(SMALL)
+    data["study"] = {"name": "step_plate", "part": str(STEP), "seed": 2}
+    data["design"] = {"holes": [{"select": [-25.0, -15.0, 10.0], "max_offset_mm": 6.0},
+                                {"select": [-25.0, 15.0, 10.0], "max_offset_mm": 6.0}]}
+    data["trajectory"]["target"] = [0.0, 0.0, 10.0]
+    result = run_study(data, tmp_path / "out", quiet=True)
+    assert result.results["study"]["part_kind"] == "step"
+    original = extract_holes(import_step(STEP))
+    final = extract_holes(import_step(tmp_path / "out" / "optimised.step"))
+    moved = {(-25.0, -15.0), (-25.0, 15.0)}
+    kept = [h for h in original if (round(h.centre[0], 6), round(h.centre[1], 6)) not in moved]
+    for h in kept:
+        d = [np.linalg.norm(f.centre - h.centre) + abs(f.radius_mm - h.radius_mm) for f in final]
+        assert min(d) < 1e-6
+    assert len(final) == len(original)
+    plate_half = (40.0, 30.0)
+    for f in final:
+        edge = min(plate_half[0] - abs(f.centre[0]), plate_half[1] - abs(f.centre[1])) - f.radius_mm
+        assert edge >= EDGE_MM - 1e-6
+
+
+def test_evaluate_prints_table_and_writes(tmp_path, capsys, monkeypatch):
+    no_report(monkeypatch)
+    results = evaluate_study(copy.deepcopy(SMALL), tmp_path / "ev", echo=True)
+    text = capsys.readouterr().out
+    assert "FOV cone" in text and "worst pose" in text and "resolvability" in text
+    assert results["measures"]["before"]["per_feature"][0]["name"]
+    assert json.loads((tmp_path / "ev" / "results.json").read_text())["evaluation_only"] is True
+    single = evaluate_study(copy.deepcopy(SMALL), pose=5)
+    assert single["trajectory"]["n_samples"] == 1
+    assert len(single["measures"]["before"]["per_pose"]["resolvability"]) == 1
+
+
+def test_evaluate_bad_pose():
+    from cadfeat.study_schema import StudyError
+
+    with pytest.raises(StudyError, match="--pose 99"):
+        evaluate_study(copy.deepcopy(SMALL), pose=99)
+
+
+def test_studies_folder_validates():
+    """Every study in studies/ passes validation (names, bounds, files)."""
+    from cadfeat.study_schema import load_study
+
+    folder = Path(__file__).resolve().parents[1] / "studies"
+    files = sorted(folder.glob("*.toml"))
+    assert len(files) >= 6
+    for f in files:
+        assert load_study(f).study.name == f.stem
+
+
+def test_step_data_is_shared():
+    assert STEP.exists() and DATA.is_dir()
