@@ -10,6 +10,7 @@ evaluation of the measures of the same study (all poses, all holes).
 from __future__ import annotations
 
 import importlib.util
+import os
 import statistics
 import sys
 import tempfile
@@ -43,6 +44,7 @@ def main(quick: bool = False) -> str:
     from cadfeat.report import build_report
 
     machine = _load("run_all", HERE / "run_all.py").machine_description()
+    load = os.getloadavg()[0]
     fixture = _load("report_fixture", ROOT / "tests" / "report_fixture.py")
     repeats = 1 if quick else 3
     with tempfile.TemporaryDirectory() as tmp:
@@ -57,15 +59,19 @@ def main(quick: bool = False) -> str:
         baseline_s = _median_s(lambda: fixture.evaluate(ctx.camera, T_cam_part, screws, *arrays), 50)
 
         runs = [build_report(Path(tmp) / f"report{i}", results, ctx) for i in range(repeats)]
-    phases = {k: statistics.median(r.timings_s[k] for r in runs) for k in ("renders", "plots", "html")}
-    total = sum(phases.values())
+    keys = ("renders", "renders: part", "renders: views", "plots", "html")
+    phases = {k: statistics.median(r.timings_s.get(k, 0.0) for r in runs) for k in keys}
+    total = phases["renders"] + phases["plots"] + phases["html"]
     out = runs[-1]
     n_renders = len(out.images) - sum(1 for p in out.images if p.stem in {
         "tracks", "pose_measures", "motion", "convergence", "sweep", "pareto"})
     n_plots = len(out.images) - n_renders
+    n_views = sum(1 for p in out.images if p.stem.startswith("view_"))
     rows = [
         ("baseline: one measures evaluation (30 poses x 4 holes)", baseline_s),
         (f"report: renders ({n_renders} images)", phases["renders"]),
+        ("  of which the part before/after (2 images)", phases["renders: part"]),
+        (f"  of which the camera views ({n_views} images, one plotter per design)", phases["renders: views"]),
         (f"report: plots ({n_plots} PNGs)", phases["plots"]),
         ("report: HTML", phases["html"]),
         ("report: total", total),
@@ -74,7 +80,8 @@ def main(quick: bool = False) -> str:
     lines = [
         "## Writing the report (bench_report)",
         "",
-        f"Machine: {machine}. Median of {repeats} report runs; baseline median of 50 evaluations with "
+        f"Machine: {machine}; load average {load:.1f} at the start. Median of {repeats} report runs; "
+        "baseline median of 50 evaluations with "
         f"cadfeat.measures.evaluate. Ratio: time / baseline.",
         "",
         "| phase | time (ms) | ratio to baseline |",

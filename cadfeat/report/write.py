@@ -72,6 +72,7 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
     start = time.perf_counter()
     renders = make_renders(context, results, img_dir)
     timings["renders"] = time.perf_counter() - start
+    timings.update({f"renders: {k}": v for k, v in renders.timings_s.items()})
 
     start = time.perf_counter()
     plots, plot_notes = make_plots(results, img_dir)
