@@ -332,3 +332,19 @@ def test_evaluation_only_report(case, tmp_path, monkeypatch):
         assert [_value(c) for c in row.cells[1:]] == [f[k] for k, _ in FEATURE_COLUMNS]
     values = {r.cells[0].text: _value(r.cells[1]) for r in page.tables["objectives"]}
     assert values == evaluation["objectives"]["before"]
+
+
+def test_plots_in_a_child_process_match(report, tmp_path, monkeypatch):
+    """parallel=True draws the same plots (identical bytes) in `python -m cadfeat.report.plots`."""
+    built, _, results = report
+    fake = _fake_render(fail=False)
+    monkeypatch.setitem(sys.modules, "cadfeat.render", fake)
+    monkeypatch.setattr(cadfeat, "render", fake, raising=False)
+    _, _, context = shared_case()
+    out = build_report(tmp_path, _lean(results, keep=("pareto", "history")), context, parallel=True)
+    assert "plots: wait" in out.timings_s and out.notes == []
+    plots = {p.name: p for p in out.images if not p.stem.startswith(("part_", "view_"))}
+    assert sorted(plots) == ["convergence.png", "pareto.png"]
+    for p in built.images:
+        if p.name in plots:
+            assert plots[p.name].read_bytes() == p.read_bytes(), p.name
