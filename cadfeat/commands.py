@@ -45,4 +45,4 @@ def _plain(value: object) -> str:
     if isinstance(value, tuple):
         return "[" + ", ".join(f"{v:g}" for v in value) + "]"
     return f"{value:g}" if isinstance(value, float) else str(value)
-from cadfeat import commands_render, commands_report  # noqa: E402,F401
+from cadfeat import commands_parts, commands_render, commands_report  # noqa: E402,F401

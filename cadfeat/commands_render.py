@@ -74,43 +74,11 @@ def load_shape(path: Path, params: dict[str, float | int]) -> tuple[Any, list, A
         return shape, extract_holes(shape), None, path.stem
     if path.suffix.lower() != ".py":
         raise CadfeatError(f"{path}: unknown part type {path.suffix!r}; allowed: .py (part script), .step, .stp")
-    try:
-        from cadfeat.parts import load_part
-    except ImportError:  # the parts module is not merged yet: a minimal loader (replaced by load_part later)
-        shape, view = _build_script(path, params)
-        return shape, extract_holes(shape, prefer_direction=view), view, path.stem
+    from cadfeat.parts import load_part
+
     part = load_part(path)
     shape = part.build(**params)
-    view = getattr(part, "view_direction", None)
-    return shape, extract_holes(shape, prefer_direction=view), view, part.name
-
-
-def _build_script(path: Path, params: dict[str, float | int]) -> tuple[Any, Any]:
-    """Run a part script's ``build(**params)`` (PARAMETERS defaults + overrides); its VIEW_DIRECTION."""
-    import importlib.util
-
-    from cadfeat.features import as_shape
-
-    spec = importlib.util.spec_from_file_location(f"cadfeat_part_{path.stem}", path)
-    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
-    try:
-        spec.loader.exec_module(module)  # type: ignore[union-attr]
-    except Exception as exc:
-        raise CadfeatError(f"{path}: the part script failed to import: {exc}") from exc
-    declared = getattr(module, "PARAMETERS", {})
-    if not callable(getattr(module, "build", None)):
-        raise CadfeatError(f"{path}: a part script must define build(**params) -> cq.Workplane")
-    unknown = sorted(set(params) - set(declared))
-    if unknown:
-        raise CadfeatError(f"{path}: unknown parameter(s) {', '.join(unknown)}; allowed: {', '.join(declared)}")
-    values = {k: v.get("default") if isinstance(v, dict) else v for k, v in declared.items()} | params
-    try:
-        shape = as_shape(module.build(**values))
-    except CadfeatError:
-        raise
-    except Exception as exc:
-        raise CadfeatError(f"{path}: build({values}) failed: {exc}") from exc
-    return shape, getattr(module, "VIEW_DIRECTION", None)
+    return shape, extract_holes(shape, prefer_direction=part.view_direction), part.view_direction, part.name
 
 
 @command("render", _render_arguments)

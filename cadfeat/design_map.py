@@ -70,6 +70,13 @@ class DesignMap:
         """Whether the map is linear in every parameter (within ``LINEAR_TOL_MM``)."""
         return all(self.linear_by.values())
 
+    def feature_matrix(self) -> tuple[list[str], np.ndarray]:
+        """The geometric design matrix ∂F/∂P (eq. 2.2) as rows × parameters: row labels (``"H3.x"``,
+        ``"H3.y"``, ``"H3.z"``, ``"H3.r"``; holes numbered from 1 in ``holes0`` order) and the (4N, P) array."""
+        rows = [f"H{i + 1}.{k}" for i in range(len(self.holes0)) for k in ("x", "y", "z", "r")]
+        block = np.concatenate([self.dC, self.dR[:, None, :]], axis=1)  # (N, 4, P)
+        return rows, block.reshape(-1, len(self.names))
+
     def delta(self, params: Mapping[str, float]) -> np.ndarray:
         """(P,) parameter change from ``at`` (names not given keep their value at ``at``)."""
         unknown = sorted(set(params) - set(self.names))
@@ -106,11 +113,11 @@ def _arrays(holes: Sequence[Hole]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _matched(part: Part, params: dict[str, Any], reference: Sequence[Hole], what: str,
-             tol_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+             tol_mm: float, timeout_s: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Holes of a build at ``params`` in ``reference`` order (matched by geometry)."""
     from cadfeat.features import match_holes
 
-    holes = part.holes(**params)
+    holes = part.holes_timed(params, timeout_s)
     if len(holes) != len(reference):
         raise CadfeatError(f"{part.path}: {what} changes the number of holes ({len(reference)} -> {len(holes)}); "
                            "a design-map parameter must move or resize holes, not add or remove them")
@@ -129,7 +136,7 @@ def _steps(part: Part, name: str, x0: float, h: float) -> tuple[float, float]:
 
 
 def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = None, step_mm: float = 1e-3,
-               check_factor: float = 100.0, match_tol_mm: float = 0.5) -> DesignMap:
+               check_factor: float = 100.0, match_tol_mm: float = 0.5, timeout_s: float | None = None) -> DesignMap:
     """Finite-difference design map of ``part`` in the parameters ``names`` at ``at`` (default: defaults).
 
     Central differences with step ``step_mm`` (in the parameter's unit), one-sided where the step would
@@ -137,6 +144,8 @@ def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = 
     check builds once more per parameter at ``check_factor × step_mm`` (clipped into the bounds, on the side
     with more room) and compares with the linear prediction (``LINEAR_TOL_MM``). Raises ``CadfeatError`` for
     unknown/integer names, a parameter with no room in its bounds, or a step that changes the hole count.
+    With ``timeout_s`` every build runs in a worker process with that time limit (``build_shape``; a hung
+    or failing build raises ``PartBuildError``); by default builds run in this process (fast).
     """
     names = tuple(names)
     unknown = [n for n in names if n not in part.parameters]
@@ -148,7 +157,7 @@ def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = 
         raise CadfeatError(f"{part.path}: integer parameter(s) {', '.join(ints)} cannot be in a design map "
                            "(they add or remove holes); fix them with `at`")
     x = part.resolve(**dict(at or {}))
-    holes0 = part.holes(**x)
+    holes0 = part.holes_timed(x, timeout_s)
     c0, a0, r0 = _arrays(holes0)
     n, p = len(holes0), len(names)
     dC, dA, dR = np.zeros((n, 3, p)), np.zeros((n, 3, p)), np.zeros((n, p))
@@ -161,9 +170,9 @@ def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = 
         lo, hi = _steps(part, name, x[name], step_mm)
         if lo + hi <= 0:
             raise CadfeatError(f"{part.path}: parameter {name!r} has no room between its bounds")
-        plus = _matched(part, {**x, name: x[name] + hi}, holes0, f"{name} + {hi:g}", match_tol_mm) \
+        plus = _matched(part, {**x, name: x[name] + hi}, holes0, f"{name} + {hi:g}", match_tol_mm, timeout_s) \
             if hi else (c0, a0, r0)
-        minus = _matched(part, {**x, name: x[name] - lo}, holes0, f"{name} - {lo:g}", match_tol_mm) \
+        minus = _matched(part, {**x, name: x[name] - lo}, holes0, f"{name} - {lo:g}", match_tol_mm, timeout_s) \
             if lo else (c0, a0, r0)
         builds += (hi > 0) + (lo > 0)
         span = lo + hi
@@ -173,7 +182,8 @@ def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = 
             | (np.abs(dR[:, j]) > MOVE_TOL)
         moved_by[name] = np.flatnonzero(moved).tolist()
         linear_by[name], deviation[name], checks[j] = _check_linear(
-            part, x, name, holes0, (dC[..., j], dA[..., j], dR[:, j]), check_factor * step_mm, match_tol_mm)
+            part, x, name, holes0, (dC[..., j], dA[..., j], dR[:, j]), check_factor * step_mm, match_tol_mm,
+            timeout_s)
         builds += 1
     unused = [nm for nm in names if not moved_by[nm]]
     return DesignMap(part.name, names, {nm: float(x[nm]) for nm in names}, holes0, dC, dA, dR, steps, checks,
@@ -182,7 +192,7 @@ def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = 
 
 def _check_linear(part: Part, x: dict[str, Any], name: str, holes0: Sequence[Hole],
                   grads: tuple[np.ndarray, np.ndarray, np.ndarray], big_step: float,
-                  match_tol_mm: float) -> tuple[bool, float, float]:
+                  match_tol_mm: float, timeout_s: float | None) -> tuple[bool, float, float]:
     """Build at a larger step; (linear?, max deviation mm, the signed step used)."""
     lo, hi = _steps(part, name, x[name], big_step)
     h = hi if hi >= lo else -lo
@@ -192,7 +202,8 @@ def _check_linear(part: Part, x: dict[str, Any], name: str, holes0: Sequence[Hol
     pa = pa / np.linalg.norm(pa, axis=-1, keepdims=True)
     predicted = [dataclasses.replace(hole, centre=pc[i], axis=pa[i], radius_mm=float(pr[i]))
                  for i, hole in enumerate(holes0)]
-    c, a, r = _matched(part, {**x, name: x[name] + h}, predicted, f"{name} {h:+g} (linearity check)", match_tol_mm)
+    c, a, r = _matched(part, {**x, name: x[name] + h}, predicted, f"{name} {h:+g} (linearity check)", match_tol_mm,
+                       timeout_s)
     dev_mm = max(float(np.linalg.norm(c - pc, axis=-1).max(initial=0.0)), float(np.abs(r - pr).max(initial=0.0)))
     dev_rad = float(np.linalg.norm(a - pa, axis=-1).max(initial=0.0))  # chord = angle to first order
     return dev_mm <= LINEAR_TOL_MM and dev_rad <= LINEAR_TOL_RAD, dev_mm, h

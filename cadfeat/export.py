@@ -404,7 +404,8 @@ def _hole_label(hole: Hole, index: int) -> str:
 
 
 def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Sequence[Hole], tol_mm: float = 1e-6,
-                          expected_volume_mm3: float | None = None, volume_rtol: float = 1e-9) -> RoundTrip:
+                          expected_volume_mm3: float | None = None, volume_rtol: float = 1e-9,
+                          prefer_direction: Sequence[float] | None = None) -> RoundTrip:
     """Re-import a written STEP file and prove it holds the designed part.
 
     Checks, raising ``ExportError`` on the first failure (naming the file, the hole and the error):
@@ -412,7 +413,9 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
     ``expected_volume_mm3`` to ``volume_rtol`` relative (if given); the re-extracted holes match
     ``expected_holes`` one-to-one by geometry (``features.match_holes``) with centre distance, radius and
     bore-radius differences, depth difference and the axis tilt times the hole depth (how far the tilt
-    moves the far end) all ≤ ``tol_mm``; ``kind`` and ``through`` equal.
+    moves the far end) all ≤ ``tol_mm``; ``kind`` and ``through`` equal. ``prefer_direction`` is passed to
+    ``extract_holes`` (give the one the expected holes were extracted with, e.g. a part's view direction,
+    or through holes may be re-extracted from their other end).
     """
     step_path = Path(step_path)
     unit = step_length_unit(step_path)
@@ -431,7 +434,7 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
     from cadfeat.features import extract_holes, holes_to_arrays, match_holes
 
     expected = list(expected_holes)
-    found = extract_holes(shape)
+    found = extract_holes(shape, prefer_direction=prefer_direction)
     if len(found) != len(expected):
         raise ExportError(f"{step_path}: {len(found)} holes re-extracted, {len(expected)} designed")
     if not expected:

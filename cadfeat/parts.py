@@ -158,6 +158,10 @@ class Part:
     view_direction: np.ndarray | None = None
     module: ModuleType | None = field(default=None, repr=False, compare=False)
 
+    def __reduce__(self) -> tuple[Any, tuple[str]]:
+        """Pickled as its path (re-loaded on unpickling), so parts can be sent to worker processes."""
+        return load_part, (str(self.path),)
+
     def defaults(self) -> dict[str, float | int]:
         """The default value of every parameter."""
         return {n: p.default for n, p in self.parameters.items()}
@@ -189,6 +193,14 @@ class Part:
         from cadfeat.features import extract_holes
 
         return extract_holes(self.build(**overrides), prefer_direction=self.view_direction)
+
+    def holes_timed(self, params: Mapping[str, Any] | None = None, timeout_s: float | None = None) -> list[Hole]:
+        """``holes(**params)``, built in a worker process with a time limit when ``timeout_s`` is given."""
+        if timeout_s is None:
+            return self.holes(**dict(params or {}))
+        from cadfeat.features import extract_holes
+
+        return extract_holes(build_shape(self, params, timeout_s), prefer_direction=self.view_direction)
 
     def expected_holes(self, **overrides: Any) -> list[dict] | None:
         """The script's analytic holes (``expected_holes(**params)``: dicts centre, axis, radius_mm), or None."""
@@ -251,10 +263,19 @@ def _import_script(path: Path) -> ModuleType:
 
 
 def load_part(path: str | os.PathLike[str]) -> Part:
-    """Load and validate a part script. Raises ``CadfeatError`` naming the file (and line / key)."""
-    path = Path(path).expanduser().resolve()
+    """Load and validate a part script: a path, or the bare name of a library part (``"thesis_hub"``).
+
+    Raises ``CadfeatError`` naming the file (and line / key) for a missing file, a syntax error, a script
+    raising on import, no ``build``, bad ``PARAMETERS``, or a ``build`` signature not matching them.
+    """
+    given = Path(path).expanduser()
+    if not given.exists() and given.parent == Path(".") and given.suffix in ("", ".py"):
+        library = PARTS_DIR / f"{given.stem}.py"  # a bare name: a part of the library
+        given = library if library.is_file() else given
+    path = given.resolve()
     if not path.is_file():
-        raise CadfeatError(f"{path}: part script not found")
+        names = ", ".join(p.stem for p in find_parts()) if PARTS_DIR.is_dir() else "(no library)"
+        raise CadfeatError(f"{path}: part script not found (library parts: {names})")
     module = _import_script(path)
     where = str(path)
     if not callable(getattr(module, "build", None)):
@@ -266,6 +287,7 @@ def load_part(path: str | os.PathLike[str]) -> Part:
         raise CadfeatError(f"{where}: PARAMETERS must be a dict name -> {{{', '.join(PARAMETER_KEYS)}}}, "
                            f"got {type(module.PARAMETERS).__name__}")
     parameters = {str(n): _parse_parameter(n, s, where) for n, s in module.PARAMETERS.items()}
+    _check_signature(module.build, parameters, where)
     view = getattr(module, "VIEW_DIRECTION", None)
     if view is not None:
         view = np.asarray(view, dtype=float)
@@ -278,6 +300,27 @@ def load_part(path: str | os.PathLike[str]) -> Part:
         if not isinstance(value, str):
             raise CadfeatError(f"{where}: {key} must be a string, got {type(value).__name__}")
     return Part(path.stem, path, parameters, text["DESCRIPTION"].strip(), text["FIXED_HOLES"].strip(), view, module)
+
+
+def _check_signature(build: Any, parameters: Mapping[str, Parameter], where: str) -> None:
+    """``build`` must accept every parameter as a keyword, and require no other argument."""
+    import inspect
+
+    try:
+        sig = inspect.signature(build)
+    except (TypeError, ValueError):  # pragma: no cover - builtins / C functions
+        return
+    kinds = {p.kind for p in sig.parameters.values()}
+    accepted = {n for n, p in sig.parameters.items()
+                if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    missing = [] if inspect.Parameter.VAR_KEYWORD in kinds else [n for n in parameters if n not in accepted]
+    required = [n for n, p in sig.parameters.items() if p.default is p.empty and n not in parameters
+                and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)]
+    if missing or required:
+        raise CadfeatError(f"{where}: build{sig} does not match PARAMETERS ({', '.join(parameters) or 'none'}): "
+                           + "; ".join(filter(None, [missing and f"not accepted: {', '.join(missing)}",
+                                                     required and f"required but not in PARAMETERS: "
+                                                                  f"{', '.join(required)}"])))
 
 
 def find_parts(directory: str | os.PathLike[str] | None = None) -> list[Path]:
@@ -343,6 +386,7 @@ def build_shape(part: Part, params: Mapping[str, Any] | None = None, timeout_s: 
         try:
             status, payload = receive.recv()
         except EOFError:
+            proc.join(5.0)
             raise PartBuildError(f"{part.path}: build({_fmt(values)}) worker died "
                                  f"(exit code {proc.exitcode})") from None
     finally:

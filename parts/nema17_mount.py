@@ -44,8 +44,8 @@ def _face_holes():
 
 def build(base_hole_x_mm, base_hole_y_mm, target_face_x_mm, target_face_z_mm, target_base_x_mm, target_base_y_mm,
           target_radius_mm):
-    body = cq.Solid.makeBox(W, D, T, cq.Vector(-W / 2, 0, 0)).fuse(
-        cq.Solid.makeBox(W, T, H, cq.Vector(-W / 2, 0, 0))).clean()
+    profile = [(0, 0), (D, 0), (D, T), (T, T), (T, H), (0, H)]  # (y, z) of the L section
+    body = cq.Workplane("YZ", origin=(-W / 2, 0, 0)).polyline(profile).close().extrude(W).val()
     y_dir = cq.Vector(0, 1, 0)
     cuts = [cq.Solid.makeCylinder(r, T + 2, cq.Vector(x, -1, z), y_dir) for (x, z), r in _face_holes()]
     cuts.append(cq.Solid.makeCylinder(target_radius_mm, TARGET_DEPTH + 1, cq.Vector(target_face_x_mm, -1,
@@ -54,9 +54,9 @@ def build(base_hole_x_mm, base_hole_y_mm, target_face_x_mm, target_face_z_mm, ta
     cuts.append(cq.Solid.makeCylinder(target_radius_mm, TARGET_DEPTH + 1,
                                       cq.Vector(target_base_x_mm, target_base_y_mm, T - TARGET_DEPTH)))
     x, y0, y1 = SLOT
-    for sx in (-1, 1):
-        cuts.append(cq.Solid.makeBox(2 * M5_R, y1 - y0, T + 2, cq.Vector(sx * x - M5_R, y0, -1)))
-        cuts += [cq.Solid.makeCylinder(M5_R, T + 2, cq.Vector(sx * x, y, -1)) for y in (y0, y1)]
+    slots = (cq.Workplane("XY", origin=(0, 0, -1)).pushPoints([(-x, (y0 + y1) / 2), (x, (y0 + y1) / 2)])
+             .slot2D(y1 - y0 + 2 * M5_R, 2 * M5_R, angle=90).extrude(T + 2))
+    cuts += slots.vals()
     return cq.Workplane("XY").add(body.cut(*cuts))
 
 

@@ -117,3 +117,39 @@ def test_unused_parameter_and_errors(tmp_path):
     with pytest.raises(CadfeatError, match="number of holes"):
         design_map(part, ["x_mm"], at={"x_mm": 3.95})  # the check step crosses x = 4: a second hole appears
     assert math.isfinite(dm.deviation_mm["x_mm"])
+
+
+def test_axis_derivative_of_a_tilting_hole(tmp_path):
+    """A hole drilled at angle θ about y through a fixed entrance point: axis (sin θ, 0, cos θ), so
+    ∂axis/∂θ = (cos θ, 0, -sin θ) (closed form); the centre does not move; the map is nonlinear in θ."""
+    script = tmp_path / "tilt.py"
+    script.write_text(
+        "import math\nimport cadquery as cq\n"
+        "PARAMETERS = {'tilt_rad': {'default': 0.3, 'bounds': (0.0, 0.6), 'unit': 'rad'},\n"
+        "              'x_mm': {'default': 0.0, 'bounds': (-5, 5)}}\n"
+        "def build(tilt_rad, x_mm):\n"
+        "    plate = cq.Solid.makeBox(40, 40, 10, cq.Vector(-20, -20, -10))\n"
+        "    axis = cq.Vector(math.sin(tilt_rad), 0, math.cos(tilt_rad))\n"
+        "    start = cq.Vector(x_mm, 0, 0) + axis * 2\n"
+        "    return plate.cut(cq.Solid.makeCylinder(2.0, 8.0, start, -axis))\n")
+    dm = design_map(load_part(script), ["tilt_rad", "x_mm"])
+    np.testing.assert_allclose(dm.holes0[0].axis, [math.sin(0.3), 0, math.cos(0.3)], atol=1e-12)
+    np.testing.assert_allclose(dm.dA[0, :, 0], [math.cos(0.3), 0, -math.sin(0.3)], atol=1e-6)
+    np.testing.assert_allclose(dm.dC[0, :, 0], 0.0, atol=1e-9)
+    np.testing.assert_allclose(dm.dC[0, :, 1], [1, 0, 0], atol=1e-9)
+    assert dm.moved_by == {"tilt_rad": [0], "x_mm": [0]}
+    assert dm.linear_by == {"tilt_rad": False, "x_mm": True}
+    _, axes, _ = dm.predict({"tilt_rad": 0.35})
+    np.testing.assert_allclose(axes[0], [math.sin(0.35), 0, math.cos(0.35)], atol=1e-3)
+
+
+def test_worker_builds_give_the_same_map_and_feature_matrix():
+    """Builds in time-limited worker processes (BRep transfer) give the same map as in-process builds."""
+    part = load_part(PARTS_DIR / "thesis_single_hole.py")
+    local = design_map(part, ["hole_x_mm", "radius_mm"])
+    remote = design_map(part, ["hole_x_mm", "radius_mm"], timeout_s=120)
+    np.testing.assert_allclose(remote.dC, local.dC, atol=1e-12)
+    np.testing.assert_allclose(remote.dR, local.dR, atol=1e-12)
+    rows, matrix = local.feature_matrix()
+    assert rows == ["H1.x", "H1.y", "H1.z", "H1.r"]
+    np.testing.assert_allclose(matrix, [[1, 0], [0, 0], [0, 0], [0, 1]], atol=1e-9)  # uncoupled (§2.2.4)

@@ -9,7 +9,7 @@ import pytest
 
 from cadfeat import measures
 from cadfeat.camera import Camera
-from cadfeat.poses import invert_T, look_at, se3_exp, transform_points
+from cadfeat.poses import invert_T, se3_exp, transform_points
 
 RNG = np.random.default_rng(4927)
 
@@ -143,16 +143,36 @@ def _cube(d: float) -> np.ndarray:
 
 
 def test_resolvability_grows_with_cube_edge():
-    """§5.4.3 (Fig. 5.10 c): for the 3-D cube, Λ summed over the path (eq. 4.33) grows with the edge d."""
+    """§5.4.3 (Fig. 5.10 c): for the 3-D cube, H = Σ_k Λ_k (eq. 4.33) grows quasi-linearly with the edge d along
+    an approach that looks at the cube (library ``straight_approach``, analytic screws with rotation)."""
+    from cadfeat.trajectory import straight_approach
+
     cam = Camera.preset("dalsa-cad1-128a").without_distortion()
-    eyes = np.stack([np.linspace(-8, 8, 30), np.linspace(2, -2, 30), np.linspace(58, 34, 30)], axis=-1)
-    T_task_cam = look_at(eyes, np.zeros(3), up=(0, -1, 0))
-    screws = np.diff(eyes, axis=0, append=eyes[-1:] * 2 - eyes[-2:-1])  # a simple approach
-    v_cam = np.einsum("lji,lj->li", T_task_cam[:, :3, :3], screws)
-    screws = np.concatenate([v_cam, np.zeros_like(v_cam)], axis=-1)
-    T_cam_part = invert_T(T_task_cam)
-    H = []
-    for d in (2.0, 3.0, 4.0, 5.0, 6.0):
-        pts = transform_points(T_cam_part[:, None], _cube(d)[None])
-        H.append(measures.resolvability(measures.stacked_jacobian(cam, pts), screws).sum())
-    assert np.all(np.diff(H) > 0), H
+    traj = straight_approach(start=(-8.0, 2.0, 58.0), end=(8.0, -2.0, 34.0), target=(0.0, 0.0, 0.0), n=30,
+                             duration_s=3.0)
+    screws = traj.velocity_screws()
+    assert np.abs(screws[:, 3:]).max() > 0.01  # the camera turns to keep looking at the cube
+    T_cam_part = invert_T(traj.T_task_cam)
+    for ell in (1.0, 30.0):
+        H = []
+        for d in (1.41, 2.0, 3.0, 4.0, 5.0, 6.0):
+            J = measures.stacked_jacobian(cam, transform_points(T_cam_part[:, None], _cube(d)[None]))
+            assert not measures.jacobian_diagnostics(J)["singular"].any()
+            H.append(measures.resolvability(J, screws, rotation_length_mm=ell).sum())
+        assert np.all(np.diff(H) > 0), H
+        slope = np.diff(H) / np.diff([1.41, 2.0, 3.0, 4.0, 5.0, 6.0])
+        assert slope.max() < 1.3 * slope.min()  # quasi-linear, as in the thesis
+
+
+@pytest.mark.parametrize("dist", [(0, 0, 0, 0, 0), (-0.3, 0, 0, 0, 0), (-0.2, 0.05, 0, 0, 0),
+                                  (-0.21, 0.08, 0.0013, -0.0021, -0.012), (0.1, 0.0, 0.002, 0.001, 0.0)])
+def test_lens_kernel_matches_camera(dist):
+    from cadfeat.measures.lens import distort_terms
+
+    cam = _camera(tuple(float(d) for d in dist))
+    xy = RNG.uniform(-0.5, 0.5, (50, 2))
+    u, v, *D = distort_terms(cam, xy[:, 0], xy[:, 1])
+    np.testing.assert_allclose(np.stack([u, v], axis=-1), cam.distort_normalized(xy), rtol=1e-13)
+    ref = cam.distortion_jacobian(xy)
+    for k, d in enumerate(D):
+        np.testing.assert_allclose(np.broadcast_to(d, (50,)), ref[:, k // 2, k % 2], rtol=1e-12, atol=1e-9)

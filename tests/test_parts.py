@@ -74,6 +74,19 @@ def test_part_metadata(path):
         assert p.description and p.lower <= p.default <= p.upper
 
 
+def test_scripts_run_unchanged_in_cq_editor():
+    """Executed as cq-editor does (a global ``show_object``), a script shows exactly one solid."""
+    import runpy
+
+    import cadquery as cq
+
+    for path in PART_PATHS:
+        shown = []
+        runpy.run_path(str(path), init_globals={"show_object": shown.append})
+        assert len(shown) == 1 and isinstance(shown[0], cq.Workplane), path.name
+        assert len(shown[0].val().Solids()) == 1
+
+
 def test_build_returns_one_solid_and_validates():
     part = load_part(PARTS_DIR / "thesis_single_hole.py")
     solid = part.build(radius_mm=2.0)
@@ -114,6 +127,9 @@ def write(tmp_path: Path, name: str, text: str) -> Path:
      r"PARAMETERS\['a'\] lacks 'bounds'"),
     ("outside.py", 'PARAMETERS = {"a": {"default": 3.0, "bounds": (0, 2)}}\ndef build(a): pass\n',
      r"PARAMETERS\['a'\]: default 3 is outside bounds \[0, 2\]"),
+    ("signature.py", 'PARAMETERS = {"a": {"default": 1.0, "bounds": (0, 2)}}\ndef build(b): pass\n',
+     r"signature\.py: build\(b\) does not match PARAMETERS \(a\): not accepted: a; required but not in "
+     r"PARAMETERS: b"),
     ("importfail.py", "import math\nmath.sqrt(-1)\n", r"importfail\.py:2: importing the part script raised ValueError"),
 ])
 def test_bad_script_load_errors(tmp_path, name, body, match):
@@ -121,9 +137,17 @@ def test_bad_script_load_errors(tmp_path, name, body, match):
         load_part(write(tmp_path, name, body))
 
 
-def test_missing_file(tmp_path):
-    with pytest.raises(CadfeatError, match="part script not found"):
+def test_missing_file_and_library_names(tmp_path):
+    with pytest.raises(CadfeatError, match=r"part script not found \(library parts: .*thesis_hub"):
         load_part(tmp_path / "nothing.py")
+    assert load_part("thesis_hub").path == (PARTS_DIR / "thesis_hub.py").resolve()
+
+
+def test_part_pickles_by_path():
+    import pickle
+
+    part = pickle.loads(pickle.dumps(load_part("thesis_single_hole")))
+    assert part.name == "thesis_single_hole" and len(part.holes(radius_mm=2.0)) == 1
 
 
 @pytest.mark.parametrize("body, match", [
@@ -171,3 +195,46 @@ def test_build_shape_timeout_and_errors(tmp_path):
         build_shape(bad, None, timeout_s=60)
     with pytest.raises(CadfeatError, match="out of bounds"):
         build_shape(bad, {"size_mm": 99.0})
+    dies = load_part(write(tmp_path, "dies.py", GOOD_HEAD + "import os\ndef build(size_mm):\n    os._exit(3)\n"))
+    with pytest.raises(PartBuildError, match=r"worker died \(exit code 3\)"):
+        build_shape(dies, {}, timeout_s=60)
+
+
+# ---------------------------------------------------------------------------------- STEP round trip
+@pytest.mark.parametrize("name", ["nema17_mount", "pipe_flange_dn50", "l_bracket"])
+def test_step_round_trip_identical_holes(tmp_path, name):
+    """export_step → import_step → the same holes (1e-9 mm), kinds and through flags, and the same volume."""
+    from cadfeat.export import export_step, shape_volume_mm3, verify_step_roundtrip
+
+    part = load_part(PARTS_DIR / f"{name}.py")
+    params = parameter_sets(part)[2]
+    solid = part.build(**params)
+    path = export_step(solid, tmp_path / f"{name}.step")
+    rt = verify_step_roundtrip(path, part.holes(**params), tol_mm=1e-9, prefer_direction=part.view_direction,
+                               expected_volume_mm3=shape_volume_mm3(solid))
+    assert rt.n_holes == len(part.expected_holes(**params)) and rt.unit == "MM"
+
+
+# ------------------------------------------------------------------------------------------ the CLI
+def test_cli_lists_parts(tmp_path, capsys):
+    from cadfeat.cli import main
+
+    assert main(["parts"]) == 0
+    out = capsys.readouterr().out
+    for path in PART_PATHS:
+        assert f"{path.stem}: " in out
+    assert "bolt_circle_radius_mm = 9.65 mm in [8.5, 16]" in out and "hole_count = 5 in [3, 8] (integer)" in out
+    assert main(["parts", str(PARTS_DIR / "thesis_single_hole.py"), "--holes"]) == 0
+    assert "hole 0: centre (0.000, 0.000, 0.000) mm, axis (0.000, 0.000, 1.000), r 3.700 mm" in capsys.readouterr().out
+    write(tmp_path, "broken.py", "def build(:\n")
+    assert main(["parts", str(tmp_path)]) == 2
+    assert "broken.py:1: syntax error" in capsys.readouterr().err
+
+
+def test_import_stays_light():
+    import subprocess
+    import sys
+
+    code = "import sys, cadfeat.parts, cadfeat.design_map; print('cadquery' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"

@@ -2,7 +2,7 @@
 
 Independent references: ``cv2.projectPoints`` of densely sampled rim points (whose ``cv2.fitEllipse``
 is the exact image conic for a pinhole camera), ``Camera.project`` of the hole centres, and
-``cadfeat.measures.hole_ellipse`` when that module is present.
+``cadfeat.measures.hole_ellipse`` (the contract's predicted ellipse).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ cq = pytest.importorskip("cadquery")
 
 from cadfeat.camera import Camera  # noqa: E402
 from cadfeat.features import extract_holes, holes_to_arrays  # noqa: E402
+from cadfeat.measures import hole_ellipse  # noqa: E402
 from cadfeat.poses import invert_T, look_at  # noqa: E402
 from cadfeat.render.camera_views import CameraViewRenderer, render_camera_views  # noqa: E402
 
@@ -23,9 +24,14 @@ UPSAMPLE = 8  # sub-pixel contours: bilinear ×8 up-sampling, threshold, findCon
 
 @pytest.fixture(scope="module")
 def plate():
-    wp = (cq.Workplane("XY").box(80, 60, 5).faces(">Z").workplane()
-          .pushPoints([(-20, -10), (15, 12), (22, -15)]).hole(10))
-    return wp.val(), extract_holes(wp)
+    """A plate with a through hole, a blind hole and a counterbored hole (rim radius 5 mm or 6 mm)."""
+    wp = cq.Workplane("XY").box(80, 60, 5).faces(">Z").workplane().pushPoints([(-20, -10)]).hole(10)
+    wp = wp.faces(">Z").workplane().pushPoints([(15, 12)]).hole(10, 3)
+    wp = wp.faces(">Z").workplane().pushPoints([(22, -15)]).cboreHole(6, 12, 2)
+    holes = extract_holes(wp)
+    assert sorted(h.kind for h in holes) == ["counterbore", "plain", "plain"]
+    assert sorted(h.through for h in holes) == [False, True, True]
+    return wp.val(), holes
 
 
 def _pose(eye, target=(0.0, 0.0, 2.5)) -> np.ndarray:
@@ -41,22 +47,19 @@ def _rim_points(holes, n=4000) -> np.ndarray:
 
 
 def _expected(camera: Camera, holes, T: np.ndarray):
-    """Exact image ellipses (centre, full axes sorted) of the rims: measures.hole_ellipse or projected rims."""
-    try:
-        from cadfeat.measures import hole_ellipse
-    except ImportError:
-        hole_ellipse = None
+    """Per hole: (centre, sorted full axes) of cv2.fitEllipse of cv2.projectPoints rim points, and the same
+    of ``measures.hole_ellipse`` (exact conic; first-order distortion)."""
     rvec, _ = cv2.Rodrigues(T[:3, :3])
-    out = []
+    fitted = []
     for rim in _rim_points(holes):
         px, _ = cv2.projectPoints(rim, rvec, T[:3, 3], camera.K, camera.dist_coeffs)
         (cx, cy), axes, _ = cv2.fitEllipse(px.reshape(-1, 2).astype(np.float32))
-        out.append((np.array([cx, cy]), np.sort(axes)))
-    if hole_ellipse is not None:
-        centres, axes_, radii = holes_to_arrays(holes)
-        e = hole_ellipse(camera, centres @ T[:3, :3].T + T[:3, 3], axes_ @ T[:3, :3].T, radii)
-        out = [(np.asarray(e.centre_px)[j], np.sort(np.asarray(e.axes_px)[j])) for j in range(len(holes))]
-    return out
+        fitted.append((np.array([cx, cy]), np.sort(axes)))
+    centres, axes_, radii = holes_to_arrays(holes)
+    e = hole_ellipse(camera, centres @ T[:3, :3].T + T[:3, 3], axes_ @ T[:3, :3].T, radii)
+    assert np.all(e.valid)
+    predicted = [(np.asarray(e.centre_px)[j], np.sort(np.asarray(e.axes_px)[j])) for j in range(len(holes))]
+    return fitted, predicted
 
 
 def _dark_blobs(image: np.ndarray):
@@ -86,14 +89,15 @@ def _dark_blobs(image: np.ndarray):
 def _check_image(image, camera, holes, T, centre_tol_px=1.0, axes_tol_px=1.0):
     centres, _, _ = holes_to_arrays(holes)
     projected = camera.project(centres @ T[:3, :3].T + T[:3, 3])
-    expected = _expected(camera, holes, T)
+    fitted, predicted = _expected(camera, holes, T)
     blobs = _dark_blobs(image)
     assert len(blobs) == len(holes)
     for centroid, e_centre, e_axes in blobs:
         j = int(np.argmin(np.linalg.norm(projected - centroid, axis=1)))
         assert np.linalg.norm(centroid - projected[j]) < centre_tol_px
-        assert np.linalg.norm(e_centre - expected[j][0]) < 0.5
-        np.testing.assert_allclose(e_axes, expected[j][1], atol=axes_tol_px)
+        for centre, axes in (fitted[j], predicted[j]):
+            assert np.linalg.norm(e_centre - centre) < 0.5
+            np.testing.assert_allclose(e_axes, axes, atol=axes_tol_px)
 
 
 def test_dark_holes_match_projection_pinhole(plate):

@@ -27,10 +27,10 @@ from cadfeat.errors import CadfeatError
 from cadfeat.measures.ellipse import ellipse_parts, rim_conic_xyz
 from cadfeat.measures.focus import focus_margin_depth
 from cadfeat.measures.fov import image_margin_px
-from cadfeat.measures.jacobian import diagnostics_from_gram, jacobian_columns
+from cadfeat.measures.jacobian import diagnostics_from_gram, fill_jacobian
 from cadfeat.measures.lens import distort_terms
 from cadfeat.measures.resolution import minor_axis_margin
-from cadfeat.measures.resolvability import resolvability_from_parts, scale_screws
+from cadfeat.measures.resolvability import check_length, resolvability_from_parts, scale_screws
 from cadfeat.measures.visibility import occluded
 
 #: Feature-poses per slab in ``evaluate`` (temporaries of 16k doubles = 128 kB stay in the L2 cache).
@@ -106,17 +106,34 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
     batches are cut into slabs of about ``BLOCK_ELEMENTS`` feature-poses (whole blocks of poses, each slab
     fully batched) so the temporaries stay in the CPU cache; the results are concatenated."""
     T, s, c, n, r = _check_inputs(T_cam_part, screws, centres, axes, radii)
-    step = max(1, BLOCK_ELEMENTS // max(1, c.shape[0]))
-    if T.shape[0] <= step:
-        return _evaluate(camera, T, s, c, n, r, min_axis_px, rotation_length_mm, occlusion_mesh)
-    slabs = [_evaluate(camera, T[i:i + step], s[i:i + step], c, n, r, min_axis_px, rotation_length_mm,
-                       occlusion_mesh) for i in range(0, T.shape[0], step)]
-    return Measures(**{f.name: np.concatenate([getattr(m, f.name) for m in slabs]) for f in fields(Measures)})
+    check_length(rotation_length_mm)
+    if not np.isfinite(min_axis_px):
+        raise CadfeatError(f"evaluate: min_axis_px must be a finite number of pixels, got {min_axis_px!r}")
+    L, N = T.shape[0], c.shape[0]
+    out = _allocate(L, N)
+    step = max(1, BLOCK_ELEMENTS // max(1, N))
+    for i in range(0, L, step):  # slabs of whole pose blocks (cache blocking), each fully batched
+        sl = slice(i, i + step)
+        _evaluate(camera, T[sl], s[sl], c, n, r, min_axis_px, rotation_length_mm, occlusion_mesh,
+                  {k: v[sl] for k, v in out.items()})
+    return Measures(**out)
+
+
+_PER_FEATURE = ("fov", "fov_px", "focus", "resolution_px", "minor_axis_px", "facing", "angle_rad")
+_PER_POSE = ("sigma_min", "condition", "manipulability", "resolvability")
+
+
+def _allocate(L: int, N: int) -> dict[str, np.ndarray]:
+    out = {k: np.empty((L, N)) for k in _PER_FEATURE}
+    out.update({k: np.empty(L) for k in _PER_POSE})
+    out.update(visible=np.empty((L, N), dtype=bool), singular=np.empty(L, dtype=bool),
+               centre_px=np.empty((L, N, 2)), axes_px=np.empty((L, N, 2)))
+    return out
 
 
 def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray,
-              min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any) -> Measures:
-    """``evaluate`` on one slab of poses (validated inputs)."""
+              min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any, out: dict[str, np.ndarray]) -> None:
+    """``evaluate`` on one slab of poses (validated inputs), written into the views ``out``."""
     R, t = T[:, :3, :3], T[:, :3, 3]
     X, Y, Z = (R[:, i, :] @ c.T + t[:, i, None] for i in range(3))  # centres in the camera frames (L, N)
     nx, ny, nz = (R[:, i, :] @ n.T for i in range(3))  # axes in the camera frames
@@ -126,41 +143,54 @@ def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np
     dist = np.sqrt(np.maximum(dist2, 0.0))
     in_front = Z - r * np.sqrt(np.maximum(1.0 - nz * nz, 0.0)) > MIN_DEPTH_MM
     ell = ellipse_parts(camera, rim_conic_xyz(X, Y, Z, nx, ny, nz, nc, dist2 - r * r), in_front)
-    fov_px = image_margin_px(camera, ell.u, ell.v, ell.hu, ell.hv, ell.valid)
-    safe = np.where(dist > 0, dist, 1.0)
-    facing = np.where(dist > 0, -nc / safe, -1.0)
-    visible = ell.valid & (facing > 0) & (fov_px >= 0)
+    fov_px = out["fov_px"]
+    fov_px[...] = image_margin_px(camera, ell.u, ell.v, ell.hu, ell.hv, ell.valid)
+    inv_dist = 1.0 / np.where(dist > 0, dist, 1.0)
+    facing = out["facing"]
+    np.multiply(nc, -inv_dist, out=facing)
+    visible = out["visible"]
+    np.greater(facing, 0.0, out=visible)
+    visible &= ell.valid
+    visible &= fov_px >= 0
     if occlusion_mesh is not None:
         visible &= ~occluded(occlusion_mesh, -rt, c, n)
+    np.subtract(Z * inv_dist, np.cos(0.5 * camera.fov_rad), out=out["fov"])
+    out["focus"][...] = focus_margin_depth(camera, Z)
+    out["resolution_px"][...] = minor_axis_margin(camera, ell.minor, ell.valid, min_axis_px)
+    out["minor_axis_px"][...] = ell.minor
+    out["angle_rad"][...] = ell.angle
+    out["axes_px"][..., 0] = ell.major
+    out["axes_px"][..., 1] = ell.minor
     inv_z = 1.0 / np.maximum(Z, MIN_DEPTH_MM)
     x, y = X * inv_z, Y * inv_z
-    up, vp, *D = distort_terms(camera, x, y)
-    per_pose = _jacobian_measures(x, y, inv_z, D, visible, s, rotation_length_mm)
-    return Measures(
-        fov=np.where(dist > 0, Z / safe, -1.0) - np.cos(0.5 * camera.fov_rad), fov_px=fov_px,
-        focus=focus_margin_depth(camera, Z),
-        resolution_px=minor_axis_margin(camera, ell.minor, ell.valid, min_axis_px), minor_axis_px=ell.minor,
-        facing=facing, visible=visible,
-        centre_px=np.stack([np.where(ell.valid, ell.u, up), np.where(ell.valid, ell.v, vp)], axis=-1),
-        axes_px=np.stack([ell.major, ell.minor], axis=-1), angle_rad=ell.angle,
-        **per_pose,
-    )
+    D = distort_terms(camera, x, y, positions=False)[2:]
+    centre = out["centre_px"]
+    centre[..., 0] = ell.u
+    centre[..., 1] = ell.v
+    if not ell.valid.all():  # invalid ellipses: the (depth-clamped) projection of the centre
+        bad = ~ell.valid
+        centre[bad] = camera.distort_normalized(np.stack([x[bad], y[bad]], axis=-1))
+    _jacobian_measures(x, y, inv_z, D, visible, s, rotation_length_mm, out)
 
 
 def _jacobian_measures(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list, visible: np.ndarray,
-                       screws: np.ndarray, rotation_length_mm: float) -> dict[str, np.ndarray]:
-    """Diagnostics and Λ per pose from the visible features' Jacobians (module docstring).
+                       screws: np.ndarray, rotation_length_mm: float, out: dict[str, np.ndarray]) -> None:
+    """Diagnostics and Λ per pose from the visible features' Jacobians (module docstring), into ``out``.
 
     The Jacobian is held transposed, Jᵀ (L, 6, 2N) (rows of one column contiguous), so JᵀJ is one batched
     (6, 2N) @ (2N, 6) product: Σ_j J_jᵀ J_j over the point blocks; row order within 2N is irrelevant."""
     L, N = visible.shape
     w = visible.astype(float)
-    Dw = [d * w for d in D]  # zero weight → zero rows
-    Jt = np.stack(jacobian_columns(x, y, inv_z, Dw), axis=1).reshape(L, 6, 2 * N)
-    image_speed = np.linalg.norm((screws[:, None, :] @ Jt)[:, 0, :], axis=-1)
+    Dw = [d * w if not (np.isscalar(d) and d == 0.0) else 0.0 for d in D]  # zero weight → zero rows
+    Jt = np.empty((L, 12, N))
+    fill_jacobian([Jt[:, j] for j in range(12)], x, y, inv_z, Dw)  # the 12 entries of the 2×6 blocks
+    Jt = Jt.reshape(L, 6, 2 * N)
+    image_speed = np.linalg.norm(np.einsum("lk,lkm->lm", screws, Jt), axis=-1)
     if rotation_length_mm != 1.0:
         Jt[:, 3:, :] /= rotation_length_mm
     diag = diagnostics_from_gram(Jt @ np.swapaxes(Jt, 1, 2))
-    lam = resolvability_from_parts(np.swapaxes(Jt, 1, 2), image_speed, scale_screws(screws, rotation_length_mm),
-                                   diag["singular"], diag["sigma_min"])
-    return {**diag, "resolvability": lam}
+    out["resolvability"][...] = resolvability_from_parts(np.swapaxes(Jt, 1, 2), image_speed,
+                                                         scale_screws(screws, rotation_length_mm),
+                                                         diag["singular"], diag["sigma_min"])
+    for key, value in diag.items():
+        out[key][...] = value

@@ -26,30 +26,52 @@ SINGULAR_RTOL = 1e-6
 CONDITION_CAP = 1e12
 
 
-def _comb(da: Array, a: Array, db: Array, b: Array) -> Array:
-    """da·a + db·b, skipping terms whose coefficient is the scalar 0 (the undistorted case)."""
-    if np.isscalar(db) and db == 0.0:
-        return da * a
-    if np.isscalar(da) and da == 0.0:
-        return db * b
-    return da * a + db * b
-
-
-def jacobian_columns(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: tuple[Array, Array, Array, Array],
-                     ) -> list[Array]:
-    """The 12 entries of J = D · L (eq. 4.9–4.11) as separate arrays, ordered column by column:
-    [J_u0, J_v0, J_u1, J_v1, …, J_u5, J_v5]. x, y normalised coordinates, inv_z = 1/Z (1/mm), D = (d00, d01,
-    d10, d11) the pixel distortion Jacobian (arrays, or scalars without distortion; weights may be folded
-    into D). L = [[-1/Z, 0, x/Z, xy, -(1+x²), y], [0, -1/Z, y/Z, 1+y², -xy, -x]]."""
+def fill_jacobian(out: list[np.ndarray], x: np.ndarray, y: np.ndarray, inv_z: np.ndarray,
+                  D: tuple[Array, Array, Array, Array]) -> None:
+    """Write the 12 entries of J = D · L (eq. 4.9–4.11) into the arrays ``out`` (views of one buffer), ordered
+    column by column: [J_u0, J_v0, J_u1, J_v1, …, J_u5, J_v5]. x, y are normalised coordinates, inv_z = 1/Z
+    (1/mm), D = (d00, d01, d10, d11) the pixel distortion Jacobian (arrays, or scalars without distortion;
+    weights may be folded into D). L = [[-1/Z, 0, x/Z, xy, -(1+x²), y], [0, -1/Z, y/Z, 1+y², -xy, -x]]."""
     d00, d01, d10, d11 = D
     xy = x * y
-    l0 = (-inv_z, 0.0, x * inv_z, xy, -(1.0 + x * x), y)
-    l1 = (0.0, -inv_z, y * inv_z, 1.0 + y * y, -xy, -x)
-    cols: list[Array] = []
-    for a, b in zip(l0, l1, strict=True):
-        cols.append(_comb(d00, a, d01, b) if not (np.isscalar(a) and a == 0.0) else _comb(0.0, a, d01, b))
-        cols.append(_comb(d10, a, d11, b) if not (np.isscalar(a) and a == 0.0) else _comb(0.0, a, d11, b))
-    return cols
+    xx1 = 1.0 + x * x
+    yy1 = 1.0 + y * y
+    xiz, yiz = x * inv_z, y * inv_z
+    mul = np.multiply
+    if np.isscalar(d01) and np.isscalar(d10) and d01 == 0.0 and d10 == 0.0:  # no distortion: D diagonal
+        mul(d00, inv_z, out=out[0])
+        np.negative(out[0], out=out[0])
+        out[1][...] = 0.0
+        out[2][...] = 0.0
+        mul(d11, inv_z, out=out[3])
+        np.negative(out[3], out=out[3])
+        mul(d00, xiz, out=out[4])
+        mul(d11, yiz, out=out[5])
+        mul(d00, xy, out=out[6])
+        mul(d11, yy1, out=out[7])
+        mul(d00, xx1, out=out[8])
+        np.negative(out[8], out=out[8])
+        mul(d11, xy, out=out[9])
+        np.negative(out[9], out=out[9])
+        mul(d00, y, out=out[10])
+        mul(d11, x, out=out[11])
+        np.negative(out[11], out=out[11])
+        return
+    for row, (da, db) in enumerate(((d00, d01), (d10, d11))):  # u row, v row
+        o = out[row::2]
+        mul(da, inv_z, out=o[0])
+        np.negative(o[0], out=o[0])
+        mul(db, inv_z, out=o[1])
+        np.negative(o[1], out=o[1])
+        mul(da, xiz, out=o[2])
+        o[2] += db * yiz
+        mul(da, xy, out=o[3])
+        o[3] += db * yy1
+        mul(da, xx1, out=o[4])
+        o[4] += db * xy
+        np.negative(o[4], out=o[4])
+        mul(da, y, out=o[5])
+        o[5] -= db * x
 
 
 def image_jacobian(camera: Camera, points_cam: ArrayLike) -> np.ndarray:
@@ -62,10 +84,10 @@ def image_jacobian(camera: Camera, points_cam: ArrayLike) -> np.ndarray:
     P = np.asarray(points_cam, dtype=float)
     inv_z = 1.0 / np.maximum(P[..., 2], MIN_DEPTH_MM)
     x, y = P[..., 0] * inv_z, P[..., 1] * inv_z
-    D = distort_terms(camera, x, y)[2:]
-    cols = [np.broadcast_to(c, x.shape) for c in jacobian_columns(x, y, inv_z, D)]
-    J = np.stack(cols, axis=-1).reshape(x.shape + (6, 2))
-    return np.swapaxes(J, -1, -2).copy()
+    D = distort_terms(camera, x, y, positions=False)[2:]
+    J = np.empty(x.shape + (2, 6))
+    fill_jacobian([J[..., j % 2, j // 2] for j in range(12)], x, y, inv_z, D)
+    return J
 
 
 def stacked_jacobian(camera: Camera, points_cam: ArrayLike, weights: ArrayLike | None = None) -> np.ndarray:

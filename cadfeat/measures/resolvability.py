@@ -27,7 +27,7 @@ from cadfeat.measures.jacobian import SINGULAR_RTOL, diagnostics_from_gram, gram
 
 def scale_screws(screws: ArrayLike, rotation_length_mm: float) -> np.ndarray:
     """γ̃ = (v, ℓ ω) (..., 6), all in mm/s."""
-    _check_length(rotation_length_mm)
+    check_length(rotation_length_mm)
     s = np.array(screws, dtype=float)
     s[..., 3:] *= rotation_length_mm
     return s
@@ -35,7 +35,7 @@ def scale_screws(screws: ArrayLike, rotation_length_mm: float) -> np.ndarray:
 
 def scale_jacobian(J: ArrayLike, rotation_length_mm: float) -> np.ndarray:
     """J̃ = J diag(1, 1, 1, 1/ℓ, 1/ℓ, 1/ℓ) (..., 6): px per mm in every column."""
-    _check_length(rotation_length_mm)
+    check_length(rotation_length_mm)
     J = np.asarray(J, dtype=float)
     if rotation_length_mm == 1.0:
         return J
@@ -44,7 +44,7 @@ def scale_jacobian(J: ArrayLike, rotation_length_mm: float) -> np.ndarray:
     return J
 
 
-def _check_length(rotation_length_mm: float) -> None:
+def check_length(rotation_length_mm: float) -> None:
     if not (np.isfinite(rotation_length_mm) and rotation_length_mm > 0):
         raise CadfeatError(f"rotation_length_mm must be a positive finite length in mm, got {rotation_length_mm!r}")
 

@@ -45,8 +45,6 @@ if TYPE_CHECKING:  # pragma: no cover
 BACKGROUND_BLACK = (0.0, 0.0, 0.0)
 ELLIPSE_COLOUR_RGB = (40, 220, 60)
 CENTRE_COLOUR_RGB = (255, 60, 40)
-#: Rim points used to draw a hole's outline when ``cadfeat.measures`` is not available.
-RIM_SAMPLES = 180
 
 
 def set_vtk_camera(vtk_camera: Any, camera: Camera, T_cam_part: np.ndarray, near_far_mm: tuple[float, float]) -> None:
@@ -141,29 +139,10 @@ def _distortion_maps(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     return und[..., 0].astype(np.float32), und[..., 1].astype(np.float32)
 
 
-def hole_outlines_px(camera: Camera, holes: Sequence[Hole], T_cam_part: np.ndarray,
-                     n: int = RIM_SAMPLES) -> tuple[np.ndarray, np.ndarray]:
-    """Projected entrance rims (N, n, 2) px and a mask (N,) of rims entirely in front of the camera."""
+def predicted_ellipses(camera: Camera, holes: Sequence[Hole], T_cam_part: np.ndarray) -> Any:
+    """``cadfeat.measures.hole_ellipse`` of the holes' entrance rims at one pose ``T_cam_part`` (4, 4)."""
     from cadfeat.features import holes_to_arrays
-
-    centres, axes, radii = holes_to_arrays(holes)
-    u = np.cross(axes, np.where(np.abs(axes[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    w = np.cross(axes, u)
-    phi = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
-    rim = centres[:, None] + radii[:, None, None] * (np.cos(phi)[None, :, None] * u[:, None]
-                                                     + np.sin(phi)[None, :, None] * w[:, None])
-    rim_cam = rim @ T_cam_part[:3, :3].T + T_cam_part[:3, 3]
-    return camera.project(rim_cam), np.all(rim_cam[..., 2] > 0.0, axis=1)
-
-
-def predicted_ellipses(camera: Camera, holes: Sequence[Hole], T_cam_part: np.ndarray) -> Any | None:
-    """``measures.hole_ellipse`` of the holes at one pose, or None when ``cadfeat.measures`` is absent."""
-    try:
-        from cadfeat.measures import hole_ellipse
-    except ImportError:
-        return None
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.measures import hole_ellipse
 
     centres, axes, radii = holes_to_arrays(holes)
     R, t = T_cam_part[:3, :3], T_cam_part[:3, 3]
@@ -171,38 +150,32 @@ def predicted_ellipses(camera: Camera, holes: Sequence[Hole], T_cam_part: np.nda
 
 
 def draw_hole_overlay(image: np.ndarray, camera: Camera, holes: Sequence[Hole], T_cam_part: np.ndarray) -> np.ndarray:
-    """Copy of ``image`` with the predicted ellipse (green) and projected centre (red) of each hole in view.
-
-    Ellipses come from ``cadfeat.measures.hole_ellipse`` (the exact conic of the rim); without that
-    module, the projected rim polygon is drawn instead. Holes behind the camera are skipped.
-    """
+    """Copy of ``image`` with each hole's predicted rim ellipse (green, ``measures.hole_ellipse``), its
+    projected centre (red cross, ``Camera.project``) and its name. Holes whose rim is not wholly in
+    front of the camera (invalid ellipse) are skipped."""
     import cv2
 
     from cadfeat.features import holes_to_arrays
 
     out = np.ascontiguousarray(image.copy())
     centres, _, _ = holes_to_arrays(holes)
-    centres_cam = centres @ T_cam_part[:3, :3].T + T_cam_part[:3, 3]
-    rims, in_front = hole_outlines_px(camera, holes, T_cam_part)
     ellipses = predicted_ellipses(camera, holes, T_cam_part)
-    centre_px = camera.project(centres_cam)
+    centre_px = camera.project(centres @ T_cam_part[:3, :3].T + T_cam_part[:3, 3])
     shift = 4  # cv2 sub-pixel drawing: coordinates scaled by 2**shift
     scale = 1 << shift
-    for j in np.flatnonzero(in_front & np.all(np.isfinite(rims), axis=(1, 2))):
-        if ellipses is not None:
-            c = np.asarray(ellipses.centre_px)[j]
-            ax = np.asarray(ellipses.axes_px)[j]
-            angle = math.degrees(float(np.asarray(ellipses.angle_rad)[j]))
-            cv2.ellipse(out, (int(round(c[0] * scale)), int(round(c[1] * scale))),
-                        (int(round(ax[0] / 2 * scale)), int(round(ax[1] / 2 * scale))), angle, 0, 360,
-                        ELLIPSE_COLOUR_RGB, 1, cv2.LINE_AA, shift)
-        else:
-            poly = np.round(rims[j] * scale).astype(np.int32)[:, None, :]
-            cv2.polylines(out, [poly], True, ELLIPSE_COLOUR_RGB, 1, cv2.LINE_AA, shift)
-        p = centre_px[j]
-        cv2.drawMarker(out, (int(round(p[0])), int(round(p[1]))), CENTRE_COLOUR_RGB, cv2.MARKER_CROSS, 7, 1)
-        cv2.putText(out, holes[j].name or str(j), (int(round(p[0])) + 6, int(round(p[1])) - 6),
-                    cv2.FONT_HERSHEY_SIMPLEX, 0.4, CENTRE_COLOUR_RGB, 1, cv2.LINE_AA)
+    limit = 4.0 * max(camera.width, camera.height)  # cv2 drawing needs bounded integers
+    for j in np.flatnonzero(np.asarray(ellipses.valid)):
+        c, ax = np.asarray(ellipses.centre_px)[j], np.asarray(ellipses.axes_px)[j]
+        if not (np.all(np.isfinite(c)) and np.all(np.abs(c) < limit) and 0 < ax[0] < limit):
+            continue
+        angle = math.degrees(float(np.asarray(ellipses.angle_rad)[j]))
+        cv2.ellipse(out, (int(round(c[0] * scale)), int(round(c[1] * scale))),
+                    (int(round(ax[0] / 2 * scale)), int(round(ax[1] / 2 * scale))), angle, 0, 360,
+                    ELLIPSE_COLOUR_RGB, 1, cv2.LINE_AA, shift)
+        p = np.round(centre_px[j]).astype(int)
+        cv2.drawMarker(out, (int(p[0]), int(p[1])), CENTRE_COLOUR_RGB, cv2.MARKER_CROSS, 7, 1)
+        cv2.putText(out, holes[j].name or str(j), (int(p[0]) + 6, int(p[1]) - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                    CENTRE_COLOUR_RGB, 1, cv2.LINE_AA)
     return out
 
 

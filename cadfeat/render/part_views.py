@@ -21,6 +21,8 @@ import numpy as np
 from cadfeat.poses import invert_T
 from cadfeat.render.scene import (
     HOLE_DARK,
+    PICTURE_ANGULAR_TOLERANCE_RAD,
+    PICTURE_TOLERANCE_MM,
     RenderError,
     add_part,
     cell_colours,
@@ -102,7 +104,7 @@ def render_part(shape: Any, path: str | Path, holes: Sequence[Hole] | None = Non
 
     holes = extract_holes(shape) if holes is None else list(holes)
     direction = default_view_direction(holes) if view_direction is None else _unit(view_direction, "view_direction")
-    mesh = shape_polydata(shape)
+    mesh = _picture_mesh(shape)
     plotter = new_plotter(size)
     try:
         plotter.enable_anti_aliasing("ssaa")
@@ -113,6 +115,10 @@ def render_part(shape: Any, path: str | Path, holes: Sequence[Hole] | None = Non
         return _save(plotter, path)
     finally:
         plotter.close()
+
+
+def _picture_mesh(shape: Any) -> Any:
+    return shape_polydata(shape, PICTURE_TOLERANCE_MM, PICTURE_ANGULAR_TOLERANCE_RAD)
 
 
 def _hole_name(hole: Hole, index: int) -> str:
@@ -205,7 +211,7 @@ class _Scene:
         self.before, self.after = list(holes_before), list(holes_after)
         self.fixed = np.asarray(fixed, dtype=bool)
         self.moved = _moved_mask(self.before, self.after) & ~self.fixed
-        self.mesh_before, self.mesh_after = shape_polydata(shape_before), shape_polydata(shape_after)
+        self.mesh_before, self.mesh_after = _picture_mesh(shape_before), _picture_mesh(shape_after)
         pts = np.vstack([self.mesh_before.points, self.mesh_after.points])
         self.size_mm = float(np.linalg.norm(np.ptp(pts, axis=0)))
         self.T_part_cam = T_part_cam

@@ -1,0 +1,402 @@
+"""Mechanical (kept) functional requirements F_1..F_n (thesis §2.2.2) as constraint margins ≥ 0.
+
+Two independent forms:
+
+- ``constraint_margins`` / ``ConstraintSet``: the fast 2-D form the optimiser uses, batched over designs.
+  Each moving hole's centre is projected into its host face's 2-D frame (``FaceOutline``, from the reference
+  holes) and measured against the face's outer polygon and keep-out polygons:
+
+  * ``edge``:     signed distance(centre, outer polygon) − r − edge_distance_mm (inside positive);
+  * ``keepout``:  distance(centre, keep-out polygon) − r − keepout_mm (outside positive);
+  * ``ligament``: ‖c_i − c_j‖ − r_i − r_j − ligament_mm for hole pairs on the same host face (at least one
+    moving);
+  * ``symmetry``: symmetry_tol_mm − (‖mirror(c_i) − c_j‖ + |r_i − r_j|) for declared mirror pairs;
+  * ``volume``:   max_frac · V0 − |Σ π (r² − r0²) depth| (cylindrical approximation of each hole's volume).
+
+  Bounds, fixed holes (no variables), standard sizes and patterns are handled by the design space.
+
+- ``verify_on_brep``: the same requirements measured on the REAL rebuilt solid: holes re-extracted,
+  distances between the rim circle edges and the host face's wires by OCCT ``BRepExtrema_DistShapeShape``.
+  It shares no code with the 2-D form.
+
+Units: mm; margins positive = satisfied.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cadfeat.errors import CadfeatError
+from cadfeat.features import Hole, holes_to_arrays
+
+__all__ = [
+    "ConstraintCheck",
+    "ConstraintConfig",
+    "ConstraintSet",
+    "SymmetryPair",
+    "constraint_margins",
+    "point_polygon_distance",
+    "verify_on_brep",
+]
+
+
+@dataclass(frozen=True)
+class SymmetryPair:
+    """Holes ``i`` and ``j`` mirror each other in the plane through ``point`` (3,) mm with ``normal`` (3,)."""
+
+    i: int
+    j: int
+    point: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    normal: tuple[float, float, float] = (1.0, 0.0, 0.0)
+
+    def reflect(self, p: np.ndarray) -> np.ndarray:
+        n = np.asarray(self.normal, float) / np.linalg.norm(self.normal)
+        d = (np.asarray(p, float) - np.asarray(self.point, float)) @ n
+        return p - 2.0 * d[..., None] * n
+
+
+@dataclass(frozen=True)
+class ConstraintConfig:
+    """Kept requirements (mm). ``keepout_mm`` defaults to ``ligament_mm``; ``volume_change_max_frac`` needs
+    ``part_volume_mm3`` (V0); ``symmetry`` lists mirror pairs checked to ``symmetry_tol_mm``."""
+
+    edge_distance_mm: float = 1.0
+    ligament_mm: float = 1.0
+    keepout_mm: float | None = None
+    volume_change_max_frac: float | None = None
+    part_volume_mm3: float | None = None
+    symmetry: tuple[SymmetryPair, ...] = ()
+    symmetry_tol_mm: float = 1e-3
+    fixed_tol_mm: float = 1e-6
+
+    def __post_init__(self) -> None:
+        for key in ("edge_distance_mm", "ligament_mm"):
+            if not np.isfinite(getattr(self, key)) or getattr(self, key) < 0:
+                raise CadfeatError(f"constraints.{key}: must be a number ≥ 0 (mm), got {getattr(self, key)!r}")
+        if self.volume_change_max_frac is not None and not (0 <= self.volume_change_max_frac):
+            raise CadfeatError("constraints.volume_change_max_frac: must be ≥ 0, got "
+                               f"{self.volume_change_max_frac!r}")
+        object.__setattr__(self, "symmetry", tuple(self.symmetry))
+
+    @property
+    def keepout(self) -> float:
+        return self.ligament_mm if self.keepout_mm is None else float(self.keepout_mm)
+
+
+@dataclass(frozen=True)
+class ConstraintCheck:
+    """One kept requirement measured on a design: ``margin = value − required`` (for "≤" requirements,
+    ``required − value``), ``ok = margin ≥ −tolerance``."""
+
+    name: str
+    holes: list[str]
+    required: float
+    value: float
+    margin: float
+    unit: str
+    ok: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "holes": list(self.holes), "required": float(self.required),
+                "value": float(self.value), "margin": float(self.margin), "unit": self.unit, "ok": bool(self.ok)}
+
+
+# --------------------------------------------------------------------------------------- 2-D geometry
+def _pad_polygons(polygons: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Segments of K closed polygons padded to the longest: starts (K,S,2), ends (K,S,2), valid (K,S)."""
+    s_max = max((len(p) for p in polygons), default=0)
+    k = len(polygons)
+    a = np.zeros((k, s_max, 2))
+    b = np.zeros((k, s_max, 2))
+    valid = np.zeros((k, s_max), dtype=bool)
+    for i, p in enumerate(polygons):  # set-up only, once per problem
+        p = np.asarray(p, dtype=float)
+        a[i, :len(p)] = p
+        b[i, :len(p)] = np.roll(p, -1, axis=0)
+        valid[i, :len(p)] = True
+    return a, b, valid
+
+
+def point_polygon_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray,
+                           valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (..., K) mm from points (..., K, 2) to polygon k's boundary, and inside (..., K) bool.
+
+    ``a``, ``b``, ``valid`` from ``_pad_polygons``. Inside by the even–odd crossing rule.
+    """
+    p = points[..., None, :]  # (..., K, 1, 2)
+    ab = b - a
+    len2 = np.maximum(np.sum(ab * ab, axis=-1), 1e-300)
+    t = np.clip(np.sum((p - a) * ab, axis=-1) / len2, 0.0, 1.0)
+    d = np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+    d = np.where(valid, d, np.inf).min(axis=-1)
+    px, py = p[..., 0], p[..., 1]
+    ay, by = a[..., 1], b[..., 1]
+    straddle = (ay > py) != (by > py)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_cross = a[..., 0] + (py - ay) * ab[..., 0] / np.where(straddle, by - ay, 1.0)
+    crossings = np.sum(straddle & (px < x_cross) & valid, axis=-1)
+    return d, crossings % 2 == 1
+
+
+def _same_face(h1: Hole, h2: Hole, tol: float = 1e-6) -> bool:
+    if h1.host_face == h2.host_face:
+        return True
+    if h1.outline is None or h2.outline is None:
+        return False
+    n1, n2 = h1.outline.normal, h2.outline.normal
+    return bool(np.dot(n1, n2) > 1 - 1e-9 and abs(np.dot(h2.outline.origin - h1.outline.origin, n1)) < tol
+                and np.allclose(h1.outline.outer, h2.outline.outer))
+
+
+def _label(holes: Sequence[Hole], i: int) -> str:
+    return holes[i].name or f"H{i + 1}"
+
+
+class ConstraintSet:
+    """The 2-D constraints of one problem, compiled once (index arrays, padded polygons) and then evaluated
+    batched: ``margins(centres (...,N,3), radii (...,N)) -> {name: (..., M_name)}``."""
+
+    def __init__(self, holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool]):
+        self.holes = list(holes)
+        self.config = config
+        fixed = np.asarray(fixed_mask, dtype=bool).reshape(-1)
+        if fixed.size != len(self.holes):
+            raise CadfeatError(f"fixed_mask has {fixed.size} entries for {len(self.holes)} holes")
+        self.fixed = fixed
+        moving = [i for i in range(len(self.holes)) if not fixed[i]]
+        self._c0, _, self._r0 = holes_to_arrays(self.holes)
+        # edge: moving holes on planar faces
+        self.edge_idx = np.array([i for i in moving if self.holes[i].outline is not None], dtype=int)
+        outlines = [self.holes[i].outline for i in self.edge_idx]
+        self._edge_poly = _pad_polygons([o.outer for o in outlines])
+        self._edge_frames = self._frames(outlines)
+        # keep-outs: (hole, keep-out polygon) pairs
+        ko = [(i, k) for i in self.edge_idx for k in self.holes[i].outline.keepouts]
+        self.keepout_idx = np.array([i for i, _ in ko], dtype=int)
+        self._ko_poly = _pad_polygons([k for _, k in ko])
+        self._ko_frames = self._frames([self.holes[i].outline for i, _ in ko])
+        # ligaments
+        n = len(self.holes)
+        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)
+                 if not (fixed[i] and fixed[j]) and _same_face(self.holes[i], self.holes[j])]
+        self.pairs = np.array(pairs, dtype=int).reshape(-1, 2)
+        self._depth = np.array([h.depth_mm for h in self.holes], dtype=float)
+        if config.volume_change_max_frac is not None and not config.part_volume_mm3:
+            raise CadfeatError("constraints.volume_change_max_frac needs the part volume (part_volume_mm3)")
+        for s in config.symmetry:
+            if not (0 <= s.i < n and 0 <= s.j < n):
+                raise CadfeatError(f"constraints.symmetry: pair ({s.i}, {s.j}) outside holes 0..{n - 1}")
+
+    @staticmethod
+    def _frames(outlines: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if not outlines:
+            return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
+        return (np.stack([o.origin for o in outlines]), np.stack([o.u for o in outlines]),
+                np.stack([o.v for o in outlines]))
+
+    @staticmethod
+    def _to_face(points: np.ndarray, frames: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+        origin, u, v = frames
+        d = points - origin
+        return np.stack([np.sum(d * u, axis=-1), np.sum(d * v, axis=-1)], axis=-1)
+
+    def labels(self) -> dict[str, list[list[str]]]:
+        """Hole names of each margin entry, per constraint kind (same order as ``margins``)."""
+        h = self.holes
+        out = {"edge": [[_label(h, i)] for i in self.edge_idx],
+               "keepout": [[_label(h, i)] for i in self.keepout_idx],
+               "ligament": [[_label(h, i), _label(h, j)] for i, j in self.pairs],
+               "symmetry": [[_label(h, s.i), _label(h, s.j)] for s in self.config.symmetry]}
+        if self.config.volume_change_max_frac is not None:
+            out["volume"] = [[]]
+        return out
+
+    def margins(self, centres: np.ndarray, radii: np.ndarray) -> dict[str, np.ndarray]:
+        """Margins (mm or mm³) ≥ 0 feasible, each (..., M_kind), for centres (..., N, 3), radii (..., N)."""
+        centres = np.asarray(centres, dtype=float)
+        radii = np.asarray(radii, dtype=float)
+        cfg = self.config
+        out: dict[str, np.ndarray] = {}
+        if self.edge_idx.size:
+            st = self._to_face(centres[..., self.edge_idx, :], self._edge_frames)
+            d, inside = point_polygon_distance(st, *self._edge_poly)
+            out["edge"] = np.where(inside, d, -d) - radii[..., self.edge_idx] - cfg.edge_distance_mm
+        else:
+            out["edge"] = np.zeros(radii.shape[:-1] + (0,))
+        if self.keepout_idx.size:
+            st = self._to_face(centres[..., self.keepout_idx, :], self._ko_frames)
+            d, inside = point_polygon_distance(st, *self._ko_poly)
+            out["keepout"] = np.where(inside, -d, d) - radii[..., self.keepout_idx] - cfg.keepout
+        else:
+            out["keepout"] = np.zeros(radii.shape[:-1] + (0,))
+        i, j = self.pairs[:, 0], self.pairs[:, 1]
+        out["ligament"] = (np.linalg.norm(centres[..., i, :] - centres[..., j, :], axis=-1)
+                           - radii[..., i] - radii[..., j] - cfg.ligament_mm)
+        if cfg.symmetry:
+            si = np.array([s.i for s in cfg.symmetry])
+            sj = np.array([s.j for s in cfg.symmetry])
+            mirrored = np.stack([s.reflect(centres[..., s.i, :]) for s in cfg.symmetry], axis=-2)
+            err = np.linalg.norm(mirrored - centres[..., sj, :], axis=-1) + np.abs(radii[..., si] - radii[..., sj])
+            out["symmetry"] = cfg.symmetry_tol_mm - err
+        else:
+            out["symmetry"] = np.zeros(radii.shape[:-1] + (0,))
+        if cfg.volume_change_max_frac is not None:
+            dv = np.sum(np.pi * (radii ** 2 - self._r0 ** 2) * self._depth, axis=-1)
+            out["volume"] = (cfg.volume_change_max_frac * cfg.part_volume_mm3 - np.abs(dv))[..., None]
+        return out
+
+    def stacked(self, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """All margins concatenated (..., M)."""
+        return np.concatenate(list(self.margins(centres, radii).values()), axis=-1)
+
+
+def constraint_margins(centres: np.ndarray, radii: np.ndarray, holes: Sequence[Hole], config: ConstraintConfig,
+                       fixed_mask: Sequence[bool]) -> dict[str, np.ndarray]:
+    """The 2-D constraint margins (see module docstring) of a design: ``{kind: (..., M_kind)}``.
+
+    ``holes`` are the reference holes (host face outlines, depths, names); ``centres`` (..., N, 3) mm and
+    ``radii`` (..., N) mm the design's features in the same order. For repeated calls build a
+    ``ConstraintSet`` once."""
+    return ConstraintSet(holes, config, fixed_mask).margins(centres, radii)
+
+
+# ------------------------------------------------------------------------------------ B-rep verification
+@dataclass
+class _RealHole:
+    hole: Hole
+    rim_edges: list = field(default_factory=list)
+
+
+def _circle_edges(face: Any, centre: np.ndarray, radius: float, tol: float) -> list:
+    """The circular edges of ``face`` (OCP) with centre ``centre`` and ``radius`` (the hole's rim)."""
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
+    from OCP.GeomAbs import GeomAbs_Circle
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    out = []
+    exp = TopExp_Explorer(face, TopAbs_EDGE)
+    while exp.More():
+        edge = TopoDS.Edge_s(exp.Current())
+        curve = BRepAdaptor_Curve(edge)
+        if curve.GetType() == GeomAbs_Circle:
+            circ = curve.Circle()
+            loc = circ.Location()
+            c = np.array([loc.X(), loc.Y(), loc.Z()])
+            if np.linalg.norm(c - centre) < tol and abs(circ.Radius() - radius) < tol:
+                out.append(edge)
+        exp.Next()
+    return out
+
+
+def _is_hole_wire(wire: Any, holes: Sequence[Hole], tol: float = 1e-5) -> bool:
+    """True if every edge of ``wire`` (cadquery Wire) is a circle centred on some hole's axis line (a rim
+    or exit of a hole, not a keep-out)."""
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
+    from OCP.GeomAbs import GeomAbs_Circle
+
+    for edge in wire.Edges():
+        curve = BRepAdaptor_Curve(edge.wrapped)
+        if curve.GetType() != GeomAbs_Circle:
+            return False
+        loc = curve.Circle().Location()
+        c = np.array([loc.X(), loc.Y(), loc.Z()])
+        if not any(np.linalg.norm(np.cross(c - h.centre, h.axis)) < tol for h in holes):
+            return False
+    return True
+
+
+def _min_distance(shapes_a: Sequence[Any], shapes_b: Sequence[Any]) -> float:
+    """Minimum distance (mm) between two sets of OCP shapes (``BRepExtrema_DistShapeShape``)."""
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+
+    best = np.inf
+    for a in shapes_a:
+        for b in shapes_b:
+            dist = BRepExtrema_DistShapeShape(a, b)
+            if not dist.IsDone():
+                raise CadfeatError("verify_on_brep: OCCT distance computation failed")
+            best = min(best, dist.Value())
+    return float(best)
+
+
+def _check(name: str, holes: list[str], required: float, value: float, unit: str, tol: float,
+           at_most: bool = False) -> ConstraintCheck:
+    margin = (required - value) if at_most else (value - required)
+    return ConstraintCheck(name, holes, float(required), float(value), float(margin), unit, bool(margin >= -tol))
+
+
+def verify_on_brep(shape: Any, design_holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool],
+                   reference: Sequence[Hole] | None = None, *, match_tol_mm: float = 1e-3,
+                   reference_shape: Any = None, tol_mm: float = 1e-6) -> list[ConstraintCheck]:
+    """Measure the kept requirements on the real solid ``shape`` (independent of the 2-D form).
+
+    Holes are re-extracted from ``shape`` and matched to ``design_holes`` by geometry (``match_tol_mm``).
+    Per moving hole: ``edge`` — OCCT distance from its rim circle edge(s) to its host face's outer wire,
+    ≥ edge_distance_mm (a hole that breaks out of the face gets 0); ``keepout`` — to the face's inner
+    wires that are not hole rims. Per pair on one face (one moving): ``ligament`` — rim-to-rim distance
+    ≥ ligament_mm. With ``reference`` (the original holes, same order): ``fixed`` — fixed holes unchanged
+    (centre and radius error ≤ ``config.fixed_tol_mm``). ``symmetry`` pairs on the extracted holes.
+    ``volume`` — |V − V0| / V0 ≤ max_frac with ``reference_shape``. A missing hole gives a failed
+    ``holes_match`` check. ``tol_mm`` is the numerical tolerance of ``ok``.
+    """
+    from cadfeat.features import as_shape, extract_holes, match_holes
+
+    solid = as_shape(shape)
+    design_holes = list(design_holes)
+    fixed = np.asarray(fixed_mask, dtype=bool)
+    names = [_label(design_holes, i) for i in range(len(design_holes))]
+    real = extract_holes(solid)
+    try:
+        idx = match_holes(design_holes, real, tol_mm=match_tol_mm)
+    except CadfeatError as exc:
+        return [ConstraintCheck("holes_match", names, 0.0, float("inf"), -float("inf"), "mm", False)
+                ] + [ConstraintCheck("holes_match_error", [str(exc)], 0.0, 0.0, 0.0, "", False)]
+    holes = [real[k] for k in idx]
+    c_d, _, r_d = holes_to_arrays(design_holes)
+    c_r, _, r_r = holes_to_arrays(holes)
+    err = float(np.max(np.linalg.norm(c_r - c_d, axis=1) + np.abs(r_r - r_d), initial=0.0))
+    checks = [_check("holes_match", names, match_tol_mm, err, "mm", 0.0, at_most=True)]
+    faces = solid.Faces()
+    rims = [_circle_edges(faces[h.host_face].wrapped, h.centre, h.radius_mm, 1e-5) for h in holes]
+    for i, h in enumerate(holes):
+        if fixed[i] or h.outline is None:
+            continue
+        face = faces[h.host_face]
+        if not rims[i]:
+            checks.append(ConstraintCheck("edge", [names[i]], config.edge_distance_mm, 0.0,
+                                          -config.edge_distance_mm, "mm", False))
+            continue
+        value = _min_distance(rims[i], [face.outerWire().wrapped])
+        checks.append(_check("edge", [names[i]], config.edge_distance_mm, value, "mm", tol_mm))
+        inner = [w.wrapped for w in face.innerWires() if not _is_hole_wire(w, real)]
+        if inner:
+            value = _min_distance(rims[i], inner)
+            checks.append(_check("keepout", [names[i]], config.keepout, value, "mm", tol_mm))
+    for i in range(len(holes)):
+        for j in range(i + 1, len(holes)):
+            if (fixed[i] and fixed[j]) or holes[i].host_face != holes[j].host_face or not (rims[i] and rims[j]):
+                continue
+            value = _min_distance(rims[i], rims[j])
+            checks.append(_check("ligament", [names[i], names[j]], config.ligament_mm, value, "mm", tol_mm))
+    if reference is not None:
+        c0, _, r0 = holes_to_arrays(list(reference))
+        for i in np.flatnonzero(fixed):
+            e = float(np.linalg.norm(c_r[i] - c0[i]) + abs(r_r[i] - r0[i]))
+            checks.append(_check("fixed", [names[i]], config.fixed_tol_mm, e, "mm", 0.0, at_most=True))
+    for s in config.symmetry:
+        e = float(np.linalg.norm(s.reflect(c_r[s.i]) - c_r[s.j]) + abs(r_r[s.i] - r_r[s.j]))
+        checks.append(_check("symmetry", [names[s.i], names[s.j]], config.symmetry_tol_mm, e, "mm", tol_mm,
+                             at_most=True))
+    if config.volume_change_max_frac is not None and reference_shape is not None:
+        from cadfeat.export import shape_volume_mm3
+
+        v0 = shape_volume_mm3(as_shape(reference_shape))
+        frac = abs(shape_volume_mm3(solid) - v0) / v0
+        checks.append(_check("volume", [], config.volume_change_max_frac, frac, "fraction", 1e-9, at_most=True))
+    return checks

@@ -1,0 +1,264 @@
+"""Objectives: the measures aggregated over the trajectory, normalised and combined (thesis §3.4, §4.2.3, §5.4).
+
+Per pose k, each measure is first reduced over the N features (``feature_reduce``; default ``"min"``, the
+worst feature, because the thesis's visual constraints — FOV eq. 3.3, focus eq. 3.6, resolution eq. 3.22 —
+must hold for *every* feature; the thesis does not state its per-pose reduction). Only the features the
+design can change count (``feature_mask``: the moving holes; all features when none moves) — a fixed hole's
+FOV/focus/resolution cannot be improved, and as the worst feature it would flatten the objective.
+Resolvability Λ_k
+(eq. 4.27–4.32) is already one number per pose. Then over the L poses (``aggregate``):
+
+- ``"sum"``: g = Σ_k Λ_k — the thesis (eq. 3.24 for FOV/FOC/RES, eq. 4.33 for Λ);
+- ``"mean"``: the sum / L;
+- ``"min"``: the worst pose;
+- ``"smoothmin"``: g = m − (s/β) log( (1/L) Σ_k exp(−β (Λ_k − m)/s) ), m = min_k Λ_k, s = the measure's
+  natural unit (``natural_units``), β = ``smoothmin_beta`` (dimensionless, default 20). It lies between
+  the min (β → ∞; within s·log(L)/β of it) and the mean (β → 0), and is smooth.
+
+Objective names: g_FOV (cone margin eq. 3.3, or the image margin in px with ``fov_measure="image"``),
+g_FOC (focus margin eq. 3.4–3.6), g_RES (minor axis − ω in px, §3.3.3), g_DIR (Λ, px/mm, eq. 4.33).
+All are "larger is better". Combination of the normalised objectives ĝ_i = g_i / scale_i (``Normaliser``):
+
+- ``"weighted"``: maximise Σ w_i ĝ_i (eq. 2.6, weights default 1);
+- ``"maxmin"``: maximise min_i ĝ_i (eq. 3.26, 5.2);
+- ``"constraint"``: the measures with a ``thresholds`` entry become hard constraints g_i ≥ threshold_i (raw
+  units of the aggregated objective); the others are maximised as a weighted sum (if none is left: the
+  smallest normalised slack is maximised);
+- ``"pareto"``: the vector ĝ (NSGA-II), the max-min point of the front is the chosen design.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cadfeat.errors import CadfeatError
+
+__all__ = [
+    "AGGREGATES",
+    "COMBINES",
+    "FEATURE_REDUCTIONS",
+    "MEASURES",
+    "NORMALISATIONS",
+    "Normaliser",
+    "ObjectiveConfig",
+    "aggregate",
+    "combine",
+    "natural_units",
+    "objective_values",
+    "per_pose_values",
+]
+
+#: measure key → objective name
+MEASURES = {"fov": "g_FOV", "focus": "g_FOC", "resolution": "g_RES", "resolvability": "g_DIR"}
+AGGREGATES = ("sum", "mean", "min", "smoothmin")
+COMBINES = ("weighted", "maxmin", "constraint", "pareto")
+FEATURE_REDUCTIONS = ("min", "mean", "sum")
+NORMALISATIONS = ("initial", "natural", "none")
+TINY_REL = 1e-3  # |g(x0)| below TINY_REL × natural unit → the natural unit is the scale
+
+
+def _choice(key: str, value: Any, allowed: Sequence[str]) -> None:
+    if value not in allowed:
+        raise CadfeatError(f"objective.{key}: {value!r} is not one of {', '.join(map(repr, allowed))}")
+
+
+@dataclass(frozen=True)
+class ObjectiveConfig:
+    """How the measures become objectives (see the module docstring). ``weights``/``thresholds`` are keyed
+    by measure ("fov", ...) or objective name ("g_FOV", ...)."""
+
+    measures: tuple[str, ...] = ("fov", "focus", "resolution", "resolvability")
+    aggregate: str = "sum"
+    combine: str = "maxmin"
+    weights: Mapping[str, float] = field(default_factory=dict)
+    thresholds: Mapping[str, float] = field(default_factory=dict)
+    smoothmin_beta: float = 20.0
+    min_axis_px: float = 5.0
+    rotation_length_mm: float = 1.0
+    feature_reduce: str = "min"
+    fov_measure: str = "cone"
+    normalisation: str = "initial"
+
+    def __post_init__(self) -> None:
+        measures = tuple(self.measures)
+        if not measures:
+            raise CadfeatError(f"objective.measures: give at least one of {', '.join(MEASURES)}")
+        for m in measures:
+            _choice("measures", m, tuple(MEASURES))
+        if len(set(measures)) != len(measures):
+            raise CadfeatError(f"objective.measures: duplicates in {list(measures)}")
+        object.__setattr__(self, "measures", measures)
+        _choice("aggregate", self.aggregate, AGGREGATES)
+        _choice("combine", self.combine, COMBINES)
+        _choice("feature_reduce", self.feature_reduce, FEATURE_REDUCTIONS)
+        _choice("fov_measure", self.fov_measure, ("cone", "image"))
+        _choice("normalisation", self.normalisation, NORMALISATIONS)
+        if not (self.smoothmin_beta > 0):
+            raise CadfeatError(f"objective.smoothmin_beta: must be > 0, got {self.smoothmin_beta!r}")
+        object.__setattr__(self, "weights", {self.key(k): float(v) for k, v in dict(self.weights).items()})
+        object.__setattr__(self, "thresholds", {self.key(k): float(v) for k, v in dict(self.thresholds).items()})
+        for k, w in self.weights.items():
+            if k not in measures or not (w >= 0):
+                raise CadfeatError(f"objective.weights: {k!r} must be one of the chosen measures "
+                                   f"{list(measures)} with a weight ≥ 0, got {w!r}")
+        for k in self.thresholds:
+            if k not in measures:
+                raise CadfeatError(f"objective.thresholds: {k!r} is not one of the chosen measures {list(measures)}")
+        if self.combine == "constraint" and not self.thresholds:
+            raise CadfeatError("objective.thresholds: combine = 'constraint' needs at least one threshold")
+
+    @staticmethod
+    def key(name: str) -> str:
+        """Measure key of a measure or objective name ("g_FOV" → "fov")."""
+        inverse = {v: k for k, v in MEASURES.items()}
+        return inverse.get(name, name)
+
+    @property
+    def names(self) -> list[str]:
+        """Objective names in order (g_FOV, ...)."""
+        return [MEASURES[m] for m in self.measures]
+
+    @property
+    def objective_measures(self) -> list[str]:
+        """The measures that are objectives (not thresholded constraints)."""
+        if self.combine != "constraint":
+            return list(self.measures)
+        return [m for m in self.measures if m not in self.thresholds]
+
+
+# ------------------------------------------------------------------------------------- aggregation
+def _reduce_features(values: np.ndarray, how: str) -> np.ndarray:
+    if values.shape[-1] == 0:
+        return np.zeros(values.shape[:-1])
+    return {"min": np.min, "mean": np.mean, "sum": np.sum}[how](values, axis=-1)
+
+
+def per_pose_values(measures: Any, config: ObjectiveConfig,
+                    feature_mask: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Per-pose value (..., L) of each chosen measure: the features selected by ``feature_mask`` (N,) bool
+    (default all) reduced by ``config.feature_reduce``; resolvability uses every feature (the Jacobian)."""
+    out = {}
+    mask = None if feature_mask is None or not np.any(feature_mask) else np.asarray(feature_mask, dtype=bool)
+    for m in config.measures:
+        if m == "resolvability":
+            out[m] = np.asarray(measures.resolvability, dtype=float)
+            continue
+        attr = {"fov": "fov" if config.fov_measure == "cone" else "fov_px", "focus": "focus",
+                "resolution": "resolution_px"}[m]
+        values = np.asarray(getattr(measures, attr), dtype=float)
+        out[m] = _reduce_features(values if mask is None else values[..., mask], config.feature_reduce)
+    return out
+
+
+def aggregate(values: np.ndarray, how: str, beta: float = 20.0, unit: float = 1.0) -> np.ndarray:
+    """Aggregate per-pose values (..., L) over the trajectory (module docstring): (...)."""
+    v = np.asarray(values, dtype=float)
+    if how == "sum":
+        return v.sum(axis=-1)
+    if how == "mean":
+        return v.mean(axis=-1)
+    if how == "min":
+        return v.min(axis=-1)
+    if how == "smoothmin":
+        m = v.min(axis=-1)
+        z = np.exp(-beta * (v - m[..., None]) / unit)
+        return m - (unit / beta) * np.log(z.mean(axis=-1))
+    raise CadfeatError(f"objective.aggregate: {how!r} is not one of {', '.join(AGGREGATES)}")
+
+
+def objective_values(measures: Any, config: ObjectiveConfig, units: Mapping[str, float] | None = None,
+                     feature_mask: np.ndarray | None = None) -> dict[str, float]:
+    """The aggregated objectives {g_FOV, g_FOC, g_RES, g_DIR} (those chosen) of one ``Measures``; ``units``
+    (measure → natural unit, ``natural_units``) sets the smooth-min scale (1 if not given);
+    ``feature_mask`` as in ``per_pose_values``."""
+    units = units or {}
+    out = {}
+    for m, v in per_pose_values(measures, config, feature_mask).items():
+        out[MEASURES[m]] = float(aggregate(v, config.aggregate, config.smoothmin_beta, units.get(m, 1.0)))
+    return out
+
+
+def natural_units(config: ObjectiveConfig, camera: Any, n_poses: int, n_features: int,
+                  median_depth_mm: float) -> dict[str, float]:
+    """A natural unit of each aggregated objective (measure key → value), used when the initial value is tiny
+    and for the smooth min: per pose —
+
+    - fov (cone): 1 − cos(α/2), the margin of a feature on the optical axis (the measure's range);
+      (image): half the smaller image side, px;
+    - focus: 1 (the margin is normalised by the half depth of field);
+    - resolution: ω = min_axis_px (px; 1 px if ω = 0);
+    - resolvability: √N · f_x / Z̃ px/mm — Λ of N points at the median depth Z̃ (at the reference design)
+      translating parallel to the image plane (each moves f_x/Z̃ px per mm);
+
+    times L for ``aggregate="sum"``."""
+    per_pose = {
+        "fov": (1.0 - np.cos(0.5 * camera.fov_rad)) if config.fov_measure == "cone"
+        else 0.5 * min(camera.width, camera.height),
+        "focus": 1.0,
+        "resolution": config.min_axis_px if config.min_axis_px > 0 else 1.0,
+        "resolvability": np.sqrt(max(n_features, 1)) * camera.fx / max(median_depth_mm, 1e-9),
+    }
+    factor = n_poses if config.aggregate == "sum" else 1
+    return {m: float(per_pose[m] * factor) for m in config.measures}
+
+
+@dataclass(frozen=True)
+class Normaliser:
+    """Scales that make the objectives comparable: ĝ_i = g_i / scale_i.
+
+    ``method``: ``"initial"`` — scale_i = |g_i(x0)| (the initial design), or the natural unit when
+    |g_i(x0)| < 1e-3 × natural unit (never 1 in raw units); ``"natural"`` — the natural unit; ``"none"``
+    — 1 (raw units). ``reference``: objective name → scale; ``sources``: objective name → "initial" or
+    "natural"."""
+
+    method: str
+    reference: dict[str, float]
+    sources: dict[str, str]
+    note: str = ""
+
+    @classmethod
+    def build(cls, method: str, initial: Mapping[str, float], natural: Mapping[str, float]) -> Normaliser:
+        """From the initial objective values and the natural units (both keyed by objective name)."""
+        _choice("normalisation", method, NORMALISATIONS)
+        ref, src = {}, {}
+        for name, g0 in initial.items():
+            unit = float(natural[name])
+            if method == "none":
+                ref[name], src[name] = 1.0, "none"
+            elif method == "initial" and abs(g0) >= TINY_REL * unit:
+                ref[name], src[name] = abs(float(g0)), "initial"
+            else:
+                ref[name], src[name] = unit, "natural"
+        notes = {"initial": "each objective divided by |its value at the initial design|, or by its natural unit "
+                            "when that value is below 1e-3 of the unit",
+                 "natural": "each objective divided by its natural unit",
+                 "none": "raw units (max-min compares unlike quantities)"}
+        note = notes[method] + ("; natural units: FOV 1−cos(α/2), focus 1, resolution ω px, resolvability "
+                                "√N·fx/Z̃ px/mm (per pose; ×L for sums)")
+        return cls(method, ref, src, note)
+
+    def normalise(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        return {k: np.asarray(v) / self.reference[k] for k, v in values.items()}
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"method": self.method, "reference": dict(self.reference), "sources": dict(self.sources),
+                "note": self.note}
+
+
+def combine(G: np.ndarray, config: ObjectiveConfig, names: Sequence[str]) -> np.ndarray:
+    """The scalar to MAXIMISE from normalised objectives ``G`` (..., K) in ``names`` order (module docstring).
+    For "constraint" the thresholded objectives are excluded (they are constraints); for "pareto" the
+    max-min value is returned (the chosen point's criterion)."""
+    G = np.asarray(G, dtype=float)
+    keys = [ObjectiveConfig.key(n) for n in names]
+    use = [i for i, k in enumerate(keys) if k in config.objective_measures]
+    if config.combine in ("maxmin", "pareto"):
+        return G[..., use].min(axis=-1)
+    if not use:  # constraint with every measure thresholded: no objective left
+        return np.zeros(G.shape[:-1])
+    w = np.array([config.weights.get(keys[i], 1.0) for i in use])
+    return G[..., use] @ w

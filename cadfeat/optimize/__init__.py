@@ -1,0 +1,176 @@
+"""Optimisers for feature design (thesis §4.1, §7.3: local minima — multi-start is the default).
+
+``optimise(problem, config, progress=None) -> OptimResult`` with ``config.method``:
+
+- ``"multistart"`` (default): SLSQP (or trust-constr) from the initial design and from ``starts − 1`` points
+  of a scrambled Sobol design (``scipy.stats.qmc``, seeded);
+- ``"local"``: one local solve from the initial design;
+- ``"global"``: ``scipy.optimize.differential_evolution`` (seeded, constraints as ``NonlinearConstraint``)
+  followed by a local polish;
+- ``"pareto"``: NSGA-II (pymoo, seeded): the front, and its max-min point as the chosen design.
+
+Discrete diameters (variables with standard sizes, ``snap_standard_sizes``): the continuous optimum is
+snapped to the nearest sizes (both neighbours of each tried when few) and the positions re-solved with
+the sizes fixed. Max-min is solved in epigraph form (smooth). Gradients are central finite differences
+with a step relative to each variable's range, all 2P points evaluated in one batch.
+
+Determinism: same problem + same seed → identical result. Ctrl-C (``KeyboardInterrupt``, also raised by a
+``progress`` callback) stops the run and returns the best feasible design so far with ``interrupted=True``.
+
+``solve_with_cad`` (``cadfeat.optimize.cad``) wraps these in the trust-region loop with CAD rebuilds.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cadfeat.errors import CadfeatError
+from cadfeat.optimize.evaluator import FEAS_TOL, Evaluator
+from cadfeat.optimize.solvers import global_solve, local_solve, multistart, pareto_solve, snap_candidates
+
+__all__ = ["FEAS_TOL", "METHODS", "OptimResult", "OptimizerConfig", "optimise", "solve_with_cad"]
+
+METHODS = ("multistart", "local", "global", "pareto")
+LOCAL_SOLVERS = ("SLSQP", "trust-constr")
+
+
+@dataclass(frozen=True)
+class OptimizerConfig:
+    """Solver settings. ``fd_step``: finite-difference step as a fraction of each variable's range;
+    ``ftol``: local solver tolerance; ``de_*``: differential evolution; ``pop_size``/``n_gen``: NSGA-II."""
+
+    method: str = "multistart"
+    starts: int = 8
+    maxiter: int = 100
+    seed: int = 0
+    local_solver: str = "SLSQP"
+    snap_standard_sizes: bool = True
+    fd_step: float = 1e-5
+    ftol: float = 1e-9
+    de_maxiter: int = 60
+    de_popsize: int = 12
+    pop_size: int = 40
+    n_gen: int = 40
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise CadfeatError(f"optimizer.method: {self.method!r} is not one of {', '.join(METHODS)}")
+        if self.local_solver not in LOCAL_SOLVERS:
+            raise CadfeatError(f"optimizer.local_solver: {self.local_solver!r} is not one of "
+                               f"{', '.join(LOCAL_SOLVERS)}")
+        for key in ("starts", "maxiter", "de_maxiter", "de_popsize", "pop_size", "n_gen"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+                raise CadfeatError(f"optimizer.{key}: must be an integer ≥ 1, got {value!r}")
+        if not (0 < self.fd_step < 0.1):
+            raise CadfeatError(f"optimizer.fd_step: must be in (0, 0.1) (fraction of a variable's range), "
+                               f"got {self.fd_step!r}")
+
+
+@dataclass
+class OptimResult:
+    """The outcome of ``optimise`` / ``solve_with_cad``.
+
+    ``x_best`` (P,) design values, ``f_best`` = −combined (minimised), ``combined_best``, ``objectives_best``
+    (raw g values), ``feasible``, ``max_violation``; ``history``: one dict per solver iteration (iteration,
+    phase, start, f, combined, feasible, max_violation, n_evals, time_s); ``pareto``: None or the front
+    (names, points, normalised, x, feasible, chosen); ``starts``: per-start summaries; ``cad_rounds``:
+    trust-region rounds of ``solve_with_cad``; ``holes``: the holes extracted from the final CAD rebuild."""
+
+    x_best: np.ndarray
+    f_best: float
+    history: list[dict]
+    interrupted: bool
+    pareto: dict | None
+    n_evals: int
+    time_s: float
+    combined_best: float = float("nan")
+    objectives_best: dict[str, float] = field(default_factory=dict)
+    feasible: bool = False
+    max_violation: float = 0.0
+    message: str = ""
+    starts: list[dict] = field(default_factory=list)
+    cad_rounds: list[dict] = field(default_factory=list)
+    holes: list | None = None
+
+
+def _result(ev: Evaluator, problem: Any, t0: float, interrupted: bool, n0: int, pareto: dict | None = None,
+            starts: list | None = None, message: str = "") -> OptimResult:
+    best = ev.best
+    if best is None:  # interrupted before any evaluation
+        x = problem.space.x0.copy()
+        G, C = problem.evaluate_batch(x[None])
+        best = {"x": x, "combined": float(problem.combined_from(G[0])), "G": G[0], "C": C[0],
+                "violation": float(max(0.0, -C[0].min(initial=0.0)))}
+        best["feasible"] = best["violation"] <= FEAS_TOL
+    if not message:
+        message = ("interrupted: best design so far" if interrupted else
+                   "feasible optimum" if best["feasible"] else "no feasible design found: least violation")
+    return OptimResult(np.asarray(best["x"], dtype=float), -float(best["combined"]), ev.history, interrupted, pareto,
+                       problem.n_evals - n0, time.perf_counter() - t0, float(best["combined"]),
+                       dict(zip(problem.names, map(float, best["G"]), strict=True)), bool(best["feasible"]),
+                       float(best["violation"]), message, starts or [])
+
+
+def optimise(problem: Any, config: OptimizerConfig | None = None,
+             progress: Callable[[dict], None] | None = None, *, x_start: np.ndarray | None = None,
+             bounds: tuple[np.ndarray, np.ndarray] | None = None) -> OptimResult:
+    """Optimise ``problem`` (module docstring). ``x_start`` replaces the initial design; ``bounds`` (lower,
+    upper) restricts the search box (the trust region of ``solve_with_cad``)."""
+    config = config or OptimizerConfig()
+    t0 = time.perf_counter()
+    n0 = problem.n_evals
+    x_start = problem.space.x0 if x_start is None else np.asarray(x_start, dtype=float)
+    ev = Evaluator(problem, x_start, progress=progress, t0=t0, bounds=bounds)
+    pareto, starts, interrupted = None, [], False
+    try:
+        if config.method == "pareto":
+            pareto = pareto_solve(ev, config)
+            x = np.asarray(pareto["x"][pareto["chosen"]])
+            G, C = ev.batch(ev.to_u(x)[None])
+            ev.best = {"x": x, "combined": float(problem.combined_from(G[0])), "G": G[0], "C": C[0],
+                       "violation": float(max(0.0, -C[0].min(initial=0.0)))}
+            ev.best["feasible"] = ev.best["violation"] <= FEAS_TOL
+        elif config.method == "global":
+            global_solve(ev, config)
+        elif config.method == "local":
+            local_solve(ev, ev.to_u(x_start), config)
+        else:
+            starts = multistart(ev, config)
+        if config.snap_standard_sizes and problem.space.discrete.any() and config.method != "pareto":
+            _snap(ev, problem, config)
+    except KeyboardInterrupt:
+        interrupted = True
+    return _result(ev, problem, t0, interrupted, n0, pareto, starts)
+
+
+def _snap(ev: Evaluator, problem: Any, config: OptimizerConfig) -> None:
+    """Snap standard-size variables of the best design and re-solve the others with them fixed."""
+    space = problem.space
+    x_cont = ev.best["x"].copy()
+    free = np.flatnonzero(~space.discrete)
+    candidates = snap_candidates(space, x_cont)
+    results = []
+    for k, x in enumerate(candidates):
+        sub = ev.sub(x, free)
+        sub.phase, sub.start = "snap", k
+        if free.size:
+            local_solve(sub, sub.to_u(x), config)
+        else:
+            sub.batch(np.zeros((1, 0)))
+        results.append(sub.best)
+    feasible = [r for r in results if r["feasible"]]
+    pool = feasible or sorted(results, key=lambda r: r["violation"])[:1]
+    ev.best = max(pool, key=lambda r: r["combined"])
+
+
+def solve_with_cad(*args: Any, **kwargs: Any) -> OptimResult:
+    """The trust-region loop with CAD rebuilds: see ``cadfeat.optimize.cad.solve_with_cad``."""
+    from cadfeat.optimize.cad import solve_with_cad as _solve
+
+    return _solve(*args, **kwargs)

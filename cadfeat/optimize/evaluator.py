@@ -1,0 +1,115 @@
+"""Evaluation bookkeeping shared by every solver: unit coordinates, cache, finite differences, best-so-far.
+
+Solvers work in unit coordinates u ∈ [0, 1] of the *free* variables (x = lower + u·span), so a
+finite-difference step ``h`` is relative to each variable's range. Every evaluated design (including
+finite-difference points) updates the best feasible design so far, which is what an interrupted run
+returns.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+FEAS_TOL = 1e-6
+"""A design is feasible when every constraint margin is ≥ −FEAS_TOL (mm, or normalised units)."""
+
+
+class Evaluator:
+    """Batched, cached evaluation of a ``Problem`` on the free variables ``free`` (others at ``x_base``)."""
+
+    def __init__(self, problem: Any, x_base: np.ndarray, free: np.ndarray | None = None,
+                 progress: Callable[[dict], None] | None = None, t0: float | None = None,
+                 history: list[dict] | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None):
+        self.problem = problem
+        space = problem.space
+        lower, upper = (space.lower, space.upper) if bounds is None else bounds
+        self.bounds = (np.maximum(space.lower, lower), np.minimum(space.upper, upper))
+        self.x_base = np.clip(np.asarray(x_base, dtype=float), *self.bounds)
+        self.free = np.arange(space.size) if free is None else np.asarray(free, dtype=int)
+        self.lower = self.bounds[0][self.free]
+        self.span = np.maximum(self.bounds[1][self.free] - self.lower, 1e-300)
+        self.progress = progress
+        self.t0 = time.perf_counter() if t0 is None else t0
+        self.history = [] if history is None else history
+        self._cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+        self.best: dict[str, Any] | None = None  # x, combined, G, C, feasible, violation
+        self.phase = "local"
+        self.start = 0
+
+    # ---------------------------------------------------------------------------------- coordinates
+    def to_x(self, U: np.ndarray) -> np.ndarray:
+        """Unit coordinates of the free variables (B, p) → full designs (B, P)."""
+        U = np.atleast_2d(U)
+        X = np.repeat(self.x_base[None], len(U), axis=0)
+        X[:, self.free] = self.lower + np.clip(U, 0.0, 1.0) * self.span
+        return X
+
+    def to_u(self, x: np.ndarray) -> np.ndarray:
+        return np.clip((np.asarray(x, dtype=float)[self.free] - self.lower) / self.span, 0.0, 1.0)
+
+    def sub(self, x_base: np.ndarray, free: np.ndarray) -> Evaluator:
+        """An evaluator on a subset of the variables (others at ``x_base``), sharing history and bounds."""
+        return Evaluator(self.problem, x_base, free, self.progress, self.t0, self.history, self.bounds)
+
+    # ----------------------------------------------------------------------------------- evaluation
+    def batch(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Raw objectives G (B, K) and margins C (B, M) at unit points U (B, p); cached per point."""
+        U = np.clip(np.atleast_2d(np.asarray(U, dtype=float)), 0.0, 1.0)
+        keys = [u.tobytes() for u in U]
+        todo = [i for i, k in enumerate(keys) if k not in self._cache]
+        if todo:
+            X = self.to_x(U[todo])
+            G, C = self.problem.evaluate_batch(X)
+            for j, i in enumerate(todo):
+                self._cache[keys[i]] = (G[j], C[j])
+                self._consider(X[j], G[j], C[j])
+        G = np.stack([self._cache[k][0] for k in keys])
+        C = np.stack([self._cache[k][1] for k in keys])
+        return G, C
+
+    def _consider(self, x: np.ndarray, g: np.ndarray, c: np.ndarray) -> None:
+        violation = float(max(0.0, -c.min(initial=0.0)))
+        feasible = violation <= FEAS_TOL
+        combined = float(self.problem.combined_from(g))
+        b = self.best
+        better = (b is None or (feasible and not b["feasible"]) or (feasible and combined > b["combined"])
+                  or (not feasible and not b["feasible"] and violation < b["violation"]))
+        if better:
+            self.best = {"x": x.copy(), "combined": combined, "G": g.copy(), "C": c.copy(), "feasible": feasible,
+                         "violation": violation}
+
+    def combined(self, U: np.ndarray) -> np.ndarray:
+        G, _ = self.batch(U)
+        return np.asarray(self.problem.combined_from(G))
+
+    def gradients(self, u: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Central finite differences at u (p,) with unit step ``h`` (one-sided at the bounds), from one batch
+        of 2p designs: value G (K,), C (M,) and Jacobians dG (K, p), dC (M, p) per unit coordinate."""
+        u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
+        p = u.size
+        E = np.eye(p)
+        up = np.clip(u + h * E, 0.0, 1.0)
+        dn = np.clip(u - h * E, 0.0, 1.0)
+        G, C = self.batch(np.vstack([u[None], up, dn]))
+        du = (up - dn)[np.arange(p), np.arange(p)]
+        dG = ((G[1:p + 1] - G[p + 1:]) / du[:, None]).T
+        dC = ((C[1:p + 1] - C[p + 1:]) / du[:, None]).T
+        return G[0], C[0], dG, dC
+
+    # -------------------------------------------------------------------------------------- history
+    def record(self, iteration: int, G: np.ndarray, C: np.ndarray, **extra: Any) -> dict:
+        """Append a history entry (and report it to ``progress``, which may raise KeyboardInterrupt)."""
+        violation = float(max(0.0, -np.min(C, initial=0.0)))
+        entry = {"iteration": len(self.history), "phase": self.phase, "start": self.start, "local_iteration": iteration,
+                 "f": float(-self.problem.combined_from(G)), "combined": float(self.problem.combined_from(G)),
+                 "feasible": violation <= FEAS_TOL, "max_violation": violation,
+                 "best_combined": None if self.best is None else self.best["combined"],
+                 "n_evals": int(self.problem.n_evals), "time_s": time.perf_counter() - self.t0, **extra}
+        self.history.append(entry)
+        if self.progress is not None:
+            self.progress(entry)
+        return entry

@@ -1,0 +1,232 @@
+"""Solvers on an ``Evaluator``: local SLSQP / trust-constr with finite-difference gradients, multi-start from
+a scrambled Sobol design, differential evolution, NSGA-II (pymoo), and the standard-size snap."""
+
+from __future__ import annotations
+
+import itertools
+import warnings
+from typing import Any
+
+import numpy as np
+
+from cadfeat.optimize.evaluator import Evaluator
+
+
+# -------------------------------------------------------------------------------------------- local
+def local_solve(ev: Evaluator, u0: np.ndarray, config: Any) -> np.ndarray:
+    """One local solve from u0 (unit coordinates of the free variables); returns the final u.
+
+    Max-min (and Pareto's chosen-point criterion) is solved in epigraph form: maximise τ subject to
+    ĝ_i(u) ≥ τ, so the solver sees smooth functions. Gradients: central differences, step
+    ``config.fd_step`` relative to each variable's range, value and Jacobians from one batch."""
+    from scipy.optimize import Bounds, NonlinearConstraint, minimize
+
+    problem = ev.problem
+    cfg = problem.objective_config
+    keys = [cfg.key(n) for n in problem.names]
+    use = np.array([i for i, k in enumerate(keys) if k in cfg.objective_measures], dtype=int)
+    epigraph = cfg.combine in ("maxmin", "pareto") and use.size > 1
+    p = u0.size
+    h = config.fd_step
+
+    def grads(z: np.ndarray) -> tuple:
+        return ev.gradients(z[:p], h)
+
+    if epigraph:
+        G0, _ = ev.batch(u0[None])
+        tau0 = float((G0[0, use] / problem.scales[use]).min())
+        z0 = np.append(u0, tau0)
+
+        def fun(z: np.ndarray) -> float:
+            return -float(z[p])
+
+        def fun_jac(z: np.ndarray) -> np.ndarray:
+            g = np.zeros(p + 1)
+            g[p] = -1.0
+            return g
+
+        def cons(z: np.ndarray) -> np.ndarray:
+            G, C = ev.batch(z[:p][None])
+            return np.concatenate([C[0], G[0, use] / problem.scales[use] - z[p]])
+
+        def cons_jac(z: np.ndarray) -> np.ndarray:
+            _, _, dG, dC = grads(z)
+            top = np.hstack([dC, np.zeros((dC.shape[0], 1))])
+            bottom = np.hstack([dG[use] / problem.scales[use, None], -np.ones((use.size, 1))])
+            return np.vstack([top, bottom])
+        lb, ub = np.append(np.zeros(p), -np.inf), np.append(np.ones(p), np.inf)
+    else:
+        z0 = np.asarray(u0, dtype=float)
+
+        def fun(z: np.ndarray) -> float:
+            return -float(ev.combined(z[None])[0])
+
+        def fun_jac(z: np.ndarray) -> np.ndarray:
+            G, _, dG, _ = grads(z)
+            # combined is linear in G for "weighted"/"constraint": d(combined) = Σ_k ∂combined/∂G_k dG_k
+            w = _combine_weights(problem, G)
+            return -(w @ dG)
+
+        def cons(z: np.ndarray) -> np.ndarray:
+            return ev.batch(z[None])[1][0]
+
+        def cons_jac(z: np.ndarray) -> np.ndarray:
+            return grads(z)[3]
+        lb, ub = np.zeros(p), np.ones(p)
+
+    iteration = [0]
+
+    def callback(*args: Any) -> None:
+        zk = args[0] if not hasattr(args[0], "x") else args[0].x
+        iteration[0] += 1
+        G, C = ev.batch(np.asarray(zk)[:p][None])
+        ev.record(iteration[0], G[0], C[0])
+
+    n_cons = ev.batch(z0[:p][None])[1].shape[1] + (use.size if epigraph else 0)
+    constraints = []
+    if n_cons:
+        if config.local_solver == "SLSQP":
+            constraints = [{"type": "ineq", "fun": cons, "jac": cons_jac}]
+        else:
+            constraints = [NonlinearConstraint(cons, 0.0, np.inf, jac=cons_jac)]
+    options = {"maxiter": config.maxiter}
+    if config.local_solver == "SLSQP":
+        options["ftol"] = config.ftol
+    else:
+        options.update(gtol=config.ftol, xtol=config.ftol)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = minimize(fun, z0, jac=fun_jac, method=config.local_solver, bounds=Bounds(lb, ub),
+                       constraints=constraints, callback=callback, options=options)
+    return np.clip(np.asarray(res.x)[:p], 0.0, 1.0)
+
+
+def _combine_weights(problem: Any, G: np.ndarray) -> np.ndarray:
+    """∂combined/∂G (K,) at G by finite differences of ``combined_from`` (exact for the linear combinations)."""
+    K = G.size
+    eps = 1e-6 * np.maximum(np.abs(G), problem.scales)
+    Gp = G + np.diag(eps)
+    Gm = G - np.diag(eps)
+    return (np.asarray(problem.combined_from(Gp)) - np.asarray(problem.combined_from(Gm))) / (2 * eps)[:K]
+
+
+# ----------------------------------------------------------------------------------------- starts
+def sobol_starts(p: int, n: int, seed: int) -> np.ndarray:
+    """``n`` points of a scrambled Sobol sequence in [0, 1]^p (seeded)."""
+    from scipy.stats import qmc
+
+    if n <= 0:
+        return np.zeros((0, p))
+    m = int(np.ceil(np.log2(max(n, 1))))
+    return qmc.Sobol(d=p, scramble=True, seed=seed).random_base2(m)[:n]
+
+
+def multistart(ev: Evaluator, config: Any) -> list[dict]:
+    """Local solves from the initial design and ``config.starts − 1`` Sobol points; one summary per start."""
+    u0 = ev.to_u(ev.x_base)
+    starts = np.vstack([u0[None], sobol_starts(u0.size, max(config.starts - 1, 0), config.seed)])
+    summaries = []
+    for k, u in enumerate(starts):
+        ev.start = k
+        u_end = local_solve(ev, u, config)
+        G, C = ev.batch(u_end[None])
+        summaries.append({"start": k, "x_start": ev.to_x(u[None])[0].tolist(),
+                          "x_end": ev.to_x(u_end[None])[0].tolist(),
+                          "combined": float(ev.problem.combined_from(G[0])),
+                          "max_violation": float(max(0.0, -C[0].min(initial=0.0)))})
+    return summaries
+
+
+# ---------------------------------------------------------------------------------------- global
+def global_solve(ev: Evaluator, config: Any) -> np.ndarray:
+    """``scipy.optimize.differential_evolution`` (seeded) on the combined objective with the margins as
+    constraints, then a local polish from its best point."""
+    from scipy.optimize import NonlinearConstraint, differential_evolution
+
+    p = ev.free.size
+    n_cons = ev.batch(ev.to_u(ev.x_base)[None])[1].shape[1]
+    constraints = (NonlinearConstraint(lambda u: ev.batch(u[None])[1][0], 0.0, np.inf),) if n_cons else ()
+    generation = [0]
+
+    def callback(intermediate_result: Any) -> None:
+        generation[0] += 1
+        G, C = ev.batch(np.asarray(intermediate_result.x)[None])
+        ev.record(generation[0], G[0], C[0])
+
+    ev.phase = "global"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = differential_evolution(lambda u: -float(ev.combined(u[None])[0]), [(0.0, 1.0)] * p,
+                                     constraints=constraints, seed=config.seed, maxiter=config.de_maxiter,
+                                     popsize=config.de_popsize, polish=False, callback=callback, tol=1e-8,
+                                     x0=ev.to_u(ev.x_base))
+    ev.phase = "polish"
+    return local_solve(ev, np.asarray(res.x), config)
+
+
+# ---------------------------------------------------------------------------------------- Pareto
+def pareto_solve(ev: Evaluator, config: Any) -> dict:
+    """NSGA-II (pymoo, seeded) on the normalised objectives; the front and its max-min point."""
+    from pymoo.algorithms.moo.nsga2 import NSGA2
+    from pymoo.core.callback import Callback
+    from pymoo.core.problem import Problem as PymooProblem
+    from pymoo.optimize import minimize
+
+    problem = ev.problem
+    cfg = problem.objective_config
+    keys = [cfg.key(n) for n in problem.names]
+    use = np.array([i for i, k in enumerate(keys) if k in cfg.objective_measures], dtype=int)
+    n_cons = ev.batch(ev.to_u(ev.x_base)[None])[1].shape[1]
+
+    class _P(PymooProblem):
+        def __init__(self) -> None:
+            super().__init__(n_var=ev.free.size, n_obj=use.size, n_ieq_constr=n_cons, xl=0.0, xu=1.0)
+
+        def _evaluate(self, U: np.ndarray, out: dict, *args: Any, **kwargs: Any) -> None:
+            G, C = ev.batch(U)
+            out["F"] = -(G[:, use] / problem.scales[use])
+            if n_cons:
+                out["G"] = -C
+
+    class _CB(Callback):
+        def notify(self, algorithm: Any) -> None:
+            opt = algorithm.opt
+            X = opt.get("X")
+            G, C = ev.batch(X)
+            best = int(np.argmax(problem.combined_from(G)))
+            ev.record(algorithm.n_gen, G[best], C[best], front_size=len(X))
+
+    ev.phase = "pareto"
+    res = minimize(_P(), NSGA2(pop_size=config.pop_size), ("n_gen", config.n_gen), seed=config.seed,
+                   callback=_CB(), verbose=False)
+    X = res.X if res.X is not None else res.pop.get("X")
+    X = np.atleast_2d(X)
+    G, C = ev.batch(X)
+    feasible = np.all(C >= -1e-6, axis=1) if C.shape[1] else np.ones(len(X), dtype=bool)
+    order = np.lexsort(tuple((G[:, use] / problem.scales[use]).T[::-1]))
+    X, G, C, feasible = X[order], G[order], C[order], feasible[order]
+    crit = np.where(feasible, problem.combined_from(G), -np.inf)
+    chosen = int(np.argmax(crit))
+    return {"names": [problem.names[i] for i in use], "points": G[:, use].tolist(),
+            "normalised": (G[:, use] / problem.scales[use]).tolist(), "x": ev.to_x(X).tolist(),
+            "feasible": feasible.tolist(), "chosen": chosen, "chosen_by": "max-min of the normalised objectives"}
+
+
+# ------------------------------------------------------------------------------------------- snap
+def snap_candidates(space: Any, x: np.ndarray, max_combinations: int = 16) -> list[np.ndarray]:
+    """Designs with every standard-size variable at one of its two nearest sizes (all combinations when at
+    most ``max_combinations``, else the nearest size only)."""
+    disc = np.flatnonzero(space.discrete)
+    options = []
+    for i in disc:
+        sizes = np.asarray(space.variables[i].standard_sizes, dtype=float)
+        order = np.argsort(np.abs(sizes - x[i]), kind="stable")
+        options.append(sizes[order[:2]])
+    if np.prod([len(o) for o in options]) > max_combinations:
+        options = [o[:1] for o in options]
+    out = []
+    for combo in itertools.product(*options):
+        y = np.array(x, dtype=float)
+        y[disc] = combo
+        out.append(y)
+    return out

@@ -1,0 +1,158 @@
+"""The optimisation problem: design variables → features → measures → objectives and constraint margins.
+
+``Problem`` ties a ``DesignSpace``, a ``FeatureModel``, a camera, a trajectory and the part pose to the
+objective and constraint configurations. Everything the solvers need comes from one batched call,
+``evaluate_batch(X (B,P)) -> (G (B,K) raw objectives, C (B,M) margins)``; the scalar helpers
+(``objective``, ``constraints``...) are thin wrappers. Constraint margins are the 2-D kept requirements
+(``constraints.ConstraintSet``) followed, for ``combine="constraint"``, by the measure thresholds
+(g_i − threshold_i)/scale_i.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cadfeat.constraints import ConstraintConfig, ConstraintSet
+from cadfeat.design_space import DesignSpace, FeatureModel
+from cadfeat.errors import CadfeatError
+from cadfeat.objectives import (
+    MEASURES,
+    Normaliser,
+    ObjectiveConfig,
+    aggregate,
+    combine,
+    natural_units,
+    per_pose_values,
+)
+from cadfeat.poses import invert_T
+
+__all__ = ["Problem"]
+
+
+class Problem:
+    """A feature-design problem (see module docstring).
+
+    ``T_task_part`` (4,4) places the part in the task frame of ``trajectory`` (``T_task_cam`` poses);
+    ``fixed_mask`` (N,) marks holes that may not move (kept out of the constraints that only concern
+    moving holes). ``normaliser`` defaults to ``Normaliser.build(objective_config.normalisation, g(x0),
+    natural units at x0)``.
+    """
+
+    def __init__(self, space: DesignSpace, model: FeatureModel, camera: Any, trajectory: Any,
+                 T_task_part: np.ndarray, objective_config: ObjectiveConfig, constraint_config: ConstraintConfig,
+                 fixed_mask: Any = None, *, occlusion_mesh: Any = None, normaliser: Normaliser | None = None):
+        self.space = space
+        self.model = model
+        self.camera = camera
+        self.trajectory = trajectory
+        self.T_task_part = np.asarray(T_task_part, dtype=float)
+        self.objective_config = objective_config
+        self.constraint_config = constraint_config
+        n = len(model.holes)
+        self.fixed_mask = np.zeros(n, dtype=bool) if fixed_mask is None else np.asarray(fixed_mask, dtype=bool)
+        self.occlusion_mesh = occlusion_mesh
+        self.feature_mask = ~self.fixed_mask if (~self.fixed_mask).any() else None
+        self.T_cam_part = invert_T(np.asarray(trajectory.T_task_cam, dtype=float)) @ self.T_task_part
+        self.screws = np.asarray(trajectory.velocity_screws(), dtype=float)
+        self.cset = ConstraintSet(model.holes, constraint_config, self.fixed_mask)
+        self.names = objective_config.names
+        self.n_evals = 0
+        c0, _, _ = model.features(space.x0)
+        depth = np.einsum("lij,nj->lni", self.T_cam_part[:, :3, :3], c0)[..., 2] + self.T_cam_part[:, None, 2, 3]
+        self.units = natural_units(objective_config, camera, len(self.screws), n, float(np.median(depth)))
+        unit_by_name = {MEASURES[m]: u for m, u in self.units.items()}
+        if normaliser is None:
+            g0 = self.features_objectives(*model.features(space.x0))
+            normaliser = Normaliser.build(objective_config.normalisation, dict(zip(self.names, g0, strict=True)),
+                                          unit_by_name)
+        self.normaliser = normaliser
+        self.scales = np.array([normaliser.reference[n] for n in self.names])
+        keys = [ObjectiveConfig.key(nm) for nm in self.names]
+        self._thr_idx = np.array([i for i, k in enumerate(keys) if k in objective_config.thresholds], dtype=int)
+        self._thr = np.array([objective_config.thresholds[keys[i]] for i in self._thr_idx])
+
+    # ------------------------------------------------------------------------------- single designs
+    def with_model(self, model: FeatureModel) -> Problem:
+        """The same problem on another feature model (same normaliser, so values stay comparable)."""
+        return Problem(self.space, model, self.camera, self.trajectory, self.T_task_part, self.objective_config,
+                       self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
+                       normaliser=self.normaliser)
+
+    def measures_from_features(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
+        """``measures.evaluate`` of hole features (part frame) along the trajectory."""
+        from cadfeat import measures
+
+        cfg = self.objective_config
+        if np.any(np.asarray(radii) <= 0):
+            raise CadfeatError(f"a design gives a hole radius ≤ 0 mm: {np.asarray(radii).tolist()}")
+        return measures.evaluate(self.camera, self.T_cam_part, self.screws, centres, axes, radii,
+                                 min_axis_px=cfg.min_axis_px, rotation_length_mm=cfg.rotation_length_mm,
+                                 occlusion_mesh=self.occlusion_mesh)
+
+    def measures(self, x: np.ndarray) -> Any:
+        return self.measures_from_features(*self.model.features(np.asarray(x, dtype=float)))
+
+    def features_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """Raw aggregated objectives (K,) in ``names`` order from hole features."""
+        m = self.measures_from_features(centres, axes, radii)
+        cfg = self.objective_config
+        values = per_pose_values(m, cfg, self.feature_mask)
+        return np.array([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k]) for k in cfg.measures])
+
+    def features_constraints(self, centres: np.ndarray, radii: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """Constraint margins (..., M) from features and raw objectives g (..., K)."""
+        mech = self.cset.stacked(centres, radii)
+        thr = (np.asarray(g)[..., self._thr_idx] - self._thr) / self.scales[self._thr_idx]
+        return np.concatenate([mech, thr], axis=-1)
+
+    # ------------------------------------------------------------------------------------ batched
+    def evaluate_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Raw objectives G (B, K) and constraint margins C (B, M) of designs X (B, P).
+
+        Features come from one ``features_batch`` call and the 2-D constraints from one vectorised call; the
+        measures are one ``measures.evaluate`` (batched over poses and features) per design."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        centres, axes, radii = self.model.features_batch(X)
+        G = np.stack([self.features_objectives(centres[b], axes[b], radii[b]) for b in range(len(X))])
+        self.n_evals += len(X)
+        return G, self.features_constraints(centres, radii, G)
+
+    def combined_from(self, G: np.ndarray) -> np.ndarray:
+        """The scalar to maximise (...,) from raw objectives G (..., K) (``objectives.combine``); with every
+        measure thresholded, the smallest normalised threshold slack."""
+        cfg = self.objective_config
+        if cfg.combine == "constraint" and not cfg.objective_measures:
+            return ((np.asarray(G)[..., self._thr_idx] - self._thr) / self.scales[self._thr_idx]).min(axis=-1)
+        return combine(np.asarray(G) / self.scales, cfg, self.names)
+
+    # ------------------------------------------------------------------------------ scalar helpers
+    def objectives(self, x: np.ndarray) -> dict[str, float]:
+        """Raw aggregated objectives {g_FOV, ...} at design ``x``."""
+        G, _ = self.evaluate_batch(np.asarray(x, dtype=float)[None])
+        return dict(zip(self.names, map(float, G[0]), strict=True))
+
+    def normalised_objectives(self, x: np.ndarray) -> dict[str, float]:
+        return {k: v / self.normaliser.reference[k] for k, v in self.objectives(x).items()}
+
+    def combined(self, x: np.ndarray) -> float:
+        """The combined objective to maximise at ``x``."""
+        G, _ = self.evaluate_batch(np.asarray(x, dtype=float)[None])
+        return float(self.combined_from(G[0]))
+
+    def objective(self, x: np.ndarray) -> float:
+        """The scalar to minimise: −combined."""
+        return -self.combined(x)
+
+    def constraints(self, x: np.ndarray) -> np.ndarray:
+        """Constraint margins (M,) ≥ 0 feasible at ``x``."""
+        return self.evaluate_batch(np.asarray(x, dtype=float)[None])[1][0]
+
+    def constraint_labels(self) -> list[tuple[str, list[str]]]:
+        """(kind, hole names) of each entry of ``constraints``."""
+        out = [(kind, holes) for kind, entries in self.cset.labels().items() for holes in entries]
+        return out + [(f"threshold:{self.names[i]}", []) for i in self._thr_idx]
+
+    def constraint_kinds(self) -> list[str]:
+        return [k for k, _ in self.constraint_labels()]
