@@ -38,6 +38,48 @@ def _median_s(func, repeats: int) -> float:
     return statistics.median(times)
 
 
+REAL_STUDY = ROOT / "studies" / "nema17_mount.toml"
+
+
+def _real_study() -> list[str]:
+    """A real ``run_study`` (when cadfeat.study and the study file exist) with its report timed from inside."""
+    if importlib.util.find_spec("cadfeat.study") is None or not REAL_STUDY.is_file():
+        return ["", f"(No real study timed: cadfeat.study or {REAL_STUDY.name} missing.)"]
+    import cadfeat.report as report
+    from cadfeat import measures, run_study
+    from cadfeat.features import holes_to_arrays
+
+    seen: dict = {}
+    original = report.write_report
+
+    def timed_write_report(out_dir, results, context=None):
+        built = report.build_report(out_dir, results, context)
+        seen.update(built=built, context=context)
+        return built.path
+
+    report.write_report = timed_write_report
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            start = time.perf_counter()
+            run_study(REAL_STUDY, Path(tmp) / "out", quiet=True)
+            wall = time.perf_counter() - start
+    finally:
+        report.write_report = original
+    built, ctx = seen["built"], seen["context"]
+    T = ctx.T_cam_part(range(len(ctx.trajectory)))
+    screws = ctx.trajectory.velocity_screws()
+    arrays = holes_to_arrays(ctx.holes_after)
+    evaluation = _median_s(lambda: measures.evaluate(ctx.camera, T, screws, *arrays), 50)
+    t = built.timings_s
+    n_img = len(built.images)
+    return ["", f"Real study `{REAL_STUDY.relative_to(ROOT)}` ({len(ctx.trajectory)} poses, {len(ctx.holes_after)} "
+            f"holes): wall time {wall:.1f} s, of which the report {t['total']:.1f} s ({100 * t['total'] / wall:.0f} %: "
+            f"renders {t['renders']:.1f} s [part {t.get('renders: part', 0):.1f} s, views "
+            f"{t.get('renders: views', 0):.1f} s], plots {t['plots']:.1f} s, HTML {1e3 * t['html']:.0f} ms; {n_img} "
+            f"images). One measures evaluation of the same study: {1e3 * evaluation:.2f} ms (the report costs "
+            f"{t['total'] / evaluation:.0f} evaluations)."]
+
+
 def main(quick: bool = False) -> str:
     from cadfeat.features import holes_to_arrays
     from cadfeat.poses import invert_T
@@ -102,6 +144,8 @@ def main(quick: bool = False) -> str:
     ]
     if out.notes:
         lines += ["", "Notes: " + "; ".join(out.notes)]
+    if not quick:
+        lines += _real_study()
     section = "\n".join(lines) + "\n"
     (HERE / "results").mkdir(exist_ok=True)
     (HERE / "results" / "bench_report.md").write_text(section)
