@@ -133,15 +133,20 @@ def scenario(L: int, N: int, seed: int = 0, pinhole: bool = False):
     return cam, T_cam_part, screws, centres, axes, radii
 
 
-def _rate(func, evals: int, min_time: float) -> float:
-    func()
-    best, total, runs = np.inf, 0.0, 0
-    while total < min_time or runs < 3:
-        start = time.process_time()
-        func()
-        dt = time.process_time() - start
-        best, total, runs = min(best, dt), total + dt, runs + 1
-    return evals / best
+def _rates(fast, fast_evals: int, slow, slow_evals: int, min_time: float) -> tuple[float, float]:
+    """Best rates (evals per CPU second) of two functions timed alternately, so both see the same load."""
+    fast(), slow()
+    best = [np.inf, np.inf]
+    total = [0.0, 0.0]
+    runs = 0
+    while min(total) < min_time or runs < 3:
+        for i, func in enumerate((fast, slow)):
+            start = time.process_time()
+            func()
+            dt = time.process_time() - start
+            best[i], total[i] = min(best[i], dt), total[i] + dt
+        runs += 1
+    return fast_evals / best[0], slow_evals / best[1]
 
 
 def _agreement(fast, slow) -> dict[str, float]:
@@ -161,8 +166,8 @@ def main(quick: bool = False) -> str:
         args = scenario(L, N, pinhole=pinhole)
         base_L = min(L, 300 if quick else 2000)  # the loop is linear in L: time a prefix of the poses
         base_args = (args[0], args[1][:base_L], args[2][:base_L], *args[3:])
-        fast = _rate(lambda a=args: measures.evaluate(*a), L * N, 0.3 if quick else 2.0)
-        slow = _rate(lambda a=base_args: baseline_evaluate(*a), base_L * N, 0.3 if quick else 2.0)
+        fast, slow = _rates(lambda a=args: measures.evaluate(*a), L * N, lambda a=base_args: baseline_evaluate(*a),
+                            base_L * N, 0.3 if quick else 2.0)
         rows.append((L, N, fast, slow, pinhole))
         m = measures.evaluate(*base_args)
         visible_frac.append(float(m.visible.mean()))
@@ -172,8 +177,8 @@ def main(quick: bool = False) -> str:
         "## Measures: all per-pose, per-feature measures at once (bench_measures)",
         "",
         f"Machine: {_machine()}; load average {os.getloadavg()[0]:.1f} at the start.",
-        f"Rates from the best of repeated runs (≥ {0.3 if quick else 2.0} s per cell) in process CPU time",
-        "(one thread), which other processes on a shared machine disturb less than wall time.",
+        f"Rates from the best of repeated runs (≥ {0.3 if quick else 2.0} s each) in process CPU time (one thread),",
+        "evaluate and baseline timed alternately so both see the same load of a shared machine.",
         "`evaluate` = `cadfeat.measures.evaluate` (FOV cone + image margin, focus, exact rim ellipse, resolution,",
         "facing, visibility, JᵀJ diagnostics, resolvability); baseline = per-pose Python loop in this file",
         "(numpy over the pose's features, `numpy.linalg.svd` + `numpy.linalg.pinv` on the (2N, 6) Jacobian),",
@@ -185,6 +190,14 @@ def main(quick: bool = False) -> str:
     ]
     lines += [f"| {L} | {N}{' (pinhole)' if p else ''} | {f / 1e6:.2f} | {s / 1e6:.3f} | {f / s:.0f}× |"
               for L, N, f, s, p in rows]
+    met = [f"{L}×{N}{' pinhole' if p else ''}" for L, N, f, b, p in rows if f >= 2e6 and f / b >= 50]
+    lines += [
+        "",
+        f"Targets (issue 2: ≥ 50× the loop and ≥ 2 M evals/s on one core) met together at: {', '.join(met) or 'none'}.",
+        "Small batches are bound by per-call overhead (≈ 350 numpy calls per slab and `eigvalsh` at ≈ 3 µs per 6×6",
+        "matrix); large ones by memory traffic of ≈ 300 elementwise operations per feature-pose (distortion doubles",
+        "the lens work). The loop baseline costs ≈ 0.7–1 ms per pose whatever N, so its rate grows with N.",
+    ]
     lines += [
         "",
         "Agreement with the baseline (max relative difference, on the timed scenario; visible fraction "
