@@ -12,6 +12,8 @@ Free (vision targets): a blind hole in the upright at (target_upright_x_mm, 0, t
 the base top at (target_base_x_mm, -30, 6), radius target_radius_mm, 3 mm deep.
 """
 
+import math
+
 import cadquery as cq
 
 DESCRIPTION = "L-bracket: fixed counterbored M6 in the upright, movable countersunk M5 in the base, 2 targets"
@@ -35,10 +37,11 @@ TARGET_DEPTH, TARGET_BASE_Y = 3.0, -30.0
 
 def build(base_hole_spacing_mm, base_hole_y_mm, target_upright_x_mm, target_upright_z_mm, target_base_x_mm,
           target_radius_mm):
-    body = cq.Solid.makeBox(W, T, H, cq.Vector(-W / 2, 0, 0)).fuse(
-        cq.Solid.makeBox(W, D + T, T, cq.Vector(-W / 2, -D, 0))).clean()
-    corner = [e for e in body.Edges() if (e.Center() - cq.Vector(0, 0, T)).Length < 1e-6]
-    body = body.fillet(FILLET, corner)
+    s45 = FILLET * math.sqrt(0.5)  # the inner fillet: centre (y, z) = (-FILLET, T + FILLET)
+    section = (cq.Workplane("YZ", origin=(-W / 2, 0, 0)).moveTo(-D, 0).lineTo(T, 0).lineTo(T, H).lineTo(0, H)
+               .lineTo(0, T + FILLET).threePointArc((-FILLET + s45, T + FILLET - s45), (-FILLET, T))
+               .lineTo(-D, T).close())  # (y, z) of the L section, extruded along +x
+    body = section.extrude(W).val()
     y_dir, down = cq.Vector(0, 1, 0), cq.Vector(0, 0, -1)
     cuts = []
     for sx in (-1, 1):
