@@ -18,7 +18,8 @@ def _render_arguments(parser: argparse.ArgumentParser) -> None:
                         help="override a part-script parameter (repeatable)")
     parser.add_argument("--out", default=None, help="PNG to write (default: <part name>.png here)")
     parser.add_argument("--view", default=None, metavar="X,Y,Z",
-                        help="direction from the part towards the viewer, part frame (default: from the holes)")
+                        help="direction from the part towards the viewer, part frame (default: the part's "
+                             "VIEW_DIRECTION or the mean hole axis, tilted to show depth)")
     parser.add_argument("--size", default="900x700", metavar="WxH", help="image size in pixels (default 900x700)")
 
 
@@ -85,10 +86,11 @@ def load_shape(path: Path, params: dict[str, float | int]) -> tuple[Any, list, A
 def render(args: argparse.Namespace) -> int:
     """Render a part script or STEP file to a PNG (off-screen) and print the PNG path."""
     from cadfeat.render import render_part
+    from cadfeat.render.part_views import default_view_direction
 
     path = Path(args.part)
     shape, holes, view, name = load_shape(path, parse_params(args.param))
-    direction = _parse_vector(args.view, "--view") or view
+    direction = _parse_vector(args.view, "--view") or default_view_direction(holes, towards=view)
     out = Path(args.out) if args.out else Path(f"{name}.png")
     if out.suffix.lower() != ".png":
         raise CadfeatError(f"--out {out}: the picture is a PNG; give a path ending in .png")

@@ -57,20 +57,18 @@ def _unit(v: Sequence[float], what: str) -> np.ndarray:
     return v / n
 
 
-def default_view_direction(holes: Sequence[Hole]) -> np.ndarray:
-    """Direction (part frame, unit) from the part towards the viewer: the mean hole axis tilted
-    towards ``DEFAULT_VIEW`` so the part shows depth; ``DEFAULT_VIEW`` without holes."""
+def default_view_direction(holes: Sequence[Hole], towards: Sequence[float] | None = None) -> np.ndarray:
+    """Direction (part frame, unit) from the part towards the viewer: ``towards`` (e.g. a part script's
+    VIEW_DIRECTION) or else the mean hole axis, tilted towards ``DEFAULT_VIEW`` so the part shows depth;
+    ``DEFAULT_VIEW`` when neither is known."""
     iso = _unit(DEFAULT_VIEW, "DEFAULT_VIEW")
-    if not holes:
+    base = np.mean([h.axis for h in holes], axis=0) if towards is None and holes else towards
+    if base is None or np.linalg.norm(base) < 1e-6:
         return iso
-    mean_axis = np.mean([h.axis for h in holes], axis=0)
-    if np.linalg.norm(mean_axis) < 1e-6:
-        return iso
-    mean_axis = _unit(mean_axis, "mean hole axis")
-    d = mean_axis + 0.6 * (iso - np.dot(iso, mean_axis) * mean_axis)
-    if np.linalg.norm(d - mean_axis) < 1e-6:
-        d = mean_axis + 0.6 * _unit(np.cross(mean_axis, [1.0, 0.0, 0.0]) if abs(mean_axis[0]) < 0.9
-                                    else np.cross(mean_axis, [0.0, 1.0, 0.0]), "tilt")
+    base = _unit(base, "view direction")
+    d = base + 0.6 * (iso - np.dot(iso, base) * base)
+    if np.linalg.norm(d - base) < 1e-6:  # base along DEFAULT_VIEW: tilt sideways
+        d = base + 0.6 * _perpendicular(base)
     return _unit(d, "view direction")
 
 
@@ -78,14 +76,56 @@ def _view_up(direction: np.ndarray) -> tuple[float, float, float]:
     return (0.0, 1.0, 0.0) if abs(direction[2]) > 0.95 else (0.0, 0.0, 1.0)
 
 
-def _fit_view(plotter: pv.Plotter, points: np.ndarray, direction: np.ndarray, zoom: float = 1.2) -> None:
-    """Look along ``-direction`` at the box of ``points`` (M, 3), zoomed so all of it is in view."""
+def _fit_view(plotter: pv.Plotter, points: np.ndarray, direction: np.ndarray, fill: float = 0.9) -> None:
+    """Look along ``-direction`` at ``points`` (M, 3), zoomed so their projection spans ``fill`` of the
+    image (VTK's reset fits the bounding sphere, which wastes a third of the picture)."""
     lo, hi = points.min(axis=0), points.max(axis=0)
     centre = 0.5 * (lo + hi)
     radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
     plotter.camera_position = [tuple(centre + direction * 4.0 * radius), tuple(centre), _view_up(direction)]
     plotter.reset_camera(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
-    plotter.camera.zoom(zoom)
+    sample = points[:: max(1, len(points) // 20000)]
+    width, height = plotter.window_size
+    cam = plotter.camera
+    for _ in range(4):  # centre the projection, then zoom (perspective is not linear): a few fixed-point steps
+        M = _vtk_matrix(cam.GetCompositeProjectionTransformMatrix(width / height, -1.0, 1.0))
+        clip = np.c_[sample, np.ones(len(sample))] @ M.T
+        ndc = clip[:, :2] / clip[:, 3:4]
+        lo_ndc, hi_ndc = ndc.min(axis=0), ndc.max(axis=0)
+        mid, extent = 0.5 * (lo_ndc + hi_ndc), float(np.max(0.5 * (hi_ndc - lo_ndc)))
+        if not np.all(np.isfinite(ndc)) or extent <= 0:
+            break
+        position, focal = np.array(cam.GetPosition()), np.array(cam.GetFocalPoint())
+        forward = focal - position
+        up = np.array(cam.GetViewUp())
+        right = np.cross(forward, up)
+        right /= np.linalg.norm(right)
+        up = np.cross(right, forward) / np.linalg.norm(forward)
+        half_h = np.linalg.norm(forward) * np.tan(np.radians(cam.GetViewAngle()) / 2.0)
+        shift = mid[0] * half_h * width / height * right + mid[1] * half_h * up
+        cam.SetPosition(*(position + shift))
+        cam.SetFocalPoint(*(focal + shift))
+        cam.Zoom(fill / extent)  # > 1 zooms in
+    plotter.renderer.ResetCameraClippingRange()
+
+
+def _get_view(plotter: pv.Plotter) -> tuple:
+    """Everything that fixes what a perspective camera sees: position, focal point, view-up, view angle."""
+    cam = plotter.camera
+    return cam.GetPosition(), cam.GetFocalPoint(), cam.GetViewUp(), cam.GetViewAngle()
+
+
+def _set_view(plotter: pv.Plotter, view: tuple) -> None:
+    cam = plotter.camera
+    cam.SetPosition(*view[0])
+    cam.SetFocalPoint(*view[1])
+    cam.SetViewUp(*view[2])
+    cam.SetViewAngle(view[3])
+    plotter.renderer.ResetCameraClippingRange()
+
+
+def _vtk_matrix(m: Any) -> np.ndarray:
+    return np.array([[m.GetElement(i, j) for j in range(4)] for i in range(4)])
 
 
 def _label_points(plotter: pv.Plotter, points: np.ndarray, labels: list[str], colour: Sequence[float]) -> None:
@@ -98,16 +138,16 @@ def render_part(shape: Any, path: str | Path, holes: Sequence[Hole] | None = Non
                 view_direction: Sequence[float] | None = None, size: tuple[int, int] = (900, 700)) -> Path:
     """A PNG of ``shape`` from ``view_direction`` (part frame, towards the viewer), holes dark and labelled.
 
-    ``holes=None`` extracts them (``cadfeat.features.extract_holes``). Returns the PNG path.
+    ``holes=None`` extracts them (``cadfeat.features.extract_holes``). Without ``view_direction`` the
+    view is ``default_view_direction(holes)``. Returns the PNG path.
     """
     from cadfeat.features import extract_holes
 
     holes = extract_holes(shape) if holes is None else list(holes)
     direction = default_view_direction(holes) if view_direction is None else _unit(view_direction, "view_direction")
     mesh = _picture_mesh(shape)
-    plotter = new_plotter(size)
+    plotter = _picture_plotter(size)
     try:
-        plotter.enable_anti_aliasing("ssaa")
         add_part(plotter, mesh, cell_colours(hole_cell_labels(mesh, holes), None), specular=0.2)
         _label_points(plotter, _label_anchor(holes, mesh), [_hole_name(h, j) for j, h in enumerate(holes)],
                       (0.1, 0.1, 0.1))
@@ -115,6 +155,17 @@ def render_part(shape: Any, path: str | Path, holes: Sequence[Hole] | None = Non
         return _save(plotter, path)
     finally:
         plotter.close()
+
+
+def _picture_plotter(size: tuple[int, int]) -> pv.Plotter:
+    """White background, VTK's light kit plus a soft headlight (faces seen edge-on to the key light stay
+    readable), super-sampled anti-aliasing."""
+    import pyvista as pv
+
+    plotter = new_plotter(size)
+    plotter.add_light(pv.Light(light_type="headlight", intensity=0.15))
+    plotter.enable_anti_aliasing("ssaa")
+    return plotter
 
 
 def _picture_mesh(shape: Any) -> Any:
@@ -263,7 +314,7 @@ class _Scene:
                              render_points_as_spheres=True)
         if self.frusta is not None:
             plotter.add_mesh(pv.PolyData(self.frusta[0], lines=self.frusta[1]), color=FRUSTUM, line_width=1.5)
-        plotter.add_legend(self._legend(after), bcolor="white", border=True, size=(0.26, 0.2), loc="upper left",
+        plotter.add_legend(self._legend(), bcolor="white", border=True, size=(0.26, 0.2), loc="upper left",
                            face="rectangle")
 
     def _arrow(self, plotter: pv.Plotter, start: np.ndarray, end: np.ndarray) -> None:
@@ -279,13 +330,12 @@ class _Scene:
         plotter.add_mesh(pv.Cone(center=tip_base + d / length * head / 2, direction=d, height=head,
                                  radius=0.016 * self.size_mm, resolution=24), color=ARROW)
 
-    def _legend(self, after: bool) -> list[list[Any]]:
+    def _legend(self) -> list[list[Any]]:
+        """The same entries in both pictures, so they can be flipped between."""
         entries: list[list[Any]] = [["part", LEGEND_GREY]]
         if self.moved.any():
-            entries.append(["moved hole (new place)" if after else "hole to move", MOVED_AFTER if after
-                            else MOVED_BEFORE])
-            if after:
-                entries += [["old place", MOVED_BEFORE], ["move old -> new", ARROW]]
+            entries += [["moved hole, old place", MOVED_BEFORE], ["moved hole, new place", MOVED_AFTER],
+                        ["move old -> new", ARROW]]
         if self.fixed.any():
             entries.append(["fixed hole", FIXED])
         if (~self.fixed & ~self.moved).any():
@@ -323,18 +373,16 @@ def render_comparison(shape_before: Any, shape_after: Any, holes_before: Sequenc
                    _trajectory_in_part(trajectory, T_task_part), camera, n_frusta)
     out = Path(out_dir)
     paths = {}
-    camera_position = None
+    view = None
     for key in ("before", "after"):
-        plotter = new_plotter(size)
+        plotter = _picture_plotter(size)
         try:
-            plotter.enable_anti_aliasing("ssaa")
             scene.draw(plotter, after=key == "after")
-            if camera_position is None:
+            if view is None:
                 _fit_view(plotter, scene.bounds_points, scene.direction)
-                camera_position = plotter.camera_position
+                view = _get_view(plotter)
             else:
-                plotter.camera_position = camera_position
-            plotter.renderer.ResetCameraClippingRange()
+                _set_view(plotter, view)
             paths[key] = _save(plotter, out / f"{key}.png")
         finally:
             plotter.close()
