@@ -127,7 +127,9 @@ class Problem:
 
         def per_design(a: np.ndarray) -> np.ndarray:  # (L, B·N) → (B, L, N)
             return np.moveaxis(a.reshape(L, B, N), 1, 0)
-        arrays = {k: per_design(getattr(m, k)) for k in ("fov", "fov_px", "focus", "resolution_px", "visible")}
+        attrs = {"fov": "fov" if cfg.fov_measure == "cone" else "fov_px", "focus": "focus",
+                 "resolution": "resolution_px", "resolvability": "visible"}
+        arrays = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures}
         if "resolvability" in cfg.measures and B == 1:  # evaluate's own Λ is the design's
             arrays["resolvability"] = np.asarray(m.resolvability)[None]
         elif "resolvability" in cfg.measures:
