@@ -248,3 +248,10 @@ def test_step_holes_optimised_redrilled_and_verified_on_the_brep():
     fast_edges = sorted(margins[:len(problem.cset.edge_idx)])
     np.testing.assert_allclose(brep_edges, fast_edges, atol=1e-6)
     assert min(margins) == pytest.approx(0.0, abs=1e-6)  # a kept requirement is active at the optimum
+
+
+def test_snapped_sizes_stay_standard_inside_a_trust_region():
+    space = box((-3, 3), (1, 10), x0=[0, 4.9], sizes={1: (2.0, 3.0, 4.5, 6.0, 8.0)})
+    problem = AnalyticProblem(space, lambda X: -((X[:, 0] - 1) ** 2 + (X[:, 1] - 5.2) ** 2)[:, None])
+    res = optimise(problem, OptimizerConfig(method="local"), bounds=(np.array([-1, 4.7]), np.array([1, 5.4])))
+    assert res.x_best[1] in (4.5, 6.0) and res.x_best[0] == pytest.approx(1.0, abs=1e-6)
