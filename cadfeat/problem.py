@@ -31,6 +31,19 @@ from cadfeat.poses import invert_T
 __all__ = ["Problem"]
 
 
+def _resolvability(J: np.ndarray, screws: np.ndarray, rotation_length_mm: float) -> np.ndarray:
+    """``measures.resolvability`` (eq. 4.27–4.32) of stacked Jacobians J (M, 2N, 6), with the Gram matrices
+    JᵀJ formed by one batched matmul (as ``measures.evaluate`` does) — same formula and helpers."""
+    from cadfeat.measures.jacobian import diagnostics_from_gram
+    from cadfeat.measures.resolvability import resolvability_from_parts, scale_jacobian, scale_screws
+
+    Js = scale_jacobian(J, rotation_length_mm)
+    diag = diagnostics_from_gram(np.swapaxes(Js, 1, 2) @ Js)
+    image_speed = np.linalg.norm((J @ screws[:, :, None])[..., 0], axis=-1)
+    return resolvability_from_parts(Js, image_speed, scale_screws(screws, rotation_length_mm), diag["singular"],
+                                    diag["sigma_min"])
+
+
 class _Arrays:
     """Measures-like attribute access to a dict of arrays."""
 
@@ -127,16 +140,18 @@ class Problem:
 
         def per_design(a: np.ndarray) -> np.ndarray:  # (L, B·N) → (B, L, N)
             return np.moveaxis(a.reshape(L, B, N), 1, 0)
-        arrays = {k: per_design(getattr(m, k)) for k in ("fov", "fov_px", "focus", "resolution_px", "visible")}
+        attrs = {"fov": "fov" if cfg.fov_measure == "cone" else "fov_px", "focus": "focus",
+                 "resolution": "resolution_px", "resolvability": "visible"}
+        arrays = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures}
         if "resolvability" in cfg.measures and B == 1:  # evaluate's own Λ is the design's
             arrays["resolvability"] = np.asarray(m.resolvability)[None]
         elif "resolvability" in cfg.measures:
             R, t = self.T_cam_part[:, :3, :3], self.T_cam_part[:, :3, 3]
-            pts = np.einsum("lij,bnj->blni", R, centres) + t[None, :, None, :]
+            pts = centres[:, None] @ np.swapaxes(R, 1, 2)[None] + t[None, :, None, :]  # (B, L, N, 3)
             J = measures.stacked_jacobian(self.camera, pts.reshape(B * L, N, 3),
                                           arrays["visible"].reshape(B * L, N).astype(float))
-            lam = measures.resolvability(J, np.tile(self.screws, (B, 1)), cfg.rotation_length_mm)
-            arrays["resolvability"] = np.asarray(lam).reshape(B, L)
+            arrays["resolvability"] = _resolvability(J, np.tile(self.screws, (B, 1)),
+                                                     cfg.rotation_length_mm).reshape(B, L)
         values = per_pose_values(_Arrays(arrays), cfg, self.feature_mask)
         return np.stack([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k])
                          for k in cfg.measures], axis=-1)

@@ -209,3 +209,49 @@ def test_measure_threshold_as_hard_constraint():
     res = optimise(problem, OptimizerConfig(starts=2))
     assert res.feasible and res.objectives_best["g_FOV"] >= 0.02 - 1e-6
     assert res.x_best[4] == pytest.approx(8.0, abs=1e-6)  # resolution still drives the diameter up
+
+
+def test_step_holes_optimised_redrilled_and_verified_on_the_brep():
+    # a STEP part: move hole "A" (through, Ø8) and the counterbore in their face; the camera looks at the plate's
+    # corner, so FOV pulls both holes there until edge distance / ligament stop them; the optimum is re-drilled
+    # in the B-rep and the kept requirements re-measured there (independently of the 2-D form)
+    from pathlib import Path
+
+    from cadfeat.camera import Camera
+    from cadfeat.constraints import ConstraintConfig, verify_on_brep
+    from cadfeat.design_space import HoleMoveModel
+    from cadfeat.objectives import ObjectiveConfig
+    from cadfeat.problem import Problem
+    from cadfeat.step_parts import load_step, redrill
+    from cadfeat.trajectory import straight_approach
+
+    part = load_step(Path(__file__).parent / "data" / "plate_holes.step")
+    holes = list(part.holes)
+    a = holes.index(part.select((-25.0, -15.0, 10.0)))
+    cb = holes.index(part.select((20.0, -12.0, 10.0)))
+    model = HoleMoveModel(holes, movable=[a, cb])
+    space = model.design_space()
+    fixed = [i not in (a, cb) for i in range(len(holes))]
+    traj = straight_approach((10, 0, 140), (50, 40, 110), (40, 30, 10), n=8)
+    cfg = ConstraintConfig(edge_distance_mm=3.0, ligament_mm=3.0)
+    problem = Problem(space, model, Camera.preset("basler-aca1300-200um-8mm"), traj, np.eye(4),
+                      ObjectiveConfig(measures=("fov",), aggregate="min"), cfg, fixed)
+    res = optimise(problem, OptimizerConfig(method="local"))
+    assert res.feasible and res.combined_best >= problem.combined(space.x0) - 1e-12
+    solid = redrill(part.shape, model.hole_moves(res.x_best))
+    c, ax, r = model.features(res.x_best)
+    design = [h.__class__(**{**h.__dict__, "centre": c[i], "radius_mm": float(r[i])}) for i, h in enumerate(holes)]
+    checks = verify_on_brep(solid, design, cfg, fixed, reference=holes)
+    assert checks and all(ch.ok for ch in checks), [ch for ch in checks if not ch.ok]
+    margins = problem.constraints(res.x_best)
+    brep_edges = sorted(ch.margin for ch in checks if ch.name == "edge")
+    fast_edges = sorted(margins[:len(problem.cset.edge_idx)])
+    np.testing.assert_allclose(brep_edges, fast_edges, atol=1e-6)
+    assert min(margins) == pytest.approx(0.0, abs=1e-6)  # a kept requirement is active at the optimum
+
+
+def test_snapped_sizes_stay_standard_inside_a_trust_region():
+    space = box((-3, 3), (1, 10), x0=[0, 4.9], sizes={1: (2.0, 3.0, 4.5, 6.0, 8.0)})
+    problem = AnalyticProblem(space, lambda X: -((X[:, 0] - 1) ** 2 + (X[:, 1] - 5.2) ** 2)[:, None])
+    res = optimise(problem, OptimizerConfig(method="local"), bounds=(np.array([-1, 4.7]), np.array([1, 5.4])))
+    assert res.x_best[1] in (4.5, 6.0) and res.x_best[0] == pytest.approx(1.0, abs=1e-6)

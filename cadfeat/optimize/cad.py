@@ -3,10 +3,11 @@
 Round k: optimise on the current feature model inside the trust region (the whole box in round 1),
 rebuild the candidate in CAD and re-extract its holes, match them to the prediction by geometry, and
 compare (centres and radii, ``tol_mm``, default 1e-6 mm). Agreement ends the loop: the answer is the
-real CAD rebuild. Otherwise the map is refreshed (linearised again) at the rebuilt point, the candidate
-becomes the new centre if its true (re-extracted) combined objective is better and feasible, else the
-region shrinks; a rebuild that raises (or times out, in the caller's ``rebuild``) is an infeasible point:
-the region shrinks around the centre.
+real CAD rebuild. Otherwise the map is refreshed (linearised again) at the rebuilt point, which becomes the
+new centre unless its true (re-extracted) combined objective is worse than the centre's — then the region
+shrinks around the centre. The best CAD-evaluated design (feasible first) is kept throughout and returned
+if no round agrees within ``max_rounds``. A rebuild that raises (or times out, in the caller's
+``rebuild``) is an infeasible point: the region shrinks around the centre.
 
 Ctrl-C in round 1 returns the best design on the feature model, marked interrupted (not yet verified);
 later, the best verified design so far.
@@ -138,11 +139,11 @@ def solve_with_cad(problem: Any, rebuild: Callable[[np.ndarray], list[Hole]], co
         if err <= tol_mm:
             verified = candidate
             return finish(res, False, f"CAD-verified in round {k + 1} (prediction error {err:.2g} mm)")
-        improved = candidate["feasible"] and (centre_value is None or combined > centre_value)
-        if improved:
-            x_c, centre_value = x_new.copy(), combined
-        else:
+        worse = centre_value is not None and combined < centre_value - 1e-9 * max(1.0, abs(centre_value))
+        if worse:  # the model misled: keep the centre, trust a smaller region
             radius = shrink * (space.span if radius is None else radius)
+        else:  # move on (a tiny violation from the model's error is corrected by the next, refreshed map)
+            x_c, centre_value = x_new.copy(), combined
         prob = problem.with_model(refresh(x_new, holes))
         entry["refreshed_at"] = x_new.tolist()
     if last is None:

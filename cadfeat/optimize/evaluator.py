@@ -28,8 +28,9 @@ class Evaluator:
         space = problem.space
         lower, upper = (space.lower, space.upper) if bounds is None else bounds
         self.bounds = (np.maximum(space.lower, lower), np.minimum(space.upper, upper))
-        self.x_base = np.clip(np.asarray(x_base, dtype=float), *self.bounds)
         self.free = np.arange(space.size) if free is None else np.asarray(free, dtype=int)
+        self.x_base = np.asarray(x_base, dtype=float).copy()  # fixed entries kept as given (snapped sizes)
+        self.x_base[self.free] = np.clip(self.x_base[self.free], self.bounds[0][self.free], self.bounds[1][self.free])
         self.lower = self.bounds[0][self.free]
         self.span = np.maximum(self.bounds[1][self.free] - self.lower, 1e-300)
         self.progress = progress
