@@ -213,6 +213,19 @@ def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
 
 
+def test_infeasible_study_names_the_conflict(tmp_path, monkeypatch):
+    """No position of the row keeps 25 mm from the edges of a 60 x 40 mm plate: one StudyError naming the
+    violated requirement, nothing written."""
+    from cadfeat.study_schema import StudyError
+
+    no_report(monkeypatch)
+    data = copy.deepcopy(SMALL)
+    data["constraints"]["edge_distance_mm"] = 25.0
+    with pytest.raises(StudyError, match="no design meets the kept requirements.*edge"):
+        run_study(data, tmp_path / "out", quiet=True)
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.slow
 def test_integer_parameter_stays_int(tmp_path, monkeypatch):
     """``count`` (an int parameter) is enumerated, never turned into a float: the CAD model is built with an
