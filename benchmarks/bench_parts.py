@@ -11,6 +11,7 @@ Finally the worker-process build (``build_shape``) against the in-process build.
 from __future__ import annotations
 
 import importlib.util
+import os
 import statistics
 import sys
 import time
@@ -52,8 +53,8 @@ def main(quick: bool = False) -> str:
     lines = [
         "## Parts library: build, hole extraction, design map (bench_parts)",
         "",
-        f"Machine: {machine}. Median of {repeats} runs, default parameters. Baseline: the part's own CadQuery",
-        "build; ratio = extraction time / build time.",
+        f"Machine: {machine}; load average at start {os.getloadavg()[0]:.1f}. Median of {repeats} runs, default",
+        "parameters. Baseline: the part's own CadQuery build; ratio = extraction time / build time.",
         "",
         "| part | holes | build (ms) | extract (ms) | ratio extract/build |",
         "|---|---:|---:|---:|---:|",

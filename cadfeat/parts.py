@@ -9,7 +9,7 @@ A part script is a plain Python file (``parts/*.py``) that also runs unchanged i
     FIXED_HOLES = "..."               # optional: which holes are functional (may not move)
 
     def build(**params) -> cq.Workplane: ...
-    def expected_holes(**params) -> list[dict]: ...   # optional: analytic holes, for tests
+    def expected_holes(**params) -> list[dict]: ...   # optional: analytic holes (tests), "fixed" flags
 
     if "show_object" in globals():    # cq-editor
         show_object(build(**{k: v["default"] for k, v in PARAMETERS.items()}))
@@ -32,7 +32,7 @@ import multiprocessing
 import os
 import sys
 import traceback
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -203,9 +203,22 @@ class Part:
         return extract_holes(build_shape(self, params, timeout_s), prefer_direction=self.view_direction)
 
     def expected_holes(self, **overrides: Any) -> list[dict] | None:
-        """The script's analytic holes (``expected_holes(**params)``: dicts centre, axis, radius_mm), or None."""
+        """The script's analytic holes (``expected_holes(**params)``: dicts centre, axis, radius_mm, optional
+        kind, fixed, name), or None if the script has none."""
         func = getattr(self.module, "expected_holes", None)
         return None if func is None else func(**self.resolve(**overrides))
+
+    def fixed_mask(self, holes: Sequence[Hole], params: Mapping[str, Any] | None = None,
+                   tol_mm: float = 1e-6) -> np.ndarray:
+        """(N,) bool: which of ``holes`` (extracted at ``params``) the script marks ``"fixed": True`` in
+        ``expected_holes`` (functional holes that may not move); matched by centre within ``tol_mm``.
+        All False for a script without ``expected_holes``."""
+        expected = self.expected_holes(**dict(params or {})) or []
+        fixed = np.array([c for e in expected if e.get("fixed") for c in [e["centre"]]], dtype=float).reshape(-1, 3)
+        if len(holes) == 0 or len(fixed) == 0:
+            return np.zeros(len(holes), dtype=bool)
+        centres = np.stack([h.centre for h in holes])
+        return (np.linalg.norm(centres[:, None] - fixed[None], axis=-1) <= tol_mm).any(axis=1)
 
 
 def _fmt(params: Mapping[str, Any]) -> str:

@@ -31,6 +31,13 @@ from cadfeat.poses import invert_T
 __all__ = ["Problem"]
 
 
+class _Arrays:
+    """Measures-like attribute access to a dict of arrays."""
+
+    def __init__(self, arrays: dict[str, np.ndarray]):
+        self.__dict__.update(arrays)
+
+
 class Problem:
     """A feature-design problem (see module docstring).
 
@@ -101,6 +108,39 @@ class Problem:
         values = per_pose_values(m, cfg, self.feature_mask)
         return np.array([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k]) for k in cfg.measures])
 
+    def batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N) in one pass.
+
+        The per-feature measures come from ONE ``measures.evaluate`` call on the B·N features side by side
+        (they are independent per feature); its per-pose Jacobian values mix designs and are not used.
+        Instead Λ is computed per (design, pose) with ``measures.stacked_jacobian`` (rows of features that are
+        not ``visible`` weighted 0, as ``evaluate`` does) and ``measures.resolvability`` on B·L stacked
+        Jacobians. Equal to ``features_objectives`` design by design (tested)."""
+        from cadfeat import measures
+
+        cfg = self.objective_config
+        B, N = radii.shape
+        L = len(self.screws)
+        if np.any(radii <= 0):
+            raise CadfeatError(f"a design gives a hole radius ≤ 0 mm: {radii.min():g}")
+        m = self.measures_from_features(centres.reshape(B * N, 3), axes.reshape(B * N, 3), radii.reshape(B * N))
+
+        def per_design(a: np.ndarray) -> np.ndarray:  # (L, B·N) → (B, L, N)
+            return np.moveaxis(a.reshape(L, B, N), 1, 0)
+        arrays = {k: per_design(getattr(m, k)) for k in ("fov", "fov_px", "focus", "resolution_px", "visible")}
+        if "resolvability" in cfg.measures and B == 1:  # evaluate's own Λ is the design's
+            arrays["resolvability"] = np.asarray(m.resolvability)[None]
+        elif "resolvability" in cfg.measures:
+            R, t = self.T_cam_part[:, :3, :3], self.T_cam_part[:, :3, 3]
+            pts = np.einsum("lij,bnj->blni", R, centres) + t[None, :, None, :]
+            J = measures.stacked_jacobian(self.camera, pts.reshape(B * L, N, 3),
+                                          arrays["visible"].reshape(B * L, N).astype(float))
+            lam = measures.resolvability(J, np.tile(self.screws, (B, 1)), cfg.rotation_length_mm)
+            arrays["resolvability"] = np.asarray(lam).reshape(B, L)
+        values = per_pose_values(_Arrays(arrays), cfg, self.feature_mask)
+        return np.stack([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k])
+                         for k in cfg.measures], axis=-1)
+
     def features_constraints(self, centres: np.ndarray, radii: np.ndarray, g: np.ndarray) -> np.ndarray:
         """Constraint margins (..., M) from features and raw objectives g (..., K)."""
         mech = self.cset.stacked(centres, radii)
@@ -111,11 +151,11 @@ class Problem:
     def evaluate_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Raw objectives G (B, K) and constraint margins C (B, M) of designs X (B, P).
 
-        Features come from one ``features_batch`` call and the 2-D constraints from one vectorised call; the
-        measures are one ``measures.evaluate`` (batched over poses and features) per design."""
+        Features come from one ``features_batch`` call, the measures from one batched pass
+        (``batch_objectives``) and the 2-D constraints from one vectorised call."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         centres, axes, radii = self.model.features_batch(X)
-        G = np.stack([self.features_objectives(centres[b], axes[b], radii[b]) for b in range(len(X))])
+        G = self.batch_objectives(centres, np.broadcast_to(axes, centres.shape), radii)
         self.n_evals += len(X)
         return G, self.features_constraints(centres, radii, G)
 

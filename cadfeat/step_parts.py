@@ -104,9 +104,10 @@ class StepPart:
         return self.holes[best]
 
 
-def load_step(path: str | os.PathLike[str]) -> StepPart:
+def load_step(path: str | os.PathLike[str], prefer_direction: Sequence[float] | None = None) -> StepPart:
     """Read a STEP part: exactly one solid, its holes extracted and named ``H1``, ``H2``... in the
-    deterministic order of ``features.extract_holes``.
+    deterministic order of ``features.extract_holes``. ``prefer_direction`` (e.g. the side the camera looks
+    from) picks the entrance end of through holes of equal end radii (see ``extract_holes``).
 
     Raises ``CadfeatError`` naming the file if it is missing, not STEP, holds no solid or several solids.
     The file is only read.
@@ -123,7 +124,8 @@ def load_step(path: str | os.PathLike[str]) -> StepPart:
         what = "no solid" if not solids else f"{len(solids)} solids"
         raise CadfeatError(f"{path}: holds {what}; a STEP part must hold exactly one solid")
     solid = cq.Solid(solids[0].wrapped)
-    holes = tuple(dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(extract_holes(solid)))
+    found = extract_holes(solid, prefer_direction)
+    holes = tuple(dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(found))
     return StepPart(name=path.stem, path=path, shape=solid, holes=holes)
 
 

@@ -19,7 +19,7 @@ import cadquery as cq
 
 DESCRIPTION = "Brake-disc-like hub: bore + 5 x 100 stud holes fixed; disc-face and radial hub target holes"
 PARAMETERS = {
-    "target_circle_radius_mm": {"default": 61.0, "bounds": (58.0, 64.0), "unit": "mm",
+    "target_circle_radius_mm": {"default": 61.0, "bounds": (60.0, 64.0), "unit": "mm",
                                 "description": "radius of the circle of disc-face target holes"},
     "target_phase_rad": {"default": 0.0, "bounds": (-0.5, 0.5), "unit": "rad",
                          "description": "angle of the first disc-face target hole from +x"},
@@ -58,8 +58,8 @@ def build(target_circle_radius_mm, target_phase_rad, target_count, radial_target
 
 def expected_holes(target_circle_radius_mm, target_phase_rad, target_count, radial_target_z_mm, target_radius_mm):
     up = (0.0, 0.0, 1.0)
-    out = [{"centre": (0.0, 0.0, HUB_TOP), "axis": up, "radius_mm": BORE_R}]
-    out += [{"centre": (x, y, DISC_T), "axis": up, "radius_mm": STUD_R} for x, y in studs()]
+    out = [{"centre": (0.0, 0.0, HUB_TOP), "axis": up, "radius_mm": BORE_R, "fixed": True}]
+    out += [{"centre": (x, y, DISC_T), "axis": up, "radius_mm": STUD_R, "fixed": True} for x, y in studs()]
     out += [{"centre": (x, y, DISC_T), "axis": up, "radius_mm": target_radius_mm}
             for x, y in targets(target_circle_radius_mm, target_phase_rad, target_count)]
     out.append({"centre": (HUB_R, 0.0, radial_target_z_mm), "axis": (1.0, 0.0, 0.0), "radius_mm": target_radius_mm})

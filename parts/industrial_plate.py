@@ -48,9 +48,10 @@ def build(**p):
 
 def expected_holes(**p):
     up = (0.0, 0.0, 1.0)
-    out = [{"centre": (x, y, 0.0), "axis": up, "radius_mm": BOLT_R} for x in (-50, 50) for y in (-30, 30)]
-    out.append({"centre": (0.0, 0.0, 0.0), "axis": up, "radius_mm": CBORE_R})
-    out += [{"centre": (x, 0.0, 0.0), "axis": up, "radius_mm": DOWEL_R} for x in (-25.0, 25.0)]
+    out = [{"centre": (x, y, 0.0), "axis": up, "radius_mm": BOLT_R, "fixed": True}
+           for x in (-50, 50) for y in (-30, 30)]
+    out.append({"centre": (0.0, 0.0, 0.0), "axis": up, "radius_mm": CBORE_R, "fixed": True})
+    out += [{"centre": (x, 0.0, 0.0), "axis": up, "radius_mm": DOWEL_R, "fixed": True} for x in (-25.0, 25.0)]
     out += [{"centre": (p[f"target_{k}_x_mm"], p[f"target_{k}_y_mm"], 0.0), "axis": up,
              "radius_mm": p["target_radius_mm"]} for k in _TARGETS]
     return out

@@ -16,13 +16,13 @@ import cadquery as cq
 
 DESCRIPTION = "L-bracket: fixed counterbored M6 in the upright, movable countersunk M5 in the base, 2 targets"
 PARAMETERS = {
-    "base_hole_spacing_mm": {"default": 36.0, "bounds": (24.0, 44.0), "unit": "mm",
+    "base_hole_spacing_mm": {"default": 36.0, "bounds": (30.0, 44.0), "unit": "mm",
                              "description": "distance between the two countersunk base holes"},
     "base_hole_y_mm": {"default": -22.0, "bounds": (-36.0, -14.0), "unit": "mm",
                        "description": "y of the countersunk base holes"},
-    "target_upright_x_mm": {"default": 0.0, "bounds": (-8.0, 8.0), "unit": "mm", "description": "upright target x"},
+    "target_upright_x_mm": {"default": 0.0, "bounds": (-6.0, 6.0), "unit": "mm", "description": "upright target x"},
     "target_upright_z_mm": {"default": 22.0, "bounds": (16.0, 44.0), "unit": "mm", "description": "upright target z"},
-    "target_base_x_mm": {"default": 0.0, "bounds": (-8.0, 8.0), "unit": "mm", "description": "base target x"},
+    "target_base_x_mm": {"default": 0.0, "bounds": (-5.0, 5.0), "unit": "mm", "description": "base target x"},
     "target_radius_mm": {"default": 2.0, "bounds": (1.0, 3.0), "unit": "mm", "description": "target hole radius"},
 }
 VIEW_DIRECTION = (0.0, -1.0, 1.0)
@@ -58,7 +58,7 @@ def build(base_hole_spacing_mm, base_hole_y_mm, target_upright_x_mm, target_upri
 def expected_holes(base_hole_spacing_mm, base_hole_y_mm, target_upright_x_mm, target_upright_z_mm, target_base_x_mm,
                    target_radius_mm):
     front, up = (0.0, -1.0, 0.0), (0.0, 0.0, 1.0)
-    out = [{"centre": (sx * 15.0, 0.0, CB_Z), "axis": front, "radius_mm": CB_R, "kind": "counterbore"}
+    out = [{"centre": (sx * 15.0, 0.0, CB_Z), "axis": front, "radius_mm": CB_R, "kind": "counterbore", "fixed": True}
            for sx in (-1, 1)]
     out += [{"centre": (sx * base_hole_spacing_mm / 2, base_hole_y_mm, T), "axis": up, "radius_mm": CS_R,
              "kind": "countersink"} for sx in (-1, 1)]

@@ -63,7 +63,7 @@ def build(base_hole_x_mm, base_hole_y_mm, target_face_x_mm, target_face_z_mm, ta
 def expected_holes(base_hole_x_mm, base_hole_y_mm, target_face_x_mm, target_face_z_mm, target_base_x_mm,
                    target_base_y_mm, target_radius_mm):
     front, up = (0.0, -1.0, 0.0), (0.0, 0.0, 1.0)
-    out = [{"centre": (x, 0.0, z), "axis": front, "radius_mm": r} for (x, z), r in _face_holes()]
+    out = [{"centre": (x, 0.0, z), "axis": front, "radius_mm": r, "fixed": True} for (x, z), r in _face_holes()]
     out.append({"centre": (target_face_x_mm, 0.0, target_face_z_mm), "axis": front, "radius_mm": target_radius_mm})
     out += [{"centre": (sx * base_hole_x_mm, base_hole_y_mm, T), "axis": up, "radius_mm": M5_R} for sx in (-1, 1)]
     out.append({"centre": (target_base_x_mm, target_base_y_mm, T), "axis": up, "radius_mm": target_radius_mm})

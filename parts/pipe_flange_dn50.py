@@ -48,8 +48,8 @@ def build(target_circle_radius_mm, target_angle_rad, target_radius_mm):
 
 def expected_holes(target_circle_radius_mm, target_angle_rad, target_radius_mm):
     up = (0.0, 0.0, 1.0)
-    out = [{"centre": (0.0, 0.0, THICK + RF_H), "axis": up, "radius_mm": BORE_R}]
-    out += [{"centre": (x, y, THICK), "axis": up, "radius_mm": BOLT_R} for x, y in bolt_centres()]
+    out = [{"centre": (0.0, 0.0, THICK + RF_H), "axis": up, "radius_mm": BORE_R, "fixed": True}]
+    out += [{"centre": (x, y, THICK), "axis": up, "radius_mm": BOLT_R, "fixed": True} for x, y in bolt_centres()]
     for a in (target_angle_rad, target_angle_rad + math.pi):
         out.append({"centre": (target_circle_radius_mm * math.cos(a), target_circle_radius_mm * math.sin(a), THICK),
                     "axis": up, "radius_mm": target_radius_mm})

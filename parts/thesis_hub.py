@@ -43,7 +43,7 @@ def build(bolt_circle_radius_mm, phase_rad, small_hole_radius_mm, centre_hole_ra
 
 def expected_holes(bolt_circle_radius_mm, phase_rad, small_hole_radius_mm, centre_hole_radius_mm, hole_count):
     up = (0.0, 0.0, 1.0)
-    out = [{"centre": (0.0, 0.0, 0.0), "axis": up, "radius_mm": centre_hole_radius_mm}]
+    out = [{"centre": (0.0, 0.0, 0.0), "axis": up, "radius_mm": centre_hole_radius_mm, "fixed": True}]
     for k in range(hole_count):
         a = phase_rad + 2 * math.pi * k / hole_count
         out.append({"centre": (bolt_circle_radius_mm * math.cos(a), bolt_circle_radius_mm * math.sin(a), 0.0),

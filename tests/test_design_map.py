@@ -153,3 +153,18 @@ def test_worker_builds_give_the_same_map_and_feature_matrix():
     rows, matrix = local.feature_matrix()
     assert rows == ["H1.x", "H1.y", "H1.z", "H1.r"]
     np.testing.assert_allclose(matrix, [[1, 0], [0, 0], [0, 0], [0, 1]], atol=1e-9)  # uncoupled (§2.2.4)
+
+
+def test_linear_feature_model_from_design_map(hub_map):
+    """The optimiser's LinearFeatureModel built from a DesignMap predicts what the map predicts."""
+    from cadfeat.design_space import LinearFeatureModel
+
+    _, dm = hub_map
+    x0 = [dm.at[n] for n in dm.names]
+    model = LinearFeatureModel.from_design_map(dm, list(dm.names), x0)
+    x = np.array(x0) + np.array([1.0, 0.05, -0.3, 0.2])
+    c, a, r = model.features(x)
+    pc, pa, pr = dm.predict(dict(zip(dm.names, x, strict=True)))
+    np.testing.assert_allclose(c, pc, atol=1e-12)
+    np.testing.assert_allclose(a, pa, atol=1e-12)
+    np.testing.assert_allclose(r, pr, atol=1e-12)

@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from cadfeat.features import extract_holes, extract_points, holes_to_arrays, match_holes
 
@@ -151,3 +153,42 @@ def test_points_of_a_box_are_its_corners():
     box = cq.Solid.makeBox(3.0, 4.0, 5.0, cq.Vector(1.0, -2.0, 0.5))
     corners = np.array([(x, y, z) for x in (1.0, 4.0) for y in (-2.0, 2.0) for z in (0.5, 5.5)])
     np.testing.assert_allclose(extract_points(box), corners, atol=1e-12)  # lexicographic x, y, z
+
+
+# ------------------------------------------------------------------------------ random plates (property)
+_hole = st.tuples(st.floats(-40, 40), st.floats(-20, 20), st.floats(0.5, 3.0),
+                  st.sampled_from(["through", "top", "bottom"]), st.floats(1.0, 6.0))
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(_hole, min_size=1, max_size=5))
+def test_random_plate_holes_exact(spec):
+    """Random holes (through, blind from the top, blind from the bottom) in a 100 × 60 × 8 plate: every
+    extracted centre / axis / radius / depth equals the construction values (1e-9 mm)."""
+    import cadquery as cq
+
+    kept = []
+    for x, y, r, kind, depth in spec:  # keep holes 1 mm apart
+        if all(math.hypot(x - k[0], y - k[1]) > r + k[2] + 1.0 for k in kept):
+            kept.append((x, y, r, kind, depth))
+    plate = cq.Solid.makeBox(100, 60, 8, cq.Vector(-50, -30, -8))
+    cuts, expected = [], []
+    for x, y, r, kind, depth in kept:
+        if kind == "through":
+            cuts.append(cq.Solid.makeCylinder(r, 10, cq.Vector(x, y, -9)))
+            expected.append(((x, y, 0.0), (0, 0, 1), r, 8.0, True))
+        elif kind == "top":
+            cuts.append(cq.Solid.makeCylinder(r, depth + 1, cq.Vector(x, y, -depth)))
+            expected.append(((x, y, 0.0), (0, 0, 1), r, depth, False))
+        else:
+            cuts.append(cq.Solid.makeCylinder(r, depth + 1, cq.Vector(x, y, -8 - 1)))
+            expected.append(((x, y, -8.0), (0, 0, -1), r, depth, False))
+    holes = extract_holes(plate.cut(*cuts), prefer_direction=(0, 0, 1))
+    assert len(holes) == len(expected)
+    centres, axes, radii = holes_to_arrays(holes)
+    for c, a, r, depth, through in expected:
+        i = int(np.argmin(np.linalg.norm(centres - np.array(c), axis=1)))
+        assert np.linalg.norm(centres[i] - np.array(c)) <= 1e-9
+        np.testing.assert_allclose(axes[i], a, atol=1e-12)
+        assert abs(radii[i] - r) <= 1e-9 and abs(holes[i].depth_mm - depth) <= 1e-9
+        assert holes[i].through == through and holes[i].kind == "plain"

@@ -103,7 +103,7 @@ def test_sphere_ellipse_matches_fitted_outline():
         c_ref, axes_ref, _ = _fit(CAM, _rim_points(circle_c, c, circle_r))
         np.testing.assert_allclose(e.axes_px, axes_ref, atol=0.05)
         np.testing.assert_allclose(e.centre_px, c_ref, atol=0.05)
-        assert measures.resolution_margin_sphere(CAM, c, R, 3.0) == pytest.approx(e.axes_px[1] - 3.0)
+        assert measures.resolution_margin_sphere(CAM, c, None, R, 3.0) == pytest.approx(e.axes_px[1] - 3.0)
 
 
 def test_thesis_sphere_eigenvalues_eq_3_18():
@@ -111,7 +111,7 @@ def test_thesis_sphere_eigenvalues_eq_3_18():
     cam = Camera(fx=500.0, fy=500.0, cx=320.0, cy=240.0, width=640, height=480)
     X, Y, Z, R = 10.0, -20.0, 300.0, 4.0
     CT = np.array([[Y**2 + Z**2 - R**2, -X * Y], [-X * Y, X**2 + Z**2 - R**2]]) / 500.0**2
-    got = measures.resolution_margin_sphere(cam, np.array([X, Y, Z]), R, 0.0, thesis_eigenvalues=True)
+    got = measures.resolution_margin_sphere(cam, np.array([X, Y, Z]), None, R, 0.0, thesis_eigenvalues=True)
     assert got == pytest.approx(np.linalg.eigvalsh(CT)[0])
 
 

@@ -170,6 +170,20 @@ def test_evaluate_matches_the_individual_measures(ell):
                                                    rel=1e-7)
 
 
+def test_evaluate_sphere_resolution_model():
+    cam, T, s, c, n, r = _scene()
+    m = measures.evaluate(cam, T, s, c, n, r, min_axis_px=3.0, resolution_model="sphere")
+    P = points_in_frames(T, c)
+    np.testing.assert_allclose(m.resolution_px, measures.resolution_margin_sphere(cam, P, None, r, 3.0), atol=1e-8)
+    circle = measures.evaluate(cam, T, s, c, n, r, min_axis_px=3.0)
+    np.testing.assert_array_equal(m.axes_px, circle.axes_px)
+    pin = cam.without_distortion()  # the sphere contains the rim, so its outline is never thinner (exact pinhole)
+    sphere = measures.evaluate(pin, T, s, c, n, r, resolution_model="sphere").minor_axis_px
+    assert np.all(sphere >= measures.evaluate(pin, T, s, c, n, r).minor_axis_px * (1 - 1e-12))
+    with pytest.raises(CadfeatError, match="resolution_model"):
+        measures.evaluate(cam, T, s, c, n, r, resolution_model="square")
+
+
 def test_evaluate_slabs_agree_with_one_batch(monkeypatch):
     ev = importlib.import_module("cadfeat.measures.evaluate")  # the module (the package exports the function)
 

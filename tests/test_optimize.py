@@ -188,3 +188,24 @@ def test_solve_with_cad_interrupted_in_round_one_returns_the_feature_optimum():
 
     res = solve_with_cad(problem, interrupted_rebuild, OptimizerConfig(method="local"))
     assert res.interrupted and "not verified" in res.message and res.x_best[4] == pytest.approx(8.0, abs=1e-6)
+
+
+def test_batched_objectives_equal_one_measures_evaluate_per_design():
+    problem = two_hole_problem(measures=("fov", "focus", "resolution", "resolvability"), aggregate="mean",
+                               heights=(150.0, 100.0), n=12)
+    X = problem.space.from_unit(np.random.default_rng(0).uniform(size=(6, 5)))
+    c, a, r = problem.model.features_batch(X)
+    batched = problem.batch_objectives(c, np.broadcast_to(a, c.shape), r)
+    single = np.stack([problem.features_objectives(c[b], a[b], r[b]) for b in range(len(X))])
+    np.testing.assert_allclose(batched, single, rtol=1e-10, atol=1e-12)
+
+
+def test_measure_threshold_as_hard_constraint():
+    # maximise resolution subject to the worst-pose FOV margin ≥ 0.02 (from a design that violates it)
+    kw = dict(measures=("fov", "resolution"), aggregate="min", x0=(-34, 24, 34, -24, 4), heights=(120.0, 100.0), n=8)
+    problem = two_hole_problem(combine="constraint", thresholds={"fov": 0.02}, **kw)
+    assert problem.objectives(problem.space.x0)["g_FOV"] < 0.02
+    assert problem.constraint_kinds()[-1] == "threshold:g_FOV"
+    res = optimise(problem, OptimizerConfig(starts=2))
+    assert res.feasible and res.objectives_best["g_FOV"] >= 0.02 - 1e-6
+    assert res.x_best[4] == pytest.approx(8.0, abs=1e-6)  # resolution still drives the diameter up

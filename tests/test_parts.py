@@ -8,6 +8,7 @@ holes EXTRACTED from the built B-rep at 1e-9 mm; hand-written bad scripts for th
 from __future__ import annotations
 
 import textwrap
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +64,34 @@ def test_part_holes_equal_drawing(path):
         assert_holes_match(part.holes(**params), part.expected_holes(**params))
 
 
+def _separated(expected, gap_mm=0.2) -> bool:
+    """Whether no two analytic holes with parallel axes come closer than ``gap_mm`` (rim to rim)."""
+    c = np.array([e["centre"] for e in expected], dtype=float)
+    a = np.array([e["axis"] for e in expected], dtype=float)
+    r = np.array([e["radius_mm"] for e in expected], dtype=float)
+    d = np.linalg.norm(c[:, None] - c[None], axis=-1)
+    parallel = np.abs(a @ a.T) > 1 - 1e-9
+    close = parallel & (d < r[:, None] + r[None] + gap_mm)
+    return not np.any(np.triu(close, 1))
+
+
+@pytest.mark.parametrize("path", PART_PATHS, ids=[p.stem for p in PART_PATHS])
+def test_part_holes_random_designs(path):
+    """Random designs within the bounds (seeded): every design whose holes do not overlap (a feasible
+    layout; overlapping ones are for the ligament constraint to reject) is extracted exactly."""
+    part = load_part(path)
+    rng = np.random.default_rng(zlib.crc32(path.stem.encode()))
+    checked = 0
+    for _ in range(4):
+        params = {n: int(rng.integers(p.lower, p.upper + 1)) if p.is_int else float(rng.uniform(p.lower, p.upper))
+                  for n, p in part.parameters.items()}
+        expected = part.expected_holes(**params)
+        if _separated(expected):
+            assert_holes_match(part.holes(**params), expected)
+            checked += 1
+    assert checked
+
+
 @pytest.mark.parametrize("path", PART_PATHS, ids=[p.stem for p in PART_PATHS])
 def test_part_metadata(path):
     part = load_part(path)
@@ -85,6 +114,25 @@ def test_scripts_run_unchanged_in_cq_editor():
         runpy.run_path(str(path), init_globals={"show_object": shown.append})
         assert len(shown) == 1 and isinstance(shown[0], cq.Workplane), path.name
         assert len(shown[0].val().Solids()) == 1
+
+
+@pytest.mark.parametrize("name, n_fixed", [("industrial_plate", 7), ("nema17_mount", 5), ("l_bracket", 2),
+                                           ("pipe_flange_dn50", 5), ("brake_disc_hub", 6), ("thesis_hub", 1),
+                                           ("thesis_array_2d", 0)])
+def test_fixed_mask_marks_the_documented_functional_holes(name, n_fixed):
+    part = load_part(PARTS_DIR / f"{name}.py")
+    params = parameter_sets(part)[1]
+    holes = part.holes(**params)
+    mask = part.fixed_mask(holes, params)
+    assert mask.sum() == n_fixed
+    from cadfeat.design_map import design_map
+
+    free = [n for n, p in part.parameters.items() if not p.is_int]
+    if name == "pipe_flange_dn50":  # no parameter moves a fixed hole, every other hole is moved by one
+        dm = design_map(part, free, at=params)
+        moved = sorted({i for v in dm.moved_by.values() for i in v})
+        assert not mask[moved].any()
+        assert set(moved) | set(np.flatnonzero(mask)) == set(range(len(holes)))
 
 
 def test_build_returns_one_solid_and_validates():
@@ -238,3 +286,51 @@ def test_import_stays_light():
     code = "import sys, cadfeat.parts, cadfeat.design_map; print('cadquery' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+# ------------------------------------------------------------------- STEP re-drill vs parametric rebuild
+REDRILL_CASES = {
+    "nema17_mount": {"target_face_x_mm": 25.5, "target_face_z_mm": 38.0, "target_base_x_mm": -7.0,
+                     "base_hole_x_mm": 27.0},
+    "l_bracket": {"base_hole_spacing_mm": 40.0, "base_hole_y_mm": -30.0, "target_upright_z_mm": 30.0},
+}
+
+
+@pytest.mark.parametrize("name", list(REDRILL_CASES))
+def test_step_redrill_equals_parametric_rebuild(tmp_path, name):
+    """Two independent CAD paths to the same design: re-drilling the STEP export of the default design
+    (``step_parts.redrill``) and rebuilding the part script at the new parameters give the same holes
+    (1e-9 mm, kinds, depths) and the same volume (1e-9 relative)."""
+    from cadfeat.export import export_step
+    from cadfeat.step_parts import HoleMove, load_step, redrill
+
+    part = load_part(PARTS_DIR / f"{name}.py")
+    new = REDRILL_CASES[name]
+    step = load_step(export_step(part.build(), tmp_path / f"{name}.step"), part.view_direction)
+    moves = [HoleMove(step.select(list(a["centre"]), tol_mm=1e-9), np.array(b["centre"], float), b["radius_mm"])
+             for a, b in zip(part.expected_holes(), part.expected_holes(**new), strict=True)
+             if not np.allclose(a["centre"], b["centre"], rtol=0, atol=0)]
+    assert len(moves) >= 3
+    result = redrill(step.shape, moves)
+    reference = part.build(**new)
+    assert abs(result.Volume() - reference.Volume()) <= 1e-9 * reference.Volume()
+    from cadfeat.features import extract_holes
+
+    redrilled = extract_holes(result, prefer_direction=part.view_direction)
+    assert_holes_match(redrilled, part.expected_holes(**new))
+    depth = {tuple(np.round(h.centre, 6)): (h.depth_mm, h.through) for h in part.holes(**new)}
+    for h in redrilled:
+        d, through = depth[tuple(np.round(h.centre, 6))]
+        assert abs(h.depth_mm - d) <= 1e-9 and h.through == through
+
+
+def test_redrill_refuses_a_hole_on_a_curved_face(tmp_path):
+    """The brake hub's radial hole enters a cylindrical face: re-drilling says so instead of guessing."""
+    from cadfeat.export import export_step
+    from cadfeat.step_parts import HoleMove, load_step, redrill
+
+    part = load_part(PARTS_DIR / "brake_disc_hub.py")
+    step = load_step(export_step(part.build(), tmp_path / "hub.step"), part.view_direction)
+    hole = step.select([35.0, 0.0, 18.0], tol_mm=1e-9)
+    with pytest.raises(CadfeatError, match=r"\(35, 0, 18\).*not perpendicular to its axis"):
+        redrill(step.shape, [HoleMove(hole, np.array([35.0, 0.0, 20.0]), hole.radius_mm)])

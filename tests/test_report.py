@@ -332,3 +332,46 @@ def test_evaluation_only_report(case, tmp_path, monkeypatch):
         assert [_value(c) for c in row.cells[1:]] == [f[k] for k, _ in FEATURE_COLUMNS]
     values = {r.cells[0].text: _value(r.cells[1]) for r in page.tables["objectives"]}
     assert values == evaluation["objectives"]["before"]
+
+
+def test_plots_in_a_child_process_match(report, tmp_path, monkeypatch):
+    """parallel=True draws the same plots (identical bytes) in `python -m cadfeat.report.plots`."""
+    built, _, results = report
+    fake = _fake_render(fail=False)
+    monkeypatch.setitem(sys.modules, "cadfeat.render", fake)
+    monkeypatch.setattr(cadfeat, "render", fake, raising=False)
+    _, _, context = shared_case()
+    out = build_report(tmp_path, _lean(results, keep=("pareto", "history")), context, parallel=True)
+    assert "plots: wait" in out.timings_s and out.notes == []
+    plots = {p.name: p for p in out.images if not p.stem.startswith(("part_", "view_"))}
+    assert sorted(plots) == ["convergence.png", "pareto.png"]
+    for p in built.images:
+        if p.name in plots:
+            assert plots[p.name].read_bytes() == p.read_bytes(), p.name
+
+
+def test_render_inputs_camera_from_results_and_part_pose(case, tmp_path, monkeypatch):
+    """Without a camera in the context the renders get the results' camera; camera views use
+    inv(T_task_cam) @ T_task_part for a part that is not at the task origin."""
+    from scipy.spatial.transform import Rotation
+
+    _, results, context = case
+    seen = {}
+    fake = _fake_render(fail=False)
+    views = fake.render_camera_views
+
+    def spy(shape, holes, camera, T_cam_part, out_dir, prefix, **kw):
+        seen["camera"] = camera
+        return views(shape, holes, camera, T_cam_part, out_dir, prefix, **kw)
+
+    fake.render_camera_views = spy
+    monkeypatch.setitem(sys.modules, "cadfeat.render", fake)
+    monkeypatch.setattr(cadfeat, "render", fake, raising=False)
+    T_task_part = np.eye(4)
+    T_task_part[:3, :3] = Rotation.from_euler("zyx", [30, -10, 5], degrees=True).as_matrix()
+    T_task_part[:3, 3] = [12.0, -7.0, 3.0]
+    ctx = ReportContext(**{**context.__dict__, "camera": None, "T_task_part": T_task_part, "sample_indices": [4]})
+    build_report(tmp_path, _lean(results), ctx)
+    assert seen["camera"] == context.camera
+    expected = np.linalg.inv(context.trajectory.T_task_cam[4]) @ T_task_part
+    np.testing.assert_allclose(fake.calls[0][0], expected, atol=1e-9)

@@ -93,13 +93,16 @@ def rim_conic(centre_cam: ArrayLike, normal_cam: ArrayLike, radius_mm: ArrayLike
     return rim_conic_xyz(c[..., 0], c[..., 1], c[..., 2], n[..., 0], n[..., 1], n[..., 2], nc, q)
 
 
+def sphere_conic_xyz(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Sphere outline conic entries from components: centre (X, Y, Z), q = ‖c‖² − R² (camera frame, mm)."""
+    return X * X - q, X * Y, Y * Y - q, X * Z, Y * Z, Z * Z - q
+
+
 def sphere_conic(centre_cam: ArrayLike, radius_mm: ArrayLike) -> tuple[np.ndarray, ...]:
     """Entries (a, b, c, d, e, f) of the normalised-image outline conic of a sphere: C = c cᵀ − (‖c‖² − R²) I."""
     c = np.asarray(centre_cam, dtype=float)
-    R = np.asarray(radius_mm, dtype=float)
-    q = np.sum(c * c, axis=-1) - R * R
-    c0, c1, c2 = c[..., 0], c[..., 1], c[..., 2]
-    return c0 * c0 - q, c0 * c1, c1 * c1 - q, c0 * c2, c1 * c2, c2 * c2 - q
+    q = np.sum(c * c, axis=-1) - np.asarray(radius_mm, dtype=float) ** 2
+    return sphere_conic_xyz(c[..., 0], c[..., 1], c[..., 2], q)
 
 
 class EllipseParts(NamedTuple):
@@ -139,17 +142,26 @@ def ellipse_parts(camera: Camera, conic: tuple[np.ndarray, ...], in_front: np.nd
     else:
         ma, mb, mc = ma / (d00 * d00), mb / (d00 * d11), mc / (d11 * d11)
     half_tr = 0.5 * (ma + mc)
-    root = np.hypot(0.5 * (ma - mc), mb)
+    h = 0.5 * (ma - mc)
+    root = np.sqrt(h * h + mb * mb)
     lam_small = half_tr - root
     ok &= lam_small > 0
     lam_big, lam_small = np.where(ok, half_tr + root, 1.0), np.where(ok, lam_small, 1.0)
     okf = ok.astype(float)
-    angle = 0.5 * np.arctan2(2.0 * mb, ma - mc)  # eigenvector of λ_big = minor-axis direction
-    angle -= np.copysign(0.5 * np.pi, angle)  # the major axis, in [−π/2, π/2]
+    angle = _major_axis_angle(h, mb, root)
     inv_det_m = okf / (lam_big * lam_small)  # 1/det M (0 where invalid)
     return EllipseParts(
         u=u, v=v, major=okf * 2.0 / np.sqrt(lam_small), minor=okf * 2.0 / np.sqrt(lam_big), angle=angle * okf,
         hu=np.sqrt(np.abs(mc * inv_det_m)), hv=np.sqrt(np.abs(ma * inv_det_m)), valid=ok)
+
+
+def _major_axis_angle(h: np.ndarray, mb: np.ndarray, root: np.ndarray) -> np.ndarray:
+    """Angle in [−π/2, π/2] of the eigenvector of the smaller eigenvalue of [[p, mb], [mb, r]] (the major axis),
+    h = (p − r)/2, root = √(h² + mb²). Uses ``arctan`` of a ratio bounded by 1 (no ``arctan2``, which is
+    several times slower): the eigenvector is (root − h, −mb) for h < 0 and (−mb, h + root) for h ≥ 0."""
+    den = root + np.abs(h)
+    t = np.arctan(mb / np.where(den > 0, den, 1.0))
+    return np.where(h >= 0, np.where(t > 0, t - 0.5 * np.pi, t + 0.5 * np.pi), -t)
 
 
 def conic_to_ellipse(camera: Camera, conic: tuple[np.ndarray, ...], in_front: np.ndarray,

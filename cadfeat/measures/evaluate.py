@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike
 
 from cadfeat.camera import MIN_DEPTH_MM, Camera
 from cadfeat.errors import CadfeatError
-from cadfeat.measures.ellipse import ellipse_parts, rim_conic_xyz
+from cadfeat.measures.ellipse import ellipse_parts, rim_conic_xyz, sphere_conic_xyz
 from cadfeat.measures.focus import focus_margin_depth
 from cadfeat.measures.fov import image_margin_px
 from cadfeat.measures.jacobian import diagnostics_from_gram, fill_jacobian
@@ -35,6 +35,9 @@ from cadfeat.measures.visibility import occluded
 
 #: Feature-poses per slab in ``evaluate`` (temporaries of 16k doubles = 128 kB stay in the L2 cache).
 BLOCK_ELEMENTS = 16384
+
+#: Hole models of the resolution measure (DESIGN.md): the exact rim circle, or the thesis's sphere.
+RESOLUTION_MODELS = ("circle", "sphere")
 
 
 @dataclass(frozen=True)
@@ -95,11 +98,13 @@ def _check_inputs(T_cam_part: ArrayLike, screws: ArrayLike, centres: ArrayLike, 
 
 def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: ArrayLike, axes: ArrayLike,
              radii: ArrayLike, *, min_axis_px: float = 5.0, rotation_length_mm: float = 1.0,
-             occlusion_mesh: Any = None) -> Measures:
+             occlusion_mesh: Any = None, resolution_model: str = "circle") -> Measures:
     """All measures (``Measures``) of holes (centres (N, 3) mm, axes (N, 3) out of the material, radii (N,) mm,
     part frame) seen from poses ``T_cam_part`` (L, 4, 4) moving with ``screws`` (L, 6) = (v mm/s, ω rad/s)
     in the camera frame. ``occlusion_mesh``: optional ``trimesh.Trimesh`` of the part (part frame) for the
-    ray occlusion test of ``visible``.
+    ray occlusion test of ``visible``. ``resolution_model``: "circle" (default, the rim's exact ellipse) or
+    "sphere" (the thesis's eq. 3.13–3.18: ``minor_axis_px`` and ``resolution_px`` from the outline of a
+    sphere of the rim's radius; the reported ellipses stay the rim's).
 
     Works on contiguous (L, N) component arrays (X, Y, Z, n_x, …, each one (L, 3) @ (3, N) product) rather
     than (L, N, 3) stacks; same formulas as the public per-measure functions (tests compare them). Large
@@ -107,6 +112,9 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
     fully batched) so the temporaries stay in the CPU cache; the results are concatenated."""
     T, s, c, n, r = _check_inputs(T_cam_part, screws, centres, axes, radii)
     check_length(rotation_length_mm)
+    if resolution_model not in RESOLUTION_MODELS:
+        raise CadfeatError(f"evaluate: resolution_model must be one of {', '.join(RESOLUTION_MODELS)}, "
+                           f"got {resolution_model!r}")
     if not np.isfinite(min_axis_px):
         raise CadfeatError(f"evaluate: min_axis_px must be a finite number of pixels, got {min_axis_px!r}")
     L, N = T.shape[0], c.shape[0]
@@ -115,7 +123,7 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
     for i in range(0, L, step):  # slabs of whole pose blocks (cache blocking), each fully batched
         sl = slice(i, i + step)
         _evaluate(camera, T[sl], s[sl], c, n, r, min_axis_px, rotation_length_mm, occlusion_mesh,
-                  {k: v[sl] for k, v in out.items()})
+                  {k: v[sl] for k, v in out.items()}, resolution_model == "sphere")
     return Measures(**out)
 
 
@@ -132,7 +140,8 @@ def _allocate(L: int, N: int) -> dict[str, np.ndarray]:
 
 
 def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray,
-              min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any, out: dict[str, np.ndarray]) -> None:
+              min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any, out: dict[str, np.ndarray],
+              sphere: bool = False) -> None:
     """``evaluate`` on one slab of poses (validated inputs), written into the views ``out``."""
     R, t = T[:, :3, :3], T[:, :3, 3]
     X, Y, Z = (R[:, i, :] @ c.T + t[:, i, None] for i in range(3))  # centres in the camera frames (L, N)
@@ -156,8 +165,11 @@ def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np
         visible &= ~occluded(occlusion_mesh, -rt, c, n)
     np.subtract(Z * inv_dist, np.cos(0.5 * camera.fov_rad), out=out["fov"])
     out["focus"][...] = focus_margin_depth(camera, Z)
-    out["resolution_px"][...] = minor_axis_margin(camera, ell.minor, ell.valid, min_axis_px)
-    out["minor_axis_px"][...] = ell.minor
+    res = ell
+    if sphere:
+        res = ellipse_parts(camera, sphere_conic_xyz(X, Y, Z, dist2 - r * r), Z - r > MIN_DEPTH_MM)
+    out["resolution_px"][...] = minor_axis_margin(camera, res.minor, res.valid, min_axis_px)
+    out["minor_axis_px"][...] = res.minor
     out["angle_rad"][...] = ell.angle
     out["axes_px"][..., 0] = ell.major
     out["axes_px"][..., 1] = ell.minor

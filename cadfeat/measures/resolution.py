@@ -31,15 +31,16 @@ def resolution_margin_px(camera: Camera, centre_cam: ArrayLike, normal_cam: Arra
     return margin_from_ellipse(camera, hole_ellipse(camera, centre_cam, normal_cam, radius_mm), min_axis_px)
 
 
-def resolution_margin_sphere(camera: Camera, centre_cam: ArrayLike, radius_mm: ArrayLike, min_axis_px: float = 5.0,
-                             *, thesis_eigenvalues: bool = False) -> np.ndarray:
+def resolution_margin_sphere(camera: Camera, centre_cam: ArrayLike, normal_cam: ArrayLike | None, radius_mm: ArrayLike,
+                             min_axis_px: float = 5.0, *, thesis_eigenvalues: bool = False) -> np.ndarray:
     """The thesis's variant: the hole as a sphere of the rim's radius (eq. 3.13–3.18).
 
-    Default: minor full axis (px) of the sphere's exact outline ellipse minus ``min_axis_px`` —
-    independent of the hole's orientation. ``thesis_eigenvalues=True`` reproduces eq. 3.22 literally:
-    min eigenvalue of the 2×2 block C_T of the conic as written in eq. 3.18 (coefficients
-    (Y²+Z²−R²)/f², −XY/f², (X²+Z²−R²)/f² with f = √(fx fy) px, principal point at the origin) minus
-    ``min_axis_px``; those eigenvalues are not lengths (mm²/px²), so use it only to compare with the thesis.
+    Same arguments as ``resolution_margin_px`` so it is a drop-in replacement; ``normal_cam`` is ignored (a
+    sphere has no orientation) and may be None. Default: minor full axis (px) of the sphere's exact outline
+    ellipse minus ``min_axis_px`` — independent of the hole's orientation. ``thesis_eigenvalues=True``
+    reproduces eq. 3.22 literally: min eigenvalue of the 2×2 block C_T of the conic as written in eq. 3.18
+    (coefficients (Y²+Z²−R²)/f², −XY/f², (X²+Z²−R²)/f² with f = √(fx fy) px, principal point at the origin)
+    minus ``min_axis_px``; those eigenvalues are not lengths (mm²/px²), so use it only to compare with the thesis.
     """
     c = np.asarray(centre_cam, dtype=float)
     if not thesis_eigenvalues:

@@ -11,7 +11,8 @@
 
 Discrete diameters (variables with standard sizes, ``snap_standard_sizes``): the continuous optimum is
 snapped to the nearest sizes (both neighbours of each tried when few) and the positions re-solved with
-the sizes fixed. Max-min is solved in epigraph form (smooth). Gradients are central finite differences
+the sizes fixed (for Pareto: the chosen point, re-solved by max-min, so ``x_best`` may then differ from
+the front's continuous point). Max-min is solved in epigraph form (smooth). Gradients are central finite differences
 with a step relative to each variable's range, all 2P points evaluated in one batch.
 
 Determinism: same problem + same seed → identical result. Ctrl-C (``KeyboardInterrupt``, also raised by a
@@ -42,6 +43,8 @@ LOCAL_SOLVERS = ("SLSQP", "trust-constr")
 @dataclass(frozen=True)
 class OptimizerConfig:
     """Solver settings. ``fd_step``: finite-difference step as a fraction of each variable's range;
+    ``eager_gradients``: evaluate the finite-difference stencil in the same batch as every value request
+    (fewer, larger batches: faster on feature models, more evaluations);
     ``ftol``: local solver tolerance; ``de_*``: differential evolution; ``pop_size``/``n_gen``: NSGA-II."""
 
     method: str = "multistart"
@@ -51,6 +54,7 @@ class OptimizerConfig:
     local_solver: str = "SLSQP"
     snap_standard_sizes: bool = True
     fd_step: float = 1e-5
+    eager_gradients: bool = False
     ftol: float = 1e-9
     de_maxiter: int = 60
     de_popsize: int = 12
@@ -142,7 +146,7 @@ def optimise(problem: Any, config: OptimizerConfig | None = None,
             local_solve(ev, ev.to_u(x_start), config)
         else:
             starts = multistart(ev, config)
-        if config.snap_standard_sizes and problem.space.discrete.any() and config.method != "pareto":
+        if config.snap_standard_sizes and problem.space.discrete.any():
             _snap(ev, problem, config)
     except KeyboardInterrupt:
         interrupted = True

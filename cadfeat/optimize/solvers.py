@@ -32,6 +32,15 @@ def local_solve(ev: Evaluator, u0: np.ndarray, config: Any) -> np.ndarray:
     def grads(z: np.ndarray) -> tuple:
         return ev.gradients(z[:p], h)
 
+    def values(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """G (K,), C (M,) at z; with ``eager_gradients`` the whole finite-difference stencil is evaluated in
+        the same batch (the solver nearly always asks for the gradient where it asked for the value)."""
+        if config.eager_gradients:
+            G, C, _, _ = grads(z)
+            return G, C
+        G, C = ev.batch(z[:p][None])
+        return G[0], C[0]
+
     if epigraph:
         G0, _ = ev.batch(u0[None])
         tau0 = float((G0[0, use] / problem.scales[use]).min())
@@ -46,8 +55,8 @@ def local_solve(ev: Evaluator, u0: np.ndarray, config: Any) -> np.ndarray:
             return g
 
         def cons(z: np.ndarray) -> np.ndarray:
-            G, C = ev.batch(z[:p][None])
-            return np.concatenate([C[0], G[0, use] / problem.scales[use] - z[p]])
+            G, C = values(z)
+            return np.concatenate([C, G[use] / problem.scales[use] - z[p]])
 
         def cons_jac(z: np.ndarray) -> np.ndarray:
             _, _, dG, dC = grads(z)
@@ -59,7 +68,7 @@ def local_solve(ev: Evaluator, u0: np.ndarray, config: Any) -> np.ndarray:
         z0 = np.asarray(u0, dtype=float)
 
         def fun(z: np.ndarray) -> float:
-            return -float(ev.combined(z[None])[0])
+            return -float(problem.combined_from(values(z)[0]))
 
         def fun_jac(z: np.ndarray) -> np.ndarray:
             G, _, dG, _ = grads(z)
@@ -68,7 +77,7 @@ def local_solve(ev: Evaluator, u0: np.ndarray, config: Any) -> np.ndarray:
             return -(w @ dG)
 
         def cons(z: np.ndarray) -> np.ndarray:
-            return ev.batch(z[None])[1][0]
+            return values(z)[1]
 
         def cons_jac(z: np.ndarray) -> np.ndarray:
             return grads(z)[3]

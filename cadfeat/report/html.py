@@ -18,7 +18,8 @@ padding:1em 2em;color:#222;background:#fff;line-height:1.4}
 h1{border-bottom:2px solid #d62728;padding-bottom:.2em} h2{margin-top:1.6em;border-bottom:1px solid #ccc}
 table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
 th,td{border:1px solid #ccc;padding:.25em .55em;text-align:right;vertical-align:top}
-th{background:#f3f3f3} td.text,th.text{text-align:left} td.mono{font-family:monospace;font-size:1em;text-align:left}
+th{background:#f3f3f3;text-align:center} td.text,th.text{text-align:left}
+td.mono{font-family:ui-monospace,Menlo,Consolas,"DejaVu Sans Mono",monospace;font-size:.95em;text-align:left}
 tr.ok td.status{background:#e3f6e3;color:#1a6b1a;font-weight:bold}
 tr.violated td{background:#fde4e4} tr.violated td.status{color:#a00;font-weight:bold}
 td.better{color:#1a6b1a} td.worse{color:#a00} td.nz{background:#fff3cd}

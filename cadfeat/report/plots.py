@@ -106,10 +106,10 @@ def plot_feature_tracks(results: dict, img_dir: Path) -> Plot | None:
             ax.plot(a[:, j, 0], a[:, j, 1], "-", color=cmap[j], lw=1.4, label=name)
             ax.plot(a[0, j, 0], a[0, j, 1], "o", color=cmap[j], ms=4)
             ax.plot(a[-1, j, 0], a[-1, j, 1], "s", color=cmap[j], ms=4)
-        if width and height:
-            pad = 0.05 * max(width, height)
-            ax.set_xlim(min(-pad, np.nanmin(a[..., 0]) - pad), max(width + pad, np.nanmax(a[..., 0]) + pad))
-            ax.set_ylim(max(height + pad, np.nanmax(a[..., 1]) + pad), min(-pad, np.nanmin(a[..., 1]) - pad))
+        if width and height:  # the image plus a border: far-off projections (behind the camera) stay off-plot
+            pad = 0.15 * max(width, height)
+            ax.set_xlim(-pad, width + pad)
+            ax.set_ylim(height + pad, -pad)
         else:
             ax.invert_yaxis()
         ax.set_aspect("equal")
@@ -124,8 +124,10 @@ def plot_feature_tracks(results: dict, img_dir: Path) -> Plot | None:
 
 
 def plot_pose_measures(results: dict, img_dir: Path) -> Plot | None:
-    """Worst-feature FOV, focus and resolution margins per pose, before vs after."""
-    rows = [("fov_min", "FOV cone margin"), ("focus_min", "focus margin"), ("resolution_px_min", "resolution (px)")]
+    """Worst-feature FOV, focus and resolution margins per pose (and the number of visible holes when the
+    results have it), before vs after."""
+    rows = [("fov_min", "FOV cone margin"), ("focus_min", "focus margin"), ("resolution_px_min", "resolution (px)"),
+            ("visible", "visible holes")]
     present = [(k, label) for k, label in rows
                if any(_per_pose(results, w, k) is not None for w in ("before", "after"))]
     if not present:
@@ -277,3 +279,25 @@ def _colours(n: int) -> Sequence[Any]:
 
     cmap = colormaps["tab10" if n <= 10 else "tab20"]
     return [cmap(i % cmap.N) for i in range(max(n, 1))]
+
+
+# ------------------------------------------------------------------------------------------------ child process
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m cadfeat.report.plots RESULTS_JSON IMG_DIR``: write the plots, print them as one JSON line.
+
+    Used by ``build_report`` to draw the plots in a separate process while the renders run."""
+    import json
+    import sys
+    import time
+
+    args = list(sys.argv[1:] if argv is None else argv)
+    start = time.perf_counter()
+    results = json.loads(Path(args[0]).read_text(encoding="utf-8"))
+    plots, notes = make_plots(results, args[1])
+    print(json.dumps({"plots": [dict(key=p.key, title=p.title, caption=p.caption, path=str(p.path)) for p in plots],
+                      "notes": notes, "time_s": time.perf_counter() - start}))
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover - run as a child process by cadfeat.report.write
+    raise SystemExit(main())

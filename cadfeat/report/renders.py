@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import shutil
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +27,7 @@ class Renders:
     samples: list[int] = field(default_factory=list)
     sample_times_s: list[float] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    timings_s: dict[str, float] = field(default_factory=dict)  # "part", "views"
 
 
 def _camera(context: ReportContext, results: dict):
@@ -82,12 +84,14 @@ def make_renders(context: ReportContext | None, results: dict, img_dir: str | Pa
         _fail(renders, "camera for the renders", exc)
         camera = None
     holes_b, holes_a = list(context.holes_before or []), list(context.holes_after or [])
+    start = time.perf_counter()
     if context.shape_after is None:
         designs = [("current", context.shape_before, holes_b)]
         _render_part(renders, render, context, img_dir)
     else:
         designs = [("before", context.shape_before, holes_b), ("after", context.shape_after, holes_a)]
         _render_comparison(renders, render, context, camera, img_dir)
+    renders.timings_s["part"] = time.perf_counter() - start
     samples = context.samples()
     if camera is None or not samples:
         renders.notes.append("Camera views skipped: no camera or trajectory in the report context.")
@@ -95,12 +99,14 @@ def make_renders(context: ReportContext | None, results: dict, img_dir: str | Pa
     renders.samples = samples
     renders.sample_times_s = [float(context.trajectory.times_s[i]) for i in samples]
     T_cam_part = context.T_cam_part(samples)
+    start = time.perf_counter()
     for which, shape, holes in designs:
         try:
             paths = render.render_camera_views(shape, holes, camera, T_cam_part, img_dir, f"view_{which}")
             renders.views[which] = _inside(paths, img_dir)
         except Exception as exc:
             _fail(renders, f"camera views ({which})", exc)
+    renders.timings_s["views"] = time.perf_counter() - start
     return renders
 
 

@@ -199,11 +199,15 @@ def constraints_table(results: dict) -> str:
     checks = [c for c in results.get("constraints") or [] if isinstance(c, dict)]
     if not checks:
         return ""
+    holes_info = (results.get("holes") or {})
+    names = {h.get("index", i): h.get("name") for i, h in enumerate(holes_info.get("after")
+                                                                      or holes_info.get("before") or [])}
     rows, classes = [], []
     for c in checks:
         ok = bool(c.get("ok"))
         holes = c.get("holes")
-        holes = ", ".join(str(h) for h in holes) if isinstance(holes, list | tuple) else holes
+        if isinstance(holes, list | tuple):
+            holes = ", ".join(f"{names[h]} ({h})" if isinstance(h, int) and names.get(h) else str(h) for h in holes)
         rows.append("".join([text(c.get("name")), text(holes if holes is not None else ""), num(c.get("required")),
                              num(c.get("value")), num(c.get("margin")), text(c.get("unit", "")),
                              text(c.get("checked_on", "")), text("ok" if ok else "VIOLATED", "text status")]))

@@ -10,6 +10,10 @@ from __future__ import annotations
 import json
 import logging
 import os
+import shutil
+import subprocess
+import sys
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -62,20 +66,45 @@ def read_results(path: str | Path) -> dict:
     return data
 
 
-def build_report(out_dir: str | Path, results: dict, context: ReportContext | None = None) -> ReportOutput:
-    """``write_report`` that also returns the images, notes and the time of renders, plots and HTML."""
+def build_report(out_dir: str | Path, results: dict, context: ReportContext | None = None, *,
+                 parallel: bool | None = None) -> ReportOutput:
+    """``write_report`` that also returns the images, notes and the time of each phase (s).
+
+    ``parallel`` (default: off unless ``CADFEAT_REPORT_PARALLEL=1``): when there are renders, draw the plots
+    meanwhile in a child process (``python -m cadfeat.report.plots``; if that fails they are drawn here).
+    Off by default: with software OpenGL (llvmpipe, no GPU) the renders already use every core, and
+    bench_report measured the parallel report slower on the 2-core test machine.
+    ``timings_s``: "renders" (with "renders: part"/"renders: views"), "plots" (drawing time, wherever it ran),
+    "plots: wait" (time spent waiting for the child after the renders), "html", "total" (wall).
+    """
+    t0 = time.perf_counter()
     out_dir = Path(out_dir)
     img_dir = out_dir / IMG_DIR
     img_dir.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
+    if parallel is None:
+        parallel = os.environ.get("CADFEAT_REPORT_PARALLEL", "0") == "1"
+    has_renders = context is not None and context.shape_before is not None
+    child = _PlotProcess.start(results, img_dir) if parallel and has_renders else None
 
     start = time.perf_counter()
-    renders = make_renders(context, results, img_dir)
+    try:
+        renders = make_renders(context, results, img_dir)
+    except BaseException:  # Ctrl-C during the renders: leave no plot process behind
+        if child is not None:
+            child.kill()
+        raise
     timings["renders"] = time.perf_counter() - start
+    timings.update({f"renders: {k}": v for k, v in renders.timings_s.items()})
 
     start = time.perf_counter()
-    plots, plot_notes = make_plots(results, img_dir)
-    timings["plots"] = time.perf_counter() - start
+    outcome = child.finish() if child is not None else None
+    if outcome is not None:
+        plots, plot_notes, timings["plots"] = outcome
+        timings["plots: wait"] = time.perf_counter() - start
+    else:
+        plots, plot_notes = make_plots(results, img_dir)
+        timings["plots"] = time.perf_counter() - start
 
     start = time.perf_counter()
     notes = renders.notes + plot_notes
@@ -85,10 +114,64 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
     tmp.write_text(document, encoding="utf-8")
     os.replace(tmp, path)
     timings["html"] = time.perf_counter() - start
+    timings["total"] = time.perf_counter() - t0
 
     images = [*renders.comparison.values(), *(p for ps in renders.views.values() for p in ps),
               *(p.path for p in plots)]
     return ReportOutput(path, images, notes, timings)
+
+
+class _PlotProcess:
+    """The plots drawn by a child Python process (a clean interpreter: no fork of a process holding an
+    OpenGL context or threads, no re-import of the caller's main module)."""
+
+    def __init__(self, proc: subprocess.Popen, tmp: Path) -> None:
+        self.proc, self.tmp = proc, tmp
+
+    @classmethod
+    def start(cls, results: dict, img_dir: Path) -> _PlotProcess | None:
+        tmp = Path(tempfile.mkdtemp(prefix="cadfeat-plots-"))
+        try:
+            (tmp / "results.json").write_text(json.dumps(results), encoding="utf-8")
+            env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [_package_root(),
+                                                                              os.environ.get("PYTHONPATH")]))}
+            proc = subprocess.Popen([sys.executable, "-m", "cadfeat.report.plots", str(tmp / "results.json"),
+                                     str(img_dir)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                    env=env)
+        except Exception as exc:  # not serialisable, no interpreter...: draw the plots in this process
+            log.info("report: plots drawn in-process (%s)", exc)
+            shutil.rmtree(tmp, ignore_errors=True)
+            return None
+        return cls(proc, tmp)
+
+    def finish(self, timeout_s: float = 600.0) -> tuple[list[Plot], list[str], float] | None:
+        """The child's plots, notes and drawing time; None (after a logged warning) if it failed."""
+        try:
+            out, err = self.proc.communicate(timeout=timeout_s)
+            if self.proc.returncode != 0:
+                raise RuntimeError(f"exit {self.proc.returncode}: {err.strip()[-500:]}")
+            data = json.loads(out.strip().splitlines()[-1])
+            plots = [Plot(d["key"], d["title"], d["caption"], Path(d["path"])) for d in data["plots"]]
+            return plots, list(data["notes"]), float(data["time_s"])
+        except Exception as exc:
+            self.kill()
+            log.warning("report: the plot process failed (%s); drawing the plots here", exc)
+            return None
+        finally:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+    def kill(self) -> None:
+        """Stop the child (if still running) and remove its temporary folder."""
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait()
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+def _package_root() -> str:
+    """The directory holding this ``cadfeat`` package (so the child imports the same code)."""
+    return str(Path(__file__).resolve().parents[2])
 
 
 # ------------------------------------------------------------------------------------------------ sections
