@@ -651,7 +651,8 @@ class _EvalSetup:
 
 
 def _current_design(config: StudyConfig) -> tuple[Any, list[Any], np.ndarray, list[str]]:
-    """The part as it is (defaults / the STEP file): solid, holes, fixed mask (holes not in the design)."""
+    """The part as it is (defaults / the STEP file): solid, holes, fixed mask (STEP: holes not in the design;
+    scripts: the holes the script declares functional)."""
     if config.study.part_kind == "step":
         from cadfeat.step_parts import load_step
 
@@ -667,7 +668,8 @@ def _current_design(config: StudyConfig) -> tuple[Any, list[Any], np.ndarray, li
     part = load_part(config.study.part_path)
     shape = part.build()
     holes = part.holes()
-    return shape, holes, np.zeros(len(holes), bool), [h.name or f"H{i + 1}" for i, h in enumerate(holes)]
+    fixed = np.asarray(part.fixed_mask(holes), bool)
+    return shape, holes, fixed, [h.name or f"H{i + 1}" for i, h in enumerate(holes)]
 
 
 def _single_pose(traj: Any, k: int) -> Any:

@@ -196,6 +196,12 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     for name in names:
         moved[list(dm.moved_by.get(name, []))] = True
     fixed = ~moved
+    declared = np.asarray(part.fixed_mask(holes0, at), bool) if hasattr(part, "fixed_mask") else fixed & False
+    for j in np.flatnonzero(declared & moved):
+        movers = [n for n in names if j in dm.moved_by.get(n, [])]
+        raise StudyError(f"{config.label}: design.parameters: {', '.join(movers)} would move hole "
+                         f"{holes0[j].name or j + 1}, which {config.study.part} declares functional (fixed); "
+                         f"allowed: parameters that move only free holes ({part.fixed_holes or 'see the script'})")
     for i, spec in enumerate(config.design.fixed):
         j = _select(config, holes0, spec, f"design.fixed[{i}]")
         if moved[j]:

@@ -226,6 +226,30 @@ def test_infeasible_study_names_the_conflict(tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_parameter_moving_a_declared_fixed_hole_is_an_error(tmp_path):
+    """A part script marks a hole functional ("fixed": True in expected_holes): a study varying a parameter
+    that moves it fails before optimising, naming the parameter."""
+    from cadfeat.study_schema import StudyError
+
+    script = tmp_path / "dowel_plate.py"
+    script.write_text(
+        "import cadquery as cq\n"
+        "PARAMETERS = {'dowel_x': {'default': 0.0, 'bounds': (-5.0, 5.0)},\n"
+        "              'x': {'default': 10.0, 'bounds': (8.0, 12.0)}}\n"
+        "def build(dowel_x, x):\n"
+        "    plate = cq.Workplane('XY').box(40, 30, 5, centered=(True, True, False))\n"
+        "    return plate.faces('>Z').workplane(origin=(0, 0, 0)).pushPoints([(dowel_x, 0), (x, 8)]).hole(3)\n"
+        "def expected_holes(dowel_x, x):\n"
+        "    return [{'centre': (dowel_x, 0, 5), 'axis': (0, 0, 1), 'radius_mm': 1.5, 'fixed': True},\n"
+        "            {'centre': (x, 8, 5), 'axis': (0, 0, 1), 'radius_mm': 1.5}]\n")
+    data = copy.deepcopy(SMALL)
+    data["study"]["part"] = str(script)
+    data["design"] = {"parameters": ["dowel_x", "x"]}
+    with pytest.raises(StudyError, match="design.parameters: dowel_x would move hole"):
+        run_study(data, tmp_path / "out", quiet=True)
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.slow
 def test_integer_parameter_stays_int(tmp_path, monkeypatch):
     """``count`` (an int parameter) is enumerated, never turned into a float: the CAD model is built with an
