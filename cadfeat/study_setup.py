@@ -297,7 +297,8 @@ def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Seque
 
 def _mirror_pairs(holes: Sequence[Any], movable: Sequence[int], patterns: Sequence[Sequence[int]],
                   symmetry: str, tol_mm: float = 1e-6) -> list[tuple[int, int, tuple[float, float, float]]]:
-    """(leader, follower, plane normal) for movable holes that mirror each other about x = 0 / y = 0."""
+    """(leader, follower, plane normal) for movable holes that mirror each other about x = 0 / y = 0 (centres
+    reflected onto each other, equal radii)."""
     pairs: list[tuple[int, int, tuple[float, float, float]]] = []
     taken = {i for p in patterns for i in p[1:]}
     for normal in SYMMETRY_NORMALS.get(symmetry, []):
@@ -305,7 +306,8 @@ def _mirror_pairs(holes: Sequence[Any], movable: Sequence[int], patterns: Sequen
         for a in movable:
             for b in movable:
                 if a < b and a not in taken and b not in taken and \
-                        np.linalg.norm(M @ holes[a].centre - holes[b].centre) < tol_mm:
+                        np.linalg.norm(M @ holes[a].centre - holes[b].centre) < tol_mm and \
+                        abs(holes[a].radius_mm - holes[b].radius_mm) < tol_mm:
                     pairs.append((a, b, normal))
                     taken.add(b)
     return pairs

@@ -330,3 +330,41 @@ def test_studies_folder_validates():
 
 def test_step_data_is_shared():
     assert STEP.exists() and DATA.is_dir()
+
+
+def _step_study(**design) -> dict:
+    data = copy.deepcopy(SMALL)
+    data["study"] = {"name": "step_plate", "part": str(STEP), "seed": 2}
+    data["design"] = {"holes": [{"select": "H1", "max_offset_mm": 6.0}, {"select": "H2", "max_offset_mm": 6.0}],
+                      **design}
+    data["trajectory"]["target"] = [0.0, 0.0, 10.0]
+    return data
+
+
+def test_step_pattern_moves_together(tmp_path, monkeypatch):
+    """Two STEP holes in a pattern share one offset: one pair of variables, the same displacement of both
+    holes in the re-imported STEP."""
+    from cadfeat.export import import_step
+    from cadfeat.features import extract_holes
+
+    no_report(monkeypatch)
+    result = run_study(_step_study(patterns=[["H1", "H2"]]), tmp_path / "out", quiet=True)
+    assert [v["name"] for v in result.results["variables"]] == ["H1.s", "H1.t"]
+    before = {h["name"]: np.array(h["centre_mm"]) for h in result.results["holes"]["before"]}
+    final = extract_holes(import_step(tmp_path / "out" / "optimised.step"))
+    moves = []
+    for name in ("H1", "H2"):
+        c = np.array([f.centre for f in final])
+        k = int(np.argmin(np.linalg.norm(c - before[name], axis=1)))
+        moves.append(c[k] - before[name])
+    np.testing.assert_allclose(moves[0], moves[1], atol=1e-6)
+
+
+def test_symmetry_the_part_does_not_have(tmp_path):
+    from cadfeat.study_schema import StudyError
+
+    data = _step_study()
+    data["constraints"]["symmetry"] = "y"  # H1 (Ø8) and H2 (Ø6) mirror in position but not in size
+    with pytest.raises(StudyError, match="constraints.symmetry: no two movable holes mirror"):
+        run_study(data, tmp_path / "out", quiet=True)
+    assert not (tmp_path / "out").exists()
