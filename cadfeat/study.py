@@ -159,6 +159,15 @@ class _Interrupted:
     n_evals: int = 0
 
 
+def _violations(setup: Any, x: np.ndarray, most: int = 5) -> str:
+    """The most violated 2-D constraints at ``x``: "kind (holes) by N mm", worst first."""
+    C = np.asarray(setup.problem.constraints(x), float)
+    labels = setup.problem.constraint_labels()
+    order = [int(i) for i in np.argsort(C) if C[i] < 0][:most]
+    return "; ".join(f"{labels[i][0]} ({', '.join(labels[i][1]) or '-'}) by {-C[i]:.4g}" for i in order) or \
+        "(no 2-D constraint; see the optimiser's message)"
+
+
 def _outlines_differ(a: Sequence[Any], b: Sequence[Any], tol_mm: float = 1e-6) -> bool:
     """Whether the host-face outlines of paired holes differ (outer polygon or keep-outs, mm)."""
     for h, g in zip(a, b, strict=True):
@@ -441,6 +450,10 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                 break
     setup, res = best
     x1 = np.asarray(res.x_best, float)
+    if not interrupted and getattr(res, "feasible", True) is False:
+        raise StudyError(f"{config.label}: no design meets the kept requirements ([constraints], "
+                         f"objective.thresholds); the least violating design still breaks: "
+                         f"{_violations(setup, x1)}; allowed: relax these requirements or widen design bounds")
     with prog.phase("rebuild"):
         shape1, holes1, pred_err = _rebuild(setup, x1, getattr(res, "holes", None))
         m1 = measure_holes(setup, holes1)
@@ -638,7 +651,8 @@ class _EvalSetup:
 
 
 def _current_design(config: StudyConfig) -> tuple[Any, list[Any], np.ndarray, list[str]]:
-    """The part as it is (defaults / the STEP file): solid, holes, fixed mask (holes not in the design)."""
+    """The part as it is (defaults / the STEP file): solid, holes, fixed mask (STEP: holes not in the design;
+    scripts: the holes the script declares functional)."""
     if config.study.part_kind == "step":
         from cadfeat.step_parts import load_step
 
@@ -654,7 +668,8 @@ def _current_design(config: StudyConfig) -> tuple[Any, list[Any], np.ndarray, li
     part = load_part(config.study.part_path)
     shape = part.build()
     holes = part.holes()
-    return shape, holes, np.zeros(len(holes), bool), [h.name or f"H{i + 1}" for i, h in enumerate(holes)]
+    fixed = np.asarray(part.fixed_mask(holes), bool)
+    return shape, holes, fixed, [h.name or f"H{i + 1}" for i, h in enumerate(holes)]
 
 
 def _single_pose(traj: Any, k: int) -> Any:

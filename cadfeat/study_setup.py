@@ -196,6 +196,12 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     for name in names:
         moved[list(dm.moved_by.get(name, []))] = True
     fixed = ~moved
+    declared = np.asarray(part.fixed_mask(holes0, at), bool) if hasattr(part, "fixed_mask") else fixed & False
+    for j in np.flatnonzero(declared & moved):
+        movers = [n for n in names if j in dm.moved_by.get(n, [])]
+        raise StudyError(f"{config.label}: design.parameters: {', '.join(movers)} would move hole "
+                         f"{holes0[j].name or j + 1}, which {config.study.part} declares functional (fixed); "
+                         f"allowed: parameters that move only free holes ({part.fixed_holes or 'see the script'})")
     for i, spec in enumerate(config.design.fixed):
         j = _select(config, holes0, spec, f"design.fixed[{i}]")
         if moved[j]:
@@ -291,7 +297,8 @@ def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Seque
 
 def _mirror_pairs(holes: Sequence[Any], movable: Sequence[int], patterns: Sequence[Sequence[int]],
                   symmetry: str, tol_mm: float = 1e-6) -> list[tuple[int, int, tuple[float, float, float]]]:
-    """(leader, follower, plane normal) for movable holes that mirror each other about x = 0 / y = 0."""
+    """(leader, follower, plane normal) for movable holes that mirror each other about x = 0 / y = 0 (centres
+    reflected onto each other, equal radii)."""
     pairs: list[tuple[int, int, tuple[float, float, float]]] = []
     taken = {i for p in patterns for i in p[1:]}
     for normal in SYMMETRY_NORMALS.get(symmetry, []):
@@ -299,7 +306,8 @@ def _mirror_pairs(holes: Sequence[Any], movable: Sequence[int], patterns: Sequen
         for a in movable:
             for b in movable:
                 if a < b and a not in taken and b not in taken and \
-                        np.linalg.norm(M @ holes[a].centre - holes[b].centre) < tol_mm:
+                        np.linalg.norm(M @ holes[a].centre - holes[b].centre) < tol_mm and \
+                        abs(holes[a].radius_mm - holes[b].radius_mm) < tol_mm:
                     pairs.append((a, b, normal))
                     taken.add(b)
     return pairs

@@ -213,6 +213,43 @@ def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
 
 
+def test_infeasible_study_names_the_conflict(tmp_path, monkeypatch):
+    """No position of the row keeps 25 mm from the edges of a 60 x 40 mm plate: one StudyError naming the
+    violated requirement, nothing written."""
+    from cadfeat.study_schema import StudyError
+
+    no_report(monkeypatch)
+    data = copy.deepcopy(SMALL)
+    data["constraints"]["edge_distance_mm"] = 25.0
+    with pytest.raises(StudyError, match="no design meets the kept requirements.*edge"):
+        run_study(data, tmp_path / "out", quiet=True)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_parameter_moving_a_declared_fixed_hole_is_an_error(tmp_path):
+    """A part script marks a hole functional ("fixed": True in expected_holes): a study varying a parameter
+    that moves it fails before optimising, naming the parameter."""
+    from cadfeat.study_schema import StudyError
+
+    script = tmp_path / "dowel_plate.py"
+    script.write_text(
+        "import cadquery as cq\n"
+        "PARAMETERS = {'dowel_x': {'default': 0.0, 'bounds': (-5.0, 5.0)},\n"
+        "              'x': {'default': 10.0, 'bounds': (8.0, 12.0)}}\n"
+        "def build(dowel_x, x):\n"
+        "    plate = cq.Workplane('XY').box(40, 30, 5, centered=(True, True, False))\n"
+        "    return plate.faces('>Z').workplane(origin=(0, 0, 0)).pushPoints([(dowel_x, 0), (x, 8)]).hole(3)\n"
+        "def expected_holes(dowel_x, x):\n"
+        "    return [{'centre': (dowel_x, 0, 5), 'axis': (0, 0, 1), 'radius_mm': 1.5, 'fixed': True},\n"
+        "            {'centre': (x, 8, 5), 'axis': (0, 0, 1), 'radius_mm': 1.5}]\n")
+    data = copy.deepcopy(SMALL)
+    data["study"]["part"] = str(script)
+    data["design"] = {"parameters": ["dowel_x", "x"]}
+    with pytest.raises(StudyError, match="design.parameters: dowel_x would move hole"):
+        run_study(data, tmp_path / "out", quiet=True)
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.slow
 def test_integer_parameter_stays_int(tmp_path, monkeypatch):
     """``count`` (an int parameter) is enumerated, never turned into a float: the CAD model is built with an
@@ -293,3 +330,41 @@ def test_studies_folder_validates():
 
 def test_step_data_is_shared():
     assert STEP.exists() and DATA.is_dir()
+
+
+def _step_study(**design) -> dict:
+    data = copy.deepcopy(SMALL)
+    data["study"] = {"name": "step_plate", "part": str(STEP), "seed": 2}
+    data["design"] = {"holes": [{"select": "H1", "max_offset_mm": 6.0}, {"select": "H2", "max_offset_mm": 6.0}],
+                      **design}
+    data["trajectory"]["target"] = [0.0, 0.0, 10.0]
+    return data
+
+
+def test_step_pattern_moves_together(tmp_path, monkeypatch):
+    """Two STEP holes in a pattern share one offset: one pair of variables, the same displacement of both
+    holes in the re-imported STEP."""
+    from cadfeat.export import import_step
+    from cadfeat.features import extract_holes
+
+    no_report(monkeypatch)
+    result = run_study(_step_study(patterns=[["H1", "H2"]]), tmp_path / "out", quiet=True)
+    assert [v["name"] for v in result.results["variables"]] == ["H1.s", "H1.t"]
+    before = {h["name"]: np.array(h["centre_mm"]) for h in result.results["holes"]["before"]}
+    final = extract_holes(import_step(tmp_path / "out" / "optimised.step"))
+    moves = []
+    for name in ("H1", "H2"):
+        c = np.array([f.centre for f in final])
+        k = int(np.argmin(np.linalg.norm(c - before[name], axis=1)))
+        moves.append(c[k] - before[name])
+    np.testing.assert_allclose(moves[0], moves[1], atol=1e-6)
+
+
+def test_symmetry_the_part_does_not_have(tmp_path):
+    from cadfeat.study_schema import StudyError
+
+    data = _step_study()
+    data["constraints"]["symmetry"] = "y"  # H1 (Ø8) and H2 (Ø6) mirror in position but not in size
+    with pytest.raises(StudyError, match="constraints.symmetry: no two movable holes mirror"):
+        run_study(data, tmp_path / "out", quiet=True)
+    assert not (tmp_path / "out").exists()

@@ -369,3 +369,17 @@ def test_dict_study_label():
     data["objective"]["aggregate"] = "median"
     data["study"]["part"] = str(PLATE)
     fails(data, "<study dict>", "objective.aggregate", "sum, mean, min, smoothmin")
+
+
+def test_readme_example_is_a_valid_study():
+    """The annotated example of README "Study files" loads (relative to studies/, like the flagship)."""
+    import re
+    import tomllib
+
+    root = DATA.parents[1]
+    text = (root / "README.md").read_text()
+    section = text[text.index("## Study files"):]
+    block = re.search(r"```toml\n(.*?)```", section, re.S).group(1)
+    cfg = load_study(tomllib.loads(block), base_dir=root / "studies")
+    assert cfg.study.name == "nema17_mount" and cfg.objective.combine == "maxmin"
+    assert len(cfg.design.parameters) == 4
