@@ -7,6 +7,7 @@ data is replaced by a note and a logged warning: writing the report never stops 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
@@ -72,12 +73,13 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
 
     ``parallel`` (default: off unless ``CADFEAT_REPORT_PARALLEL=1``): when there are renders, draw the plots
     meanwhile in a child process (``python -m cadfeat.report.plots``; if that fails they are drawn here).
-    Off by default: with software OpenGL (llvmpipe, no GPU) the renders already use every core, and
-    bench_report measured the parallel report slower on the 2-core test machine.
+    Off by default: with software OpenGL (llvmpipe, no GPU) the renders already use the cores; on the 2-core
+    test machine bench_report measured 6 % less wall time when idle (1.71 s vs 1.83 s) but more under load.
     ``timings_s``: "renders" (with "renders: part"/"renders: views"), "plots" (drawing time, wherever it ran),
     "plots: wait" (time spent waiting for the child after the renders), "html", "total" (wall).
     """
     t0 = time.perf_counter()
+    results, context = _single_design(results, context)
     out_dir = Path(out_dir)
     img_dir = out_dir / IMG_DIR
     img_dir.mkdir(parents=True, exist_ok=True)
@@ -119,6 +121,20 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
     images = [*renders.comparison.values(), *(p for ps in renders.views.values() for p in ps),
               *(p.path for p in plots)]
     return ReportOutput(path, images, notes, timings)
+
+
+def _single_design(results: dict, context: ReportContext | None) -> tuple[dict, ReportContext | None]:
+    """For ``evaluation_only`` results: drop any "after" copy of the current design (the report then shows one
+    design, "current", and renders it once)."""
+    if not results.get("evaluation_only"):
+        return results, context
+    results = dict(results)
+    for key in ("holes", "measures", "objectives"):
+        if isinstance(results.get(key), dict):
+            results[key] = {k: v for k, v in results[key].items() if k not in ("after", "combined_after")}
+    if context is not None and context.shape_after is not None:
+        context = dataclasses.replace(context, shape_after=None, holes_after=None)
+    return results, context
 
 
 class _PlotProcess:
