@@ -10,7 +10,6 @@ Finally the worker-process build (``build_shape``) against the in-process build.
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import statistics
 import sys
@@ -20,24 +19,16 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(HERE))
+
+from benchutil import load as _load
+from benchutil import median_ms as _median_ms
 
 MAP_PARTS = ("thesis_hub", "industrial_plate", "nema17_mount", "pipe_flange_dn50")
 
 
-def _load(name: str, path: Path):
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
-def _median_ms(func, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        func()
-        times.append(time.perf_counter() - start)
-    return 1e3 * statistics.median(times)
 
 
 def main(quick: bool = False) -> str:

@@ -9,7 +9,6 @@ spent on features ("CAD in the outer loop, features in the inner loop", DESIGN.m
 
 from __future__ import annotations
 
-import importlib.util
 import statistics
 import sys
 import tempfile
@@ -19,14 +18,13 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(HERE))
+
+from benchutil import load as _load
+
 FLAGSHIP = ROOT / "studies" / "nema17_mount.toml"
 
 
-def _load(name: str, path: Path):
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def main(quick: bool = False) -> str:
