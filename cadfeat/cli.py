@@ -55,6 +55,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CadfeatError as exc:
         print(f"cadfeat: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into `head` and the like
+        sys.stderr.close()
+        return 0
 
 
 def _load_commands() -> None:

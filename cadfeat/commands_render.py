@@ -63,9 +63,13 @@ def _parse_size(text: str) -> tuple[int, int]:
 def load_shape(path: Path, params: dict[str, float | int]) -> tuple[Any, list, Any, str]:
     """(shape, holes, view direction or None, name) of a STEP file or a part script."""
     from cadfeat.features import extract_holes
+    from cadfeat.parts import PARTS_DIR
 
+    if not path.is_file() and path.suffix == "" and (PARTS_DIR / f"{path}.py").is_file():
+        path = PARTS_DIR / f"{path}.py"  # a library part by name, as `cadfeat parts` lists them
     if not path.is_file():
-        raise CadfeatError(f"{path}: no such file (expected a part script .py or a STEP file .step/.stp)")
+        raise CadfeatError(f"{path}: no such file (expected a part script .py, a STEP file .step/.stp "
+                           f"or the name of a part in {PARTS_DIR})")
     if path.suffix.lower() in STEP_SUFFIXES:
         from cadfeat.export import import_step
 

@@ -70,3 +70,12 @@ def test_render_bad_input(tmp_path, capsys, args, message):
 def test_render_missing_file(tmp_path, capsys):
     assert main(["render", str(tmp_path / "nope.py")]) == 2
     assert "no such file" in capsys.readouterr().err
+
+
+def test_render_library_part_by_name(tmp_path, capsys):
+    # `cadfeat render thesis_hub` finds parts/thesis_hub.py; 1 centre hole + 4 bolt-circle holes show dark
+    out = tmp_path / "hub.png"
+    assert main(["render", "thesis_hub", "--param", "hole_count=4", "--out", str(out), "--size", "400x300",
+                 "--view", "0,0,1"]) == 0
+    assert capsys.readouterr().out.strip() == str(out)
+    assert _dark_blobs(out) >= 5
