@@ -368,3 +368,25 @@ def test_symmetry_the_part_does_not_have(tmp_path):
     with pytest.raises(StudyError, match="constraints.symmetry: no two movable holes mirror"):
         run_study(data, tmp_path / "out", quiet=True)
     assert not (tmp_path / "out").exists()
+
+
+def test_pareto_study_front_is_non_dominated_and_the_chosen_design_is_exported(tmp_path, monkeypatch):
+    """combine = "pareto": the front in results.json is mutually non-dominated (checked here by brute force),
+    the exported design's objectives are the chosen front point, and the STEP still keeps every requirement."""
+    no_report(monkeypatch)
+    spec = copy.deepcopy(SMALL)
+    spec["study"]["name"] = "small_pareto"
+    spec["objective"]["combine"] = "pareto"
+    spec["optimizer"] = {"method": "pareto"}
+    out = tmp_path / "pareto"
+    results = run_study(spec, out, quiet=True).results
+    front = results["pareto"]
+    points = np.array(front["points"], dtype=float)
+    assert len(front["names"]) == 3 and points.shape[1] == 3 and len(points) >= 2
+    better_eq = (points[:, None, :] >= points[None, :, :]).all(-1)   # maximised objectives
+    strictly = (points[:, None, :] > points[None, :, :]).any(-1)
+    assert not (better_eq & strictly).any(), "a front point dominates another"
+    chosen = points[front["chosen"]]
+    after = np.array([results["objectives"]["after"][n] for n in front["names"]])
+    np.testing.assert_allclose(after, chosen, rtol=1e-6, atol=1e-9)
+    assert all(c["ok"] for c in results["constraints"])
