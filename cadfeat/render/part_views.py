@@ -422,7 +422,7 @@ def _render_closeup(scene: _Scene, out: Path, size: tuple[int, int]) -> dict[str
     paths: dict[str, Path] = {}
     view = None
     for key in ("before", "after"):
-        plotter = _picture_plotter(size, headlight=0.4)
+        plotter = _picture_plotter(size, headlight=0.25)
         try:
             scene.draw(plotter, after=key == "after", overview=False)
             if view is None:
@@ -585,7 +585,7 @@ def _add_hole_labels(plotter: pv.Plotter, scene: _Scene, after: bool) -> None:
             prop.SetOpacity(0.6)
         prop.SetFrame(True)
         prop.SetFrameColor(*colour)
-        plotter.renderer.AddActor2D(actor)
+        plotter.renderer.AddViewProp(actor)
         actors.append(actor)
     sizes = np.zeros((len(actors), 2))
     for j, actor in enumerate(actors):
