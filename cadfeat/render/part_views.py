@@ -4,7 +4,9 @@ The comparison renders both parts from ONE viewpoint (fitted to both parts, the 
 and its frusta), so the two PNGs can be laid side by side or flipped between. Moved holes are
 highlighted, with arrows from the old to the new rim centre and the old rim drawn as a ghost ring;
 fixed holes are blue and labelled; the camera path is a polyline with camera frusta (from the
-real intrinsics) at a few samples; a legend names the colours.
+real intrinsics) at a few samples; a legend names the colours. With ``closeup=True`` a second pair
+shows the part alone, fitted to its bounding box from a viewpoint chosen to show the most (moved) rims,
+with every hole labelled beside its rim and labels kept off each other, the rims and the arrows.
 
 Units: millimetres, part frame. Trajectory poses are ``T_task_cam``; with ``T_task_part`` they are
 brought into the part frame (``T_part_cam = T_task_part⁻¹ T_task_cam``).

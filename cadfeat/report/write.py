@@ -248,7 +248,8 @@ def _renders_section(renders: Renders, rel: Callable[[Path], str]) -> str:
         captions_closeup = {
             "before_closeup": "Before (close-up, part alone): holes that will move in orange, fixed holes in blue.",
             "after_closeup": "After (close-up, same viewpoint): moved holes in green at their new place, the old "
-                             "rim as an orange ring, red arrows from the old to the new centre, fixed holes in blue."}
+                             "rim as an orange ring, red arrows from the old centre to the new hole, fixed holes in "
+                             "blue; labels in italics mark holes hidden from this viewpoint."}
         figs = "".join(figure(rel(p), captions_closeup.get(k, k), f"part {k.replace('_', ' ')}")
                        for k, p in closeup.items())
         out.append(f'<div class="pair closeup">{figs}</div>')
