@@ -106,3 +106,52 @@ def test_trajectory_placed_in_part_frame():
     np.testing.assert_allclose(_trajectory_in_part(traj.T_task_cam, None), traj.T_task_cam)
     with pytest.raises(CadfeatError, match="trajectory"):
         _trajectory_in_part(np.eye(4), None)
+
+
+def test_closeup_pair_fills_the_picture_and_shows_the_moves(pair, tmp_path):
+    """The close-up is fitted to the part alone: much bigger than in the trajectory overview, same view in both
+    images, moved holes with their arrow (red) and new place (green), the fixed hole marked (blue)."""
+    from cadfeat.render.part_views import ARROW
+
+    (shape_b, holes_b), (shape_a, holes_a) = pair
+    eyes = np.stack([[-400.0 + 800.0 * s, -300.0, 500.0] for s in np.linspace(0, 1, 8)])  # far away: tiny part
+    T_task_cam = np.stack([look_at(e, [0.0, 0.0, 0.0], up=(0.0, 1.0, 0.0)) for e in eyes])
+    paths = render_comparison(shape_b, shape_a, holes_b, holes_a, [False, True, False], tmp_path,
+                              trajectory=T_task_cam, n_frusta=3, size=(500, 380), closeup=True)
+    assert set(paths) == {"before", "after", "before_closeup", "after_closeup"}
+    imgs = {k: cv2.imread(str(p)) for k, p in paths.items()}
+    before, after = imgs["before_closeup"], imgs["after_closeup"]
+    assert before.shape == after.shape == (380, 500, 3)
+
+    def filled(img):  # fraction of non-background (non-white) pixels
+        return float((img < 245).any(axis=-1).mean())
+
+    for img in (before, after):
+        assert img.std() > 10  # not blank
+        assert filled(img) > 0.25  # the part fills a substantial part of the close-up
+        assert _count_colour(img, FIXED) > 50
+    assert filled(after) > 3 * filled(imgs["after"])  # ... unlike the overview with the far trajectory
+    assert _count_colour(before, MOVED_BEFORE) > 50
+    assert _count_colour(after, MOVED_AFTER) > 50
+    red_after, red_before = _count_colour(after, ARROW, tol=50), _count_colour(before, ARROW, tol=50)
+    assert red_after > 100 and red_after > 10 * red_before  # the arrows are in the after picture (legend: both)
+    # same viewpoint: the fixed hole's highlight lands on the same pixels in both close-ups
+    blue = [np.argwhere(np.abs(img.astype(float) - np.array(FIXED[::-1]) * 255).max(axis=-1) < 40).mean(axis=0)
+            for img in (before, after)]
+    assert np.linalg.norm(blue[0] - blue[1]) < 2.0
+
+
+def test_place_labels_avoids_overlaps():
+    """Four labels around four nearby circles: every box inside the image, none overlapping another or a circle."""
+    from cadfeat.render.part_views import _boxes_overlap, place_labels
+
+    anchors = np.array([[100.0, 100.0], [130.0, 100.0], [100.0, 130.0], [130.0, 130.0]])
+    radii = np.full(4, 8.0)
+    sizes = np.array([[60.0, 20.0]] * 4)
+    rims = np.c_[anchors - 8.0, anchors + 8.0]
+    corners = place_labels(anchors, radii, sizes, rims, (300, 260))
+    boxes = np.c_[corners, corners + sizes]
+    assert (boxes[:, :2] >= 0).all() and (boxes[:, 2] <= 300).all() and (boxes[:, 3] <= 260).all()
+    for i in range(4):
+        assert _boxes_overlap(boxes[i], np.delete(boxes, i, axis=0)) == 0.0
+        assert _boxes_overlap(boxes[i], rims) == 0.0

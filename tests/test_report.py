@@ -222,12 +222,16 @@ def _fake_render(fail: bool) -> types.ModuleType:
         return path
 
     def render_comparison(shape_before, shape_after, holes_before, holes_after, fixed, out_dir, *, trajectory=None,
-                          camera=None, T_task_part=None, n_frusta=5):
+                          camera=None, T_task_part=None, n_frusta=5, closeup=False):
         if fail:
             raise RuntimeError("no EGL display")
         assert len(fixed) == len(holes_before) and trajectory is not None and camera is not None
         out_dir = Path(out_dir)
-        return {"before": _png(out_dir / "part_before.png", 1), "after": _png(out_dir / "part_after.png", 2)}
+        out = {"before": _png(out_dir / "part_before.png", 1), "after": _png(out_dir / "part_after.png", 2)}
+        if closeup:
+            out.update(before_closeup=_png(out_dir / "closeup_before.png", 3),
+                       after_closeup=_png(out_dir / "closeup_after.png", 4))
+        return out
 
     def render_camera_views(shape, holes, camera, T_cam_part, out_dir, prefix, *, overlay=True):
         if fail:
@@ -256,7 +260,10 @@ def test_render_wiring(case, tmp_path, monkeypatch):
         assert f"img/{name}" in page.images
     for src in page.images:
         assert (tmp_path / src).is_file()
-    assert len(page.images) == 2 + 6
+    assert len(page.images) == 2 + 2 + 6
+    # the close-up pair comes first, above the trajectory overview
+    assert page.images[:4] == ["img/closeup_before.png", "img/closeup_after.png", "img/part_before.png",
+                               "img/part_after.png"]
 
 
 def test_render_failure_still_writes_the_report(case, tmp_path, monkeypatch, caplog):
@@ -348,7 +355,7 @@ def test_plots_in_a_child_process_match(report, tmp_path, monkeypatch):
     _, _, context = shared_case()
     out = build_report(tmp_path, _lean(results, keep=("pareto", "history")), context, parallel=True)
     assert "plots: wait" in out.timings_s and out.notes == []
-    plots = {p.name: p for p in out.images if not p.stem.startswith(("part_", "view_"))}
+    plots = {p.name: p for p in out.images if not p.stem.startswith(("part_", "closeup_", "view_"))}
     assert sorted(plots) == ["convergence.png", "pareto.png"]
     for p in built.images:
         if p.name in plots:

@@ -68,11 +68,13 @@ def browser_report(tmp_path_factory):
 
 
 def test_report_has_the_renders(browser_report):
-    """Part before/after and the camera views at the first, middle and last sample, each non-blank."""
+    """Part close-up and overview before/after, the camera views at the first, middle and last sample, each
+    non-blank; the close-up pair is the first thing in the renders section."""
     path, _ = browser_report
     srcs = parse_report(path).images
-    renders = [s for s in srcs if Path(s).stem.startswith(("before", "after", "view_"))]
-    assert len(renders) == 2 + 2 * 3, srcs
+    renders = [s for s in srcs if Path(s).stem.startswith(("closeup_", "before", "after", "view_"))]
+    assert len(renders) == 2 + 2 + 2 * 3, srcs
+    assert renders[:4] == ["img/closeup_before.png", "img/closeup_after.png", "img/before.png", "img/after.png"]
     for src in renders:
         grey = np.asarray(Image.open(path.parent / src).convert("L"), dtype=float)
         assert grey.std() > 10.0, f"{src} looks blank"
@@ -82,7 +84,7 @@ def test_report_has_the_renders(browser_report):
 def test_every_image_loads_in_chromium(browser_report, tmp_path):
     path, home = browser_report
     n_images = len(parse_report(path).images)
-    assert n_images == 6 + 8  # plots + renders
+    assert n_images == 6 + 10  # plots + renders (close-up pair, overview pair, 2 × 3 camera views)
     copy_dir = tmp_path / "copy"
     shutil.copytree(path.parent, copy_dir)
     page = copy_dir / path.name

@@ -4,7 +4,9 @@ The comparison renders both parts from ONE viewpoint (fitted to both parts, the 
 and its frusta), so the two PNGs can be laid side by side or flipped between. Moved holes are
 highlighted, with arrows from the old to the new rim centre and the old rim drawn as a ghost ring;
 fixed holes are blue and labelled; the camera path is a polyline with camera frusta (from the
-real intrinsics) at a few samples; a legend names the colours.
+real intrinsics) at a few samples; a legend names the colours. With ``closeup=True`` a second pair
+shows the part alone, fitted to its bounding box from a viewpoint chosen to show the most (moved) rims,
+with every hole labelled beside its rim and labels kept off each other, the rims and the arrows.
 
 Units: millimetres, part frame. Trajectory poses are ``T_task_cam``; with ``T_task_part`` they are
 brought into the part frame (``T_part_cam = T_task_part⁻¹ T_task_cam``).
@@ -12,6 +14,8 @@ brought into the part frame (``T_part_cam = T_task_part⁻¹ T_task_cam``).
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -157,13 +161,13 @@ def render_part(shape: Any, path: str | Path, holes: Sequence[Hole] | None = Non
         plotter.close()
 
 
-def _picture_plotter(size: tuple[int, int]) -> pv.Plotter:
+def _picture_plotter(size: tuple[int, int], headlight: float = 0.15) -> pv.Plotter:
     """White background, VTK's light kit plus a soft headlight (faces seen edge-on to the key light stay
     readable), super-sampled anti-aliasing."""
     import pyvista as pv
 
     plotter = new_plotter(size)
-    plotter.add_light(pv.Light(light_type="headlight", intensity=0.15))
+    plotter.add_light(pv.Light(light_type="headlight", intensity=headlight))
     plotter.enable_anti_aliasing("ssaa")
     return plotter
 
@@ -283,7 +287,9 @@ class _Scene:
         moved = MOVED_AFTER if after else MOVED_BEFORE
         return [FIXED if f else moved if m else HOLE_DARK for f, m in zip(self.fixed, self.moved, strict=True)]
 
-    def draw(self, plotter: pv.Plotter, after: bool) -> None:
+    def draw(self, plotter: pv.Plotter, after: bool, overview: bool = True) -> None:
+        """The part, hole highlights, old rims and move arrows; with ``overview`` also the point labels, the
+        camera path, frusta and legend (the close-up places its labels itself, see ``_place_labels``)."""
         import pyvista as pv
 
         mesh = self.mesh_after if after else self.mesh_before
@@ -299,8 +305,16 @@ class _Scene:
             for j in np.flatnonzero(self.moved):
                 old, new = self.before[j], self.after[j]
                 plotter.add_mesh(pv.lines_from_points(_ring(old.centre + old.axis * lift, old.axis, old.radius_mm)),
-                                 color=MOVED_BEFORE, line_width=3)
-                self._arrow(plotter, old.centre + old.axis * 2 * lift, new.centre + new.axis * 2 * lift)
+                                 color=MOVED_BEFORE, line_width=3 if overview else 4)
+                start, end = old.centre + old.axis * 2 * lift, new.centre + new.axis * 2 * lift
+                gap = np.linalg.norm(end - start)
+                if not overview and gap > 2.0 * new.radius_mm:  # close-up: the tip stops at the new rim
+                    end = end - (end - start) / gap * new.radius_mm
+                self._arrow(plotter, start, end)
+        if not overview:
+            plotter.add_legend(self._legend(overview=False), bcolor="white", border=True, size=(0.2, 0.14),
+                               loc="upper left", face="rectangle")
+            return
         fixed_idx = np.flatnonzero(self.fixed)
         _label_points(plotter, _label_anchor([holes[j] for j in fixed_idx], mesh),
                       [f"fixed {_hole_name(holes[j], j)}" for j in fixed_idx], FIXED)
@@ -326,12 +340,12 @@ class _Scene:
             return
         head = min(0.4 * length, 0.05 * self.size_mm)
         tip_base = end - d / length * head
-        plotter.add_mesh(pv.Line(start, tip_base).tube(radius=0.006 * self.size_mm), color=ARROW)
+        plotter.add_mesh(pv.Line(start, tip_base).tube(radius=min(0.006 * self.size_mm, 0.18 * head)), color=ARROW)
         plotter.add_mesh(pv.Cone(center=tip_base + d / length * head / 2, direction=d, height=head,
-                                 radius=0.016 * self.size_mm, resolution=24), color=ARROW)
+                                 radius=min(0.016 * self.size_mm, 0.45 * head), resolution=24), color=ARROW)
 
-    def _legend(self) -> list[list[Any]]:
-        """The same entries in both pictures, so they can be flipped between."""
+    def _legend(self, overview: bool = True) -> list[list[Any]]:
+        """The same entries in both pictures, so they can be flipped between (no camera in the close-up)."""
         entries: list[list[Any]] = [["part", LEGEND_GREY]]
         if self.moved.any():
             entries += [["moved hole, old place", MOVED_BEFORE], ["moved hole, new place", MOVED_AFTER],
@@ -340,9 +354,9 @@ class _Scene:
             entries.append(["fixed hole", FIXED])
         if (~self.fixed & ~self.moved).any():
             entries.append(["unchanged hole", HOLE_DARK])
-        if self.T_part_cam is not None:
+        if self.T_part_cam is not None and overview:
             entries.append(["camera path (dot: start)", PATH])
-        if self.frusta is not None:
+        if self.frusta is not None and overview:
             entries.append(["camera frusta", FRUSTUM])
         return entries
 
@@ -361,13 +375,15 @@ def _side_view(direction: np.ndarray, centre: np.ndarray, path: np.ndarray) -> n
 def render_comparison(shape_before: Any, shape_after: Any, holes_before: Sequence[Hole], holes_after: Sequence[Hole],
                       fixed: Sequence[bool], out_dir: str | Path, *, trajectory: Any = None,
                       camera: Camera | None = None, T_task_part: np.ndarray | None = None, n_frusta: int = 5,
-                      size: tuple[int, int] = (1000, 760)) -> dict[str, Path]:
+                      size: tuple[int, int] = (1000, 760), closeup: bool = False) -> dict[str, Path]:
     """Before/after PNGs from the same viewpoint: ``{"before": out_dir/before.png, "after": out_dir/after.png}``.
 
     ``holes_before[i]`` and ``holes_after[i]`` are the same hole (index correspondence), ``fixed[i]``
     marks holes that may not move. ``trajectory`` (a ``Trajectory`` or (L, 4, 4) ``T_task_cam``) is
     drawn as a polyline with ``n_frusta`` camera frusta (from ``camera``'s intrinsics), placed in the
-    part frame with ``T_task_part`` (identity when None).
+    part frame with ``T_task_part`` (identity when None). This overview is fitted to the part AND the
+    trajectory, so the part may be small; ``closeup=True`` adds the part alone, fitted to its bounding
+    box (same viewpoint for both): keys "before_closeup"/"after_closeup" (``closeup_before.png``, ...).
     """
     scene = _Scene(shape_before, shape_after, holes_before, holes_after, fixed,
                    _trajectory_in_part(trajectory, T_task_part), camera, n_frusta)
@@ -386,4 +402,224 @@ def render_comparison(shape_before: Any, shape_after: Any, holes_before: Sequenc
             paths[key] = _save(plotter, out / f"{key}.png")
         finally:
             plotter.close()
+    if closeup:
+        paths.update(_render_closeup(scene, out, size))
     return paths
+
+
+# ------------------------------------------------------------------------------------ close-up
+
+LABEL_FONT_SIZE = 17
+UNCHANGED_LABEL = (0.25, 0.25, 0.28)
+
+
+def _render_closeup(scene: _Scene, out: Path, size: tuple[int, int]) -> dict[str, Path]:
+    """The part alone, before and after, from one viewpoint fitted to both parts' bounding box (no camera
+    path): moved holes with old rims and arrows, fixed holes marked, every hole labelled (labels placed
+    beside their rims, away from each other, the rims and the arrows)."""
+    points = np.vstack([scene.mesh_before.points, scene.mesh_after.points])
+    direction, _ = closeup_view_direction(scene.mesh_after, scene.after, weights=np.where(scene.moved, 3.0, 1.0))
+    scene = copy.copy(scene)
+    scene.before, scene.after = _facing_side(scene.before, direction), _facing_side(scene.after, direction)
+    paths: dict[str, Path] = {}
+    view = None
+    for key in ("before", "after"):
+        plotter = _picture_plotter(size, headlight=0.25)
+        try:
+            scene.draw(plotter, after=key == "after", overview=False)
+            if view is None:
+                _fit_view(plotter, points, direction, fill=0.84)
+                view = _get_view(plotter)
+                scene.visible = _visible_from(scene.mesh_after, scene.after, np.array(view[0]))
+            else:
+                _set_view(plotter, view)
+            _add_hole_labels(plotter, scene, after=key == "after")
+            paths[f"{key}_closeup"] = _save(plotter, out / f"closeup_{key}.png")
+        finally:
+            plotter.close()
+    return paths
+
+
+#: A rim seen at less than this cosine between its axis and the view direction counts as hidden.
+MIN_RIM_COSINE = 0.3
+
+
+def closeup_view_direction(mesh: Any, holes: Sequence[Hole], weights: np.ndarray | None = None,
+                           n_candidates: int = 160) -> tuple[np.ndarray, np.ndarray]:
+    """Viewing direction (part frame, unit, towards the viewer) that shows the most hole rims: among
+    ``default_view_direction(holes)`` and ``n_candidates`` directions spread over the sphere (Fibonacci), the
+    one maximising the ``weights`` (N,) of rims that face it (axis·d ≥ ``MIN_RIM_COSINE``) and are not
+    occluded (a ray from the rim centre along d misses the mesh; trimesh, batched), ties broken towards the
+    default view. A flat plate keeps its default (tilted) view; an L-bracket gets one showing both flanges.
+    Returns the direction and which holes are seen from it (N,) bool."""
+    import trimesh
+
+    target = default_view_direction(holes)
+    if not holes:
+        return target, np.zeros(0, dtype=bool)
+    from cadfeat.features import holes_to_arrays
+
+    k = np.arange(n_candidates) + 0.5
+    z = 1.0 - 2.0 * k / n_candidates
+    phi = np.pi * (1.0 + 5.0**0.5) * k
+    cand = np.vstack([target, np.c_[np.sqrt(1 - z**2) * np.cos(phi), np.sqrt(1 - z**2) * np.sin(phi), z]])
+    centres, axes, _ = holes_to_arrays(holes)
+    through = np.array([h.through for h in holes])
+    depth = np.array([h.depth_mm for h in holes])
+    w = np.ones(len(holes)) if weights is None else np.asarray(weights, dtype=float)
+    cosine = axes @ cand.T                                                    # (N, D)
+    seen = np.where(through[:, None], np.abs(cosine), cosine)                 # a through hole shows both rims
+    facing = seen >= MIN_RIM_COSINE
+    faces = np.asarray(mesh.faces).reshape(-1, 4)[:, 1:]
+    tri = trimesh.Trimesh(np.asarray(mesh.points), faces, process=False)
+    lift = 1e-3 * float(np.linalg.norm(np.ptp(np.asarray(mesh.points), axis=0)))
+    n, d = np.nonzero(facing)
+    free = np.zeros_like(facing)
+    if len(n):
+        front = cosine[n, d] >= 0
+        origin = np.where(front[:, None], centres[n] + axes[n] * lift, centres[n] - axes[n] * (depth[n, None] + lift))
+        free[n, d] = ~tri.ray.intersects_any(origin, cand[d])
+    score = w @ free + 0.5 * (cand @ target) + (w @ (free * seen)) / w.sum()
+    best = int(np.argmax(score))
+    return cand[best], free[:, best]
+
+
+def _visible_from(mesh: Any, holes: Sequence[Hole], eye: np.ndarray) -> np.ndarray:
+    """Which rims (N,) bool face the eye point (mm, part frame) and see it unobstructed (trimesh rays)."""
+    import trimesh
+
+    if not holes:
+        return np.zeros(0, dtype=bool)
+    from cadfeat.features import holes_to_arrays
+
+    centres, axes, _ = holes_to_arrays(holes)
+    lift = 1e-3 * float(np.linalg.norm(np.ptp(np.asarray(mesh.points), axis=0)))
+    origin = centres + axes * lift
+    rays = eye - origin
+    tri = trimesh.Trimesh(np.asarray(mesh.points), np.asarray(mesh.faces).reshape(-1, 4)[:, 1:], process=False)
+    return (np.einsum("ij,ij->i", rays, axes) > 0) & ~tri.ray.intersects_any(origin, rays)
+
+
+def _facing_side(holes: Sequence[Hole], direction: np.ndarray) -> list[Hole]:
+    """The holes as seen along ``-direction``: a through hole whose entrance faces away is described by its
+    exit rim (centre moved down the bore by depth_mm, axis reversed, bore radius), so highlights, rings,
+    arrows and labels land on the visible side."""
+    out = []
+    for h in holes:
+        if h.through and float(np.dot(h.axis, direction)) < 0.0:
+            h = dataclasses.replace(h, centre=h.centre - h.axis * h.depth_mm, axis=-h.axis, radius_mm=h.bore_radius_mm,
+                                    kind="plain", outline=None)
+        out.append(h)
+    return out
+
+
+def _project_px(plotter: pv.Plotter, points: np.ndarray) -> np.ndarray:
+    """Display coordinates (px, origin bottom-left, as VTK's 2D actors use) of part-frame points (M, 3)."""
+    width, height = plotter.window_size
+    M = _vtk_matrix(plotter.camera.GetCompositeProjectionTransformMatrix(width / height, -1.0, 1.0))
+    clip = np.c_[points, np.ones(len(points))] @ M.T
+    return (clip[:, :2] / clip[:, 3:4] + 1.0) * 0.5 * np.array([width, height])
+
+
+def _boxes_overlap(box: np.ndarray, boxes: np.ndarray) -> float:
+    """Summed overlap area (px²) of ``box`` (4,) [x0, y0, x1, y1] with ``boxes`` (K, 4)."""
+    if len(boxes) == 0:
+        return 0.0
+    w = np.clip(np.minimum(box[2], boxes[:, 2]) - np.maximum(box[0], boxes[:, 0]), 0.0, None)
+    h = np.clip(np.minimum(box[3], boxes[:, 3]) - np.maximum(box[1], boxes[:, 1]), 0.0, None)
+    return float((w * h).sum())
+
+
+def place_labels(anchors: np.ndarray, radii: np.ndarray, sizes: np.ndarray, obstacles: np.ndarray,
+                 image_size: tuple[int, int], gap: float = 4.0) -> np.ndarray:
+    """Lower-left corners (N, 2) of label boxes ``sizes`` (N, 2) px beside circles (``anchors`` (N, 2),
+    ``radii`` (N,) px), greedily: each label takes the first of 8 directions × 4 distances with the least
+    overlap with the labels placed so far (×4), the ``obstacles`` (K, 4) boxes and the image border (×8)."""
+    width, height = image_size
+    angles = np.radians([45, 135, -45, -135, 0, 180, 90, -90])
+    dirs = np.c_[np.cos(angles), np.sin(angles)]
+    placed: list[np.ndarray] = []
+    out = np.zeros((len(anchors), 2))
+    for i in np.argsort(-anchors[:, 1], kind="stable"):  # top to bottom
+        w, h = sizes[i]
+        best, best_cost = None, np.inf
+        for k in range(4):
+            for d in dirs:
+                centre = anchors[i] + d * (radii[i] + gap + k * h) + d * np.array([w, h]) * 0.5
+                box = np.r_[centre - 0.5 * np.array([w, h]), centre + 0.5 * np.array([w, h])]
+                inside = (min(box[2], width) - max(box[0], 0.0)) * (min(box[3], height) - max(box[1], 0.0))
+                cost = (4.0 * _boxes_overlap(box, np.array(placed).reshape(-1, 4))
+                        + _boxes_overlap(box, obstacles) + 8.0 * (w * h - max(inside, 0.0)) + 0.01 * k)
+                if cost < best_cost - 1e-9:
+                    best, best_cost = box, cost
+            if best_cost < 1.0:
+                break
+        placed.append(best)
+        out[i] = best[:2]
+    return out
+
+
+def _add_hole_labels(plotter: pv.Plotter, scene: _Scene, after: bool) -> None:
+    """Every hole labelled in 2D (display coordinates), beside its rim, placed by ``place_labels``."""
+    from vtkmodules.vtkRenderingCore import vtkTextActor
+
+    holes = scene.after if after else scene.before
+    if not holes:
+        return
+    plotter.render()
+    colours = [FIXED if f else (MOVED_AFTER if after else MOVED_BEFORE) if m else UNCHANGED_LABEL
+               for f, m in zip(scene.fixed, scene.moved, strict=True)]
+    texts = [f"fixed {_hole_name(h, j)}" if scene.fixed[j] else _hole_name(h, j) for j, h in enumerate(holes)]
+    visible = getattr(scene, "visible", np.ones(len(holes), dtype=bool))
+    texts = [t if v else f"{t} (hidden)" for t, v in zip(texts, visible, strict=True)]
+    actors = []
+    for text, colour in zip(texts, colours, strict=True):
+        actor = vtkTextActor()
+        actor.SetInput(text)
+        prop = actor.GetTextProperty()
+        prop.SetFontSize(LABEL_FONT_SIZE)
+        prop.SetBold(True)
+        prop.SetColor(*colour)
+        prop.SetBackgroundColor(1.0, 1.0, 1.0)
+        prop.SetBackgroundOpacity(0.85)
+        if text.endswith("(hidden)"):
+            prop.SetItalic(True)
+            prop.SetOpacity(0.6)
+        prop.SetFrame(True)
+        prop.SetFrameColor(*colour)
+        plotter.renderer.AddViewProp(actor)
+        actors.append(actor)
+    sizes = np.zeros((len(actors), 2))
+    for j, actor in enumerate(actors):
+        wh = [0.0, 0.0]
+        actor.GetSize(plotter.renderer, wh)
+        sizes[j] = np.array(wh) + 4.0
+    anchors, radii, obstacles = _label_geometry(plotter, scene, holes)
+    corners = place_labels(anchors, radii, sizes, obstacles, plotter.window_size)
+    for actor, corner in zip(actors, corners, strict=True):
+        actor.SetPosition(float(corner[0]) + 2.0, float(corner[1]) + 2.0)
+
+
+def _label_geometry(plotter: pv.Plotter, scene: _Scene, holes: Sequence[Hole]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rim centres (N, 2) and radii (N,) in px of ``holes``, and obstacle boxes (K, 4): every highlighted rim
+    of both designs, samples along the move arrows, and the legend (upper left)."""
+    rings = np.stack([_ring(h.centre, h.axis, h.radius_mm, 24) for h in holes])          # (N, 25, 3)
+    px = _project_px(plotter, rings.reshape(-1, 3)).reshape(len(holes), -1, 2)
+    anchors = px.mean(axis=1)
+    radii = np.linalg.norm(px - anchors[:, None], axis=-1).max(axis=1)
+    boxes = [np.c_[px.min(axis=1), px.max(axis=1)]]
+    moved = np.flatnonzero(scene.moved)
+    if len(moved):
+        old = np.stack([_ring(scene.before[j].centre, scene.before[j].axis, scene.before[j].radius_mm, 24)
+                        for j in moved])
+        opx = _project_px(plotter, old.reshape(-1, 3)).reshape(len(moved), -1, 2)
+        boxes.append(np.c_[opx.min(axis=1), opx.max(axis=1)])
+        t = np.linspace(0.0, 1.0, 12)[:, None]
+        seg = np.concatenate([scene.before[j].centre + t * (scene.after[j].centre - scene.before[j].centre)
+                              for j in moved])
+        spx = _project_px(plotter, seg)
+        boxes.append(np.c_[spx - 4.0, spx + 4.0])
+    width, height = plotter.window_size
+    boxes.append(np.array([[0.0, 0.84 * height, 0.22 * width, height]]))
+    return anchors, radii, np.vstack(boxes)

@@ -22,7 +22,7 @@ log = logging.getLogger(__name__)
 class Renders:
     """Images rendered for the report (absolute paths inside ``img/``) and notes about what is missing."""
 
-    comparison: dict[str, Path] = field(default_factory=dict)
+    comparison: dict[str, Path] = field(default_factory=dict)  # "before"/"after"(/"*_closeup") or "current"
     views: dict[str, list[Path]] = field(default_factory=dict)  # "before"/"after" -> one per sample
     samples: list[int] = field(default_factory=list)
     sample_times_s: list[float] = field(default_factory=list)
@@ -116,7 +116,7 @@ def _render_comparison(renders: Renders, render, context: ReportContext, camera,
     try:
         out = render.render_comparison(context.shape_before, context.shape_after, holes_b, holes_a, fixed,
                                        img_dir, trajectory=context.trajectory, camera=camera,
-                                       T_task_part=context.T_task_part)
+                                       T_task_part=context.T_task_part, closeup=True)
         renders.comparison = {k: p for k, p in zip(out, _inside(out.values(), img_dir), strict=True)}
     except Exception as exc:
         _fail(renders, "before/after part renders", exc)

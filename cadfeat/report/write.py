@@ -241,8 +241,23 @@ def _renders_section(renders: Renders, rel: Callable[[Path], str]) -> str:
                 "before": "Before: the original layout.",
                 "after": "After: moved holes with arrows from the old to the new centre, fixed holes marked, "
                          "the camera trajectory with frusta."}
-    figs = "".join(figure(rel(p), captions.get(k, k), f"part {k}") for k, p in renders.comparison.items())
-    return f'<div class="pair">{figs}</div>'
+    closeup = {k: p for k, p in renders.comparison.items() if k.endswith("_closeup")}
+    overview = {k: p for k, p in renders.comparison.items() if k not in closeup}
+    out = []
+    if closeup:
+        captions_closeup = {
+            "before_closeup": "Before (close-up, part alone): holes that will move in orange, fixed holes in blue.",
+            "after_closeup": "After (close-up, same viewpoint): moved holes in green at their new place, the old "
+                             "rim as an orange ring, red arrows from the old centre to the new hole, fixed holes in "
+                             "blue; labels in italics mark holes hidden from this viewpoint."}
+        figs = "".join(figure(rel(p), captions_closeup.get(k, k), f"part {k.replace('_', ' ')}")
+                       for k, p in closeup.items())
+        out.append(f'<div class="pair closeup">{figs}</div>')
+        if overview:
+            out.append("<h3>With the camera trajectory</h3>")
+    figs = "".join(figure(rel(p), captions.get(k, k), f"part {k}") for k, p in overview.items())
+    out.append(f'<div class="pair">{figs}</div>')
+    return "".join(out)
 
 
 def _views_section(renders: Renders, rel: Callable[[Path], str]) -> str:
