@@ -28,6 +28,7 @@ from cadfeat.measures.ellipse import ellipse_parts, rim_conic_xyz, sphere_conic_
 from cadfeat.measures.focus import focus_margin_depth
 from cadfeat.measures.fov import image_margin_px
 from cadfeat.measures.jacobian import diagnostics_from_gram, fill_jacobian
+from cadfeat.measures.kernels import gram_and_speed
 from cadfeat.measures.lens import distort_terms
 from cadfeat.measures.resolution import minor_axis_margin
 from cadfeat.measures.resolvability import check_length, resolvability_from_parts, scale_screws
@@ -189,20 +190,45 @@ def _jacobian_measures(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list,
                        screws: np.ndarray, rotation_length_mm: float, out: dict[str, np.ndarray]) -> None:
     """Diagnostics and Λ per pose from the visible features' Jacobians (module docstring), into ``out``.
 
-    The Jacobian is held transposed, Jᵀ (L, 6, 2N) (rows of one column contiguous), so JᵀJ is one batched
-    (6, 2N) @ (2N, 6) product: Σ_j J_jᵀ J_j over the point blocks; row order within 2N is irrelevant."""
+    JᵀJ (L, 6, 6) and ‖J γ̇‖ come from the compiled kernel (``kernels.gram_and_speed``) when numba is
+    available, else from the transposed stacked Jacobian (``_stacked_transposed``); J̃ itself is built
+    only for the rank-deficient poses that need a pseudo-inverse."""
+    kernel = gram_and_speed()
+    if kernel is None:
+        Jt = _stacked_transposed(x, y, inv_z, D, visible)
+        image_speed = np.linalg.norm(np.einsum("lk,lkm->lm", screws, Jt), axis=-1)
+        if rotation_length_mm != 1.0:
+            Jt[:, 3:, :] /= rotation_length_mm
+        G = Jt @ np.swapaxes(Jt, 1, 2)
+        rows = np.swapaxes(Jt, 1, 2)
+    else:
+        L, N = x.shape
+        G, image_speed = np.empty((L, 6, 6)), np.empty(L)
+        Dfull = [d if isinstance(d, np.ndarray) else np.full((L, N), d) for d in D]
+        kernel(x, y, inv_z, *Dfull, visible, np.ascontiguousarray(screws), float(rotation_length_mm), G,
+               image_speed)
+
+        def rows(idx: np.ndarray) -> np.ndarray:
+            Jt = _stacked_transposed(x[idx], y[idx], inv_z[idx], [d[idx] if isinstance(d, np.ndarray) else d
+                                                                  for d in D], visible[idx])
+            if rotation_length_mm != 1.0:
+                Jt[:, 3:, :] /= rotation_length_mm
+            return np.swapaxes(Jt, 1, 2)
+
+    diag = diagnostics_from_gram(G)
+    out["resolvability"][...] = resolvability_from_parts(rows, image_speed,
+                                                         scale_screws(screws, rotation_length_mm),
+                                                         diag["singular"], diag["sigma_min"])
+    for key, value in diag.items():
+        out[key][...] = value
+
+
+def _stacked_transposed(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list, visible: np.ndarray) -> np.ndarray:
+    """Jᵀ (L, 6, 2N) of the visible features (zero rows elsewhere), held transposed (rows of one column
+    contiguous) so JᵀJ is one batched (6, 2N) @ (2N, 6) product; row order within 2N is irrelevant."""
     L, N = visible.shape
     w = visible.astype(float)
     Dw = [d * w if not (np.isscalar(d) and d == 0.0) else 0.0 for d in D]  # zero weight → zero rows
     Jt = np.empty((L, 12, N))
     fill_jacobian([Jt[:, j] for j in range(12)], x, y, inv_z, Dw)  # the 12 entries of the 2×6 blocks
-    Jt = Jt.reshape(L, 6, 2 * N)
-    image_speed = np.linalg.norm(np.einsum("lk,lkm->lm", screws, Jt), axis=-1)
-    if rotation_length_mm != 1.0:
-        Jt[:, 3:, :] /= rotation_length_mm
-    diag = diagnostics_from_gram(Jt @ np.swapaxes(Jt, 1, 2))
-    out["resolvability"][...] = resolvability_from_parts(np.swapaxes(Jt, 1, 2), image_speed,
-                                                         scale_screws(screws, rotation_length_mm),
-                                                         diag["singular"], diag["sigma_min"])
-    for key, value in diag.items():
-        out[key][...] = value
+    return Jt.reshape(L, 6, 2 * N)
