@@ -25,10 +25,10 @@ from numpy.typing import ArrayLike
 from cadfeat.camera import MIN_DEPTH_MM, Camera
 from cadfeat.errors import CadfeatError
 from cadfeat.measures.ellipse import ellipse_parts, rim_conic_xyz, sphere_conic_xyz
-from cadfeat.measures.focus import focus_margin_depth
-from cadfeat.measures.fov import image_margin_px
+from cadfeat.measures.focus import focus_margin_depth, focus_scale_mm
+from cadfeat.measures.fov import behind_px, image_margin_px
 from cadfeat.measures.jacobian import diagnostics_from_gram, fill_jacobian
-from cadfeat.measures.kernels import gram_and_speed
+from cadfeat.measures.kernels import features, gram_and_speed
 from cadfeat.measures.lens import distort_terms
 from cadfeat.measures.resolution import minor_axis_margin
 from cadfeat.measures.resolvability import check_length, resolvability_from_parts, scale_screws
@@ -119,6 +119,10 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
     if not np.isfinite(min_axis_px):
         raise CadfeatError(f"evaluate: min_axis_px must be a finite number of pixels, got {min_axis_px!r}")
     L, N = T.shape[0], c.shape[0]
+    kernel = features()
+    if kernel is not None:  # compiled path: one pass, no temporaries, no slabs
+        return _evaluate_compiled(kernel, camera, T, s, c, n, r, min_axis_px, rotation_length_mm, occlusion_mesh,
+                                  resolution_model == "sphere")
     out = _allocate(L, N)
     step = max(1, BLOCK_ELEMENTS // max(1, N))
     for i in range(0, L, step):  # slabs of whole pose blocks (cache blocking), each fully batched
@@ -140,16 +144,54 @@ def _allocate(L: int, N: int) -> dict[str, np.ndarray]:
     return out
 
 
-def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray,
-              min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any, out: dict[str, np.ndarray],
-              sphere: bool = False) -> None:
-    """``evaluate`` on one slab of poses (validated inputs), written into the views ``out``."""
+def _frames(T: np.ndarray, c: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, ...]:
+    """X, Y, Z, n_x, n_y, n_z (camera frame, (L, N)), Rᵀt (L, 3), n·c and ‖c‖² (camera frame, (L, N))."""
     R, t = T[:, :3, :3], T[:, :3, 3]
     X, Y, Z = (R[:, i, :] @ c.T + t[:, i, None] for i in range(3))  # centres in the camera frames (L, N)
     nx, ny, nz = (R[:, i, :] @ n.T for i in range(3))  # axes in the camera frames
     rt = np.einsum("lji,lj->li", R, t)  # Rᵀ t = −(camera centre in the part frame)
     nc = np.sum(n * c, axis=-1) + rt @ n.T  # n·c in the camera frame
     dist2 = np.sum(c * c, axis=-1) + 2.0 * (rt @ c.T) + np.sum(t * t, axis=-1)[:, None]
+    return X, Y, Z, nx, ny, nz, rt, nc, dist2
+
+
+def _evaluate_compiled(kernel: Any, camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np.ndarray,
+                       r: np.ndarray, min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any,
+                       sphere: bool) -> Measures:
+    """``evaluate`` through the compiled kernels (``kernels``): same formulas and operation order as
+    ``_evaluate`` per feature-pose (results equal to rounding)."""
+    L, N = T.shape[0], c.shape[0]
+    X, Y, Z, nx, ny, nz, rt, nc, dist2 = _frames(T, c, n)
+    k1, k2, p1, p2, k3 = camera.dist
+    mode = 0 if not any(camera.dist) else 3 if k3 else 2 if k2 else 1
+    cam = np.array([camera.fx, camera.fy, camera.cx, camera.cy, k1, k2, p1, p2, k3], dtype=float)
+    near, far = camera.depth_of_field_mm
+    consts = np.array([MIN_DEPTH_MM, camera.width, camera.height, np.cos(0.5 * camera.fov_rad), near, far,
+                       focus_scale_mm(camera), min_axis_px, float(max(camera.width, camera.height)),
+                       behind_px(camera)], dtype=float)
+    f = np.empty((7, L, N))
+    visible, valid = np.empty((L, N), dtype=bool), np.empty((L, N), dtype=bool)
+    centre, axes_px, lens = np.empty((L, N, 2)), np.empty((L, N, 2)), np.empty((7, L, N))
+    kernel(X, Y, Z, nx, ny, nz, nc, dist2, r, cam, mode, consts, sphere, f, visible, valid, centre, axes_px, lens)
+    if occlusion_mesh is not None:
+        visible &= ~occluded(occlusion_mesh, -rt, c, n)
+    if not valid.all():  # invalid ellipses: the (depth-clamped) projection of the centre
+        bad = ~valid
+        centre[bad] = camera.distort_normalized(np.stack([lens[0][bad], lens[1][bad]], axis=-1))
+    out = dict(zip(("fov", "fov_px", "focus", "resolution_px", "minor_axis_px", "facing", "angle_rad"), f,
+                   strict=True))
+    out.update(visible=visible, centre_px=centre, axes_px=axes_px)
+    out.update({k: np.empty(L) for k in _PER_POSE}, singular=np.empty(L, dtype=bool))
+    D = list(lens[3:]) if mode else [camera.fx, 0.0, 0.0, camera.fy]
+    _jacobian_measures(lens[0], lens[1], lens[2], D, visible, s, rotation_length_mm, out)
+    return Measures(**out)
+
+
+def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray,
+              min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any, out: dict[str, np.ndarray],
+              sphere: bool = False) -> None:
+    """``evaluate`` on one slab of poses (validated inputs), written into the views ``out``."""
+    X, Y, Z, nx, ny, nz, rt, nc, dist2 = _frames(T, c, n)
     dist = np.sqrt(np.maximum(dist2, 0.0))
     in_front = Z - r * np.sqrt(np.maximum(1.0 - nz * nz, 0.0)) > MIN_DEPTH_MM
     ell = ellipse_parts(camera, rim_conic_xyz(X, Y, Z, nx, ny, nz, nc, dist2 - r * r), in_front)
