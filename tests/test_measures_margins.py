@@ -277,3 +277,20 @@ def test_ellipse_symmetries(roll, tilt, scale, seed):
         d = np.mod(rolled.angle_rad - e.angle_rad - roll + np.pi / 2, np.pi) - np.pi / 2
         assert abs(d) < 1e-6
     assert measures.facing_margin(c, n) == pytest.approx(-measures.facing_margin(c, -n))
+
+
+def test_evaluate_large_pinhole_path_agrees_with_numpy_path(monkeypatch):
+    """Large pinhole batches use the numpy per-feature slabs with the compiled JᵀJ kernel: same results."""
+    ev = importlib.import_module("cadfeat.measures.evaluate")
+    cam, T, s, c, n, r = _scene(L=50, N=6)
+    cam = cam.without_distortion()
+    monkeypatch.setattr(ev, "BLOCK_ELEMENTS", 24)  # L·N above it: the slab path
+    mixed = measures.evaluate(cam, T, s, c, n, r)
+    monkeypatch.setattr(ev, "gram_and_speed", lambda: None)
+    slow = measures.evaluate(cam, T, s, c, n, r)
+    full = ~slow.singular
+    for key, value in slow.as_dict().items():
+        if key in ("sigma_min", "condition", "manipulability", "resolvability"):
+            np.testing.assert_allclose(getattr(mixed, key)[full], value[full], rtol=1e-6, err_msg=key)
+        else:
+            np.testing.assert_array_equal(getattr(mixed, key), value, err_msg=key)

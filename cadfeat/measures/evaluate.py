@@ -120,7 +120,9 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
         raise CadfeatError(f"evaluate: min_axis_px must be a finite number of pixels, got {min_axis_px!r}")
     L, N = T.shape[0], c.shape[0]
     kernel = features()
-    if kernel is not None:  # compiled path: one pass, no temporaries, no slabs
+    # compiled per-feature pass (no temporaries, no slabs) — except for large pinhole batches, where the numpy
+    # path's few distortion-free array operations are faster than the kernel's chain of divisions per element
+    if kernel is not None and (camera.has_distortion or L * N <= BLOCK_ELEMENTS):
         return _evaluate_compiled(kernel, camera, T, s, c, n, r, min_axis_px, rotation_length_mm, occlusion_mesh,
                                   resolution_model == "sphere")
     out = _allocate(L, N)
