@@ -188,11 +188,40 @@ def test_evaluate_slabs_agree_with_one_batch(monkeypatch):
     ev = importlib.import_module("cadfeat.measures.evaluate")  # the module (the package exports the function)
 
     args = _scene(L=40, N=5)
+    monkeypatch.setattr(ev, "features", lambda: None)  # the numpy path (slabs are used only there)
+    monkeypatch.setattr(ev, "gram_and_speed", lambda: None)
     whole = measures.evaluate(*args)
     monkeypatch.setattr(ev, "BLOCK_ELEMENTS", 12)
     cut = measures.evaluate(*args)
     for key, value in whole.as_dict().items():
         np.testing.assert_array_equal(getattr(cut, key), value, err_msg=key)
+
+
+@pytest.mark.parametrize("pinhole", [False, True])
+@pytest.mark.parametrize("model", ["circle", "sphere"])
+def test_evaluate_compiled_path_agrees_with_numpy_path(monkeypatch, pinhole, model):
+    """The numba kernels (``measures.kernels``) give the numpy path's per-feature results bit for bit and its
+    Jacobian diagnostics to rounding, including poses with few visible features (pseudo-inverse Λ)."""
+    ev = importlib.import_module("cadfeat.measures.evaluate")
+    cam, T, s, c, n, r = _scene(L=60, N=6)
+    if pinhole:
+        cam = cam.without_distortion()
+    s[::7] = 0.0  # some still poses (Λ = σ_min convention)
+    for length in (1.0, 20.0):
+        fast = measures.evaluate(cam, T, s, c, n, r, rotation_length_mm=length, resolution_model=model)
+        with monkeypatch.context() as m:
+            m.setattr(ev, "features", lambda: None)
+            m.setattr(ev, "gram_and_speed", lambda: None)
+            slow = measures.evaluate(cam, T, s, c, n, r, rotation_length_mm=length, resolution_model=model)
+        full = ~slow.singular  # rank-deficient poses: σ_min is rounding noise (≈ 1e-8 σ_max) in both paths
+        assert full.any()
+        for key, value in slow.as_dict().items():
+            if key in ("sigma_min", "condition", "manipulability", "resolvability"):
+                np.testing.assert_allclose(getattr(fast, key)[full], value[full], rtol=1e-6, err_msg=key)
+            else:
+                np.testing.assert_array_equal(getattr(fast, key), value, err_msg=key)
+        np.testing.assert_allclose(fast.sigma_min, slow.sigma_min, rtol=1e-6, atol=1e-5)
+        np.testing.assert_allclose(fast.resolvability, slow.resolvability, rtol=1e-6, atol=1e-5)
 
 
 def test_evaluate_bad_input_is_a_clear_error():
@@ -248,3 +277,20 @@ def test_ellipse_symmetries(roll, tilt, scale, seed):
         d = np.mod(rolled.angle_rad - e.angle_rad - roll + np.pi / 2, np.pi) - np.pi / 2
         assert abs(d) < 1e-6
     assert measures.facing_margin(c, n) == pytest.approx(-measures.facing_margin(c, -n))
+
+
+def test_evaluate_large_pinhole_path_agrees_with_numpy_path(monkeypatch):
+    """Large pinhole batches use the numpy per-feature slabs with the compiled JᵀJ kernel: same results."""
+    ev = importlib.import_module("cadfeat.measures.evaluate")
+    cam, T, s, c, n, r = _scene(L=50, N=6)
+    cam = cam.without_distortion()
+    monkeypatch.setattr(ev, "BLOCK_ELEMENTS", 24)  # L·N above it: the slab path
+    mixed = measures.evaluate(cam, T, s, c, n, r)
+    monkeypatch.setattr(ev, "gram_and_speed", lambda: None)
+    slow = measures.evaluate(cam, T, s, c, n, r)
+    full = ~slow.singular
+    for key, value in slow.as_dict().items():
+        if key in ("sigma_min", "condition", "manipulability", "resolvability"):
+            np.testing.assert_allclose(getattr(mixed, key)[full], value[full], rtol=1e-6, err_msg=key)
+        else:
+            np.testing.assert_array_equal(getattr(mixed, key), value, err_msg=key)

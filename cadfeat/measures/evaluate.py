@@ -25,9 +25,10 @@ from numpy.typing import ArrayLike
 from cadfeat.camera import MIN_DEPTH_MM, Camera
 from cadfeat.errors import CadfeatError
 from cadfeat.measures.ellipse import ellipse_parts, rim_conic_xyz, sphere_conic_xyz
-from cadfeat.measures.focus import focus_margin_depth
-from cadfeat.measures.fov import image_margin_px
+from cadfeat.measures.focus import focus_margin_depth, focus_scale_mm
+from cadfeat.measures.fov import behind_px, image_margin_px
 from cadfeat.measures.jacobian import diagnostics_from_gram, fill_jacobian
+from cadfeat.measures.kernels import features, gram_and_speed
 from cadfeat.measures.lens import distort_terms
 from cadfeat.measures.resolution import minor_axis_margin
 from cadfeat.measures.resolvability import check_length, resolvability_from_parts, scale_screws
@@ -118,6 +119,12 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
     if not np.isfinite(min_axis_px):
         raise CadfeatError(f"evaluate: min_axis_px must be a finite number of pixels, got {min_axis_px!r}")
     L, N = T.shape[0], c.shape[0]
+    kernel = features()
+    # compiled per-feature pass (no temporaries, no slabs) — except for large pinhole batches, where the numpy
+    # path's few distortion-free array operations are faster than the kernel's chain of divisions per element
+    if kernel is not None and (camera.has_distortion or L * N <= BLOCK_ELEMENTS):
+        return _evaluate_compiled(kernel, camera, T, s, c, n, r, min_axis_px, rotation_length_mm, occlusion_mesh,
+                                  resolution_model == "sphere")
     out = _allocate(L, N)
     step = max(1, BLOCK_ELEMENTS // max(1, N))
     for i in range(0, L, step):  # slabs of whole pose blocks (cache blocking), each fully batched
@@ -139,16 +146,54 @@ def _allocate(L: int, N: int) -> dict[str, np.ndarray]:
     return out
 
 
-def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray,
-              min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any, out: dict[str, np.ndarray],
-              sphere: bool = False) -> None:
-    """``evaluate`` on one slab of poses (validated inputs), written into the views ``out``."""
+def _frames(T: np.ndarray, c: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, ...]:
+    """X, Y, Z, n_x, n_y, n_z (camera frame, (L, N)), Rᵀt (L, 3), n·c and ‖c‖² (camera frame, (L, N))."""
     R, t = T[:, :3, :3], T[:, :3, 3]
     X, Y, Z = (R[:, i, :] @ c.T + t[:, i, None] for i in range(3))  # centres in the camera frames (L, N)
     nx, ny, nz = (R[:, i, :] @ n.T for i in range(3))  # axes in the camera frames
     rt = np.einsum("lji,lj->li", R, t)  # Rᵀ t = −(camera centre in the part frame)
     nc = np.sum(n * c, axis=-1) + rt @ n.T  # n·c in the camera frame
     dist2 = np.sum(c * c, axis=-1) + 2.0 * (rt @ c.T) + np.sum(t * t, axis=-1)[:, None]
+    return X, Y, Z, nx, ny, nz, rt, nc, dist2
+
+
+def _evaluate_compiled(kernel: Any, camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np.ndarray,
+                       r: np.ndarray, min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any,
+                       sphere: bool) -> Measures:
+    """``evaluate`` through the compiled kernels (``kernels``): same formulas and operation order as
+    ``_evaluate`` per feature-pose (results equal to rounding)."""
+    L, N = T.shape[0], c.shape[0]
+    X, Y, Z, nx, ny, nz, rt, nc, dist2 = _frames(T, c, n)
+    k1, k2, p1, p2, k3 = camera.dist
+    mode = 0 if not any(camera.dist) else 3 if k3 else 2 if k2 else 1
+    cam = np.array([camera.fx, camera.fy, camera.cx, camera.cy, k1, k2, p1, p2, k3], dtype=float)
+    near, far = camera.depth_of_field_mm
+    consts = np.array([MIN_DEPTH_MM, camera.width, camera.height, np.cos(0.5 * camera.fov_rad), near, far,
+                       focus_scale_mm(camera), min_axis_px, float(max(camera.width, camera.height)),
+                       behind_px(camera)], dtype=float)
+    f = np.empty((7, L, N))
+    visible, valid = np.empty((L, N), dtype=bool), np.empty((L, N), dtype=bool)
+    centre, axes_px, lens = np.empty((L, N, 2)), np.empty((L, N, 2)), np.empty((7, L, N))
+    kernel(X, Y, Z, nx, ny, nz, nc, dist2, r, cam, mode, consts, sphere, f, visible, valid, centre, axes_px, lens)
+    if occlusion_mesh is not None:
+        visible &= ~occluded(occlusion_mesh, -rt, c, n)
+    if not valid.all():  # invalid ellipses: the (depth-clamped) projection of the centre
+        bad = ~valid
+        centre[bad] = camera.distort_normalized(np.stack([lens[0][bad], lens[1][bad]], axis=-1))
+    out = dict(zip(("fov", "fov_px", "focus", "resolution_px", "minor_axis_px", "facing", "angle_rad"), f,
+                   strict=True))
+    out.update(visible=visible, centre_px=centre, axes_px=axes_px)
+    out.update({k: np.empty(L) for k in _PER_POSE}, singular=np.empty(L, dtype=bool))
+    D = list(lens[3:]) if mode else [camera.fx, 0.0, 0.0, camera.fy]
+    _jacobian_measures(lens[0], lens[1], lens[2], D, visible, s, rotation_length_mm, out)
+    return Measures(**out)
+
+
+def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray,
+              min_axis_px: float, rotation_length_mm: float, occlusion_mesh: Any, out: dict[str, np.ndarray],
+              sphere: bool = False) -> None:
+    """``evaluate`` on one slab of poses (validated inputs), written into the views ``out``."""
+    X, Y, Z, nx, ny, nz, rt, nc, dist2 = _frames(T, c, n)
     dist = np.sqrt(np.maximum(dist2, 0.0))
     in_front = Z - r * np.sqrt(np.maximum(1.0 - nz * nz, 0.0)) > MIN_DEPTH_MM
     ell = ellipse_parts(camera, rim_conic_xyz(X, Y, Z, nx, ny, nz, nc, dist2 - r * r), in_front)
@@ -189,20 +234,45 @@ def _jacobian_measures(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list,
                        screws: np.ndarray, rotation_length_mm: float, out: dict[str, np.ndarray]) -> None:
     """Diagnostics and Λ per pose from the visible features' Jacobians (module docstring), into ``out``.
 
-    The Jacobian is held transposed, Jᵀ (L, 6, 2N) (rows of one column contiguous), so JᵀJ is one batched
-    (6, 2N) @ (2N, 6) product: Σ_j J_jᵀ J_j over the point blocks; row order within 2N is irrelevant."""
+    JᵀJ (L, 6, 6) and ‖J γ̇‖ come from the compiled kernel (``kernels.gram_and_speed``) when numba is
+    available, else from the transposed stacked Jacobian (``_stacked_transposed``); J̃ itself is built
+    only for the rank-deficient poses that need a pseudo-inverse."""
+    kernel = gram_and_speed()
+    if kernel is None:
+        Jt = _stacked_transposed(x, y, inv_z, D, visible)
+        image_speed = np.linalg.norm(np.einsum("lk,lkm->lm", screws, Jt), axis=-1)
+        if rotation_length_mm != 1.0:
+            Jt[:, 3:, :] /= rotation_length_mm
+        G = Jt @ np.swapaxes(Jt, 1, 2)
+        rows = np.swapaxes(Jt, 1, 2)
+    else:
+        L, N = x.shape
+        G, image_speed = np.empty((L, 6, 6)), np.empty(L)
+        Dfull = [d if isinstance(d, np.ndarray) else np.full((L, N), d) for d in D]
+        kernel(x, y, inv_z, *Dfull, visible, np.ascontiguousarray(screws), float(rotation_length_mm), G,
+               image_speed)
+
+        def rows(idx: np.ndarray) -> np.ndarray:
+            Jt = _stacked_transposed(x[idx], y[idx], inv_z[idx], [d[idx] if isinstance(d, np.ndarray) else d
+                                                                  for d in D], visible[idx])
+            if rotation_length_mm != 1.0:
+                Jt[:, 3:, :] /= rotation_length_mm
+            return np.swapaxes(Jt, 1, 2)
+
+    diag = diagnostics_from_gram(G)
+    out["resolvability"][...] = resolvability_from_parts(rows, image_speed,
+                                                         scale_screws(screws, rotation_length_mm),
+                                                         diag["singular"], diag["sigma_min"])
+    for key, value in diag.items():
+        out[key][...] = value
+
+
+def _stacked_transposed(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list, visible: np.ndarray) -> np.ndarray:
+    """Jᵀ (L, 6, 2N) of the visible features (zero rows elsewhere), held transposed (rows of one column
+    contiguous) so JᵀJ is one batched (6, 2N) @ (2N, 6) product; row order within 2N is irrelevant."""
     L, N = visible.shape
     w = visible.astype(float)
     Dw = [d * w if not (np.isscalar(d) and d == 0.0) else 0.0 for d in D]  # zero weight → zero rows
     Jt = np.empty((L, 12, N))
     fill_jacobian([Jt[:, j] for j in range(12)], x, y, inv_z, Dw)  # the 12 entries of the 2×6 blocks
-    Jt = Jt.reshape(L, 6, 2 * N)
-    image_speed = np.linalg.norm(np.einsum("lk,lkm->lm", screws, Jt), axis=-1)
-    if rotation_length_mm != 1.0:
-        Jt[:, 3:, :] /= rotation_length_mm
-    diag = diagnostics_from_gram(Jt @ np.swapaxes(Jt, 1, 2))
-    out["resolvability"][...] = resolvability_from_parts(np.swapaxes(Jt, 1, 2), image_speed,
-                                                         scale_screws(screws, rotation_length_mm),
-                                                         diag["singular"], diag["sigma_min"])
-    for key, value in diag.items():
-        out[key][...] = value
+    return Jt.reshape(L, 6, 2 * N)

@@ -18,6 +18,8 @@ worst-direction value σ_min(J̃); a pose with J γ̇ = 0 (no image motion, e.g.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -60,16 +62,17 @@ def resolvability(J: ArrayLike, screws: ArrayLike, rotation_length_mm: float = 1
                                     diag["singular"], diag["sigma_min"])
 
 
-def resolvability_from_parts(Js: np.ndarray, image_speed: np.ndarray, screws_scaled: np.ndarray,
-                             singular: np.ndarray, sigma_min: np.ndarray) -> np.ndarray:
+def resolvability_from_parts(Js: np.ndarray | Callable[[np.ndarray], np.ndarray], image_speed: np.ndarray,
+                             screws_scaled: np.ndarray, singular: np.ndarray, sigma_min: np.ndarray) -> np.ndarray:
     """Λ from precomputed parts: J̃ (L, 2N, 6) (read only on singular poses), ‖J γ̇‖ (L,), γ̃ (L, 6),
-    the singular flags and σ_min(J̃) (L,). Full-rank poses use Λ = ‖J γ̇‖/‖γ̃‖, others 1/‖J̃⁺ D‖."""
+    the singular flags and σ_min(J̃) (L,). Full-rank poses use Λ = ‖J γ̇‖/‖γ̃‖, others 1/‖J̃⁺ D‖. ``Js`` may be a
+    function of the pose indices returning J̃ (M, 2N, 6) of those poses (built only when needed)."""
     speed = np.linalg.norm(screws_scaled, axis=-1)
     moving = speed > 0.0
     lam = np.where(moving, image_speed / np.where(moving, speed, 1.0), sigma_min)
     redo = np.flatnonzero(singular & moving)
     if redo.size:
-        lam[redo] = _pinv_resolvability(Js[redo], screws_scaled[redo])
+        lam[redo] = _pinv_resolvability(Js(redo) if callable(Js) else Js[redo], screws_scaled[redo])
     return lam
 
 
