@@ -25,6 +25,9 @@ import numpy as np  # noqa: E402
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(HERE))
+
+from benchutil import save_section
 
 SIZES = ((200, 8), (1000, 16), (10000, 64))
 #: Extra row: the largest size with an ideal pinhole (no distortion terms).
@@ -208,10 +211,7 @@ def main(quick: bool = False) -> str:
         f"{min(visible_frac):.2f}–{max(visible_frac):.2f}): "
         + ", ".join(f"{k} {v:.1e}" for k, v in agreement.items()) + ".",
     ]
-    section = "\n".join(lines) + "\n"
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "bench_measures.md").write_text(section)
-    return section
+    return save_section("bench_measures", "\n".join(lines))
 
 
 if __name__ == "__main__":

@@ -25,6 +25,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(HERE))
 
 from benchutil import load as _load
+from benchutil import save_section
 
 
 class RebuildFeatureModel:
@@ -125,10 +126,7 @@ def main(quick: bool = False) -> str:
         f"optimum {dict(zip(names, np.round(feat.x_best, 4).tolist(), strict=True))}.",
         "",
     ]
-    section = "\n".join(lines)
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "bench_optimise.md").write_text(section)
-    return section
+    return save_section("bench_optimise", "\n".join(lines))
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ sys.path.insert(0, str(HERE))
 
 from benchutil import load as _load
 from benchutil import median_ms as _median_ms
+from benchutil import save_section
 
 MAP_PARTS = ("thesis_hub", "industrial_plate", "nema17_mount", "pipe_flange_dn50")
 
@@ -80,10 +81,7 @@ def main(quick: bool = False) -> str:
     t_local = _median_ms(hub.build, repeats)
     lines += ["", f"Time-limited build in a worker process (`build_shape`, forkserver, BRep transfer) of "
               f"thesis_hub: {t_worker:.1f} ms vs {t_local:.1f} ms in process (ratio {t_worker / t_local:.1f})."]
-    section = "\n".join(lines) + "\n"
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "bench_parts.md").write_text(section)
-    return section
+    return save_section("bench_parts", "\n".join(lines))
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ sys.path.insert(0, str(HERE))
 
 from benchutil import load as _load
 from benchutil import median_ms as _median_ms
+from benchutil import save_section
 
 
 def main(quick: bool = False) -> str:
@@ -73,10 +74,7 @@ def main(quick: bool = False) -> str:
         f"{rt.max_centre_error_mm:.1e} mm, max radius error {rt.max_radius_error_mm:.1e} mm, volume relative "
         f"error {rt.volume_rel_error:.1e}.",
     ]
-    section = "\n".join(lines) + "\n"
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "bench_redrill.md").write_text(section)
-    return section
+    return save_section("bench_redrill", "\n".join(lines))
 
 
 if __name__ == "__main__":

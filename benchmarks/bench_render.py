@@ -20,6 +20,7 @@ sys.path.insert(0, str(HERE))
 
 from benchutil import load as _load
 from benchutil import median_ms as _median_ms
+from benchutil import save_section
 
 
 def _plate(shift: float = 0.0):
@@ -104,10 +105,7 @@ def main(quick: bool = False) -> str:
     lines += [f"| {name} | {ms:.1f} | {unit} |" for name, ms, unit in rows]
     lines += ["", "Reusing one plotter for many camera views vs a new plotter per image (same run): "
               + ", ".join(f"{size}: {ratio:.1f}x faster" for size, ratio in ratios) + "."]
-    section = "\n".join(lines) + "\n"
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "bench_render.md").write_text(section)
-    return section
+    return save_section("bench_render", "\n".join(lines))
 
 
 if __name__ == "__main__":

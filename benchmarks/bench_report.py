@@ -24,6 +24,7 @@ sys.path.insert(0, str(HERE))
 
 from benchutil import load as _load
 from benchutil import median_s as _median_s
+from benchutil import save_section
 
 REAL_STUDY = ROOT / "studies" / "nema17_mount.toml"
 
@@ -133,10 +134,7 @@ def main(quick: bool = False) -> str:
         lines += ["", "Notes: " + "; ".join(out.notes)]
     if not quick:
         lines += _real_study()
-    section = "\n".join(lines) + "\n"
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "bench_report.md").write_text(section)
-    return section
+    return save_section("bench_report", "\n".join(lines))
 
 
 if __name__ == "__main__":

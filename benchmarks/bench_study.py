@@ -21,6 +21,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(HERE))
 
 from benchutil import load as _load
+from benchutil import save_section
 
 FLAGSHIP = ROOT / "studies" / "nema17_mount.toml"
 
@@ -90,10 +91,7 @@ def main(quick: bool = False) -> str:
         "",
     ]
     text = "\n".join(lines)
-    out = HERE / "results" / "bench_study.md"
-    out.parent.mkdir(exist_ok=True)
-    out.write_text(text + "\n")
-    return text
+    return save_section("bench_study", text)
 
 
 if __name__ == "__main__":

@@ -31,3 +31,13 @@ def median_s(func: Callable[[], object], repeats: int) -> float:
 def median_ms(func: Callable[[], object], repeats: int) -> float:
     """Median wall time of ``repeats`` calls of ``func`` (ms)."""
     return 1e3 * median_s(func, repeats)
+
+
+def save_section(name: str, text: str) -> str:
+    """Write a benchmark's Markdown section to ``benchmarks/results/<name>.md`` (what ``run_all.py``
+    assembles into RESULTS.md) and return it; a benchmark run on its own keeps its numbers too."""
+    section = text.rstrip() + "\n"
+    results = Path(__file__).resolve().parent / "results"
+    results.mkdir(exist_ok=True)
+    (results / f"{name}.md").write_text(section)
+    return section

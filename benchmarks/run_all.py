@@ -1,9 +1,10 @@
 """Run every ``benchmarks/bench_*.py`` and assemble ``benchmarks/RESULTS.md``.
 
 Convention: each benchmark module defines ``main(quick: bool = False) -> str`` that measures, returns a
-Markdown section (a ``## Title``, a table, the baseline ratio) and also writes it to
-``benchmarks/results/<module>.md``. ``python benchmarks/run_all.py [name ...]`` re-runs the named
-benchmarks (all by default); sections of benchmarks not re-run are kept from their last run.
+Markdown section (a ``## Title``, a table, the baseline ratio) and writes it to
+``benchmarks/results/<module>.md`` with ``benchutil.save_section``. ``python benchmarks/run_all.py
+[name ...]`` re-runs the named benchmarks (all by default); sections of benchmarks not re-run are kept
+from their last run.
 """
 
 from __future__ import annotations
@@ -45,8 +46,7 @@ def run(names: list[str]) -> None:
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
         print(f"== {script.stem}", flush=True)
-        section = module.main()
-        (SECTIONS / f"{script.stem}.md").write_text(section.rstrip() + "\n")
+        module.main()  # writes its section to results/<name>.md (benchutil.save_section)
     body = [
         "# Benchmark results",
         "",
