@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	tools/ensure_system.sh
-	$(PY) -m cadfeat.demo
+	$(PY) -m cadfeat.cli.demo
 
 test: $(STAMP)
 	tools/ensure_system.sh

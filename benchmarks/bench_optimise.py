@@ -37,7 +37,7 @@ class RebuildFeatureModel:
         self.n_builds = 0
 
     def features_batch(self, X):
-        from cadfeat.features import holes_to_arrays, match_holes
+        from cadfeat.cad.features import holes_to_arrays, match_holes
 
         out = []
         for x in np.atleast_2d(X):  # one CAD build per design: the point of the baseline
@@ -54,9 +54,9 @@ class RebuildFeatureModel:
 
 def _problem(model, space, fixed):
     from cadfeat.camera import Camera
-    from cadfeat.constraints import ConstraintConfig
-    from cadfeat.objectives import ObjectiveConfig
-    from cadfeat.problem import Problem
+    from cadfeat.design.constraints import ConstraintConfig
+    from cadfeat.design.objectives import ObjectiveConfig
+    from cadfeat.design.problem import Problem
     from cadfeat.trajectory import straight_approach
 
     camera = Camera.preset("basler-aca1300-200um-8mm")
@@ -67,10 +67,10 @@ def _problem(model, space, fixed):
 
 
 def main(quick: bool = False) -> str:
-    from cadfeat.design_map import design_map
-    from cadfeat.design_space import DesignSpace, LinearFeatureModel, Variable
-    from cadfeat.optimize import OptimizerConfig, optimise
-    from cadfeat.parts import load_part
+    from cadfeat.cad.design_map import design_map
+    from cadfeat.cad.parts import load_part
+    from cadfeat.design.design_space import DesignSpace, LinearFeatureModel, Variable
+    from cadfeat.design.optimize import OptimizerConfig, optimise
 
     machine = _load("run_all", HERE / "run_all.py").machine_description()
     part = load_part(ROOT / "parts" / "industrial_plate.py")

@@ -35,9 +35,9 @@ MAP_PARTS = ("thesis_hub", "industrial_plate", "nema17_mount", "pipe_flange_dn50
 def main(quick: bool = False) -> str:
     import numpy as np
 
-    from cadfeat.design_map import design_map
-    from cadfeat.features import extract_holes
-    from cadfeat.parts import build_shape, load_parts
+    from cadfeat.cad.design_map import design_map
+    from cadfeat.cad.features import extract_holes
+    from cadfeat.cad.parts import build_shape, load_parts
 
     machine = _load("run_all", HERE / "run_all.py").machine_description()
     repeats = 3 if quick else 11

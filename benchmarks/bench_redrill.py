@@ -25,9 +25,9 @@ from benchutil import save_section
 def main(quick: bool = False) -> str:
     import numpy as np
 
-    from cadfeat.export import check_stl, export_step, export_stl, shape_volume_mm3, verify_step_roundtrip
-    from cadfeat.features import extract_holes
-    from cadfeat.step_parts import HoleMove, load_step, redrill
+    from cadfeat.cad.export import check_stl, export_step, export_stl, shape_volume_mm3, verify_step_roundtrip
+    from cadfeat.cad.features import extract_holes
+    from cadfeat.cad.step_parts import HoleMove, load_step, redrill
 
     machine = _load("run_all", HERE / "run_all.py").machine_description()
     fx = _load("make_fixtures", ROOT / "tests" / "data" / "make_fixtures.py")

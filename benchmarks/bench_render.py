@@ -43,8 +43,8 @@ def _poses(n: int):
 
 
 def main(quick: bool = False) -> str:
+    from cadfeat.cad.features import extract_holes
     from cadfeat.camera import Camera
-    from cadfeat.features import extract_holes
     from cadfeat.render import CameraViewRenderer, new_plotter, render_comparison, render_part, shape_polydata
 
     machine = _load("run_all", HERE / "run_all.py").machine_description()

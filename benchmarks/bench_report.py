@@ -30,12 +30,12 @@ REAL_STUDY = ROOT / "studies" / "nema17_mount.toml"
 
 
 def _real_study() -> list[str]:
-    """A real ``run_study`` (when cadfeat.study and the study file exist) with its report timed from inside."""
-    if importlib.util.find_spec("cadfeat.study") is None or not REAL_STUDY.is_file():
-        return ["", f"(No real study timed: cadfeat.study or {REAL_STUDY.name} missing.)"]
+    """A real ``run_study`` (when cadfeat.study.run and the study file exist) with its report timed from inside."""
+    if importlib.util.find_spec("cadfeat.study.run") is None or not REAL_STUDY.is_file():
+        return ["", f"(No real study timed: cadfeat.study.run or {REAL_STUDY.name} missing.)"]
     import cadfeat.report as report
     from cadfeat import measures, run_study
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
 
     seen: dict = {}
     original = report.write_report
@@ -69,7 +69,7 @@ def _real_study() -> list[str]:
 
 
 def main(quick: bool = False) -> str:
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
     from cadfeat.poses import invert_T
     from cadfeat.report import build_report
 

@@ -31,9 +31,9 @@ FLAGSHIP = ROOT / "studies" / "nema17_mount.toml"
 def main(quick: bool = False) -> str:
     import numpy as np
 
-    from cadfeat import study as study_mod
-    from cadfeat.study_schema import load_study
-    from cadfeat.study_setup import setup_script
+    from cadfeat.study import run as study_mod
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.setup import setup_script
 
     machine = _load("run_all", HERE / "run_all.py").machine_description()
     saved = study_mod._report

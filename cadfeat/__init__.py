@@ -12,14 +12,25 @@ from typing import TYPE_CHECKING, Any
 from cadfeat.camera import Camera
 
 __version__ = "0.1.0"
-__all__ = ["Camera", "run_study", "__version__"]
+__all__ = ["Camera", "__version__", "extract_holes", "load_part", "load_step", "redrill", "run_study"]
+
+#: Public CAD names, imported on first use from ``cadfeat.cad`` (CadQuery is heavy).
+_CAD_NAMES = ("extract_holes", "load_part", "load_step", "redrill")
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.study import StudyResult
+    from cadfeat.study.run import StudyResult
 
 
 def run_study(path_or_dict: Any, out_dir: Any = None, **kwargs: Any) -> StudyResult:
-    """Run a redesign study (a TOML path or a dict) and write its outputs; see ``cadfeat.study``."""
-    from cadfeat.study import run_study as _run_study
+    """Run a redesign study (a TOML path or a dict) and write its outputs; see ``cadfeat.study.run``."""
+    from cadfeat.study.run import run_study as _run_study
 
     return _run_study(path_or_dict, out_dir, **kwargs)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _CAD_NAMES:
+        from cadfeat import cad
+
+        return getattr(cad, name)
+    raise AttributeError(f"module 'cadfeat' has no attribute {name!r}")

@@ -8,9 +8,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cadfeat.design_space import DesignSpace, Variable
-from cadfeat.objectives import MEASURES, ObjectiveConfig
-from cadfeat.problem import Problem
+from cadfeat.design.design_space import DesignSpace, Variable
+from cadfeat.design.objectives import MEASURES, ObjectiveConfig
+from cadfeat.design.problem import Problem
 
 
 class AnalyticProblem:
@@ -64,7 +64,7 @@ def plate_with_holes(centres_xy, radii):
 
 def two_hole_rebuild(x):
     """x = (x1, y1, x2, y2, d): two holes of diameter d on the plate; returns the extracted holes."""
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     x = np.asarray(x, float)
     return extract_holes(plate_with_holes([(x[0], x[1]), (x[2], x[3])], [x[4] / 2] * 2),
@@ -73,7 +73,7 @@ def two_hole_rebuild(x):
 
 @functools.lru_cache(maxsize=8)
 def _two_hole_model(x0: tuple, span: tuple):
-    from cadfeat.design_space import LinearFeatureModel
+    from cadfeat.design.design_space import LinearFeatureModel
 
     return LinearFeatureModel.from_rebuild(two_hole_rebuild, np.array(x0), 1e-3 * np.array(span),
                                            names=["x1", "y1", "x2", "y2", "d"])
@@ -84,7 +84,7 @@ def two_hole_problem(measures=("resolution",), combine="weighted", aggregate="su
                      **objective):
     """Two holes on a plate seen by a camera moving above it: a real ``Problem`` (CAD → linear map)."""
     from cadfeat.camera import Camera
-    from cadfeat.constraints import ConstraintConfig
+    from cadfeat.design.constraints import ConstraintConfig
     from cadfeat.trajectory import straight_approach
 
     variables = [Variable("x1", -35, 35), Variable("y1", -25, 25), Variable("x2", -35, 35), Variable("y2", -25, 25),

@@ -105,9 +105,9 @@ def constraint_checks(holes) -> list[dict[str, Any]]:
 
 def build_case(out_dir: str | Path, n_poses: int = 30, n_sweep: int = 21) -> tuple[dict[str, Any], Any]:
     """(results, ReportContext) for the plate study; writes the STEP files into ``out_dir``."""
+    from cadfeat.cad.export import export_step, sha256_file
+    from cadfeat.cad.features import extract_holes, holes_to_arrays
     from cadfeat.camera import Camera
-    from cadfeat.export import export_step, sha256_file
-    from cadfeat.features import extract_holes, holes_to_arrays
     from cadfeat.poses import invert_T
     from cadfeat.report import ReportContext
     from cadfeat.trajectory import straight_approach

@@ -12,10 +12,10 @@ import math
 import numpy as np
 import pytest
 
-from cadfeat.design_map import design_map
+from cadfeat.cad.design_map import design_map
+from cadfeat.cad.features import holes_to_arrays
+from cadfeat.cad.parts import PARTS_DIR, load_part
 from cadfeat.errors import CadfeatError
-from cadfeat.features import holes_to_arrays
-from cadfeat.parts import PARTS_DIR, load_part
 
 HUB_NAMES = ["bolt_circle_radius_mm", "phase_rad", "small_hole_radius_mm", "centre_hole_radius_mm"]
 
@@ -157,7 +157,7 @@ def test_worker_builds_give_the_same_map_and_feature_matrix():
 
 def test_linear_feature_model_from_design_map(hub_map):
     """The optimiser's LinearFeatureModel built from a DesignMap predicts what the map predicts."""
-    from cadfeat.design_space import LinearFeatureModel
+    from cadfeat.design.design_space import LinearFeatureModel
 
     _, dm = hub_map
     x0 = [dm.at[n] for n in dm.names]

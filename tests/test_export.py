@@ -18,8 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cadfeat.errors import CadfeatError
-from cadfeat.export import (
+from cadfeat.cad.export import (
     ExportError,
     check_solid,
     check_stl,
@@ -33,6 +32,7 @@ from cadfeat.export import (
     step_length_unit,
     verify_step_roundtrip,
 )
+from cadfeat.errors import CadfeatError
 
 DATA = Path(__file__).parent / "data"
 _spec = importlib.util.spec_from_file_location("make_fixtures", DATA / "make_fixtures.py")
@@ -101,7 +101,7 @@ def test_roundtrip_keeps_dimensions_and_volume(plate, plate_step):
 
 
 def test_verify_roundtrip_holes(plate, plate_step):
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     designed = extract_holes(plate)
     assert len(designed) == 5
@@ -121,7 +121,7 @@ def test_verify_roundtrip_holes(plate, plate_step):
 def test_verify_roundtrip_names_the_mismatch(plate, plate_step):
     import dataclasses
 
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     designed = extract_holes(plate)
     moved = [dataclasses.replace(designed[0], centre=designed[0].centre + [1e-3, 0, 0], name="H7"),

@@ -16,7 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cadfeat.features import extract_holes, extract_points, holes_to_arrays, match_holes
+from cadfeat.cad.features import extract_holes, extract_points, holes_to_arrays, match_holes
 
 TILT = math.radians(30.0)
 N_TILT = np.array([math.sin(TILT), 0.0, math.cos(TILT)])  # outward normal of the tilted face

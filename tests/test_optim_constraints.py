@@ -8,7 +8,8 @@ import pytest
 from matplotlib.path import Path as MplPath
 from optim_helpers import plate_with_holes
 
-from cadfeat.constraints import (
+from cadfeat.cad.features import extract_holes, holes_to_arrays
+from cadfeat.design.constraints import (
     ConstraintConfig,
     ConstraintSet,
     SymmetryPair,
@@ -17,9 +18,8 @@ from cadfeat.constraints import (
     point_polygon_distance,
     verify_on_brep,
 )
-from cadfeat.design_space import DesignSpace, HoleMoveModel, Variable
+from cadfeat.design.design_space import DesignSpace, HoleMoveModel, Variable
 from cadfeat.errors import CadfeatError
-from cadfeat.features import extract_holes, holes_to_arrays
 
 
 def _brute_distance(point, polygon, samples=4000):

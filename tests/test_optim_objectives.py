@@ -8,9 +8,9 @@ import pytest
 from optim_helpers import two_hole_problem
 from scipy.special import logsumexp
 
-from cadfeat.axiomatic import classify, design_matrix
+from cadfeat.design.axiomatic import classify, design_matrix
+from cadfeat.design.objectives import Normaliser, ObjectiveConfig, aggregate, combine, natural_units, objective_values
 from cadfeat.errors import CadfeatError
-from cadfeat.objectives import Normaliser, ObjectiveConfig, aggregate, combine, natural_units, objective_values
 
 
 def test_aggregates_closed_forms_and_smooth_min_bounds():

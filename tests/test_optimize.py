@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from optim_helpers import AnalyticProblem, box, plate_with_holes, two_hole_problem, two_hole_rebuild
 
+from cadfeat.cad.features import extract_holes
+from cadfeat.design.optimize import OptimizerConfig, optimise, solve_with_cad
+from cadfeat.design.optimize.evaluator import Evaluator
 from cadfeat.errors import CadfeatError
-from cadfeat.features import extract_holes
-from cadfeat.optimize import OptimizerConfig, optimise, solve_with_cad
-from cadfeat.optimize.evaluator import Evaluator
 
 
 def _circle_problem(solver="SLSQP"):
@@ -217,12 +217,12 @@ def test_step_holes_optimised_redrilled_and_verified_on_the_brep():
     # in the B-rep and the kept requirements re-measured there (independently of the 2-D form)
     from pathlib import Path
 
+    from cadfeat.cad.step_parts import load_step, redrill
     from cadfeat.camera import Camera
-    from cadfeat.constraints import ConstraintConfig, verify_on_brep
-    from cadfeat.design_space import HoleMoveModel
-    from cadfeat.objectives import ObjectiveConfig
-    from cadfeat.problem import Problem
-    from cadfeat.step_parts import load_step, redrill
+    from cadfeat.design.constraints import ConstraintConfig, verify_on_brep
+    from cadfeat.design.design_space import HoleMoveModel
+    from cadfeat.design.objectives import ObjectiveConfig
+    from cadfeat.design.problem import Problem
     from cadfeat.trajectory import straight_approach
 
     part = load_step(Path(__file__).parent / "data" / "plate_holes.step")

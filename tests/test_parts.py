@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from scipy.optimize import linear_sum_assignment
 
+from cadfeat.cad.features import holes_to_arrays
+from cadfeat.cad.parts import PARTS_DIR, PartBuildError, build_shape, find_parts, load_part
 from cadfeat.errors import CadfeatError
-from cadfeat.features import holes_to_arrays
-from cadfeat.parts import PARTS_DIR, PartBuildError, build_shape, find_parts, load_part
 
 TOL_MM = 1e-9
 PART_PATHS = find_parts(PARTS_DIR)
@@ -125,7 +125,7 @@ def test_fixed_mask_marks_the_documented_functional_holes(name, n_fixed):
     holes = part.holes(**params)
     mask = part.fixed_mask(holes, params)
     assert mask.sum() == n_fixed
-    from cadfeat.design_map import design_map
+    from cadfeat.cad.design_map import design_map
 
     free = [n for n, p in part.parameters.items() if not p.is_int]
     if name == "pipe_flange_dn50":  # no parameter moves a fixed hole, every other hole is moved by one
@@ -230,7 +230,7 @@ def test_build_shape_in_worker_equals_in_process():
     remote = build_shape(part, params, timeout_s=60)
     local = part.build(**params)
     assert remote.Volume() == pytest.approx(local.Volume(), rel=1e-12)
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
     assert_holes_match(extract_holes(remote), part.expected_holes(**params))
 
 
@@ -252,7 +252,7 @@ def test_build_shape_timeout_and_errors(tmp_path):
 @pytest.mark.parametrize("name", ["nema17_mount", "pipe_flange_dn50", "l_bracket"])
 def test_step_round_trip_identical_holes(tmp_path, name):
     """export_step → import_step → the same holes (1e-9 mm), kinds and through flags, and the same volume."""
-    from cadfeat.export import export_step, shape_volume_mm3, verify_step_roundtrip
+    from cadfeat.cad.export import export_step, shape_volume_mm3, verify_step_roundtrip
 
     part = load_part(PARTS_DIR / f"{name}.py")
     params = parameter_sets(part)[2]
@@ -283,7 +283,7 @@ def test_import_stays_light():
     import subprocess
     import sys
 
-    code = "import sys, cadfeat.parts, cadfeat.design_map; print('cadquery' in sys.modules)"
+    code = "import sys, cadfeat.cad.parts, cadfeat.cad.design_map; print('cadquery' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
 
@@ -301,8 +301,8 @@ def test_step_redrill_equals_parametric_rebuild(tmp_path, name):
     """Two independent CAD paths to the same design: re-drilling the STEP export of the default design
     (``step_parts.redrill``) and rebuilding the part script at the new parameters give the same holes
     (1e-9 mm, kinds, depths) and the same volume (1e-9 relative)."""
-    from cadfeat.export import export_step
-    from cadfeat.step_parts import HoleMove, load_step, redrill
+    from cadfeat.cad.export import export_step
+    from cadfeat.cad.step_parts import HoleMove, load_step, redrill
 
     part = load_part(PARTS_DIR / f"{name}.py")
     new = REDRILL_CASES[name]
@@ -314,7 +314,7 @@ def test_step_redrill_equals_parametric_rebuild(tmp_path, name):
     result = redrill(step.shape, moves)
     reference = part.build(**new)
     assert abs(result.Volume() - reference.Volume()) <= 1e-9 * reference.Volume()
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     redrilled = extract_holes(result, prefer_direction=part.view_direction)
     assert_holes_match(redrilled, part.expected_holes(**new))
@@ -326,8 +326,8 @@ def test_step_redrill_equals_parametric_rebuild(tmp_path, name):
 
 def test_redrill_refuses_a_hole_on_a_curved_face(tmp_path):
     """The brake hub's radial hole enters a cylindrical face: re-drilling says so instead of guessing."""
-    from cadfeat.export import export_step
-    from cadfeat.step_parts import HoleMove, load_step, redrill
+    from cadfeat.cad.export import export_step
+    from cadfeat.cad.step_parts import HoleMove, load_step, redrill
 
     part = load_part(PARTS_DIR / "brake_disc_hub.py")
     step = load_step(export_step(part.build(), tmp_path / "hub.step"), part.view_direction)

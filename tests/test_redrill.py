@@ -15,8 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cadfeat.errors import CadfeatError
-from cadfeat.export import (
+from cadfeat.cad.export import (
     check_solid,
     check_stl,
     export_step,
@@ -25,7 +24,8 @@ from cadfeat.export import (
     staged_output,
     verify_step_roundtrip,
 )
-from cadfeat.step_parts import HoleMove, fill_holes, hole_profile, load_step, redrill
+from cadfeat.cad.step_parts import HoleMove, fill_holes, hole_profile, load_step, redrill
+from cadfeat.errors import CadfeatError
 
 DATA = Path(__file__).parent / "data"
 STEP = DATA / "plate_holes.step"
@@ -167,7 +167,7 @@ def test_redrill_volume_change_is_the_analytic_hole_volume_change(part, redrille
 
 
 def test_redrill_keeps_other_holes_and_moves_the_chosen_ones(part, by_name, redrilled):
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     after = extract_holes(redrilled)
     assert len(after) == len(part.holes)
@@ -190,7 +190,7 @@ def test_redrill_keeps_other_holes_and_moves_the_chosen_ones(part, by_name, redr
 def test_redrilled_part_exports_a_watertight_stl_and_exact_step(redrilled, tmp_path):
     import trimesh
 
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     stl = export_stl(redrilled, tmp_path / "r.stl", tolerance_mm=0.01)
     mesh = trimesh.load(str(stl), file_type="stl", force="mesh")
@@ -216,7 +216,7 @@ def test_redrill_on_a_tilted_face_equals_the_direct_build():
     """A blind hole drilled normal to a 45° chamfer face, moved along that face and made smaller."""
     import cadquery as cq
 
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     def on_chamfer():
         block = cq.Workplane().box(40, 40, 20, centered=(True, True, False)).faces(">Z").edges(">X").chamfer(12)
@@ -235,7 +235,7 @@ def test_redrill_keeps_the_drill_point_angle():
     """A blind hole with a 118° drill point: the bore is rescaled, the cylinder depth and tip angle kept."""
     import cadquery as cq
 
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     half_tip = math.radians(59.0)
 
@@ -257,7 +257,7 @@ def test_redrill_keeps_the_drill_point_angle():
 def test_redrill_refuses_a_through_hole_that_would_not_come_out():
     import cadquery as cq
 
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     plate = cq.Workplane().box(80, 60, 10, centered=(True, True, False)).faces(">Z").workplane().hole(6)
     stepped = plate.union(cq.Workplane().box(20, 60, 5, centered=(False, True, False)).translate((20, 0, -5))).val()

@@ -13,8 +13,8 @@ import pytest
 
 cq = pytest.importorskip("cadquery")
 
+from cadfeat.cad.features import extract_holes, holes_to_arrays  # noqa: E402
 from cadfeat.camera import Camera  # noqa: E402
-from cadfeat.features import extract_holes, holes_to_arrays  # noqa: E402
 from cadfeat.measures import hole_ellipse  # noqa: E402
 from cadfeat.poses import invert_T, look_at  # noqa: E402
 from cadfeat.render.camera_views import CameraViewRenderer, render_camera_views  # noqa: E402

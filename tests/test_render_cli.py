@@ -9,8 +9,8 @@ import pytest
 
 cq = pytest.importorskip("cadquery")
 
+from cadfeat.cad.export import export_step  # noqa: E402
 from cadfeat.cli import main  # noqa: E402
-from cadfeat.export import export_step  # noqa: E402
 
 SCRIPT = textwrap.dedent('''
     import cadquery as cq

@@ -8,9 +8,9 @@ import pytest
 
 cq = pytest.importorskip("cadquery")
 
+from cadfeat.cad.features import extract_holes  # noqa: E402
 from cadfeat.camera import Camera  # noqa: E402
 from cadfeat.errors import CadfeatError  # noqa: E402
-from cadfeat.features import extract_holes  # noqa: E402
 from cadfeat.poses import invert_T, look_at  # noqa: E402
 from cadfeat.render import render_comparison, render_part  # noqa: E402
 from cadfeat.render.part_views import FIXED, MOVED_AFTER, MOVED_BEFORE, frustum_lines  # noqa: E402

@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from cadfeat.study_progress import StudyProgress
+from cadfeat.study.progress import StudyProgress
 
 
 def test_phases_timed_and_nested(capsys):

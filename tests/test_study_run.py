@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from study_helpers import DATA, PLATE, STEP
 
-from cadfeat import study as study_mod
-from cadfeat.study import evaluate_study, run_study
+from cadfeat.study import run as study_mod
+from cadfeat.study.run import evaluate_study, run_study
 
 PLATE_HALF = (30.0, 20.0)   # study_plate.py: 60 x 40 mm, centred
 FIXED_HOLE = (-22.0, -12.0, 2.0)
@@ -93,8 +93,8 @@ def test_results_json_keys_and_files(small_run):
 def test_exported_step_keeps_every_requirement(small_run):
     """Independent of the optimiser: re-extract the holes of optimised.step, measure edge distances to the
     known plate outline and the ligaments between holes, and find the fixed dowel hole unchanged."""
-    from cadfeat.export import import_step
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.export import import_step
+    from cadfeat.cad.features import extract_holes
 
     _, out, _ = small_run
     holes = extract_holes(import_step(out / "optimised.step"), prefer_direction=(0, 0, 1))
@@ -117,8 +117,8 @@ def test_exported_step_keeps_every_requirement(small_run):
 
 
 def test_results_match_the_exported_step(small_run):
-    from cadfeat.export import import_step
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.export import import_step
+    from cadfeat.cad.features import extract_holes
 
     result, out, _ = small_run
     after = {v["name"]: v["after"] for v in result.results["variables"]}
@@ -152,7 +152,7 @@ def test_same_seed_same_results(tmp_path, monkeypatch):
 
 
 def test_interrupt_before_any_design_writes_nothing(tmp_path, monkeypatch):
-    import cadfeat.optimize as optimize
+    import cadfeat.design.optimize as optimize
 
     def stop(*args, **kwargs):
         raise KeyboardInterrupt
@@ -169,7 +169,7 @@ def test_interrupt_before_any_design_writes_nothing(tmp_path, monkeypatch):
 def test_interrupt_keeps_best_design(tmp_path, monkeypatch):
     """Ctrl-C during the optimisation (raised from the progress callback after a few iterations): the best
     design so far is verified and written, marked ``interrupted``."""
-    import cadfeat.optimize as optimize
+    import cadfeat.design.optimize as optimize
 
     no_report(monkeypatch)
     real = optimize.optimise
@@ -196,7 +196,7 @@ def test_interrupt_keeps_best_design(tmp_path, monkeypatch):
 
 def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
     """A failure after the optimiser (here: the STEP round trip) leaves the old output folder untouched."""
-    from cadfeat.export import ExportError
+    from cadfeat.cad.export import ExportError
 
     no_report(monkeypatch)
     out = tmp_path / "out"
@@ -206,7 +206,7 @@ def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
     def broken(*a, **k):
         raise ExportError("simulated round-trip mismatch")
 
-    monkeypatch.setattr("cadfeat.export.verify_step_roundtrip", broken)
+    monkeypatch.setattr("cadfeat.cad.export.verify_step_roundtrip", broken)
     with pytest.raises(ExportError):
         run_study(copy.deepcopy(SMALL), out, quiet=True)
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
@@ -216,7 +216,7 @@ def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
 def test_infeasible_study_names_the_conflict(tmp_path, monkeypatch):
     """No position of the row keeps 25 mm from the edges of a 60 x 40 mm plate: one StudyError naming the
     violated requirement, nothing written."""
-    from cadfeat.study_schema import StudyError
+    from cadfeat.study.schema import StudyError
 
     no_report(monkeypatch)
     data = copy.deepcopy(SMALL)
@@ -229,7 +229,7 @@ def test_infeasible_study_names_the_conflict(tmp_path, monkeypatch):
 def test_parameter_moving_a_declared_fixed_hole_is_an_error(tmp_path):
     """A part script marks a hole functional ("fixed": True in expected_holes): a study varying a parameter
     that moves it fails before optimising, naming the parameter."""
-    from cadfeat.study_schema import StudyError
+    from cadfeat.study.schema import StudyError
 
     script = tmp_path / "dowel_plate.py"
     script.write_text(
@@ -254,8 +254,8 @@ def test_parameter_moving_a_declared_fixed_hole_is_an_error(tmp_path):
 def test_integer_parameter_stays_int(tmp_path, monkeypatch):
     """``count`` (an int parameter) is enumerated, never turned into a float: the CAD model is built with an
     int, results.json holds ints, and the exported STEP has the chosen number of row holes."""
-    from cadfeat.export import import_step
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.export import import_step
+    from cadfeat.cad.features import extract_holes
 
     no_report(monkeypatch)
     data = copy.deepcopy(SMALL)
@@ -273,8 +273,8 @@ def test_integer_parameter_stays_int(tmp_path, monkeypatch):
 def test_step_study_end_to_end(tmp_path, monkeypatch):
     """A STEP part: two plain holes move on the top face of tests/data/plate_holes.step; the others are fixed
     and come back unchanged in the re-imported STEP."""
-    from cadfeat.export import import_step
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.export import import_step
+    from cadfeat.cad.features import extract_holes
 
     no_report(monkeypatch)
     data = copy.deepcopy(SMALL)
@@ -311,7 +311,7 @@ def test_evaluate_prints_table_and_writes(tmp_path, capsys, monkeypatch):
 
 
 def test_evaluate_bad_pose():
-    from cadfeat.study_schema import StudyError
+    from cadfeat.study.schema import StudyError
 
     with pytest.raises(StudyError, match="--pose 99"):
         evaluate_study(copy.deepcopy(SMALL), pose=99)
@@ -319,7 +319,7 @@ def test_evaluate_bad_pose():
 
 def test_studies_folder_validates():
     """Every study in studies/ passes validation (names, bounds, files)."""
-    from cadfeat.study_schema import load_study
+    from cadfeat.study.schema import load_study
 
     folder = Path(__file__).resolve().parents[1] / "studies"
     files = sorted(folder.glob("*.toml"))
@@ -344,8 +344,8 @@ def _step_study(**design) -> dict:
 def test_step_pattern_moves_together(tmp_path, monkeypatch):
     """Two STEP holes in a pattern share one offset: one pair of variables, the same displacement of both
     holes in the re-imported STEP."""
-    from cadfeat.export import import_step
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.export import import_step
+    from cadfeat.cad.features import extract_holes
 
     no_report(monkeypatch)
     result = run_study(_step_study(patterns=[["H1", "H2"]]), tmp_path / "out", quiet=True)
@@ -361,7 +361,7 @@ def test_step_pattern_moves_together(tmp_path, monkeypatch):
 
 
 def test_symmetry_the_part_does_not_have(tmp_path):
-    from cadfeat.study_schema import StudyError
+    from cadfeat.study.schema import StudyError
 
     data = _step_study()
     data["constraints"]["symmetry"] = "y"  # H1 (Ø8) and H2 (Ø6) mirror in position but not in size

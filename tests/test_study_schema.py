@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from study_helpers import BASE, DATA, PLATE, STEP, study, write_toml
 
 from cadfeat.errors import CadfeatError
-from cadfeat.study_schema import StudyError, load_study, part_parameters
+from cadfeat.study.schema import StudyError, load_study, part_parameters
 
 
 def fails(path_or_dict: object, *needles: str) -> str:
@@ -73,7 +73,7 @@ def test_part_parameters_read_without_running_script(tmp_path):
 
 def test_part_parameters_built_by_code_are_loaded(tmp_path, monkeypatch):
     """A PARAMETERS table filled by module-level code is not taken from its (empty) literal: the part is loaded."""
-    import cadfeat.study_schema as schema
+    import cadfeat.study.schema as schema
 
     script = tmp_path / "p.py"
     script.write_text("PARAMETERS = {}\nfor k in ('a', 'b'):\n    PARAMETERS[k] = {'default': 1.0, 'bounds': (0, 2)}\n")

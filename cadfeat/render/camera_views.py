@@ -39,8 +39,8 @@ from cadfeat.render.scene import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
-    from cadfeat.features import Hole
 
 BACKGROUND_BLACK = (0.0, 0.0, 0.0)
 ELLIPSE_COLOUR_RGB = (40, 220, 60)
@@ -141,7 +141,7 @@ def _distortion_maps(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
 
 def predicted_ellipses(camera: Camera, holes: Sequence[Hole], T_cam_part: np.ndarray) -> Any:
     """``cadfeat.measures.hole_ellipse`` of the holes' entrance rims at one pose ``T_cam_part`` (4, 4)."""
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
     from cadfeat.measures import hole_ellipse
 
     centres, axes, radii = holes_to_arrays(holes)
@@ -155,7 +155,7 @@ def draw_hole_overlay(image: np.ndarray, camera: Camera, holes: Sequence[Hole], 
     front of the camera (invalid ellipse) are skipped."""
     import cv2
 
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
 
     out = np.ascontiguousarray(image.copy())
     centres, _, _ = holes_to_arrays(holes)

@@ -38,8 +38,8 @@ from cadfeat.render.scene import (
 if TYPE_CHECKING:  # pragma: no cover
     import pyvista as pv
 
+    from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
-    from cadfeat.features import Hole
 
 MOVED_BEFORE = (0.95, 0.55, 0.10)   # orange: a hole that will move / its old place
 MOVED_AFTER = (0.10, 0.70, 0.25)    # green: a moved hole at its new place
@@ -142,10 +142,10 @@ def render_part(shape: Any, path: str | Path, holes: Sequence[Hole] | None = Non
                 view_direction: Sequence[float] | None = None, size: tuple[int, int] = (900, 700)) -> Path:
     """A PNG of ``shape`` from ``view_direction`` (part frame, towards the viewer), holes dark and labelled.
 
-    ``holes=None`` extracts them (``cadfeat.features.extract_holes``). Without ``view_direction`` the
+    ``holes=None`` extracts them (``cadfeat.cad.features.extract_holes``). Without ``view_direction`` the
     view is ``default_view_direction(holes)``. Returns the PNG path.
     """
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     holes = extract_holes(shape) if holes is None else list(holes)
     direction = default_view_direction(holes) if view_direction is None else _unit(view_direction, "view_direction")
@@ -239,7 +239,7 @@ def frustum_lines(camera: Camera | None, T_part_cam: np.ndarray, depth_mm: float
 
 
 def _moved_mask(before: Sequence[Hole], after: Sequence[Hole]) -> np.ndarray:
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
 
     c0, _, r0 = holes_to_arrays(before)
     c1, _, r1 = holes_to_arrays(after)
@@ -457,7 +457,7 @@ def closeup_view_direction(mesh: Any, holes: Sequence[Hole], weights: np.ndarray
     target = default_view_direction(holes)
     if not holes:
         return target, np.zeros(0, dtype=bool)
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
 
     k = np.arange(n_candidates) + 0.5
     z = 1.0 - 2.0 * k / n_candidates
@@ -490,7 +490,7 @@ def _visible_from(mesh: Any, holes: Sequence[Hole], eye: np.ndarray) -> np.ndarr
 
     if not holes:
         return np.zeros(0, dtype=bool)
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
 
     centres, axes, _ = holes_to_arrays(holes)
     lift = 1e-3 * float(np.linalg.norm(np.ptp(np.asarray(mesh.points), axis=0)))

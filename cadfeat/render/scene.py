@@ -21,7 +21,7 @@ from cadfeat.errors import CadfeatError
 if TYPE_CHECKING:  # pragma: no cover
     import pyvista as pv
 
-    from cadfeat.features import Hole
+    from cadfeat.cad.features import Hole
 
 #: The render window class VTK creates when asked for an OpenGL window.
 EGL_WINDOW = "vtkEGLRenderWindow"
@@ -78,8 +78,8 @@ def shape_polydata(shape: Any, tolerance_mm: float = RENDER_TOLERANCE_MM,
     """Triangle mesh of a B-rep (``cadquery`` Shape / Workplane) as ``pyvista.PolyData`` (mm, part frame)."""
     import pyvista as pv
 
-    from cadfeat.export import mesh_from_shape
-    from cadfeat.features import as_shape
+    from cadfeat.cad.export import mesh_from_shape
+    from cadfeat.cad.features import as_shape
 
     mesh = mesh_from_shape(as_shape(shape), tolerance_mm, angular_tolerance_rad)
     if len(mesh.faces) == 0:
@@ -99,7 +99,7 @@ def hole_cell_labels(mesh: pv.PolyData, holes: Sequence[Hole], tol_mm: float = 1
     labels = np.full(n_cells, -1, dtype=int)
     if not holes or n_cells == 0:
         return labels
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
 
     centres, axes, radii = holes_to_arrays(holes)
     depth = np.array([h.depth_mm for h in holes])

@@ -14,7 +14,7 @@ class ReportContext:
     """Live objects of a study that the renders need (results.json holds only plain data).
 
     ``shape_before``/``shape_after`` are CadQuery shapes (or Workplanes), ``holes_before``/``holes_after``
-    lists of ``cadfeat.features.Hole`` in the part frame (mm), ``fixed_mask`` one bool per hole (True = the
+    lists of ``cadfeat.cad.features.Hole`` in the part frame (mm), ``fixed_mask`` one bool per hole (True = the
     study kept it fixed), ``camera`` a ``cadfeat.camera.Camera``, ``trajectory`` a
     ``cadfeat.trajectory.Trajectory`` of ``T_task_cam`` poses, ``T_task_part`` the (4, 4) part pose in the
     task frame (identity when None) and ``sample_indices`` the trajectory samples whose camera views are

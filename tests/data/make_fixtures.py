@@ -52,7 +52,7 @@ def build_plate(skip: tuple[str, ...] = (), moved: dict[str, tuple[tuple[float, 
 
 def main() -> None:
     sys.path.insert(0, str(HERE.parents[1]))
-    from cadfeat.export import export_step
+    from cadfeat.cad.export import export_step
 
     path = export_step(build_plate(), HERE / STEP_NAME, write_pcurves=False)
     print(f"wrote {path} ({path.stat().st_size} bytes)")

@@ -11,7 +11,7 @@ part. This module reads them from the CAD model itself:
   holes across CAD rebuilds (face indices are not stable, DESIGN.md "Known pitfalls").
 
 Units: millimetres, part frame. CadQuery/OCP are imported inside functions only, so that
-``import cadfeat.features`` stays light.
+``import cadfeat.cad.features`` stays light.
 """
 
 from __future__ import annotations
@@ -241,7 +241,7 @@ def extract_points(shape: Any, tol_mm: float = 1e-7) -> np.ndarray:
 
 
 def extract_holes(shape: Any, prefer_direction: Sequence[float] | None = None) -> list[Hole]:
-    """All circular holes of ``shape`` (algorithm in ``cadfeat.features.extraction``).
+    """All circular holes of ``shape`` (algorithm in ``cadfeat.cad.features.extraction``).
 
     A hole is a connected set of coaxial concave cylinders and cones (plus the annular steps and flat
     bottoms between them) containing a cylinder that closes over 360°; convex cylinders (bosses,
@@ -256,7 +256,7 @@ def extract_holes(shape: Any, prefer_direction: Sequence[float] | None = None) -
 
     Holes are sorted by (axis, centre) rounded to 1e-9; values keep full precision.
     """
-    from cadfeat.features import extraction
+    from cadfeat.cad.features import extraction
 
     return extraction.extract_holes(as_shape(shape), prefer_direction)
 

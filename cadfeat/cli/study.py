@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from cadfeat.cli import command
+from cadfeat.cli.command import Command
 
 
 def _study_arg(parser: argparse.ArgumentParser) -> None:
@@ -26,29 +26,26 @@ def _evaluate_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress display")
 
 
-@command("run", _run_args)
 def run(args: argparse.Namespace) -> int:
     """Run a redesign study: optimise the movable holes, verify and export STEP/STL, results.json, report."""
-    from cadfeat.study import run_study
+    from cadfeat.study.run import run_study
 
     result = run_study(args.study, args.out, seed=args.seed, quiet=args.quiet, progress=not args.quiet)
     print(result.summary())
     return 0
 
 
-@command("evaluate", _evaluate_args)
 def evaluate(args: argparse.Namespace) -> int:
     """Score the study's current design without optimising; print the per-feature table (thesis Table 5.1)."""
-    from cadfeat.study import evaluate_study
+    from cadfeat.study.run import evaluate_study
 
     evaluate_study(args.study, args.out, pose=args.pose, quiet=args.quiet, echo=True)
     return 0
 
 
-@command("validate", _study_arg)
 def validate(args: argparse.Namespace) -> int:
     """Check a study file (sections, keys, types, ranges, files, part parameters) without running it."""
-    from cadfeat.study_schema import load_study
+    from cadfeat.study.schema import load_study
 
     config = load_study(args.study)
     names = ", ".join(p.name for p in config.design.parameters) or \
@@ -57,3 +54,10 @@ def validate(args: argparse.Namespace) -> int:
           f"varying {names}; objective {config.objective.combine}/{config.objective.aggregate} of "
           f"{', '.join(config.objective.measures)}; optimizer {config.optimizer.method}")
     return 0
+
+
+COMMANDS = (
+    Command("run", _run_args, run),
+    Command("evaluate", _evaluate_args, evaluate),
+    Command("validate", _study_arg, validate),
+)

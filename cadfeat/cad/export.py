@@ -37,7 +37,7 @@ if TYPE_CHECKING:  # pragma: no cover
     import cadquery as cq
     import trimesh
 
-    from cadfeat.features import Hole
+    from cadfeat.cad.features import Hole
 
 __all__ = [
     "ExportError",
@@ -431,7 +431,7 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
         if rel > volume_rtol:
             raise ExportError(f"{step_path}: volume {volume:.9f} mm^3 differs from the design's "
                               f"{expected_volume_mm3:.9f} mm^3 (relative {rel:.2e} > {volume_rtol:.0e})")
-    from cadfeat.features import extract_holes, holes_to_arrays, match_holes
+    from cadfeat.cad.features import extract_holes, holes_to_arrays, match_holes
 
     expected = list(expected_holes)
     found = extract_holes(shape, prefer_direction=prefer_direction)

@@ -1,7 +1,7 @@
 """From a validated ``StudyConfig`` to everything the optimiser and the exporter need (DESIGN.md data flow).
 
-``setup_study(config)`` loads the part (a CadQuery script via ``cadfeat.parts.load_part`` or a STEP file via
-``cadfeat.step_parts.load_step``), the camera, the trajectory and the part pose, then builds the design
+``setup_study(config)`` loads the part (a CadQuery script via ``cadfeat.cad.parts.load_part`` or a STEP file via
+``cadfeat.cad.step_parts.load_step``), the camera, the trajectory and the part pose, then builds the design
 space and the feature model:
 
 - script parts: the geometric design matrix of the varying parameters (``design_map``: finite differences
@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from cadfeat.study_schema import StudyConfig, StudyError
+from cadfeat.study.schema import StudyConfig, StudyError
 
 __all__ = ["MAX_INT_COMBINATIONS", "StudySetup", "int_grid", "setup_study"]
 
@@ -73,7 +73,7 @@ def load_scene(config: StudyConfig) -> tuple[Any, Any, np.ndarray]:
 
 
 def objective_config(config: StudyConfig) -> Any:
-    from cadfeat.objectives import ObjectiveConfig
+    from cadfeat.design.objectives import ObjectiveConfig
 
     o = config.objective
     return ObjectiveConfig(measures=tuple(o.measures), aggregate=o.aggregate, combine=o.combine,
@@ -86,7 +86,7 @@ def constraint_config(config: StudyConfig, holes: Sequence[Any] = (), movable: S
                       volume_mm3: float | None = None) -> Any:
     """``constraints.ConstraintConfig`` of a study; ``symmetry`` becomes the mirror pairs among the movable
     ``holes`` (about the part's x = 0 / y = 0 planes); ``volume_mm3`` is the original part volume."""
-    from cadfeat.constraints import ConstraintConfig, SymmetryPair
+    from cadfeat.design.constraints import ConstraintConfig, SymmetryPair
 
     c = config.constraints
     frac = None if c.volume_change_max_percent is None else c.volume_change_max_percent / 100.0
@@ -100,7 +100,7 @@ def constraint_config(config: StudyConfig, holes: Sequence[Any] = (), movable: S
 
 
 def optimizer_config(config: StudyConfig) -> Any:
-    from cadfeat.optimize import OptimizerConfig
+    from cadfeat.design.optimize import OptimizerConfig
 
     o = config.optimizer
     return OptimizerConfig(method=o.method, starts=o.starts, maxiter=o.maxiter, seed=o.seed,
@@ -109,8 +109,8 @@ def optimizer_config(config: StudyConfig) -> Any:
 
 def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Any = None) -> tuple[Any, Any]:
     """The ``Problem`` and its ``ConstraintConfig`` (``normaliser``: share another problem's scales)."""
-    from cadfeat.export import shape_volume_mm3
-    from cadfeat.problem import Problem
+    from cadfeat.cad.export import shape_volume_mm3
+    from cadfeat.design.problem import Problem
 
     movable = np.flatnonzero(~np.asarray(args["fixed_mask"], bool))
     cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]))
@@ -160,9 +160,9 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     """Setup of a part-script study with the integer parameters at ``int_values`` (default: their defaults);
     ``normaliser``: the objective scales of another setup (so that integer combinations compare); ``at``:
     linearise at these continuous parameter values instead of the part's defaults."""
-    from cadfeat.design_map import design_map
-    from cadfeat.design_space import DesignSpace, LinearFeatureModel, Variable
-    from cadfeat.parts import load_part
+    from cadfeat.cad.design_map import design_map
+    from cadfeat.cad.parts import load_part
+    from cadfeat.design.design_space import DesignSpace, LinearFeatureModel, Variable
 
     camera, trajectory, T_task_part = scene or load_scene(config)
     part = load_part(config.study.part_path)
@@ -220,7 +220,7 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
 
 
 def _extract(shape: Any, prefer_direction: Any = None) -> list[Any]:
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     return extract_holes(shape, prefer_direction=prefer_direction)
 
@@ -228,8 +228,8 @@ def _extract(shape: Any, prefer_direction: Any = None) -> list[Any]:
 # ----------------------------------------------------------------------------------------- STEP
 def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = None) -> StudySetup:
     """Setup of a STEP study: the selected holes move in their host face planes (``HoleMoveModel``)."""
-    from cadfeat.design_space import HoleMoveModel
-    from cadfeat.step_parts import load_step, redrill
+    from cadfeat.cad.step_parts import load_step, redrill
+    from cadfeat.design.design_space import HoleMoveModel
 
     camera, trajectory, T_task_part = scene or load_scene(config)
     step = load_step(config.study.part_path)
@@ -278,7 +278,7 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
 def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Sequence[int]) -> Any:
     """Per-hole ``max_offset_mm`` (and ``move = false``: position pinned to ±1 µm) applied to the (s, t)
     bounds of ``HoleMoveModel.design_space``."""
-    from cadfeat.design_space import DesignSpace
+    from cadfeat.design.design_space import DesignSpace
 
     limits = {}
     for spec, j in zip(design.holes, movable, strict=True):

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from cadfeat.errors import CadfeatError
-from cadfeat.study_outputs import (
+from cadfeat.study.outputs import (
     file_entry,
     hole_dict,
     measures_summary,
@@ -43,8 +43,8 @@ from cadfeat.study_outputs import (
     versions,
     write_json,
 )
-from cadfeat.study_progress import StudyProgress
-from cadfeat.study_schema import StudyConfig, StudyError, load_study
+from cadfeat.study.progress import StudyProgress
+from cadfeat.study.schema import StudyConfig, StudyError, load_study
 
 __all__ = ["EXPORTS_DIR", "StudyResult", "evaluate_study", "run_study"]
 
@@ -102,7 +102,7 @@ def _num(x: Any) -> str:
 def measure_holes(setup: Any, holes: Sequence[Any], trajectory: Any = None) -> Any:
     """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``)."""
     from cadfeat import measures
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
 
     traj = trajectory if trajectory is not None else setup.trajectory
     o = setup.config.objective
@@ -115,7 +115,7 @@ def measure_holes(setup: Any, holes: Sequence[Any], trajectory: Any = None) -> A
 def score(setup: Any, holes: Sequence[Any]) -> tuple[dict[str, float], float | None]:
     """The aggregated objectives of real holes and their combined value (larger is better), computed exactly
     as the optimiser does (``Problem.features_objectives`` / ``combined_from``: same normalisation)."""
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
 
     problem = setup.problem
     G = problem.features_objectives(*holes_to_arrays(list(holes)))
@@ -128,8 +128,8 @@ def score(setup: Any, holes: Sequence[Any]) -> tuple[dict[str, float], float | N
 # ------------------------------------------------------------------------------------------ optimise
 def _optimise(setup: Any, progress: StudyProgress, label: str = "") -> tuple[Any, bool]:
     """Optimise one setup; returns (OptimResult-like, interrupted)."""
-    from cadfeat.optimize import optimise, solve_with_cad
-    from cadfeat.study_setup import optimizer_config
+    from cadfeat.design.optimize import optimise, solve_with_cad
+    from cadfeat.study.setup import optimizer_config
 
     oc = optimizer_config(setup.config)
     try:
@@ -193,7 +193,7 @@ def _refresh_outlines(setup: Any, res: Any, scene: Any, normaliser: Any, prog: S
     parameter also changes the faces (e.g. a block that grows with the hole spacing), rebuild at the
     optimum, linearise again there (new outlines) and re-optimise from it, until the outlines agree (at
     most ``OUTLINE_ROUNDS`` rounds; a round is kept only if it improves the objective)."""
-    from cadfeat.study_setup import setup_script
+    from cadfeat.study.setup import setup_script
 
     history: list[dict[str, Any]] = []
     stopped = False
@@ -249,7 +249,7 @@ def _sweep(setup: Any) -> dict[str, Any] | None:
 # ------------------------------------------------------------------------------------------ verification
 def _order_like(reference: Sequence[Any], holes: Sequence[Any], tol_mm: float, what: str) -> list[Any]:
     """``holes`` reordered to pair with ``reference`` by geometry (nearest centres, one to one)."""
-    from cadfeat.features import match_holes
+    from cadfeat.cad.features import match_holes
 
     if len(holes) != len(reference):
         raise CadfeatError(f"{what}: {len(holes)} holes found, {len(reference)} designed")
@@ -270,7 +270,7 @@ def _rebuild(setup: Any, x: np.ndarray, verified: Sequence[Any] | None = None) -
     """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
     deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
     loop extracted at ``x``, in model order) when given."""
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
 
     shape = setup.rebuild_shape(x)
     predicted = _predicted_holes(setup, x)
@@ -290,7 +290,7 @@ def _checks(setup: Any, shape: Any, holes: Sequence[Any], where: str) -> list[di
     ``verify_on_brep`` re-extracts holes without a preferred direction (a through hole may then be reported
     from its other end), so the design and reference holes are given to it in that same convention, paired
     with the design order by their axis lines."""
-    from cadfeat.constraints import verify_on_brep
+    from cadfeat.design.constraints import verify_on_brep
 
     design = _pair_by_axis(holes, _extract_plain(shape), f"{where} holes")
     reference = _pair_by_axis(setup.holes0, _extract_plain(setup.shape0), "original holes")
@@ -353,7 +353,7 @@ def _holes_block(setup0: Any, holes0: Sequence[Any], setup1: Any, holes1: Sequen
 
 def _design_matrix(setup: Any, x: np.ndarray) -> dict[str, Any] | None:
     try:
-        from cadfeat.axiomatic import design_matrix
+        from cadfeat.design.axiomatic import design_matrix
     except ImportError:
         return None
     dm = design_matrix(setup.problem, x)
@@ -408,7 +408,7 @@ def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int
 
 
 def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], dict[str, Any]]:
-    from cadfeat.study_setup import int_grid, load_scene, setup_script, setup_study
+    from cadfeat.study.setup import int_grid, load_scene, setup_script, setup_study
 
     with prog.phase("setup"):
         scene = load_scene(config)
@@ -512,7 +512,7 @@ def _version() -> str:
 
 def _write_outputs(config: StudyConfig, out: Path, results: dict[str, Any], shapes: Mapping[str, Any],
                    prog: StudyProgress) -> Path:
-    from cadfeat.export import (
+    from cadfeat.cad.export import (
         check_solid,
         check_stl,
         export_step,
@@ -559,7 +559,7 @@ def _write_outputs(config: StudyConfig, out: Path, results: dict[str, Any], shap
 
 
 def _extract_plain(shape: Any) -> list[Any]:
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.features import extract_holes
 
     return extract_holes(shape)
 
@@ -589,7 +589,7 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
     is given: one trajectory sample). Returns the results dict; prints the per-feature table (thesis
     Table 5.1: FOV, focus, resolution margins, visibility, worst pose) and a per-pose summary when ``echo``;
     writes results.json (+ report) into ``out_dir`` if given."""
-    from cadfeat.study_setup import load_scene
+    from cadfeat.study.setup import load_scene
 
     config = _resolve(path_or_dict, seed)
     with StudyProgress(config.study.name, enabled=not quiet) as prog:
@@ -626,7 +626,7 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
     if echo:
         print(format_table(results, pose))
     if out_dir is not None:
-        from cadfeat.export import staged_output
+        from cadfeat.cad.export import staged_output
 
         with staged_output(out_dir) as stage:
             write_json(stage / "results.json", results)
@@ -654,7 +654,7 @@ def _current_design(config: StudyConfig) -> tuple[Any, list[Any], np.ndarray, li
     """The part as it is (defaults / the STEP file): solid, holes, fixed mask (STEP: holes not in the design;
     scripts: the holes the script declares functional)."""
     if config.study.part_kind == "step":
-        from cadfeat.step_parts import load_step
+        from cadfeat.cad.step_parts import load_step
 
         step = load_step(config.study.part_path)
         holes = list(step.holes)
@@ -663,7 +663,7 @@ def _current_design(config: StudyConfig) -> tuple[Any, list[Any], np.ndarray, li
             with contextlib.suppress(CadfeatError):
                 fixed[holes.index(step.select(list(h.select) if isinstance(h.select, tuple) else h.select))] = False
         return step.shape, holes, fixed, [h.name for h in holes]
-    from cadfeat.parts import load_part
+    from cadfeat.cad.parts import load_part
 
     part = load_part(config.study.part_path)
     shape = part.build()
@@ -696,8 +696,8 @@ class _OnePose:
 
 def _plain_objectives(config: StudyConfig, m: Any) -> dict[str, float]:
     try:
-        from cadfeat.objectives import objective_values
-        from cadfeat.study_setup import objective_config
+        from cadfeat.design.objectives import objective_values
+        from cadfeat.study.setup import objective_config
     except ImportError:
         return {}
     return objective_values(m, objective_config(config))

@@ -25,8 +25,8 @@ import numpy as np
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.features import Hole
-    from cadfeat.parts import Part
+    from cadfeat.cad.features import Hole
+    from cadfeat.cad.parts import Part
 
 __all__ = ["LINEAR_TOL_MM", "MOVE_TOL", "DesignMap", "design_map"]
 
@@ -87,7 +87,7 @@ class DesignMap:
 
     def predict(self, params: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Linear prediction at ``params``: centres (N, 3) mm, unit axes (N, 3), radii (N,) mm."""
-        from cadfeat.features import holes_to_arrays
+        from cadfeat.cad.features import holes_to_arrays
 
         dx = self.delta(params)
         c0, a0, r0 = holes_to_arrays(self.holes0)
@@ -97,7 +97,7 @@ class DesignMap:
 
     def predict_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Batched prediction for parameter vectors X (B, P) in ``names`` order: (B,N,3), (B,N,3), (B,N)."""
-        from cadfeat.features import holes_to_arrays
+        from cadfeat.cad.features import holes_to_arrays
 
         dX = np.atleast_2d(np.asarray(X, dtype=float)) - np.array([self.at[n] for n in self.names])
         c0, a0, r0 = holes_to_arrays(self.holes0)
@@ -107,7 +107,7 @@ class DesignMap:
 
 
 def _arrays(holes: Sequence[Hole]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from cadfeat.features import holes_to_arrays
+    from cadfeat.cad.features import holes_to_arrays
 
     return holes_to_arrays(holes)
 
@@ -115,7 +115,7 @@ def _arrays(holes: Sequence[Hole]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _matched(part: Part, params: dict[str, Any], reference: Sequence[Hole], what: str,
              tol_mm: float, timeout_s: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Holes of a build at ``params`` in ``reference`` order (matched by geometry)."""
-    from cadfeat.features import match_holes
+    from cadfeat.cad.features import match_holes
 
     holes = part.holes_timed(params, timeout_s)
     if len(holes) != len(reference):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from cadfeat.cli import command
+from cadfeat.cli.command import Command
 
 
 def _arguments(parser: argparse.ArgumentParser) -> None:
@@ -13,7 +13,6 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
                                                     "results file)")
 
 
-@command("report", _arguments)
 def report(args: argparse.Namespace) -> int:
     """Write report.html (plots and tables; no renders: those need the study's shapes) from a results.json."""
     from pathlib import Path
@@ -25,3 +24,8 @@ def report(args: argparse.Namespace) -> int:
     path = write_report(Path(args.out) if args.out else results_path.parent, results, None)
     print(path)
     return 0
+
+
+COMMANDS = (
+    Command("report", _arguments, report),
+)

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from cadfeat.optimize.evaluator import Evaluator
+from cadfeat.design.optimize.evaluator import Evaluator
 
 
 # -------------------------------------------------------------------------------------------- local

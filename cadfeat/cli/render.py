@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from cadfeat.cli import command
+from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError
 
 STEP_SUFFIXES = (".step", ".stp")
@@ -62,8 +62,8 @@ def _parse_size(text: str) -> tuple[int, int]:
 
 def load_shape(path: Path, params: dict[str, float | int]) -> tuple[Any, list, Any, str]:
     """(shape, holes, view direction or None, name) of a STEP file or a part script."""
-    from cadfeat.features import extract_holes
-    from cadfeat.parts import PARTS_DIR
+    from cadfeat.cad.features import extract_holes
+    from cadfeat.cad.parts import PARTS_DIR
 
     if not path.is_file() and path.suffix == "" and (PARTS_DIR / f"{path}.py").is_file():
         path = PARTS_DIR / f"{path}.py"  # a library part by name, as `cadfeat parts` lists them
@@ -71,7 +71,7 @@ def load_shape(path: Path, params: dict[str, float | int]) -> tuple[Any, list, A
         raise CadfeatError(f"{path}: no such file (expected a part script .py, a STEP file .step/.stp "
                            f"or the name of a part in {PARTS_DIR})")
     if path.suffix.lower() in STEP_SUFFIXES:
-        from cadfeat.export import import_step
+        from cadfeat.cad.export import import_step
 
         if params:
             raise CadfeatError(f"{path}: a STEP file has no parameters; --param {', '.join(params)} not allowed")
@@ -79,14 +79,13 @@ def load_shape(path: Path, params: dict[str, float | int]) -> tuple[Any, list, A
         return shape, extract_holes(shape), None, path.stem
     if path.suffix.lower() != ".py":
         raise CadfeatError(f"{path}: unknown part type {path.suffix!r}; allowed: .py (part script), .step, .stp")
-    from cadfeat.parts import load_part
+    from cadfeat.cad.parts import load_part
 
     part = load_part(path)
     shape = part.build(**params)
     return shape, extract_holes(shape, prefer_direction=part.view_direction), part.view_direction, part.name
 
 
-@command("render", _render_arguments)
 def render(args: argparse.Namespace) -> int:
     """Render a part script or STEP file to a PNG (off-screen) and print the PNG path."""
     from cadfeat.render import render_part
@@ -100,3 +99,8 @@ def render(args: argparse.Namespace) -> int:
         raise CadfeatError(f"--out {out}: the picture is a PNG; give a path ending in .png")
     print(render_part(shape, out, holes, view_direction=direction, size=_parse_size(args.size)))
     return 0
+
+
+COMMANDS = (
+    Command("render", _render_arguments, render),
+)

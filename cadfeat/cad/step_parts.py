@@ -26,7 +26,7 @@ from cadfeat.errors import CadfeatError
 if TYPE_CHECKING:  # pragma: no cover
     import cadquery as cq
 
-    from cadfeat.features import Hole
+    from cadfeat.cad.features import Hole
 
 __all__ = [
     "HoleMove",
@@ -114,8 +114,8 @@ def load_step(path: str | os.PathLike[str], prefer_direction: Sequence[float] | 
     """
     import cadquery as cq
 
-    from cadfeat.export import import_step
-    from cadfeat.features import extract_holes
+    from cadfeat.cad.export import import_step
+    from cadfeat.cad.features import extract_holes
 
     path = Path(path)
     shape = import_step(path)
@@ -399,7 +399,7 @@ def fill_holes(shape: Any, holes: Sequence[Hole]) -> cq.Solid:
 
 def _fill(shape: Any, holes: Sequence[Hole], profiles: Sequence[HoleProfile]) -> cq.Solid:
     """``fill_holes`` with the holes' profiles already read."""
-    from cadfeat.export import shape_volume_mm3
+    from cadfeat.cad.export import shape_volume_mm3
 
     if not holes:
         return _single_solid(shape, "the part")
@@ -425,7 +425,7 @@ def redrill(shape: Any, moves: Sequence[HoleMove]) -> cq.Solid:
     the new centre), and that the solid is valid.
     Raises ``CadfeatError`` naming the hole otherwise.
     """
-    from cadfeat.export import check_solid, shape_volume_mm3
+    from cadfeat.cad.export import check_solid, shape_volume_mm3
 
     moves = list(moves)
     if not moves:

@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from cadfeat.design_space import LinearFeatureModel
+from cadfeat.cad.features import Hole, holes_to_arrays, match_holes
+from cadfeat.design.design_space import LinearFeatureModel
+from cadfeat.design.optimize import FEAS_TOL, OptimizerConfig, OptimResult, optimise
 from cadfeat.errors import CadfeatError
-from cadfeat.features import Hole, holes_to_arrays, match_holes
-from cadfeat.optimize import FEAS_TOL, OptimizerConfig, OptimResult, optimise
 
 
 def _predicted_holes(model: Any, x: np.ndarray) -> list[Hole]:

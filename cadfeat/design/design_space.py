@@ -23,8 +23,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from cadfeat.cad.features import Hole, holes_to_arrays, match_holes
 from cadfeat.errors import CadfeatError
-from cadfeat.features import Hole, holes_to_arrays, match_holes
 
 __all__ = [
     "VARIABLE_KINDS",
@@ -201,7 +201,7 @@ class LinearFeatureModel:
 
     @classmethod
     def from_design_map(cls, dm: Any, names: Sequence[str], x0: Sequence[float]) -> LinearFeatureModel:
-        """From a ``cadfeat.design_map.DesignMap`` built at parameters ``x0`` for ``names`` (columns in that
+        """From a ``cadfeat.cad.design_map.DesignMap`` built at parameters ``x0`` for ``names`` (columns in that
         order). ``dm.holes0``, ``dm.dC`` (N,3,P), ``dm.dR`` (N,P), ``dm.dA`` (N,3,P) if present."""
         x0 = np.asarray(x0, dtype=float)
         dC, dR = np.asarray(dm.dC, dtype=float), np.asarray(dm.dR, dtype=float)
@@ -356,7 +356,7 @@ class HoleMoveModel(LinearFeatureModel):
 
     def hole_moves(self, x: np.ndarray) -> list[Any]:
         """``step_parts.HoleMove`` for every movable hole at design ``x`` (for ``redrill``)."""
-        from cadfeat.step_parts import HoleMove
+        from cadfeat.cad.step_parts import HoleMove
 
         c, _, r = self.features(x)
         return [HoleMove(self.holes[i], c[i], float(r[i])) for i in self.movable]

@@ -18,7 +18,7 @@ with a step relative to each variable's range, all 2P points evaluated in one ba
 Determinism: same problem + same seed → identical result. Ctrl-C (``KeyboardInterrupt``, also raised by a
 ``progress`` callback) stops the run and returns the best feasible design so far with ``interrupted=True``.
 
-``solve_with_cad`` (``cadfeat.optimize.cad``) wraps these in the trust-region loop with CAD rebuilds.
+``solve_with_cad`` (``cadfeat.design.optimize.cad``) wraps these in the trust-region loop with CAD rebuilds.
 """
 
 from __future__ import annotations
@@ -30,9 +30,9 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.design.optimize.evaluator import FEAS_TOL, Evaluator
+from cadfeat.design.optimize.solvers import global_solve, local_solve, multistart, pareto_solve, snap_candidates
 from cadfeat.errors import CadfeatError
-from cadfeat.optimize.evaluator import FEAS_TOL, Evaluator
-from cadfeat.optimize.solvers import global_solve, local_solve, multistart, pareto_solve, snap_candidates
 
 __all__ = ["FEAS_TOL", "METHODS", "OptimResult", "OptimizerConfig", "optimise", "solve_with_cad"]
 
@@ -174,7 +174,7 @@ def _snap(ev: Evaluator, problem: Any, config: OptimizerConfig) -> None:
 
 
 def solve_with_cad(*args: Any, **kwargs: Any) -> OptimResult:
-    """The trust-region loop with CAD rebuilds: see ``cadfeat.optimize.cad.solve_with_cad``."""
-    from cadfeat.optimize.cad import solve_with_cad as _solve
+    """The trust-region loop with CAD rebuilds: see ``cadfeat.design.optimize.cad.solve_with_cad``."""
+    from cadfeat.design.optimize.cad import solve_with_cad as _solve
 
     return _solve(*args, **kwargs)

@@ -23,7 +23,7 @@ inside the part's own bounds. The first problem raises one ``StudyError`` naming
 (``objective.aggregate``) and what is allowed. Integer part parameters stay ``int`` throughout.
 
 Reading a part script's ``PARAMETERS`` is cheap: the script is parsed (``ast``), not executed, when the
-table is a literal; otherwise ``cadfeat.parts.load_part`` is used.
+table is a literal; otherwise ``cadfeat.cad.parts.load_part`` is used.
 """
 
 from __future__ import annotations
@@ -381,7 +381,7 @@ def _vector(value: Any, n: int, key: str, label: str) -> tuple[float, ...]:
 # ------------------------------------------------------------------------------------ part parameters
 def part_parameters(path: str | Path) -> dict[str, PartParameter]:
     """A part script's ``PARAMETERS`` (name → ``PartParameter``), read without running the script when the
-    table is a literal (``ast.literal_eval``), else via ``cadfeat.parts.load_part``.
+    table is a literal (``ast.literal_eval``), else via ``cadfeat.cad.parts.load_part``.
 
     Raises ``StudyError`` naming the script for a syntax error, a missing or malformed table.
     """
@@ -428,7 +428,7 @@ def _mutated(tree: ast.Module) -> bool:
 
 
 def _parameters_by_loading(path: Path) -> dict[str, PartParameter]:
-    from cadfeat.parts import load_part  # runs the script (imports cadquery): only for non-literal tables
+    from cadfeat.cad.parts import load_part  # runs the script (imports cadquery): only for non-literal tables
 
     part = load_part(path)
     return {name: PartParameter(name, p.default, p.lower, p.upper, getattr(p, "unit", ""),

@@ -45,7 +45,7 @@ from cadfeat.errors import CadfeatError
 if TYPE_CHECKING:  # pragma: no cover
     import cadquery as cq
 
-    from cadfeat.features import Hole
+    from cadfeat.cad.features import Hole
 
 __all__ = [
     "PARTS_DIR",
@@ -59,7 +59,7 @@ __all__ = [
 ]
 
 #: The parts library of the repository (``parts/`` beside the ``cadfeat`` package).
-PARTS_DIR = Path(__file__).resolve().parent.parent / "parts"
+PARTS_DIR = Path(__file__).resolve().parents[2] / "parts"
 PARAMETER_KEYS = ("default", "bounds", "unit", "description")
 """Keys allowed in one ``PARAMETERS`` entry (``default`` and ``bounds`` are required)."""
 
@@ -190,7 +190,7 @@ class Part:
 
     def holes(self, **overrides: Any) -> list[Hole]:
         """The extracted holes of ``build(**overrides)`` (through holes enter on the ``view_direction`` side)."""
-        from cadfeat.features import extract_holes
+        from cadfeat.cad.features import extract_holes
 
         return extract_holes(self.build(**overrides), prefer_direction=self.view_direction)
 
@@ -198,7 +198,7 @@ class Part:
         """``holes(**params)``, built in a worker process with a time limit when ``timeout_s`` is given."""
         if timeout_s is None:
             return self.holes(**dict(params or {}))
-        from cadfeat.features import extract_holes
+        from cadfeat.cad.features import extract_holes
 
         return extract_holes(build_shape(self, params, timeout_s), prefer_direction=self.view_direction)
 
@@ -372,7 +372,7 @@ def _context() -> Any:
     if _CONTEXT is None:
         if "forkserver" in multiprocessing.get_all_start_methods():
             _CONTEXT = multiprocessing.get_context("forkserver")
-            _CONTEXT.set_forkserver_preload(["cadquery", "cadfeat.parts"])
+            _CONTEXT.set_forkserver_preload(["cadquery", "cadfeat.cad.parts"])
         else:  # pragma: no cover - Windows / macOS defaults
             _CONTEXT = multiprocessing.get_context("spawn")
     return _CONTEXT

@@ -1,4 +1,4 @@
-"""Hole extraction from an OCCT B-rep (imported lazily by ``cadfeat.features.extract_holes``).
+"""Hole extraction from an OCCT B-rep (imported lazily by ``cadfeat.cad.features.extract_holes``).
 
 Algorithm (DESIGN.md "Known pitfalls"):
 
@@ -41,7 +41,7 @@ from OCP.TopExp import TopExp
 from OCP.TopoDS import TopoDS
 from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape, TopTools_IndexedMapOfShape
 
-from cadfeat.features import OUTLINE_CHORD_ERROR_MM, FaceOutline, Hole
+from cadfeat.cad.features import OUTLINE_CHORD_ERROR_MM, FaceOutline, Hole
 
 ANGLE_TOL_RAD = 1e-7  # parallel axes / normals
 LINEAR_TOL_MM = 1e-6  # coaxial lines, equal radii
@@ -498,7 +498,7 @@ def _ccw(poly: np.ndarray) -> np.ndarray:
 
 
 def extract_holes(shape, prefer_direction: Sequence[float] | None = None) -> list[Hole]:
-    """See ``cadfeat.features.extract_holes``; ``shape`` is a ``cadquery.Shape``."""
+    """See ``cadfeat.cad.features.extract_holes``; ``shape`` is a ``cadquery.Shape``."""
     ex = _Extractor(shape, prefer_direction)
     found = [h for g in ex.groups() if (h := ex.hole(g)) is not None]
     rim_edges = set().union(*(edges for _, edges in found)) if found else set()

@@ -1,4 +1,4 @@
-"""``make demo`` / ``python -m cadfeat.demo``: run the flagship study (the NEMA 17 motor mount) and say where
+"""``make demo`` / ``python -m cadfeat.cli.demo``: run the flagship study (the NEMA 17 motor mount) and say where
 the revised STEP/STL files and the report are, with a short before/after summary."""
 
 from __future__ import annotations
@@ -8,17 +8,17 @@ import sys
 import time
 from pathlib import Path
 
-FLAGSHIP = Path(__file__).resolve().parent.parent / "studies" / "nema17_mount.toml"
+FLAGSHIP = Path(__file__).resolve().parents[2] / "studies" / "nema17_mount.toml"
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m cadfeat.demo", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m cadfeat.cli.demo", description=__doc__)
     parser.add_argument("--out", default=None, help="output folder (default exports/nema17_mount/)")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
     args = parser.parse_args(argv)
 
     from cadfeat.errors import CadfeatError
-    from cadfeat.study import run_study
+    from cadfeat.study.run import run_study
 
     t0 = time.perf_counter()
     try:

@@ -14,10 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from cadfeat.constraints import ConstraintConfig, ConstraintSet
-from cadfeat.design_space import DesignSpace, FeatureModel
-from cadfeat.errors import CadfeatError
-from cadfeat.objectives import (
+from cadfeat.design.constraints import ConstraintConfig, ConstraintSet
+from cadfeat.design.design_space import DesignSpace, FeatureModel
+from cadfeat.design.objectives import (
     MEASURES,
     Normaliser,
     ObjectiveConfig,
@@ -26,6 +25,7 @@ from cadfeat.objectives import (
     natural_units,
     per_pose_values,
 )
+from cadfeat.errors import CadfeatError
 from cadfeat.poses import invert_T
 
 __all__ = ["Problem"]

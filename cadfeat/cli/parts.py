@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from cadfeat.cli import command
+from cadfeat.cli.command import Command
 
 
 def _arguments(parser: argparse.ArgumentParser) -> None:
@@ -13,12 +13,11 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--holes", action="store_true", help="also build each part and list its holes at the defaults")
 
 
-@command("parts", _arguments)
 def parts(args: argparse.Namespace) -> int:
     """List the part scripts: description, parameters (default, bounds, unit), fixed holes."""
     from pathlib import Path
 
-    from cadfeat.parts import find_parts, load_part
+    from cadfeat.cad.parts import find_parts, load_part
 
     target = Path(args.directory) if args.directory else None
     paths = [target] if target is not None and target.is_file() else find_parts(target)
@@ -39,3 +38,8 @@ def parts(args: argparse.Namespace) -> int:
                 print(f"    hole {i}: centre ({c}) mm, axis ({a}), r {h.radius_mm:.3f} mm, {h.kind}, "
                       f"{'through' if h.through else f'blind {h.depth_mm:.3f} mm'}")
     return 0
+
+
+COMMANDS = (
+    Command("parts", _arguments, parts),
+)

@@ -4,14 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from cadfeat.cli import command
+from cadfeat.cli.command import Command, no_arguments
 
 
-def _no_args(parser: argparse.ArgumentParser) -> None:
-    """Sub-command without arguments."""
-
-
-@command("cameras", _no_args)
 def cameras(args: argparse.Namespace) -> int:
     """List the camera presets with their intrinsics and sources."""
     from cadfeat.camera import PRESETS, Camera
@@ -24,7 +19,6 @@ def cameras(args: argparse.Namespace) -> int:
     return 0
 
 
-@command("trajectories", _no_args)
 def trajectories(args: argparse.Namespace) -> int:
     """List the library trajectory kinds with their arguments (for [trajectory] in study files)."""
     from cadfeat.trajectory import TRAJECTORY_KINDS, kind_arguments
@@ -45,4 +39,9 @@ def _plain(value: object) -> str:
     if isinstance(value, tuple):
         return "[" + ", ".join(f"{v:g}" for v in value) + "]"
     return f"{value:g}" if isinstance(value, float) else str(value)
-from cadfeat import commands_parts, commands_render, commands_report, commands_study  # noqa: E402,F401
+
+
+COMMANDS = (
+    Command("cameras", no_arguments, cameras),
+    Command("trajectories", no_arguments, trajectories),
+)

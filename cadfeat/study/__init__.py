@@ -1,0 +1,23 @@
+"""Studies: the TOML study file, its set-up, the run and its outputs.
+
+- ``schema``: ``load_study`` validates a study before any work (``StudyConfig``);
+- ``setup``: part, camera, trajectory, design space and feature model of a validated study (``StudySetup``);
+- ``run``: ``run_study`` (optimise, rebuild, verify, export, report) and ``evaluate_study``;
+- ``outputs``: results.json pieces; ``progress``: the progress display.
+
+``run_study``, ``evaluate_study`` and ``StudyResult`` are importable from here (lazily: the run imports
+numpy-heavy modules only when used).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__all__ = ["StudyResult", "evaluate_study", "run_study"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in __all__:
+        return getattr(importlib.import_module("cadfeat.study.run"), name)
+    raise AttributeError(f"module 'cadfeat.study' has no attribute {name!r}")
