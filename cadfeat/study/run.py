@@ -4,7 +4,7 @@
 
 1. ``load_study`` — validate everything before any work (``StudyError``);
 2. set up: part (script or STEP), camera, trajectory, part pose, design space, feature model
-   (``study_setup``); integer parameters are enumerated, one continuous optimisation per combination;
+   (``cadfeat.study.setup``); integer parameters are enumerated, one continuous optimisation per combination;
 3. optimise on features (``optimize.optimise``; with the CAD trust-region loop ``solve_with_cad`` when the
    design map is not linear); Ctrl-C keeps the best design so far (``interrupted: true``);
 4. rebuild the optimum in CAD, re-extract its holes (the answer is the real CAD model, never the surrogate),
@@ -28,7 +28,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -45,6 +45,9 @@ from cadfeat.study.outputs import (
 )
 from cadfeat.study.progress import StudyProgress
 from cadfeat.study.schema import StudyConfig, StudyError, load_study
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.study.setup import StudySetup
 
 __all__ = ["EXPORTS_DIR", "StudyResult", "evaluate_study", "run_study"]
 
@@ -99,7 +102,7 @@ def _num(x: Any) -> str:
 
 
 # ------------------------------------------------------------------------------------------ scoring
-def measure_holes(setup: Any, holes: Sequence[Any], trajectory: Any = None) -> Any:
+def measure_holes(setup: StudySetup, holes: Sequence[Any], trajectory: Any = None) -> Any:
     """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``)."""
     from cadfeat import measures
     from cadfeat.cad.features import holes_to_arrays
@@ -112,7 +115,7 @@ def measure_holes(setup: Any, holes: Sequence[Any], trajectory: Any = None) -> A
                              rotation_length_mm=o.rotation_length_mm)
 
 
-def score(setup: Any, holes: Sequence[Any]) -> tuple[dict[str, float], float | None]:
+def score(setup: StudySetup, holes: Sequence[Any]) -> tuple[dict[str, float], float | None]:
     """The aggregated objectives of real holes and their combined value (larger is better), computed exactly
     as the optimiser does (``Problem.features_objectives`` / ``combined_from``: same normalisation)."""
     from cadfeat.cad.features import holes_to_arrays
@@ -126,12 +129,11 @@ def score(setup: Any, holes: Sequence[Any]) -> tuple[dict[str, float], float | N
 
 
 # ------------------------------------------------------------------------------------------ optimise
-def _optimise(setup: Any, progress: StudyProgress, label: str = "") -> tuple[Any, bool]:
+def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tuple[Any, bool]:
     """Optimise one setup; returns (OptimResult-like, interrupted)."""
     from cadfeat.design.optimize import optimise, solve_with_cad
-    from cadfeat.study.setup import optimizer_config
 
-    oc = optimizer_config(setup.config)
+    oc = setup.config.optimizer
     try:
         if setup.linear:
             res = optimise(setup.problem, oc, progress=progress.iteration)
@@ -159,7 +161,7 @@ class _Interrupted:
     n_evals: int = 0
 
 
-def _violations(setup: Any, x: np.ndarray, most: int = 5) -> str:
+def _violations(setup: StudySetup, x: np.ndarray, most: int = 5) -> str:
     """The most violated 2-D constraints at ``x``: "kind (holes) by N mm", worst first."""
     C = np.asarray(setup.problem.constraints(x), float)
     labels = setup.problem.constraint_labels()
@@ -187,7 +189,7 @@ def _outlines_differ(a: Sequence[Any], b: Sequence[Any], tol_mm: float = 1e-6) -
     return False
 
 
-def _refresh_outlines(setup: Any, res: Any, scene: Any, normaliser: Any, prog: StudyProgress,
+def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, prog: StudyProgress,
                       label: str) -> tuple[Any, Any, list[dict[str, Any]], bool]:
     """The optimiser's 2-D constraints use the host-face outlines of the design it was linearised at; when a
     parameter also changes the faces (e.g. a block that grows with the hole spacing), rebuild at the
@@ -229,7 +231,7 @@ def _history(res: Any, label: str) -> list[dict[str, Any]]:
     return out
 
 
-def _sweep(setup: Any) -> dict[str, Any] | None:
+def _sweep(setup: StudySetup) -> dict[str, Any] | None:
     """For a one-variable study: the objectives over the variable's range (thesis Figs. 5.10/5.11)."""
     space = setup.space
     if space.size != 1:
@@ -260,13 +262,13 @@ def _order_like(reference: Sequence[Any], holes: Sequence[Any], tol_mm: float, w
     return [holes[i] for i in idx]
 
 
-def _predicted_holes(setup: Any, x: np.ndarray) -> list[Any]:
+def _predicted_holes(setup: StudySetup, x: np.ndarray) -> list[Any]:
     c, a, r = setup.model.features(x)
     return [dataclasses.replace(h, centre=np.asarray(c[i]), axis=np.asarray(a[i]), radius_mm=float(r[i]))
             for i, h in enumerate(setup.model.holes)]
 
 
-def _rebuild(setup: Any, x: np.ndarray, verified: Sequence[Any] | None = None) -> tuple[Any, list[Any], float]:
+def _rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Any] | None = None) -> tuple[Any, list[Any], float]:
     """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
     deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
     loop extracted at ``x``, in model order) when given."""
@@ -284,7 +286,7 @@ def _rebuild(setup: Any, x: np.ndarray, verified: Sequence[Any] | None = None) -
     return shape, holes, err
 
 
-def _checks(setup: Any, shape: Any, holes: Sequence[Any], where: str) -> list[dict[str, Any]]:
+def _checks(setup: StudySetup, shape: Any, holes: Sequence[Any], where: str) -> list[dict[str, Any]]:
     """Every kept requirement measured on the solid ``shape`` whose holes are ``holes`` (design order).
 
     ``verify_on_brep`` re-extracts holes without a preferred direction (a through hole may then be reported
@@ -331,7 +333,7 @@ def _fail_on(checks: Sequence[Mapping[str, Any]], label: str) -> None:
 
 
 # ------------------------------------------------------------------------------------------ results
-def _variables(setup: Any, x0: np.ndarray, x1: np.ndarray, ints0: Mapping[str, int],
+def _variables(setup: StudySetup, x0: np.ndarray, x1: np.ndarray, ints0: Mapping[str, int],
                ints1: Mapping[str, int]) -> list[dict[str, Any]]:
     out = []
     for v, a, b in zip(setup.space.variables, x0, x1, strict=True):
@@ -351,7 +353,7 @@ def _holes_block(setup0: Any, holes0: Sequence[Any], setup1: Any, holes1: Sequen
             "after": [hole_dict(h, i, setup1.fixed_mask[i], setup1.movable_mask[i]) for i, h in enumerate(holes1)]}
 
 
-def _design_matrix(setup: Any, x: np.ndarray) -> dict[str, Any] | None:
+def _design_matrix(setup: StudySetup, x: np.ndarray) -> dict[str, Any] | None:
     try:
         from cadfeat.design.axiomatic import design_matrix
     except ImportError:
@@ -363,7 +365,7 @@ def _design_matrix(setup: Any, x: np.ndarray) -> dict[str, Any] | None:
             "verdict": dm.verdict, "note": note}
 
 
-def _normalisation(setup: Any) -> dict[str, Any]:
+def _normalisation(setup: StudySetup) -> dict[str, Any]:
     normaliser = getattr(setup.problem, "normaliser", None)
     if normaliser is None:
         return {"method": "none", "reference": {}, "note": "objectives in their own units"}
@@ -499,7 +501,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
     return results, shapes
 
 
-def _x0_like(setup: Any, base: Any) -> np.ndarray:
+def _x0_like(setup: StudySetup, base: Any) -> np.ndarray:
     """The before-values of ``setup``'s continuous variables (the part defaults, as in ``base``)."""
     return np.asarray(base.space.x0, float) if base.space.names == setup.space.names else setup.space.x0
 
@@ -695,12 +697,9 @@ class _OnePose:
 
 
 def _plain_objectives(config: StudyConfig, m: Any) -> dict[str, float]:
-    try:
-        from cadfeat.design.objectives import objective_values
-        from cadfeat.study.setup import objective_config
-    except ImportError:
-        return {}
-    return objective_values(m, objective_config(config))
+    from cadfeat.design.objectives import objective_values
+
+    return objective_values(m, config.objective)
 
 
 def format_table(results: Mapping[str, Any], pose: int | None = None) -> str:

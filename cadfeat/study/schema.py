@@ -41,6 +41,8 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from cadfeat.design.objectives import ObjectiveConfig
+from cadfeat.design.optimize import OptimizerConfig
 from cadfeat.errors import CadfeatError
 
 __all__ = [
@@ -52,8 +54,6 @@ __all__ = [
     "ConstraintSpec",
     "DesignSpec",
     "HoleSpec",
-    "ObjectiveSpec",
-    "OptimizerSpec",
     "ParameterSpec",
     "PartParameter",
     "PartPose",
@@ -73,6 +73,11 @@ LOCAL_SOLVERS = ("SLSQP", "trust-constr")
 SYMMETRIES = ("none", "x", "y", "xy")
 NORMALISATIONS = ("initial", "natural", "none")
 FOV_MEASURES = ("cone", "image")
+#: The keys of ``[objective]`` and ``[optimizer]``: the fields of ``ObjectiveConfig`` / ``OptimizerConfig``
+#: a study file may set (the others keep their defaults).
+OBJECTIVE_KEYS = ("measures", "aggregate", "combine", "weights", "thresholds", "min_axis_px", "rotation_length_mm",
+                  "smoothmin_beta", "normalisation", "fov_measure")
+OPTIMIZER_KEYS = ("method", "starts", "maxiter", "seed", "local_solver", "snap_standard_sizes")
 SCRIPT_SUFFIXES = (".py",)
 STEP_SUFFIXES = (".step", ".stp")
 
@@ -205,34 +210,6 @@ class ConstraintSpec:
 
 
 @dataclass(frozen=True)
-class ObjectiveSpec:
-    """``[objective]``: measures, aggregation over the trajectory, combination (DESIGN.md)."""
-
-    measures: tuple[str, ...] = ("fov", "focus", "resolution", "resolvability")
-    aggregate: str = "sum"
-    combine: str = "maxmin"
-    weights: Mapping[str, float] = field(default_factory=dict)
-    thresholds: Mapping[str, float] = field(default_factory=dict)
-    min_axis_px: float = 5.0
-    rotation_length_mm: float = 1.0
-    smoothmin_beta: float = 20.0
-    normalisation: str = "initial"
-    fov_measure: str = "cone"
-
-
-@dataclass(frozen=True)
-class OptimizerSpec:
-    """``[optimizer]``."""
-
-    method: str = "multistart"
-    starts: int = 8
-    maxiter: int = 100
-    seed: int = 0
-    local_solver: str = "SLSQP"
-    snap_standard_sizes: bool = True
-
-
-@dataclass(frozen=True)
 class StudyConfig:
     """A validated study. ``file`` is None for a study given as a dict; ``base_dir`` resolves paths."""
 
@@ -244,8 +221,8 @@ class StudyConfig:
     trajectory: TrajectorySpec
     design: DesignSpec
     constraints: ConstraintSpec
-    objective: ObjectiveSpec
-    optimizer: OptimizerSpec
+    objective: ObjectiveConfig
+    optimizer: OptimizerConfig
     part_params: Mapping[str, PartParameter] = field(default_factory=dict, repr=False)
     data: Mapping[str, Any] = field(default_factory=dict, repr=False)
 
@@ -689,7 +666,7 @@ def _constraints_section(t: _Table) -> ConstraintSpec:
     )
 
 
-def _objective_section(t: _Table) -> ObjectiveSpec:
+def _objective_section(t: _Table) -> ObjectiveConfig:
     measures = t.raw("measures", list(MEASURES))
     if not isinstance(measures, list) or not measures or not all(isinstance(m, str) and m in MEASURES
                                                                  for m in measures) \
@@ -712,7 +689,7 @@ def _objective_section(t: _Table) -> ObjectiveSpec:
     elif thresholds:
         t.fail("objective.thresholds", f"only used with combine = \"constraint\" (combine is {combine!r})",
                "remove it, or combine = \"constraint\"")
-    return ObjectiveSpec(
+    return ObjectiveConfig(
         measures=tuple(measures), aggregate=aggregate, combine=combine, weights=weights, thresholds=thresholds,
         min_axis_px=t.number("min_axis_px", 5.0, 0.0, lo_open=True),
         rotation_length_mm=t.number("rotation_length_mm", 1.0, 0.0, lo_open=True),
@@ -735,8 +712,8 @@ def _measure_table(t: _Table, name: str, measures: Sequence[str], lo: float | No
     return dict(sorted(out.items()))
 
 
-def _optimizer_section(t: _Table, seed: int) -> OptimizerSpec:
-    return OptimizerSpec(
+def _optimizer_section(t: _Table, seed: int) -> OptimizerConfig:
+    return OptimizerConfig(
         method=t.string("method", "multistart", METHODS),
         starts=t.integer("starts", 8, 1, 10_000),
         maxiter=t.integer("maxiter", 100, 1, 1_000_000),
@@ -793,13 +770,9 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     constraints = _constraints_section(_Table(top.raw("constraints", {}), "constraints", label,
                                               ["edge_distance_mm", "ligament_mm", "volume_change_max_percent",
                                                "symmetry"]))
-    objective = _objective_section(_Table(top.raw("objective", {}), "objective", label,
-                                          ["measures", "aggregate", "combine", "weights", "thresholds",
-                                           "min_axis_px", "rotation_length_mm", "smoothmin_beta",
-                                           "normalisation", "fov_measure"]))
-    optimizer = _optimizer_section(_Table(top.raw("optimizer", {}), "optimizer", label,
-                                          ["method", "starts", "maxiter", "seed", "local_solver",
-                                           "snap_standard_sizes"]), info.seed)
+    objective = _objective_section(_Table(top.raw("objective", {}), "objective", label, list(OBJECTIVE_KEYS)))
+    optimizer = _optimizer_section(_Table(top.raw("optimizer", {}), "optimizer", label, list(OPTIMIZER_KEYS)),
+                                   info.seed)
     if objective.combine == "pareto" and optimizer.method != "pareto":
         raise StudyError(f"{label}: optimizer.method: {optimizer.method!r} cannot give a Pareto front "
                          "(objective.combine = \"pareto\"); allowed: pareto")
@@ -814,9 +787,9 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
         "trajectory": copy.deepcopy(dict(trajectory.table)),
         "design": design_echo,
         "constraints": _asdict(constraints),
-        "objective": {**_asdict(objective), "measures": list(objective.measures),
+        "objective": {**_asdict(objective, OBJECTIVE_KEYS), "measures": list(objective.measures),
                       "weights": dict(objective.weights), "thresholds": dict(objective.thresholds)},
-        "optimizer": _asdict(optimizer),
+        "optimizer": _asdict(optimizer, OPTIMIZER_KEYS),
     }
     return StudyConfig(path, base, info, camera, pose, trajectory, design, constraints, objective, optimizer,
                        params, _drop_none(echo))
@@ -831,5 +804,7 @@ def _drop_none(value: Any) -> Any:
     return value
 
 
-def _asdict(obj: Any) -> dict[str, Any]:
-    return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}
+def _asdict(obj: Any, keys: Sequence[str] | None = None) -> dict[str, Any]:
+    """The fields of a dataclass (only ``keys``, the ones a study file can set, when given)."""
+    names = [f.name for f in dataclasses.fields(obj)] if keys is None else keys
+    return {k: getattr(obj, k) for k in names}

@@ -21,11 +21,19 @@ import dataclasses
 import itertools
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.study.schema import StudyConfig, StudyError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
+    from cadfeat.camera import Camera
+    from cadfeat.design.constraints import ConstraintConfig
+    from cadfeat.design.design_space import DesignSpace, FeatureModel
+    from cadfeat.design.problem import Problem
+    from cadfeat.trajectory import Trajectory
 
 __all__ = ["MAX_INT_COMBINATIONS", "StudySetup", "int_grid", "setup_study"]
 
@@ -43,19 +51,19 @@ class StudySetup:
     """
 
     config: StudyConfig
-    camera: Any
-    trajectory: Any                 # Trajectory (T_task_cam)
+    camera: Camera
+    trajectory: Trajectory          # T_task_cam
     T_task_part: np.ndarray
-    shape0: Any
-    holes0: list[Any]
+    shape0: Any                     # cq.Solid
+    holes0: list[Hole]
     fixed_mask: np.ndarray          # (N,) bool
     movable_mask: np.ndarray        # (N,) bool
-    space: Any                      # DesignSpace
-    model: Any                      # FeatureModel
-    problem: Any                    # Problem
-    constraints: Any                # ConstraintConfig
+    space: DesignSpace
+    model: FeatureModel
+    problem: Problem
+    constraints: ConstraintConfig
     rebuild_shape: Callable[[np.ndarray], Any]
-    rebuild_holes: Callable[[Any], list[Any]]
+    rebuild_holes: Callable[[Any], list[Hole]]
     values: Callable[[np.ndarray], dict[str, Any]]
     linear: bool = True
     int_values: dict[str, int] = field(default_factory=dict)
@@ -67,19 +75,9 @@ class StudySetup:
 
 
 # ----------------------------------------------------------------------------------------- common
-def load_scene(config: StudyConfig) -> tuple[Any, Any, np.ndarray]:
+def load_scene(config: StudyConfig) -> tuple[Camera, Trajectory, np.ndarray]:
     """Camera, trajectory (T_task_cam) and T_task_part of a study."""
     return config.camera.build(), config.trajectory.build(), config.part_pose.T_task_part
-
-
-def objective_config(config: StudyConfig) -> Any:
-    from cadfeat.design.objectives import ObjectiveConfig
-
-    o = config.objective
-    return ObjectiveConfig(measures=tuple(o.measures), aggregate=o.aggregate, combine=o.combine,
-                           weights=dict(o.weights), thresholds=dict(o.thresholds), smoothmin_beta=o.smoothmin_beta,
-                           min_axis_px=o.min_axis_px, rotation_length_mm=o.rotation_length_mm,
-                           normalisation=o.normalisation, fov_measure=o.fov_measure)
 
 
 def constraint_config(config: StudyConfig, holes: Sequence[Any] = (), movable: Sequence[int] = (),
@@ -99,14 +97,6 @@ def constraint_config(config: StudyConfig, holes: Sequence[Any] = (), movable: S
                             volume_change_max_frac=frac, part_volume_mm3=volume_mm3, symmetry=pairs)
 
 
-def optimizer_config(config: StudyConfig) -> Any:
-    from cadfeat.design.optimize import OptimizerConfig
-
-    o = config.optimizer
-    return OptimizerConfig(method=o.method, starts=o.starts, maxiter=o.maxiter, seed=o.seed,
-                           local_solver=o.local_solver, snap_standard_sizes=o.snap_standard_sizes)
-
-
 def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Any = None) -> tuple[Any, Any]:
     """The ``Problem`` and its ``ConstraintConfig`` (``normaliser``: share another problem's scales)."""
     from cadfeat.cad.export import shape_volume_mm3
@@ -115,7 +105,7 @@ def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Any = Non
     movable = np.flatnonzero(~np.asarray(args["fixed_mask"], bool))
     cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]))
     problem = Problem(args["space"], args["model"], args["camera"], args["trajectory"], args["T_task_part"],
-                      objective_config(config), cc, args["fixed_mask"], normaliser=normaliser)
+                      config.objective, cc, args["fixed_mask"], normaliser=normaliser)
     return problem, cc
 
 
