@@ -474,6 +474,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         raise StudyError(f"{config.label}: no design meets the kept requirements ([constraints], "
                          f"objective.thresholds); the least violating design still breaks: "
                          f"{_violations(setup, x1)}; allowed: relax these requirements or widen design bounds")
+    rebuild_failure = None
     with prog.phase("rebuild"):
         try:
             shape1, holes1, pred_err = _rebuild(setup, x1, getattr(res, "holes", None))
@@ -482,6 +483,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                 raise
             # the optimum of the (linear) feature model does not build: an infeasible point; search again
             # with CAD in the loop (the region shrinks around the buildable start until a rebuild succeeds)
+            rebuild_failure = str(exc)
             prog.log(f"the CAD rebuild of the optimum failed ({exc}); searching again with CAD in the loop")
             res = _with_cad(setup, prog)
             history += _history(res, "CAD in the loop")
@@ -522,7 +524,8 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         "pareto": getattr(res, "pareto", None),
         "optimizer": {"method": config.optimizer.method, "n_evals": int(getattr(res, "n_evals", 0) or 0),
                       "linear_feature_map": bool(setup.linear), "prediction_error_mm": pred_err,
-                      "integer_combinations": len(setups)},
+                      "integer_combinations": len(setups),
+                      **({"rebuild_failed_at_model_optimum": rebuild_failure} if rebuild_failure else {})},
         "interrupted": bool(interrupted),
     }
     shapes = {"shape0": base.shape0, "shape1": shape1, "holes0": base.holes0, "holes1": holes1, "setup": setup,
