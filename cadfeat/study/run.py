@@ -438,6 +438,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         else:  # "before" = the part's own integer values; the others share its objective scales
             defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
             base = setup_script(config, defaults, scene)
+            check_visibility(measure_holes(base, base.holes0), config.label)  # before the other combinations
             setups = [base] + [setup_script(config, c, scene, base.problem.normaliser) for c in combos
                                if c != defaults]
             if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only

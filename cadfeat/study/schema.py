@@ -462,7 +462,8 @@ def _study_section(t: _Table, base_dir: Path) -> StudyInfo:
                "a path ending in .py, .step or .stp")
     path = (base_dir / part).resolve()
     if not path.is_file():
-        problem = f"{path} is not a regular file (a device, folder or pipe)" if path.exists() else \
+        shown = base_dir / part if (base_dir / part).is_symlink() else path
+        problem = f"{shown} is not a regular file ({path}: a device, folder or pipe)" if path.exists() else \
             f"file {path} does not exist"
         t.fail("study.part", problem, "an existing part script or STEP file")
     if kind == "step":
