@@ -7,8 +7,8 @@ own text, OCCT re-import, trimesh's mesh checks, and hashlib on the raw bytes.
 from __future__ import annotations
 
 import hashlib
-import json
 import importlib.util
+import json
 import math
 import os
 import re

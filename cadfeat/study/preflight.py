@@ -21,9 +21,9 @@ def check_visibility(measures: Any, label: str) -> None:
     A hole is seen at a sample when ``measures.visible`` (in front of the camera, its face turned towards
     it) and its centre is inside the field of view (the cone margin ``fov`` ≥ 0, thesis eq. 3.1–3.3, or the
     rectangular sensor's margin ``fov_px`` ≥ 0). ``measures`` is a ``measures.Measures`` of the original
-    design, arrays (L, N) (``facing`` > 0: the camera is on the outward side of the hole's face). The message names the likely cause: the holes face away from the camera at
-    every sample (e.g. a camera below the part), or the camera never looks at the part (e.g. a trajectory
-    centred far from it).
+    design, arrays (L, N) (``facing`` > 0: the camera is on the outward side of the hole's face). The message
+    names the likely cause: the holes face away from the camera at every sample (e.g. a camera below the part),
+    or the camera never looks at the part (e.g. a trajectory centred far from it).
     """
     visible = np.asarray(measures.visible, bool)
     in_view = (np.asarray(measures.fov, float) >= 0.0) | (np.asarray(measures.fov_px, float) >= 0.0)
