@@ -228,7 +228,10 @@ def staged_output(final_dir: str | os.PathLike[str], force: bool = False, merge:
                                 f"{exc.strerror or exc}; give a writable output folder") from None
     try:
         yield stage
-        _publish(stage, final, force, merge)
+        try:
+            _publish(stage, final, force, merge)
+        except OSError as exc:  # e.g. the disk filled up, or another process took the name meanwhile
+            raise OutputFolderError(f"{os.fspath(final_dir)}: could not move the outputs into place: {exc}") from exc
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         _remove_empty(created)

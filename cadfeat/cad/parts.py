@@ -82,12 +82,15 @@ class PartBuildError(CadfeatError):
 
 # --------------------------------------------------------------------------------- containment
 @contextlib.contextmanager
-def build_time_limit(seconds: float | None) -> Iterator[None]:
+def build_time_limit(seconds: float | None, start: bool = True) -> Iterator[None]:
     """Within the block, every ``load_part`` import and ``Part.build`` runs in a worker process killed after
-    ``seconds`` (``PartBuildError`` naming the script and the limit); ``None``: in this process, no limit."""
+    ``seconds`` (``PartBuildError`` naming the script and the limit); ``None``: in this process, no limit.
+    ``start``: start the worker server at once (``start_workers``)."""
     global _time_limit_s
     if seconds is not None and not (math.isfinite(seconds) and seconds > 0):
         raise CadfeatError(f"build time limit: {seconds!r} s is not allowed; allowed: a number of seconds > 0")
+    if seconds is not None and start:
+        start_workers()
     previous, _time_limit_s = _time_limit_s, seconds
     try:
         yield
@@ -495,6 +498,15 @@ def _context() -> Any:
     return _CONTEXT
 
 
+def start_workers() -> None:
+    """Start the worker server now (it imports CadQuery meanwhile), so the first time-limited import or build
+    does not wait for it; nothing to do with the spawn method."""
+    if _context().get_start_method() == "forkserver":
+        from multiprocessing import forkserver
+
+        forkserver.ensure_running()
+
+
 def build_shape(part: Part, params: Mapping[str, Any] | None = None, timeout_s: float = 30.0) -> cq.Solid:
     """Build ``part`` with ``params`` in a worker process, within ``timeout_s`` seconds.
 
@@ -502,10 +514,10 @@ def build_shape(part: Part, params: Mapping[str, Any] | None = None, timeout_s: 
     raises, returns no solid, dies, or runs longer than ``timeout_s`` (the worker is killed) raises
     ``PartBuildError``; bad parameter names/values raise ``CadfeatError`` before any process starts.
     """
-    import cadquery as cq
-
     values = part.resolve(**dict(params or {}))
     payload = _in_worker(part.path, values, timeout_s, f"build({_fmt(values)})")
+    import cadquery as cq  # (after the worker: a first import here overlaps nothing)
+
     shape = cq.Shape.importBrep(io.BytesIO(payload))
     return _one_solid(shape, f"{part.path}: build({_fmt(values)})")
 

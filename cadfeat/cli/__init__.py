@@ -63,7 +63,7 @@ def run_guarded(func: Callable[[], int], prog: str = "cadfeat") -> int:
     from cadfeat.cad.parts import DEFAULT_BUILD_TIMEOUT_S, build_time_limit
 
     try:
-        with sigterm_as_exception(), build_time_limit(DEFAULT_BUILD_TIMEOUT_S):
+        with sigterm_as_exception(), build_time_limit(DEFAULT_BUILD_TIMEOUT_S, start=False):
             return int(func() or 0)
     except Terminated:
         print(f"{prog}: terminated (SIGTERM); nothing half-written was left", file=sys.stderr)

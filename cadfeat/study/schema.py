@@ -597,7 +597,7 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
             t.fail("design.holes", "only for STEP parts (script parts vary their parameters)", "design.parameters")
         from cadfeat.cad.parts import build_time_limit
 
-        with build_time_limit(info.build_timeout_s):  # (a part script only runs if its PARAMETERS is computed)
+        with build_time_limit(info.build_timeout_s, start=False):  # (the script runs only for a computed table)
             params = part_parameters(info.part_path)
         raw = t.raw("parameters")
         _check_size(t, "design.parameters", len(raw) if isinstance(raw, list | dict) else None, "design_variables",
