@@ -32,13 +32,15 @@ from typing import Any
 
 from cadfeat.errors import CadfeatError
 
-__all__ = ["MANIFEST", "OUTPUT_NAMES", "OutputFolderError", "check_output_folder", "is_cadfeat_folder",
+__all__ = ["MANIFEST", "OUTPUT_NAMES", "REPORT_NAMES", "OutputFolderError", "check_output_folder", "is_cadfeat_folder",
            "remove_stale_staging", "staged_output"]
 
 MANIFEST = ".cadfeat-output.json"
 """The ownership manifest cadfeat writes into every folder it creates (and every staging folder)."""
 OUTPUT_NAMES = ("original.step", "optimised.step", "optimised.stl", "results.json", "report.html", "img")
-"""Entries cadfeat writes into an output folder (run, evaluate --out, report --out)."""
+"""Entries cadfeat writes into an output folder (run, evaluate --out)."""
+REPORT_NAMES = ("report.html", "img")
+"""Entries ``cadfeat report`` writes."""
 _STAGING = re.compile(r"^\..+\.(staging|old)-(\d+)-[0-9a-f]{8}$")
 
 
@@ -200,7 +202,8 @@ def _make_parents(folder: Path) -> list[Path]:
 
 
 @contextlib.contextmanager
-def staged_output(final_dir: str | os.PathLike[str], force: bool = False, merge: bool = False) -> Iterator[Path]:
+def staged_output(final_dir: str | os.PathLike[str], force: bool = False, merge: bool = False,
+                  names: Sequence[str] = OUTPUT_NAMES) -> Iterator[Path]:
     """Yield an empty staging folder beside ``final_dir``; publish it as ``final_dir`` only on success.
 
     ``check_output_folder`` runs first; then leftover staging folders of killed runs in the same parent are
@@ -209,11 +212,12 @@ def staged_output(final_dir: str | os.PathLike[str], force: bool = False, merge:
     replaced (renamed aside, the staged folder renamed in, the old one deleted); an empty folder, a folder
     with other files (only with ``force``) or the current folder receives cadfeat's entries one by one,
     other entries untouched; ``merge``: always so (``cadfeat report`` adds report.html to a results folder).
+    ``names``: the entries the block will write (a clash with an entry cadfeat did not write is refused).
     On any exception — ``KeyboardInterrupt`` and SIGTERM included — the staging
     folder (and any parent folder created for it) is deleted, ``final_dir`` is left exactly as it was and
     the exception propagates.
     """
-    final = check_output_folder(final_dir, force)
+    final = check_output_folder(final_dir, force, names)
     remove_stale_staging(final.parent if final.parent.exists() else final.parent.parent)
     created: list[Path] = []
     stage = _sibling(final, "staging")

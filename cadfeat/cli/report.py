@@ -19,14 +19,14 @@ def report(args: argparse.Namespace) -> int:
     """Write report.html (plots and tables; no renders: those need the study's shapes) from a results.json."""
     from pathlib import Path
 
-    from cadfeat.cad.output_folder import staged_output
+    from cadfeat.cad.output_folder import REPORT_NAMES, staged_output
     from cadfeat.report import read_results, write_report
 
     results_path = Path(args.results)
     results = read_results(results_path)
     out = Path(args.out) if args.out else results_path.parent
     # beside the results file: added to that folder; --out: a new folder, or one cadfeat made (or --force)
-    with staged_output(out, force=args.force or not args.out, merge=True) as stage:
+    with staged_output(out, force=args.force or not args.out, merge=True, names=REPORT_NAMES) as stage:
         write_report(stage, results, None)
     print(out / "report.html")
     return 0
