@@ -328,3 +328,71 @@ def test_a_rebuild_failing_at_the_optimum_is_an_infeasible_point(tmp_path):
     after = {v["name"]: v["after"] for v in results["variables"]}
     assert 2.0 <= after["y0"] < 5.0  # buildable, and still better than the start (y0 = 5)
     assert results["objectives"]["combined_after"] > results["objectives"]["combined_before"]
+
+
+# ------------------------------------------------------------------------------------ staging (library level)
+def _fake_staging(parent: Path, name: str, pid: int, host: str | None = None, manifest: bool = True) -> Path:
+    import socket
+
+    path = parent / name
+    path.mkdir()
+    (path / "optimised.step").write_text("partial")
+    if manifest:
+        (path / ".cadfeat-output.json").write_text(json.dumps(
+            {"cadfeat_output": 1, "state": "staging", "files": [], "pid": pid, "host": host or socket.gethostname()}))
+    return path
+
+
+def _dead_pid() -> int:
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    return proc.pid  # (reaped: no such process now, unless the number was reused at once)
+
+
+def test_only_cadfeats_own_staging_of_dead_runs_is_removed(tmp_path):
+    from cadfeat.cad.output_folder import remove_stale_staging
+
+    dead = _dead_pid()
+    gone = _fake_staging(tmp_path, f".out.staging-{dead}-0123abcd", dead)
+    old = _fake_staging(tmp_path, f".out.old-{dead}-89abcdef", dead)
+    alive = _fake_staging(tmp_path, f".out.staging-{os.getpid()}-0123abcd", os.getpid())
+    foreign = _fake_staging(tmp_path, f".out.staging-{dead}-fedcba98", dead, manifest=False)
+    other_host = _fake_staging(tmp_path, f".out.staging-{dead}-00000000", dead, host="another-machine")
+    other_pid = _fake_staging(tmp_path, f".out.staging-{dead}-11111111", dead + 1)  # manifest names another pid
+    user = tmp_path / ".out.staging-notes"
+    user.mkdir()
+    assert sorted(remove_stale_staging(tmp_path)) == sorted([gone, old])
+    assert all(p.is_dir() for p in (alive, foreign, other_host, other_pid, user))
+
+
+def test_concurrent_runs_into_one_folder_end_in_one_complete_result(tmp_path):
+    """Two writers publish into the same new folder at the same moment: the folder ends complete (one writer's
+    files and a manifest listing them), the other writer gets a one-line error or replaced it, no staging left."""
+    import threading
+
+    from cadfeat.cad.output_folder import OutputFolderError, is_cadfeat_folder, staged_output
+
+    out = tmp_path / "out"
+    barrier = threading.Barrier(2)
+    outcome: dict[int, str] = {}
+
+    def writer(k: int) -> None:
+        try:
+            with staged_output(out) as stage:
+                for name in ("original.step", "results.json"):
+                    (stage / name).write_text(f"writer {k}")
+                barrier.wait(10)
+            outcome[k] = "ok"
+        except OutputFolderError as exc:
+            outcome[k] = str(exc)
+
+    threads = [threading.Thread(target=writer, args=(k,)) for k in (1, 2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(30)
+    assert "ok" in outcome.values() and all(v == "ok" or "\n" not in v for v in outcome.values())
+    assert is_cadfeat_folder(out)
+    texts = {(out / n).read_text() for n in ("original.step", "results.json")}
+    assert len(texts) == 1  # one writer's complete result, not a mix
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
