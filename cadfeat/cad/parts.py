@@ -17,7 +17,9 @@ A part script is a plain Python file (``parts/*.py``) that also runs unchanged i
 An integer parameter has an ``int`` default (and int bounds). ``load_part(path) -> Part`` validates the
 script; ``Part.build(**overrides)`` validates the values and returns one ``cadquery.Solid`` (mm);
 ``build_shape(part, params, timeout_s)`` runs a build in a worker process with a time limit (DESIGN.md,
-"Known pitfalls": a CAD rebuild may hang), raising ``PartBuildError``.
+"Known pitfalls": a CAD rebuild may hang), raising ``PartBuildError``; within ``with build_time_limit(s):``
+every ``load_part`` (the script's import) and ``Part.build`` runs that way (the ``cadfeat`` commands do this).
+A part script is Python run with the user's rights: its output is captured, ``sys.exit`` is an error.
 
 CadQuery is imported inside the functions (``import cadfeat`` stays light).
 """
@@ -96,11 +98,6 @@ def build_time_limit(seconds: float | None, start: bool = True) -> Iterator[None
         yield
     finally:
         _time_limit_s = previous
-
-
-def current_time_limit_s() -> float | None:
-    """The time limit (s) ``build_time_limit`` set, or None."""
-    return _time_limit_s
 
 
 class _Sink(io.TextIOBase):
@@ -269,15 +266,18 @@ class Part:
         return values
 
     def build(self, **overrides: Any) -> cq.Solid:
-        """Build the part in this process: one ``cadquery.Solid`` (mm). Raises ``PartBuildError``."""
+        """Build the part: one ``cadquery.Solid`` (mm), in this process, or within ``build_time_limit`` in a
+        worker process (``build_shape``). Raises ``PartBuildError``."""
         if _time_limit_s is not None:
             return build_shape(self, overrides, _time_limit_s)
         params = self.resolve(**overrides)
         try:
             with _contained(self.path, f"build({_fmt(params)})"):
                 result = self.module.build(**params)
-        except CadfeatError as exc:
-            raise exc if isinstance(exc, PartBuildError) else PartBuildError(str(exc)) from exc
+        except PartBuildError:
+            raise
+        except CadfeatError as exc:  # (e.g. sys.exit in the script)
+            raise PartBuildError(str(exc)) from exc
         except Exception as exc:
             raise PartBuildError(f"{self.path}: build({_fmt(params)}) raised {type(exc).__name__}: {exc}") from exc
         return _one_solid(result, f"{self.path}: build({_fmt(params)})")

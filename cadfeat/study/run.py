@@ -444,7 +444,8 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
             if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
                 setups = setups[1:]
         m0 = measure_holes(base, base.holes0)
-        check_visibility(m0, config.label)
+        if config.study.part_kind == "step":  # (script parts: checked above, before the other combinations)
+            check_visibility(m0, config.label)
         obj0, comb0 = score(base, base.holes0)
     best = None
     interrupted = False
