@@ -396,3 +396,21 @@ def test_concurrent_runs_into_one_folder_end_in_one_complete_result(tmp_path):
     texts = {(out / n).read_text() for n in ("original.step", "results.json")}
     assert len(texts) == 1  # one writer's complete result, not a mix
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_output_folder_of_an_older_cadfeat_counts_as_cadfeats(tmp_path):
+    """A folder written before manifests existed (only cadfeat's names, a results.json naming cadfeat_version) is
+    cadfeat's; one more file of the user's, or a results.json of someone else, and it is not."""
+    from cadfeat.cad.output_folder import is_cadfeat_folder
+
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "results.json").write_text(json.dumps({"cadfeat_version": "0.1.0"}))
+    (old / "optimised.step").write_text("ISO-10303-21;")
+    (old / "img").mkdir()
+    assert is_cadfeat_folder(old)
+    (old / "notes.txt").write_text("mine")
+    assert not is_cadfeat_folder(old)
+    (old / "notes.txt").unlink()
+    (old / "results.json").write_text(json.dumps({"mine": True}))
+    assert not is_cadfeat_folder(old)

@@ -49,14 +49,32 @@ class OutputFolderError(CadfeatError):
 
 
 def _manifest(folder: Path) -> dict[str, Any] | None:
-    """The folder's manifest, or None if it has no valid one."""
+    """The folder's manifest, or None if it has no valid one (see ``_legacy_manifest`` for folders written
+    before the manifest existed)."""
     try:
         data = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return _legacy_manifest(folder)
     except (OSError, ValueError, UnicodeDecodeError):
         return None
     if not isinstance(data, dict) or data.get("cadfeat_output") != 1 or not isinstance(data.get("files", []), list):
         return None
     return data
+
+
+def _legacy_manifest(folder: Path) -> dict[str, Any] | None:
+    """An output folder of a cadfeat version without manifests: only names cadfeat writes (``OUTPUT_NAMES``),
+    and a results.json that cadfeat wrote (it names ``cadfeat_version``). None for anything else."""
+    if folder.is_symlink() or not folder.is_dir():
+        return None
+    try:
+        names = {p.name for p in folder.iterdir()}
+        results = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError, UnicodeDecodeError):
+        return None
+    if not names <= set(OUTPUT_NAMES) or not isinstance(results, dict) or "cadfeat_version" not in results:
+        return None
+    return {"cadfeat_output": 1, "files": sorted(names), "legacy": True}
 
 
 def _listed(folder: Path) -> set[str]:
