@@ -414,3 +414,17 @@ def test_output_folder_of_an_older_cadfeat_counts_as_cadfeats(tmp_path):
     (old / "notes.txt").unlink()
     (old / "results.json").write_text(json.dumps({"mine": True}))
     assert not is_cadfeat_folder(old)
+
+
+def test_cad_work_in_a_worker_is_cut_off_at_the_limit():
+    """The mechanism behind the time limit of STEP re-drilling (``call_with_time_limit``): the result comes back
+    from the worker; a call that runs past the limit is stopped within the limit plus start-up."""
+    from cadfeat.cad.parts import PartBuildError, call_with_time_limit
+
+    assert call_with_time_limit(pow, (2, 10), "pow", timeout_s=60) == 1024
+    t0 = time.monotonic()
+    with pytest.raises(PartBuildError, match=r"^sleeping: exceeded|^sleeping exceeded the time limit of 1 s"):
+        call_with_time_limit(time.sleep, (600,), "sleeping", timeout_s=1.0)
+    assert time.monotonic() - t0 < 30
+    with pytest.raises(PartBuildError, match="ZeroDivisionError"):
+        call_with_time_limit(divmod, (1, 0), "dividing", timeout_s=60)

@@ -60,6 +60,7 @@ __all__ = [
     "DEFAULT_BUILD_TIMEOUT_S",
     "build_shape",
     "build_time_limit",
+    "call_with_time_limit",
     "find_parts",
     "load_part",
     "load_parts",
@@ -528,27 +529,58 @@ def _import_in_worker(path: Path, timeout_s: float) -> None:
 
 
 def _in_worker(path: Path, values: dict[str, Any] | None, timeout_s: float, what: str) -> bytes:
+    status, payload = _run_worker(_worker, (str(path), values), timeout_s, f"{path}: {what}")
+    if status != "ok":
+        message = payload if payload.startswith(str(path)) else f"{path}: {payload}"
+        raise (PartBuildError if values is not None else CadfeatError)(message)
+    return payload
+
+
+def _run_worker(target: Any, args: tuple, timeout_s: float, what: str) -> tuple[str, Any]:
+    """``target(*args, conn)`` in a worker process: its ``(status, payload)`` reply, or ``PartBuildError`` when
+    no reply comes within ``timeout_s`` (the worker is killed) or the worker dies."""
     ctx = _context()
     receive, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_worker, args=(str(path), values, send), daemon=True)
+    proc = ctx.Process(target=target, args=(*args, send), daemon=True)
     proc.start()
     send.close()
     try:
         if not receive.poll(timeout_s):
-            raise PartBuildError(f"{path}: {what} exceeded the time limit of {timeout_s:g} s and was stopped; "
+            raise PartBuildError(f"{what} exceeded the time limit of {timeout_s:g} s and was stopped; "
                                  f"{TIME_LIMIT_HINT}")
         try:
-            status, payload = receive.recv()
+            return receive.recv()
         except EOFError:
             proc.join(5.0)
-            raise PartBuildError(f"{path}: {what}: worker died (exit code {proc.exitcode}): out of memory, or a "
-                                 "crash in the CAD kernel?") from None
+            raise PartBuildError(f"{what}: worker died (exit code {proc.exitcode}): out of memory, or a crash in "
+                                 "the CAD kernel?") from None
     finally:
         receive.close()
         if proc.is_alive():
             proc.kill()
         proc.join()
+
+
+def _call_worker(func: Any, args: tuple, conn: Any) -> None:
+    """Worker process: send ('ok', func(*args)) or ('error', message)."""
+    _worker_setup()
+    try:
+        conn.send(("ok", func(*args)))
+    except BaseException as exc:  # noqa: BLE001 - everything goes back to the parent as a message
+        conn.send(("error", f"{exc}" if isinstance(exc, CadfeatError) else f"{type(exc).__name__}: {exc}"))
+    finally:
+        conn.close()
+
+
+def call_with_time_limit(func: Any, args: tuple, what: str, timeout_s: float | None = None) -> Any:
+    """``func(*args)`` in a worker process within ``timeout_s`` (default: the ``build_time_limit`` in force; none:
+    in this process). ``func`` must be importable and ``args`` and the result picklable (CadQuery shapes
+    are). A timeout, a dead worker or an exception raises ``PartBuildError`` starting with ``what``. Used for
+    the CAD work that is not a part script's build, e.g. re-drilling a STEP part's holes."""
+    timeout = timeout_s if timeout_s is not None else _time_limit_s
+    if timeout is None:
+        return func(*args)
+    status, payload = _run_worker(_call_worker, (func, args), timeout, what)
     if status != "ok":
-        message = payload if payload.startswith(str(path)) else f"{path}: {payload}"
-        raise (PartBuildError if values is not None else CadfeatError)(message)
+        raise PartBuildError(f"{what}: {payload}")
     return payload
