@@ -11,10 +11,27 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("directory", nargs="?", default=None,
                         help="folder of part scripts, or one script (default: the parts/ library)")
     parser.add_argument("--holes", action="store_true", help="also build each part and list its holes at the defaults")
+    build_timeout_arg(parser)
+
+
+def build_timeout_arg(parser: argparse.ArgumentParser) -> None:
+    """``--build-timeout S``: the time limit of one part-script import or build (worker process)."""
+    from cadfeat.cad.parts import DEFAULT_BUILD_TIMEOUT_S
+
+    parser.add_argument("--build-timeout", type=float, default=DEFAULT_BUILD_TIMEOUT_S, metavar="S",
+                        help=f"time limit of one part-script import or build, s (default {DEFAULT_BUILD_TIMEOUT_S:g})")
 
 
 def parts(args: argparse.Namespace) -> int:
     """List the part scripts: description, parameters (default, bounds, unit), fixed holes."""
+
+    from cadfeat.cad.parts import build_time_limit
+
+    with build_time_limit(args.build_timeout):
+        return _list_parts(args)
+
+
+def _list_parts(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from cadfeat.cad.parts import find_parts, load_part

@@ -218,7 +218,7 @@ def _extract(shape: Any, prefer_direction: Any = None) -> list[Any]:
 # ----------------------------------------------------------------------------------------- STEP
 def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = None) -> StudySetup:
     """Setup of a STEP study: the selected holes move in their host face planes (``HoleMoveModel``)."""
-    from cadfeat.cad.step_parts import load_step, redrill
+    from cadfeat.cad.step_parts import load_step
     from cadfeat.design.design_space import HoleMoveModel
 
     camera, trajectory, T_task_part = scene or load_scene(config)
@@ -261,8 +261,17 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                       shape0=step.shape, holes0=holes0, fixed_mask=fixed, movable_mask=movable_mask, space=space,
                       model=model, problem=problem, constraints=cc,
-                      rebuild_shape=lambda x: redrill(step.shape, model.hole_moves(x)),
+                      rebuild_shape=lambda x: _timed_redrill(config, step.shape, model.hole_moves(x)),
                       rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step)
+
+
+def _timed_redrill(config: StudyConfig, shape: Any, moves: Sequence[Any]) -> Any:
+    """``step_parts.redrill`` within the study's ``build_timeout_s`` (a worker process, as part-script builds)."""
+    from cadfeat.cad.parts import call_with_time_limit
+    from cadfeat.cad.step_parts import redrill
+
+    return call_with_time_limit(redrill, (shape, list(moves)), f"{config.study.part_path}: re-drilling "
+                                f"{len(moves)} hole(s)")
 
 
 def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Sequence[int]) -> Any:
