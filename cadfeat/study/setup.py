@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -222,16 +223,15 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
     from cadfeat.design.design_space import HoleMoveModel
 
     camera, trajectory, T_task_part = scene or load_scene(config)
-    step = load_step(config.study.part_path)
+    view = config.design.view_direction or camera_direction(config.study.part_path, trajectory, T_task_part)
+    step = load_step(config.study.part_path, prefer_direction=view)
     holes0 = list(step.holes)
     design = config.design
     movable = [_select(config, holes0, h.select, f"design.holes[{i}].select") for i, h in enumerate(design.holes)]
     if len(set(movable)) != len(movable):
         raise StudyError(f"{config.label}: design.holes: two selectors name the same hole; allowed: each hole once")
-    resize = {h.resize for h in design.holes}
-    if len(resize) > 1:
-        raise StudyError(f"{config.label}: design.holes: resize differs between holes; allowed: the same resize for "
-                         "every movable hole (make the others fixed)")
+    max_offsets = step_offset_limits(config, step, movable)
+    step_dry_run(config, step, movable)
     fixed_idx = [_select(config, holes0, s, f"design.fixed[{i}]") for i, s in enumerate(design.fixed)]
     for i, j in enumerate(fixed_idx):
         if j in movable:
@@ -244,8 +244,9 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
             raise StudyError(f"{config.label}: design.patterns[{i}]: every hole of a pattern must be in design.holes; "
                              f"allowed: holes {', '.join(holes0[j].name for j in movable)}")
     mirrors = _mirror_pairs(holes0, movable, patterns, config.constraints.symmetry)
-    model = HoleMoveModel(holes0, movable, diameter=resize.pop(), patterns=patterns, mirrors=mirrors)
-    space = model.design_space(standard_sizes=design.standard_diameters_mm)
+    resized = [j for spec, j in zip(design.holes, movable, strict=True) if spec.resize]
+    model = HoleMoveModel(holes0, movable, diameter=resized, patterns=patterns, mirrors=mirrors)
+    space = model.design_space(standard_sizes=design.standard_diameters_mm, max_offsets_mm=max_offsets)
     space = _limit_offsets(space, holes0, design, movable)
     movable_mask = np.zeros(len(holes0), bool)
     movable_mask[movable] = True
@@ -261,8 +262,50 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                       shape0=step.shape, holes0=holes0, fixed_mask=fixed, movable_mask=movable_mask, space=space,
                       model=model, problem=problem, constraints=cc,
-                      rebuild_shape=lambda x: redrill(step.shape, model.hole_moves(x)),
+                      rebuild_shape=lambda x: redrill(step.shape, model.hole_moves(x), step.tolerance, step.path),
                       rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step)
+
+
+def camera_direction(part_path: Any, trajectory: Any, T_task_part: np.ndarray) -> np.ndarray | None:
+    """Unit direction (part frame) from the part towards the camera: the mean of the directions from the
+    part's bounding-box centre to the trajectory's camera positions (None if they cancel out)."""
+    from cadfeat.cad.export import import_step
+
+    box = import_step(part_path).BoundingBox()
+    centre = np.array([box.center.x, box.center.y, box.center.z])
+    T_part_task = np.linalg.inv(np.asarray(T_task_part, float))
+    cams = np.asarray(trajectory.T_task_cam, float)[:, :, 3] @ T_part_task.T
+    d = cams[:, :3] - centre
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    mean = d.mean(axis=0)
+    n = float(np.linalg.norm(mean))
+    return mean / n if n > 1e-9 else None
+
+
+def step_offset_limits(config: StudyConfig, step: Any, movable: Sequence[int]) -> dict[int, float]:
+    """``max_offset_mm`` per movable hole index (1 µm for ``move = false``). A hole whose host face is not
+    planar must give one: ``StudyError`` naming the study, the key and the part file otherwise."""
+    limits: dict[int, float] = {}
+    for i, (spec, j) in enumerate(zip(config.design.holes, movable, strict=True)):
+        limit = 1e-3 if not spec.move else spec.max_offset_mm
+        if limit is not None:
+            limits[j] = float(limit)
+        elif step.holes[j].outline is None:
+            raise StudyError(f"{config.label}: design.holes[{i}].max_offset_mm: missing for hole {step.holes[j].name} "
+                             f"of {step.path}, whose host face is not planar; allowed: a positive offset bound in mm")
+    return limits
+
+
+def step_dry_run(config: StudyConfig, step: Any, movable: Sequence[int]) -> None:
+    """Re-drill every movable hole once, slightly moved (and resized where asked), before any optimisation:
+    ``StudyError`` naming the study, the key, the hole and why, if one cannot be re-drilled."""
+    from cadfeat.cad.step_parts import dry_run
+
+    for i, (spec, j) in enumerate(zip(config.design.holes, movable, strict=True)):
+        try:
+            dry_run(step, [step.holes[j]], [spec.resize])
+        except CadfeatError as exc:
+            raise StudyError(f"{config.label}: design.holes[{i}]: {exc}") from None
 
 
 def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Sequence[int]) -> Any:
