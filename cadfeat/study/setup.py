@@ -296,6 +296,26 @@ def step_offset_limits(config: StudyConfig, step: Any, movable: Sequence[int]) -
     return limits
 
 
+def check_step_study(config: StudyConfig) -> str:
+    """What ``cadfeat validate`` adds for a STEP study: load the part (holes, entrances from the camera side),
+    resolve the hole selectors, the offset limits, and dry-run every movable hole (``step_dry_run``).
+    Returns a one-line summary; raises ``StudyError`` naming the study, key, hole and why."""
+    from cadfeat.cad.step_parts import load_step
+
+    _, trajectory, T_task_part = load_scene(config)
+    view = config.design.view_direction or camera_direction(config.study.part_path, trajectory, T_task_part)
+    step = load_step(config.study.part_path, prefer_direction=view)
+    holes = list(step.holes)
+    movable = [_select(config, holes, h.select, f"design.holes[{i}].select")
+               for i, h in enumerate(config.design.holes)]
+    if len(set(movable)) != len(movable):
+        raise StudyError(f"{config.label}: design.holes: two selectors name the same hole; allowed: each hole once")
+    step_offset_limits(config, step, movable)
+    step_dry_run(config, step, movable)
+    names = ", ".join(holes[j].name for j in movable)
+    return f"dry run re-drilled {names} of {step.path.name} (moved and, where asked, resized)"
+
+
 def step_dry_run(config: StudyConfig, step: Any, movable: Sequence[int]) -> None:
     """Re-drill every movable hole once, slightly moved (and resized where asked), before any optimisation:
     ``StudyError`` naming the study, the key, the hole and why, if one cannot be re-drilled."""
