@@ -322,23 +322,42 @@ class _Extractor:
         return [g for g in uf.groups() if any(f in concave for f in g)]
 
     def _join_planar_step(self, f: int, face, concave: dict[int, _Revolution], uf: _UnionFind) -> None:
+        """Join a planar annulus (counterbore floor, flat bottom) to the coaxial concave faces around it; the
+        other half of an annulus written as two faces (split walls) may share its seam edges."""
         neighbours = set()
+        halves = set()
+        p, normal, _ = _face_normal_at_mid(face)
         for e in self.topo.face_edges[f]:
             if BRep_Tool.Degenerated_s(self.topo.edges[e]):
                 continue
             others = [g for g in self.topo.edge_faces[e] if g != f]
-            if not others or any(g not in concave for g in others):
+            if not others:
                 return
-            neighbours.update(others)
+            for g in others:
+                if g in concave:
+                    neighbours.add(g)
+                elif self._coplanar(g, p, normal):
+                    halves.add(g)
+                else:
+                    return
         if not neighbours:
             return
         revs = [concave[g] for g in sorted(neighbours)]
-        _, normal, _ = _face_normal_at_mid(face)
         if (np.linalg.norm(np.cross(normal, revs[0].d)) > self.ang
                 or not all(revs[0].coaxial(r, self.lin, self.ang) for r in revs[1:])):
             return
         for r in revs:
             uf.union(f, r.face)
+        for g in halves:
+            uf.union(f, g)
+
+    def _coplanar(self, g: int, p: np.ndarray, normal: np.ndarray) -> bool:
+        """Face g is a plane through point p with the same normal (within the model tolerance)."""
+        face = self.topo.faces[g]
+        if BRepAdaptor_Surface(face).GetType() != GeomAbs_Plane:
+            return False
+        q, n, _ = _face_normal_at_mid(face)
+        return np.linalg.norm(np.cross(n, normal)) <= self.ang and abs(float((q - p) @ normal)) <= self.lin
 
     # --------------------------------------------------------------------------------------- a hole
     def hole(self, group: list[int]) -> tuple[Hole, set[int]] | None:
