@@ -194,7 +194,7 @@ def test_counterbore_and_countersink_resize_keep_the_screw_bore():
     import cadquery as cq
 
     p = part("split_walls")
-    (cxy, cb, cd, cdepth), (sxy, sb, sd, ang) = fx.CBORE, fx.CSINK
+    (cxy, cb, _, cdepth), (sxy, sb, _, ang) = fx.CBORE, fx.CSINK
     moves = [HoleMove(at(p, cxy), np.array([*cxy, T]), 4.0), HoleMove(at(p, sxy), np.array([*sxy, T]), 4.2)]
     result = redrill(p.shape, moves)
     for h in extract_holes(result):

@@ -115,7 +115,7 @@ def perturb_step(text: str) -> str:
     ents = dict(re.findall(r"^#(\d+) = (.*?);\s*$", text, flags=re.M | re.S))
     lines = {k: v for k, v in ents.items()}
     seen_cyl = 0
-    for k, v in ents.items():
+    for v in ents.values():
         m = re.match(r"(CONICAL|CYLINDRICAL)_SURFACE\('',#(\d+)", v)
         if not m:
             continue
