@@ -255,3 +255,51 @@ def test_dry_run_passes_every_fixture_hole_that_can_be_redrilled():
     for name in ("split_walls", "offset_faces", "filleted_rim", "chamfered_rim", "freeform"):
         p = part(name)
         dry_run(p, list(p.holes), [True] * len(p.holes))
+
+
+# ------------------------------------------------------------------------------- study set-up and the CLI
+def _study(part_file: str, holes: list[dict]) -> object:
+    import tomllib
+
+    from cadfeat.study.schema import load_study
+
+    root = Path(__file__).parents[1]
+    raw = tomllib.loads((root / "studies" / "step_real_export.toml").read_text())
+    raw["study"]["part"] = str(CASES / part_file)
+    raw["design"]["holes"] = holes
+    return load_study(raw, base_dir=root / "studies")
+
+
+def test_validate_refuses_a_study_whose_hole_cannot_be_redrilled_naming_key_hole_and_why():
+    from cadfeat.study.schema import StudyError
+    from cadfeat.study.setup import check_step_study
+
+    config = _study("slot_cut.step", [{"select": "H1", "move": True, "max_offset_mm": 2.0}])
+    with pytest.raises(StudyError, match=r"design\.holes\[0\]: .*slot_cut\.step: hole H1 cannot be re-drilled"):
+        check_step_study(config)
+
+
+def test_per_hole_move_and_resize_settings_give_per_hole_variables():
+    from cadfeat.study.setup import setup_study
+
+    config = _study("split_walls.step", [
+        {"select": [-18.0, 0.0, 8.0], "move": True, "resize": True, "max_offset_mm": 4.0},
+        {"select": [0.0, 0.0, 8.0], "move": False, "resize": True},
+        {"select": [18.0, 0.0, 8.0], "move": True, "max_offset_mm": 3.0}])
+    setup = setup_study(config)
+    names = [v.name for v in setup.space.variables]
+    plain, cbore, csink = (setup.part.select(xy).name for xy in ((-18, 0, 8), (0, 0, 8), (18, 0, 8)))
+    assert f"{plain}.d" in names and f"{cbore}.d" in names and f"{csink}.d" not in names
+    bounds = {v.name: (v.lower, v.upper) for v in setup.space.variables}
+    assert bounds[f"{csink}.s"] == (-3.0, 3.0) and bounds[f"{cbore}.s"] == (-1e-3, 1e-3)
+
+
+def test_cli_parts_lists_a_step_parts_holes_and_skipped_openings(capsys):
+    from cadfeat.cli import main
+
+    assert main(["parts", str(CASES / "near_round.step"), "--holes"]) == 0
+    out = capsys.readouterr().out
+    assert "0 hole(s), 2 skipped opening(s)" in out and out.count("near-round") == 2
+    assert main(["parts", str(CASES / "split_walls.step"), "--holes"]) == 0
+    out = capsys.readouterr().out
+    assert "H2: counterbore, entrance Ø6.5 mm (bore Ø3.4 mm)" in out and "host face" in out
