@@ -312,7 +312,8 @@ def redrill(shape: Any, moves: Sequence[HoleMove], tol: ModelTolerance | None = 
 
 def _verify(result: Any, moves: Sequence[HoleMove], profiles: Sequence[HoleProfile], tol: ModelTolerance,
             path: Any) -> None:
-    """Each new hole is found again by extraction at its centre, axis and entrance radius."""
+    """Each new hole is found again by extraction at its centre, axis and entrance radius (a through hole may
+    be found from its other end: on the same axis line, with its exit radius)."""
     from cadfeat.cad.features import extract_holes
 
     found = extract_holes(result, tol=tol)
@@ -321,11 +322,14 @@ def _verify(result: Any, moves: Sequence[HoleMove], profiles: Sequence[HoleProfi
     radii = np.array([h.radius_mm for h in found])
     near = max(1e-3, 10 * tol.linear_mm)
     for move, profile in zip(moves, profiles, strict=True):
-        radius = float(profile.segments[0, 2])
-        ok = ((np.linalg.norm(centres - move.centre, axis=-1) <= near)
-              & (np.abs(radii - radius) <= near)
-              & (np.linalg.norm(np.cross(axes, np.asarray(move.hole.axis, float)), axis=-1) <= 10 * tol.angular_rad))
-        if not ok.any():
+        axis = np.asarray(move.hole.axis, float)
+        radius, exit_radius = float(profile.segments[0, 2]), float(profile.segments[-1, 3])
+        parallel = np.linalg.norm(np.cross(axes, axis), axis=-1) <= 10 * tol.angular_rad
+        same = parallel & (np.linalg.norm(centres - move.centre, axis=-1) <= near) & (np.abs(radii - radius) <= near)
+        if move.hole.through:
+            off_line = np.linalg.norm(np.cross(centres - move.centre, axis), axis=-1)
+            same |= parallel & (off_line <= near) & (axes @ axis < 0) & (np.abs(radii - exit_radius) <= near)
+        if not same.any():
             raise CadfeatError(f"{hole_label(move.hole, path)}: after re-drilling, extraction finds no hole of "
                                f"entrance radius {radius:.6g} mm at {move.centre.tolist()} (it merged with another "
                                "feature or lost its rim)")
