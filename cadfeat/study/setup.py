@@ -82,7 +82,7 @@ def load_scene(config: StudyConfig) -> tuple[Camera, Trajectory, np.ndarray]:
 
 
 def constraint_config(config: StudyConfig, holes: Sequence[Any] = (), movable: Sequence[int] = (),
-                      volume_mm3: float | None = None) -> Any:
+                      volume_mm3: float | None = None, mirror_tol_mm: float = 1e-6) -> Any:
     """``constraints.ConstraintConfig`` of a study; ``symmetry`` becomes the mirror pairs among the movable
     ``holes`` (about the part's x = 0 / y = 0 planes); ``volume_mm3`` is the original part volume."""
     from cadfeat.design.constraints import ConstraintConfig, SymmetryPair
@@ -90,7 +90,7 @@ def constraint_config(config: StudyConfig, holes: Sequence[Any] = (), movable: S
     c = config.constraints
     frac = None if c.volume_change_max_percent is None else c.volume_change_max_percent / 100.0
     pairs = tuple(SymmetryPair(i, j, (0.0, 0.0, 0.0), normal)
-                  for i, j, normal in _mirror_pairs(holes, movable, (), c.symmetry))
+                  for i, j, normal in _mirror_pairs(holes, movable, (), c.symmetry, tol_mm=mirror_tol_mm))
     if c.symmetry != "none" and not pairs:
         raise StudyError(f"{config.label}: constraints.symmetry: no two movable holes mirror each other about the "
                          f"plane(s) {c.symmetry} = 0 of the part; allowed: none, or a symmetry the part has")
@@ -104,7 +104,9 @@ def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Any = Non
     from cadfeat.design.problem import Problem
 
     movable = np.flatnonzero(~np.asarray(args["fixed_mask"], bool))
-    cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]))
+    part = args.get("part")
+    tol = max(1e-6, 10 * part.tolerance.linear_mm) if hasattr(part, "tolerance") else 1e-6
+    cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]), mirror_tol_mm=tol)
     problem = Problem(args["space"], args["model"], args["camera"], args["trajectory"], args["T_task_part"],
                       config.objective, cc, args["fixed_mask"], normaliser=normaliser)
     return problem, cc
@@ -243,7 +245,8 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
         if not set(p) <= set(movable):
             raise StudyError(f"{config.label}: design.patterns[{i}]: every hole of a pattern must be in design.holes; "
                              f"allowed: holes {', '.join(holes0[j].name for j in movable)}")
-    mirrors = _mirror_pairs(holes0, movable, patterns, config.constraints.symmetry)
+    mirrors = _mirror_pairs(holes0, movable, patterns, config.constraints.symmetry,
+                            tol_mm=max(1e-6, 10 * step.tolerance.linear_mm))
     resized = [j for spec, j in zip(design.holes, movable, strict=True) if spec.resize]
     model = HoleMoveModel(holes0, movable, diameter=resized, patterns=patterns, mirrors=mirrors)
     space = model.design_space(standard_sizes=design.standard_diameters_mm, max_offsets_mm=max_offsets)
@@ -252,7 +255,7 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
     movable_mask[movable] = True
     fixed = ~movable_mask
     args = dict(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
-                fixed_mask=fixed, holes=holes0, shape0=step.shape)
+                fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
     problem, cc = _problem(args, config)
 
     def rebuild_holes(shape: Any) -> list[Any]:
