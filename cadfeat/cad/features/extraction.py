@@ -326,6 +326,7 @@ class _Extractor:
         other half of an annulus written as two faces (split walls) may share its seam edges."""
         neighbours = set()
         halves = set()
+        crowded = False  # the face also meets other features (slots, pockets cut into the step)
         p, normal, _ = _face_normal_at_mid(face)
         for e in self.topo.face_edges[f]:
             if BRep_Tool.Degenerated_s(self.topo.edges[e]):
@@ -339,10 +340,15 @@ class _Extractor:
                 elif self._coplanar(g, p, normal):
                     halves.add(g)
                 else:
-                    return
+                    crowded = True
         if not neighbours:
             return
         revs = [concave[g] for g in sorted(neighbours)]
+        if crowded:
+            wide = max((r for r in revs if not r.is_cone), key=lambda r: r.r0, default=revs[0])
+            revs = [r for r in revs if wide.coaxial(r, self.lin, self.ang)]
+            if not self._is_step_between(f, p, normal, revs):
+                return
         if (np.linalg.norm(np.cross(normal, revs[0].d)) > self.ang
                 or not all(revs[0].coaxial(r, self.lin, self.ang) for r in revs[1:])):
             return
@@ -350,6 +356,25 @@ class _Extractor:
             uf.union(f, r.face)
         for g in halves:
             uf.union(f, g)
+
+    def _is_step_between(self, f: int, p: np.ndarray, normal: np.ndarray, revs: list[_Revolution]) -> bool:
+        """A plane that also meets other features is still the step of a stepped bore if it meets coaxial
+        concave cylinders of at least two radii, the wider ones wholly on its outward side and the narrowest
+        wholly on its inner side (a groove around a hole on a face does not qualify)."""
+        cylinders = [r for r in revs if not r.is_cone]
+        if len(cylinders) < 2 or not all(cylinders[0].coaxial(r, self.lin, self.ang) for r in cylinders[1:]):
+            return False
+        r_min, r_max = min(c.r0 for c in cylinders), max(c.r0 for c in cylinders)
+        if r_max <= r_min + self.lin:
+            return False
+        for c in cylinders:
+            pts = np.concatenate([self.edge_points(e) for e in self.topo.face_edges[c.face]])
+            side = (pts - p) @ normal
+            if c.r0 >= r_max - self.lin and side.min() < -self.lin:
+                return False
+            if c.r0 <= r_min + self.lin and side.max() > self.lin:
+                return False
+        return True
 
     def _coplanar(self, g: int, p: np.ndarray, normal: np.ndarray) -> bool:
         """Face g is a plane through point p with the same normal (within the model tolerance)."""
