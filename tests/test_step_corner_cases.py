@@ -243,6 +243,30 @@ def test_part_far_from_the_origin_keeps_its_holes_and_redrills():
     assert shape_volume_mm3(result) == pytest.approx(shape_volume_mm3(p.shape), rel=1e-9)
 
 
+# ------------------------------------------------------------------------------------ steps and grooves
+def test_counterbore_whose_step_a_slot_also_cuts_is_one_counterbore():
+    p = part("crowded_step")
+    xy, bore, cb, depth, *_ = fx.CROWDED
+    (h,) = p.holes
+    assert (h.kind, h.through) == ("counterbore", True)
+    assert (2 * h.radius_mm, 2 * h.bore_radius_mm) == pytest.approx((cb, bore), abs=1e-9)
+    np.testing.assert_allclose(h.centre, [*xy, T], atol=1e-9)
+    with pytest.raises(CadfeatError, match="hole H1 cannot be re-drilled"):
+        dry_run(p, [h])
+
+
+def test_a_groove_around_a_hole_is_no_hole_and_does_not_join_the_face_between_them():
+    """The groove's outer wall is a full concave cylinder, but the groove has material inside (a boss): not a
+    hole; the hole keeps its own walls (the camera side picks its top end)."""
+    p = part("grooved", prefer=(0, 0, 1))
+    xy, d, *_ = fx.GROOVE
+    (h,) = p.holes
+    assert (h.kind, h.through) == ("plain", True)
+    assert 2 * h.radius_mm == pytest.approx(d, abs=1e-9)
+    np.testing.assert_allclose(h.centre, [*xy, T], atol=1e-9)
+    assert h.depth_mm == pytest.approx(T, abs=1e-9)
+
+
 # --------------------------------------------------------------------------------------------- dry run
 def test_dry_run_refuses_a_hole_another_feature_cuts_into_naming_file_and_hole():
     p = part("slot_cut")

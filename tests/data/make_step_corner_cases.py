@@ -16,6 +16,10 @@ module constants, which the tests use as their independent reference.
 - ``freeform``: a plate whose outline is a spline (B-spline side faces: whole-solid volumes from OCCT's
   default integration are off by more than 1e-6 relative) with two plain holes.
 - ``far_from_origin``: the split-wall plate 1.5 m from the origin.
+- ``crowded_step``: a counterbore whose step floor a slot from the top also cuts (Onshape, Fusion 360 parts):
+  still one counterbore.
+- ``grooved``: a plain hole with an annular groove round it on the top face: the groove (a full concave wall
+  round a boss) is no hole, and the face between them is no step.
 - ``slot_cut``: a plain hole whose wall a pocket from the bottom cuts into (3 mm up): it is found (its upper
   wall is a full circle) but cannot be re-drilled; the dry run must refuse it.
 """
@@ -42,6 +46,8 @@ TEARDROP = ((-12.0, 0.0), 5.0)                    # (x, y), diameter (270° arc,
 DBORE = ((12.0, 0.0), 6.0, 0.6)                   # (x, y), diameter, flat at this fraction of the radius
 FREEFORM_HOLES = (((-10.0, 0.0), 5.0), ((12.0, 2.0), 4.0))
 FAR = (1500.0, 0.0, 0.0)
+CROWDED = ((0.0, 0.0), 3.4, 6.5, 3.3, (4.0, 0.0), 6.0, 1.5, 4.0)  # counterbore; slot centre, length, width, depth
+GROOVE = ((0.0, 0.0), 4.0, 5.0, 6.0, 1.0)          # hole (x, y), diameter; groove inner/outer radius, depth
 SLOT = ((0.0, 0.0), 6.0, (0.0, -3.0), 2.0, 3.0)   # hole (x, y), diameter; pocket centre, width, height (mm)
 
 
@@ -198,9 +204,32 @@ def slot_cut():
     return wp.val().cut(slot.val())
 
 
+def crowded_step():
+    import cadquery as cq
+
+    xy, bore, cb, depth, sxy, length, width, sdepth = CROWDED
+    wp = cq.Workplane("XY").box(*PLATE, centered=(True, True, False))
+    wp = wp.faces(">Z").workplane(centerOption="ProjectedOrigin", origin=(0, 0, 0)).pushPoints([xy]).cboreHole(
+        bore, cb, depth)
+    slot = cq.Workplane("XY").center(*sxy).rect(length, width).extrude(sdepth + 1).translate((0, 0, T - sdepth))
+    return wp.val().cut(slot.val())
+
+
+def grooved():
+    import cadquery as cq
+
+    xy, d, r_in, r_out, depth = GROOVE
+    wp = cq.Workplane("XY").box(*PLATE, centered=(True, True, False))
+    wp = wp.faces(">Z").workplane(centerOption="ProjectedOrigin", origin=(0, 0, 0)).pushPoints([xy]).hole(d)
+    ring = (cq.Workplane("XY").center(*xy).circle(r_out).circle(r_in).extrude(depth + 1)
+            .translate((0, 0, T - depth)))
+    return wp.val().cut(ring.val())
+
+
 CASES = {"split_walls": split_walls, "offset_faces": offset_faces,
          "filleted_rim": lambda: rimmed("fillet"), "chamfered_rim": lambda: rimmed("chamfer"),
-         "near_round": near_round, "freeform": freeform, "far_from_origin": far_from_origin, "slot_cut": slot_cut}
+         "near_round": near_round, "freeform": freeform, "far_from_origin": far_from_origin, "slot_cut": slot_cut,
+         "crowded_step": crowded_step, "grooved": grooved}
 
 
 def main() -> None:

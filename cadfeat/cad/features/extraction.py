@@ -414,6 +414,11 @@ class _Extractor:
         exits = [e for e in ends if e.sense != entrance.sense]
         depth = self._depth(entrance, exits, ref, all_pts)
         bore = min(c.r0 for c in cylinders)
+        # a hole is empty inside: not an annular groove round a boss (material at half its radius)
+        mid = entrance.centre - 0.5 * depth * entrance.axis
+        e1, _ = _perpendicular_frame(ref.d)
+        if not all(self.is_outside(mid + k * 0.5 * bore * e1) for k in (1.0, -1.0)):
+            return None
         kind = self._kind(entrance, revs, bore)
         hole = Hole(centre=entrance.centre + 0.0, axis=entrance.axis + 0.0, radius_mm=entrance.radius,
                     bore_radius_mm=bore, depth_mm=depth, through=bool(exits), kind=kind,
@@ -480,7 +485,13 @@ class _Extractor:
         sense = 1.0 if t.mean() >= t_mid else -1.0
         t_extreme = float(t.max() if sense > 0 else t.min())
         step = max(CLASSIFY_STEP_MM, 10 * self.lin)
-        if not self.is_outside(ref.loc + (t_extreme + sense * step) * ref.d):
+        beyond = ref.loc + (t_extreme + sense * step) * ref.d
+        if not self.is_outside(beyond):
+            return None
+        # the rim's own disc must be open too, not only the axis (the outer wall of a groove round a hole)
+        radial = p - ref.loc - np.outer(ref.t(p), ref.d)
+        r_rim = float(np.linalg.norm(radial, axis=1).min())
+        if r_rim > 10 * self.lin and not self.is_outside(beyond + 0.9 * r_rim * radial[0] / np.linalg.norm(radial[0])):
             return None
         weights: dict[int, float] = {}
         walls: set[int] = set()
