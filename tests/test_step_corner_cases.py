@@ -327,3 +327,21 @@ def test_cli_parts_lists_a_step_parts_holes_and_skipped_openings(capsys):
     assert main(["parts", str(CASES / "split_walls.step"), "--holes"]) == 0
     out = capsys.readouterr().out
     assert "H2: counterbore, entrance Ø6.5 mm (bore Ø3.4 mm)" in out and "host face" in out
+
+
+def test_a_hole_on_a_curved_host_needs_max_offset_mm_and_the_error_names_study_key_and_file(tmp_path):
+    """The brake hub's radial hole enters a cylindrical face: without max_offset_mm the study is refused before
+    any work, naming the key and the part file (with it, the dry run then says why it cannot be re-drilled)."""
+    from cadfeat.cad.export import export_step
+    from cadfeat.cad.parts import load_part
+    from cadfeat.study.schema import StudyError
+    from cadfeat.study.setup import check_step_study
+
+    hub = load_part(Path(__file__).parents[1] / "parts" / "brake_disc_hub.py")
+    step = export_step(hub.build(), tmp_path / "hub.step")
+    config = _study(str(step), [{"select": [35.0, 0.0, 18.0], "move": True}])
+    with pytest.raises(StudyError, match=r"design\.holes\[0\]\.max_offset_mm: missing for hole H\d+ of .*hub\.step"):
+        check_step_study(config)
+    config = _study(str(step), [{"select": [35.0, 0.0, 18.0], "move": True, "max_offset_mm": 1.0}])
+    with pytest.raises(StudyError, match=r"design\.holes\[0\]: .*hub\.step: hole H\d+ cannot be re-drilled"):
+        check_step_study(config)
