@@ -189,6 +189,26 @@ def test_through_hole_entrance_follows_the_camera_side():
     np.testing.assert_allclose(at(bottom, fx.CBORE[0]).axis, [0, 0, 1], atol=1e-12)
 
 
+def test_set_screw_hole_entrance_is_on_the_camera_side_not_inside_the_bore():
+    """A radial hole from the +x face into a bore: seen from +x (a trajectory there, or view_direction) its
+    entrance is on the outer face; only a camera inside the bore would pick the bore end."""
+    from cadfeat.study.setup import camera_direction
+    from cadfeat.trajectory import Trajectory
+
+    (bx, _, _), bore, screw, z = fx.SET_SCREW
+    poses = np.repeat(np.eye(4)[None], 2, axis=0)
+    poses[:, :3, 3] = [[200.0, 0.0, z], [200.0, 20.0, z + 20.0]]
+    view = camera_direction(CASES / "set_screw.step", Trajectory(poses, [0.0, 1.0]), np.eye(4))
+    assert view[0] > 0.9
+    (h,) = [g for g in part("set_screw", prefer=view).holes if abs(g.axis[0]) > 0.5]  # the Ø12 bore is a hole too
+    np.testing.assert_allclose(h.centre, [bx / 2, 0.0, z], atol=1e-9)
+    np.testing.assert_allclose(h.axis, [1.0, 0.0, 0.0], atol=1e-12)
+    assert 2 * h.radius_mm == pytest.approx(screw) and h.outline is not None
+    assert h.depth_mm == pytest.approx(bx / 2 - bore / 2, abs=1e-9)  # to where the axis meets the bore wall
+    (inner,) = [g for g in part("set_screw", prefer=(-1.0, 0.0, 0.0)).holes if abs(g.axis[0]) > 0.5]
+    assert inner.centre[0] == pytest.approx(bore / 2, abs=1e-9) and inner.outline is None  # on the bore wall
+
+
 # ------------------------------------------------------------------------------------------ resize rules
 def test_counterbore_and_countersink_resize_keep_the_screw_bore():
     import cadquery as cq

@@ -20,6 +20,8 @@ module constants, which the tests use as their independent reference.
   still one counterbore.
 - ``grooved``: a plain hole with an annular groove round it on the top face: the groove (a full concave wall
   round a boss) is no hole, and the face between them is no step.
+- ``set_screw``: a block with a Ø12 bore and a radial set-screw hole from the +x face into it: a through hole
+  whose two ends look alike; the camera side decides its entrance (not inside the bore).
 - ``slot_cut``: a plain hole whose wall a pocket from the bottom cuts into (3 mm up): it is found (its upper
   wall is a full circle) but cannot be re-drilled; the dry run must refuse it.
 """
@@ -48,6 +50,7 @@ FREEFORM_HOLES = (((-10.0, 0.0), 5.0), ((12.0, 2.0), 4.0))
 FAR = (1500.0, 0.0, 0.0)
 CROWDED = ((0.0, 0.0), 3.4, 6.5, 3.3, (4.0, 0.0), 6.0, 1.5, 4.0)  # counterbore; slot centre, length, width, depth
 GROOVE = ((0.0, 0.0), 4.0, 5.0, 6.0, 1.0)          # hole (x, y), diameter; groove inner/outer radius, depth
+SET_SCREW = ((30.0, 30.0, 20.0), 12.0, 2.5, 10.0)  # block; bore Ø (along z); set-screw Ø (along +x); its z
 SLOT = ((0.0, 0.0), 6.0, (0.0, -3.0), 2.0, 3.0)   # hole (x, y), diameter; pocket centre, width, height (mm)
 
 
@@ -226,10 +229,20 @@ def grooved():
     return wp.val().cut(ring.val())
 
 
+def set_screw():
+    import cadquery as cq
+
+    (bx, by, bz), bore, screw, z = SET_SCREW
+    block = cq.Workplane("XY").box(bx, by, bz, centered=(True, True, False))
+    block = block.cut(cq.Workplane("XY").circle(bore / 2).extrude(bz + 2).translate((0, 0, -1)))
+    radial = cq.Workplane("YZ").center(0.0, z).circle(screw / 2).extrude(bx)
+    return block.cut(radial).val()
+
+
 CASES = {"split_walls": split_walls, "offset_faces": offset_faces,
          "filleted_rim": lambda: rimmed("fillet"), "chamfered_rim": lambda: rimmed("chamfer"),
          "near_round": near_round, "freeform": freeform, "far_from_origin": far_from_origin, "slot_cut": slot_cut,
-         "crowded_step": crowded_step, "grooved": grooved}
+         "crowded_step": crowded_step, "grooved": grooved, "set_screw": set_screw}
 
 
 def main() -> None:
