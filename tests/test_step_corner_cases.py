@@ -129,6 +129,15 @@ def test_rimmed_hole_centre_is_on_the_host_plane_and_the_rim_is_in_kind(rim):
     assert 2 * h.radius_mm == pytest.approx(bore + 2 * size, abs=1e-7)   # the visible rim on the plane
     assert 2 * h.bore_radius_mm == pytest.approx(bore, abs=1e-9)
     assert h.outline is not None and h.depth_mm == pytest.approx(T, abs=1e-9)
+    # OCCT distance: the centre lies on the (untrimmed) plane of its host face
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeVertex
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.gp import gp_Pnt
+
+    plane = BRepBuilderAPI_MakeFace(BRep_Tool.Surface_s(p.shape.Faces()[h.host_face].wrapped), 1e-7).Face()
+    dist = BRepExtrema_DistShapeShape(BRepBuilderAPI_MakeVertex(gp_Pnt(*h.centre)).Vertex(), plane)
+    assert dist.Value() <= 1e-9
 
 
 @pytest.mark.parametrize("rim", ["fillet", "chamfer"])
