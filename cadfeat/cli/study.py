@@ -64,6 +64,10 @@ def validate(args: argparse.Namespace) -> int:
         _check_part(config)
     names = ", ".join(p.name for p in config.design.parameters) or \
         f"{len(config.design.holes)} STEP hole(s)"
+    if config.study.part_kind == "step":  # re-drill every movable hole once now, not after the optimisation
+        from cadfeat.study.setup import check_step_study
+
+        names += f"; {check_step_study(config)}"
     print(f"{config.label}: ok — study '{config.study.name}', {config.study.part_kind} part {config.study.part}, "
           f"varying {names}; objective {config.objective.combine}/{config.objective.aggregate} of "
           f"{', '.join(config.objective.measures)}; optimizer {config.optimizer.method}")

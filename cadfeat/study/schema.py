@@ -11,6 +11,7 @@ what must be kept, what to optimise and how (README, "Study files", has a full a
     [trajectory]   kind = "orbit_arc" + its arguments, or csv = "poses.csv"  (``cadfeat trajectories``)
     [design]       script parts: parameters = ["d", ...] or [design.parameters] d = {lower, upper}
                    STEP parts: holes = [{select = 2 | "H2" | [x, y, z], move, resize, max_offset_mm}]
+                               (move/resize per hole), view_direction = [x, y, z] (towards the camera)
                    both: standard_diameters_mm, fixed = [selectors], patterns = [[selectors], ...]
     [constraints]  edge_distance_mm, ligament_mm, volume_change_max_percent, symmetry
     [objective]    measures, aggregate, combine, weights, thresholds, min_axis_px, rotation_length_mm,
@@ -214,6 +215,9 @@ class DesignSpec:
     standard_diameters_mm: tuple[float, ...] | None = None
     fixed: tuple[Selector, ...] = ()
     patterns: tuple[tuple[Selector, ...], ...] = ()
+    view_direction: tuple[float, float, float] | None = None
+    """STEP parts: unit direction (part frame) from the part towards the camera; picks the entrance end of
+    through holes. Default: from the trajectory (mean direction to the camera positions)."""
 
 
 @dataclass(frozen=True)
@@ -635,10 +639,21 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
             t.fail(f"design.patterns[{i}]", "a pattern needs at least two holes", "a list of ≥ 2 hole selectors")
     if info.part_kind == "step":
         _check_step_design(t, holes, fixed)
+    view = None
+    if t.has("view_direction"):
+        if info.part_kind != "step":
+            t.fail("design.view_direction", "only for STEP parts (a part script gives VIEW_DIRECTION)",
+                   "VIEW_DIRECTION in the part script")
+        view = _vector(t.raw("view_direction"), 3, "design.view_direction", label)
+        norm = math.sqrt(sum(v * v for v in view))
+        if norm == 0:
+            t.fail("design.view_direction", "[0, 0, 0] is not allowed", "a non-zero direction [x, y, z]")
+        view = tuple(v / norm for v in view)
+        echo["view_direction"] = list(view)
     echo.update({"standard_diameters_mm": None if std is None else list(std),
                  "fixed": [list(s) if isinstance(s, tuple) else s for s in fixed],
                  "patterns": [[list(s) if isinstance(s, tuple) else s for s in p] for p in patterns]})
-    return DesignSpec(specs, holes, std, fixed, patterns), params, echo
+    return DesignSpec(specs, holes, std, fixed, patterns, view), params, echo
 
 
 def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
@@ -832,7 +847,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     trajectory = _trajectory_section(top.raw("trajectory"), label, base)
     design, params, design_echo = _design_section(
         _Table(top.raw("design"), "design", label,
-               ["parameters", "holes", "standard_diameters_mm", "fixed", "patterns"]), info, label)
+               ["parameters", "holes", "standard_diameters_mm", "fixed", "patterns", "view_direction"]), info, label)
     constraints = _constraints_section(_Table(top.raw("constraints", {}), "constraints", label,
                                               ["edge_distance_mm", "ligament_mm", "volume_change_max_percent",
                                                "symmetry"]))
