@@ -140,12 +140,17 @@ def test_moves_table_against_the_cad_rebuild(report):
 def test_constraints_design_matrix_files(report, case):
     out, results, _ = case
     _, page, _ = report
-    rows = page.tables["constraints"]
-    assert len(rows) == len(results["constraints"])
-    for row, c in zip(rows, results["constraints"], strict=True):
-        assert row.cells[0].text == c["name"]
-        assert _value(row.cells[4]) == c["margin"]
-        assert row.css == ("ok" if c["ok"] else "violated")
+    rows = page.tables.get("constraints", []) + page.tables.get("constraints-trivial", [])
+    assert len(rows) == len(results["constraints"])  # one check each (B-rep or STEP): one row each
+    names = {h["index"]: h["name"] for h in results["holes"]["after"]}
+    by_key = {(r.cells[0].text, r.cells[1].text): r for r in rows}
+    for c in results["constraints"]:
+        row = by_key[(c["name"], ", ".join(sorted(names[h] for h in c["holes"])))]
+        # columns: name, holes, required, unit, B-rep value/margin, STEP value/margin, status
+        col = 4 if c["checked_on"] == "brep" else 6
+        assert _value(row.cells[col]) == c["value"] and _value(row.cells[col + 1]) == c["margin"]
+        assert row.css in (("ok", "active") if c["ok"] else ("violated",))
+        assert (row.css == "active") == (c["ok"] and c["margin"] < 0.1)
     assert page.by_id["coupling-verdict"] == "uncoupled"
     matrix = [[_value(c) for c in r.cells[1:]] for r in page.tables["design-matrix"]]
     assert matrix == results["design_matrix"]["matrix"]
@@ -181,10 +186,11 @@ def test_violated_requirement_and_interrupted_warning(case, tmp_path):
     results["interrupted"] = True
     page = parse_report(write_report(tmp_path, results, None))
     classes = [r.css for r in page.tables["constraints"]]
-    assert classes[1] == "violated" and classes.count("violated") == 1
-    assert page.tables["constraints"][1].cells[-1].text == "VIOLATED"
+    assert classes[0] == "violated" and classes.count("violated") == 1  # violated rows come first
+    assert page.tables["constraints"][0].cells[-1].text == "VIOLATED"
     text = "".join(page.text)
     assert "interrupted" in text and "1 of 5 kept requirements are violated" in text
+    assert page.by_id["verdict"] == "do not adopt"
 
 
 def test_absent_data_skips_plots_and_sections(tmp_path, caplog):
@@ -208,7 +214,7 @@ def test_malformed_section_becomes_a_note(case, tmp_path, caplog):
     raw = built.path.read_text()
     assert "This section could not be built" in raw and "plot_sweep skipped" in raw
     assert "features" in parse_report(built.path).tables  # the rest is still there
-    assert any("design-matrix" in r.getMessage() for r in caplog.records)
+    assert any("appendix" in r.getMessage() for r in caplog.records)  # the design matrix is in the appendix
 
 
 # ------------------------------------------------------------------------------------------------ renders
@@ -387,3 +393,40 @@ def test_render_inputs_camera_from_results_and_part_pose(case, tmp_path, monkeyp
     assert seen["camera"] == context.camera
     expected = np.linalg.inv(context.trajectory.T_task_cam[4]) @ T_task_part
     np.testing.assert_allclose(fake.calls[0][0], expected, atol=1e-9)
+
+
+# ------------------------------------------------------------------------------------------------ verdict
+def test_verdict_rules_on_modified_results(case, tmp_path):
+    """Each rule moves the decision the way the report states (independent cases built by hand)."""
+    from cadfeat.report.verdict import decide
+
+    _, results, _ = case
+    base = _lean(results)
+    for c in base["constraints"]:  # room to spare everywhere: only the objectives decide
+        c.update(margin=max(c["margin"], 1.0), ok=True)
+    base["objectives"].update(combined_before=1.0, combined_after=1.5, before={"g": 1.0}, after={"g": 1.5},
+                              names=["g"])
+    base["measures"]["after"] = copy.deepcopy(base["measures"]["before"])
+    assert decide(base).decision == "adopt"
+    worse = copy.deepcopy(base)
+    worse["objectives"]["combined_after"] = 0.999
+    assert decide(worse).decision == "do not adopt"
+    active = copy.deepcopy(base)
+    active["constraints"][0].update(margin=1e-6)
+    assert decide(active).decision == "adopt with care"
+    failing = copy.deepcopy(base)
+    failing["measures"]["before"]["per_feature"][0]["focus_min"] = 0.2
+    failing["measures"]["after"]["per_feature"][0]["focus_min"] = -0.1
+    v = decide(failing)
+    assert v.decision == "adopt with care" and any(c.newly_failing and c.hole == "A" for c in v.changes)
+    unverified = copy.deepcopy(base)
+    unverified["requirements_used"] = [{"name": "ligament", "holes": ["A", "C"], "margin": 0.0}]
+    assert decide(unverified).decision == "do not adopt"
+    tracked = copy.deepcopy(base)
+    tracked["tracking"] = {"verdict": "after tracks worse than before (translation error +40 %)"}
+    assert decide(tracked).decision == "adopt with care"
+    page = parse_report(write_report(tmp_path, failing, None))
+    assert page.by_id["verdict"] == "adopt with care"
+    changes = {(r.cells[0].text, r.cells[1].text): r for r in page.tables["hole-changes"]}
+    row = changes[("A", "focus margin")]
+    assert _value(row.cells[3]) == 0.2 and _value(row.cells[4]) == -0.1 and row.cells[6].text == "newly failing"

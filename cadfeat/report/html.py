@@ -29,6 +29,12 @@ td.better{color:#1a6b1a} td.worse{color:#a00} td.nz{background:#fff3cd}
 figure{margin:.8em 0} figure img{max-width:100%;border:1px solid #ddd}
 figcaption{font-size:.85em;color:#555}
 .verdict{font-weight:bold} .big{font-size:1.15em}
+.verdict-box{padding:.7em 1em;margin:1em 0;border:2px solid #999;font-weight:bold}
+.verdict-box.adopt{background:#e3f6e3;border-color:#1a6b1a} .verdict-box.care{background:#fff3cd;border-color:#b8860b}
+.verdict-box.reject{background:#fde4e4;border-color:#a00}
+tr.care td{background:#fff3cd} tr.reject td{background:#fde4e4} tr.adopt td:nth-child(2){color:#1a6b1a}
+tr.active td{background:#fff3cd} tr.active td.status{color:#8a6d00;font-weight:bold}
+details{margin:.6em 0} summary{cursor:pointer;color:#444}
 """
 
 

@@ -26,6 +26,8 @@ from cadfeat.report.context import ReportContext
 from cadfeat.report.html import esc, figure, fmt, note, page, section
 from cadfeat.report.plots import Plot, make_plots
 from cadfeat.report.renders import Renders, make_renders
+from cadfeat.report.requirements import requirements_table
+from cadfeat.report.verdict import verdict_section
 
 log = logging.getLogger(__name__)
 
@@ -199,17 +201,17 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
     subtitle = f"Part {study.get('part') or '?'}" + (f": {study['description']}" if study.get("description") else "")
     rel = _relative(out_dir)
     builders: list[tuple[str, str, Callable[[], str]]] = [
+        ("decision", "Decision", lambda: "" if tables.is_evaluation(results) else verdict_section(results)),
         ("summary", "Summary", lambda: tables.summary(results)),
         ("setup", "Study, camera and trajectory", lambda: tables.setup_table(results)),
         ("renders", "The part before and after", lambda: _renders_section(renders, rel)),
         ("views", "What the camera sees", lambda: _views_section(renders, rel)),
         ("features", "Per-feature measures (worst over the trajectory)", lambda: _features_section(results)),
         ("requirements", "Kept requirements (checked on the rebuilt geometry)",
-         lambda: tables.constraints_table(results)),
-        ("design-matrix", "Design matrix", lambda: tables.design_matrix_table(results)),
+         lambda: requirements_table(results)),
         ("plots", "Plots", lambda: "".join(f"<h3>{esc(p.title)}</h3>" + figure(rel(p.path), p.caption)
                                            for p in plots)),
-        ("normalisation", "Normalisation of the objectives", lambda: tables.normalisation_note(results)),
+        ("appendix", "Appendix: design matrix and normalisation", lambda: _appendix(results)),
         ("files", "Exported files", lambda: tables.files_table(results) + tables.verification_table(results)),
         ("provenance", "Versions and timings", lambda: _provenance(results, timings)),
     ]
@@ -288,3 +290,10 @@ def _provenance(results: dict, timings: dict[str, float]) -> str:
     return (tables.key_value_table(results.get("versions"), "versions", ("library", "version"))
             + tables.key_value_table({**(results.get("timings_s") or {}), **report_t}, "timings",
                                      ("phase", "seconds")))
+
+
+def _appendix(results: dict) -> str:
+    """Design matrix (thesis §2.2.4) and normalisation: background, folded away."""
+    body = tables.design_matrix_table(results) + tables.normalisation_note(results)
+    return f"<details><summary>Design matrix and normalisation of the objectives</summary>{body}</details>" \
+        if body else ""

@@ -487,6 +487,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                      "after": measures_summary(m1, [h.name or f"H{i + 1}" for i, h in enumerate(holes1)],
                                                traj.times_s, config.objective.min_axis_px, _half_image(setup.camera))},
         "constraints": checks,
+        "requirements_used": _requirements_used(setup, x1),
         "design_matrix": dmat,
         "history": history,
         "sweep": sweep,
@@ -499,6 +500,16 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
     shapes = {"shape0": base.shape0, "shape1": shape1, "holes0": base.holes0, "holes1": holes1, "setup": setup,
               "base": base}
     return results, shapes
+
+
+def _requirements_used(setup: StudySetup, x: np.ndarray) -> list[dict[str, Any]]:
+    """The kept requirements the optimiser's model used (kind, hole names, its 2-D margin at ``x``): the report
+    checks that each one was verified on the rebuilt geometry."""
+    labels = setup.problem.constraint_labels()
+    margins = np.asarray(setup.problem.constraints(x), float).reshape(-1)
+    if len(labels) != margins.size:
+        return [{"name": k, "holes": list(h)} for k, h in labels]
+    return [{"name": k, "holes": list(h), "margin": float(m)} for (k, h), m in zip(labels, margins, strict=True)]
 
 
 def _x0_like(setup: StudySetup, base: Any) -> np.ndarray:
