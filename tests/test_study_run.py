@@ -390,3 +390,32 @@ def test_pareto_study_front_is_non_dominated_and_the_chosen_design_is_exported(t
     after = np.array([results["objectives"]["after"][n] for n in front["names"]])
     np.testing.assert_allclose(after, chosen, rtol=1e-6, atol=1e-9)
     assert all(c["ok"] for c in results["constraints"])
+
+
+def test_results_schema_version_poses_and_requirements_used(small_run):
+    """Issue 13: schema_version, the sampled camera poses (equal to the trajectory built directly from the
+    study's table) and every requirement the optimiser used verified on the B-rep and the STEP."""
+    from cadfeat.study.outputs import SCHEMA_VERSION
+    from cadfeat.trajectory import straight_approach
+
+    _, out, _ = small_run
+    data = json.loads((out / "results.json").read_text())
+    assert data["schema_version"] == SCHEMA_VERSION >= 2
+    t = SMALL["trajectory"]
+    traj = straight_approach(start=t["start"], end=t["end"], target=t["target"], n=t["n"], duration_s=t["duration_s"])
+    np.testing.assert_allclose(data["trajectory"]["T_task_cam"], traj.T_task_cam, atol=1e-8)
+    np.testing.assert_allclose(data["trajectory"]["time_s"], traj.times_s, atol=1e-9)
+    used = {(u["name"], tuple(sorted(u["holes"]))) for u in data["requirements_used"]}
+    assert used and all(isinstance(u["margin"], float) for u in data["requirements_used"])
+    for where in ("brep", "step"):
+        checked = {(c["name"], tuple(sorted(c["holes"]))) for c in data["constraints"] if c["checked_on"] == where}
+        assert used <= checked, (where, used - checked)
+
+
+def test_version_flag(capsys):
+    from cadfeat import __version__
+    from cadfeat.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"cadfeat {__version__}"

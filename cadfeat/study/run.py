@@ -34,6 +34,7 @@ import numpy as np
 
 from cadfeat.errors import CadfeatError
 from cadfeat.study.outputs import (
+    SCHEMA_VERSION,
     file_entry,
     hole_dict,
     measures_summary,
@@ -375,8 +376,10 @@ def _normalisation(setup: StudySetup) -> dict[str, Any]:
 
 
 def _trajectory_info(traj: Any) -> dict[str, Any]:
+    """Kind, sample count, duration and the sampled camera poses (``T_task_cam`` (L, 4, 4), mm; ``time_s``)."""
     table_kind = getattr(traj, "name", "") or ""
-    return {"kind": table_kind, "n_samples": len(traj), "duration_s": float(traj.duration_s)}
+    return {"kind": table_kind, "n_samples": len(traj), "duration_s": float(traj.duration_s),
+            "time_s": np.asarray(traj.times_s, float), "T_task_cam": np.asarray(traj.T_task_cam, float)}
 
 
 def _half_image(camera: Any) -> float:
@@ -466,6 +469,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         dmat = _design_matrix(setup, x1)
     traj = setup.trajectory
     results: dict[str, Any] = {
+        "schema_version": SCHEMA_VERSION,
         "cadfeat_version": _version(),
         "created": now_iso(),
         "study": {"name": config.study.name, "file": str(config.file) if config.file else None,
@@ -624,7 +628,8 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
             for f in summary["per_feature"]:
                 f["worst_pose"] = pose
         results = {
-            "cadfeat_version": _version(), "created": now_iso(), "evaluation_only": True,
+            "schema_version": SCHEMA_VERSION, "cadfeat_version": _version(), "created": now_iso(),
+            "evaluation_only": True,
             "study": {"name": config.study.name, "file": str(config.file) if config.file else None,
                       "part": config.study.part, "part_kind": config.study.part_kind, "seed": config.study.seed,
                       "description": config.study.description},
