@@ -64,12 +64,24 @@ def _value(cell) -> float:
 
 
 # ------------------------------------------------------------------------------------------------ structure
-def test_every_image_exists_and_is_relative(report):
+def test_every_image_embedded_and_written_beside(report):
+    """Self-contained by default: each <img> is a data URI holding exactly the bytes of its PNG in img/."""
+    import base64
+
     built, page, _ = report
     assert page.images, "the report has no images"
-    for src in page.images:
+    for src, data in zip(page.images, page.image_srcs, strict=True):
         assert not Path(src).is_absolute() and not src.startswith(("http:", "https:", "file:")), src
         assert (built.path.parent / src).is_file(), f"missing image {src}"
+        assert data.startswith("data:image/png;base64,")
+        assert base64.b64decode(data.split(",", 1)[1]) == (built.path.parent / src).read_bytes()
+
+
+def test_linked_images_when_not_self_contained(case, tmp_path):
+    _, results, _ = case
+    built = build_report(tmp_path, _lean(results, keep=("history",)), None, self_contained=False)
+    page = parse_report(built.path)
+    assert page.image_srcs == page.images == ["img/convergence.png"]
     assert page.scripts == 0, "report.html must not need JavaScript"
 
 

@@ -97,10 +97,24 @@ def table(header: Sequence[str | tuple[str, int]], rows: Iterable[str], table_id
     return f"<table{tid}>{thead}<tbody>{body}</tbody></table>"
 
 
-def figure(src: str, caption: str, alt: str = "") -> str:
-    """An image (``src`` relative to report.html) with a caption."""
-    return (f'<figure><img src="{esc(src)}" alt="{esc(alt or caption)}" loading="eager">'
+def figure(src: str | tuple[str, str], caption: str, alt: str = "") -> str:
+    """An image with a caption. ``src``: a path relative to report.html, or (data URI, that relative path) for
+    an embedded image (the path kept in ``data-file``: the PNG is also written beside the report)."""
+    src, file = src if isinstance(src, tuple) else (src, "")
+    data_file = f' data-file="{esc(file)}"' if file else ""
+    return (f'<figure><img src="{esc(src)}"{data_file} alt="{esc(alt or caption)}" loading="eager">'
             f"<figcaption>{esc(caption)}</figcaption></figure>")
+
+
+def data_uri(path: Any) -> str:
+    """The file as a ``data:`` URI (PNG, SVG, JPEG by suffix; base64)."""
+    import base64
+    from pathlib import Path
+
+    path = Path(path)
+    mime = {".png": "image/png", ".svg": "image/svg+xml", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}.get(
+        path.suffix.lower(), "application/octet-stream")
+    return f"data:{mime};base64,{base64.b64encode(path.read_bytes()).decode('ascii')}"
 
 
 def note(message: str, css: str = "note") -> str:

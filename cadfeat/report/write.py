@@ -1,7 +1,7 @@
 """Assemble report.html: summary, renders, tables, plots and provenance; images beside it in ``img/``.
 
-The page is self-contained (inline CSS, no scripts, images linked relatively) and opens from the file
-system without a server. A section whose data is absent is left out; a section that fails on malformed
+The page is self-contained (inline CSS, images embedded as data URIs — also written to ``img/`` — ) and opens
+from the file system without a server or network. A section whose data is absent is left out; a section that fails on malformed
 data is replaced by a note and a logged warning: writing the report never stops a study.
 """
 
@@ -19,11 +19,12 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from cadfeat.errors import CadfeatError
 from cadfeat.report import tables
 from cadfeat.report.context import ReportContext
-from cadfeat.report.html import esc, figure, fmt, note, page, section
+from cadfeat.report.html import data_uri, esc, figure, fmt, note, page, section
 from cadfeat.report.plots import Plot, make_plots
 from cadfeat.report.renders import Renders, make_renders
 from cadfeat.report.requirements import requirements_table
@@ -70,13 +71,15 @@ def read_results(path: str | Path) -> dict:
 
 
 def build_report(out_dir: str | Path, results: dict, context: ReportContext | None = None, *,
-                 parallel: bool | None = None) -> ReportOutput:
+                 parallel: bool | None = None, self_contained: bool = True) -> ReportOutput:
     """``write_report`` that also returns the images, notes and the time of each phase (s).
 
     ``parallel`` (default: off unless ``CADFEAT_REPORT_PARALLEL=1``): when there are renders, draw the plots
     meanwhile in a child process (``python -m cadfeat.report.plots``; if that fails they are drawn here).
     Off by default: with software OpenGL (llvmpipe, no GPU) the renders already use the cores; on the 2-core
     test machine bench_report measured 6 % less wall time when idle (1.71 s vs 1.83 s) but more under load.
+    ``self_contained`` (default True): images embedded as data URIs, so report.html is one file that can be
+    mailed; the PNGs are written to ``img/`` all the same (False: the page links them).
     ``timings_s``: "renders" (with "renders: part"/"renders: views"), "plots" (drawing time, wherever it ran),
     "plots: wait" (time spent waiting for the child after the renders), "html", "total" (wall).
     """
@@ -112,7 +115,7 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
 
     start = time.perf_counter()
     notes = renders.notes + plot_notes
-    document = _document(out_dir, results, renders, plots, notes, timings)
+    document = _document(out_dir, results, renders, plots, notes, timings, self_contained)
     path = out_dir / REPORT_NAME
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(document, encoding="utf-8")
@@ -194,12 +197,12 @@ def _package_root() -> str:
 
 # ------------------------------------------------------------------------------------------------ sections
 def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot], notes: list[str],
-              timings: dict[str, float]) -> str:
+              timings: dict[str, float], embed: bool = True) -> str:
     study = results.get("study") or {}
     kind = "evaluation" if tables.is_evaluation(results) else "report"
     title = f"cadfeat {kind} — {study.get('name') or 'study'}"
     subtitle = f"Part {study.get('part') or '?'}" + (f": {study['description']}" if study.get("description") else "")
-    rel = _relative(out_dir)
+    rel = _relative(out_dir, embed)
     builders: list[tuple[str, str, Callable[[], str]]] = [
         ("decision", "Decision", lambda: "" if tables.is_evaluation(results) else verdict_section(results)),
         ("summary", "Summary", lambda: tables.summary(results)),
@@ -230,13 +233,15 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
     return page(title, subtitle, sections)
 
 
-def _relative(out_dir: Path) -> Callable[[Path], str]:
-    def rel(path: Path) -> str:
-        return Path(os.path.relpath(Path(path).resolve(), out_dir.resolve())).as_posix()
+def _relative(out_dir: Path, embed: bool = True) -> Callable[[Path], str | tuple[str, str]]:
+    """Image source for ``figure``: the path relative to report.html, or (data URI, that path) when ``embed``."""
+    def rel(path: Path) -> str | tuple[str, str]:
+        relpath = Path(os.path.relpath(Path(path).resolve(), out_dir.resolve())).as_posix()
+        return (data_uri(path), relpath) if embed else relpath
     return rel
 
 
-def _renders_section(renders: Renders, rel: Callable[[Path], str]) -> str:
+def _renders_section(renders: Renders, rel: Callable[[Path], Any]) -> str:
     if not renders.comparison:
         return note("No renders of the part: " + ("; ".join(renders.notes) or "rendering unavailable."))
     captions = {"current": "The current design (evaluation: nothing was moved).",
@@ -262,7 +267,7 @@ def _renders_section(renders: Renders, rel: Callable[[Path], str]) -> str:
     return "".join(out)
 
 
-def _views_section(renders: Renders, rel: Callable[[Path], str]) -> str:
+def _views_section(renders: Renders, rel: Callable[[Path], Any]) -> str:
     if not renders.views:
         return note("No camera views: " + ("; ".join(renders.notes) or "rendering unavailable.")) \
             if renders.samples else ""
