@@ -1,8 +1,9 @@
 """Assemble report.html: summary, renders, tables, plots and provenance; images beside it in ``img/``.
 
-The page is self-contained (inline CSS, images embedded as data URIs — also written to ``img/`` — ) and opens
-from the file system without a server or network. A section whose data is absent is left out; a section that fails on malformed
-data is replaced by a note and a logged warning: writing the report never stops a study.
+The page is self-contained (inline CSS, images embedded as data URIs, also written to ``img/``) and opens
+from the file system without a server or network. A section whose data is absent is left out; a section
+that fails on malformed data is replaced by a note and a logged warning: writing the report never stops a
+study.
 """
 
 from __future__ import annotations
