@@ -442,3 +442,16 @@ def test_verdict_rules_on_modified_results(case, tmp_path):
     changes = {(r.cells[0].text, r.cells[1].text): r for r in page.tables["hole-changes"]}
     row = changes[("A", "focus margin")]
     assert _value(row.cells[3]) == 0.2 and _value(row.cells[4]) == -0.1 and row.cells[6].text == "newly failing"
+
+
+def test_hole_table_matches_results(report):
+    """The hole table lists holes.after: centre, Ø = 2 r, depth, face from the axis (+Z for this plate)."""
+    _, page, results = report
+    rows = page.tables["hole-table"]
+    after = results["holes"]["after"]
+    assert [r.cells[0].text for r in rows] == [h["name"] for h in after]
+    for row, h in zip(rows, after, strict=True):
+        assert row.cells[1].text in ("+Z", "-Z")
+        assert [_value(c) for c in row.cells[2:5]] == pytest.approx(h["centre_mm"], abs=1e-12)
+        assert _value(row.cells[5]) == pytest.approx(2 * h["radius_mm"]) and _value(row.cells[6]) == h["depth_mm"]
+    assert [r.cells[8].text for r in rows] == ["yes", "", "", ""]  # only A moved (dx_A)

@@ -22,7 +22,7 @@ from cadfeat.study.run import evaluate_study, run_study
 PLATE_HALF = (30.0, 20.0)   # study_plate.py: 60 x 40 mm, centred
 FIXED_HOLE = (-22.0, -12.0, 2.0)
 EDGE_MM, LIGAMENT_MM = 3.0, 2.5
-ALLOWED_EXTRA = {"report.html", "img"}
+ALLOWED_EXTRA = {"report.html", "img", "holes.csv"}
 RESULT_KEYS = {"cadfeat_version", "created", "study", "inputs", "camera", "trajectory", "variables", "holes",
                "objectives", "measures", "constraints", "design_matrix", "history", "sweep", "pareto", "files",
                "timings_s", "versions", "interrupted", "verification"}
@@ -378,6 +378,7 @@ def test_pareto_study_front_is_non_dominated_and_the_chosen_design_is_exported(t
     spec["study"]["name"] = "small_pareto"
     spec["objective"]["combine"] = "pareto"
     spec["optimizer"] = {"method": "pareto"}
+    spec["shop"] = {"grid_mm": 0.0, "hole_sizes": "none"}  # the front point itself, not rounded for the shop
     out = tmp_path / "pareto"
     results = run_study(spec, out, quiet=True).results
     front = results["pareto"]
@@ -419,3 +420,53 @@ def test_version_flag(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["--version"])
     assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"cadfeat {__version__}"
+
+
+@pytest.fixture(scope="module")
+def shop_run(tmp_path_factory):
+    """The small plate with the hole diameter and pitch free too: the optimum is rounded for the shop."""
+    cfg = copy.deepcopy(SMALL)
+    cfg["design"]["parameters"].update(diameter={"lower": 2.0, "upper": 6.0}, pitch={"lower": 7.0, "upper": 12.0})
+    out = tmp_path_factory.mktemp("shop") / "shop"
+    mp = pytest.MonkeyPatch()
+    no_report(mp)
+    try:
+        result = run_study(cfg, out, quiet=True)
+    finally:
+        mp.undo()
+    return result, out
+
+
+def test_exported_step_is_shop_ready(shop_run):
+    """Issue 13: the re-imported optimised.step has every moved hole on the 0.1 mm grid and every resized hole
+    at an ISO 273 medium clearance diameter (values typed from the standard here: M3 3.4, M4 4.5, M5 5.5, M6 6.6),
+    holes.csv lists exactly those holes, and every requirement holds on the B-rep and the STEP after rounding."""
+    import csv
+
+    from cadfeat.cad.export import import_step
+    from cadfeat.cad.features import extract_holes
+
+    result, out = shop_run
+    data = json.loads((out / "results.json").read_text())
+    shop = data["shop"]
+    assert shop["applied"] and shop["grid_mm"] == 0.1 and shop["hole_sizes"] == "iso273-medium"
+    assert shop["x_optimum"] != shop["x_shop"]
+    holes = extract_holes(import_step(out / "optimised.step"), prefer_direction=(0, 0, 1))
+    dowel = [h for h in holes if np.allclose(h.centre[:2], FIXED_HOLE[:2], atol=1e-6)]
+    row = [h for h in holes if h not in dowel]
+    assert len(dowel) == 1 and len(row) == 3
+    for h in row:
+        xy = np.asarray(h.centre[:2])
+        np.testing.assert_allclose(xy, np.round(xy, 1), atol=1e-6)
+        assert min(abs(2 * h.radius_mm - d) for d in (3.4, 4.5, 5.5, 6.6)) < 1e-6, 2 * h.radius_mm
+    with (out / "holes.csv").open() as f:
+        table = list(csv.DictReader(f))
+    assert len(table) == len(holes)
+    for h in holes:
+        match = [r for r in table if np.allclose([float(r["x_mm"]), float(r["y_mm"]), float(r["z_mm"])], h.centre,
+                                                 atol=1e-3)]
+        assert len(match) == 1 and float(match[0]["diameter_mm"]) == pytest.approx(2 * h.radius_mm, abs=1e-3)
+        assert match[0]["face"] == "+Z"
+    assert all(c["ok"] for c in data["constraints"])
+    assert {c["checked_on"] for c in data["constraints"]} == {"brep", "step"}
+    assert data["holes"]["after"][1]["centre_mm"][0] == pytest.approx(round(shop["x_shop"]["x0"], 1), abs=1e-6)

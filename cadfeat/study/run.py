@@ -58,7 +58,7 @@ SWEEP_SAMPLES = 41
 OUTLINE_ROUNDS = 4
 ROUNDTRIP_TOL_MM = 1e-6
 PREDICTION_TOL_MM = 1e-6
-OUTPUT_FILES = ("original.step", "optimised.step", "optimised.stl", "results.json")
+OUTPUT_FILES = ("original.step", "optimised.step", "optimised.stl", "holes.csv", "results.json")
 
 
 @dataclass(frozen=True)
@@ -459,8 +459,11 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         raise StudyError(f"{config.label}: no design meets the kept requirements ([constraints], "
                          f"objective.thresholds); the least violating design still breaks: "
                          f"{_violations(setup, x1)}; allowed: relax these requirements or widen design bounds")
+    x_opt = x1
+    with prog.phase("shop"):
+        x1, shop = _shop(setup, x_opt)
     with prog.phase("rebuild"):
-        shape1, holes1, pred_err = _rebuild(setup, x1, getattr(res, "holes", None))
+        shape1, holes1, pred_err = _rebuild(setup, x1, getattr(res, "holes", None) if x1 is x_opt else None)
         m1 = measure_holes(setup, holes1)
         obj1, comb1 = score(setup, holes1)
         checks = _checks(setup, shape1, holes1, "brep")
@@ -492,6 +495,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                                                traj.times_s, config.objective.min_axis_px, _half_image(setup.camera))},
         "constraints": checks,
         "requirements_used": _requirements_used(setup, x1),
+        "shop": shop,
         "design_matrix": dmat,
         "history": history,
         "sweep": sweep,
@@ -504,6 +508,40 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
     shapes = {"shape0": base.shape0, "shape1": shape1, "holes0": base.holes0, "holes1": holes1, "setup": setup,
               "base": base}
     return results, shapes
+
+
+def _shop(setup: StudySetup, x: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+    """The shop-ready design near the optimum ``x`` (``cadfeat.design.shop``, study ``[shop]``) and its
+    results.json block; the optimum itself when rounding would break a kept requirement of the model (the
+    rebuilt design is verified on the B-rep and the STEP either way)."""
+    from cadfeat.design.shop import hole_sizes, shop_design
+
+    spec = setup.config.shop
+    sizes = hole_sizes(spec.hole_sizes)
+    info: dict[str, Any] = {"grid_mm": spec.grid_mm, "hole_sizes": spec.hole_sizes if isinstance(spec.hole_sizes, str)
+                            else list(spec.hole_sizes), "applied": False, "notes": []}
+    if spec.grid_mm <= 0 and not sizes:
+        info["notes"].append("rounding off ([shop] grid_mm = 0, hole_sizes = \"none\")")
+        return x, info
+    sd = shop_design(setup.space, setup.model, x, grid_mm=spec.grid_mm, sizes=sizes)
+    info["notes"] += sd.notes
+    margins = np.asarray(setup.problem.constraints(sd.x), float)
+    names = setup.space.names
+    info.update(x_optimum=dict(zip(names, map(float, x), strict=True)),
+                x_shop=dict(zip(names, map(float, sd.x), strict=True)), residual_mm=sd.residual_mm,
+                moved=[h for h, m in zip(setup.hole_names, sd.moved, strict=True) if m],
+                resized=[h for h, m in zip(setup.hole_names, sd.resized, strict=True) if m])
+    if setup.config.objective.combine != "pareto":
+        info.update(combined_optimum=float(setup.problem.combined(x)),
+                    combined_shop=float(setup.problem.combined(sd.x)))
+    if margins.size and margins.min() < -1e-9:
+        labels = setup.problem.constraint_labels()
+        k = int(np.argmin(margins))
+        info["notes"].append(f"rounding would break {labels[k][0]} {'/'.join(labels[k][1])} (margin "
+                             f"{margins[k]:.3g}); the optimiser's design is delivered unrounded")
+        return x, info
+    info["applied"] = True
+    return sd.x, info
 
 
 def _requirements_used(setup: StudySetup, x: np.ndarray) -> list[dict[str, Any]]:
@@ -567,7 +605,11 @@ def _write_outputs(config: StudyConfig, out: Path, results: dict[str, Any], shap
                                                trip.max_depth_error_mm),
             "step_roundtrip_max_axis_error_rad": trip.max_axis_error_rad, "brep_valid": True,
             "stl_watertight": True, "tolerance_mm": ROUNDTRIP_TOL_MM}
-        results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl")]
+        from cadfeat.report.holes import write_holes_csv
+
+        write_holes_csv(stage / "holes.csv", plain(results))
+        results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl",
+                                                                     "holes.csv")]
         results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
         results["versions"] = versions()
         write_json(stage / "results.json", results)
