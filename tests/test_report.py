@@ -455,3 +455,18 @@ def test_hole_table_matches_results(report):
         assert [_value(c) for c in row.cells[2:5]] == pytest.approx(h["centre_mm"], abs=1e-12)
         assert _value(row.cells[5]) == pytest.approx(2 * h["radius_mm"]) and _value(row.cells[6]) == h["depth_mm"]
     assert [r.cells[8].text for r in rows] == ["yes", "", "", ""]  # only A moved (dx_A)
+
+
+def test_broken_pattern_is_flagged(case, tmp_path):
+    _, results, _ = case
+    results = _lean(results)
+    results["patterns"] = [
+        {"kind": "bolt_circle", "holes": ["A", "B", "C"], "count": 3, "radius_mm": 20.0, "broken": True,
+         "why": "off the circle by up to 6 mm or unevenly spaced"},
+        {"kind": "mirror", "holes": ["C", "D"], "normal": [1.0, 0.0, 0.0], "broken": False, "why": ""}]
+    page = parse_report(write_report(tmp_path, results, None))
+    rows = page.tables["patterns"]
+    assert [r.cells[3].text for r in rows] == ["BROKEN", "kept"] and rows[0].css == "violated"
+    assert page.by_id["verdict"] in ("adopt with care", "do not adopt")
+    rules = {r.cells[0].text.split(" ")[0]: r.cells[1].text for r in page.tables["verdict-rules"]}
+    assert rules["A"] == "adopt with care"  # "A hole pattern of the original ... broken": the patterns rule

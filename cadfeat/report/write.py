@@ -27,6 +27,7 @@ from cadfeat.report import tables
 from cadfeat.report.context import ReportContext
 from cadfeat.report.holes import hole_table
 from cadfeat.report.html import data_uri, esc, figure, fmt, note, page, section
+from cadfeat.report.patterns import patterns_section
 from cadfeat.report.plots import Plot, make_plots
 from cadfeat.report.renders import Renders, make_renders
 from cadfeat.report.requirements import requirements_table
@@ -208,13 +209,14 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
     builders: list[tuple[str, str, Callable[[], str]]] = [
         ("decision", "Decision", lambda: "" if tables.is_evaluation(results) else verdict_section(results)),
         ("summary", "Summary", lambda: tables.summary(results)),
-        ("setup", "Study, camera and trajectory", lambda: tables.setup_table(results)),
+        ("requirements", "Kept requirements (checked on the rebuilt geometry)",
+         lambda: requirements_table(results)),
+        ("holes", "Hole table (shop-ready)", lambda: "" if tables.is_evaluation(results) else hole_table(results)),
+        ("patterns", "Hole patterns", lambda: patterns_section(results)),
         ("renders", "The part before and after", lambda: _renders_section(renders, rel)),
         ("views", "What the camera sees", lambda: _views_section(renders, rel)),
         ("features", "Per-feature measures (worst over the trajectory)", lambda: _features_section(results)),
-        ("holes", "Hole table (shop-ready)", lambda: "" if tables.is_evaluation(results) else hole_table(results)),
-        ("requirements", "Kept requirements (checked on the rebuilt geometry)",
-         lambda: requirements_table(results)),
+        ("setup", "Study, camera and trajectory", lambda: tables.setup_table(results)),
         ("plots", "Plots", lambda: "".join(f"<h3>{esc(p.title)}</h3>" + figure(rel(p.path), p.caption)
                                            for p in plots)),
         ("appendix", "Appendix: design matrix and normalisation", lambda: _appendix(results)),

@@ -496,6 +496,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         "constraints": checks,
         "requirements_used": _requirements_used(setup, x1),
         "shop": shop,
+        "patterns": _patterns(base, holes1),
         "design_matrix": dmat,
         "history": history,
         "sweep": sweep,
@@ -542,6 +543,15 @@ def _shop(setup: StudySetup, x: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]
         return x, info
     info["applied"] = True
     return sd.x, info
+
+
+def _patterns(base: StudySetup, holes1: Sequence[Any]) -> list[dict[str, Any]]:
+    """The original's hole patterns with a movable hole (``cadfeat.design.patterns``), each with ``broken``."""
+    from cadfeat.design.patterns import check_patterns, find_patterns
+
+    movable = np.asarray(base.movable_mask, bool)
+    found = [p for p in find_patterns(base.holes0) if movable[list(p.holes)].any()]
+    return check_patterns(found, list(holes1), base.hole_names) if len(holes1) == len(base.holes0) else []
 
 
 def _requirements_used(setup: StudySetup, x: np.ndarray) -> list[dict[str, Any]]:
