@@ -470,3 +470,21 @@ def test_broken_pattern_is_flagged(case, tmp_path):
     assert page.by_id["verdict"] in ("adopt with care", "do not adopt")
     rules = {r.cells[0].text.split(" ")[0]: r.cells[1].text for r in page.tables["verdict-rules"]}
     assert rules["A"] == "adopt with care"  # "A hole pattern of the original ... broken": the patterns rule
+
+
+def test_robustness_table_and_razor_edge(case, tmp_path):
+    _, results, _ = case
+    results = _lean(results)
+    block = {"g": {"nominal": 2.0, "mean": 1.9, "p05": 1.5, "min": 1.2},
+             "combined": {"nominal": 1.2, "mean": 1.1, "p05": 1.01, "min": 0.9}}
+    results["robustness"] = {"names": ["g"], "samples": 50, "position_tol_mm": 0.1, "size_steps": 1,
+                             "camera_position_mm": 2.0, "camera_angle_deg": 1.0, "manufacturing": block,
+                             "camera": block, "razor_edge": ["camera"]}
+    page = parse_report(write_report(tmp_path, results, None))
+    rows = {r.cells[0].text: r.cells for r in page.tables["robustness"]}
+    assert list(rows) == ["g", "combined"]
+    assert _value(rows["g"][2]) == 1.5 and _value(rows["g"][4]) == pytest.approx(-25.0)
+    assert "Razor-edge optimum" in "".join(page.text)
+    rules = {r.cells[0].text.split(" ")[2]: r.cells[1].text for r in page.tables["verdict-rules"]
+             if r.cells[0].text.startswith("When the robustness")}
+    assert rules == {"robustness": "adopt with care"}

@@ -406,6 +406,14 @@ def test_results_schema_version_poses_and_requirements_used(small_run):
     traj = straight_approach(start=t["start"], end=t["end"], target=t["target"], n=t["n"], duration_s=t["duration_s"])
     np.testing.assert_allclose(data["trajectory"]["T_task_cam"], traj.T_task_cam, atol=1e-8)
     np.testing.assert_allclose(data["trajectory"]["time_s"], traj.times_s, atol=1e-9)
+    rb = data["robustness"]
+    assert rb["names"] == data["objectives"]["names"] and rb["samples"] == 200
+    for block in ("manufacturing", "camera"):
+        for name in (*rb["names"], "combined"):
+            s = rb[block][name]
+            assert s["min"] <= s["p05"] <= s["mean"] + 1e-12 and np.isfinite(s["nominal"])
+    assert rb["manufacturing"]["combined"]["nominal"] == pytest.approx(data["objectives"]["combined_after"],
+                                                                        rel=1e-9)
     used = {(u["name"], tuple(sorted(u["holes"]))) for u in data["requirements_used"]}
     assert used and all(isinstance(u["margin"], float) for u in data["requirements_used"])
     for where in ("brep", "step"):

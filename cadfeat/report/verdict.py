@@ -33,8 +33,9 @@ RULES = (
               "with care. Losses elsewhere are listed below."),
     ("tracking", "When the pose-estimation validation ran: its verdict must not say the new design tracks worse "
                  "or fails; if it does: adopt with care."),
-    ("robustness", "When the robustness study ran: an objective that drops below its original value under the "
-                   "shop tolerance or the camera mounting error (razor-edge optimum): adopt with care."),
+    ("robustness", "When the robustness study ran: if the combined objective's 5th percentile under the shop "
+                   "tolerance or the camera mounting error keeps less than half of the gain (razor-edge optimum): "
+                   "adopt with care."),
     ("patterns", "A hole pattern of the original (bolt circle, grid, mirror pair) broken by the design: adopt "
                  "with care."),
     ("interrupted", "An interrupted optimisation (best design so far, not converged): adopt with care."),
@@ -177,7 +178,7 @@ def _robustness(results: dict) -> list[Finding]:
     edges = rb.get("razor_edge") or []
     return [Finding("robustness", CARE if edges else ADOPT,
                     ("razor-edge: " + ", ".join(map(str, edges))) if edges
-                    else "every objective stays above its original value under the tolerances")]
+                    else "the combined objective keeps at least half of its gain under the tolerances")]
 
 
 def _patterns(results: dict) -> list[Finding]:

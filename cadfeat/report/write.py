@@ -31,6 +31,7 @@ from cadfeat.report.patterns import patterns_section
 from cadfeat.report.plots import Plot, make_plots
 from cadfeat.report.renders import Renders, make_renders
 from cadfeat.report.requirements import requirements_table
+from cadfeat.report.robustness import robustness_section
 from cadfeat.report.verdict import verdict_section
 
 log = logging.getLogger(__name__)
@@ -213,6 +214,7 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
          lambda: requirements_table(results)),
         ("holes", "Hole table (shop-ready)", lambda: "" if tables.is_evaluation(results) else hole_table(results)),
         ("patterns", "Hole patterns", lambda: patterns_section(results)),
+        ("robustness", "Robustness of the optimum", lambda: robustness_section(results)),
         ("renders", "The part before and after", lambda: _renders_section(renders, rel)),
         ("views", "What the camera sees", lambda: _views_section(renders, rel)),
         ("features", "Per-feature measures (worst over the trajectory)", lambda: _features_section(results)),

@@ -470,6 +470,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
     with prog.phase("analyse"):
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, x1)
+        robust = _robustness(setup, base.holes0, holes1, comb0)
     traj = setup.trajectory
     results: dict[str, Any] = {
         "schema_version": SCHEMA_VERSION,
@@ -497,6 +498,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         "requirements_used": _requirements_used(setup, x1),
         "shop": shop,
         "patterns": _patterns(base, holes1),
+        "robustness": robust,
         "design_matrix": dmat,
         "history": history,
         "sweep": sweep,
@@ -543,6 +545,26 @@ def _shop(setup: StudySetup, x: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]
         return x, info
     info["applied"] = True
     return sd.x, info
+
+
+def _robustness(setup: StudySetup, holes0: Sequence[Any], holes1: Sequence[Any],
+                combined_before: float | None) -> dict[str, Any] | None:
+    """Objective drops of the delivered design under the study's ``[robustness]`` tolerances (sampled on
+    features, ``cadfeat.design.robustness``); the holes the shop makes anew are the moved or resized ones."""
+    from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.design.robustness import robustness
+    from cadfeat.design.shop import hole_sizes
+
+    spec = setup.config.robustness
+    if spec.samples <= 0 or len(holes0) != len(holes1):
+        return None
+    c0, _, r0 = holes_to_arrays(list(holes0))
+    c1, a1, r1 = holes_to_arrays(list(holes1))
+    changed = (np.linalg.norm(c1 - c0, axis=1) > 1e-6) | (np.abs(r1 - r0) > 1e-6)
+    return robustness(setup.problem, c1, a1, r1, changed, position_tol_mm=spec.position_tol_mm,
+                      size_steps=spec.size_steps, sizes=hole_sizes(setup.config.shop.hole_sizes),
+                      camera_position_mm=spec.camera_position_mm, camera_angle_deg=spec.camera_angle_deg,
+                      samples=spec.samples, combined_before=combined_before, seed=setup.config.study.seed)
 
 
 def _patterns(base: StudySetup, holes1: Sequence[Any]) -> list[dict[str, Any]]:
