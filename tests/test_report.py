@@ -270,15 +270,19 @@ def test_render_wiring(case, tmp_path, monkeypatch):
     built = build_report(tmp_path, _lean(results), context)
     page = parse_report(built.path)
     L = len(context.trajectory)
-    assert context.samples() == [0, L // 2, L - 1]
-    # the camera views are rendered at inv(T_task_cam) @ T_task_part of the chosen samples
-    expected = np.linalg.inv(context.trajectory.T_task_cam[[0, L // 2, L - 1]])
+    assert context.samples() == [0, L // 2, L - 1]  # without results: first, middle, last
+    # with results: the camera views at each hole's worst pose, at inv(T_task_cam) @ T_task_part
+    worst = sorted({f["worst_pose"] for f in results["measures"]["after"]["per_feature"]})
+    expected = np.linalg.inv(context.trajectory.T_task_cam[worst])
     np.testing.assert_allclose(fake.calls[0], expected, atol=1e-9)
-    for name in ("part_before.png", "part_after.png", "view_before_0.png", "view_after_2.png"):
+    for name in ("part_before.png", "part_after.png", "view_before_0.png", f"view_after_{len(worst) - 1}.png"):
         assert f"img/{name}" in page.images
     for src in page.images:
         assert (tmp_path / src).is_file()
-    assert len(page.images) == 2 + 2 + 6
+    assert len(page.images) == 2 + 2 + 2 * len(worst)
+    text = "".join(page.text)
+    for f in results["measures"]["after"]["per_feature"]:
+        assert "worst pose of" in text and f["name"] in text
     # the close-up pair comes first, above the trajectory overview
     assert page.images[:4] == ["img/closeup_before.png", "img/closeup_after.png", "img/part_before.png",
                                "img/part_after.png"]

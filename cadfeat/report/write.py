@@ -278,10 +278,13 @@ def _views_section(renders: Renders, rel: Callable[[Path], Any]) -> str:
     if not renders.views:
         return note("No camera views: " + ("; ".join(renders.notes) or "rendering unavailable.")) \
             if renders.samples else ""
-    out = ["<p>Synthetic images with the study camera's intrinsics at trajectory samples; predicted hole "
-           "ellipses overlaid.</p>"]
+    out = ["<p>Synthetic images with the study camera's intrinsics at each hole's worst pose (the trajectory "
+           "sample of its smallest margin); predicted hole ellipses and names overlaid.</p>"]
     for i, (sample, t) in enumerate(zip(renders.samples, renders.sample_times_s, strict=True)):
-        figs = "".join(figure(rel(paths[i]), f"{which}: sample {sample} (t = {fmt(t)} s)", f"{which} view {sample}")
+        worst = renders.worst.get(sample)
+        why = f" — worst pose of {', '.join(worst)}" if worst else ""
+        figs = "".join(figure(rel(paths[i]), f"{which}: sample {sample} (t = {fmt(t)} s){why}",
+                              f"{which} view {sample}")
                        for which, paths in renders.views.items() if i < len(paths))
         out.append(f'<div class="pair">{figs}</div>')
     return "".join(out)

@@ -662,13 +662,11 @@ def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], pro
     from cadfeat import report
 
     setup = shapes["setup"]
-    n = len(setup.trajectory)
     fixed = getattr(setup, "fixed_mask", None)
-    context = report.ReportContext(
+    context = report.ReportContext(  # camera views at each hole's worst pose (the report's default)
         shape_before=shapes["shape0"], shape_after=shapes["shape1"], holes_before=shapes["holes0"],
         holes_after=shapes["holes1"], fixed_mask=np.asarray(fixed, bool), camera=setup.camera,
-        trajectory=setup.trajectory, T_task_part=setup.T_task_part,
-        sample_indices=sorted({0, n // 4, n // 2, (3 * n) // 4, n - 1}))
+        trajectory=setup.trajectory, T_task_part=setup.T_task_part)
     with prog.phase("report"):
         report.write_report(stage, plain(results), context)
 
