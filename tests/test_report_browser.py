@@ -112,3 +112,57 @@ def test_page_is_not_blank_in_chromium(browser_report, tmp_path):
     assert grey.shape == (1600, 1200)
     ink = (grey < 200).mean()  # text, table rules, plots
     assert grey.std() > 20.0 and 0.02 < ink < 0.8, (grey.std(), ink)
+
+
+VIEW_SCRIPT = """<script>
+window.addEventListener('load', function () {
+  var out = {};
+  try {
+    var v = window.cadfeat3d;
+    out.after = v.snapshot(); out.which_after = v.which();
+    var labels = Array.prototype.filter.call(document.querySelectorAll('#view3d .lbl'),
+      function (e) { return e.style.display !== 'none'; });
+    out.labels = labels.map(function (e) { return e.textContent; });
+    var xy = v.screen(0);
+    var canvas = document.querySelector('#view3d canvas');
+    canvas.dispatchEvent(new MouseEvent('click', {clientX: xy[0], clientY: xy[1], bubbles: true}));
+    out.info = document.getElementById('view3d-info').innerText;
+    v.show('before'); out.before = v.snapshot(); out.which_before = v.which();
+    v.frame(true); out.framed = v.snapshot();
+  } catch (e) { out.error = String(e); }
+  var pre = document.createElement('pre'); pre.id = 'check3d'; pre.textContent = JSON.stringify(out);
+  document.body.appendChild(pre);
+});
+</script>"""
+
+
+def test_3d_view_offline(browser_report, tmp_path):
+    """The interactive view in report.html ALONE, with every network request failing (proxy and DNS off): it
+    draws a non-blank canvas, switching to "before" changes the picture, each hole is labelled, and a click
+    on a hole shows its measures, equal to results.json."""
+    path, home = browser_report
+    _, results, _ = shared_case()
+    raw = path.read_text()
+    assert not re.search(r"""(src|href)\s*=\s*["']?(https?:)?//""", raw), "the page references the network"
+    page = tmp_path / "alone.html"
+    page.write_text(raw.replace("</body>", VIEW_SCRIPT + "</body>"))
+    proc = _run(["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--proxy-server=127.0.0.1:9",
+                 "--host-resolver-rules=MAP * ~NOTFOUND", "--virtual-time-budget=20000", "--dump-dom",
+                 page.as_uri()], home)
+    match = re.search(r'<pre id="check3d">(.*?)</pre>', proc.stdout, re.S)
+    assert match, f"no 3-D view check (exit {proc.returncode}): {proc.stderr[-2000:]}"
+    out = json.loads(match.group(1).replace("&quot;", '"').replace("&amp;", "&").replace("&lt;", "<")
+                     .replace("&gt;", ">"))
+    assert "error" not in out, out
+    assert out["which_after"] == "after" and out["which_before"] == "before"
+    for snap in (out["after"], out["before"]):
+        assert snap["width"] > 300 and snap["std"] > 5.0, snap  # a part drawn over the background
+    assert out["after"]["hash"] != out["before"]["hash"]  # hole A moved: the picture changed
+    assert out["framed"]["hash"] != out["before"]["hash"]
+    names = [h["name"] for h in results["holes"]["after"]]
+    assert sorted(out["labels"]) == sorted(names)
+    first = results["measures"]["after"]["per_feature"][0]
+    assert out["info"].startswith(first["name"])
+    shown = dict(line.split(": ", 1) for line in out["info"].splitlines() if ": " in line)
+    for key in ("fov_min", "focus_min", "resolution_px_min"):
+        assert float(shown[key]) == pytest.approx(first[key], rel=1e-3)

@@ -1,4 +1,5 @@
-"""HTML building blocks for report.html: escaping, numbers, tables, figures and the page (CSS inline, no JS).
+"""HTML building blocks for report.html: escaping, numbers, tables, figures and the page (CSS inline; the only
+scripts are the interactive 3-D view's, ``cadfeat.report.view3d``).
 
 Every string that comes from the inputs (study, part and hole names, file names, notes, errors) goes
 through ``esc``; numbers go through ``num`` which keeps the full value in a ``data-value`` attribute so
@@ -128,7 +129,7 @@ def section(title: str, body: str, section_id: str) -> str:
 
 
 def page(title: str, subtitle: str, sections: Sequence[str]) -> str:
-    """The whole document: inline CSS, no scripts, UTF-8."""
+    """The whole document: inline CSS, UTF-8 (scripts only inside sections that bring them: the 3-D view)."""
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
             f"<title>{esc(title)}</title><style>{CSS}</style></head><body>"

@@ -33,6 +33,7 @@ from cadfeat.report.renders import Renders, make_renders
 from cadfeat.report.requirements import requirements_table
 from cadfeat.report.robustness import robustness_section
 from cadfeat.report.verdict import verdict_section
+from cadfeat.report.view3d import view3d_section
 
 log = logging.getLogger(__name__)
 
@@ -119,7 +120,15 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
 
     start = time.perf_counter()
     notes = renders.notes + plot_notes
-    document = _document(out_dir, results, renders, plots, notes, timings, self_contained)
+    try:
+        view = view3d_section(context, results)
+    except Exception as exc:  # the interactive view is an extra: its failure is a note
+        log.warning("report: 3-D view not built: %s", exc)
+        notes.append(f"interactive 3-D view not built: {type(exc).__name__}: {exc}")
+        view = ""
+    timings["view3d"] = time.perf_counter() - start
+    start = time.perf_counter()
+    document = _document(out_dir, results, renders, plots, notes, timings, self_contained, view)
     path = out_dir / REPORT_NAME
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(document, encoding="utf-8")
@@ -201,7 +210,7 @@ def _package_root() -> str:
 
 # ------------------------------------------------------------------------------------------------ sections
 def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot], notes: list[str],
-              timings: dict[str, float], embed: bool = True) -> str:
+              timings: dict[str, float], embed: bool = True, view3d: str = "") -> str:
     study = results.get("study") or {}
     kind = "evaluation" if tables.is_evaluation(results) else "report"
     title = f"cadfeat {kind} — {study.get('name') or 'study'}"
@@ -215,6 +224,7 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
         ("holes", "Hole table (shop-ready)", lambda: "" if tables.is_evaluation(results) else hole_table(results)),
         ("patterns", "Hole patterns", lambda: patterns_section(results)),
         ("robustness", "Robustness of the optimum", lambda: robustness_section(results)),
+        ("view3d", "Interactive 3-D view, before and after", lambda: view3d),
         ("renders", "The part before and after", lambda: _renders_section(renders, rel)),
         ("views", "What the camera sees", lambda: _views_section(renders, rel)),
         ("features", "Per-feature measures (worst over the trajectory)", lambda: _features_section(results)),
