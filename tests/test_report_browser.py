@@ -166,3 +166,34 @@ def test_3d_view_offline(browser_report, tmp_path):
     shown = dict(line.split(": ", 1) for line in out["info"].splitlines() if ": " in line)
     for key in ("fov_min", "focus_min", "resolution_px_min"):
         assert float(shown[key]) == pytest.approx(first[key], rel=1e-3)
+
+
+def test_decision_requirements_and_hole_table_in_chromium(browser_report):
+    """The DOM Chromium builds from report.html holds the verdict, the active requirements and the hole table,
+    and they agree with results.json (the verdict with the rules applied here by hand to the plate study)."""
+    from report_html import ReportParser
+
+    path, home = browser_report
+    _, results, _ = shared_case()
+    proc = _run(["--virtual-time-budget=5000", "--dump-dom", path.as_uri()], home)
+    assert "<html" in proc.stdout, proc.stderr[-2000:]
+    page = ReportParser()
+    page.feed(proc.stdout)
+    obj = results["objectives"]
+    gain = (obj["combined_after"] - obj["combined_before"]) / abs(obj["combined_before"])
+    active = [c for c in results["constraints"] if 0 <= c["margin"] < 0.1]
+    expected = "do not adopt" if gain < 0.01 or not all(c["ok"] for c in results["constraints"]) else None
+    if expected is None:
+        worse = [k for k in obj["after"] if obj["after"][k] < obj["before"][k]]
+        fb = {f["name"]: f for f in results["measures"]["before"]["per_feature"]}
+        failing = [f for f in results["measures"]["after"]["per_feature"] for k in
+                   ("fov_min", "fov_px_min", "focus_min", "resolution_px_min") if fb[f["name"]][k] >= 0 > f[k]]
+        expected = "adopt with care" if active or worse or failing else "adopt"
+    assert page.by_id["verdict"] == expected
+    rows = page.tables.get("constraints", [])
+    assert sorted(r.cells[0].text for r in rows if r.css == "active") == sorted(c["name"] for c in active)
+    table = page.tables["hole-table"]
+    assert [r.cells[0].text for r in table] == [h["name"] for h in results["holes"]["after"]]
+    for r, h in zip(table, results["holes"]["after"], strict=True):
+        assert [c.value for c in r.cells[2:5]] == pytest.approx(h["centre_mm"], abs=1e-9)
+        assert r.cells[5].value == pytest.approx(2 * h["radius_mm"], abs=1e-9)
