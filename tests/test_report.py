@@ -492,3 +492,17 @@ def test_robustness_table_and_razor_edge(case, tmp_path):
     rules = {r.cells[0].text.split(" ")[2]: r.cells[1].text for r in page.tables["verdict-rules"]
              if r.cells[0].text.startswith("When the robustness")}
     assert rules == {"robustness": "adopt with care"}
+
+
+def test_verdict_says_when_every_hole_is_out_of_focus(case):
+    """Issue 13: every hole out of focus at its worst pose must be said, even when it was so before too."""
+    from cadfeat.report.verdict import decide
+
+    _, results, _ = case
+    r = _lean(results)
+    for which in ("before", "after"):
+        for f in r["measures"][which]["per_feature"]:
+            f["focus_min"] = -0.5
+    holes = next(f for f in decide(r).findings if f.rule == "holes")
+    n = len(r["measures"]["after"]["per_feature"])
+    assert f"focus margin ({n} of {n} holes)" in holes.detail

@@ -150,16 +150,32 @@ def decide(results: dict) -> Verdict:
     changes = hole_changes(results)
     failing = [c for c in changes if c.newly_failing]
     n_gain, n_loss = sum(c.change > 0 for c in changes), sum(c.change < 0 for c in changes)
-    if changes:
+    still = _failing_after(results)
+    if changes or still:
         detail = f"{n_gain} hole measures better, {n_loss} worse"
         if failing:
             detail += "; newly failing: " + ", ".join(f"{c.hole} {c.measure}" for c in failing[:6])
+        if still:
+            detail += "; failing at the worst pose after: " + ", ".join(f"{label} ({k} of {n} holes)"
+                                                                        for label, k, n in still)
         findings.append(Finding("holes", CARE if failing else ADOPT, detail))
     findings += _tracking(results) + _robustness(results) + _patterns(results)
     if results.get("interrupted"):
         findings.append(Finding("interrupted", CARE, "the optimisation was interrupted"))
     decision = max((f.outcome for f in findings), key=_SEVERITY.get, default=CARE)
     return Verdict(decision, findings, changes, limiting)
+
+
+def _failing_after(results: dict) -> list[tuple[str, int, int]]:
+    """(measure, holes with a negative worst margin, holes) of the design after, for each margin measure."""
+    feats = ((results.get("measures") or {}).get("after") or {}).get("per_feature") or []
+    out = []
+    for key, label, _ in HOLE_MEASURES[:4]:
+        vals = [f.get(key) for f in feats if _is_num(f.get(key))]
+        k = sum(v < 0 for v in vals)
+        if k:
+            out.append((label, k, len(vals)))
+    return out
 
 
 def _tracking(results: dict) -> list[Finding]:
