@@ -304,10 +304,13 @@ def _features_section(results: dict) -> str:
     body = tables.feature_table(results)
     if not body:
         return ""
-    return ("<p>Worst margin of each hole over the trajectory (cf. thesis Table 5.1). Margins: positive = "
-            "satisfied; FOV cone margin cos β − cos(α/2) (eq. 3.1-3.3), focus margin relative to half the depth "
-            "of field (eq. 3.4-3.6), resolution = minor ellipse axis − required (px); worst pose = trajectory "
-            "sample of the smallest margin.</p>" + body)
+    return ("<p>Worst margin of each hole over the trajectory: positive = satisfied, negative = the hole is out "
+            "of view, out of focus or too small in the image at its worst pose (the trajectory sample named in "
+            "the last column).</p>" + body
+            + "<details><summary>Definitions (thesis)</summary><p>Thesis Table 5.1. FOV cone margin "
+            "cos β − cos(α/2) (eq. 3.1-3.3); FOV image margin: distance of the projected rim to the image border "
+            "(px); focus margin relative to half the depth of field (eq. 3.4-3.6); resolution = minor ellipse "
+            "axis − required (px).</p></details>")
 
 
 def _provenance(results: dict, timings: dict[str, float]) -> str:

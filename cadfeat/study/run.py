@@ -460,10 +460,14 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                          f"objective.thresholds); the least violating design still breaks: "
                          f"{_violations(setup, x1)}; allowed: relax these requirements or widen design bounds")
     x_opt = x1
+    verified = getattr(res, "holes", None)
     with prog.phase("shop"):
-        x1, shop = _shop(setup, x_opt)
+        model = _Anchored(setup.model, x_opt, verified)
+        x1, shop, targets = _shop(setup, x_opt, model)
     with prog.phase("rebuild"):
-        shape1, holes1, pred_err = _rebuild(setup, x1, getattr(res, "holes", None) if x1 is x_opt else None)
+        shape1, holes1, pred_err = _rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+        if targets is not None:
+            x1, shape1, holes1, pred_err = _shop_refine(setup, x1, (shape1, holes1, pred_err), targets, shop, model)
         m1 = measure_holes(setup, holes1)
         obj1, comb1 = score(setup, holes1)
         checks = _checks(setup, shape1, holes1, "brep")
@@ -513,7 +517,81 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
     return results, shapes
 
 
-def _shop(setup: StudySetup, x: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+class _Anchored:
+    """The feature model anchored on the CAD-verified holes at ``x0`` (when the trust-region loop gave them):
+    ``features(x) = verified(x0) + model(x) − model(x0)``, so a nonlinear part's small shop rounding is
+    predicted around the real optimum, not around the linearisation point."""
+
+    def __init__(self, model: Any, x0: np.ndarray, verified: Sequence[Any] | None) -> None:
+        from cadfeat.cad.features import holes_to_arrays
+
+        self.model, self.holes = model, model.holes
+        c0, _, r0 = model.features(x0)
+        self.dc, self.dr = np.zeros_like(c0), np.zeros_like(r0)
+        if verified is not None and len(verified) == len(r0):
+            cv, _, rv = holes_to_arrays(list(verified))
+            self.dc, self.dr = cv - c0, rv - r0
+
+    def features(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        c, a, r = self.model.features(x)
+        return c + self.dc, a, r + self.dr
+
+    def features_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        c, a, r = self.model.features_batch(X)
+        return c + self.dc, a, r + self.dr
+
+    def holes_at(self, x: np.ndarray) -> list[Any]:
+        c, a, r = self.features(x)
+        return [dataclasses.replace(h, centre=np.asarray(c[i]), axis=np.asarray(a[i]), radius_mm=float(r[i]))
+                for i, h in enumerate(self.holes)]
+
+
+def _off_target(holes: Sequence[Any], targets: Any) -> float:
+    """Largest distance (mm) of the rebuilt holes' centres and diameters from the shop targets."""
+    from cadfeat.cad.features import holes_to_arrays
+
+    c, _, r = holes_to_arrays(list(holes))
+    return float(max(np.abs(c - targets.target_centres).max(initial=0.0),
+                     np.abs(2 * r - targets.target_diameters).max(initial=0.0)))
+
+
+def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Any, list[Any], float], targets: Any,
+                 info: dict[str, Any], model: Any, rounds: int = 6) -> tuple[np.ndarray, Any, list[Any], float]:
+    """Where the feature model is only a linearisation (a nonlinear part script), the rebuilt holes may miss the
+    grid/table targets: up to ``rounds`` Newton steps on the real CAD rebuild (model Jacobian, the rebuilt
+    holes' error), each kept only if it gets closer. ``info["rebuilt_off_target_mm"]``: what remains."""
+    from cadfeat.design.shop import _jacobian
+
+    shape, holes, err = rebuilt
+    off = _off_target(holes, targets)
+    for _ in range(rounds):
+        if off <= 1e-6:
+            break
+        from cadfeat.cad.features import holes_to_arrays
+
+        c, _, r = holes_to_arrays(holes)
+        resid = np.concatenate([(targets.target_centres - c).reshape(-1), (targets.target_diameters / 2 - r)])
+        step = np.linalg.lstsq(_jacobian(model, x), resid, rcond=None)[0]
+        x_new = setup.space.snap(setup.space.clip(x + step))
+        if np.asarray(setup.problem.constraints(x_new), float).min(initial=0.0) < -1e-9:
+            break
+        try:
+            cand = _rebuild(setup, x_new, [dataclasses.replace(h, centre=h.centre + d, radius_mm=h.radius_mm + e)
+                                           for h, d, e in zip(holes, model.features(x_new)[0] - model.features(x)[0],
+                                                              model.features(x_new)[2] - model.features(x)[2],
+                                                              strict=True)])
+        except CadfeatError:
+            break
+        off_new = _off_target(cand[1], targets)
+        if off_new >= off:
+            break
+        x, (shape, holes, err), off = x_new, cand, off_new
+    info["rebuilt_off_target_mm"] = off
+    info["x_shop"] = dict(zip(setup.space.names, map(float, x), strict=True))
+    return x, shape, holes, err
+
+
+def _shop(setup: StudySetup, x: np.ndarray, model: Any = None) -> tuple[np.ndarray, dict[str, Any], Any]:
     """The shop-ready design near the optimum ``x`` (``cadfeat.design.shop``, study ``[shop]``) and its
     results.json block; the optimum itself when rounding would break a kept requirement of the model (the
     rebuilt design is verified on the B-rep and the STEP either way)."""
@@ -525,8 +603,8 @@ def _shop(setup: StudySetup, x: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]
                             else list(spec.hole_sizes), "applied": False, "notes": []}
     if spec.grid_mm <= 0 and not sizes:
         info["notes"].append("rounding off ([shop] grid_mm = 0, hole_sizes = \"none\")")
-        return x, info
-    sd = shop_design(setup.space, setup.model, x, grid_mm=spec.grid_mm, sizes=sizes)
+        return x, info, None
+    sd = shop_design(setup.space, model if model is not None else setup.model, x, grid_mm=spec.grid_mm, sizes=sizes)
     info["notes"] += sd.notes
     margins = np.asarray(setup.problem.constraints(sd.x), float)
     names = setup.space.names
@@ -542,9 +620,9 @@ def _shop(setup: StudySetup, x: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]
         k = int(np.argmin(margins))
         info["notes"].append(f"rounding would break {labels[k][0]} {'/'.join(labels[k][1])} (margin "
                              f"{margins[k]:.3g}); the optimiser's design is delivered unrounded")
-        return x, info
+        return x, info, None
     info["applied"] = True
-    return sd.x, info
+    return sd.x, info, sd
 
 
 def _robustness(setup: StudySetup, holes0: Sequence[Any], holes1: Sequence[Any],
