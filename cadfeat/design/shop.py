@@ -104,22 +104,69 @@ def _flat(c: np.ndarray, r: np.ndarray) -> np.ndarray:
     return np.concatenate([np.asarray(c, float).reshape(-1), np.asarray(r, float).reshape(-1)])
 
 
+#: Most floor/ceil combinations of the position variables tried when plain rounding breaks a requirement.
+MAX_ROUNDINGS = 4096
+
+
+def rounding_candidates(space: Any, x: np.ndarray, grid_mm: float) -> np.ndarray:
+    """(C, P) designs with the position variables (mm, no standard sizes) on the grid: nearest first, then every
+    floor/ceil combination (at most ``MAX_ROUNDINGS``; beyond that, nearest only), clipped to the bounds."""
+    x = np.asarray(x, float).reshape(-1)
+    pos = np.flatnonzero([v.kind == "position" and v.unit == "mm" and v.standard_sizes is None
+                          for v in space.variables])
+    nearest = x.copy()
+    if grid_mm <= 0 or not pos.size:
+        return nearest[None]
+    nearest[pos] = np.round(x[pos] / grid_mm) * grid_mm
+    out = [space.clip(nearest)]
+    if 2 ** pos.size <= MAX_ROUNDINGS:
+        lo, hi = np.floor(x[pos] / grid_mm) * grid_mm, np.ceil(x[pos] / grid_mm) * grid_mm
+        bits = (np.arange(2 ** pos.size)[:, None] >> np.arange(pos.size)) & 1
+        X = np.tile(x, (len(bits), 1))
+        X[:, pos] = np.where(bits == 1, hi, lo)
+        out += list(space.clip(X))
+    return np.array(out)
+
+
 def shop_design(space: Any, model: Any, x: np.ndarray, *, grid_mm: float = DEFAULT_GRID_MM,
-                sizes: Sequence[float] = ISO_273["medium"], tol_mm: float = 1e-9) -> ShopDesign:
+                sizes: Sequence[float] = ISO_273["medium"], tol_mm: float = 1e-9, problem: Any = None) -> ShopDesign:
     """The shop-ready design near ``x`` (see the module docstring). ``space``: the ``DesignSpace``; ``model``:
     the feature model (``features``, ``features_batch``); ``grid_mm`` 0 keeps positions; ``sizes`` empty
-    keeps diameters."""
+    keeps diameters. With ``problem`` (its ``evaluate_batch`` on ``model``'s variables): when the nearest
+    rounding breaks a kept requirement of the model, the floor/ceil combinations are scored in one batch and
+    the feasible one with the best combined objective is taken (the optimum often sits on a requirement)."""
     x = np.asarray(x, float).reshape(-1)
+    first = _shop_from(space, model, x, rounding_candidates(space, x, grid_mm)[0], grid_mm, sizes, tol_mm)
+    if problem is None or _feasible(problem, first.x):
+        return first
+    cands = rounding_candidates(space, x, grid_mm)[1:]
+    if not len(cands):
+        return first
+    G, C = problem.evaluate_batch(cands)
+    ok = C.min(axis=1, initial=0.0) >= -1e-9
+    score = np.where(ok, np.asarray(problem.combined_from(G), float), -np.inf)
+    for k in np.argsort(-score)[:8]:
+        if not np.isfinite(score[k]):
+            break
+        sd = _shop_from(space, model, x, cands[k], grid_mm, sizes, tol_mm)
+        if _feasible(problem, sd.x):
+            sd.notes.append("the nearest rounding broke a kept requirement: rounded the other way where needed "
+                            "(best feasible floor/ceil combination)")
+            return sd
+    return first
+
+
+def _feasible(problem: Any, x: np.ndarray) -> bool:
+    return float(np.asarray(problem.constraints(x), float).min(initial=0.0)) >= -1e-9
+
+
+def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: float, sizes: Sequence[float],
+               tol_mm: float) -> ShopDesign:
+    """Targets from the rounded variables ``xr`` and the least-squares step towards them."""
     c0, a0, r0 = (np.asarray(v, float) for v in model.features(space.x0))
     c1, a1, r1 = (np.asarray(v, float) for v in model.features(x))
     moved = np.linalg.norm(c1 - c0, axis=1) > tol_mm
     resized = np.abs(r1 - r0) > tol_mm
-    xr = x.copy()
-    if grid_mm > 0:
-        pos = np.array([v.kind == "position" and v.unit == "mm" and v.standard_sizes is None
-                        for v in space.variables])
-        xr[pos] = np.round(x[pos] / grid_mm) * grid_mm
-        xr = space.clip(xr)
     cr, ar, rr = (np.asarray(v, float) for v in model.features(xr))
     tc = cr.copy()
     if grid_mm > 0:

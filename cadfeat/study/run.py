@@ -604,7 +604,8 @@ def _shop(setup: StudySetup, x: np.ndarray, model: Any = None) -> tuple[np.ndarr
     if spec.grid_mm <= 0 and not sizes:
         info["notes"].append("rounding off ([shop] grid_mm = 0, hole_sizes = \"none\")")
         return x, info, None
-    sd = shop_design(setup.space, model if model is not None else setup.model, x, grid_mm=spec.grid_mm, sizes=sizes)
+    sd = shop_design(setup.space, model if model is not None else setup.model, x, grid_mm=spec.grid_mm, sizes=sizes,
+                     problem=setup.problem)
     info["notes"] += sd.notes
     margins = np.asarray(setup.problem.constraints(sd.x), float)
     names = setup.space.names
