@@ -32,6 +32,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog="cadfeat",
         description="Redesign hole features of CAD parts for vision-guided manipulation.",
     )
+    from cadfeat import __version__
+
+    parser.add_argument("--version", action="version", version=f"cadfeat {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for cmd in COMMANDS:
         cmd.add_parser(sub)

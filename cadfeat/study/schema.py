@@ -82,7 +82,10 @@ OPTIMIZER_KEYS = ("method", "starts", "maxiter", "seed", "local_solver", "snap_s
 SCRIPT_SUFFIXES = (".py",)
 STEP_SUFFIXES = (".step", ".stp")
 
-SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer")
+SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer", "shop",
+            "robustness")
+SHOP_KEYS = ("hole_sizes", "grid_mm", "keep_patterns")
+ROBUSTNESS_KEYS = ("position_tol_mm", "size_steps", "camera_position_mm", "camera_angle_deg", "samples")
 REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
 LIMITS = {
     "trajectory_samples": 100_000,   # [trajectory] n (and the rows of a trajectory CSV)
@@ -231,6 +234,30 @@ class ConstraintSpec:
 
 
 @dataclass(frozen=True)
+class ShopSpec:
+    """``[shop]``: shop-ready output (``cadfeat.design.shop``). ``hole_sizes``: a table name of
+    ``shop.HOLE_SIZE_TABLES`` or diameters (mm); ``grid_mm``: drawing grid of moved hole positions (0: off);
+    ``keep_patterns``: holes forming a pattern in the original move as a pattern (false lets them break)."""
+
+    hole_sizes: str | tuple[float, ...] = "iso273-medium"
+    grid_mm: float = 0.1
+    keep_patterns: bool = True
+
+
+@dataclass(frozen=True)
+class RobustnessSpec:
+    """``[robustness]``: tolerances of the robustness study (``cadfeat.design.robustness``): hole positions
+    ±``position_tol_mm``, diameters ±``size_steps`` table steps, camera mount ±``camera_position_mm`` and
+    ±``camera_angle_deg``; ``samples`` random draws each (0: off)."""
+
+    position_tol_mm: float = 0.1
+    size_steps: int = 1
+    camera_position_mm: float = 2.0
+    camera_angle_deg: float = 1.0
+    samples: int = 200
+
+
+@dataclass(frozen=True)
 class StudyConfig:
     """A validated study. ``file`` is None for a study given as a dict; ``base_dir`` resolves paths."""
 
@@ -246,6 +273,8 @@ class StudyConfig:
     optimizer: OptimizerConfig
     part_params: Mapping[str, PartParameter] = field(default_factory=dict, repr=False)
     data: Mapping[str, Any] = field(default_factory=dict, repr=False)
+    shop: ShopSpec = field(default_factory=ShopSpec)
+    robustness: RobustnessSpec = field(default_factory=RobustnessSpec)
 
     @property
     def label(self) -> str:
@@ -747,6 +776,29 @@ def _constraints_section(t: _Table) -> ConstraintSpec:
     )
 
 
+def _shop_section(t: _Table) -> ShopSpec:
+    from cadfeat.design.shop import HOLE_SIZE_TABLES, hole_sizes
+
+    raw = t.raw("hole_sizes", "iso273-medium")
+    allowed = f"one of {', '.join(HOLE_SIZE_TABLES)} or a list of diameters > 0 (mm)"
+    if isinstance(raw, str):
+        sizes: str | tuple[float, ...] = t.string("hole_sizes", "iso273-medium", tuple(HOLE_SIZE_TABLES))
+    elif isinstance(raw, list | tuple) and raw and all(_is_num(v) and v > 0 for v in raw):
+        sizes = hole_sizes(raw)
+    else:
+        t.fail("shop.hole_sizes", f"{_fmt(raw)} is not allowed", allowed)
+    return ShopSpec(hole_sizes=sizes, grid_mm=t.number("grid_mm", 0.1, 0.0, 10.0),
+                    keep_patterns=t.boolean("keep_patterns", True))
+
+
+def _robustness_section(t: _Table) -> RobustnessSpec:
+    return RobustnessSpec(position_tol_mm=t.number("position_tol_mm", 0.1, 0.0, 10.0),
+                          size_steps=t.integer("size_steps", 1, 0, 5),
+                          camera_position_mm=t.number("camera_position_mm", 2.0, 0.0, 100.0),
+                          camera_angle_deg=t.number("camera_angle_deg", 1.0, 0.0, 30.0),
+                          samples=t.integer("samples", 200, 0, 10000))
+
+
 def _objective_section(t: _Table) -> ObjectiveConfig:
     measures = t.raw("measures", list(MEASURES))
     if not isinstance(measures, list) or not measures or not all(isinstance(m, str) and m in MEASURES
@@ -854,6 +906,8 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     objective = _objective_section(_Table(top.raw("objective", {}), "objective", label, list(OBJECTIVE_KEYS)))
     optimizer = _optimizer_section(_Table(top.raw("optimizer", {}), "optimizer", label, list(OPTIMIZER_KEYS)),
                                    info.seed)
+    shop = _shop_section(_Table(top.raw("shop", {}), "shop", label, list(SHOP_KEYS)))
+    robustness = _robustness_section(_Table(top.raw("robustness", {}), "robustness", label, list(ROBUSTNESS_KEYS)))
     if objective.combine == "pareto" and optimizer.method != "pareto":
         raise StudyError(f"{label}: optimizer.method: {optimizer.method!r} cannot give a Pareto front "
                          "(objective.combine = \"pareto\"); allowed: pareto")
@@ -871,9 +925,12 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
         "objective": {**_asdict(objective, OBJECTIVE_KEYS), "measures": list(objective.measures),
                       "weights": dict(objective.weights), "thresholds": dict(objective.thresholds)},
         "optimizer": _asdict(optimizer, OPTIMIZER_KEYS),
+        "shop": {**_asdict(shop), "hole_sizes": shop.hole_sizes if isinstance(shop.hole_sizes, str)
+                 else list(shop.hole_sizes)},
+        "robustness": _asdict(robustness),
     }
     return StudyConfig(path, base, info, camera, pose, trajectory, design, constraints, objective, optimizer,
-                       params, _drop_none(echo))
+                       params, _drop_none(echo), shop=shop, robustness=robustness)
 
 
 def _drop_none(value: Any) -> Any:

@@ -247,10 +247,13 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
                              f"allowed: holes {', '.join(holes0[j].name for j in movable)}")
     mirrors = _mirror_pairs(holes0, movable, patterns, config.constraints.symmetry,
                             tol_mm=max(1e-6, 10 * step.tolerance.linear_mm))
+    pinned: list[int] = []
+    if config.shop.keep_patterns:
+        patterns, mirrors, pinned = _keep_patterns(holes0, movable, patterns, mirrors)
     resized = [j for spec, j in zip(design.holes, movable, strict=True) if spec.resize]
     model = HoleMoveModel(holes0, movable, diameter=resized, patterns=patterns, mirrors=mirrors)
     space = model.design_space(standard_sizes=design.standard_diameters_mm, max_offsets_mm=max_offsets)
-    space = _limit_offsets(space, holes0, design, movable)
+    space = _limit_offsets(space, holes0, design, movable, pinned)
     movable_mask = np.zeros(len(holes0), bool)
     movable_mask[movable] = True
     fixed = ~movable_mask
@@ -340,15 +343,42 @@ def step_dry_run(config: StudyConfig, step: Any, movable: Sequence[int]) -> None
             raise StudyError(f"{config.label}: design.holes[{i}]: {exc}") from None
 
 
-def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Sequence[int]) -> Any:
-    """Per-hole ``max_offset_mm`` (and ``move = false``: position pinned to ±1 µm) applied to the (s, t)
-    bounds of ``HoleMoveModel.design_space``."""
+def _keep_patterns(holes: Sequence[Any], movable: Sequence[int], patterns: list[list[int]],
+                   mirrors: list[tuple[int, int, tuple[float, float, float]]]
+                   ) -> tuple[list[list[int]], list, list[int]]:
+    """``[shop] keep_patterns``: the bolt circles and grids of the original (``cadfeat.design.patterns``) whose
+    holes are all movable move together (one shared offset: the pattern is translated); mirror pairs of movable
+    holes move as mirror images; a movable hole of a pattern whose other holes are fixed is pinned (a single
+    bolt moved off its circle breaks the circle). Explicit ``design.patterns`` and symmetry pairs come first."""
+    from cadfeat.design.patterns import find_patterns
+
+    mov = set(movable)
+    taken = {i for p in patterns for i in p} | {i for m in mirrors for i in m[:2]}
+    patterns, mirrors, pinned = list(patterns), list(mirrors), []
+    for p in find_patterns(holes):
+        idx = list(p.holes)
+        if taken & set(idx) or not mov & set(idx):
+            continue
+        if set(idx) <= mov and p.kind in ("bolt_circle", "grid"):
+            patterns.append(idx)
+        elif set(idx) <= mov and p.kind == "opposite":  # not enforced (a mirror in the axis needs both normals)
+            continue
+        else:
+            pinned += [i for i in idx if i in mov]
+        taken |= set(idx)
+    return patterns, mirrors, pinned
+
+
+def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Sequence[int],
+                   pinned: Sequence[int] = ()) -> Any:
+    """Per-hole ``max_offset_mm`` (and ``move = false`` or ``pinned`` to keep a pattern: position pinned to
+    ±1 µm) applied to the (s, t) bounds of ``HoleMoveModel.design_space``."""
     from cadfeat.design.design_space import DesignSpace
 
     limits = {}
     for spec, j in zip(design.holes, movable, strict=True):
         label = holes[j].name or f"H{j + 1}"
-        limit = 1e-3 if not spec.move else spec.max_offset_mm
+        limit = 1e-3 if not spec.move or j in pinned else spec.max_offset_mm
         if limit is not None:
             limits[f"{label}.s"] = limits[f"{label}.t"] = float(limit)
     variables = []
