@@ -1,0 +1,113 @@
+"""The 12-state constant-velocity model of the pose filters (thesis §6.3.1, eq. 6.1) on SE(3).
+
+The thesis's state is x = [X, Ẋ, Y, Ẏ, Z, Ż, ψ, ψ̇, θ, θ̇, φ, φ̇] (position and Euler angles of the part in
+the camera frame, with their rates) and the process x_k = A x_{k−1} + w_k, A = diag([[1, T], [0, 1]]).
+Euler angles break at large angles (gimbal lock, wrap-around), so here the orientation is a rotation
+matrix and the filter works on an **error state** about the current estimate (a "multiplicative" or
+error-state EKF):
+
+    state       (R, p, ṗ, ω):  T_cam_part = [R, p],  ṗ (mm/s) the rate of p,  ω (rad/s) with Ṙ = [ω]× R
+    error δ     (δp, δθ, δṗ, δω) ∈ R¹²:  p = p̂ + δp,  R = exp([δθ]×) R̂,  ṗ = ṗ̂ + δṗ,  ω = ω̂ + δω
+
+δθ is a rotation vector *about the current estimate*, always small, so nothing breaks at any attitude;
+after each update it is folded back into R̂ ("reset"). Process over a step T (eq. 6.1):
+
+    p ← p + T ṗ,   R ← exp([T ω]×) R,   ṗ, ω constant,
+
+and its error transition (exact to first order, J_l the left Jacobian of SO(3)):
+
+    F = [[I, 0, T I, 0], [0, exp([Tω]×), 0, T J_l(Tω)], [0, 0, I, 0], [0, 0, 0, I]],
+
+which is the thesis's A for small T ω. The process noise is diagonal on the rates, as in the thesis
+(Q = diag(0, q, 0, q, …), §6.3.3), with separate q for the linear (mm²/s²) and angular (rad²/s²) rates
+and an optional pose term.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from cadfeat.poses import hat, make_T
+
+
+def so3_exp(w: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of rotation vectors w (..., 3) (scipy: exact near 0, unlike cv2.Rodrigues)."""
+    w = np.asarray(w, dtype=float)
+    return Rotation.from_rotvec(w.reshape(-1, 3)).as_matrix().reshape(w.shape[:-1] + (3, 3))
+
+
+def so3_log(R: np.ndarray) -> np.ndarray:
+    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3), ‖w‖ ≤ π."""
+    R = np.asarray(R, dtype=float)
+    return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(R.shape[:-2] + (3,))
+
+
+def left_jacobian(w: np.ndarray) -> np.ndarray:
+    """Left Jacobian of SO(3), J_l(w) = I + (1 − cos θ)/θ² [w]× + (θ − sin θ)/θ³ [w]×², series near 0."""
+    w = np.asarray(w, dtype=float)
+    theta = float(np.linalg.norm(w))
+    W = hat(w)
+    if theta < 1e-4:  # series: the closed forms lose all digits to cancellation here
+        B, C = 0.5 - theta**2 / 24.0, 1.0 / 6.0 - theta**2 / 120.0
+    else:
+        B, C = (1.0 - np.cos(theta)) / theta**2, (theta - np.sin(theta)) / theta**3
+    return np.eye(3) + B * W + C * (W @ W)
+
+
+@dataclass
+class PoseState:
+    """Filter state: rotation ``R`` (3, 3) and translation ``p_mm`` (3,) of T_cam_part, their rates
+    ``p_rate_mm_s`` (3,) and ``omega_rad_s`` (3,) (Ṙ = [ω]× R, camera frame)."""
+
+    R: np.ndarray
+    p_mm: np.ndarray
+    p_rate_mm_s: np.ndarray
+    omega_rad_s: np.ndarray
+
+    @classmethod
+    def at_rest(cls, T_cam_part: np.ndarray) -> PoseState:
+        """A state at pose T_cam_part with zero rates (the thesis starts from a stationary robot, §6.3.1)."""
+        T = np.asarray(T_cam_part, dtype=float)
+        return cls(T[:3, :3].copy(), T[:3, 3].copy(), np.zeros(3), np.zeros(3))
+
+    @property
+    def T_cam_part(self) -> np.ndarray:
+        return make_T(self.R, self.p_mm)
+
+    def boxplus(self, delta: np.ndarray) -> PoseState:
+        """State ⊞ δ (12,): p + δp, exp([δθ]×) R, rates + δ rates."""
+        return PoseState(so3_exp(delta[3:6]) @ self.R, self.p_mm + delta[:3], self.p_rate_mm_s + delta[6:9],
+                         self.omega_rad_s + delta[9:12])
+
+    def boxminus(self, other: PoseState) -> np.ndarray:
+        """δ (12,) with self = other ⊞ δ."""
+        return np.concatenate([self.p_mm - other.p_mm, so3_log(self.R @ other.R.T),
+                               self.p_rate_mm_s - other.p_rate_mm_s, self.omega_rad_s - other.omega_rad_s])
+
+
+def predict(state: PoseState, dt_s: float) -> tuple[PoseState, np.ndarray]:
+    """Constant-velocity prediction over ``dt_s`` (module docstring): the new state and F (12, 12)."""
+    phi = dt_s * state.omega_rad_s
+    R_step = so3_exp(phi)
+    new = PoseState(R_step @ state.R, state.p_mm + dt_s * state.p_rate_mm_s, state.p_rate_mm_s.copy(),
+                    state.omega_rad_s.copy())
+    F = np.eye(12)
+    F[0:3, 6:9] = dt_s * np.eye(3)
+    F[3:6, 3:6] = R_step
+    F[3:6, 9:12] = dt_s * left_jacobian(phi)
+    return new, F
+
+
+def process_noise(dt_s: float, q_rate_mm2_s2: float, q_omega_rad2_s2: float, q_pose: tuple[float, float] = (0.0, 0.0),
+                  ) -> np.ndarray:
+    """Q (12, 12) diagonal: the thesis's diag(0, q, 0, q, …) (§6.3.3) with q per rate kind, per step.
+
+    ``q_pose = (mm², rad²)`` adds noise on the pose itself (0 in the thesis). ``dt_s`` is unused (the thesis
+    gives Q per sample, not per second) but kept so a continuous-time Q can replace it.
+    """
+    del dt_s
+    return np.diag(np.concatenate([np.full(3, q_pose[0]), np.full(3, q_pose[1]),
+                                   np.full(3, q_rate_mm2_s2), np.full(3, q_omega_rad2_s2)]))
