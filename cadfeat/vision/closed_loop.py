@@ -140,9 +140,9 @@ def _expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.nda
     facing = np.einsum("fnk,fnk->fn", n_cam, -c_cam) > 0
     out = np.zeros(facing.shape, dtype=bool)
     for k, e in enumerate(obs.predicted):
-        half = np.asarray(e.axes_px)[:, 0] / 2 + 2
-        inside = camera.in_image(np.asarray(e.centre_px), 0.0) & (np.asarray(e.centre_px) > half[:, None]).all(1) & (
-            np.asarray(e.centre_px)[:, 0] < camera.width - half) & (np.asarray(e.centre_px)[:, 1] < camera.height - half)
+        half = np.asarray(e.axes_px)[:, 0] / 2 + 2                    # whole rim inside, 2 px spare
+        cu, cv = np.asarray(e.centre_px)[:, 0], np.asarray(e.centre_px)[:, 1]
+        inside = (cu > half) & (cv > half) & (cu < camera.width - half) & (cv < camera.height - half)
         out[k] = np.asarray(e.valid) & inside & facing[k] & (np.asarray(e.axes_px)[:, 1] >= 3.0)
     return out
 
@@ -179,24 +179,24 @@ def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: 
     T_true = np.asarray(T_true, dtype=float)
     R_, F_ = config.runs, len(T_true)
     pixels = np.full((R_, F_, len(obs.centres), 2), np.nan)
-    errors = {m: (np.full((R_, F_), np.nan), np.full((R_, F_), np.nan)) for m in config.estimators}
+    errors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     summaries: dict[str, list[dict[str, float]]] = {m: [] for m in config.estimators}
     normals = obs.normals if config.rim_model else None
     radii = obs.radii if config.rim_model else None
-    first = []
+    first: list[Detections] = []
     for run in range(R_):
-        seed = config.seed * 1000 + run
-        pixels[run], dets = detect_sequence(obs, config.sensor.noise_grey, seed, config.gate_px)
+        pixels[run], dets = detect_sequence(obs, config.sensor.noise_grey, config.seed * 1000 + run, config.gate_px)
         if run == 0:
             first = dets
-        T0 = initial_pose(T_true[0], config.initial_error_mm, config.initial_error_deg, seed)
-        for m in config.estimators:
-            track = estimate_poses(camera, obs.centres, pixels[run], times_s, m, T0, normals_part=normals,
-                                   radii_mm=radii, tuning=config.tuning)
-            et, er = pose_errors(track.T_cam_part, T_true)
-            errors[m][0][run], errors[m][1][run] = et, er
-            summaries[m].append(run_summary(et, er, times_s, config.settle_frames, config.converged_mm,
-                                            config.converged_deg))
+    T0 = np.stack([initial_pose(T_true[0], config.initial_error_mm, config.initial_error_deg, config.seed * 1000 + run)
+                   for run in range(R_)])
+    for m in config.estimators:  # all runs at once (the filters are batched over runs)
+        track = estimate_poses(camera, obs.centres, pixels, times_s, m, T0, normals_part=normals, radii_mm=radii,
+                               tuning=config.tuning)
+        et, er = pose_errors(track.T_cam_part, T_true[None])
+        errors[m] = (et, er)
+        summaries[m] = [run_summary(et[run], er[run], times_s, config.settle_frames, config.converged_mm,
+                                    config.converged_deg) for run in range(R_)]
     return DesignTracking(errors, summaries, pixels, _expected_visible(camera, obs, T_true), obs.names,
                           np.asarray(times_s, dtype=float), first)
 

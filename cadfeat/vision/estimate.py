@@ -80,7 +80,8 @@ class Track:
 
     ``T_cam_part`` (F, 4, 4) (NaN where a PnP frame was lost), ``covariance`` (F, 12, 12) for the filters
     (error state δp mm, δθ rad, δṗ mm/s, δω rad/s) or (F, 6, 6) for PnP, ``iterations`` (F,) update
-    iterations per frame, ``n_measured`` (F,) holes used per frame, ``method``.
+    iterations per frame, ``n_measured`` (F,) holes used per frame, ``method``. Batched input (B runs) gives
+    the same fields with a leading B axis.
     """
 
     method: str
@@ -92,13 +93,13 @@ class Track:
 
     @property
     def pose_covariance(self) -> np.ndarray:
-        """(F, 6, 6) covariance of (δp mm, δθ rad), left perturbation of T_cam_part."""
-        return self.covariance[:, :6, :6]
+        """(..., F, 6, 6) covariance of (δp mm, δθ rad), left perturbation of T_cam_part."""
+        return self.covariance[..., :6, :6]
 
     @property
     def lost(self) -> np.ndarray:
-        """(F,) bool: frames without a pose estimate."""
-        return ~np.all(np.isfinite(self.T_cam_part.reshape(len(self.T_cam_part), -1)), axis=1)
+        """(..., F) bool: frames without a pose estimate."""
+        return ~np.all(np.isfinite(self.T_cam_part.reshape(self.T_cam_part.shape[:-2] + (16,))), axis=-1)
 
 
 def _check_inputs(camera: Camera, points_part: ArrayLike, pixels: ArrayLike, times_s: ArrayLike, method: str,
@@ -113,10 +114,12 @@ def _check_inputs(camera: Camera, points_part: ArrayLike, pixels: ArrayLike, tim
     t = np.asarray(times_s, dtype=float)
     if X.ndim != 2 or X.shape[1] != 3 or len(X) < 3:
         raise TrackingError(f"estimate_poses: points_part must have shape (N, 3) with N >= 3, got {X.shape}")
-    if z.ndim != 3 or z.shape[1:] != (len(X), 2):
-        raise TrackingError(f"estimate_poses: pixels must have shape (F, {len(X)}, 2), got {z.shape}")
-    if t.shape != (len(z),) or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-        raise TrackingError(f"estimate_poses: times_s must be {len(z)} increasing finite times (s), got shape "
+    if z.ndim not in (3, 4) or z.shape[-2:] != (len(X), 2):
+        raise TrackingError(f"estimate_poses: pixels must have shape (F, {len(X)}, 2) or (B, F, {len(X)}, 2), "
+                            f"got {z.shape}")
+    F_ = z.shape[-3]
+    if t.shape != (F_,) or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise TrackingError(f"estimate_poses: times_s must be {F_} increasing finite times (s), got shape "
                             f"{t.shape}")
     n = np.zeros_like(X) if normals_part is None else np.asarray(normals_part, dtype=float)
     r = np.zeros(len(X)) if radii_mm is None else np.broadcast_to(np.asarray(radii_mm, dtype=float), (len(X),))
@@ -138,10 +141,12 @@ def estimate_poses(camera: Camera, points_part: ArrayLike, pixels: ArrayLike, ti
     ----------
     camera : the calibrated camera (intrinsics + distortion are used in the measurement model).
     points_part : (N, 3) hole (rim) centres in the part frame, mm.
-    pixels : (F, N, 2) measured image positions, px; NaN where a hole was not detected.
+    pixels : (F, N, 2) measured image positions, px; NaN where a hole was not detected. (B, F, N, 2) runs B
+        independent sequences at once (Monte-Carlo runs; the filters are batched over B) and returns
+        (B, F, ...) arrays.
     times_s : (F,) increasing frame times, s.
     method : ``"ekf"``, ``"iekf"`` (thesis §6.3.1–6.3.2) or ``"pnp"`` (``cv2.solvePnP`` per frame).
-    T0_cam_part : (4, 4) initial pose guess; None = EPnP on the first frame (needs 4 detections).
+    T0_cam_part : (4, 4) (or (B, 4, 4)) initial pose guess; None = EPnP on the first frame with 4 detections.
     normals_part, radii_mm : (N, 3) outward axes and (N,) rim radii (mm); with them the measured point is the
         centre of the rim's image ellipse (``measurement`` module), without them the projected point.
     tuning : ``FilterTuning`` (R, Q, P₀, IEKF iterations and τ).
@@ -152,14 +157,25 @@ def estimate_poses(camera: Camera, points_part: ArrayLike, pixels: ArrayLike, ti
     """
     X, z, t, n, r = _check_inputs(camera, points_part, pixels, times_s, method, normals_part, radii_mm)
     tuning = tuning or FilterTuning()
-    T0 = None if T0_cam_part is None else np.asarray(T0_cam_part, dtype=float)
-    if T0 is not None and (T0.shape != (4, 4) or not np.all(np.isfinite(T0))):
-        raise TrackingError(f"estimate_poses: T0_cam_part must be a finite 4x4 transform, got shape {T0.shape}")
-    if T0 is None:
-        T0 = _first_pose(camera, X, z, n, r)
+    single = z.ndim == 3
+    zb = z[None] if single else z
+    B = len(zb)
+    if T0_cam_part is None:
+        T0 = np.stack([_first_pose(camera, X, zb[b], n, r) for b in range(B)])
+    else:
+        T0 = np.asarray(T0_cam_part, dtype=float)
+        if T0.shape not in ((4, 4), (B, 4, 4)) or not np.all(np.isfinite(T0)):
+            raise TrackingError(f"estimate_poses: T0_cam_part must be a finite 4x4 transform (or one per run, "
+                                f"({B}, 4, 4)), got shape {T0.shape}")
+        T0 = np.broadcast_to(T0, (B, 4, 4)).copy()
     if method == "pnp":
-        return _track_pnp(camera, X, z, t, n, r, T0, tuning)
-    return _track_filter(camera, X, z, t, n, r, T0, tuning, iterated=(method == "iekf"))
+        track = _track_pnp(camera, X, zb, t, n, r, T0, tuning)
+    else:
+        track = _track_filter(camera, X, zb, t, n, r, T0, tuning, iterated=(method == "iekf"))
+    if single:
+        track = Track(track.method, track.T_cam_part[0], track.covariance[0], track.iterations[0],
+                      track.n_measured[0], t)
+    return track
 
 
 def _first_pose(camera: Camera, X: np.ndarray, z: np.ndarray, n: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -176,53 +192,68 @@ def _first_pose(camera: Camera, X: np.ndarray, z: np.ndarray, n: np.ndarray, r: 
 # ---------------------------------------------------------------------------------------------- filters
 def _track_filter(camera: Camera, X: np.ndarray, z: np.ndarray, t: np.ndarray, n: np.ndarray, r: np.ndarray,
                   T0: np.ndarray, tuning: FilterTuning, iterated: bool) -> Track:
-    F_ = len(z)
-    poses = np.empty((F_, 4, 4))
-    covs = np.empty((F_, 12, 12))
-    iters = np.zeros(F_, dtype=int)
-    used = np.zeros(F_, dtype=int)
+    """Run the (I)EKF over frames, batched over the leading axis B of z (B, F, N, 2) and T0 (B, 4, 4)."""
+    B, F_ = z.shape[:2]
+    poses = np.empty((B, F_, 4, 4))
+    covs = np.empty((B, F_, 12, 12))
+    iters = np.zeros((B, F_), dtype=int)
+    used = np.zeros((B, F_), dtype=int)
     state = PoseState.at_rest(T0)
-    P = tuning.P0()
+    P = np.broadcast_to(tuning.P0(), (B, 12, 12)).copy()
     n_iter = max(1, int(tuning.iterations)) if iterated else 1
+    Q0 = process_noise(0.0, tuning.q_rate_mm2_s2, tuning.q_omega_rad2_s2, (tuning.q_pose_mm2, tuning.q_pose_rad2))
     for k in range(F_):
         if k > 0:
             dt = float(t[k] - t[k - 1])
             state, Fm = predict(state, dt)
-            Q = process_noise(dt, tuning.q_rate_mm2_s2, tuning.q_omega_rad2_s2, (tuning.q_pose_mm2, tuning.q_pose_rad2))
-            P = Fm @ P @ Fm.T + Q
-        ok = np.all(np.isfinite(z[k]), axis=1)
+            P = Fm @ P @ np.swapaxes(Fm, -1, -2) + Q0
+        ok = np.all(np.isfinite(z[:, k]), axis=-1)                               # (B, N)
         if ok.any():
-            state, P, iters[k] = _update(camera, state, P, z[k, ok].ravel(), X[ok], n[ok], r[ok], tuning.r_px2,
-                                         n_iter, tuning.tau)
-            used[k] = int(ok.sum())
-        poses[k] = state.T_cam_part
-        covs[k] = P
+            state, P, iters[:, k] = _update(camera, state, P, z[:, k], ok, X, n, r, tuning.r_px2, n_iter,
+                                            tuning.tau)
+        used[:, k] = ok.sum(axis=1)
+        poses[:, k] = state.T_cam_part
+        covs[:, k] = P
     return Track("iekf" if iterated else "ekf", poses, covs, iters, used, t)
 
 
-def _update(camera: Camera, prior: PoseState, P: np.ndarray, zk: np.ndarray, X: np.ndarray, n: np.ndarray,
-            r: np.ndarray, r_px2: float, n_iter: int, tau: float) -> tuple[PoseState, np.ndarray, int]:
-    """(I)EKF measurement update (module docstring); returns the posterior state, P and iterations used."""
-    m = len(zk)
-    Rm = r_px2 * np.eye(m)
-    delta = np.zeros(12)
+def _update(camera: Camera, prior: PoseState, P: np.ndarray, zk: np.ndarray, ok: np.ndarray, X: np.ndarray,
+            n: np.ndarray, r: np.ndarray, r_px2: float, n_iter: int, tau: float
+            ) -> tuple[PoseState, np.ndarray, np.ndarray]:
+    """(I)EKF measurement update (module docstring), batched over B runs: zk (B, N, 2) with ``ok`` (B, N)
+    marking the detected holes. Missing holes get zero rows in C and residual, which removes them exactly
+    (their rows of S decouple, their columns of K vanish). Returns the posterior, P and iterations used (B,)."""
+    B, N = ok.shape
+    mask = np.repeat(ok, 2, axis=1).astype(float)                                # (B, 2N)
+    z_flat = np.where(np.repeat(ok, 2, axis=1), zk.reshape(B, 2 * N), 0.0)
+    Rm = r_px2 * np.eye(2 * N)
+    delta = np.zeros((B, 12))
     state = prior
-    count = 0
-    for count in range(1, n_iter + 1):  # noqa: B007 (count is the result)
+    count = np.zeros(B, dtype=int)
+    active = np.ones(B, dtype=bool)
+    C = np.zeros((B, 2 * N, 12))
+    K = np.zeros((B, 12, 2 * N))
+    for _ in range(n_iter):
         h, Jp = measure(camera, state.T_cam_part, X, n, r)
-        C = np.zeros((m, 12))
-        C[:, :6] = Jp.reshape(m, 6)
-        S = C @ P @ C.T + Rm
-        K = np.linalg.solve(S, C @ P).T  # P Cᵀ S⁻¹ (S, P symmetric)
-        new_delta = K @ (zk - h.ravel() + C @ delta)
-        step = new_delta - delta
-        delta = new_delta
+        C_new = np.zeros((B, 2 * N, 12))
+        C_new[:, :, :6] = Jp.reshape(B, 2 * N, 6) * mask[..., None]
+        S = C_new @ P @ np.swapaxes(C_new, -1, -2) + Rm
+        K_new = np.swapaxes(np.linalg.solve(S, C_new @ P), -1, -2)              # P Cᵀ S⁻¹
+        res = (z_flat - h.reshape(B, 2 * N)) * mask
+        new_delta = (K_new @ (res + (C_new @ delta[..., None])[..., 0])[..., None])[..., 0]
+        step = np.sum((new_delta - delta) ** 2, axis=1)
+        a = active[:, None]
+        delta = np.where(a, new_delta, delta)
+        C = np.where(a[..., None], C_new, C)
+        K = np.where(a[..., None], K_new, K)
+        count += active
         state = prior.boxplus(delta)
-        if n_iter > 1 and float(step @ step) < tau:
+        active &= step >= tau
+        if n_iter == 1 or not active.any():
             break
     IKC = np.eye(12) - K @ C
-    P_post = IKC @ P @ IKC.T + K @ Rm @ K.T
-    return state, 0.5 * (P_post + P_post.T), count
+    P_post = IKC @ P @ np.swapaxes(IKC, -1, -2) + r_px2 * K @ np.swapaxes(K * mask[:, None, :], -1, -2)
+    return state, 0.5 * (P_post + np.swapaxes(P_post, -1, -2)), count
 
 
 # ---------------------------------------------------------------------------------------------- PnP
@@ -246,8 +277,9 @@ def _solve_pnp(camera: Camera, X: np.ndarray, z: np.ndarray, n: np.ndarray, r: n
             if T is None:
                 ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, flags=cv2.SOLVEPNP_EPNP)
             else:
-                ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, rvec=_rvec_of(T[:3, :3]), tvec=T[:3, 3].reshape(3, 1).copy(),
-                                              useExtrinsicGuess=True, flags=cv2.SOLVEPNP_ITERATIVE)
+                ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, rvec=_rvec_of(T[:3, :3]),
+                                              tvec=T[:3, 3].reshape(3, 1).copy(), useExtrinsicGuess=True,
+                                              flags=cv2.SOLVEPNP_ITERATIVE)
             if not ok:
                 return None
             rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, dist, rvec, tvec, criteria)
@@ -264,25 +296,27 @@ def _solve_pnp(camera: Camera, X: np.ndarray, z: np.ndarray, n: np.ndarray, r: n
 
 def _track_pnp(camera: Camera, X: np.ndarray, z: np.ndarray, t: np.ndarray, n: np.ndarray, r: np.ndarray,
                T0: np.ndarray, tuning: FilterTuning) -> Track:
-    F_ = len(z)
-    poses = np.full((F_, 4, 4), np.nan)
-    covs = np.full((F_, 6, 6), np.nan)
-    used = np.zeros(F_, dtype=int)
-    guess = T0
-    for k in range(F_):
-        ok = np.all(np.isfinite(z[k]), axis=1)
-        if ok.sum() < 4:
-            continue
-        T = _solve_pnp(camera, X[ok], z[k, ok], n[ok], r[ok], guess)
-        if T is None:
-            continue
-        poses[k] = T
-        _, Jp = measure(camera, T, X[ok], n[ok], r[ok])
-        C = Jp.reshape(-1, 6)
-        try:
-            covs[k] = tuning.r_px2 * np.linalg.inv(C.T @ C)
-        except np.linalg.LinAlgError:
-            pass
-        used[k] = int(ok.sum())
-        guess = T
-    return Track("pnp", poses, covs, np.ones(F_, dtype=int), used, t)
+    """solvePnP per frame and per run: z (B, F, N, 2), T0 (B, 4, 4) the first guess."""
+    B, F_ = z.shape[:2]
+    poses = np.full((B, F_, 4, 4), np.nan)
+    covs = np.full((B, F_, 6, 6), np.nan)
+    used = np.zeros((B, F_), dtype=int)
+    for b in range(B):
+        guess = T0[b]
+        for k in range(F_):
+            ok = np.all(np.isfinite(z[b, k]), axis=1)
+            if ok.sum() < 4:
+                continue
+            T = _solve_pnp(camera, X[ok], z[b, k, ok], n[ok], r[ok], guess)
+            if T is None:
+                continue
+            poses[b, k] = T
+            _, Jp = measure(camera, T, X[ok], n[ok], r[ok])
+            C = Jp.reshape(-1, 6)
+            try:
+                covs[b, k] = tuning.r_px2 * np.linalg.inv(C.T @ C)
+            except np.linalg.LinAlgError:
+                pass
+            used[b, k] = int(ok.sum())
+            guess = T
+    return Track("pnp", poses, covs, np.ones((B, F_), dtype=int), used, t)

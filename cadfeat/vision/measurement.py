@@ -36,50 +36,65 @@ from numpy.typing import ArrayLike
 
 from cadfeat.camera import MIN_DEPTH_MM, Camera
 from cadfeat.measures import image_jacobian
+from cadfeat.measures.lens import distort_terms
 from cadfeat.poses import hat
 
 
 def _basis_motion(c: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """ċ and ṅ (..., 6, 3) for the six unit camera screws e_j (v then ω), eq. 4.3."""
-    eye = np.eye(3)
-    dc = np.empty(c.shape[:-1] + (6, 3))
+    """ċ and ṅ (..., 6, 3) for the six unit camera screws e_j (v then ω), eq. 4.3: ċ = −e_j (j < 3),
+    ċ = −e_j × c = [c]× e_j and ṅ = −e_j × n = [n]× e_j (j ≥ 3)."""
+    dc = np.zeros(c.shape[:-1] + (6, 3))
     dn = np.zeros(c.shape[:-1] + (6, 3))
-    dc[..., :3, :] = -eye
-    dc[..., 3:, :] = -np.cross(eye, c[..., None, :])           # −e_j × c
-    dn[..., 3:, :] = -np.cross(eye, n[..., None, :])           # −e_j × n
+    dc[..., 0, 0] = dc[..., 1, 1] = dc[..., 2, 2] = -1.0
+    dc[..., 3:, :] = np.swapaxes(hat(c), -1, -2)
+    dn[..., 3:, :] = np.swapaxes(hat(n), -1, -2)
     return dc, dn
 
 
-def _rim_conic_matrix(c: np.ndarray, n: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """The rim conic C (..., 3, 3) in normalised image coordinates (module docstring)."""
-    s = np.sum(n * c, axis=-1)[..., None, None]
-    q = (np.sum(c * c, axis=-1) - R * R)[..., None, None]
-    nc = n[..., :, None] * c[..., None, :]
-    nn = n[..., :, None] * n[..., None, :]
-    return s * s * np.eye(3) - s * (nc + np.swapaxes(nc, -1, -2)) + q * nn
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)  # zero normals: point features
+
+
+def _centre_system(c: np.ndarray, n: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, ...]:
+    """A = C[:2, :2] entries (a00, a01, a11), b = C[:2, 2] (b0, b1), s = n·c, q = ‖c‖² − R² (module docstring)."""
+    s = np.sum(n * c, axis=-1)
+    q = np.sum(c * c, axis=-1) - R * R
+    s2 = s * s
+    a00 = s2 - 2.0 * s * n[..., 0] * c[..., 0] + q * n[..., 0] ** 2
+    a11 = s2 - 2.0 * s * n[..., 1] * c[..., 1] + q * n[..., 1] ** 2
+    a01 = -s * (n[..., 0] * c[..., 1] + c[..., 0] * n[..., 1]) + q * n[..., 0] * n[..., 1]
+    b0 = -s * (n[..., 0] * c[..., 2] + c[..., 0] * n[..., 2]) + q * n[..., 0] * n[..., 2]
+    b1 = -s * (n[..., 1] * c[..., 2] + c[..., 1] * n[..., 2]) + q * n[..., 1] * n[..., 2]
+    return a00, a01, a11, b0, b1, s, q
+
+
+def _solve_centre(c: np.ndarray, n: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """Ellipse centre x₀ (..., 2), validity (...) and the system (``_centre_system``) it came from."""
+    system = _centre_system(c, n, R)
+    a00, a01, a11, b0, b1 = system[:5]
+    det = a00 * a11 - a01 * a01
+    ok = (R > 0) & (np.abs(det) > 1e-300)
+    inv = 1.0 / np.where(ok, det, 1.0)
+    x0 = -(a11 * b0 - a01 * b1) * inv
+    y0 = -(a00 * b1 - a01 * b0) * inv
+    point = c[..., :2] / np.maximum(c[..., 2:3], MIN_DEPTH_MM)
+    return np.where(ok[..., None], np.stack([x0, y0], axis=-1), point), ok, system
+
+
+def _inputs(centre_cam: ArrayLike, normal_cam: ArrayLike, radius_mm: ArrayLike) -> tuple[np.ndarray, ...]:
+    c = np.asarray(centre_cam, dtype=float)
+    n = _unit(np.asarray(normal_cam, dtype=float))
+    R = np.broadcast_to(np.asarray(radius_mm, dtype=float), c.shape[:-1])
+    return c, n, R
 
 
 def rim_centre_normalised(centre_cam: ArrayLike, normal_cam: ArrayLike, radius_mm: ArrayLike) -> np.ndarray:
     """Centre x₀ (..., 2) of the rim's image ellipse in normalised coordinates (no distortion, no K).
 
-    centre_cam, normal_cam (..., 3) mm / unit, radius_mm (...) mm. R = 0 gives (X/Z, Y/Z). The centre must be
-    in front of the camera; for R = 0 the conic is degenerate and the projection is returned directly.
+    centre_cam, normal_cam (..., 3) mm / unit, radius_mm (...) mm. R = 0 gives the projection (X/Z, Y/Z)
+    (the conic degenerates to that point).
     """
-    c = np.asarray(centre_cam, dtype=float)
-    n = np.asarray(normal_cam, dtype=float)
-    n = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)  # zero normals: point features
-    R = np.broadcast_to(np.asarray(radius_mm, dtype=float), c.shape[:-1])
-    point = c[..., :2] / np.maximum(c[..., 2:3], MIN_DEPTH_MM)
-    if not np.any(R > 0):
-        return point
-    C = _rim_conic_matrix(c, n, R)
-    A, b = C[..., :2, :2], C[..., :2, 2]
-    det = A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
-    ok = (R > 0) & (np.abs(det) > 0)
-    safe = np.where(ok, det, 1.0)
-    x0 = -(A[..., 1, 1] * b[..., 0] - A[..., 0, 1] * b[..., 1]) / safe
-    y0 = -(A[..., 0, 0] * b[..., 1] - A[..., 1, 0] * b[..., 0]) / safe
-    return np.where(ok[..., None], np.stack([x0, y0], axis=-1), point)
+    return _solve_centre(*_inputs(centre_cam, normal_cam, radius_mm))[0]
 
 
 def rim_centre_px(camera: Camera, centre_cam: ArrayLike, normal_cam: ArrayLike, radius_mm: ArrayLike) -> np.ndarray:
@@ -91,6 +106,39 @@ def rim_centre_px(camera: Camera, centre_cam: ArrayLike, normal_cam: ArrayLike, 
     return camera.distort_normalized(rim_centre_normalised(centre_cam, normal_cam, radius_mm))
 
 
+def _centre_and_jacobian(camera: Camera, c: np.ndarray, n: np.ndarray, R: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels (..., 2) and ∂/∂γ (..., 2, 6) of the ellipse centres (module docstring).
+
+    With m = (x₀, y₀, 1) the first two rows of C m vanish, so A ẋ₀ = −(Ċ m)[:2], and Ċ m needs only the
+    products c·m, n·m, ċ·m, ṅ·m — no 3×3 matrix derivatives.
+    """
+    x0, ok, (a00, a01, a11, _, _, s, q) = _solve_centre(c, n, R)
+    m = np.concatenate([x0, np.ones(x0.shape[:-1] + (1,))], axis=-1)
+    dc, dn = _basis_motion(c, n)                                           # (..., 6, 3)
+    ds = (dn @ c[..., :, None] + dc @ n[..., :, None])[..., 0]            # ṡ (..., 6)
+    dq = 2.0 * (dc @ c[..., :, None])[..., 0]                             # q̇
+    dcm = (dc @ m[..., :, None])[..., 0]                                  # ċ·m, ṅ·m (..., 6)
+    dnm = (dn @ m[..., :, None])[..., 0]
+    cm, nm = np.sum(c * m, axis=-1), np.sum(n * m, axis=-1)
+    S, Q, CM, NM = s[..., None, None], q[..., None, None], cm[..., None, None], nm[..., None, None]
+    c2, n2, m2 = c[..., None, :2], n[..., None, :2], m[..., None, :2]
+    dCm = (2.0 * S * ds[..., None] * m2 - ds[..., None] * (n2 * CM + c2 * NM)
+           - S * (dn[..., :2] * CM + n2 * dcm[..., None] + dc[..., :2] * NM + c2 * dnm[..., None])
+           + dq[..., None] * n2 * NM + Q * (dn[..., :2] * NM + n2 * dnm[..., None]))    # (..., 6, 2)
+    det = a00 * a11 - a01 * a01
+    inv = 1.0 / np.where(ok, det, 1.0)
+    dx = -(a11[..., None] * dCm[..., 0] - a01[..., None] * dCm[..., 1]) * inv[..., None]  # (..., 6)
+    dy = -(a00[..., None] * dCm[..., 1] - a01[..., None] * dCm[..., 0]) * inv[..., None]
+    u, v, d00, d01, d10, d11 = distort_terms(camera, x0[..., 0], x0[..., 1])
+    J = np.empty(x0.shape[:-1] + (2, 6))
+    J[..., 0, :] = np.asarray(d00)[..., None] * dx + np.asarray(d01)[..., None] * dy
+    J[..., 1, :] = np.asarray(d10)[..., None] * dx + np.asarray(d11)[..., None] * dy
+    if not np.all(ok):
+        J = np.where(ok[..., None, None], J, image_jacobian(camera, c))
+    return np.stack([u, v], axis=-1), J
+
+
 def rim_centre_jacobian(camera: Camera, centre_cam: ArrayLike, normal_cam: ArrayLike,
                         radius_mm: ArrayLike) -> np.ndarray:
     """∂(ellipse centre px)/∂γ (..., 2, 6) for the camera screw γ = (v, ω) (mm/s, rad/s, camera frame).
@@ -98,41 +146,7 @@ def rim_centre_jacobian(camera: Camera, centre_cam: ArrayLike, normal_cam: Array
     Module docstring for the derivation. Same convention and units as ``cadfeat.measures.image_jacobian``
     (px/mm, px/rad), to which it reduces for ``radius_mm = 0``.
     """
-    c = np.asarray(centre_cam, dtype=float)
-    n = np.asarray(normal_cam, dtype=float)
-    n = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)  # zero normals: point features
-    R = np.broadcast_to(np.asarray(radius_mm, dtype=float), c.shape[:-1])
-    J_point = image_jacobian(camera, c)
-    if not np.any(R > 0):
-        return J_point
-    C = _rim_conic_matrix(c, n, R)
-    A, b = C[..., :2, :2], C[..., :2, 2]
-    det = A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
-    ok = (R > 0) & (np.abs(det) > 0)
-    A_inv = np.linalg.inv(np.where(ok[..., None, None], A, np.eye(2)))
-    x0 = -np.einsum("...ij,...j->...i", A_inv, b)
-    dc, dn = _basis_motion(c, n)                                           # (..., 6, 3)
-    s = np.sum(n * c, axis=-1)[..., None]                                  # (..., 1)
-    q = (np.sum(c * c, axis=-1) - R * R)[..., None]
-    ds = np.einsum("...jk,...k->...j", dn, c) + np.einsum("...jk,...k->...j", dc, n)    # (..., 6)
-    dq = 2.0 * np.einsum("...jk,...k->...j", dc, c)
-    cc, nn = c[..., None, :], n[..., None, :]                              # (..., 1, 3)
-
-    def outer(a: np.ndarray, b_: np.ndarray) -> np.ndarray:
-        return a[..., :, None] * b_[..., None, :]
-
-    sym_nc = outer(nn, cc) + outer(cc, nn)                                 # (..., 1, 3, 3)
-    dC = (2.0 * (s * ds)[..., None, None] * np.eye(3)
-          - ds[..., None, None] * sym_nc
-          - s[..., None, None] * (outer(dn, cc) + outer(nn, dc) + outer(dc, nn) + outer(cc, dn))
-          + dq[..., None, None] * outer(nn, nn)
-          + q[..., None, None] * (outer(dn, nn) + outer(nn, dn)))          # (..., 6, 3, 3)
-    dA, db = dC[..., :2, :2], dC[..., :2, 2]
-    rhs = np.einsum("...jab,...b->...ja", dA, x0) + db                     # (..., 6, 2)
-    dx0 = -np.einsum("...ab,...jb->...aj", A_inv, rhs)                     # (..., 2, 6)
-    D = camera.distortion_jacobian(x0)                                     # (..., 2, 2)
-    J = D @ dx0
-    return np.where(ok[..., None, None], J, J_point)
+    return _centre_and_jacobian(camera, *_inputs(centre_cam, normal_cam, radius_mm))[1]
 
 
 def pose_to_screw(p_mm: ArrayLike) -> np.ndarray:
@@ -147,14 +161,16 @@ def pose_to_screw(p_mm: ArrayLike) -> np.ndarray:
 
 def measure(camera: Camera, T_cam_part: np.ndarray, points_part: np.ndarray, normals_part: np.ndarray,
             radii_mm: np.ndarray, jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
-    """Predicted measurements (N, 2) px at pose T_cam_part (4, 4), and ∂z/∂(δp, δθ) (N, 2, 6) if asked.
+    """Predicted measurements (..., N, 2) px at poses T_cam_part (..., 4, 4), and ∂z/∂(δp, δθ) (..., N, 2, 6).
 
     points_part, normals_part (N, 3) part frame (mm, unit outward axes), radii_mm (N,) (0 = point feature).
     """
-    Rm, p = T_cam_part[:3, :3], T_cam_part[:3, 3]
-    c = points_part @ Rm.T + p
-    n = normals_part @ Rm.T
-    z = rim_centre_px(camera, c, n, radii_mm)
+    T = np.asarray(T_cam_part, dtype=float)
+    Rm, p = T[..., :3, :3], T[..., :3, 3]
+    c = np.einsum("...ij,nj->...ni", Rm, points_part) + p[..., None, :]
+    n = np.einsum("...ij,nj->...ni", Rm, normals_part)
+    R = np.broadcast_to(np.asarray(radii_mm, dtype=float), c.shape[:-1])
     if not jacobian:
-        return z, None
-    return z, rim_centre_jacobian(camera, c, n, radii_mm) @ pose_to_screw(p)
+        return rim_centre_px(camera, c, n, R), None
+    z, J = _centre_and_jacobian(camera, c, _unit(n), R)
+    return z, J @ pose_to_screw(p)[..., None, :, :]

@@ -33,34 +33,46 @@ from scipy.spatial.transform import Rotation
 from cadfeat.poses import hat, make_T
 
 
+def _series(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """sin θ/θ, (1 − cos θ)/θ², (θ − sin θ)/θ³ with Taylor series below 1e-4 rad (the closed forms lose all
+    digits to cancellation there; the series are exact to double precision)."""
+    small = theta < 1e-4
+    t = np.where(small, 1.0, theta)
+    t2 = theta * theta
+    A = np.where(small, 1.0 - t2 / 6.0, np.sin(t) / t)
+    B = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(t)) / (t * t))
+    C = np.where(small, 1.0 / 6.0 - t2 / 120.0, (t - np.sin(t)) / (t * t * t))
+    return A, B, C
+
+
 def so3_exp(w: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) of rotation vectors w (..., 3) (scipy: exact near 0, unlike cv2.Rodrigues)."""
+    """Rotation matrices (..., 3, 3) of rotation vectors w (..., 3): Rodrigues I + A W + B W², series near 0
+    (exact for tiny angles, unlike cv2.Rodrigues — DESIGN.md pitfalls)."""
     w = np.asarray(w, dtype=float)
-    return Rotation.from_rotvec(w.reshape(-1, 3)).as_matrix().reshape(w.shape[:-1] + (3, 3))
+    A, B, _ = _series(np.linalg.norm(w, axis=-1))
+    W = hat(w)
+    return np.eye(3) + A[..., None, None] * W + B[..., None, None] * (W @ W)
 
 
 def so3_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3), ‖w‖ ≤ π."""
+    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3), ‖w‖ ≤ π (scipy: robust near 0 and π)."""
     R = np.asarray(R, dtype=float)
     return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(R.shape[:-2] + (3,))
 
 
 def left_jacobian(w: np.ndarray) -> np.ndarray:
-    """Left Jacobian of SO(3), J_l(w) = I + (1 − cos θ)/θ² [w]× + (θ − sin θ)/θ³ [w]×², series near 0."""
+    """Left Jacobian of SO(3) (..., 3, 3), J_l(w) = I + (1 − cos θ)/θ² [w]× + (θ − sin θ)/θ³ [w]×²."""
     w = np.asarray(w, dtype=float)
-    theta = float(np.linalg.norm(w))
+    _, B, C = _series(np.linalg.norm(w, axis=-1))
     W = hat(w)
-    if theta < 1e-4:  # series: the closed forms lose all digits to cancellation here
-        B, C = 0.5 - theta**2 / 24.0, 1.0 / 6.0 - theta**2 / 120.0
-    else:
-        B, C = (1.0 - np.cos(theta)) / theta**2, (theta - np.sin(theta)) / theta**3
-    return np.eye(3) + B * W + C * (W @ W)
+    return np.eye(3) + B[..., None, None] * W + C[..., None, None] * (W @ W)
 
 
 @dataclass
 class PoseState:
-    """Filter state: rotation ``R`` (3, 3) and translation ``p_mm`` (3,) of T_cam_part, their rates
-    ``p_rate_mm_s`` (3,) and ``omega_rad_s`` (3,) (Ṙ = [ω]× R, camera frame)."""
+    """Filter state, batched over leading axes B (Monte-Carlo runs): rotation ``R`` (B, 3, 3) and translation
+    ``p_mm`` (B, 3) of T_cam_part, their rates ``p_rate_mm_s`` (B, 3) and ``omega_rad_s`` (B, 3)
+    (Ṙ = [ω]× R, camera frame)."""
 
     R: np.ndarray
     p_mm: np.ndarray
@@ -71,33 +83,34 @@ class PoseState:
     def at_rest(cls, T_cam_part: np.ndarray) -> PoseState:
         """A state at pose T_cam_part with zero rates (the thesis starts from a stationary robot, §6.3.1)."""
         T = np.asarray(T_cam_part, dtype=float)
-        return cls(T[:3, :3].copy(), T[:3, 3].copy(), np.zeros(3), np.zeros(3))
+        p = T[..., :3, 3].copy()
+        return cls(T[..., :3, :3].copy(), p, np.zeros_like(p), np.zeros_like(p))
 
     @property
     def T_cam_part(self) -> np.ndarray:
         return make_T(self.R, self.p_mm)
 
     def boxplus(self, delta: np.ndarray) -> PoseState:
-        """State ⊞ δ (12,): p + δp, exp([δθ]×) R, rates + δ rates."""
-        return PoseState(so3_exp(delta[3:6]) @ self.R, self.p_mm + delta[:3], self.p_rate_mm_s + delta[6:9],
-                         self.omega_rad_s + delta[9:12])
+        """State ⊞ δ (B, 12): p + δp, exp([δθ]×) R, rates + δ rates."""
+        return PoseState(so3_exp(delta[..., 3:6]) @ self.R, self.p_mm + delta[..., :3],
+                         self.p_rate_mm_s + delta[..., 6:9], self.omega_rad_s + delta[..., 9:12])
 
     def boxminus(self, other: PoseState) -> np.ndarray:
-        """δ (12,) with self = other ⊞ δ."""
-        return np.concatenate([self.p_mm - other.p_mm, so3_log(self.R @ other.R.T),
-                               self.p_rate_mm_s - other.p_rate_mm_s, self.omega_rad_s - other.omega_rad_s])
+        """δ (B, 12) with self = other ⊞ δ."""
+        return np.concatenate([self.p_mm - other.p_mm, so3_log(self.R @ np.swapaxes(other.R, -1, -2)),
+                               self.p_rate_mm_s - other.p_rate_mm_s, self.omega_rad_s - other.omega_rad_s], axis=-1)
 
 
 def predict(state: PoseState, dt_s: float) -> tuple[PoseState, np.ndarray]:
-    """Constant-velocity prediction over ``dt_s`` (module docstring): the new state and F (12, 12)."""
+    """Constant-velocity prediction over ``dt_s`` (module docstring): the new state and F (B, 12, 12)."""
     phi = dt_s * state.omega_rad_s
     R_step = so3_exp(phi)
     new = PoseState(R_step @ state.R, state.p_mm + dt_s * state.p_rate_mm_s, state.p_rate_mm_s.copy(),
                     state.omega_rad_s.copy())
-    F = np.eye(12)
-    F[0:3, 6:9] = dt_s * np.eye(3)
-    F[3:6, 3:6] = R_step
-    F[3:6, 9:12] = dt_s * left_jacobian(phi)
+    F = np.broadcast_to(np.eye(12), phi.shape[:-1] + (12, 12)).copy()
+    F[..., 0:3, 6:9] = dt_s * np.eye(3)
+    F[..., 3:6, 3:6] = R_step
+    F[..., 3:6, 9:12] = dt_s * left_jacobian(phi)
     return new, F
 
 
