@@ -18,7 +18,8 @@ fitted.
 
 Association (``associate``): the model holes' predicted ellipses (from a predicted pose) are matched to
 detections by ``scipy.optimize.linear_sum_assignment`` on the centre distance, with a gate per hole:
-min(``gate_px``, half the distance to the nearest other predicted hole), and detected axes within a factor
+min(``gate_px``, half the distance to the nearest other predicted hole) (strict: a blob midway between
+two holes belongs to neither), and detected axes within a factor
 ``size_ratio`` of the predicted ones. Anything outside the gate stays unmatched: a missed, merged or hidden
 hole is NaN in that frame, never matched to another hole's detection.
 """
@@ -125,7 +126,7 @@ def associate(predicted: Ellipse, detections: Detections, gate_px: float = 8.0,
     dist = np.linalg.norm(pc[:, None] - detections.centre_px[None], axis=-1)            # (N, M)
     pa = np.asarray(predicted.axes_px, dtype=float).reshape(N, 2)
     ratio = detections.axes_px[None, :, 1] / np.maximum(pa[:, None, 1], 1e-9)
-    ok = valid[:, None] & (dist <= gate[:, None]) & (ratio < size_ratio) & (ratio > 1.0 / size_ratio)
+    ok = valid[:, None] & (dist < gate[:, None]) & (ratio < size_ratio) & (ratio > 1.0 / size_ratio)
     big = 1e9
     cost = np.where(ok, dist, big)
     rows, cols = linear_sum_assignment(cost)

@@ -59,9 +59,9 @@ def run_summary(trans_mm: np.ndarray, rot_deg: np.ndarray, times_s: np.ndarray, 
 
 
 def bootstrap_ci(values: np.ndarray, level: float = 0.95, n_boot: int = 2000, seed: int = 0) -> tuple[float, float]:
-    """Percentile-bootstrap interval of the mean of ``values`` (finite entries; inf kept → inf bounds)."""
+    """Percentile-bootstrap interval of the mean of the finite entries of ``values``."""
     v = np.asarray(values, dtype=float)
-    v = v[~np.isnan(v)]
+    v = v[np.isfinite(v)]
     if v.size == 0:
         return float("nan"), float("nan")
     if v.size == 1 or np.all(v == v[0]):
@@ -73,15 +73,16 @@ def bootstrap_ci(values: np.ndarray, level: float = 0.95, n_boot: int = 2000, se
 
 
 def aggregate_runs(runs: Sequence[dict[str, float]], level: float = 0.95) -> dict[str, dict[str, float]]:
-    """Per key over runs: ``mean``, ``ci_low``, ``ci_high`` (bootstrap), ``median``."""
+    """Per key over runs: ``mean``, ``ci_low``, ``ci_high`` (bootstrap), ``median`` of the finite values, and
+    ``runs_not_finite`` (e.g. runs that never converged, or lost every frame)."""
     out: dict[str, dict[str, float]] = {}
     for key in runs[0]:
         v = np.array([r[key] for r in runs], dtype=float)
-        lo, hi = bootstrap_ci(v, level)
         finite = v[np.isfinite(v)]
-        out[key] = {"mean": float(np.mean(v)) if np.all(np.isfinite(v)) else float(np.mean(finite)) if finite.size
-                    else float("nan"),
-                    "ci_low": lo, "ci_high": hi, "median": float(np.median(v))}
+        lo, hi = bootstrap_ci(finite, level)
+        out[key] = {"mean": float(np.mean(finite)) if finite.size else float("nan"), "ci_low": lo, "ci_high": hi,
+                    "median": float(np.median(finite)) if finite.size else float("nan"),
+                    "runs_not_finite": int(v.size - finite.size)}
     return out
 
 
