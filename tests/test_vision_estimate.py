@@ -165,3 +165,15 @@ def test_iekf_basin_larger_than_ekf_basin():
     ekf, iekf = _basin("ekf", sizes, 0.1), _basin("iekf", sizes, 0.1)
     print(f"basin: EKF {ekf} mm, IEKF {iekf} mm (rotation 0.1 deg per mm)")
     assert iekf > ekf > 0
+
+
+@pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-5, 1e-3, 0.5, 3.0, np.pi - 1e-4, np.pi])
+def test_rotation_parametrisation_matches_scipy(angle):
+    """The filters' exp/log of SO(3) (own closed forms with series) against scipy's quaternion route."""
+    from scipy.spatial.transform import Rotation
+
+    w = np.random.default_rng(1).normal(size=(20, 3))
+    w *= angle / np.linalg.norm(w, axis=1, keepdims=True)
+    R = Rotation.from_rotvec(w).as_matrix()
+    np.testing.assert_allclose(so3_exp(w), R, atol=1e-13)
+    np.testing.assert_allclose(so3_exp(so3_log(R)), R, atol=1e-12)

@@ -239,3 +239,70 @@ def compare(before: DesignTracking, after: DesignTracking, alpha: float = 0.05) 
             verdict = "no significant difference"
         out[m] = {"verdict": verdict, "translation": vt, "rotation": vr}
     return out
+
+
+@dataclass
+class BeforeAfter:
+    """``track_designs`` result: per design name its ``DesignTracking`` and ``Observation``, the paired
+    ``verdicts`` per estimator (before vs after), the config, frame times and wall-clock ``timings_s``."""
+
+    designs: dict[str, DesignTracking]
+    observations: dict[str, Observation]
+    verdicts: dict[str, Any]
+    config: TrackingConfig
+    frame_indices: np.ndarray
+    timings_s: dict[str, float]
+
+    def to_json(self) -> dict[str, Any]:
+        """The results.json ``tracking`` section (plain data; infinities as None)."""
+        c = self.config
+        out = {
+            "settings": {"estimators": list(c.estimators), "runs": c.runs, "noise_grey": c.sensor.noise_grey,
+                         "defocus": c.sensor.defocus, "exposure_s": c.sensor.exposure_s,
+                         "initial_error_mm": c.initial_error_mm, "initial_error_deg": c.initial_error_deg,
+                         "r_px2": c.tuning.r_px2, "q_rate_mm2_s2": c.tuning.q_rate_mm2_s2,
+                         "q_omega_rad2_s2": c.tuning.q_omega_rad2_s2, "iterations": c.tuning.iterations,
+                         "tau": c.tuning.tau, "settle_frames": c.settle_frames, "frames": len(self.frame_indices),
+                         "frame_step": c.frame_step, "rim_model": c.rim_model, "seed": c.seed},
+            "designs": {name: design_json(d) for name, d in self.designs.items()},
+            "verdicts": self.verdicts,
+            "timings_s": {k: round(v, 3) for k, v in self.timings_s.items()},
+        }
+        return _finite_json(out)
+
+
+def _finite_json(value: Any) -> Any:
+    """Replace NaN/inf by None and numpy scalars by Python numbers (strict JSON)."""
+    if isinstance(value, dict):
+        return {k: _finite_json(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite_json(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, screws: np.ndarray | None,
+                  designs: dict[str, tuple[Any, Sequence[Hole]]], config: TrackingConfig,
+                  before: str = "before", after: str = "after") -> BeforeAfter:
+    """Closed loop on several designs along one trajectory (every ``config.frame_step``-th sample), and the
+    paired verdict ``after`` vs ``before`` per estimator. ``designs`` maps a name to (shape, holes)."""
+    import time
+
+    idx = np.arange(0, len(T_cam_part), max(1, int(config.frame_step)))
+    T = np.asarray(T_cam_part, dtype=float)[idx]
+    t = np.asarray(times_s, dtype=float)[idx]
+    sc = None if screws is None else np.asarray(screws, dtype=float)[idx]
+    results, observations, timings = {}, {}, {}
+    for name, (shape, holes) in designs.items():
+        start = time.perf_counter()
+        observations[name] = observe(shape, holes, camera, T, config.sensor, sc)
+        mid = time.perf_counter()
+        results[name] = track_design(camera, observations[name], T, t, config)
+        timings[f"{name}_render"] = mid - start
+        timings[f"{name}_track"] = time.perf_counter() - mid
+    verdicts = compare(results[before], results[after], config.alpha) if before in results and after in results \
+        else {}
+    return BeforeAfter(results, observations, verdicts, config, idx, timings)

@@ -289,7 +289,7 @@ def _solve_pnp(camera: Camera, X: np.ndarray, z: np.ndarray, n: np.ndarray, r: n
         if not np.any(r > 0):
             break
         zp, _ = measure(camera, T, X, n, r, jacobian=False)
-        zc, _ = measure(camera, T, X, n, np.zeros_like(r), jacobian=False)
+        zc = camera.project(X @ T[:3, :3].T + T[:3, 3])
         target = z - (zp - zc)  # the pixels a point feature at the rim centre would give
     return T if T is not None and np.all(np.isfinite(T)) and T[2, 3] > 0 else None
 
