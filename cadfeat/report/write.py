@@ -26,6 +26,7 @@ from cadfeat.report.context import ReportContext
 from cadfeat.report.html import esc, figure, fmt, note, page, section
 from cadfeat.report.plots import Plot, make_plots
 from cadfeat.report.renders import Renders, make_renders
+from cadfeat.report.tracking import tracking_section
 
 log = logging.getLogger(__name__)
 
@@ -209,6 +210,7 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
         ("design-matrix", "Design matrix", lambda: tables.design_matrix_table(results)),
         ("plots", "Plots", lambda: "".join(f"<h3>{esc(p.title)}</h3>" + figure(rel(p.path), p.caption)
                                            for p in plots)),
+        ("tracking", "Does the new design track better?", lambda: tracking_section(results, out_dir, rel)),
         ("normalisation", "Normalisation of the objectives", lambda: tables.normalisation_note(results)),
         ("files", "Exported files", lambda: tables.files_table(results) + tables.verification_table(results)),
         ("provenance", "Versions and timings", lambda: _provenance(results, timings)),

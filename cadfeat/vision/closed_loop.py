@@ -147,13 +147,51 @@ def _expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.nda
     return out
 
 
+def frame_seed(run_seed: int, k: int) -> int:
+    """The noise seed of frame k of a run (``sensor_images`` adds the frame index too)."""
+    return int(run_seed) * 100_003 + k
+
+
+def frame_image(camera: Camera, obs: Observation, k: int, noise_grey: float, run_seed: int) -> np.ndarray:
+    """The full (H, W) uint8 camera image of frame k in run ``run_seed`` (the region, on black)."""
+    roi = sensor_images(obs.optical[k][None], noise_grey, frame_seed(run_seed, k))[0]
+    full = np.zeros((camera.height, camera.width), np.uint8)
+    u0, v0 = obs.offsets[k]
+    full[v0:v0 + roi.shape[0], u0:u0 + roi.shape[1]] = roi
+    return full
+
+
+def draw_frame(image: np.ndarray, predicted: Ellipse, detections: Detections, pixels: np.ndarray) -> np.ndarray:
+    """RGB copy of a grey frame with the predicted rim ellipses (red), every detected ellipse (green) and the
+    associated centres (yellow crosses) — the report's "detected vs predicted" frames."""
+    import cv2
+
+    out = cv2.cvtColor(np.asarray(image, np.uint8), cv2.COLOR_GRAY2RGB)
+    s = 16
+
+    def ell(c: np.ndarray, ax: np.ndarray, ang: float, colour: tuple[int, int, int]) -> None:
+        if np.all(np.isfinite(c)) and np.all(np.abs(c) < 1e5) and 0 < ax[0] < 1e5:
+            cv2.ellipse(out, (int(round(c[0] * s)), int(round(c[1] * s))), (int(round(ax[0] / 2 * s)),
+                        int(round(ax[1] / 2 * s))), float(np.degrees(ang)), 0, 360, colour, 1, cv2.LINE_AA, 4)
+
+    for j in np.flatnonzero(np.asarray(predicted.valid)):
+        ell(np.asarray(predicted.centre_px)[j], np.asarray(predicted.axes_px)[j],
+            float(np.asarray(predicted.angle_rad)[j]), (230, 40, 40))
+    for j in range(len(detections)):
+        ell(detections.centre_px[j], detections.axes_px[j], float(detections.angle_rad[j]), (40, 220, 60))
+    for p in pixels:
+        if np.all(np.isfinite(p)):
+            cv2.drawMarker(out, (int(round(p[0])), int(round(p[1]))), (250, 220, 0), cv2.MARKER_CROSS, 9, 1)
+    return out
+
+
 def detect_sequence(obs: Observation, noise_grey: float, seed: int, gate_px: float) -> tuple[np.ndarray, list]:
     """Pixels (F, N, 2) of one Monte-Carlo run (NaN = missing) and the raw detections per frame."""
     F_, N = len(obs.optical), len(obs.centres)
     pixels = np.full((F_, N, 2), np.nan)
     dets = []
     for k, img in enumerate(obs.optical):
-        frame = sensor_images(img[None], noise_grey, seed * 100_003 + k)[0]
+        frame = sensor_images(img[None], noise_grey, frame_seed(seed, k))[0]
         d = detect_holes(frame)
         d = Detections(d.centre_px + obs.offsets[k], d.axes_px, d.angle_rad, d.residual_px)
         dets.append(d)
@@ -174,8 +212,10 @@ def initial_pose(T_true0: np.ndarray, error_mm: float, error_deg: float, seed: i
 
 
 def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: np.ndarray,
-                 config: TrackingConfig) -> DesignTracking:
-    """Monte-Carlo tracking of one observed design (module docstring)."""
+                 config: TrackingConfig, estimator_camera: Camera | None = None) -> DesignTracking:
+    """Monte-Carlo tracking of one observed design (module docstring). ``estimator_camera``: the camera model
+    the estimators assume, when it differs from the one that made the images (calibration error, thesis
+    Figs. 6.10–6.11)."""
     T_true = np.asarray(T_true, dtype=float)
     R_, F_ = config.runs, len(T_true)
     pixels = np.full((R_, F_, len(obs.centres), 2), np.nan)
@@ -191,8 +231,8 @@ def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: 
     T0 = np.stack([initial_pose(T_true[0], config.initial_error_mm, config.initial_error_deg, config.seed * 1000 + run)
                    for run in range(R_)])
     for m in config.estimators:  # all runs at once (the filters are batched over runs)
-        track = estimate_poses(camera, obs.centres, pixels, times_s, m, T0, normals_part=normals, radii_mm=radii,
-                               tuning=config.tuning)
+        track = estimate_poses(estimator_camera or camera, obs.centres, pixels, times_s, m, T0,
+                               normals_part=normals, radii_mm=radii, tuning=config.tuning)
         et, er = pose_errors(track.T_cam_part, T_true[None])
         errors[m] = (et, er)
         summaries[m] = [run_summary(et[run], er[run], times_s, config.settle_frames, config.converged_mm,
@@ -286,7 +326,8 @@ def _finite_json(value: Any) -> Any:
 
 def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, screws: np.ndarray | None,
                   designs: dict[str, tuple[Any, Sequence[Hole]]], config: TrackingConfig,
-                  before: str = "before", after: str = "after") -> BeforeAfter:
+                  before: str = "before", after: str = "after", estimator_camera: Camera | None = None
+                  ) -> BeforeAfter:
     """Closed loop on several designs along one trajectory (every ``config.frame_step``-th sample), and the
     paired verdict ``after`` vs ``before`` per estimator. ``designs`` maps a name to (shape, holes)."""
     import time
@@ -300,7 +341,7 @@ def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, s
         start = time.perf_counter()
         observations[name] = observe(shape, holes, camera, T, config.sensor, sc)
         mid = time.perf_counter()
-        results[name] = track_design(camera, observations[name], T, t, config)
+        results[name] = track_design(camera, observations[name], T, t, config, estimator_camera)
         timings[f"{name}_render"] = mid - start
         timings[f"{name}_track"] = time.perf_counter() - mid
     verdicts = compare(results[before], results[after], config.alpha) if before in results and after in results \
