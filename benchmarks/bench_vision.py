@@ -96,8 +96,9 @@ def main(quick: bool = False) -> str:
         rows.append((f"estimate_poses {m}, 20 runs × 40 frames batched", f"{batch:.0f} ms",
                      f"{800e3 / batch:.0f} fps ({loop / batch:.1f}× the per-run loop)"))
     timing = ", ".join(f"{k} {v:.1f} s" for k, v in result.timings_s.items())
-    verdict = "; ".join(f"{m}: {v['verdict']} (p = {v['translation']['p_value']:.2g})"
-                        for m, v in result.verdicts.items())
+    verdict = "; ".join(f"{m}: {v['verdict']} (translation p = {v['translation']['p_value']:.2g}, median change "
+                        f"{v['translation']['median_change']:+.3g} mm; rotation p = {v['rotation']['p_value']:.2g}, "
+                        f"{v['rotation']['median_change']:+.3g} deg)" for m, v in result.verdicts.items())
     lines = [
         "## Closed loop (cadfeat.vision)", "",
         f"Machine: {machine}.", "",
@@ -107,7 +108,7 @@ def main(quick: bool = False) -> str:
         f"× {runs} Monte-Carlo runs, rendering included): **{total:.1f} s** (target 60 s). Parts: {timing}.",
         f"Verdicts (fixed example redesign): {verdict}.", "",
     ]
-    return save_section("vision", "\n".join(lines))
+    return save_section("bench_vision", "\n".join(lines))
 
 
 if __name__ == "__main__":

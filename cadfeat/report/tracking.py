@@ -16,7 +16,8 @@ from cadfeat.report.html import esc, figure, fmt, note, table
 
 COLOURS = {"before": "#d95f02", "after": "#1b9e77"}
 VERDICT_TEXT = {"better": "tracks better after the redesign", "worse": "tracks WORSE after the redesign",
-                "no significant difference": "shows no significant difference"}
+                "no significant difference": "shows no significant difference",
+                "mixed": "is significantly better in one of translation / rotation and worse in the other"}
 
 
 def _figure(ncols: int, nrows: int, size: tuple[float, float]) -> tuple[Any, Any]:

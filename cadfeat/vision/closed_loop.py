@@ -258,8 +258,9 @@ def design_json(result: DesignTracking) -> dict[str, Any]:
 def compare(before: DesignTracking, after: DesignTracking, alpha: float = 0.05) -> dict[str, Any]:
     """Paired verdicts per estimator on the per-run translation and rotation RMS errors, and an overall line.
 
-    Per estimator: ``better`` when the translation RMS is significantly lower after and the rotation RMS
-    not significantly higher (and symmetrically ``worse``), else ``no significant difference``.
+    Per estimator: ``better`` when the translation or the rotation RMS is significantly lower after and the
+    other not significantly higher (symmetrically ``worse``), ``mixed`` when one is significantly lower and
+    the other significantly higher, else ``no significant difference``.
     """
     out: dict[str, Any] = {}
     for m in before.summaries:
@@ -269,12 +270,13 @@ def compare(before: DesignTracking, after: DesignTracking, alpha: float = 0.05) 
                             np.array([s["trans_mm_rms"] for s in after.summaries[m]]), alpha)
         vr = paired_verdict(np.array([s["rot_deg_rms"] for s in before.summaries[m]]),
                             np.array([s["rot_deg_rms"] for s in after.summaries[m]]), alpha)
-        if vt["verdict"] == "better" and vr["verdict"] != "worse":
+        pair = {vt["verdict"], vr["verdict"]}
+        if pair == {"better", "worse"}:
+            verdict = "mixed"
+        elif "better" in pair:
             verdict = "better"
-        elif vt["verdict"] == "worse" and vr["verdict"] != "better":
+        elif "worse" in pair:
             verdict = "worse"
-        elif vt["verdict"] == "no significant difference" and vr["verdict"] != "no significant difference":
-            verdict = vr["verdict"]
         else:
             verdict = "no significant difference"
         out[m] = {"verdict": verdict, "translation": vt, "rotation": vr}
