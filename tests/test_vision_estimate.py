@@ -177,3 +177,13 @@ def test_rotation_parametrisation_matches_scipy(angle):
     R = Rotation.from_rotvec(w).as_matrix()
     np.testing.assert_allclose(so3_exp(w), R, atol=1e-13)
     np.testing.assert_allclose(so3_exp(so3_log(R)), R, atol=1e-12)
+
+
+def test_pnp_on_a_planar_target_without_a_guess():
+    """Four coplanar holes, three of them collinear (a weak, near-ambiguous target): solvePnP must start without
+    T0 (SQPnP; EPnP returned garbage here) and keep to the right branch from frame to frame."""
+    Xp = np.array([[-22.0, -12.0, 6.0], [-10.0, 5.0, 6.0], [0.0, 5.0, 6.0], [10.0, 5.0, 6.0]])
+    T = _truth(w=(0.3, -0.4, 0.2), v=(60.0, -40.0, -50.0))
+    pixels = np.stack([CAMERA.project(Xp @ Tk[:3, :3].T + Tk[:3, 3]) for Tk in T])
+    track = estimate_poses(CAMERA, Xp, pixels, TIMES, "pnp")
+    assert pose_errors(track.T_cam_part, T)[0].max() < 1e-6

@@ -21,9 +21,10 @@ until i = n (thesis: n = 30) or ‖δⁱ⁺¹ − δⁱ‖² < τ (the thesis's 
 Kⁱ, Cⁱ. Missing detections (NaN pixels) drop their rows of z, C and R for that frame; a frame with none
 is a prediction only. R = r I (px²) and Q = diag(0, q, …) are diagonal as in the thesis (§6.3.3).
 
-PnP: ``cv2.solvePnP`` (iterative, from the previous frame's pose; EPnP for the first) refined by
-``cv2.solvePnPRefineLM``; with rim radii given, the ellipse-centre offset predicted at the current
-estimate is subtracted from the pixels and the pose solved again (a fixed-point correction, 3 rounds).
+PnP: ``cv2.solvePnP`` (iterative from the previous frame's pose, and SQPnP), refined by
+``cv2.solvePnPRefineLM``, the candidate of least reprojection error; with rim radii given, the ellipse-centre
+offset predicted at the current estimate is subtracted from the pixels and the pose solved again (a fixed-point
+correction, 3 rounds).
 Frames with fewer than 4 detections are lost (NaN pose). Its covariance is r (CᵀC)⁻¹ (Gauss–Newton).
 """
 
@@ -146,7 +147,7 @@ def estimate_poses(camera: Camera, points_part: ArrayLike, pixels: ArrayLike, ti
         (B, F, ...) arrays.
     times_s : (F,) increasing frame times, s.
     method : ``"ekf"``, ``"iekf"`` (thesis §6.3.1–6.3.2) or ``"pnp"`` (``cv2.solvePnP`` per frame).
-    T0_cam_part : (4, 4) (or (B, 4, 4)) initial pose guess; None = EPnP on the first frame with 4 detections.
+    T0_cam_part : (4, 4) (or (B, 4, 4)) initial pose guess; None = SQPnP on the first frame with 4 detections.
     normals_part, radii_mm : (N, 3) outward axes and (N,) rim radii (mm); with them the measured point is the
         centre of the rim's image ellipse (``measurement`` module), without them the projected point.
     tuning : ``FilterTuning`` (R, Q, P₀, IEKF iterations and τ).
@@ -179,7 +180,7 @@ def estimate_poses(camera: Camera, points_part: ArrayLike, pixels: ArrayLike, ti
 
 
 def _first_pose(camera: Camera, X: np.ndarray, z: np.ndarray, n: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """EPnP on the first frame with >= 4 detections, then refined (the filters' start when T0 is not given)."""
+    """SQPnP on the first frame with >= 4 detections, then refined (the filters' start when T0 is not given)."""
     for k in range(len(z)):
         ok = np.all(np.isfinite(z[k]), axis=1)
         if ok.sum() >= 4:
@@ -261,37 +262,55 @@ def _rvec_of(R: np.ndarray) -> np.ndarray:
     return so3_log(R).reshape(3, 1)  # scipy, exact near 0 (DESIGN.md: cv2.Rodrigues zeroes tiny rotations)
 
 
-def _solve_pnp(camera: Camera, X: np.ndarray, z: np.ndarray, n: np.ndarray, r: np.ndarray,
-               guess: np.ndarray | None, rounds: int = 3) -> np.ndarray | None:
-    """cv2.solvePnP (+ RefineLM) on (M >= 4) detections; rim ellipse-centre offsets corrected by fixed point."""
+def _pnp_candidates(obj: np.ndarray, img: np.ndarray, camera: Camera, guess: np.ndarray | None) -> list[np.ndarray]:
+    """Poses from ``cv2.solvePnP``: iterative from the guess (if any) and SQPnP (global, planar or not), each
+    refined by ``solvePnPRefineLM``. Both, because the iterative solver from last frame's pose can slide into
+    the wrong branch of a near-planar target's two-fold ambiguity, and SQPnP alone is not always refined."""
     import cv2
 
     K, dist = camera.K, camera.dist_coeffs
-    obj = np.ascontiguousarray(X, dtype=np.float64)
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-15)
+    out = []
+    starts: list[tuple[int, np.ndarray | None]] = [(cv2.SOLVEPNP_SQPNP, None)]
+    if guess is not None:
+        starts.insert(0, (cv2.SOLVEPNP_ITERATIVE, guess))
+    for flag, T0 in starts:
+        try:
+            if T0 is None:
+                ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, flags=flag)
+            else:
+                ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, rvec=_rvec_of(T0[:3, :3]),
+                                              tvec=T0[:3, 3].reshape(3, 1).copy(), useExtrinsicGuess=True, flags=flag)
+            if ok:
+                rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, dist, rvec, tvec, criteria)
+                T = make_T(so3_exp(rvec.ravel()), tvec.ravel())
+                if np.all(np.isfinite(T)) and T[2, 3] > 0:
+                    out.append(T)
+        except cv2.error:
+            continue
+    return out
+
+
+def _solve_pnp(camera: Camera, X: np.ndarray, z: np.ndarray, n: np.ndarray, r: np.ndarray,
+               guess: np.ndarray | None, rounds: int = 3) -> np.ndarray | None:
+    """cv2.solvePnP (+ RefineLM) on (M >= 4) detections, the candidate of least reprojection error
+    (``_pnp_candidates``); rim ellipse-centre offsets corrected by fixed point (module docstring)."""
+    obj = np.ascontiguousarray(X, dtype=np.float64)
     target = z.copy()
     T = guess
     for _ in range(rounds if np.any(r > 0) else 1):
         img = np.ascontiguousarray(target, dtype=np.float64)
-        try:
-            if T is None:
-                ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, flags=cv2.SOLVEPNP_EPNP)
-            else:
-                ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, rvec=_rvec_of(T[:3, :3]),
-                                              tvec=T[:3, 3].reshape(3, 1).copy(), useExtrinsicGuess=True,
-                                              flags=cv2.SOLVEPNP_ITERATIVE)
-            if not ok:
-                return None
-            rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, dist, rvec, tvec, criteria)
-        except cv2.error:
+        candidates = _pnp_candidates(obj, img, camera, T)
+        if not candidates:
             return None
-        T = make_T(so3_exp(rvec.ravel()), tvec.ravel())
+        errors = [float(np.sum((camera.project(X @ C[:3, :3].T + C[:3, 3]) - img) ** 2)) for C in candidates]
+        T = candidates[int(np.argmin(errors))]
         if not np.any(r > 0):
             break
         zp, _ = measure(camera, T, X, n, r, jacobian=False)
         zc = camera.project(X @ T[:3, :3].T + T[:3, 3])
         target = z - (zp - zc)  # the pixels a point feature at the rim centre would give
-    return T if T is not None and np.all(np.isfinite(T)) and T[2, 3] > 0 else None
+    return T
 
 
 def _track_pnp(camera: Camera, X: np.ndarray, z: np.ndarray, t: np.ndarray, n: np.ndarray, r: np.ndarray,
