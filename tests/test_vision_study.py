@@ -106,3 +106,17 @@ def test_cadfeat_track_sweep_and_missing_outputs(tmp_path, capsys):
     assert [r["value"] for r in result["rows"]] == [0.05, 5.0]
     assert (out / "tracking" / "sweep_r.png").is_file()
     assert not (out / "results.json").exists()
+
+
+def test_a_sudden_roll_of_the_trajectory_is_reported():
+    import numpy as np
+
+    from cadfeat.poses import make_T
+    from cadfeat.study.tracking import _motion_warnings
+    from cadfeat.vision.motion import so3_exp
+
+    angles = np.array([0.0, 0.1, 0.2, 2.8, 2.9])  # rad about the optical axis: a 147° jump between frames 2 and 3
+    T = np.stack([make_T(so3_exp(np.array([0.0, 0.0, a])), [0.0, 0.0, 300.0]) for a in angles])
+    warnings = _motion_warnings(T, np.arange(5) * 0.1)
+    assert len(warnings) == 1 and "turns 149° between tracked frames 2 and 3" in warnings[0]
+    assert _motion_warnings(T[:3], np.arange(3) * 0.1) == []

@@ -118,6 +118,8 @@ def track(args: argparse.Namespace) -> int:
         _write_json(results_path, results)
     print(f"tracking {config.study.name}: {spec.runs} Monte-Carlo runs, {section['settings']['frames']} frames")
     print("\n".join(summary_lines(section)))
+    for w in section.get("warnings", []):
+        print(f"  warning: {w}")
     print(f"  outputs: {folder / 'tracking.json'}" + (f", {results_path} (tracking)" if results_path.is_file() else ""))
     return 0
 

@@ -105,6 +105,7 @@ def tracking_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path
              f"{fmt(s['initial_error_deg'], 3)}°, over {s['runs']} Monte-Carlo runs paired between the designs "
              f"(same noise seeds and initial errors). Errors are counted after the first {s['settle_frames']} "
              "frames; intervals are 95 % bootstrap intervals of the mean over runs.</p>"]
+    parts += [note(w, "warning") for w in tracking.get("warnings", [])]
     lines = []
     for m, v in tracking.get("verdicts", {}).items():
         t = v["translation"]

@@ -66,6 +66,26 @@ def _check_frames(config: StudyConfig, spec: TrackingSpec, n_samples: int) -> No
                          f"{spec.frame_step}); allowed: settle_frames <= {max(frames - 3, 0)} or a smaller frame_step")
 
 
+#: Rotation between two tracked frames (deg) above which a constant-velocity filter cannot be expected to follow.
+MAX_FRAME_ROTATION_DEG = 30.0
+
+
+def _motion_warnings(T_cam_part: np.ndarray, times_s: np.ndarray) -> list[str]:
+    """Warn when the trajectory turns more than ``MAX_FRAME_ROTATION_DEG`` between tracked frames (e.g. a
+    look-at camera rolling as its view passes the up vector): the EKF/IEKF's constant-velocity model then
+    cannot follow, whatever the design; solvePnP is per frame and unaffected."""
+    from cadfeat.vision.motion import so3_log
+
+    R = T_cam_part[:, :3, :3]
+    step = np.degrees(np.linalg.norm(so3_log(R[1:] @ np.swapaxes(R[:-1], -1, -2)), axis=-1))
+    if step.size == 0 or step.max() <= MAX_FRAME_ROTATION_DEG:
+        return []
+    k = int(np.argmax(step))
+    return [f"the camera turns {step[k]:.0f}° between tracked frames {k} and {k + 1} (t = {times_s[k]:.3g} s to "
+            f"{times_s[k + 1]:.3g} s); the EKF/IEKF's constant-velocity model cannot follow such a jump (check the "
+            f"trajectory, e.g. a look-at camera rolling about its axis; or track more frames), solvePnP is per frame"]
+
+
 def _curves(result: Any) -> dict[str, Any]:
     """Per design and estimator: frame times and the median / 10 % / 90 % over runs of both errors."""
     out: dict[str, Any] = {}
@@ -124,6 +144,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[
     result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec),
                            estimator_camera=camera_override)
     section = result.to_json()
+    section["warnings"] = _motion_warnings(T_cam_part[result.frame_indices], times[result.frame_indices])
     section["curves"] = _curves(result)
     section["frames"] = _frames(result, camera, out_dir)
     return section
