@@ -22,7 +22,7 @@ from cadfeat.study.run import evaluate_study, run_study
 PLATE_HALF = (30.0, 20.0)   # study_plate.py: 60 x 40 mm, centred
 FIXED_HOLE = (-22.0, -12.0, 2.0)
 EDGE_MM, LIGAMENT_MM = 3.0, 2.5
-ALLOWED_EXTRA = {"report.html", "img"}
+ALLOWED_EXTRA = {"report.html", "img", ".cadfeat-output.json"}
 RESULT_KEYS = {"cadfeat_version", "created", "study", "inputs", "camera", "trajectory", "variables", "holes",
                "objectives", "measures", "constraints", "design_matrix", "history", "sweep", "pareto", "files",
                "timings_s", "versions", "interrupted", "verification"}
@@ -199,9 +199,11 @@ def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
     from cadfeat.cad.export import ExportError
 
     no_report(monkeypatch)
+    from cadfeat.cad.export import staged_output
+
     out = tmp_path / "out"
-    out.mkdir()
-    (out / "keep.txt").write_text("old")
+    with staged_output(out) as stage:  # the previous output: a folder cadfeat made
+        (stage / "keep.txt").write_text("old")
 
     def broken(*a, **k):
         raise ExportError("simulated round-trip mismatch")
@@ -209,7 +211,7 @@ def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
     monkeypatch.setattr("cadfeat.cad.export.verify_step_roundtrip", broken)
     with pytest.raises(ExportError):
         run_study(copy.deepcopy(SMALL), out, quiet=True)
-    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+    assert sorted(p.name for p in out.iterdir()) == [".cadfeat-output.json", "keep.txt"]
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
 
 

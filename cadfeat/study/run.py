@@ -43,6 +43,7 @@ from cadfeat.study.outputs import (
     versions,
     write_json,
 )
+from cadfeat.study.preflight import check_visibility
 from cadfeat.study.progress import StudyProgress
 from cadfeat.study.schema import StudyConfig, StudyError, load_study
 
@@ -147,6 +148,14 @@ def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tu
     if getattr(res, "interrupted", False) and not getattr(res, "history", None) and progress.best_x is None:
         raise KeyboardInterrupt  # stopped before the optimiser evaluated any design: nothing to write
     return res, bool(getattr(res, "interrupted", False))
+
+
+def _with_cad(setup: StudySetup, progress: StudyProgress) -> Any:
+    """``solve_with_cad`` on ``setup`` (a rebuild that raises or times out is an infeasible point)."""
+    from cadfeat.design.optimize import solve_with_cad
+
+    return solve_with_cad(setup.problem, lambda x: setup.rebuild_holes(setup.rebuild_shape(x)), setup.config.optimizer,
+                          progress=progress.iteration)
 
 
 @dataclass
@@ -394,19 +403,27 @@ def default_out_dir(config: StudyConfig) -> Path:
 
 
 def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int | None = None,
-              quiet: bool = False, progress: bool = True) -> StudyResult:
+              quiet: bool = False, progress: bool = True, force: bool = False) -> StudyResult:
     """Run a study (a TOML path, a dict or a ``StudyConfig``) and write its outputs to ``out_dir``
     (default ``exports/<study name>/``): original.step, optimised.step, optimised.stl, results.json and the
     report. ``seed`` overrides the study's seeds. Raises ``CadfeatError`` (nothing written) on bad input or a
     failed verification; ``KeyboardInterrupt`` before the optimiser found a design also writes nothing.
+
+    The output folder is checked before any work (``cadfeat.cad.output_folder``): a non-empty folder cadfeat
+    did not create is refused unless ``force`` (then cadfeat's files are added, other files untouched).
+    Every part-script import and CAD build runs in a worker process within ``[study] build_timeout_s``.
     """
+    from cadfeat.cad.output_folder import staged_output
+    from cadfeat.cad.parts import build_time_limit
+
     config = _resolve(path_or_dict, seed)
-    out = Path(out_dir) if out_dir is not None else default_out_dir(config)
-    with StudyProgress(config.study.name, enabled=progress and not quiet) as prog:
+    out = out_dir if out_dir is not None else default_out_dir(config)
+    with staged_output(out, force) as stage, build_time_limit(config.study.build_timeout_s), \
+            StudyProgress(config.study.name, enabled=progress and not quiet) as prog:
         results, shapes = _compute(config, prog)
         with prog.phase("export"):
-            final = _write_outputs(config, out, results, shapes, prog)
-    return StudyResult(final, results)
+            _write_outputs(config, stage, results, shapes, prog)
+    return StudyResult(Path(out), results)
 
 
 def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -421,11 +438,14 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         else:  # "before" = the part's own integer values; the others share its objective scales
             defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
             base = setup_script(config, defaults, scene)
+            check_visibility(measure_holes(base, base.holes0), config.label)  # before the other combinations
             setups = [base] + [setup_script(config, c, scene, base.problem.normaliser) for c in combos
                                if c != defaults]
             if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
                 setups = setups[1:]
         m0 = measure_holes(base, base.holes0)
+        if config.study.part_kind == "step":  # (script parts: checked above, before the other combinations)
+            check_visibility(m0, config.label)
         obj0, comb0 = score(base, base.holes0)
     best = None
     interrupted = False
@@ -456,8 +476,21 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         raise StudyError(f"{config.label}: no design meets the kept requirements ([constraints], "
                          f"objective.thresholds); the least violating design still breaks: "
                          f"{_violations(setup, x1)}; allowed: relax these requirements or widen design bounds")
+    rebuild_failure = None
     with prog.phase("rebuild"):
-        shape1, holes1, pred_err = _rebuild(setup, x1, getattr(res, "holes", None))
+        try:
+            shape1, holes1, pred_err = _rebuild(setup, x1, getattr(res, "holes", None))
+        except CadfeatError as exc:
+            if not setup.linear or interrupted:
+                raise
+            # the optimum of the (linear) feature model does not build: an infeasible point; search again
+            # with CAD in the loop (the region shrinks around the buildable start until a rebuild succeeds)
+            rebuild_failure = str(exc)
+            prog.log(f"the CAD rebuild of the optimum failed ({exc}); searching again with CAD in the loop")
+            res = _with_cad(setup, prog)
+            history += _history(res, "CAD in the loop")
+            x1 = np.asarray(res.x_best, float)
+            shape1, holes1, pred_err = _rebuild(setup, x1, getattr(res, "holes", None))
         m1 = measure_holes(setup, holes1)
         obj1, comb1 = score(setup, holes1)
         checks = _checks(setup, shape1, holes1, "brep")
@@ -493,7 +526,8 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         "pareto": getattr(res, "pareto", None),
         "optimizer": {"method": config.optimizer.method, "n_evals": int(getattr(res, "n_evals", 0) or 0),
                       "linear_feature_map": bool(setup.linear), "prediction_error_mm": pred_err,
-                      "integer_combinations": len(setups)},
+                      "integer_combinations": len(setups),
+                      **({"rebuild_failed_at_model_optimum": rebuild_failure} if rebuild_failure else {})},
         "interrupted": bool(interrupted),
     }
     shapes = {"shape0": base.shape0, "shape1": shape1, "holes0": base.holes0, "holes1": holes1, "setup": setup,
@@ -512,8 +546,9 @@ def _version() -> str:
     return __version__
 
 
-def _write_outputs(config: StudyConfig, out: Path, results: dict[str, Any], shapes: Mapping[str, Any],
-                   prog: StudyProgress) -> Path:
+def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], shapes: Mapping[str, Any],
+                   prog: StudyProgress) -> None:
+    """Write and verify the outputs into the staging folder ``stage`` (published by the caller)."""
     from cadfeat.cad.export import (
         check_solid,
         check_stl,
@@ -521,49 +556,46 @@ def _write_outputs(config: StudyConfig, out: Path, results: dict[str, Any], shap
         export_stl,
         import_step,
         shape_volume_mm3,
-        staged_output,
         verify_step_roundtrip,
     )
 
     setup = shapes["setup"]
     t0 = time.perf_counter()
-    with staged_output(out) as stage:
-        problems = check_solid(shapes["shape1"])
-        if problems:
-            raise CadfeatError(f"{config.label}: the rebuilt optimum is not a valid solid: {'; '.join(problems[:3])}")
-        for name, shape in (("original.step", shapes["shape0"]), ("optimised.step", shapes["shape1"])):
-            export_step(shape, stage / name)
-            normalise_step_header(stage / name, f"{config.study.name} {name[:-5]}")
-        # (the rebuild's holes extracted the way verify_step_roundtrip extracts them: no preferred direction)
-        trip = verify_step_roundtrip(stage / "optimised.step", _extract_plain(shapes["shape1"]),
-                                     tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=shape_volume_mm3(shapes["shape1"]),
-                                     volume_rtol=1e-7)
-        reimported = import_step(stage / "optimised.step")
-        step_holes = _order_like(shapes["holes1"], setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
-        step_checks = _checks(setup, reimported, step_holes, "step")
-        results["constraints"] = results["constraints"] + step_checks
-        _fail_on(results["constraints"], config.label)
-        export_stl(shapes["shape1"], stage / "optimised.stl")
-        stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"])
-        if stl_problems:
-            raise CadfeatError(f"{config.label}: optimised.stl: {'; '.join(stl_problems[:3])}")
-        results["verification"] = {
-            "step_roundtrip_max_error_mm": max(trip.max_centre_error_mm, trip.max_radius_error_mm,
-                                               trip.max_depth_error_mm),
-            "step_roundtrip_max_axis_error_rad": trip.max_axis_error_rad, "brep_valid": True,
-            "stl_watertight": True, "tolerance_mm": ROUNDTRIP_TOL_MM}
-        results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl")]
-        results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
-        results["versions"] = versions()
-        if config.tracking is not None:  # [tracking]: the closed loop on both designs (cadfeat.vision)
-            from cadfeat.study.tracking import run_tracking
+    problems = check_solid(shapes["shape1"])
+    if problems:
+        raise CadfeatError(f"{config.label}: the rebuilt optimum is not a valid solid: {'; '.join(problems[:3])}")
+    for name, shape in (("original.step", shapes["shape0"]), ("optimised.step", shapes["shape1"])):
+        export_step(shape, stage / name)
+        normalise_step_header(stage / name, f"{config.study.name} {name[:-5]}")
+    # (the rebuild's holes extracted the way verify_step_roundtrip extracts them: no preferred direction)
+    trip = verify_step_roundtrip(stage / "optimised.step", _extract_plain(shapes["shape1"]),
+                                 tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=shape_volume_mm3(shapes["shape1"]),
+                                 volume_rtol=1e-7)
+    reimported = import_step(stage / "optimised.step")
+    step_holes = _order_like(shapes["holes1"], setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
+    step_checks = _checks(setup, reimported, step_holes, "step")
+    results["constraints"] = results["constraints"] + step_checks
+    _fail_on(results["constraints"], config.label)
+    export_stl(shapes["shape1"], stage / "optimised.stl")
+    stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"])
+    if stl_problems:
+        raise CadfeatError(f"{config.label}: optimised.stl: {'; '.join(stl_problems[:3])}")
+    results["verification"] = {
+        "step_roundtrip_max_error_mm": max(trip.max_centre_error_mm, trip.max_radius_error_mm,
+                                           trip.max_depth_error_mm),
+        "step_roundtrip_max_axis_error_rad": trip.max_axis_error_rad, "brep_valid": True,
+        "stl_watertight": True, "tolerance_mm": ROUNDTRIP_TOL_MM}
+    results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl")]
+    results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
+    results["versions"] = versions()
+    if config.tracking is not None:  # [tracking]: the closed loop on both designs (cadfeat.vision)
+        from cadfeat.study.tracking import run_tracking
 
-            with prog.phase("tracking"):
-                results["tracking"] = run_tracking(config, {"before": (shapes["shape0"], shapes["holes0"]),
-                                                            "after": (shapes["shape1"], shapes["holes1"])}, stage)
-        write_json(stage / "results.json", results)
-        _report(stage, results, shapes, prog)
-    return out
+        with prog.phase("tracking"):
+            results["tracking"] = run_tracking(config, {"before": (shapes["shape0"], shapes["holes0"]),
+                                                        "after": (shapes["shape1"], shapes["holes1"])}, stage)
+    write_json(stage / "results.json", results)
+    _report(stage, results, shapes, prog)
 
 
 def _extract_plain(shape: Any) -> list[Any]:
@@ -592,14 +624,27 @@ def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], pro
 
 # ------------------------------------------------------------------------------------------ evaluate
 def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose: int | None = None,
-                   quiet: bool = True, echo: bool = False, seed: int | None = None) -> dict[str, Any]:
+                   quiet: bool = True, echo: bool = False, seed: int | None = None,
+                   force: bool = False) -> dict[str, Any]:
     """Score the study's current design without optimising (the thesis GUI's single-pose mode when ``pose``
     is given: one trajectory sample). Returns the results dict; prints the per-feature table (thesis
     Table 5.1: FOV, focus, resolution margins, visibility, worst pose) and a per-pose summary when ``echo``;
-    writes results.json (+ report) into ``out_dir`` if given."""
-    from cadfeat.study.setup import load_scene
+    writes results.json (+ report) into ``out_dir`` if given (checked before any work, as by ``run_study``;
+    ``force``: add the files to a folder cadfeat did not create)."""
+    from cadfeat.cad.output_folder import staged_output
+    from cadfeat.cad.parts import build_time_limit
 
     config = _resolve(path_or_dict, seed)
+    with contextlib.ExitStack() as stack:
+        stage = stack.enter_context(staged_output(out_dir, force)) if out_dir is not None else None
+        stack.enter_context(build_time_limit(config.study.build_timeout_s))
+        results = _evaluate(config, stage, pose, quiet, echo)
+    return results
+
+
+def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: bool, echo: bool) -> dict[str, Any]:
+    from cadfeat.study.setup import load_scene
+
     with StudyProgress(config.study.name, enabled=not quiet) as prog:
         with prog.phase("setup"):
             camera, traj, T_task_part = load_scene(config)
@@ -633,18 +678,15 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
         }
     if echo:
         print(format_table(results, pose))
-    if out_dir is not None:
-        from cadfeat.cad.export import staged_output
-
-        with staged_output(out_dir) as stage:
-            write_json(stage / "results.json", results)
-            same = {**results,
-                    "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
-                    "measures": {"before": summary, "after": summary},
-                    "objectives": {**results["objectives"], "after": values}}
-            shapes = {"shape0": shape, "shape1": shape, "holes0": holes, "holes1": holes,
-                      "setup": _EvalSetup(config, camera, full_traj, T_task_part, holes, fixed)}
-            _report(stage, same, shapes, prog)
+    if stage is not None:
+        write_json(stage / "results.json", results)
+        same = {**results,
+                "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
+                "measures": {"before": summary, "after": summary},
+                "objectives": {**results["objectives"], "after": values}}
+        shapes = {"shape0": shape, "shape1": shape, "holes0": holes, "holes1": holes,
+                  "setup": _EvalSetup(config, camera, full_traj, T_task_part, holes, fixed)}
+        _report(stage, same, shapes, prog)
     return plain(results)
 
 

@@ -11,6 +11,7 @@ what must be kept, what to optimise and how (README, "Study files", has a full a
     [trajectory]   kind = "orbit_arc" + its arguments, or csv = "poses.csv"  (``cadfeat trajectories``)
     [design]       script parts: parameters = ["d", ...] or [design.parameters] d = {lower, upper}
                    STEP parts: holes = [{select = 2 | "H2" | [x, y, z], move, resize, max_offset_mm}]
+                               (move/resize per hole), view_direction = [x, y, z] (towards the camera)
                    both: standard_diameters_mm, fixed = [selectors], patterns = [[selectors], ...]
     [constraints]  edge_distance_mm, ligament_mm, volume_change_max_percent, symmetry
     [objective]    measures, aggregate, combine, weights, thresholds, min_axis_px, rotation_length_mm,
@@ -86,6 +87,22 @@ STEP_SUFFIXES = (".step", ".stp")
 SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer",
             "tracking")
 REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
+LIMITS = {
+    "trajectory_samples": 100_000,   # [trajectory] n (and the rows of a trajectory CSV)
+    "trajectory_lines": 10_000,      # [trajectory] lines (raster_scan)
+    "trajectory_csv_bytes": 64 * 2**20,
+    "design_variables": 64,          # [design] parameters / movable holes
+    "optimizer_starts": 10_000,      # [optimizer] starts
+    "optimizer_maxiter": 1_000_000,  # [optimizer] maxiter
+    "image_pixels": 50_000_000,      # [camera] width * height
+    "image_side_px": 20_000,         # [camera] width, height
+}
+"""Size limits checked when a study is validated, before anything is allocated (each error names its limit).
+They bound memory and time on an ordinary machine; for a bigger study, raise them here
+(``cadfeat.study.schema.LIMITS[key] = value`` before ``load_study``)."""
+BUILD_TIMEOUT_S = 60.0
+"""Default ``[study] build_timeout_s``: time limit of one part-script import or CAD build (worker process)."""
+
 _MISSING: Any = object()
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
@@ -105,6 +122,7 @@ class StudyInfo:
     part_kind: str          # "script" | "step"
     seed: int
     description: str
+    build_timeout_s: float = BUILD_TIMEOUT_S
 
 
 @dataclass(frozen=True)
@@ -200,6 +218,9 @@ class DesignSpec:
     standard_diameters_mm: tuple[float, ...] | None = None
     fixed: tuple[Selector, ...] = ()
     patterns: tuple[tuple[Selector, ...], ...] = ()
+    view_direction: tuple[float, float, float] | None = None
+    """STEP parts: unit direction (part frame) from the part towards the camera; picks the entrance end of
+    through holes. Default: from the trajectory (mean direction to the camera positions)."""
 
 
 @dataclass(frozen=True)
@@ -332,7 +353,7 @@ class _Table:
             return default
         value = self.data[name]
         if not isinstance(value, str) or (choices is not None and value not in choices) or \
-                (pattern is not None and not pattern.match(value)):
+                (pattern is not None and not pattern.fullmatch(value)):
             self.fail(self.dotted(name), f"{_fmt(value)} is not allowed", allowed)
         return value
 
@@ -489,10 +510,36 @@ def _study_section(t: _Table, base_dir: Path) -> StudyInfo:
                "a path ending in .py, .step or .stp")
     path = (base_dir / part).resolve()
     if not path.is_file():
-        t.fail("study.part", f"file {path} does not exist", "an existing part script or STEP file")
+        shown = base_dir / part if (base_dir / part).is_symlink() else path
+        problem = f"{shown} is not a regular file ({path}: a device, folder or pipe)" if path.exists() else \
+            f"file {path} does not exist"
+        t.fail("study.part", problem, "an existing part script or STEP file")
+    if kind == "step":
+        _check_step_header(t, path)
     seed = t.integer("seed", 0, 0, 2**32 - 1)
     description = t.string("description", default="")
-    return StudyInfo(name, part, path, kind, seed, description)
+    timeout = t.number("build_timeout_s", BUILD_TIMEOUT_S, 0.0, 86_400.0, lo_open=True)
+    return StudyInfo(name, part, path, kind, seed, description, float(timeout))
+
+
+def _check_step_header(t: _Table, path: Path) -> None:
+    """A STEP file is readable and starts like one (``ISO-10303-21;`` header, ``HEADER;`` section)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError as exc:
+        t.fail("study.part", f"{path} cannot be read ({exc.strerror})", "a readable STEP file")
+    text = head.lstrip(b"\xef\xbb\xbf \t\r\n")
+    if not text.startswith(b"ISO-10303-21") or b"HEADER" not in head:
+        what = "is empty" if not head else "does not start with the STEP header 'ISO-10303-21;'"
+        t.fail("study.part", f"{path} {what}", "a STEP file (ISO 10303-21 text, as CAD programs export)")
+
+
+def _check_size(t: _Table, key: str, value: Any, limit: str, what: str) -> None:
+    """``value`` (an int) must not exceed ``LIMITS[limit]`` (checked before anything is allocated)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value > LIMITS[limit]:
+        t.fail(key, f"{value} {what} is more than the limit of {LIMITS[limit]:,}",
+               f"at most {LIMITS[limit]:,} (cadfeat.study.schema.LIMITS[{limit!r}])")
 
 
 def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, dict[str, Any]]:
@@ -501,6 +548,10 @@ def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, 
     fields = [f.name for f in dataclasses.fields(Camera)]
     t = _Table(data, "camera", label, ["preset", "calibration", *fields])
     table = dict(t.data)
+    for side in ("width", "height"):
+        _check_size(t, f"camera.{side}", table.get(side), "image_side_px", "pixels")
+    if all(isinstance(table.get(k), int) for k in ("width", "height")):
+        _check_size(t, "camera.width * camera.height", table["width"] * table["height"], "image_pixels", "pixels")
     if t.has("preset") and t.has("calibration"):
         t.fail("camera.calibration", "given together with camera.preset", "one of preset or calibration")
     if t.has("calibration"):
@@ -543,6 +594,17 @@ def _trajectory_section(data: Any, label: str, base_dir: Path) -> TrajectorySpec
     if not isinstance(data, Mapping):
         raise StudyError(f"{label}: trajectory: expected a table; allowed: kind = <library kind> + arguments, "
                          "or csv = <file>")
+    t = _Table(data, "trajectory", label, list(data))
+    _check_size(t, "trajectory.n", data.get("n"), "trajectory_samples", "samples")
+    _check_size(t, "trajectory.lines", data.get("lines"), "trajectory_lines", "lines")
+    if isinstance(data.get("csv"), str):
+        csv = base_dir / data["csv"]
+        if csv.is_file() and csv.stat().st_size > LIMITS["trajectory_csv_bytes"]:
+            t.fail("trajectory.csv", f"{csv} has {csv.stat().st_size:,} bytes, more than the limit of "
+                   f"{LIMITS['trajectory_csv_bytes']:,}", "a smaller CSV (cadfeat.study.schema.LIMITS"
+                   "['trajectory_csv_bytes'])")
+        if csv.exists() and not csv.is_file():
+            t.fail("trajectory.csv", f"{csv} is not a regular file (a device, folder or pipe)", "a CSV file of poses")
     spec = TrajectorySpec(dict(data), f"{label}: trajectory", base_dir)
     try:
         spec.build()
@@ -581,7 +643,13 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
     if info.part_kind == "script":
         if t.has("holes"):
             t.fail("design.holes", "only for STEP parts (script parts vary their parameters)", "design.parameters")
-        params = part_parameters(info.part_path)
+        from cadfeat.cad.parts import build_time_limit
+
+        with build_time_limit(info.build_timeout_s, start=False):  # (the script runs only for a computed table)
+            params = part_parameters(info.part_path)
+        raw = t.raw("parameters")
+        _check_size(t, "design.parameters", len(raw) if isinstance(raw, list | dict) else None, "design_variables",
+                    "parameters")
         specs = _parameter_specs(t, params, label, info)
         echo["parameters"] = {p.name: {"lower": p.lower, "upper": p.upper,
                                        **({"standard_sizes": list(p.standard_sizes)} if p.standard_sizes else {})}
@@ -589,6 +657,8 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
     else:
         if t.has("parameters"):
             t.fail("design.parameters", "only for part scripts (STEP parts have no parameters)", "design.holes")
+        raw = t.raw("holes")
+        _check_size(t, "design.holes", len(raw) if isinstance(raw, list) else None, "design_variables", "holes")
         holes = _hole_specs(t, label)
         echo["holes"] = [{"select": list(h.select) if isinstance(h.select, tuple) else h.select, "move": h.move,
                           "resize": h.resize, "max_offset_mm": h.max_offset_mm} for h in holes]
@@ -613,10 +683,21 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
             t.fail(f"design.patterns[{i}]", "a pattern needs at least two holes", "a list of ≥ 2 hole selectors")
     if info.part_kind == "step":
         _check_step_design(t, holes, fixed)
+    view = None
+    if t.has("view_direction"):
+        if info.part_kind != "step":
+            t.fail("design.view_direction", "only for STEP parts (a part script gives VIEW_DIRECTION)",
+                   "VIEW_DIRECTION in the part script")
+        view = _vector(t.raw("view_direction"), 3, "design.view_direction", label)
+        norm = math.sqrt(sum(v * v for v in view))
+        if norm == 0:
+            t.fail("design.view_direction", "[0, 0, 0] is not allowed", "a non-zero direction [x, y, z]")
+        view = tuple(v / norm for v in view)
+        echo["view_direction"] = list(view)
     echo.update({"standard_diameters_mm": None if std is None else list(std),
                  "fixed": [list(s) if isinstance(s, tuple) else s for s in fixed],
                  "patterns": [[list(s) if isinstance(s, tuple) else s for s in p] for p in patterns]})
-    return DesignSpec(specs, holes, std, fixed, patterns), params, echo
+    return DesignSpec(specs, holes, std, fixed, patterns, view), params, echo
 
 
 def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
@@ -759,8 +840,8 @@ def _measure_table(t: _Table, name: str, measures: Sequence[str], lo: float | No
 def _optimizer_section(t: _Table, seed: int) -> OptimizerConfig:
     return OptimizerConfig(
         method=t.string("method", "multistart", METHODS),
-        starts=t.integer("starts", 8, 1, 10_000),
-        maxiter=t.integer("maxiter", 100, 1, 1_000_000),
+        starts=t.integer("starts", 8, 1, LIMITS["optimizer_starts"]),
+        maxiter=t.integer("maxiter", 100, 1, LIMITS["optimizer_maxiter"]),
         seed=t.integer("seed", seed, 0, 2**32 - 1),
         local_solver=t.string("local_solver", "SLSQP", LOCAL_SOLVERS),
         snap_standard_sizes=t.boolean("snap_standard_sizes", True),
@@ -824,7 +905,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
             raise StudyError(f"{label}: [{section}]: missing section; required sections: "
                              f"{', '.join(REQUIRED_SECTIONS)}; optional: "
                              f"{', '.join(s for s in SECTIONS if s not in REQUIRED_SECTIONS)}")
-    st = _Table(top.raw("study"), "study", label, ["name", "part", "seed", "description"])
+    st = _Table(top.raw("study"), "study", label, ["name", "part", "seed", "description", "build_timeout_s"])
     info = _study_section(st, base)
     camera, camera_echo = _camera_section(top.raw("camera"), label, base)
     pose = _pose_section(_Table(top.raw("part_pose", {}), "part_pose", label,
@@ -832,7 +913,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     trajectory = _trajectory_section(top.raw("trajectory"), label, base)
     design, params, design_echo = _design_section(
         _Table(top.raw("design"), "design", label,
-               ["parameters", "holes", "standard_diameters_mm", "fixed", "patterns"]), info, label)
+               ["parameters", "holes", "standard_diameters_mm", "fixed", "patterns", "view_direction"]), info, label)
     constraints = _constraints_section(_Table(top.raw("constraints", {}), "constraints", label,
                                               ["edge_distance_mm", "ligament_mm", "volume_change_max_percent",
                                                "symmetry"]))
@@ -850,7 +931,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
         tracking = _tracking_section(_Table(top.raw("tracking"), "tracking", label, TRACKING_KEYS), info.seed)
     echo = {
         "study": {"name": info.name, "part": info.part, "seed": info.seed,
-                  "description": info.description},
+                  "description": info.description, "build_timeout_s": info.build_timeout_s},
         "camera": camera_echo,
         "part_pose": {"position_mm": list(pose.position_mm), "rotvec_deg": list(pose.rotvec_deg)},
         "trajectory": copy.deepcopy(dict(trajectory.table)),
