@@ -103,3 +103,19 @@ def test_spread_holes_track_better_end_to_end():
         b = design_json(results["before"])["estimators"][method]["trans_mm_rms"]
         a = design_json(results["after"])["estimators"][method]["trans_mm_rms"]
         assert a["ci_high"] < b["ci_low"]
+
+
+def test_paired_verdict_needs_significance_and_a_change_that_matters():
+    from scipy.stats import wilcoxon
+
+    from cadfeat.vision.metrics import paired_verdict
+
+    before = 1.0 + 0.1 * np.random.default_rng(0).random(12)
+    small = paired_verdict(before, 0.98 * before, min_change=0.05)      # consistent, significant, but 2 %
+    assert small["p_value"] == pytest.approx(wilcoxon(before, 0.98 * before).pvalue) and small["p_value"] < 0.01
+    assert small["verdict"] == "no significant difference"
+    assert paired_verdict(before, 0.98 * before)["verdict"] == "better"
+    assert paired_verdict(before, 0.8 * before, min_change=0.05)["verdict"] == "better"
+    assert paired_verdict(before, 1.3 * before, min_change=0.05)["verdict"] == "worse"
+    noisy = before + 0.05 * np.random.default_rng(1).standard_normal(12)
+    assert paired_verdict(before, noisy)["verdict"] == "no significant difference"

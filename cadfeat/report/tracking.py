@@ -112,7 +112,8 @@ def tracking_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path
         lines.append(f"<li><b>{esc(m.upper())}</b>: the new design {esc(VERDICT_TEXT.get(v['verdict'], v['verdict']))}"
                      f" (median change of RMS translation error {fmt(t['median_change'], 3)} mm, p = "
                      f"{fmt(t['p_value'], 2)}; rotation p = {fmt(v['rotation']['p_value'], 2)}; {esc(t['test'])}, "
-                     f"α = {fmt(t['alpha'], 2)}).</li>")
+                     f"α = {fmt(t['alpha'], 2)}; changes under {fmt(100 * t.get('min_change', 0.0), 2)} % of the error "
+                     "do not count).</li>")
     if lines:
         parts.append(f'<ul class="verdict">{"".join(lines)}</ul>')
     rows = []

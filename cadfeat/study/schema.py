@@ -237,7 +237,8 @@ TRACKING_ESTIMATORS = ("ekf", "iekf", "pnp")
 #: The keys of ``[tracking]`` (the fields of ``TrackingSpec``).
 TRACKING_KEYS = ("estimators", "runs", "seed", "noise_grey", "defocus", "exposure_s", "initial_error_mm",
                  "initial_error_deg", "r_px2", "q_rate_mm2_s2", "q_omega_rad2_s2", "iterations", "tau", "frame_step",
-                 "settle_frames", "converged_mm", "converged_deg", "gate_px", "rim_model", "alpha")
+                 "settle_frames", "converged_mm", "converged_deg", "gate_px", "rim_model", "alpha",
+                 "min_change_percent")
 
 
 @dataclass(frozen=True)
@@ -248,7 +249,8 @@ class TrackingSpec:
     exposure (s, 0 = no motion blur); initial pose error (mm, deg); filter tuning (thesis §6.3.3): R = r I (px²),
     Q = diag(0, q, …) on the linear (mm²/s²) and angular (rad²/s²) rates, IEKF iterations n and threshold τ;
     every ``frame_step``-th trajectory sample; statistics after ``settle_frames``; convergence bounds;
-    association gate (px); rim ellipse-centre model; significance ``alpha`` of the paired test.
+    association gate (px); rim ellipse-centre model; significance ``alpha`` of the paired test, and the smallest
+    change of the median RMS error (percent of the error before) that a verdict counts.
     """
 
     estimators: tuple[str, ...] = TRACKING_ESTIMATORS
@@ -271,6 +273,7 @@ class TrackingSpec:
     gate_px: float = 10.0
     rim_model: bool = True
     alpha: float = 0.05
+    min_change_percent: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -867,6 +870,7 @@ def _tracking_section(t: _Table, seed: int) -> TrackingSpec:
         converged_deg=t.number("converged_deg", 1.0, 0.0, lo_open=True),
         gate_px=t.number("gate_px", 10.0, 0.0, lo_open=True), rim_model=t.boolean("rim_model", True),
         alpha=t.number("alpha", 0.05, 0.0, 0.5, lo_open=True),
+        min_change_percent=t.number("min_change_percent", 5.0, 0.0, 100.0),
     )
 
 

@@ -47,7 +47,8 @@ def tracking_config(spec: TrackingSpec) -> Any:
                           initial_error_mm=spec.initial_error_mm, initial_error_deg=spec.initial_error_deg,
                           tuning=tuning, frame_step=spec.frame_step, settle_frames=spec.settle_frames,
                           converged_mm=spec.converged_mm, converged_deg=spec.converged_deg, gate_px=spec.gate_px,
-                          rim_model=spec.rim_model, seed=spec.seed, alpha=spec.alpha)
+                          rim_model=spec.rim_model, seed=spec.seed, alpha=spec.alpha,
+                          min_change=spec.min_change_percent / 100.0)
 
 
 def _scene(config: StudyConfig) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray]:

@@ -44,7 +44,8 @@ class TrackingConfig:
     run); ``tuning`` the filters' R, Q, P₀, n, τ; ``frame_step`` uses every k-th trajectory sample;
     ``settle_frames`` frames skipped before the error statistics; ``converged_mm`` / ``converged_deg``
     convergence bounds; ``gate_px`` association gate; ``rim_model`` measure ellipse centres (True) or
-    treat holes as points (False); ``seed`` base seed; ``alpha`` significance of the paired test.
+    treat holes as points (False); ``seed`` base seed; ``alpha`` significance of the paired test;
+    ``min_change`` smallest relative change of the median RMS error that counts (``metrics.paired_verdict``).
     """
 
     estimators: tuple[str, ...] = ("ekf", "iekf", "pnp")
@@ -61,6 +62,7 @@ class TrackingConfig:
     rim_model: bool = True
     seed: int = 0
     alpha: float = 0.05
+    min_change: float = 0.05
 
     def with_changes(self, **changes: Any) -> TrackingConfig:
         return replace(self, **changes)
@@ -255,7 +257,8 @@ def design_json(result: DesignTracking) -> dict[str, Any]:
     }
 
 
-def compare(before: DesignTracking, after: DesignTracking, alpha: float = 0.05) -> dict[str, Any]:
+def compare(before: DesignTracking, after: DesignTracking, alpha: float = 0.05,
+            min_change: float = 0.0) -> dict[str, Any]:
     """Paired verdicts per estimator on the per-run translation and rotation RMS errors, and an overall line.
 
     Per estimator: ``better`` when the translation or the rotation RMS is significantly lower after and the
@@ -267,9 +270,9 @@ def compare(before: DesignTracking, after: DesignTracking, alpha: float = 0.05) 
         if m not in after.summaries:
             continue
         vt = paired_verdict(np.array([s["trans_mm_rms"] for s in before.summaries[m]]),
-                            np.array([s["trans_mm_rms"] for s in after.summaries[m]]), alpha)
+                            np.array([s["trans_mm_rms"] for s in after.summaries[m]]), alpha, min_change)
         vr = paired_verdict(np.array([s["rot_deg_rms"] for s in before.summaries[m]]),
-                            np.array([s["rot_deg_rms"] for s in after.summaries[m]]), alpha)
+                            np.array([s["rot_deg_rms"] for s in after.summaries[m]]), alpha, min_change)
         pair = {vt["verdict"], vr["verdict"]}
         if pair == {"better", "worse"}:
             verdict = "mixed"
@@ -305,7 +308,8 @@ class BeforeAfter:
                          "r_px2": c.tuning.r_px2, "q_rate_mm2_s2": c.tuning.q_rate_mm2_s2,
                          "q_omega_rad2_s2": c.tuning.q_omega_rad2_s2, "iterations": c.tuning.iterations,
                          "tau": c.tuning.tau, "settle_frames": c.settle_frames, "frames": len(self.frame_indices),
-                         "frame_step": c.frame_step, "rim_model": c.rim_model, "seed": c.seed},
+                         "frame_step": c.frame_step, "rim_model": c.rim_model, "seed": c.seed,
+                         "alpha": c.alpha, "min_change": c.min_change},
             "designs": {name: design_json(d) for name, d in self.designs.items()},
             "verdicts": self.verdicts,
             "timings_s": {k: round(v, 3) for k, v in self.timings_s.items()},
@@ -346,6 +350,6 @@ def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, s
         results[name] = track_design(camera, observations[name], T, t, config, estimator_camera)
         timings[f"{name}_render"] = mid - start
         timings[f"{name}_track"] = time.perf_counter() - mid
-    verdicts = compare(results[before], results[after], config.alpha) if before in results and after in results \
-        else {}
+    verdicts = compare(results[before], results[after], config.alpha, config.min_change) \
+        if before in results and after in results else {}
     return BeforeAfter(results, observations, verdicts, config, idx, timings)

@@ -86,11 +86,15 @@ def aggregate_runs(runs: Sequence[dict[str, float]], level: float = 0.95) -> dic
     return out
 
 
-def paired_verdict(before: np.ndarray, after: np.ndarray, alpha: float = 0.05) -> dict[str, Any]:
+def paired_verdict(before: np.ndarray, after: np.ndarray, alpha: float = 0.05,
+                   min_change: float = 0.0) -> dict[str, Any]:
     """Wilcoxon signed-rank test of per-run errors ``after − before`` (paired by run), two-sided.
 
     Returns ``verdict`` ("better" = after lower, "worse", "no significant difference"), ``p_value``,
-    ``median_change`` (after − before) and ``test``. Runs with a NaN/inf on either side are dropped.
+    ``median_change`` (after − before) and ``test``. Runs with a NaN/inf on either side are dropped. A
+    significant change smaller than ``min_change`` × the median error before (a fraction) is reported as
+    "no significant difference" too: with little noise the runs differ little, and the test then calls
+    differences significant that are far below what matters.
     """
     from scipy.stats import wilcoxon
 
@@ -104,5 +108,6 @@ def paired_verdict(before: np.ndarray, after: np.ndarray, alpha: float = 0.05) -
                 "median_change": float(np.median(d)) if d.size else 0.0}
     p = float(wilcoxon(b[ok], a[ok]).pvalue)
     med = float(np.median(d))
-    verdict = "no significant difference" if p >= alpha else ("better" if med < 0 else "worse")
-    return {**result, "verdict": verdict, "p_value": p, "median_change": med}
+    small = abs(med) < min_change * float(np.median(b[ok]))
+    verdict = "no significant difference" if p >= alpha or small else ("better" if med < 0 else "worse")
+    return {**result, "verdict": verdict, "p_value": p, "median_change": med, "min_change": min_change}
