@@ -439,8 +439,10 @@ def test_verdict_rules_on_modified_results(case, tmp_path):
     unverified["requirements_used"] = [{"name": "ligament", "holes": ["A", "C"], "margin": 0.0}]
     assert decide(unverified).decision == "do not adopt"
     tracked = copy.deepcopy(base)
-    tracked["tracking"] = {"verdict": "after tracks worse than before (translation error +40 %)"}
+    tracked["tracking"] = {"verdicts": {"ekf": {"verdict": "better"}, "iekf": {"verdict": "worse"}}}
     assert decide(tracked).decision == "adopt with care"
+    tracked["tracking"] = {"verdicts": {"ekf": {"verdict": "better"}, "iekf": {"verdict": "no significant difference"}}}
+    assert decide(tracked).decision == "adopt"
     page = parse_report(write_report(tmp_path, failing, None))
     assert page.by_id["verdict"] == "adopt with care"
     changes = {(r.cells[0].text, r.cells[1].text): r for r in page.tables["hole-changes"]}

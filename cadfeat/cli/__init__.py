@@ -1,6 +1,6 @@
-"""Command line: ``cadfeat run | evaluate | validate | parts | render | report | cameras | trajectories``.
+"""Command line: ``cadfeat run | evaluate | validate | track | parts | render | report | cameras | trajectories``.
 
-One module per command group (``study``, ``parts``, ``render``, ``report``, ``listing``), each with a
+One module per command group (``study``, ``track``, ``parts``, ``render``, ``report``, ``listing``), each with a
 ``COMMANDS`` table of ``Command`` entries; the parser is built from those tables. The command modules import
 their heavy dependencies inside the functions, so that ``cadfeat --help`` stays fast (no CadQuery or PyVista
 import).
@@ -15,7 +15,7 @@ import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 
-from cadfeat.cli import listing, parts, render, report, study
+from cadfeat.cli import listing, parts, render, report, study, track
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError, Terminated
 
@@ -23,7 +23,7 @@ __all__ = ["COMMANDS", "build_parser", "main", "run_guarded"]
 
 #: Every sub-command, in the order ``cadfeat --help`` lists them.
 COMMANDS: tuple[Command, ...] = (*listing.COMMANDS, *parts.COMMANDS, *render.COMMANDS, *report.COMMANDS,
-                                 *study.COMMANDS)
+                                 *study.COMMANDS, *track.COMMANDS)
 
 
 def build_parser() -> argparse.ArgumentParser:

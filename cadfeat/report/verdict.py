@@ -31,8 +31,9 @@ RULES = (
                  "design) and every other objective must not get worse; one that does: adopt with care."),
     ("holes", "No hole may newly fail a measure (a margin ≥ 0 before that is < 0 after); one that does: adopt "
               "with care. Losses elsewhere are listed below."),
-    ("tracking", "When the pose-estimation validation ran: its verdict must not say the new design tracks worse "
-                 "or fails; if it does: adopt with care."),
+    ("tracking", "When the pose-tracking validation ran (cadfeat track, [tracking]): no estimator may track the "
+                 "new design significantly worse, nor mixed (better in one of translation/rotation, worse in the "
+                 "other); one that does: adopt with care."),
     ("robustness", "When the robustness study ran: if the combined objective's 5th percentile under the shop "
                    "tolerance or the camera mounting error keeps less than half of the gain (razor-edge optimum): "
                    "adopt with care."),
@@ -179,12 +180,16 @@ def _failing_after(results: dict) -> list[tuple[str, int, int]]:
 
 
 def _tracking(results: dict) -> list[Finding]:
+    """The closed-loop pose-tracking verdicts (results.json ``tracking.verdicts``: per estimator "better",
+    "worse", "mixed" or "no significant difference", ``cadfeat.vision.closed_loop.compare``)."""
     tr = results.get("tracking")
-    if not isinstance(tr, dict) or not tr.get("verdict"):
+    verdicts = tr.get("verdicts") if isinstance(tr, dict) else None
+    if not isinstance(verdicts, dict) or not verdicts:
         return []
-    v = str(tr["verdict"])
-    bad = any(w in v.lower() for w in ("worse", "fail", "not better", "degrad"))
-    return [Finding("tracking", CARE if bad else ADOPT, v)]
+    per = {str(m): str(v.get("verdict", "")) if isinstance(v, dict) else str(v) for m, v in verdicts.items()}
+    text = "pose tracking, after vs before: " + ", ".join(f"{m.upper()} {v}" for m, v in per.items())
+    bad = any(v in ("worse", "mixed") for v in per.values())
+    return [Finding("tracking", CARE if bad else ADOPT, text)]
 
 
 def _robustness(results: dict) -> list[Finding]:

@@ -32,6 +32,7 @@ from cadfeat.report.plots import Plot, make_plots
 from cadfeat.report.renders import Renders, make_renders
 from cadfeat.report.requirements import requirements_table
 from cadfeat.report.robustness import robustness_section
+from cadfeat.report.tracking import tracking_section
 from cadfeat.report.verdict import verdict_section
 from cadfeat.report.view3d import view3d_section
 
@@ -231,6 +232,7 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
         ("setup", "Study, camera and trajectory", lambda: tables.setup_table(results)),
         ("plots", "Plots", lambda: "".join(f"<h3>{esc(p.title)}</h3>" + figure(rel(p.path), p.caption)
                                            for p in plots)),
+        ("tracking", "Does the new design track better?", lambda: tracking_section(results, out_dir, rel)),
         ("appendix", "Appendix: design matrix and normalisation", lambda: _appendix(results)),
         ("files", "Exported files", lambda: tables.files_table(results) + tables.verification_table(results)),
         ("provenance", "Versions and timings", lambda: _provenance(results, timings)),

@@ -760,6 +760,12 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
                                                                  "holes.csv")]
     results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
     results["versions"] = versions()
+    if config.tracking is not None:  # [tracking]: the closed loop on both designs (cadfeat.vision)
+        from cadfeat.study.tracking import run_tracking
+
+        with prog.phase("tracking"):
+            results["tracking"] = run_tracking(config, {"before": (shapes["shape0"], shapes["holes0"]),
+                                                        "after": (shapes["shape1"], shapes["holes1"])}, stage)
     write_json(stage / "results.json", results)
     _report(stage, results, shapes, prog)
 

@@ -17,6 +17,7 @@ what must be kept, what to optimise and how (README, "Study files", has a full a
     [objective]    measures, aggregate, combine, weights, thresholds, min_axis_px, rotation_length_mm,
                    smoothmin_beta, normalisation (initial | natural | none), fov_measure (cone | image)
     [optimizer]    method, starts, maxiter, seed, local_solver, snap_standard_sizes
+    [tracking]     optional closed-loop check (``cadfeat track``, cadfeat.vision): ``TRACKING_KEYS``
 
 Everything is checked before any work is done (``load_study``): unknown sections and keys, types, ranges,
 enumerations, that files exist, that design parameters exist in the part script and that their bounds lie
@@ -61,6 +62,7 @@ __all__ = [
     "StudyConfig",
     "StudyError",
     "StudyInfo",
+    "TrackingSpec",
     "TrajectorySpec",
     "load_study",
     "part_parameters",
@@ -83,7 +85,7 @@ SCRIPT_SUFFIXES = (".py",)
 STEP_SUFFIXES = (".step", ".stp")
 
 SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer", "shop",
-            "robustness")
+            "robustness", "tracking")
 SHOP_KEYS = ("hole_sizes", "grid_mm", "keep_patterns")
 ROBUSTNESS_KEYS = ("position_tol_mm", "size_steps", "camera_position_mm", "camera_angle_deg", "samples")
 REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
@@ -233,6 +235,49 @@ class ConstraintSpec:
     symmetry: str = "none"
 
 
+TRACKING_ESTIMATORS = ("ekf", "iekf", "pnp")
+#: The keys of ``[tracking]`` (the fields of ``TrackingSpec``).
+TRACKING_KEYS = ("estimators", "runs", "seed", "noise_grey", "defocus", "exposure_s", "initial_error_mm",
+                 "initial_error_deg", "r_px2", "q_rate_mm2_s2", "q_omega_rad2_s2", "iterations", "tau", "frame_step",
+                 "settle_frames", "converged_mm", "converged_deg", "gate_px", "rim_model", "alpha",
+                 "min_change_percent")
+
+
+@dataclass(frozen=True)
+class TrackingSpec:
+    """``[tracking]``: the closed-loop check of ``cadfeat track`` (``cadfeat.vision.closed_loop.TrackingConfig``).
+
+    Estimators, Monte-Carlo runs and seed; sensor: grey-level noise σ (0..255 scale), thin-lens defocus on/off,
+    exposure (s, 0 = no motion blur); initial pose error (mm, deg); filter tuning (thesis §6.3.3): R = r I (px²),
+    Q = diag(0, q, …) on the linear (mm²/s²) and angular (rad²/s²) rates, IEKF iterations n and threshold τ;
+    every ``frame_step``-th trajectory sample; statistics after ``settle_frames``; convergence bounds;
+    association gate (px); rim ellipse-centre model; significance ``alpha`` of the paired test, and the smallest
+    change of the median RMS error (percent of the error before) that a verdict counts.
+    """
+
+    estimators: tuple[str, ...] = TRACKING_ESTIMATORS
+    runs: int = 20
+    seed: int = 0
+    noise_grey: float = 2.0
+    defocus: bool = True
+    exposure_s: float = 0.0
+    initial_error_mm: float = 10.0
+    initial_error_deg: float = 2.0
+    r_px2: float = 0.25
+    q_rate_mm2_s2: float = 100.0
+    q_omega_rad2_s2: float = 1e-3
+    iterations: int = 30
+    tau: float = 1e-16
+    frame_step: int = 1
+    settle_frames: int = 5
+    converged_mm: float = 2.0
+    converged_deg: float = 1.0
+    gate_px: float = 10.0
+    rim_model: bool = True
+    alpha: float = 0.05
+    min_change_percent: float = 5.0
+
+
 @dataclass(frozen=True)
 class ShopSpec:
     """``[shop]``: shop-ready output (``cadfeat.design.shop``). ``hole_sizes``: a table name of
@@ -275,6 +320,7 @@ class StudyConfig:
     data: Mapping[str, Any] = field(default_factory=dict, repr=False)
     shop: ShopSpec = field(default_factory=ShopSpec)
     robustness: RobustnessSpec = field(default_factory=RobustnessSpec)
+    tracking: TrackingSpec | None = None
 
     @property
     def label(self) -> str:
@@ -856,6 +902,29 @@ def _optimizer_section(t: _Table, seed: int) -> OptimizerConfig:
     )
 
 
+def _tracking_section(t: _Table, seed: int) -> TrackingSpec:
+    estimators = t.raw("estimators", list(TRACKING_ESTIMATORS))
+    if not isinstance(estimators, list) or not estimators or len(set(map(str, estimators))) != len(estimators) or \
+            not all(isinstance(e, str) and e in TRACKING_ESTIMATORS for e in estimators):
+        t.fail("tracking.estimators", f"{_fmt(estimators)} is not allowed",
+               f"a non-empty list of distinct names from {', '.join(TRACKING_ESTIMATORS)}")
+    return TrackingSpec(
+        estimators=tuple(estimators), runs=t.integer("runs", 20, 1, 10_000), seed=t.integer("seed", seed, 0, 2**32 - 1),
+        noise_grey=t.number("noise_grey", 2.0, 0.0, 100.0), defocus=t.boolean("defocus", True),
+        exposure_s=t.number("exposure_s", 0.0, 0.0, 1.0),
+        initial_error_mm=t.number("initial_error_mm", 10.0, 0.0, 10_000.0),
+        initial_error_deg=t.number("initial_error_deg", 2.0, 0.0, 180.0),
+        r_px2=t.number("r_px2", 0.25, 0.0, lo_open=True), q_rate_mm2_s2=t.number("q_rate_mm2_s2", 100.0, 0.0),
+        q_omega_rad2_s2=t.number("q_omega_rad2_s2", 1e-3, 0.0), iterations=t.integer("iterations", 30, 1, 1000),
+        tau=t.number("tau", 1e-16, 0.0), frame_step=t.integer("frame_step", 1, 1),
+        settle_frames=t.integer("settle_frames", 5, 0), converged_mm=t.number("converged_mm", 2.0, 0.0, lo_open=True),
+        converged_deg=t.number("converged_deg", 1.0, 0.0, lo_open=True),
+        gate_px=t.number("gate_px", 10.0, 0.0, lo_open=True), rim_model=t.boolean("rim_model", True),
+        alpha=t.number("alpha", 0.05, 0.0, 0.5, lo_open=True),
+        min_change_percent=t.number("min_change_percent", 5.0, 0.0, 100.0),
+    )
+
+
 # ------------------------------------------------------------------------------------------- entry point
 def _read(path_or_dict: Any, base_dir: str | Path | None) -> tuple[dict[str, Any], Path | None, Path, str]:
     if isinstance(path_or_dict, Mapping):
@@ -914,6 +983,9 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     if optimizer.method == "pareto" and objective.combine != "pareto":
         raise StudyError(f"{label}: objective.combine: {objective.combine!r} with optimizer.method = \"pareto\"; "
                          "allowed: pareto")
+    tracking = None
+    if "tracking" in data:
+        tracking = _tracking_section(_Table(top.raw("tracking"), "tracking", label, TRACKING_KEYS), info.seed)
     echo = {
         "study": {"name": info.name, "part": info.part, "seed": info.seed,
                   "description": info.description, "build_timeout_s": info.build_timeout_s},
@@ -929,8 +1001,10 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
                  else list(shop.hole_sizes)},
         "robustness": _asdict(robustness),
     }
+    if tracking is not None:
+        echo["tracking"] = {**_asdict(tracking), "estimators": list(tracking.estimators)}
     return StudyConfig(path, base, info, camera, pose, trajectory, design, constraints, objective, optimizer,
-                       params, _drop_none(echo), shop=shop, robustness=robustness)
+                       params, _drop_none(echo), shop=shop, robustness=robustness, tracking=tracking)
 
 
 def _drop_none(value: Any) -> Any:

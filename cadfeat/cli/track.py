@@ -1,0 +1,127 @@
+"""Sub-command ``cadfeat track STUDY``: does the new design track better? (closed loop, ``cadfeat.vision``).
+
+Reads the designs a previous ``cadfeat run`` exported (``original.step``, ``optimised.step`` in the output
+folder), renders the camera images along the study trajectory, detects the holes and tracks the part pose with
+the EKF, IEKF and solvePnP, before and after. Writes ``tracking/`` (tracking.json, frames with detected vs
+predicted ellipses) and the ``tracking`` section of results.json; ``--sweep`` runs the thesis §6.3.3
+sensitivity study instead (``tracking/sweep_<kind>.json`` and ``.png``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from cadfeat.cli.command import Command
+
+SWEEP_KINDS = ("initial_error", "q", "r", "focal_length", "sample_time")
+
+
+def _track_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("study", metavar="STUDY", help="study file (TOML); its [tracking] section, or defaults")
+    parser.add_argument("--out", metavar="DIR", help="the study's output folder (default: exports/<study name>/)")
+    parser.add_argument("--runs", type=int, metavar="N", help="Monte-Carlo runs (overrides tracking.runs)")
+    parser.add_argument("--sweep", choices=SWEEP_KINDS, help="thesis §6.3.3 sensitivity: vary one setting")
+    parser.add_argument("--values", metavar="V,V,...", help="the sweep's values (default: a thesis-like range)")
+
+
+def _designs(out: Path, label: str) -> dict[str, tuple[Any, list[Any]]]:
+    from cadfeat.cad.export import import_step
+    from cadfeat.cad.features import extract_holes
+    from cadfeat.errors import CadfeatError
+
+    designs = {}
+    for name, file in (("before", "original.step"), ("after", "optimised.step")):
+        path = out / file
+        if not path.is_file():
+            raise CadfeatError(f"{label}: {path} not found; allowed: the output folder of `cadfeat run` "
+                               f"(run `cadfeat run {label}` first, or give --out DIR)")
+        shape = import_step(path)
+        designs[name] = (shape, extract_holes(shape))
+    return designs
+
+
+def _write_json(path: Path, data: dict[str, Any]) -> None:
+    from cadfeat.study.outputs import write_json
+
+    tmp = path.with_name(path.name + ".tmp")
+    write_json(tmp, data)
+    tmp.replace(path)
+
+
+def summary_lines(section: dict[str, Any]) -> list[str]:
+    """Console table: per design and estimator, RMS errors with intervals; the verdict per estimator."""
+    lines = []
+    for name, d in section["designs"].items():
+        for m, e in d["estimators"].items():
+            t, r = e["trans_mm_rms"], e["rot_deg_rms"]
+            lines.append(f"  {name:<7} {m:<5} translation RMS {_f(t['mean'])} mm [{_f(t['ci_low'])}, "
+                         f"{_f(t['ci_high'])}]   rotation RMS {_f(r['mean'])} deg [{_f(r['ci_low'])}, "
+                         f"{_f(r['ci_high'])}]   lost {_f(e['frames_lost']['mean'])} frames")
+    for m, v in section.get("verdicts", {}).items():
+        lines.append(f"  {m}: {v['verdict']} (Wilcoxon p = {_f(v['translation']['p_value'])} translation, "
+                     f"{_f(v['rotation']['p_value'])} rotation; {v['translation']['runs']} paired runs)")
+    return lines
+
+
+def _f(x: Any) -> str:
+    return "n/a" if x is None else f"{x:.3g}"
+
+
+def track(args: argparse.Namespace) -> int:
+    """Does the new design track better? Images → OpenCV detection → EKF/IEKF/PnP pose, before vs after."""
+    import dataclasses
+
+    from cadfeat.errors import CadfeatError
+    from cadfeat.study.run import default_out_dir
+    from cadfeat.study.schema import TrackingSpec, load_study
+    from cadfeat.study.tracking import run_tracking, sweep
+
+    config = load_study(args.study)
+    spec = config.tracking or TrackingSpec(seed=config.study.seed)
+    if args.runs is not None:
+        if args.runs < 1:
+            raise CadfeatError(f"--runs: {args.runs} is not allowed; allowed: an integer >= 1")
+        spec = dataclasses.replace(spec, runs=args.runs)
+    values = None
+    if args.values:
+        try:
+            values = [float(v) for v in args.values.split(",")]
+        except ValueError:
+            raise CadfeatError(f"--values: {args.values!r} is not allowed; allowed: numbers separated by commas") \
+                from None
+    out = Path(args.out) if args.out else default_out_dir(config)
+    designs = _designs(out, str(config.label))
+    folder = out / "tracking"
+    folder.mkdir(parents=True, exist_ok=True)
+    if args.sweep:
+        result = sweep(config, designs, args.sweep, values, spec)
+        _write_json(folder / f"sweep_{args.sweep}.json", result)
+        from cadfeat.report.tracking import sweep_plot
+
+        sweep_plot(result, folder / f"sweep_{args.sweep}.png")
+        print(f"tracking sweep {args.sweep} ({config.study.name}):")
+        for row in result["rows"]:
+            parts = [f"{d} {m} {_f(v['trans_mm_rms'])} mm/{_f(v['rot_deg_rms'])} deg"
+                     for d in ("before", "after") for m, v in row.get(d, {}).items()]
+            print(f"  {row['value']:g}: " + "; ".join(parts))
+        print(f"  outputs: {folder / f'sweep_{args.sweep}.json'}, {folder / f'sweep_{args.sweep}.png'}")
+        return 0
+    section = run_tracking(config, designs, out, spec)
+    _write_json(folder / "tracking.json", section)
+    results_path = out / "results.json"
+    if results_path.is_file():  # written by `cadfeat run`: add (or replace) its tracking section
+        results = json.loads(results_path.read_text(encoding="utf-8"))
+        results["tracking"] = section
+        _write_json(results_path, results)
+    print(f"tracking {config.study.name}: {spec.runs} Monte-Carlo runs, {section['settings']['frames']} frames")
+    print("\n".join(summary_lines(section)))
+    for w in section.get("warnings", []):
+        print(f"  warning: {w}")
+    print(f"  outputs: {folder / 'tracking.json'}" + (f", {results_path} (tracking)" if results_path.is_file() else ""))
+    return 0
+
+
+COMMANDS = (Command("track", _track_args, track),)

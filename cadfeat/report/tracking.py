@@ -1,0 +1,154 @@
+"""Report section "Does the new design track better?" from results.json's ``tracking`` (``cadfeat.vision``).
+
+Error against time before and after per estimator (median over the Monte-Carlo runs with a 10–90 % band,
+thesis Fig. 6.7 style), a few camera frames with the detected ellipses over the predicted ones, the table of
+errors with bootstrap intervals, and one verdict line per estimator with the paired test used. Also the plot of
+a ``cadfeat track --sweep`` (thesis Figs. 6.3–6.11). Empty when the results have no tracking section.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from cadfeat.report.html import esc, figure, fmt, note, table
+
+COLOURS = {"before": "#d95f02", "after": "#1b9e77"}
+VERDICT_TEXT = {"better": "tracks better after the redesign", "worse": "tracks WORSE after the redesign",
+                "no significant difference": "shows no significant difference",
+                "mixed": "is significantly better in one of translation / rotation and worse in the other"}
+
+
+def _figure(ncols: int, nrows: int, size: tuple[float, float]) -> tuple[Any, Any]:
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size, dpi=110)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    return fig, axes
+
+
+def error_plot(tracking: dict[str, Any], path: Path) -> Path:
+    """Translation (mm) and rotation (deg) error against time, one column per estimator, both designs."""
+    curves = tracking["curves"]
+    estimators = list(tracking["settings"]["estimators"])
+    fig, axes = _figure(len(estimators), 2, (3.6 * len(estimators), 5.4))
+    for col, m in enumerate(estimators):
+        rows = (("trans_mm", "translation error (mm)"), ("rot_deg", "rotation error (deg)"))
+        for row, (key, unit) in enumerate(rows):
+            ax = axes[row][col]
+            for name, c in curves.items():
+                if m not in c:
+                    continue
+                t, e = c["times_s"], c[m][key]
+                med = [float("nan") if v is None else v for v in e["median"]]
+                lo = [float("nan") if v is None else v for v in e["p10"]]
+                hi = [float("nan") if v is None else v for v in e["p90"]]
+                ax.plot(t, med, color=COLOURS.get(name, "k"), label=name, lw=1.5)
+                ax.fill_between(t, lo, hi, color=COLOURS.get(name, "k"), alpha=0.2, lw=0)
+            ax.set_yscale("log")
+            ax.grid(True, which="both", alpha=0.3)
+            if row == 0:
+                ax.set_title(m.upper())
+            if col == 0:
+                ax.set_ylabel(unit)
+            if row == 1:
+                ax.set_xlabel("time (s)")
+    axes[0][0].legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    return path
+
+
+def sweep_plot(result: dict[str, Any], path: Path) -> Path:
+    """RMS translation error against the swept value, per design and estimator (``cadfeat track --sweep``)."""
+    rows = result["rows"]
+    x = [r["value"] for r in rows]
+    fig, axes = _figure(2, 1, (9.0, 3.6))
+    styles = {"ekf": "-o", "iekf": "-s", "pnp": "--^"}
+    for col, key in enumerate(("trans_mm_rms", "rot_deg_rms")):
+        ax = axes[0][col]
+        for name in ("before", "after"):
+            methods = rows[0].get(name, {}) if rows else {}
+            for m in methods:
+                y = [r[name][m][key] if r[name][m][key] is not None else float("nan") for r in rows]
+                ax.plot(x, y, styles.get(m, "-"), color=COLOURS[name], label=f"{name} {m}", ms=4)
+        ax.set_xlabel(result["kind"].replace("_", " "))
+        ax.set_ylabel("RMS translation error (mm)" if col == 0 else "RMS rotation error (deg)")
+        ax.set_yscale("log")
+        if result["kind"] in ("q", "r", "initial_error"):
+            ax.set_xscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    return path
+
+
+def _interval(entry: dict[str, Any]) -> str:
+    return f"{fmt(entry['mean'], 3)} [{fmt(entry['ci_low'], 3)}, {fmt(entry['ci_high'], 3)}]"
+
+
+def tracking_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path], str]) -> str:
+    """The section's HTML ('' when there is no tracking section)."""
+    tracking = results.get("tracking")
+    if not tracking:
+        return ""
+    s = tracking["settings"]
+    parts = [f"<p>The part's pose is estimated from synthetic camera images along the trajectory "
+             f"({s['frames']} frames, grey-level noise σ = {fmt(s['noise_grey'], 3)}, thin-lens defocus "
+             f"{'on' if s['defocus'] else 'off'}, exposure {fmt(s['exposure_s'], 3)} s): holes detected with OpenCV "
+             f"(ellipse fits), associated to the model by prediction, and tracked by the EKF, IEKF (thesis §6.3) and "
+             f"solvePnP from an initial error of {fmt(s['initial_error_mm'], 3)} mm / "
+             f"{fmt(s['initial_error_deg'], 3)}°, over {s['runs']} Monte-Carlo runs paired between the designs "
+             f"(same noise seeds and initial errors). Errors are counted after the first {s['settle_frames']} "
+             "frames; intervals are 95 % bootstrap intervals of the mean over runs.</p>"]
+    parts += [note(w, "warning") for w in tracking.get("warnings", [])]
+    lines = []
+    for m, v in tracking.get("verdicts", {}).items():
+        t = v["translation"]
+        lines.append(f"<li><b>{esc(m.upper())}</b>: the new design {esc(VERDICT_TEXT.get(v['verdict'], v['verdict']))}"
+                     f" (median change of RMS translation error {fmt(t['median_change'], 3)} mm, p = "
+                     f"{fmt(t['p_value'], 2)}; rotation p = {fmt(v['rotation']['p_value'], 2)}; {esc(t['test'])}, "
+                     f"α = {fmt(t['alpha'], 2)}; changes under {fmt(100 * t.get('min_change', 0.0), 2)} % of the error "
+                     "do not count).</li>")
+    if lines:
+        parts.append(f'<ul class="verdict">{"".join(lines)}</ul>')
+    rows = []
+    for name, d in tracking["designs"].items():
+        for m, e in d["estimators"].items():
+            conv = e["convergence_s"]
+            rows.append("<tr>" + "".join(f"<td>{x}</td>" for x in (
+                esc(name), esc(m.upper()), _interval(e["trans_mm_rms"]), fmt(e["trans_mm_p95"]["mean"], 3),
+                fmt(e["trans_mm_max"]["mean"], 3), _interval(e["rot_deg_rms"]), fmt(e["rot_deg_p95"]["mean"], 3),
+                fmt(e["frames_lost"]["mean"], 3),
+                fmt(conv["mean"], 3) + (f" ({conv['runs_not_finite']} never)" if conv.get("runs_not_finite") else "")))
+                + "</tr>")
+    parts.append(table(["design", "estimator", "RMS translation (mm)", "p95 (mm)", "max (mm)", "RMS rotation (deg)",
+                        "p95 (deg)", "lost frames", "convergence (s)"], rows, "tracking-errors"))
+    rates = []
+    for name, d in tracking["designs"].items():
+        text = ", ".join(f"{esc(h)} {'—' if r is None else f'{100 * r:.0f} %'}" for h, r in d["detection_rate"].items())
+        rates.append(f"<li>{esc(name)}: {text}</li>")
+    parts.append(f"<p>Detection rate per hole (detected / frames where the hole is in view and facing the camera):"
+                 f"</p><ul>{''.join(rates)}</ul>")
+    if tracking.get("curves"):
+        try:
+            path = error_plot(tracking, Path(out_dir) / "img" / "tracking_errors.png")
+            parts.append(figure(rel(path), "Pose error against time, median over the Monte-Carlo runs with the "
+                                           "10–90 % band (thesis Fig. 6.7 style); log scale.", "tracking errors"))
+        except ImportError as exc:  # matplotlib missing
+            parts.append(note(f"no error plot: {exc}"))
+    frames = [f for f in tracking.get("frames", []) if (Path(out_dir) / f["path"]).is_file()]
+    if frames:
+        figs = "".join(figure(f["path"], f"{f['design']}, frame {f['frame']} (t = {fmt(f['time_s'], 3)} s): "
+                                         f"{f['detected']} of {f['holes']} holes detected", f"{f['design']} frame")
+                       for f in frames)
+        parts.append("<h3>Camera frames: detected ellipses (green) over the predicted rims (red), associated "
+                     f"centres (yellow)</h3><div class=\"pair\">{figs}</div>")
+    elif tracking.get("frames"):
+        parts.append(note("The tracking frames are in the study's output folder (tracking/), not beside this "
+                          "report."))
+    return "".join(parts)

@@ -1,0 +1,184 @@
+"""A study's ``[tracking]`` section run on its original and optimised designs (``cadfeat track``, ``cadfeat run``).
+
+Glue between the study (camera, trajectory, part pose, ``TrackingSpec``) and ``cadfeat.vision.closed_loop``:
+builds the ``TrackingConfig``, runs the closed loop on both designs, and returns the results.json ``tracking``
+section: the Monte-Carlo summaries and paired verdicts (``BeforeAfter.to_json``), per-frame error curves
+(median and 10–90 % band over runs, for the report's error-against-time plot, thesis Fig. 6.7 style) and a few
+frames drawn with detected vs predicted ellipses (PNG files under ``tracking/`` in the output folder).
+
+``sweep`` reruns the loop while one setting varies (thesis §6.3.3, Figs. 6.3–6.11): the initial error, q, r,
+the focal length the filters assume (the images keep the true camera), or the sample time (frame step).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cadfeat.errors import CadfeatError
+from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
+
+#: Sweep kinds and their default values (thesis §6.3.3 ranges where they apply to this scene).
+SWEEPS: dict[str, tuple[float, ...]] = {
+    "initial_error": (5.0, 20.0, 40.0, 80.0, 160.0),            # mm (and 0.1 deg per mm)
+    "q": (1e3, 10.0, 1e-1, 1e-3, 1e-5),                         # q_rate mm²/s² (q_omega = q·1e-5 rad²/s²)
+    "r": (5e-2, 1e-1, 1.0, 10.0, 100.0),                        # px²
+    "focal_length": (0.99, 0.995, 1.0, 1.005, 1.01),            # factor on fx, fy assumed by the estimators
+    "sample_time": (1, 2, 4),                                   # frame step (sample time = step × dt)
+}
+
+
+def tracking_config(spec: TrackingSpec) -> Any:
+    """The ``cadfeat.vision`` configuration of a ``[tracking]`` section."""
+    from cadfeat.vision import FilterTuning, SensorModel
+    from cadfeat.vision.closed_loop import TrackingConfig
+
+    tuning = FilterTuning(r_px2=spec.r_px2, q_rate_mm2_s2=spec.q_rate_mm2_s2, q_omega_rad2_s2=spec.q_omega_rad2_s2,
+                          iterations=spec.iterations, tau=spec.tau,
+                          sigma0_mm=max(spec.initial_error_mm, 1.0), sigma0_rad=max(np.radians(spec.initial_error_deg),
+                                                                                    0.01))
+    return TrackingConfig(estimators=tuple(spec.estimators), runs=spec.runs,
+                          sensor=SensorModel(noise_grey=spec.noise_grey, defocus=spec.defocus,
+                                             exposure_s=spec.exposure_s),
+                          initial_error_mm=spec.initial_error_mm, initial_error_deg=spec.initial_error_deg,
+                          tuning=tuning, frame_step=spec.frame_step, settle_frames=spec.settle_frames,
+                          converged_mm=spec.converged_mm, converged_deg=spec.converged_deg, gate_px=spec.gate_px,
+                          rim_model=spec.rim_model, seed=spec.seed, alpha=spec.alpha,
+                          min_change=spec.min_change_percent / 100.0)
+
+
+def _scene(config: StudyConfig) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray]:
+    from cadfeat.poses import invert_T
+    from cadfeat.study.setup import load_scene
+
+    camera, traj, T_task_part = load_scene(config)
+    return camera, invert_T(traj.T_task_cam) @ T_task_part, np.asarray(traj.times_s), traj.velocity_screws()
+
+
+def _check_frames(config: StudyConfig, spec: TrackingSpec, n_samples: int) -> None:
+    frames = len(range(0, n_samples, spec.frame_step))
+    if frames < spec.settle_frames + 3:
+        raise StudyError(f"{config.label}: tracking.settle_frames: {spec.settle_frames} leaves fewer than 3 of the "
+                         f"{frames} tracked frames (trajectory n = {n_samples}, tracking.frame_step = "
+                         f"{spec.frame_step}); allowed: settle_frames <= {max(frames - 3, 0)} or a smaller frame_step")
+
+
+#: Rotation between two tracked frames (deg) above which a constant-velocity filter cannot be expected to follow.
+MAX_FRAME_ROTATION_DEG = 30.0
+
+
+def _motion_warnings(T_cam_part: np.ndarray, times_s: np.ndarray) -> list[str]:
+    """Warn when the trajectory turns more than ``MAX_FRAME_ROTATION_DEG`` between tracked frames (e.g. a
+    look-at camera rolling as its view passes the up vector): the EKF/IEKF's constant-velocity model then
+    cannot follow, whatever the design; solvePnP is per frame and unaffected."""
+    from cadfeat.vision.motion import so3_log
+
+    R = T_cam_part[:, :3, :3]
+    step = np.degrees(np.linalg.norm(so3_log(R[1:] @ np.swapaxes(R[:-1], -1, -2)), axis=-1))
+    if step.size == 0 or step.max() <= MAX_FRAME_ROTATION_DEG:
+        return []
+    k = int(np.argmax(step))
+    return [f"the camera turns {step[k]:.0f}° between tracked frames {k} and {k + 1} (t = {times_s[k]:.3g} s to "
+            f"{times_s[k + 1]:.3g} s); the EKF/IEKF's constant-velocity model cannot follow such a jump (check the "
+            f"trajectory, e.g. a look-at camera rolling about its axis; or track more frames), solvePnP is per frame"]
+
+
+def _curves(result: Any) -> dict[str, Any]:
+    """Per design and estimator: frame times and the median / 10 % / 90 % over runs of both errors."""
+    out: dict[str, Any] = {}
+    for name, d in result.designs.items():
+        out[name] = {"times_s": [round(float(t), 6) for t in d.times_s]}
+        for m, (et, er) in d.errors.items():
+            entry = {}
+            for key, e in (("trans_mm", et), ("rot_deg", er)):
+                with np.errstate(all="ignore"):
+                    q = np.nanpercentile(np.where(np.isfinite(e), e, np.nan), [10, 50, 90], axis=0) \
+                        if np.isfinite(e).any() else np.full((3, e.shape[1]), np.nan)
+                entry[key] = {"p10": q[0].tolist(), "median": q[1].tolist(), "p90": q[2].tolist()}
+            out[name][m] = entry
+    return out
+
+
+def _frames(result: Any, camera: Any, out_dir: Path | None, count: int = 3) -> list[dict[str, Any]]:
+    """Frames (first, middle, last) of run 0 of each design, drawn with detections and predictions, as PNGs."""
+    if out_dir is None:
+        return []
+    import cv2
+
+    from cadfeat.vision.closed_loop import draw_frame, frame_image
+
+    folder = Path(out_dir) / "tracking"
+    folder.mkdir(parents=True, exist_ok=True)
+    entries = []
+    for name, d in result.designs.items():
+        obs = result.observations[name]
+        n = len(obs.optical)
+        for k in sorted({0, n // 2, n - 1})[:count]:
+            img = frame_image(camera, obs, k, result.config.sensor.noise_grey, result.config.seed * 1000)
+            rgb = draw_frame(img, obs.predicted[k], d.first_detections[k], d.pixels[0, k])
+            path = folder / f"{name}_frame_{k:03d}.png"
+            if not cv2.imwrite(str(path), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
+                raise CadfeatError(f"cannot write {path}")
+            entries.append({"design": name, "frame": int(k), "time_s": float(d.times_s[k]),
+                            "path": f"tracking/{path.name}",
+                            "detected": int(np.all(np.isfinite(d.pixels[0, k]), axis=-1).sum()),
+                            "holes": int(d.pixels.shape[2])})
+    return entries
+
+
+def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[Any]]], out_dir: Path | None = None,
+                 spec: TrackingSpec | None = None, camera_override: Any = None) -> dict[str, Any]:
+    """The results.json ``tracking`` section for ``designs`` = {"before": (shape, holes), "after": (...)}.
+
+    ``out_dir``: where the frame PNGs go (``tracking/``); None writes nothing. ``camera_override``: the camera
+    the estimators assume (the images always use the study's camera) — for the focal-length sweep.
+    """
+    from cadfeat.vision.closed_loop import track_designs
+
+    spec = spec or config.tracking or TrackingSpec()
+    camera, T_cam_part, times, screws = _scene(config)
+    _check_frames(config, spec, len(T_cam_part))
+    result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec),
+                           estimator_camera=camera_override)
+    section = result.to_json()
+    section["warnings"] = _motion_warnings(T_cam_part[result.frame_indices], times[result.frame_indices])
+    section["curves"] = _curves(result)
+    section["frames"] = _frames(result, camera, out_dir)
+    return section
+
+
+def sweep(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[Any]]], kind: str,
+          values: Sequence[float] | None = None, spec: TrackingSpec | None = None) -> dict[str, Any]:
+    """Thesis §6.3.3 sensitivity: the tracking summary per value of one setting (module docstring).
+
+    Returns {"kind", "values", "rows": [{"value", design: {estimator: {trans_mm_rms, rot_deg_rms, convergence_s}}}]}.
+    """
+    if kind not in SWEEPS:
+        raise StudyError(f"{config.label}: --sweep {kind!r} is not allowed; allowed: {', '.join(SWEEPS)}")
+    base = spec or config.tracking or TrackingSpec()
+    rows = []
+    camera = _scene(config)[0]
+    for value in (values or SWEEPS[kind]):
+        s, cam = base, None
+        if kind == "initial_error":
+            s = dataclasses.replace(base, initial_error_mm=float(value), initial_error_deg=0.1 * float(value))
+        elif kind == "q":
+            s = dataclasses.replace(base, q_rate_mm2_s2=float(value), q_omega_rad2_s2=float(value) * 1e-5)
+        elif kind == "r":
+            s = dataclasses.replace(base, r_px2=float(value))
+        elif kind == "focal_length":
+            cam = camera.replace(fx=camera.fx * float(value), fy=camera.fy * float(value))
+        elif kind == "sample_time":
+            s = dataclasses.replace(base, frame_step=int(value), settle_frames=min(base.settle_frames, 2))
+        section = run_tracking(config, designs, None, s, camera_override=cam)
+        row: dict[str, Any] = {"value": float(value)}
+        for name, d in section["designs"].items():
+            row[name] = {m: {k: e[k]["mean"] for k in ("trans_mm_rms", "rot_deg_rms", "convergence_s")}
+                         for m, e in d["estimators"].items()}
+        row["verdicts"] = {m: v["verdict"] for m, v in section["verdicts"].items()}
+        rows.append(row)
+    return {"kind": kind, "values": [float(v) for v in (values or SWEEPS[kind])], "rows": rows}

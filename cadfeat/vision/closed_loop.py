@@ -1,0 +1,355 @@
+"""The closed loop for one design and for before vs after: images → detection → pose tracking → errors.
+
+``observe`` renders a design once along the trajectory and blurs it (``images``), keeping only each frame's
+region around the part (the background is black; noise there cannot make a hole, since holes are dark
+regions *enclosed* by the lit part). ``track_design`` then runs the Monte-Carlo runs: per run seed, noise
+and 8-bit quantisation (``images.sensor_images``), detection and association to the model's holes at the
+nominal pose (``detection``; the robot knows its commanded trajectory and the nominal part placement), and
+every estimator from the same perturbed initial pose (``estimate.estimate_poses``). ``compare`` gives the
+paired verdict per estimator (``metrics.paired_verdict``). Run r uses the same noise seed and initial error
+for both designs, which is what makes the test paired.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cadfeat.camera import Camera
+from cadfeat.vision.detection import Detections, associate, detect_holes
+from cadfeat.vision.estimate import FilterTuning, estimate_poses
+from cadfeat.vision.images import SensorModel, apply_optics, optics_kernels, render_sequence, sensor_images
+from cadfeat.vision.metrics import aggregate_runs, paired_verdict, pose_errors, run_summary
+from cadfeat.vision.motion import so3_exp
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
+    from cadfeat.measures.ellipse import Ellipse
+
+#: Pixels around the part kept per frame (blur and the contour tracer need a margin of background).
+ROI_MARGIN_PX = 12
+#: Grey level above which a clean-render pixel belongs to the lit part.
+PART_LEVEL = 20.0
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Closed-loop settings (the ``[tracking]`` study section maps onto these; units in the names).
+
+    ``estimators`` subset of ("ekf", "iekf", "pnp"); ``runs`` Monte-Carlo runs; ``sensor`` noise and blur;
+    ``initial_error_mm`` / ``initial_error_deg`` the size of the initial pose error (random direction per
+    run); ``tuning`` the filters' R, Q, P₀, n, τ; ``frame_step`` uses every k-th trajectory sample;
+    ``settle_frames`` frames skipped before the error statistics; ``converged_mm`` / ``converged_deg``
+    convergence bounds; ``gate_px`` association gate; ``rim_model`` measure ellipse centres (True) or
+    treat holes as points (False); ``seed`` base seed; ``alpha`` significance of the paired test;
+    ``min_change`` smallest relative change of the median RMS error that counts (``metrics.paired_verdict``).
+    """
+
+    estimators: tuple[str, ...] = ("ekf", "iekf", "pnp")
+    runs: int = 20
+    sensor: SensorModel = field(default_factory=SensorModel)
+    initial_error_mm: float = 10.0
+    initial_error_deg: float = 2.0
+    tuning: FilterTuning = field(default_factory=FilterTuning)
+    frame_step: int = 1
+    settle_frames: int = 5
+    converged_mm: float = 2.0
+    converged_deg: float = 1.0
+    gate_px: float = 10.0
+    rim_model: bool = True
+    seed: int = 0
+    alpha: float = 0.05
+    min_change: float = 0.05
+
+    def with_changes(self, **changes: Any) -> TrackingConfig:
+        return replace(self, **changes)
+
+
+@dataclass
+class Observation:
+    """One design seen along the trajectory: per frame the blurred noiseless ROI image (float32), its
+    top-left offset (u0, v0) px, the holes' predicted ellipses at the nominal pose, and the model arrays."""
+
+    optical: list[np.ndarray]
+    offsets: np.ndarray
+    predicted: list[Ellipse]
+    centres: np.ndarray
+    normals: np.ndarray
+    radii: np.ndarray
+    names: list[str]
+
+
+@dataclass
+class DesignTracking:
+    """Result of ``track_design``: ``errors[est]`` = (trans_mm (R, F), rot_deg (R, F)); ``summaries[est]`` per
+    run dicts; ``pixels`` (R, F, N, 2); ``detection_rate`` (N,) detected / expected; ``expected`` (F, N)."""
+
+    errors: dict[str, tuple[np.ndarray, np.ndarray]]
+    summaries: dict[str, list[dict[str, float]]]
+    pixels: np.ndarray
+    expected: np.ndarray
+    names: list[str]
+    times_s: np.ndarray
+    first_detections: list[Detections]
+
+    @property
+    def detection_rate(self) -> np.ndarray:
+        found = np.all(np.isfinite(self.pixels), axis=-1)                      # (R, F, N)
+        expected = np.broadcast_to(self.expected, found.shape)
+        n_exp = expected.sum(axis=(0, 1))
+        return np.where(n_exp > 0, (found & expected).sum(axis=(0, 1)) / np.maximum(n_exp, 1), np.nan)
+
+
+def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, sensor: SensorModel,
+            screws: np.ndarray | None = None) -> Observation:
+    """Render + blur once (module docstring). T_cam_part (F, 4, 4) mm, screws (F, 6) for motion blur."""
+    from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.measures import hole_ellipse
+
+    centres, normals, radii = holes_to_arrays(holes)
+    T = np.asarray(T_cam_part, dtype=float)
+    clean = render_sequence(shape, holes, camera, T)
+    blurred = apply_optics(clean, optics_kernels(camera, T, centres, sensor, screws))
+    optical, offsets = [], np.zeros((len(T), 2), dtype=int)
+    for k in range(len(T)):
+        rows = np.flatnonzero((clean[k] > PART_LEVEL).any(axis=1))
+        cols = np.flatnonzero((clean[k] > PART_LEVEL).any(axis=0))
+        if rows.size == 0:
+            optical.append(np.zeros((1, 1), np.float32))
+            continue
+        v0, v1 = max(rows[0] - ROI_MARGIN_PX, 0), min(rows[-1] + ROI_MARGIN_PX + 1, camera.height)
+        u0, u1 = max(cols[0] - ROI_MARGIN_PX, 0), min(cols[-1] + ROI_MARGIN_PX + 1, camera.width)
+        optical.append(np.ascontiguousarray(blurred[k, v0:v1, u0:u1]))
+        offsets[k] = (u0, v0)
+    c_cam = np.einsum("fij,nj->fni", T[:, :3, :3], centres) + T[:, None, :3, 3]
+    n_cam = np.einsum("fij,nj->fni", T[:, :3, :3], normals)
+    ell = hole_ellipse(camera, c_cam, n_cam, radii)
+    from cadfeat.measures.ellipse import Ellipse as _E
+
+    predicted = [_E(ell.centre_px[k], ell.axes_px[k], ell.angle_rad[k], ell.valid[k]) for k in range(len(T))]
+    names = [h.name or f"hole{j}" for j, h in enumerate(holes)]
+    return Observation(optical, offsets, predicted, centres, normals, radii, names)
+
+
+def _expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.ndarray:
+    """(F, N): a hole counts as expected when its ellipse is valid, inside the image with its whole extent,
+    facing the camera and its minor axis ≥ 3 px (detectable in principle; occlusion not modelled)."""
+    c_cam = np.einsum("fij,nj->fni", T[:, :3, :3], obs.centres) + T[:, None, :3, 3]
+    n_cam = np.einsum("fij,nj->fni", T[:, :3, :3], obs.normals)
+    facing = np.einsum("fnk,fnk->fn", n_cam, -c_cam) > 0
+    out = np.zeros(facing.shape, dtype=bool)
+    for k, e in enumerate(obs.predicted):
+        half = np.asarray(e.axes_px)[:, 0] / 2 + 2                    # whole rim inside, 2 px spare
+        cu, cv = np.asarray(e.centre_px)[:, 0], np.asarray(e.centre_px)[:, 1]
+        inside = (cu > half) & (cv > half) & (cu < camera.width - half) & (cv < camera.height - half)
+        out[k] = np.asarray(e.valid) & inside & facing[k] & (np.asarray(e.axes_px)[:, 1] >= 3.0)
+    return out
+
+
+def frame_seed(run_seed: int, k: int) -> int:
+    """The noise seed of frame k of a run (``sensor_images`` adds the frame index too)."""
+    return int(run_seed) * 100_003 + k
+
+
+def frame_image(camera: Camera, obs: Observation, k: int, noise_grey: float, run_seed: int) -> np.ndarray:
+    """The full (H, W) uint8 camera image of frame k in run ``run_seed`` (the region, on black)."""
+    roi = sensor_images(obs.optical[k][None], noise_grey, frame_seed(run_seed, k))[0]
+    full = np.zeros((camera.height, camera.width), np.uint8)
+    u0, v0 = obs.offsets[k]
+    full[v0:v0 + roi.shape[0], u0:u0 + roi.shape[1]] = roi
+    return full
+
+
+def draw_frame(image: np.ndarray, predicted: Ellipse, detections: Detections, pixels: np.ndarray) -> np.ndarray:
+    """RGB copy of a grey frame with the predicted rim ellipses (red), every detected ellipse (green) and the
+    associated centres (yellow crosses) — the report's "detected vs predicted" frames."""
+    import cv2
+
+    out = cv2.cvtColor(np.asarray(image, np.uint8), cv2.COLOR_GRAY2RGB)
+    s = 16
+
+    def ell(c: np.ndarray, ax: np.ndarray, ang: float, colour: tuple[int, int, int]) -> None:
+        if np.all(np.isfinite(c)) and np.all(np.abs(c) < 1e5) and 0 < ax[0] < 1e5:
+            cv2.ellipse(out, (int(round(c[0] * s)), int(round(c[1] * s))), (int(round(ax[0] / 2 * s)),
+                        int(round(ax[1] / 2 * s))), float(np.degrees(ang)), 0, 360, colour, 1, cv2.LINE_AA, 4)
+
+    for j in np.flatnonzero(np.asarray(predicted.valid)):
+        ell(np.asarray(predicted.centre_px)[j], np.asarray(predicted.axes_px)[j],
+            float(np.asarray(predicted.angle_rad)[j]), (230, 40, 40))
+    for j in range(len(detections)):
+        ell(detections.centre_px[j], detections.axes_px[j], float(detections.angle_rad[j]), (40, 220, 60))
+    for p in pixels:
+        if np.all(np.isfinite(p)):
+            cv2.drawMarker(out, (int(round(p[0])), int(round(p[1]))), (250, 220, 0), cv2.MARKER_CROSS, 9, 1)
+    return out
+
+
+def detect_sequence(obs: Observation, noise_grey: float, seed: int, gate_px: float) -> tuple[np.ndarray, list]:
+    """Pixels (F, N, 2) of one Monte-Carlo run (NaN = missing) and the raw detections per frame."""
+    F_, N = len(obs.optical), len(obs.centres)
+    pixels = np.full((F_, N, 2), np.nan)
+    dets = []
+    for k, img in enumerate(obs.optical):
+        frame = sensor_images(img[None], noise_grey, frame_seed(seed, k))[0]
+        d = detect_holes(frame)
+        d = Detections(d.centre_px + obs.offsets[k], d.axes_px, d.angle_rad, d.residual_px)
+        dets.append(d)
+        pixels[k] = associate(obs.predicted[k], d, gate_px)
+    return pixels, dets
+
+
+def initial_pose(T_true0: np.ndarray, error_mm: float, error_deg: float, seed: int) -> np.ndarray:
+    """T_true0 with a translation error of ``error_mm`` and a rotation error of ``error_deg`` in random
+    directions drawn from ``default_rng(seed)`` (left perturbation, camera frame)."""
+    rng = np.random.default_rng([int(seed), 7])
+    u = rng.standard_normal(3)
+    w = rng.standard_normal(3)
+    T0 = np.array(T_true0, dtype=float)
+    T0[:3, 3] += error_mm * u / np.linalg.norm(u)
+    T0[:3, :3] = so3_exp(np.radians(error_deg) * w / np.linalg.norm(w)) @ T0[:3, :3]
+    return T0
+
+
+def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: np.ndarray,
+                 config: TrackingConfig, estimator_camera: Camera | None = None) -> DesignTracking:
+    """Monte-Carlo tracking of one observed design (module docstring). ``estimator_camera``: the camera model
+    the estimators assume, when it differs from the one that made the images (calibration error, thesis
+    Figs. 6.10–6.11)."""
+    T_true = np.asarray(T_true, dtype=float)
+    R_, F_ = config.runs, len(T_true)
+    pixels = np.full((R_, F_, len(obs.centres), 2), np.nan)
+    errors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    summaries: dict[str, list[dict[str, float]]] = {m: [] for m in config.estimators}
+    normals = obs.normals if config.rim_model else None
+    radii = obs.radii if config.rim_model else None
+    first: list[Detections] = []
+    for run in range(R_):
+        pixels[run], dets = detect_sequence(obs, config.sensor.noise_grey, config.seed * 1000 + run, config.gate_px)
+        if run == 0:
+            first = dets
+    T0 = np.stack([initial_pose(T_true[0], config.initial_error_mm, config.initial_error_deg, config.seed * 1000 + run)
+                   for run in range(R_)])
+    for m in config.estimators:  # all runs at once (the filters are batched over runs)
+        track = estimate_poses(estimator_camera or camera, obs.centres, pixels, times_s, m, T0,
+                               normals_part=normals, radii_mm=radii, tuning=config.tuning)
+        et, er = pose_errors(track.T_cam_part, T_true[None])
+        errors[m] = (et, er)
+        summaries[m] = [run_summary(et[run], er[run], times_s, config.settle_frames, config.converged_mm,
+                                    config.converged_deg) for run in range(R_)]
+    return DesignTracking(errors, summaries, pixels, _expected_visible(camera, obs, T_true), obs.names,
+                          np.asarray(times_s, dtype=float), first)
+
+
+def design_json(result: DesignTracking) -> dict[str, Any]:
+    """results.json form of one design's tracking: per estimator the Monte-Carlo means and intervals."""
+    rate = result.detection_rate
+    found = np.all(np.isfinite(result.pixels), axis=-1)
+    return {
+        "estimators": {m: aggregate_runs(s) for m, s in result.summaries.items()},
+        "detection_rate": {name: (None if not np.isfinite(r) else round(float(r), 4))
+                           for name, r in zip(result.names, rate, strict=True)},
+        "frames_under_3_holes": float(np.mean(np.sum(found.sum(axis=-1) < 3, axis=1))),
+        "frames": int(result.pixels.shape[1]),
+        "runs": int(result.pixels.shape[0]),
+    }
+
+
+def compare(before: DesignTracking, after: DesignTracking, alpha: float = 0.05,
+            min_change: float = 0.0) -> dict[str, Any]:
+    """Paired verdicts per estimator on the per-run translation and rotation RMS errors, and an overall line.
+
+    Per estimator: ``better`` when the translation or the rotation RMS is significantly lower after and the
+    other not significantly higher (symmetrically ``worse``), ``mixed`` when one is significantly lower and
+    the other significantly higher, else ``no significant difference``.
+    """
+    out: dict[str, Any] = {}
+    for m in before.summaries:
+        if m not in after.summaries:
+            continue
+        vt = paired_verdict(np.array([s["trans_mm_rms"] for s in before.summaries[m]]),
+                            np.array([s["trans_mm_rms"] for s in after.summaries[m]]), alpha, min_change)
+        vr = paired_verdict(np.array([s["rot_deg_rms"] for s in before.summaries[m]]),
+                            np.array([s["rot_deg_rms"] for s in after.summaries[m]]), alpha, min_change)
+        pair = {vt["verdict"], vr["verdict"]}
+        if pair == {"better", "worse"}:
+            verdict = "mixed"
+        elif "better" in pair:
+            verdict = "better"
+        elif "worse" in pair:
+            verdict = "worse"
+        else:
+            verdict = "no significant difference"
+        out[m] = {"verdict": verdict, "translation": vt, "rotation": vr}
+    return out
+
+
+@dataclass
+class BeforeAfter:
+    """``track_designs`` result: per design name its ``DesignTracking`` and ``Observation``, the paired
+    ``verdicts`` per estimator (before vs after), the config, frame times and wall-clock ``timings_s``."""
+
+    designs: dict[str, DesignTracking]
+    observations: dict[str, Observation]
+    verdicts: dict[str, Any]
+    config: TrackingConfig
+    frame_indices: np.ndarray
+    timings_s: dict[str, float]
+
+    def to_json(self) -> dict[str, Any]:
+        """The results.json ``tracking`` section (plain data; infinities as None)."""
+        c = self.config
+        out = {
+            "settings": {"estimators": list(c.estimators), "runs": c.runs, "noise_grey": c.sensor.noise_grey,
+                         "defocus": c.sensor.defocus, "exposure_s": c.sensor.exposure_s,
+                         "initial_error_mm": c.initial_error_mm, "initial_error_deg": c.initial_error_deg,
+                         "r_px2": c.tuning.r_px2, "q_rate_mm2_s2": c.tuning.q_rate_mm2_s2,
+                         "q_omega_rad2_s2": c.tuning.q_omega_rad2_s2, "iterations": c.tuning.iterations,
+                         "tau": c.tuning.tau, "settle_frames": c.settle_frames, "frames": len(self.frame_indices),
+                         "frame_step": c.frame_step, "rim_model": c.rim_model, "seed": c.seed,
+                         "alpha": c.alpha, "min_change": c.min_change},
+            "designs": {name: design_json(d) for name, d in self.designs.items()},
+            "verdicts": self.verdicts,
+            "timings_s": {k: round(v, 3) for k, v in self.timings_s.items()},
+        }
+        return _finite_json(out)
+
+
+def _finite_json(value: Any) -> Any:
+    """Replace NaN/inf by None and numpy scalars by Python numbers (strict JSON)."""
+    if isinstance(value, dict):
+        return {k: _finite_json(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite_json(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, screws: np.ndarray | None,
+                  designs: dict[str, tuple[Any, Sequence[Hole]]], config: TrackingConfig,
+                  before: str = "before", after: str = "after", estimator_camera: Camera | None = None
+                  ) -> BeforeAfter:
+    """Closed loop on several designs along one trajectory (every ``config.frame_step``-th sample), and the
+    paired verdict ``after`` vs ``before`` per estimator. ``designs`` maps a name to (shape, holes)."""
+    import time
+
+    idx = np.arange(0, len(T_cam_part), max(1, int(config.frame_step)))
+    T = np.asarray(T_cam_part, dtype=float)[idx]
+    t = np.asarray(times_s, dtype=float)[idx]
+    sc = None if screws is None else np.asarray(screws, dtype=float)[idx]
+    results, observations, timings = {}, {}, {}
+    for name, (shape, holes) in designs.items():
+        start = time.perf_counter()
+        observations[name] = observe(shape, holes, camera, T, config.sensor, sc)
+        mid = time.perf_counter()
+        results[name] = track_design(camera, observations[name], T, t, config, estimator_camera)
+        timings[f"{name}_render"] = mid - start
+        timings[f"{name}_track"] = time.perf_counter() - mid
+    verdicts = compare(results[before], results[after], config.alpha, config.min_change) \
+        if before in results and after in results else {}
+    return BeforeAfter(results, observations, verdicts, config, idx, timings)
