@@ -14,7 +14,7 @@ what must be kept, what to optimise and how (README, "Study files", has a full a
                    both: standard_diameters_mm, fixed = [selectors], patterns = [[selectors], ...]
     [constraints]  edge_distance_mm, ligament_mm, volume_change_max_percent, symmetry
     [objective]    measures, aggregate, combine, weights, thresholds, min_axis_px, rotation_length_mm,
-                   smoothmin_beta, normalisation (initial | natural | none), fov_measure (cone | image)
+                   smoothmin_beta, normalisation (payoff | initial | natural | none), fov_measure (cone | image)
     [optimizer]    method, starts, maxiter, seed, local_solver, snap_standard_sizes
 
 Everything is checked before any work is done (``load_study``): unknown sections and keys, types, ranges,
@@ -694,7 +694,7 @@ def _objective_section(t: _Table) -> ObjectiveConfig:
         min_axis_px=t.number("min_axis_px", 5.0, 0.0, lo_open=True),
         rotation_length_mm=t.number("rotation_length_mm", 1.0, 0.0, lo_open=True),
         smoothmin_beta=t.number("smoothmin_beta", 20.0, 0.0, lo_open=True),
-        normalisation=t.string("normalisation", "initial", NORMALISATIONS),
+        normalisation=t.string("normalisation", "payoff", NORMALISATIONS),
         fov_measure=t.string("fov_measure", "cone", FOV_MEASURES),
     )
 
