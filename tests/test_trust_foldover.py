@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from cadfeat import measures
-from cadfeat.camera import Camera
 from cadfeat.cad.features import Hole
+from cadfeat.camera import Camera
 from cadfeat.render.camera_views import draw_hole_overlay
 
 THESIS = Camera.preset("dalsa-cad1-128a")
