@@ -75,7 +75,9 @@ def _choice(key: str, value: Any, allowed: Sequence[str]) -> None:
 @dataclass(frozen=True)
 class ObjectiveConfig:
     """How the measures become objectives (see the module docstring). ``weights``/``thresholds`` are keyed
-    by measure ("fov", ...) or objective name ("g_FOV", ...)."""
+    by measure ("fov", ...) or objective name ("g_FOV", ...). ``occlusion``: holes hidden by the part count
+    as unseen (a ray test against the part's mesh, default on); ``score``: which holes' FOV/focus/resolution
+    count — "movable" (the holes the design moves; all when none moves), "all", or hole names."""
 
     measures: tuple[str, ...] = ("fov", "focus", "resolution", "resolvability")
     aggregate: str = "sum"
@@ -88,6 +90,8 @@ class ObjectiveConfig:
     feature_reduce: str = "min"
     fov_measure: str = "cone"
     normalisation: str = "payoff"
+    occlusion: bool = True
+    score: str | tuple[str, ...] = "movable"
 
     def __post_init__(self) -> None:
         measures = tuple(self.measures)

@@ -90,20 +90,38 @@ class Problem:
         c0, _, _ = model.features(0.5 * (space.lower + space.upper))  # the box centre: not start-dependent
         depth = np.einsum("lij,nj->lni", self.T_cam_part[:, :3, :3], c0)[..., 2] + self.T_cam_part[:, None, 2, 3]
         self.units = natural_units(objective_config, camera, len(self.screws), n, float(np.median(depth)))
-        unit_by_name = {MEASURES[m]: u for m, u in self.units.items()}
-        if normaliser is None and objective_config.normalisation == "payoff" and objective_config.combine != "pareto":
-            normaliser = self.payoff_normaliser(unit_by_name)
-        elif normaliser is None:
-            g0 = self.features_objectives(*model.features(space.x0))
-            method = "natural" if objective_config.normalisation == "payoff" else objective_config.normalisation
-            normaliser = Normaliser.build(method, dict(zip(self.names, g0, strict=True)), unit_by_name)
-        self.normaliser = normaliser
-        self.scales = np.array([normaliser.reference[n] for n in self.names])
-        self.offsets = np.array([normaliser.offset.get(n, 0.0) for n in self.names])
-        self.combined_idx = np.array(combined_indices(objective_config, self.names, normaliser.constant), dtype=int)
+        self._unit_by_name = {MEASURES[m]: u for m, u in self.units.items()}
+        self._normaliser = normaliser  # built on first use (``normaliser``): the payoff table costs solves
         keys = [ObjectiveConfig.key(nm) for nm in self.names]
         self._thr_idx = np.array([i for i, k in enumerate(keys) if k in objective_config.thresholds], dtype=int)
         self._thr = np.array([objective_config.thresholds[keys[i]] for i in self._thr_idx])
+
+    @property
+    def normaliser(self) -> Normaliser:
+        """The objective scales (class docstring), built on first use."""
+        if self._normaliser is None:
+            cfg = self.objective_config
+            if cfg.normalisation == "payoff" and cfg.combine != "pareto":
+                self._normaliser = self.payoff_normaliser(self._unit_by_name)
+            else:
+                g0 = self.features_objectives(*self.model.features(self.space.x0))
+                method = "natural" if cfg.normalisation == "payoff" else cfg.normalisation
+                self._normaliser = Normaliser.build(method, dict(zip(self.names, g0, strict=True)),
+                                                    self._unit_by_name)
+        return self._normaliser
+
+    @property
+    def scales(self) -> np.ndarray:
+        return np.array([self.normaliser.reference[n] for n in self.names])
+
+    @property
+    def offsets(self) -> np.ndarray:
+        return np.array([self.normaliser.offset.get(n, 0.0) for n in self.names])
+
+    @property
+    def combined_idx(self) -> np.ndarray:
+        """Indices of the objectives in the combination (``objectives.combined_indices``)."""
+        return np.array(combined_indices(self.objective_config, self.names, self.normaliser.constant), dtype=int)
 
     def payoff_normaliser(self, unit_by_name: dict[str, float], samples: int = 32) -> Normaliser:
         """The ideal/nadir ``Normaliser`` of the payoff table (``Normaliser.from_payoff``): each objective

@@ -45,6 +45,7 @@ from cadfeat.study.outputs import (
 )
 from cadfeat.study.progress import StudyProgress
 from cadfeat.study.schema import StudyConfig, StudyError, load_study
+from cadfeat.study.trust import objective_changes
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.study.setup import StudySetup
@@ -78,10 +79,18 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
                                                      if results.get("interrupted") else "")]
     for v in results["variables"]:
         lines.append(f"  {v['name']:<16} {_num(v['before']):>10} -> {_num(v['after']):>10} {v['unit']}")
+    units = {c["name"]: c.get("unit", "") for c in obj.get("changes", [])}
     for name in obj["names"]:
-        lines.append(f"  {name:<16} {_num(obj['before'].get(name)):>10} -> {_num(obj['after'].get(name)):>10}")
+        lines.append(f"  {name:<16} {_num(obj['before'].get(name)):>10} -> {_num(obj['after'].get(name)):>10}"
+                     f"  {units.get(name, '')}")
     lines.append(f"  {'combined':<16} {_num(obj.get('combined_before')):>10} -> "
                  f"{_num(obj.get('combined_after')):>10}  ({obj['combine']}, larger is better)")
+    if obj.get("limiting"):
+        lines.append(f"  limiting objective: {obj['limiting']} (before: {obj.get('limiting_before')})")
+    if obj.get("score"):
+        lines.append(f"  scored holes: {obj['score']}")
+    for w in obj.get("warnings", []) + list(results.get("warnings", [])):
+        lines.append(f"  WARNING: {w}")
     failed = [c for c in results["constraints"] if not c["ok"]]
     lines.append(f"  kept requirements: {len(results['constraints']) - len(failed)} of {len(results['constraints'])} "
                  "hold (B-rep and re-imported STEP)")
@@ -102,17 +111,20 @@ def _num(x: Any) -> str:
 
 
 # ------------------------------------------------------------------------------------------ scoring
-def measure_holes(setup: StudySetup, holes: Sequence[Any], trajectory: Any = None) -> Any:
-    """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``)."""
+def measure_holes(setup: StudySetup, holes: Sequence[Any], trajectory: Any = None, *, mesh: Any = None) -> Any:
+    """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
+    the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off)."""
     from cadfeat import measures
     from cadfeat.cad.features import holes_to_arrays
 
     traj = trajectory if trajectory is not None else setup.trajectory
     o = setup.config.objective
+    if mesh is None:
+        mesh = getattr(getattr(setup, "problem", None), "occlusion_mesh", None)
     T_cam_part = np.linalg.inv(np.asarray(traj.T_task_cam)) @ setup.T_task_part
     c, a, r = holes_to_arrays(list(holes))
     return measures.evaluate(setup.camera, T_cam_part, traj.velocity_screws(), c, a, r, min_axis_px=o.min_axis_px,
-                             rotation_length_mm=o.rotation_length_mm)
+                             rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
 
 
 def score(setup: StudySetup, holes: Sequence[Any]) -> tuple[dict[str, float], float | None]:
@@ -410,7 +422,7 @@ def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int
 
 
 def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], dict[str, Any]]:
-    from cadfeat.study.setup import int_grid, load_scene, setup_script, setup_study
+    from cadfeat.study.setup import int_grid, load_scene, score_rule, setup_script, setup_study
 
     with prog.phase("setup"):
         scene = load_scene(config)
@@ -458,7 +470,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                          f"{_violations(setup, x1)}; allowed: relax these requirements or widen design bounds")
     with prog.phase("rebuild"):
         shape1, holes1, pred_err = _rebuild(setup, x1, getattr(res, "holes", None))
-        m1 = measure_holes(setup, holes1)
+        m1 = measure_holes(setup, holes1, mesh=_mesh_of(config, shape1))
         obj1, comb1 = score(setup, holes1)
         checks = _checks(setup, shape1, holes1, "brep")
     with prog.phase("analyse"):
@@ -481,7 +493,9 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         "objectives": {"names": list(obj0), "normalisation": _normalisation(setup),
                        "combine": config.objective.combine, "aggregate": config.objective.aggregate,
                        "before": obj0, "after": obj1, "combined_before": comb0, "combined_after": comb1,
-                       "larger_is_better": True},
+                       "larger_is_better": True, **objective_changes(setup.problem, obj0, obj1),
+                       "score": score_rule(config, base.holes0, _scored(base)),
+                       "occlusion": bool(config.objective.occlusion)},
         "measures": {"before": measures_summary(m0, base.hole_names, base.trajectory.times_s,
                                                 config.objective.min_axis_px, _half_image(base.camera)),
                      "after": measures_summary(m1, [h.name or f"H{i + 1}" for i, h in enumerate(holes1)],
@@ -499,6 +513,17 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
     shapes = {"shape0": base.shape0, "shape1": shape1, "holes0": base.holes0, "holes1": holes1, "setup": setup,
               "base": base}
     return results, shapes
+
+
+def _mesh_of(config: StudyConfig, shape: Any) -> Any:
+    from cadfeat.study.setup import occlusion_mesh
+
+    return occlusion_mesh(config, shape)
+
+
+def _scored(setup: Any) -> np.ndarray:
+    mask = getattr(setup.problem, "feature_mask", None)
+    return np.ones(len(setup.holes0), bool) if mask is None else np.asarray(mask, bool)
 
 
 def _x0_like(setup: StudySetup, base: Any) -> np.ndarray:
@@ -591,7 +616,7 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
     is given: one trajectory sample). Returns the results dict; prints the per-feature table (thesis
     Table 5.1: FOV, focus, resolution margins, visibility, worst pose) and a per-pose summary when ``echo``;
     writes results.json (+ report) into ``out_dir`` if given."""
-    from cadfeat.study.setup import load_scene
+    from cadfeat.study.setup import load_scene, score_rule, setup_study
 
     config = _resolve(path_or_dict, seed)
     with StudyProgress(config.study.name, enabled=not quiet) as prog:
@@ -600,14 +625,17 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
             if pose is not None and not 0 <= pose < len(traj):
                 raise StudyError(f"{config.label}: --pose {pose}: allowed: 0..{len(traj) - 1} "
                                  f"(the trajectory has {len(traj)} samples)")
-            shape, holes, fixed, names = _current_design(config)
+            setup = setup_study(config)  # the same holes, names, scored holes and occlusion mesh as ``run``
+            shape, holes, fixed, names = setup.shape0, setup.holes0, setup.fixed_mask, setup.hole_names
         full_traj = traj
         if pose is not None:
             traj = _single_pose(traj, pose)
-        ev = _EvalSetup(config, camera, traj, T_task_part, holes, fixed)
         with prog.phase("measures"):
-            m = measure_holes(ev, holes, traj)
-            values = _plain_objectives(config, m)
+            m = measure_holes(setup, holes, traj)
+            values = _plain_objectives(config, m, setup.problem)
+            trust = objective_changes(setup.problem, values, None) if pose is None else {}
+            combined = float(setup.problem.combined_from(np.array([values[n] for n in setup.problem.names]))) \
+                if pose is None and config.objective.combine != "pareto" else None
         summary = measures_summary(m, names, traj.times_s, config.objective.min_axis_px, _half_image(camera))
         if pose is not None:  # pose indices of the full trajectory
             for f in summary["per_feature"]:
@@ -620,9 +648,11 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
             "inputs": config.to_dict(), "camera": camera.to_dict(),
             "trajectory": {**_trajectory_info(traj), "kind": config.trajectory.table.get("kind", "csv"),
                            "pose": pose},
-            "holes": {"before": [hole_dict(h, i, fixed[i], not fixed[i]) for i, h in enumerate(holes)]},
+            "holes": {"before": [hole_dict(h, i, fixed[i], setup.movable_mask[i]) for i, h in enumerate(holes)]},
             "objectives": {"names": list(values), "combine": config.objective.combine,
-                           "aggregate": config.objective.aggregate, "before": values},
+                           "aggregate": config.objective.aggregate, "before": values, "combined_before": combined,
+                           **trust, "score": score_rule(config, holes, _scored(setup)),
+                           "occlusion": bool(config.objective.occlusion)},
             "measures": {"before": summary}, "timings_s": dict(prog.timings), "versions": versions(),
         }
     if echo:
@@ -696,10 +726,12 @@ class _OnePose:
         return self._screws
 
 
-def _plain_objectives(config: StudyConfig, m: Any) -> dict[str, float]:
+def _plain_objectives(config: StudyConfig, m: Any, problem: Any) -> dict[str, float]:
+    """The aggregated objectives of measures ``m`` exactly as the optimiser scores them (the problem's scored
+    holes ``feature_mask`` and natural units for the smooth min)."""
     from cadfeat.design.objectives import objective_values
 
-    return objective_values(m, config.objective)
+    return objective_values(m, config.objective, problem.units, problem.feature_mask)
 
 
 def format_table(results: Mapping[str, Any], pose: int | None = None) -> str:

@@ -2,17 +2,17 @@
 
 - ``objective_changes``: each objective before → after in its own units, the limiting objective (the one
   whose normalised value sets the max-min), and the objectives that do not depend on the design;
-- ``hidden_summary``: per scored hole, the fraction of poses at which the part hides it and the worst pose.
+(The per-hole hidden fractions are in ``outputs.measures_summary``.)
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-__all__ = ["OBJECTIVE_UNITS", "hidden_summary", "objective_changes", "objective_unit"]
+__all__ = ["OBJECTIVE_UNITS", "objective_changes", "objective_unit"]
 
 #: Unit of each measure per pose (the aggregate over the trajectory adds "summed over L poses" for "sum").
 OBJECTIVE_UNITS = {"g_FOV": "cone margin 1 − cos (dimensionless)", "g_FOC": "focus margin (½ depth of field)",
@@ -55,19 +55,4 @@ def objective_changes(problem: Any, before: Mapping[str, float], after: Mapping[
            "limiting": None, "constant": constant, "changes": rows, "warnings": warnings}
     if g1 is not None and cfg.combine in ("maxmin", "pareto"):
         out["limiting"] = problem.limiting(g1)
-    return out
-
-
-def hidden_summary(measures: Any, names: Sequence[str], scored: np.ndarray | None = None) -> list[dict[str, Any]]:
-    """Per hole: ``hidden_frac`` (fraction of poses where the part hides it from the camera, ``hidden``
-    of ``measures.evaluate`` with an occlusion mesh) and ``worst_pose`` (the first pose where it is hidden, or
-    None), ``scored``."""
-    hidden = np.asarray(getattr(measures, "hidden", np.zeros_like(measures.visible)), bool)
-    L = hidden.shape[0]
-    out = []
-    for j, name in enumerate(names):
-        col = hidden[:, j]
-        out.append({"name": name, "hidden_frac": float(col.mean()) if L else 0.0,
-                    "worst_pose": int(np.argmax(col)) if col.any() else None,
-                    "scored": True if scored is None else bool(scored[j])})
     return out
