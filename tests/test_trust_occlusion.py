@@ -8,13 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from study_helpers import DATA, write_toml
 
 from cadfeat.design.optimize import optimise
 from cadfeat.study.run import evaluate_study, run_study
 from cadfeat.study.schema import load_study
 from cadfeat.study.setup import setup_study
-
-from study_helpers import DATA, write_toml
 
 WALL_LO, WALL_HI = np.array([10.0, -20.0, 5.0]), np.array([16.0, 20.0, 20.0])  # walled_plate.py WALL
 
