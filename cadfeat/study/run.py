@@ -91,6 +91,8 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
         lines.append(f"  scored holes: {obj['score']}")
     for w in obj.get("warnings", []) + list(results.get("warnings", [])):
         lines.append(f"  WARNING: {w}")
+    for a in (results.get("preflight") or {}).get("assumptions", []):
+        lines.append(f"  ASSUMED: {a}")
     failed = [c for c in results["constraints"] if not c["ok"]]
     lines.append(f"  kept requirements: {len(results['constraints']) - len(failed)} of {len(results['constraints'])} "
                  "hold (B-rep and re-imported STEP)")
@@ -438,6 +440,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
             if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
                 setups = setups[1:]
         m0 = measure_holes(base, base.holes0)
+        pre = _preflight(config, base, m0)  # refuses a study that cannot mean anything, before any work
         obj0, comb0 = score(base, base.holes0)
     best = None
     interrupted = False
@@ -509,10 +512,52 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                       "linear_feature_map": bool(setup.linear), "prediction_error_mm": pred_err,
                       "integer_combinations": len(setups)},
         "interrupted": bool(interrupted),
+        "preflight": pre.to_dict(),
+        "warnings": list(pre.warnings),
     }
     shapes = {"shape0": base.shape0, "shape1": shape1, "holes0": base.holes0, "holes1": holes1, "setup": setup,
               "base": base}
     return results, shapes
+
+
+def part_points(shape: Any, mesh: Any = None, most: int = 4000) -> np.ndarray:
+    """Points of the part (V, 3) mm, part frame, for the pre-flight: the occlusion mesh's vertices (or a coarse
+    mesh of ``shape``), at most ``most`` of them (evenly strided)."""
+    if mesh is None:
+        from cadfeat.cad.export import mesh_from_shape
+
+        mesh = mesh_from_shape(shape, tolerance=0.5)
+    v = np.asarray(mesh.vertices, float)
+    return v[:: max(1, len(v) // most)]
+
+
+def _preflight(config: StudyConfig, setup: Any, m: Any) -> Any:
+    """``preflight.preflight`` of a set-up study with the measures ``m`` of its holes along the trajectory."""
+    from cadfeat.study.preflight import preflight
+
+    pts = part_points(setup.shape0, getattr(setup.problem, "occlusion_mesh", None))
+    return preflight(config, setup.camera, setup.trajectory, setup.T_task_part, pts, m, _scored(setup),
+                     setup.hole_names)
+
+
+def preflight_study(path_or_dict: Any) -> Any:
+    """The pre-flight of a study on its part as it is (``cadfeat validate``): every hole counts as scored
+    (which holes the design moves needs the design map, which ``run`` builds)."""
+    from cadfeat import measures
+    from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.study.preflight import preflight
+    from cadfeat.study.setup import load_scene, occlusion_mesh
+
+    config = _resolve(path_or_dict, None)
+    camera, traj, T_task_part = load_scene(config)
+    shape, holes, _, names = _current_design(config)
+    mesh = occlusion_mesh(config, shape)
+    o = config.objective
+    T_cam_part = np.linalg.inv(np.asarray(traj.T_task_cam)) @ T_task_part
+    m = measures.evaluate(camera, T_cam_part, traj.velocity_screws(), *holes_to_arrays(list(holes)),
+                          min_axis_px=o.min_axis_px, rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
+    return preflight(config, camera, traj, T_task_part, part_points(shape, mesh), m, np.ones(len(holes), bool),
+                     names)
 
 
 def _mesh_of(config: StudyConfig, shape: Any) -> Any:
@@ -633,6 +678,7 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
         with prog.phase("measures"):
             m = measure_holes(setup, holes, traj)
             values = _plain_objectives(config, m, setup.problem)
+            pre = _preflight(config, setup, m if pose is None else measure_holes(setup, holes, full_traj))
             trust = objective_changes(setup.problem, values, None) if pose is None else {}
             combined = float(setup.problem.combined_from(np.array([values[n] for n in setup.problem.names]))) \
                 if pose is None and config.objective.combine != "pareto" else None
@@ -654,6 +700,7 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
                            **trust, "score": score_rule(config, holes, _scored(setup)),
                            "occlusion": bool(config.objective.occlusion)},
             "measures": {"before": summary}, "timings_s": dict(prog.timings), "versions": versions(),
+            "preflight": pre.to_dict(), "warnings": list(pre.warnings),
         }
     if echo:
         print(format_table(results, pose))
