@@ -8,10 +8,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from study_helpers import study
 
 from cadfeat.trajectory import trajectory_from_dict, write_csv
-
-from study_helpers import study
 
 ROOT = Path(__file__).resolve().parents[1]
 TILTED = {"kind": "straight_approach", "start": [80, 30, 250], "end": [60, 20, 150], "target": [0, 0, 0], "n": 10}
