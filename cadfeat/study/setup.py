@@ -160,8 +160,11 @@ def _select(config: StudyConfig, holes: Sequence[Any], spec: Any, key: str, tol_
         if 1 <= spec <= len(holes):
             return spec - 1
     elif isinstance(spec, str):
+        for i, h in enumerate(holes):  # the hole's own name first (names are not positions in the list)
+            if h.name and spec in (h.name, h.name.lower()):
+                return i
         for i, h in enumerate(holes):
-            if spec in (h.name, f"H{i + 1}", f"h{i + 1}", str(i + 1)):
+            if not h.name and spec in (f"H{i + 1}", f"h{i + 1}", str(i + 1)):
                 return i
     else:
         centres = np.array([h.centre for h in holes], dtype=float).reshape(-1, 3)
