@@ -8,11 +8,10 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from study_helpers import write_toml
 
 from cadfeat.cad.parts import load_part
 from cadfeat.study.run import evaluate_study
-
-from study_helpers import write_toml
 
 ROOT = Path(__file__).resolve().parents[1]
 TWO_HOLES = '''
