@@ -58,9 +58,16 @@ def test_optimum_moves_out_from_behind_the_wall(tmp_path):
     x = float(res.x_best[0])
     m = seen.problem.measures(res.x_best)
     assert x > 38.0 and m.hidden.mean() <= 0.25  # (the optimum sits where a ray grazes the wall's edge)
-    for xs in (25.0, 30.0, 38.0, 42.0, 45.0):  # away from grazing: the same hidden poses as the slab test
-        np.testing.assert_array_equal(seen.problem.measures(np.array([xs])).hidden[:, 0],
-                                      _segment_hits_wall(np.array([[xs, 0.0, 5.0]]), cams)[:, 0])
+    from cadfeat import measures
+
+    p = seen.problem
+    for xs in (25.0, 30.0, 38.0, 42.0, 45.0):  # the exact ray test (reports) gives the slab test's poses
+        c, a, r = p.model.features(np.array([xs]))
+        exact = measures.evaluate(p.camera, p.T_cam_part, p.screws, c, a, r, occlusion_mesh=p.occlusion_mesh)
+        truth = _segment_hits_wall(np.array([[xs, 0.0, 5.0]]), cams)[:, 0]
+        np.testing.assert_array_equal(exact.hidden[:, 0], truth)
+        fast = p.measures(np.array([xs])).hidden[:, 0]  # the optimiser's depth maps: near a silhouette they err
+        assert not (truth & ~fast).any() and np.sum(fast & ~truth) <= 3, (xs, fast, truth)  # errs to hidden
     # rule: a hidden hole never scores better at a pose than the same hole seen
     free = blind.problem.measures(res.x_best)
     assert np.all(m.fov <= free.fov + 1e-15) and np.all(m.fov[m.hidden] < 0)
@@ -90,3 +97,5 @@ def test_evaluate_and_run_give_the_same_before_values(tmp_path):
     assert data["objectives"]["combined_before"] == pytest.approx(ev["objectives"]["combined_before"], rel=1e-9)
     assert data["objectives"]["score"] == ev["objectives"]["score"] == "objective.score = movable: H1"
     assert "limiting objective: g_FOV" in run.summary()
+    html = (tmp_path / "out" / "report.html").read_text()
+    assert "What limits the answer" in html and "hidden fraction before" in html and "objective.score" in html

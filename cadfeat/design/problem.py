@@ -146,6 +146,7 @@ class Problem:
             sub = Problem(replace(space, x0=centre), self.model, self.camera, self.trajectory, self.T_task_part,
                           sub_cfg, self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
                           normaliser=sub_norm, feature_mask=self.feature_mask)
+            sub._depth_maps = self.occlusion  # the same poses: share the depth maps
             res = optimise(sub, OptimizerConfig(method="multistart", starts=4, maxiter=60, seed=0,
                                                 snap_standard_sizes=False), x_start=centre)
             table.append(res.x_best)
@@ -182,12 +183,16 @@ class Problem:
     # ------------------------------------------------------------------------------- single designs
     def with_model(self, model: FeatureModel) -> Problem:
         """The same problem on another feature model (same normaliser, so values stay comparable)."""
-        return Problem(self.space, model, self.camera, self.trajectory, self.T_task_part, self.objective_config,
-                       self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
-                       normaliser=self.normaliser, feature_mask=self.feature_mask)
+        other = Problem(self.space, model, self.camera, self.trajectory, self.T_task_part, self.objective_config,
+                        self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
+                        normaliser=self.normaliser, feature_mask=self.feature_mask)
+        other._depth_maps = getattr(self, "_depth_maps", None)
+        return other
 
-    def measures_from_features(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
-        """``measures.evaluate`` of hole features (part frame) along the trajectory."""
+    def measures_from_features(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                               exact_occlusion: bool = False) -> Any:
+        """``measures.evaluate`` of hole features (part frame) along the trajectory; occlusion by the
+        optimiser's depth maps, or by the exact ray test against the mesh with ``exact_occlusion``."""
         from cadfeat import measures
 
         cfg = self.objective_config
@@ -195,14 +200,28 @@ class Problem:
             raise CadfeatError(f"a design gives a hole radius ≤ 0 mm: {np.asarray(radii).tolist()}")
         return measures.evaluate(self.camera, self.T_cam_part, self.screws, centres, axes, radii,
                                  min_axis_px=cfg.min_axis_px, rotation_length_mm=cfg.rotation_length_mm,
-                                 occlusion_mesh=self.occlusion_mesh)
+                                 occlusion_mesh=self.occlusion_mesh if exact_occlusion else self.occlusion)
+
+    @property
+    def occlusion(self) -> Any:
+        """The optimiser's occlusion test: depth maps of ``occlusion_mesh`` at the trajectory's poses
+        (``measures.depth.DepthMaps``, built once on first use), or None without a mesh."""
+        if self.occlusion_mesh is None:
+            return None
+        if getattr(self, "_depth_maps", None) is None:
+            from cadfeat.measures.depth import DepthMaps
+
+            self._depth_maps = DepthMaps(self.occlusion_mesh, self.camera, self.T_cam_part, grid=128)
+        return self._depth_maps
 
     def measures(self, x: np.ndarray) -> Any:
         return self.measures_from_features(*self.model.features(np.asarray(x, dtype=float)))
 
-    def features_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """Raw aggregated objectives (K,) in ``names`` order from hole features."""
-        m = self.measures_from_features(centres, axes, radii)
+    def features_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                            exact_occlusion: bool = False) -> np.ndarray:
+        """Raw aggregated objectives (K,) in ``names`` order from hole features (``exact_occlusion``: as
+        ``measures_from_features``; the reported before/after values use it)."""
+        m = self.measures_from_features(centres, axes, radii, exact_occlusion)
         cfg = self.objective_config
         values = per_pose_values(m, cfg, self.feature_mask)
         return np.array([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k]) for k in cfg.measures])

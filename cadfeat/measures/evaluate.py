@@ -112,7 +112,8 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
     """All measures (``Measures``) of holes (centres (N, 3) mm, axes (N, 3) out of the material, radii (N,) mm,
     part frame) seen from poses ``T_cam_part`` (L, 4, 4) moving with ``screws`` (L, 6) = (v mm/s, ω rad/s)
     in the camera frame. ``occlusion_mesh``: optional ``trimesh.Trimesh`` of the part (part frame) for the
-    ray occlusion test of ``visible``. ``resolution_model``: "circle" (default, the rim's exact ellipse) or
+    exact ray occlusion test of ``visible``, or ``measures.depth.DepthMaps`` of the part at these same poses
+    (the optimiser's fast test). ``resolution_model``: "circle" (default, the rim's exact ellipse) or
     "sphere" (the thesis's eq. 3.13–3.18: ``minor_axis_px`` and ``resolution_px`` from the outline of a
     sphere of the rim's radius; the reported ellipses stay the rim's).
 
@@ -251,7 +252,12 @@ def _unseen(camera: Camera, x: np.ndarray, y: np.ndarray, rim_reach: np.ndarray,
     folded = np.zeros((L, N), dtype=bool)
     if np.isfinite(r_fold):
         folded = (np.hypot(x, y) + np.abs(rim_reach) > r_fold) & (Z > MIN_DEPTH_MM)
-    hidden = occluded(mesh, camera_positions, c, n) if mesh is not None else np.zeros((L, N), dtype=bool)
+    if mesh is None:
+        hidden = np.zeros((L, N), dtype=bool)
+    elif hasattr(mesh, "hidden"):  # depth maps of the part at these poses (``measures.depth.DepthMaps``)
+        hidden = mesh.hidden(x * Z, y * Z, Z)
+    else:  # the exact ray test against the mesh
+        hidden = occluded(mesh, camera_positions, c, n)
     unseen = hidden | folded
     if unseen.any():
         out["visible"] &= ~unseen

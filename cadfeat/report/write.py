@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from cadfeat.errors import CadfeatError
-from cadfeat.report import tables
+from cadfeat.report import tables, trust
 from cadfeat.report.context import ReportContext
 from cadfeat.report.html import esc, figure, fmt, note, page, section
 from cadfeat.report.plots import Plot, make_plots
@@ -200,6 +200,7 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
     rel = _relative(out_dir)
     builders: list[tuple[str, str, Callable[[], str]]] = [
         ("summary", "Summary", lambda: tables.summary(results)),
+        ("trust", "What limits the answer", lambda: trust.section(results)),
         ("setup", "Study, camera and trajectory", lambda: tables.setup_table(results)),
         ("renders", "The part before and after", lambda: _renders_section(renders, rel)),
         ("views", "What the camera sees", lambda: _views_section(renders, rel)),

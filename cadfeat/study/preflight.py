@@ -71,22 +71,26 @@ def optics_assumptions(camera_table: Mapping[str, Any], camera: Any) -> list[str
 
 
 def check_visibility(measures: Any, label: str, scored: np.ndarray | None = None,
-                     names: Sequence[str] | None = None) -> None:
+                     names: Sequence[str] | None = None) -> str | None:
     """Raise ``StudyError`` if no (scored) hole is seen at any trajectory sample: ``measures.visible`` (in front,
     facing the camera, inside the image and the lens's valid field, not hidden) and inside the field of view.
-    ``measures``: ``measures.Measures`` (L, N) of the original design; ``scored`` (N,) bool (default all)."""
+    ``measures``: ``measures.Measures`` (L, N) of the original design; ``scored`` (N,) bool (default all).
+    Holes that are in view but hidden by the part itself at every sample are a warning (returned), not an
+    error: moving them out from behind the part is a meaningful redesign."""
     visible = np.asarray(measures.visible, bool)
     L, N = visible.shape
     cols = np.ones(N, bool) if scored is None else np.asarray(scored, bool)
     in_view = (np.asarray(measures.fov, float) >= 0.0) | (np.asarray(measures.fov_px, float) >= 0.0)
     seen = (visible & in_view)[:, cols]
     if seen.size == 0 or seen.any():
-        return
+        return None
     which = ", ".join(np.asarray(names)[cols]) if names is not None else f"{int(cols.sum())} hole(s)"
     if not (np.asarray(measures.facing, float)[:, cols] > 0.0).any():
         cause = "at every sample the camera is behind the holes' faces (e.g. a camera below the part)"
-    elif np.asarray(getattr(measures, "hidden", np.zeros_like(visible)), bool)[:, cols].all():
-        cause = "the part itself hides them at every sample"
+    elif ((np.asarray(getattr(measures, "hidden", np.zeros_like(visible)), bool)
+           & (np.asarray(measures.facing, float) > 0))[:, cols]).any():  # (hidden margins are made negative)
+        return (f"the scored holes ({which}) are hidden by the part itself wherever they are in view at the "
+                "starting design")
     else:
         cause = ("no scored hole is ever in front of the camera and inside its image; check [trajectory], "
                  "[part_pose] (mm) or objective.score")
@@ -182,7 +186,9 @@ def preflight(config: Any, camera: Any, trajectory: Any, T_task_part: np.ndarray
                      "[part_pose].position_mm (mm, part frame → task frame)")
         raise StudyError(f"{label}: {where}: {cause}. Nothing was optimised.")
     # 4. scored holes seen somewhere
-    check_visibility(measures, label, scored, names)
+    hidden_warning = check_visibility(measures, label, scored, names)
+    if hidden_warning:
+        out.warnings.append(hidden_warning)
     # 5. focus: depth of field against the part's depths
     depth = (np.einsum("lj,vj->lv", T_cam_part[:, 2, :3], pts) + T_cam_part[:, None, 2, 3])
     zmin, zmax = float(np.percentile(depth[depth > 0], 1)), float(np.percentile(depth[depth > 0], 99))

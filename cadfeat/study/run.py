@@ -131,11 +131,12 @@ def measure_holes(setup: StudySetup, holes: Sequence[Any], trajectory: Any = Non
 
 def score(setup: StudySetup, holes: Sequence[Any]) -> tuple[dict[str, float], float | None]:
     """The aggregated objectives of real holes and their combined value (larger is better), computed exactly
-    as the optimiser does (``Problem.features_objectives`` / ``combined_from``: same normalisation)."""
+    as the optimiser does (``Problem.features_objectives`` / ``combined_from``: same normalisation), with the
+    exact occlusion ray test (the optimiser uses the part's depth maps, ``measures.depth``)."""
     from cadfeat.cad.features import holes_to_arrays
 
     problem = setup.problem
-    G = problem.features_objectives(*holes_to_arrays(list(holes)))
+    G = problem.features_objectives(*holes_to_arrays(list(holes)), exact_occlusion=True)
     values = dict(zip(problem.names, map(float, G), strict=True))
     if setup.config.objective.combine == "pareto":
         return values, None
