@@ -57,6 +57,14 @@ class DepthMaps:
             idx, ok = self._index(P[:, 0] / P[:, 2], P[:, 1] / P[:, 2])
             np.minimum.at(self.maps[k], idx[ok], P[ok, 2])
 
+    def select(self, poses: slice) -> DepthMaps:
+        """The depth maps of a slice of the poses (``evaluate`` works in slabs of poses)."""
+        other = object.__new__(DepthMaps)
+        other.__dict__.update(self.__dict__)
+        other.maps = self.maps[poses]
+        other.n_poses = len(other.maps)
+        return other
+
     def _index(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         i = np.floor((x - self.lo) / self.cell).astype(np.int64)
         j = np.floor((y - self.lo) / self.cell).astype(np.int64)

@@ -139,7 +139,8 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
     step = max(1, BLOCK_ELEMENTS // max(1, N))
     for i in range(0, L, step):  # slabs of whole pose blocks (cache blocking), each fully batched
         sl = slice(i, i + step)
-        _evaluate(camera, T[sl], s[sl], c, n, r, min_axis_px, rotation_length_mm, occlusion_mesh,
+        occ = occlusion_mesh.select(sl) if hasattr(occlusion_mesh, "select") else occlusion_mesh
+        _evaluate(camera, T[sl], s[sl], c, n, r, min_axis_px, rotation_length_mm, occ,
                   {k: v[sl] for k, v in out.items()}, resolution_model == "sphere")
     return Measures(**out)
 
