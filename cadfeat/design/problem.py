@@ -101,7 +101,7 @@ class Problem:
         """The objective scales (class docstring), built on first use."""
         if self._normaliser is None:
             cfg = self.objective_config
-            if cfg.normalisation == "payoff" and cfg.combine != "pareto":
+            if cfg.normalisation == "payoff":
                 self._normaliser = self.payoff_normaliser(self._unit_by_name)
             else:
                 g0 = self.features_objectives(*self.model.features(self.space.x0))
