@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	tools/ensure_system.sh
-	$(PY) -m cadfeat.cli.demo
+	$(PY) -m cadfeat.cli.demo $(DEMO_ARGS)
 
 test: $(STAMP)
 	tools/ensure_system.sh

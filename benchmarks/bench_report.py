@@ -42,7 +42,7 @@ def _real_study() -> list[str]:
 
     def timed_write_report(out_dir, results, context=None):
         built = report.build_report(out_dir, results, context)
-        seen.update(built=built, context=context)
+        seen.update(built=built, context=context, page_mb=built.path.stat().st_size / 1e6)
         return built.path
 
     report.write_report = timed_write_report
@@ -63,9 +63,10 @@ def _real_study() -> list[str]:
     return ["", f"Real study `{REAL_STUDY.relative_to(ROOT)}` ({len(ctx.trajectory)} poses, {len(ctx.holes_after)} "
             f"holes): wall time {wall:.1f} s, of which the report {t['total']:.1f} s ({100 * t['total'] / wall:.0f} %: "
             f"renders {t['renders']:.1f} s [part {t.get('renders: part', 0):.1f} s, views "
-            f"{t.get('renders: views', 0):.1f} s], plots {t['plots']:.1f} s, HTML {1e3 * t['html']:.0f} ms; {n_img} "
-            f"images). One measures evaluation of the same study: {1e3 * evaluation:.2f} ms (the report costs "
-            f"{t['total'] / evaluation:.0f} evaluations)."]
+            f"{t.get('renders: views', 0):.1f} s], plots {t['plots']:.1f} s, 3-D view {1e3 * t.get('view3d', 0):.0f} "
+            f"ms, HTML {1e3 * t['html']:.0f} ms; {n_img} images; report.html {seen['page_mb']:.1f} MB, "
+            f"self-contained). One measures evaluation of the same study: {1e3 * evaluation:.2f} ms (the report "
+            f"costs {t['total'] / evaluation:.0f} evaluations)."]
 
 
 def main(quick: bool = False) -> str:
@@ -91,9 +92,10 @@ def main(quick: bool = False) -> str:
         build_report(Path(tmp) / "warm-up", results, ctx)  # imports PyVista/VTK once (a study pays it once too)
         runs = [build_report(Path(tmp) / f"report{i}", results, ctx, parallel=False) for i in range(repeats)]
         parallel = [build_report(Path(tmp) / f"par{i}", results, ctx, parallel=True) for i in range(repeats)]
-    keys = ("renders", "renders: part", "renders: views", "plots", "html")
+        page_mb = runs[-1].path.stat().st_size / 1e6
+    keys = ("renders", "renders: part", "renders: views", "plots", "view3d", "html")
     phases = {k: statistics.median(r.timings_s.get(k, 0.0) for r in runs) for k in keys}
-    total = phases["renders"] + phases["plots"] + phases["html"]
+    total = phases["renders"] + phases["plots"] + phases["view3d"] + phases["html"]
     out = runs[-1]
     n_renders = len(out.images) - sum(1 for p in out.images if p.stem in {
         "tracks", "pose_measures", "motion", "convergence", "sweep", "pareto"})
@@ -105,7 +107,8 @@ def main(quick: bool = False) -> str:
         ("  of which the part before/after (2 images)", phases["renders: part"]),
         (f"  of which the camera views ({n_views} images, one plotter per design)", phases["renders: views"]),
         (f"report: plots ({n_plots} PNGs)", phases["plots"]),
-        ("report: HTML", phases["html"]),
+        ("report: interactive 3-D view (tessellation, scene JSON, three.js inlined)", phases["view3d"]),
+        ("report: HTML (images embedded as data URIs)", phases["html"]),
         ("report: total", total),
         ("report: total with the plots drawn in a child process meanwhile (parallel=True)",
          statistics.median(r.timings_s["total"] for r in parallel)),
@@ -128,7 +131,8 @@ def main(quick: bool = False) -> str:
         "",
         f"Share of the study's wall time taken by the report: {100 * total / (study_s + total):.0f} % "
         f"({total:.2f} s of {study_s + total:.2f} s); {per_render}; "
-        f"{phases['plots'] / max(n_plots, 1):.2f} s per plot.",
+        f"{phases['plots'] / max(n_plots, 1):.2f} s per plot. The self-contained report.html is "
+        f"{page_mb:.2f} MB (images and three.js inside).",
     ]
     if out.notes:
         lines += ["", "Notes: " + "; ".join(out.notes)]

@@ -27,6 +27,7 @@ class ReportParser(HTMLParser):
         super().__init__(convert_charrefs=True)
         self.tables: dict[str, list[Row]] = {}
         self.images: list[str] = []
+        self.image_srcs: list[str] = []
         self.by_id: dict[str, str] = {}
         self.text: list[str] = []
         self.scripts = 0
@@ -39,8 +40,9 @@ class ReportParser(HTMLParser):
         a = dict(attrs)
         if tag == "script":
             self.scripts += 1
-        if tag == "img":
-            self.images.append(a.get("src") or "")
+        if tag == "img":  # an embedded image: its file beside the report is in data-file
+            self.images.append(a.get("data-file") or a.get("src") or "")
+            self.image_srcs.append(a.get("src") or "")
         if tag == "table":
             self._table = a.get("id") or f"table{len(self.tables)}"
             self.tables[self._table] = []

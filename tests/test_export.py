@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import json
 import math
 import os
 import re
@@ -216,8 +217,8 @@ def _snapshot(folder: Path) -> dict[str, str]:
 
 def test_staged_output_publishes_on_success(plate, tmp_path):
     final = tmp_path / "out"
-    final.mkdir()
-    (final / "old.txt").write_text("previous run")
+    with staged_output(final) as stage:  # a previous run: a folder cadfeat created
+        (stage / "old.txt").write_text("previous run")
     with staged_output(final) as stage:
         assert stage.parent == final.parent and stage != final
         assert not (final / "part.step").exists()
@@ -225,7 +226,7 @@ def test_staged_output_publishes_on_success(plate, tmp_path):
         (stage / "sub").mkdir()
         (stage / "sub" / "notes.txt").write_text("x")
         assert not (final / "part.step").exists()  # nothing visible before the block ends
-    assert sorted(_snapshot(final)) == ["part.step", "sub/notes.txt"]  # the old folder was replaced
+    assert sorted(_snapshot(final)) == [".cadfeat-output.json", "part.step", "sub/notes.txt"]  # old one replaced
     assert step_length_unit(final / "part.step") == "MM"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging or backup folder left
     umask = os.umask(0o022)
@@ -236,8 +237,8 @@ def test_staged_output_publishes_on_success(plate, tmp_path):
 @pytest.mark.parametrize("error", [RuntimeError("boom"), KeyboardInterrupt()])
 def test_staged_output_failure_leaves_everything_as_it_was(plate, tmp_path, error):
     final = tmp_path / "out"
-    final.mkdir()
-    export_step(plate, final / "part.step")
+    with staged_output(final) as stage:
+        export_step(plate, stage / "part.step")
     before = _snapshot(final)
     with pytest.raises(type(error)), staged_output(final) as stage:
         (stage / "part.step").write_text("half-written")
@@ -251,6 +252,7 @@ def test_staged_output_creates_a_new_folder_and_refuses_a_file(tmp_path):
     with staged_output(tmp_path / "a" / "b") as stage:
         (stage / "r.txt").write_text("ok")
     assert (tmp_path / "a" / "b" / "r.txt").read_text() == "ok"
+    assert json.loads((tmp_path / "a" / "b" / ".cadfeat-output.json").read_text())["files"] == ["r.txt"]
     (tmp_path / "file").write_text("")
     with pytest.raises(CadfeatError, match="not a folder"), staged_output(tmp_path / "file"):
         pass

@@ -162,3 +162,22 @@ def test_hole_move_model_moves_in_the_host_plane_with_patterns_and_mirrors():
     cb, _, rb = model.features_batch(np.stack([x, space.x0]))
     np.testing.assert_allclose(cb[0], c)
     np.testing.assert_allclose(rb[1], holes_to_arrays(holes)[2])
+
+
+def test_ligament_to_a_through_hole_reported_from_its_other_end():
+    """Issue 13: a blind hole on the face where a through hole EXITS had no ligament row on the B-rep (the
+    re-extracted through hole's host face was the other end). The rim-to-rim distance is the construction value
+    |x_window − x_fiducial| − r_window − r_fiducial."""
+    import cadquery as cq
+
+    for z_fiducial, z_face in ((6.0, 8.0), (0.0, 0.0)):  # the fiducial on the top face, then on the bottom face
+        plate = cq.Workplane("XY").box(80, 60, 8).translate((0, 0, 4))
+        plate = plate.cut(cq.Workplane("XY").circle(8.0).extrude(20).translate((10, 0, -10)))
+        plate = plate.cut(cq.Workplane("XY").circle(1.5).extrude(2).translate((-2.4, 0, z_fiducial)))
+        solid = plate.val()
+        real = extract_holes(solid)
+        fixed = [h.radius_mm > 5 for h in real]
+        checks = verify_on_brep(solid, real, ConstraintConfig(edge_distance_mm=3.0, ligament_mm=3.0), fixed)
+        lig = [c for c in checks if c.name == "ligament"]
+        assert len(lig) == 1, (z_face, [c.name for c in checks])
+        assert lig[0].value == pytest.approx(12.4 - 8.0 - 1.5, abs=1e-6)

@@ -43,17 +43,18 @@ MOVED = {"A": ((-30.0, -20.0), 10.0), "CBORE": ((15.0, -15.0), 9.0), "CSINK": ((
 
 
 def hole_volume(name: str, entrance_dia: float) -> float:
-    """Exact volume (mm³) of fixture hole ``name`` scaled to ``entrance_dia`` (profile as in make_fixtures)."""
+    """Exact volume (mm³) of fixture hole ``name`` resized to ``entrance_dia`` (profile as in make_fixtures: a
+    counterbore or countersink keeps its bore, a plain hole is the entrance diameter)."""
     if name in ("A", "B"):
         return math.pi * (entrance_dia / 2) ** 2 * T
     if name == "BLIND":
         return math.pi * (entrance_dia / 2) ** 2 * fx.BLIND[2]
     if name == "CBORE":
         _, bore, cbore, depth = fx.CBORE
-        r_c, r_b = entrance_dia / 2, bore * entrance_dia / cbore / 2
+        r_c, r_b = entrance_dia / 2, bore / 2
         return math.pi * (r_c**2 * depth + r_b**2 * (T - depth))
     _, bore, csink, angle = fx.CSINK
-    r_c, r_b = entrance_dia / 2, bore * entrance_dia / csink / 2
+    r_c, r_b = entrance_dia / 2, bore / 2
     h = (r_c - r_b) / math.tan(math.radians(angle) / 2)
     return math.pi * (h * (r_c**2 + r_c * r_b + r_b**2) / 3 + r_b**2 * (T - h))
 
@@ -181,7 +182,8 @@ def test_redrill_keeps_other_holes_and_moves_the_chosen_ones(part, by_name, redr
         moved = by_centre[(*np.round(xy, 6), round(T, 6))]
         old = by_name[name]
         assert moved.radius_mm == pytest.approx(dia / 2, abs=1e-9)
-        assert moved.bore_radius_mm == pytest.approx(old.bore_radius_mm * dia / 2 / old.radius_mm, abs=1e-9)
+        bore = dia / 2 if old.kind == "plain" else old.bore_radius_mm  # resize keeps the screw bore
+        assert moved.bore_radius_mm == pytest.approx(bore, abs=1e-9)
         assert moved.depth_mm == pytest.approx(old.depth_mm, abs=1e-9)
         assert (moved.kind, moved.through) == (old.kind, old.through)
         np.testing.assert_allclose(moved.axis, old.axis, atol=1e-12)

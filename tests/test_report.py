@@ -64,12 +64,24 @@ def _value(cell) -> float:
 
 
 # ------------------------------------------------------------------------------------------------ structure
-def test_every_image_exists_and_is_relative(report):
+def test_every_image_embedded_and_written_beside(report):
+    """Self-contained by default: each <img> is a data URI holding exactly the bytes of its PNG in img/."""
+    import base64
+
     built, page, _ = report
     assert page.images, "the report has no images"
-    for src in page.images:
+    for src, data in zip(page.images, page.image_srcs, strict=True):
         assert not Path(src).is_absolute() and not src.startswith(("http:", "https:", "file:")), src
         assert (built.path.parent / src).is_file(), f"missing image {src}"
+        assert data.startswith("data:image/png;base64,")
+        assert base64.b64decode(data.split(",", 1)[1]) == (built.path.parent / src).read_bytes()
+
+
+def test_linked_images_when_not_self_contained(case, tmp_path):
+    _, results, _ = case
+    built = build_report(tmp_path, _lean(results, keep=("history",)), None, self_contained=False)
+    page = parse_report(built.path)
+    assert page.image_srcs == page.images == ["img/convergence.png"]
     assert page.scripts == 0, "report.html must not need JavaScript"
 
 
@@ -140,12 +152,17 @@ def test_moves_table_against_the_cad_rebuild(report):
 def test_constraints_design_matrix_files(report, case):
     out, results, _ = case
     _, page, _ = report
-    rows = page.tables["constraints"]
-    assert len(rows) == len(results["constraints"])
-    for row, c in zip(rows, results["constraints"], strict=True):
-        assert row.cells[0].text == c["name"]
-        assert _value(row.cells[4]) == c["margin"]
-        assert row.css == ("ok" if c["ok"] else "violated")
+    rows = page.tables.get("constraints", []) + page.tables.get("constraints-trivial", [])
+    assert len(rows) == len(results["constraints"])  # one check each (B-rep or STEP): one row each
+    names = {h["index"]: h["name"] for h in results["holes"]["after"]}
+    by_key = {(r.cells[0].text, r.cells[1].text): r for r in rows}
+    for c in results["constraints"]:
+        row = by_key[(c["name"], ", ".join(sorted(names[h] for h in c["holes"])))]
+        # columns: name, holes, required, unit, B-rep value/margin, STEP value/margin, status
+        col = 4 if c["checked_on"] == "brep" else 6
+        assert _value(row.cells[col]) == c["value"] and _value(row.cells[col + 1]) == c["margin"]
+        assert row.css in (("ok", "active") if c["ok"] else ("violated",))
+        assert (row.css == "active") == (c["ok"] and c["margin"] < 0.1)
     assert page.by_id["coupling-verdict"] == "uncoupled"
     matrix = [[_value(c) for c in r.cells[1:]] for r in page.tables["design-matrix"]]
     assert matrix == results["design_matrix"]["matrix"]
@@ -181,10 +198,11 @@ def test_violated_requirement_and_interrupted_warning(case, tmp_path):
     results["interrupted"] = True
     page = parse_report(write_report(tmp_path, results, None))
     classes = [r.css for r in page.tables["constraints"]]
-    assert classes[1] == "violated" and classes.count("violated") == 1
-    assert page.tables["constraints"][1].cells[-1].text == "VIOLATED"
+    assert classes[0] == "violated" and classes.count("violated") == 1  # violated rows come first
+    assert page.tables["constraints"][0].cells[-1].text == "VIOLATED"
     text = "".join(page.text)
     assert "interrupted" in text and "1 of 5 kept requirements are violated" in text
+    assert page.by_id["verdict"] == "do not adopt"
 
 
 def test_absent_data_skips_plots_and_sections(tmp_path, caplog):
@@ -208,7 +226,7 @@ def test_malformed_section_becomes_a_note(case, tmp_path, caplog):
     raw = built.path.read_text()
     assert "This section could not be built" in raw and "plot_sweep skipped" in raw
     assert "features" in parse_report(built.path).tables  # the rest is still there
-    assert any("design-matrix" in r.getMessage() for r in caplog.records)
+    assert any("appendix" in r.getMessage() for r in caplog.records)  # the design matrix is in the appendix
 
 
 # ------------------------------------------------------------------------------------------------ renders
@@ -252,15 +270,19 @@ def test_render_wiring(case, tmp_path, monkeypatch):
     built = build_report(tmp_path, _lean(results), context)
     page = parse_report(built.path)
     L = len(context.trajectory)
-    assert context.samples() == [0, L // 2, L - 1]
-    # the camera views are rendered at inv(T_task_cam) @ T_task_part of the chosen samples
-    expected = np.linalg.inv(context.trajectory.T_task_cam[[0, L // 2, L - 1]])
+    assert context.samples() == [0, L // 2, L - 1]  # without results: first, middle, last
+    # with results: the camera views at each hole's worst pose, at inv(T_task_cam) @ T_task_part
+    worst = sorted({f["worst_pose"] for f in results["measures"]["after"]["per_feature"]})
+    expected = np.linalg.inv(context.trajectory.T_task_cam[worst])
     np.testing.assert_allclose(fake.calls[0], expected, atol=1e-9)
-    for name in ("part_before.png", "part_after.png", "view_before_0.png", "view_after_2.png"):
+    for name in ("part_before.png", "part_after.png", "view_before_0.png", f"view_after_{len(worst) - 1}.png"):
         assert f"img/{name}" in page.images
     for src in page.images:
         assert (tmp_path / src).is_file()
-    assert len(page.images) == 2 + 2 + 6
+    assert len(page.images) == 2 + 2 + 2 * len(worst)
+    text = "".join(page.text)
+    for f in results["measures"]["after"]["per_feature"]:
+        assert "worst pose of" in text and f["name"] in text
     # the close-up pair comes first, above the trajectory overview
     assert page.images[:4] == ["img/closeup_before.png", "img/closeup_after.png", "img/part_before.png",
                                "img/part_after.png"]
@@ -387,3 +409,100 @@ def test_render_inputs_camera_from_results_and_part_pose(case, tmp_path, monkeyp
     assert seen["camera"] == context.camera
     expected = np.linalg.inv(context.trajectory.T_task_cam[4]) @ T_task_part
     np.testing.assert_allclose(fake.calls[0][0], expected, atol=1e-9)
+
+
+# ------------------------------------------------------------------------------------------------ verdict
+def test_verdict_rules_on_modified_results(case, tmp_path):
+    """Each rule moves the decision the way the report states (independent cases built by hand)."""
+    from cadfeat.report.verdict import decide
+
+    _, results, _ = case
+    base = _lean(results)
+    for c in base["constraints"]:  # room to spare everywhere: only the objectives decide
+        c.update(margin=max(c["margin"], 1.0), ok=True)
+    base["objectives"].update(combined_before=1.0, combined_after=1.5, before={"g": 1.0}, after={"g": 1.5},
+                              names=["g"])
+    base["measures"]["after"] = copy.deepcopy(base["measures"]["before"])
+    assert decide(base).decision == "adopt"
+    worse = copy.deepcopy(base)
+    worse["objectives"]["combined_after"] = 0.999
+    assert decide(worse).decision == "do not adopt"
+    active = copy.deepcopy(base)
+    active["constraints"][0].update(margin=1e-6)
+    assert decide(active).decision == "adopt with care"
+    failing = copy.deepcopy(base)
+    failing["measures"]["before"]["per_feature"][0]["focus_min"] = 0.2
+    failing["measures"]["after"]["per_feature"][0]["focus_min"] = -0.1
+    v = decide(failing)
+    assert v.decision == "adopt with care" and any(c.newly_failing and c.hole == "A" for c in v.changes)
+    unverified = copy.deepcopy(base)
+    unverified["requirements_used"] = [{"name": "ligament", "holes": ["A", "C"], "margin": 0.0}]
+    assert decide(unverified).decision == "do not adopt"
+    tracked = copy.deepcopy(base)
+    tracked["tracking"] = {"verdict": "after tracks worse than before (translation error +40 %)"}
+    assert decide(tracked).decision == "adopt with care"
+    page = parse_report(write_report(tmp_path, failing, None))
+    assert page.by_id["verdict"] == "adopt with care"
+    changes = {(r.cells[0].text, r.cells[1].text): r for r in page.tables["hole-changes"]}
+    row = changes[("A", "focus margin")]
+    assert _value(row.cells[3]) == 0.2 and _value(row.cells[4]) == -0.1 and row.cells[6].text == "newly failing"
+
+
+def test_hole_table_matches_results(report):
+    """The hole table lists holes.after: centre, Ø = 2 r, depth, face from the axis (+Z for this plate)."""
+    _, page, results = report
+    rows = page.tables["hole-table"]
+    after = results["holes"]["after"]
+    assert [r.cells[0].text for r in rows] == [h["name"] for h in after]
+    for row, h in zip(rows, after, strict=True):
+        assert row.cells[1].text in ("+Z", "-Z")
+        assert [_value(c) for c in row.cells[2:5]] == pytest.approx(h["centre_mm"], abs=1e-12)
+        assert _value(row.cells[5]) == pytest.approx(2 * h["radius_mm"]) and _value(row.cells[6]) == h["depth_mm"]
+    assert [r.cells[8].text for r in rows] == ["yes", "", "", ""]  # only A moved (dx_A)
+
+
+def test_broken_pattern_is_flagged(case, tmp_path):
+    _, results, _ = case
+    results = _lean(results)
+    results["patterns"] = [
+        {"kind": "bolt_circle", "holes": ["A", "B", "C"], "count": 3, "radius_mm": 20.0, "broken": True,
+         "why": "off the circle by up to 6 mm or unevenly spaced"},
+        {"kind": "mirror", "holes": ["C", "D"], "normal": [1.0, 0.0, 0.0], "broken": False, "why": ""}]
+    page = parse_report(write_report(tmp_path, results, None))
+    rows = page.tables["patterns"]
+    assert [r.cells[3].text for r in rows] == ["BROKEN", "kept"] and rows[0].css == "violated"
+    assert page.by_id["verdict"] in ("adopt with care", "do not adopt")
+    rules = {r.cells[0].text.split(" ")[0]: r.cells[1].text for r in page.tables["verdict-rules"]}
+    assert rules["A"] == "adopt with care"  # "A hole pattern of the original ... broken": the patterns rule
+
+
+def test_robustness_table_and_razor_edge(case, tmp_path):
+    _, results, _ = case
+    results = _lean(results)
+    block = {"g": {"nominal": 2.0, "mean": 1.9, "p05": 1.5, "min": 1.2},
+             "combined": {"nominal": 1.2, "mean": 1.1, "p05": 1.01, "min": 0.9}}
+    results["robustness"] = {"names": ["g"], "samples": 50, "position_tol_mm": 0.1, "size_steps": 1,
+                             "camera_position_mm": 2.0, "camera_angle_deg": 1.0, "manufacturing": block,
+                             "camera": block, "razor_edge": ["camera"]}
+    page = parse_report(write_report(tmp_path, results, None))
+    rows = {r.cells[0].text: r.cells for r in page.tables["robustness"]}
+    assert list(rows) == ["g", "combined"]
+    assert _value(rows["g"][2]) == 1.5 and _value(rows["g"][4]) == pytest.approx(-25.0)
+    assert "Razor-edge optimum" in "".join(page.text)
+    rules = {r.cells[0].text.split(" ")[2]: r.cells[1].text for r in page.tables["verdict-rules"]
+             if r.cells[0].text.startswith("When the robustness")}
+    assert rules == {"robustness": "adopt with care"}
+
+
+def test_verdict_says_when_every_hole_is_out_of_focus(case):
+    """Issue 13: every hole out of focus at its worst pose must be said, even when it was so before too."""
+    from cadfeat.report.verdict import decide
+
+    _, results, _ = case
+    r = _lean(results)
+    for which in ("before", "after"):
+        for f in r["measures"][which]["per_feature"]:
+            f["focus_min"] = -0.5
+    holes = next(f for f in decide(r).findings if f.rule == "holes")
+    n = len(r["measures"]["after"]["per_feature"])
+    assert f"focus margin ({n} of {n} holes)" in holes.detail

@@ -23,7 +23,7 @@ from cadfeat.study.run import evaluate_study, run_study
 PLATE_HALF = (30.0, 20.0)   # study_plate.py: 60 x 40 mm, centred
 FIXED_HOLE = (-22.0, -12.0, 2.0)
 EDGE_MM, LIGAMENT_MM = 3.0, 2.5
-ALLOWED_EXTRA = {"report.html", "img"}
+ALLOWED_EXTRA = {"report.html", "img", "holes.csv", ".cadfeat-output.json"}
 RESULT_KEYS = {"cadfeat_version", "created", "study", "inputs", "camera", "trajectory", "variables", "holes",
                "objectives", "measures", "constraints", "design_matrix", "history", "sweep", "pareto", "files",
                "timings_s", "versions", "interrupted", "verification"}
@@ -200,9 +200,11 @@ def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
     from cadfeat.cad.export import ExportError
 
     no_report(monkeypatch)
+    from cadfeat.cad.export import staged_output
+
     out = tmp_path / "out"
-    out.mkdir()
-    (out / "keep.txt").write_text("old")
+    with staged_output(out) as stage:  # the previous output: a folder cadfeat made
+        (stage / "keep.txt").write_text("old")
 
     def broken(*a, **k):
         raise ExportError("simulated round-trip mismatch")
@@ -210,7 +212,7 @@ def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
     monkeypatch.setattr("cadfeat.cad.export.verify_step_roundtrip", broken)
     with pytest.raises(ExportError):
         run_study(copy.deepcopy(SMALL), out, quiet=True)
-    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+    assert sorted(p.name for p in out.iterdir()) == [".cadfeat-output.json", "keep.txt"]
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
 
 
@@ -379,6 +381,7 @@ def test_pareto_study_front_is_non_dominated_and_the_chosen_design_is_exported(t
     spec["study"]["name"] = "small_pareto"
     spec["objective"]["combine"] = "pareto"
     spec["optimizer"] = {"method": "pareto"}
+    spec["shop"] = {"grid_mm": 0.0, "hole_sizes": "none"}  # the front point itself, not rounded for the shop
     out = tmp_path / "pareto"
     results = run_study(spec, out, quiet=True).results
     front = results["pareto"]
@@ -391,3 +394,121 @@ def test_pareto_study_front_is_non_dominated_and_the_chosen_design_is_exported(t
     after = np.array([results["objectives"]["after"][n] for n in front["names"]])
     np.testing.assert_allclose(after, chosen, rtol=1e-6, atol=1e-9)
     assert all(c["ok"] for c in results["constraints"])
+
+
+def test_results_schema_version_poses_and_requirements_used(small_run):
+    """Issue 13: schema_version, the sampled camera poses (equal to the trajectory built directly from the
+    study's table) and every requirement the optimiser used verified on the B-rep and the STEP."""
+    from cadfeat.study.outputs import SCHEMA_VERSION
+    from cadfeat.trajectory import straight_approach
+
+    _, out, _ = small_run
+    data = json.loads((out / "results.json").read_text())
+    assert data["schema_version"] == SCHEMA_VERSION >= 2
+    t = SMALL["trajectory"]
+    traj = straight_approach(start=t["start"], end=t["end"], target=t["target"], n=t["n"], duration_s=t["duration_s"])
+    np.testing.assert_allclose(data["trajectory"]["T_task_cam"], traj.T_task_cam, atol=1e-8)
+    np.testing.assert_allclose(data["trajectory"]["time_s"], traj.times_s, atol=1e-9)
+    rb = data["robustness"]
+    assert rb["names"] == data["objectives"]["names"] and rb["samples"] == 200
+    for block in ("manufacturing", "camera"):
+        for name in (*rb["names"], "combined"):
+            s = rb[block][name]
+            assert s["min"] <= s["p05"] <= s["mean"] + 1e-12 and np.isfinite(s["nominal"])
+    assert rb["manufacturing"]["combined"]["nominal"] == pytest.approx(data["objectives"]["combined_after"],
+                                                                        rel=1e-9)
+    used = {(u["name"], tuple(sorted(u["holes"]))) for u in data["requirements_used"]}
+    assert used and all(isinstance(u["margin"], float) for u in data["requirements_used"])
+    for where in ("brep", "step"):
+        checked = {(c["name"], tuple(sorted(c["holes"]))) for c in data["constraints"] if c["checked_on"] == where}
+        assert used <= checked, (where, used - checked)
+
+
+def test_version_flag(capsys):
+    from cadfeat import __version__
+    from cadfeat.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"cadfeat {__version__}"
+
+
+@pytest.fixture(scope="module")
+def shop_run(tmp_path_factory):
+    """The small plate with the hole diameter and pitch free too: the optimum is rounded for the shop."""
+    cfg = copy.deepcopy(SMALL)
+    cfg["design"]["parameters"].update(diameter={"lower": 2.0, "upper": 6.0}, pitch={"lower": 7.0, "upper": 12.0})
+    out = tmp_path_factory.mktemp("shop") / "shop"
+    mp = pytest.MonkeyPatch()
+    no_report(mp)
+    try:
+        result = run_study(cfg, out, quiet=True)
+    finally:
+        mp.undo()
+    return result, out
+
+
+def test_exported_step_is_shop_ready(shop_run):
+    """Issue 13: the re-imported optimised.step has every moved hole on the 0.1 mm grid and every resized hole
+    at an ISO 273 medium clearance diameter (values typed from the standard here: M3 3.4, M4 4.5, M5 5.5, M6 6.6),
+    holes.csv lists exactly those holes, and every requirement holds on the B-rep and the STEP after rounding."""
+    import csv
+
+    from cadfeat.cad.export import import_step
+    from cadfeat.cad.features import extract_holes
+
+    result, out = shop_run
+    data = json.loads((out / "results.json").read_text())
+    shop = data["shop"]
+    assert shop["applied"] and shop["grid_mm"] == 0.1 and shop["hole_sizes"] == "iso273-medium"
+    assert shop["x_optimum"] != shop["x_shop"]
+    holes = extract_holes(import_step(out / "optimised.step"), prefer_direction=(0, 0, 1))
+    dowel = [h for h in holes if np.allclose(h.centre[:2], FIXED_HOLE[:2], atol=1e-6)]
+    row = [h for h in holes if h not in dowel]
+    assert len(dowel) == 1 and len(row) == 3
+    for h in row:
+        xy = np.asarray(h.centre[:2])
+        np.testing.assert_allclose(xy, np.round(xy, 1), atol=1e-6)
+        assert min(abs(2 * h.radius_mm - d) for d in (3.4, 4.5, 5.5, 6.6)) < 1e-6, 2 * h.radius_mm
+    with (out / "holes.csv").open() as f:
+        table = list(csv.DictReader(f))
+    assert len(table) == len(holes)
+    for h in holes:
+        match = [r for r in table if np.allclose([float(r["x_mm"]), float(r["y_mm"]), float(r["z_mm"])], h.centre,
+                                                 atol=1e-3)]
+        assert len(match) == 1 and float(match[0]["diameter_mm"]) == pytest.approx(2 * h.radius_mm, abs=1e-3)
+        assert match[0]["face"] == "+Z"
+    assert all(c["ok"] for c in data["constraints"])
+    assert {c["checked_on"] for c in data["constraints"]} == {"brep", "step"}
+    assert data["holes"]["after"][1]["centre_mm"][0] == pytest.approx(round(shop["x_shop"]["x0"], 1), abs=1e-6)
+
+
+def test_shop_rounding_on_a_nonlinear_part(tmp_path, monkeypatch):
+    """The DN50 flange's target holes sit at a polar angle (a nonlinear map): the rounded design is refined on
+    the real CAD rebuild; the re-imported STEP has the two targets within 1e-3 mm of the 0.1 mm grid, at an
+    ISO 273 medium diameter, still diametrically opposite (their pattern), every requirement holding."""
+    from cadfeat.cad.export import import_step
+    from cadfeat.cad.features import extract_holes
+
+    no_report(monkeypatch)
+    cfg = {"study": {"name": "flange_shop", "part": str(Path(__file__).parents[1] / "parts" / "pipe_flange_dn50.py"),
+                     "seed": 2},
+           "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 300.0},
+           "trajectory": {"kind": "straight_approach", "start": [-120.0, -150.0, 380.0], "end": [100.0, -60.0, 300.0],
+                          "target": [0.0, 0.0, 18.0], "n": 12, "duration_s": 2.0},
+           "design": {"parameters": {"target_angle_rad": {}, "target_radius_mm": {}, "target_circle_radius_mm": {}}},
+           "constraints": {"edge_distance_mm": 3.0, "ligament_mm": 3.0},
+           "objective": {"measures": ["fov", "resolution", "resolvability"], "aggregate": "sum", "combine": "maxmin"},
+           "optimizer": {"method": "multistart", "starts": 2, "maxiter": 25}}
+    result = run_study(cfg, tmp_path / "out", quiet=True)
+    shop = result.results["shop"]
+    assert shop["applied"] and shop["rebuilt_off_target_mm"] < 1e-3
+    holes = extract_holes(import_step(tmp_path / "out" / "optimised.step"), prefer_direction=(0, 0, 1))
+    targets = [h for h in holes if h.depth_mm < 5.0]  # the 4 mm deep blind targets
+    assert len(targets) == 2
+    for h in targets:
+        np.testing.assert_allclose(h.centre[:2], np.round(h.centre[:2], 1), atol=1e-3)
+        assert min(abs(2 * h.radius_mm - d) for d in (4.5, 5.5, 6.6, 9.0)) < 1e-6
+    np.testing.assert_allclose(targets[0].centre[:2], -targets[1].centre[:2], atol=2e-3)
+    assert all(c["ok"] for c in result.results["constraints"])
+    assert [p["broken"] for p in result.results["patterns"]] == [False]

@@ -10,8 +10,9 @@ disk is what was designed (DESIGN.md, "Errors and bad input" and the STEP-units 
   and volume.
 - ``export_stl`` / ``mesh_from_shape`` / ``check_stl`` tessellate with an ABSOLUTE chord tolerance in mm
   and check the mesh (watertight, consistent winding, volume within the tessellation bound).
-- ``staged_output`` writes into a temporary folder beside the destination and moves it into place only
-  when everything succeeded, so a failed or interrupted run never leaves a half-written STEP.
+- ``staged_output`` (from ``cadfeat.cad.output_folder``) writes into a temporary folder beside the destination
+  and moves it into place only when everything succeeded, so a failed or interrupted run never leaves a
+  half-written STEP; it replaces only folders cadfeat created.
 
 CadQuery/OCP and trimesh are imported inside the functions (``import cadfeat`` stays light).
 """
@@ -22,8 +23,6 @@ import contextlib
 import hashlib
 import os
 import re
-import secrets
-import shutil
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.output_folder import staged_output
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -488,54 +488,3 @@ def sha256_file(path: str | os.PathLike[str]) -> str:
     """SHA-256 hex digest of a file's bytes."""
     with open(path, "rb") as fh:
         return hashlib.file_digest(fh, "sha256").hexdigest()
-
-
-@contextlib.contextmanager
-def staged_output(final_dir: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield an empty temporary folder beside ``final_dir``; publish it as ``final_dir`` only on success.
-
-    The temporary folder is created in ``final_dir``'s parent (same filesystem, so renames are atomic).
-    On normal exit the old ``final_dir`` (if any) is renamed aside, the staged folder is renamed to
-    ``final_dir`` and the old one is deleted: ``final_dir`` is REPLACED by what was written in the block.
-    On any exception — including ``KeyboardInterrupt`` — the staged folder is deleted, ``final_dir`` is
-    left exactly as it was and the exception propagates.
-    """
-    final_dir = Path(final_dir)
-    if final_dir.exists() and not final_dir.is_dir():
-        raise CadfeatError(f"{final_dir}: output path exists and is not a folder")
-    final_dir.parent.mkdir(parents=True, exist_ok=True)
-    stage = _sibling(final_dir, "staging")
-    stage.mkdir()  # (not mkdtemp: the published folder gets the usual permissions)
-    try:
-        yield stage
-    except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        raise
-    _publish(stage, final_dir)
-
-
-def _sibling(final_dir: Path, role: str) -> Path:
-    """An unused hidden path beside ``final_dir``: ``.<name>.<role>-<pid>-<random>``."""
-    while True:
-        path = final_dir.parent / f".{final_dir.name}.{role}-{os.getpid()}-{secrets.token_hex(4)}"
-        if not path.exists():
-            return path
-
-
-def _publish(stage: Path, final_dir: Path) -> None:
-    """Rename ``stage`` to ``final_dir``, replacing an existing folder; roll back if the swap fails."""
-    old = None
-    try:
-        if final_dir.exists():
-            old = _sibling(final_dir, "old")
-            os.rename(final_dir, old)
-        os.rename(stage, final_dir)
-    except BaseException:
-        if old is not None and not final_dir.exists():
-            os.rename(old, final_dir)
-            old = None
-        shutil.rmtree(stage, ignore_errors=True)
-        raise
-    finally:
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)

@@ -6,6 +6,15 @@ plain bore, counterbore steps, countersink cones, drill points), the filled face
 their neighbours (``ShapeUpgrade_UnifySameDomain``), and the hole is CUT again at its new centre on the
 same host face plane with its new radius. Everything else of the solid is left as it was.
 
+Tolerances are the model's own (``cadfeat.cad.tolerance.ModelTolerance``: its size, B-rep tolerances and
+the STEP file's uncertainty). A re-drill is judged by what matters: the holes re-extracted at the intended
+place and size, a valid B-rep, and a volume change equal to the analytic one within the accuracy of the
+volume computation on the changed region — measured as the volume of the Boolean difference between the
+solids before and after (a small solid bounded by the hole's own cylinders, cones and planes, which OCCT
+integrates exactly), with the B-rep tolerance over the changed surface as the allowance. Not by a 1e-6
+relative difference of two whole-solid volumes: on parts with B-spline faces those are off by 1e-6..1e-4
+(and OCCT's adaptive integration by more), so putting a hole back unchanged used to fail.
+
 The input file is only read. CadQuery/OCP are imported inside the functions.
 """
 
@@ -21,31 +30,29 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.hole_profiles import HoleProfile, hole_label, hole_profile, revolved
+from cadfeat.cad.tolerance import ModelTolerance
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
     import cadquery as cq
 
     from cadfeat.cad.features import Hole
+    from cadfeat.cad.features.extraction import SkippedHole
 
 __all__ = [
     "HoleMove",
     "HoleProfile",
     "StepPart",
+    "dry_run",
     "fill_holes",
     "hole_profile",
     "load_step",
     "redrill",
 ]
 
-PLANE_TOL_MM = 1e-6
-"""A new hole centre must lie within this distance of its host face plane."""
-AXIS_TOL = 1e-9
-"""Parallelism tolerance (sine of the angle) between a face's axis and the hole's axis."""
-LINE_TOL_MM = 1e-6
-"""A face belongs to a hole when its axis passes within this distance of the hole's axis line."""
-VOLUME_RTOL = 1e-6
-"""Relative tolerance of the volume checks of the fill and cut steps."""
+VOLUME_RTOL_FLOOR = 1e-9
+"""Least relative tolerance of a volume change (round-off)."""
 
 
 # ------------------------------------------------------------------------------------------ STEP parts
@@ -57,6 +64,8 @@ class StepPart:
     path: Path
     shape: Any  # cadquery.Solid
     holes: tuple[Hole, ...] = field(repr=False)
+    tolerance: ModelTolerance = field(default_factory=ModelTolerance, repr=False)
+    skipped: tuple[SkippedHole, ...] = field(default=(), repr=False)
 
     def select(self, spec: int | str | Sequence[float], tol_mm: float = 0.01) -> Hole:
         """One hole by 1-based index (``2``), name (``"H2"``, ``"2"``) or position.
@@ -104,10 +113,28 @@ class StepPart:
         return self.holes[best]
 
 
+    def listing(self) -> list[str]:
+        """One line per hole (name, kind, entrance, host face) and per skipped near-round opening (reason),
+        for ``cadfeat parts PART.step --holes``."""
+        lines = []
+        for h in self.holes:
+            c = ", ".join(f"{v:.4g}" for v in h.centre)
+            a = ", ".join(f"{v:.3g}" for v in h.axis)
+            host = "planar" if h.outline is not None else "not planar"
+            depth = "through" if h.through else f"blind {h.depth_mm:.4g} mm"
+            lines.append(f"{h.name}: {h.kind}, entrance Ø{2 * h.radius_mm:.4g} mm (bore Ø{2 * h.bore_radius_mm:.4g} "
+                         f"mm) at ({c}) mm facing ({a}), {depth}, host face {h.host_face} ({host})")
+        for s in self.skipped:
+            c = ", ".join(f"{v:.4g}" for v in s.centre)
+            lines.append(f"skipped: Ø{2 * s.radius_mm:.4g} mm opening on the axis through ({c}) mm: {s.reason}")
+        return lines
+
+
 def load_step(path: str | os.PathLike[str], prefer_direction: Sequence[float] | None = None) -> StepPart:
     """Read a STEP part: exactly one solid, its holes extracted and named ``H1``, ``H2``... in the
-    deterministic order of ``features.extract_holes``. ``prefer_direction`` (e.g. the side the camera looks
-    from) picks the entrance end of through holes of equal end radii (see ``extract_holes``).
+    deterministic order of ``features.extract_holes``, with tolerances scaled to the model (its size, its
+    B-rep tolerances and the file's STEP uncertainty). ``prefer_direction`` (the side the camera looks
+    from, in the part frame) picks the entrance end of through holes of equal end radii.
 
     Raises ``CadfeatError`` naming the file if it is missing, not STEP, holds no solid or several solids.
     The file is only read.
@@ -115,7 +142,8 @@ def load_step(path: str | os.PathLike[str], prefer_direction: Sequence[float] | 
     import cadquery as cq
 
     from cadfeat.cad.export import import_step
-    from cadfeat.cad.features import extract_holes
+    from cadfeat.cad.features.extraction import extract_holes_and_skipped
+    from cadfeat.cad.tolerance import step_uncertainty_mm
 
     path = Path(path)
     shape = import_step(path)
@@ -124,219 +152,18 @@ def load_step(path: str | os.PathLike[str], prefer_direction: Sequence[float] | 
         what = "no solid" if not solids else f"{len(solids)} solids"
         raise CadfeatError(f"{path}: holds {what}; a STEP part must hold exactly one solid")
     solid = cq.Solid(solids[0].wrapped)
-    found = extract_holes(solid, prefer_direction)
+    tol = ModelTolerance.of_shape(solid, step_uncertainty_mm(path))
+    found, skipped = extract_holes_and_skipped(solid, prefer_direction, tol)
     holes = tuple(dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(found))
-    return StepPart(name=path.stem, path=path, shape=solid, holes=holes)
-
-
-# ------------------------------------------------------------------------------------------- profiles
-@dataclass(frozen=True)
-class HoleProfile:
-    """The wall of a hole of revolution as axial segments (mm).
-
-    ``segments[k] = (t0, t1, r0, r1)``: from depth ``t0`` to ``t1`` (measured from the entrance rim into
-    the material, along −axis) the radius goes linearly from ``r0`` to ``r1``. Cylinders have r0 = r1,
-    cones (countersinks, drill points) r0 ≠ r1; a step between segments is a flat annulus
-    (counterbore floor). ``conical[k]`` says which segments are cones.
-    """
-
-    segments: np.ndarray  # (S, 4)
-    conical: np.ndarray   # (S,) bool
-
-    @property
-    def depth_mm(self) -> float:
-        return float(self.segments[-1, 1])
-
-    @property
-    def volume_mm3(self) -> float:
-        """Volume enclosed by the wall: Σ π h (r0² + r0 r1 + r1²) / 3 (frustums)."""
-        t0, t1, r0, r1 = self.segments.T
-        return float(np.sum(np.pi * (t1 - t0) * (r0 * r0 + r0 * r1 + r1 * r1) / 3.0))
-
-    def scaled(self, factor: float) -> HoleProfile:
-        """The profile with every radius times ``factor``: cones keep their angle (their length scales,
-        e.g. a 90° countersink stays 90°); cylinders keep the depth where they end (counterbore depth,
-        total depth). Raises ``CadfeatError`` if a scaled cone would run past the next step."""
-        segments = self.segments.copy()
-        segments[:, 2:] *= factor
-        t = 0.0
-        for k in range(len(segments)):  # segments of one hole: a handful
-            t0, t1 = self.segments[k, :2]
-            end = t + factor * (t1 - t0) if self.conical[k] else t1
-            if end <= t:
-                raise CadfeatError(f"scaling the hole by {factor:g} makes its cone run past depth {t1:.6g} mm")
-            segments[k, :2] = (t, end)
-            t = end
-        return HoleProfile(segments, self.conical.copy())
-
-    def polygon(self) -> np.ndarray:
-        """Closed half-section (K, 2) of (radius, depth) points, starting and ending on the axis."""
-        points = [(0.0, 0.0)]
-        for t0, t1, r0, r1 in self.segments:
-            points += [(r0, t0), (r1, t1)]
-        points.append((0.0, self.depth_mm))
-        pts = np.array(points)
-        keep = np.ones(len(pts), dtype=bool)
-        keep[1:] = np.linalg.norm(np.diff(pts, axis=0), axis=1) > 1e-12
-        return pts[keep]
-
-
-def _vec(p: Any) -> np.ndarray:
-    return np.array([p.X(), p.Y(), p.Z()], dtype=float)
-
-
-def _coaxial(location: Any, direction: Any, centre: np.ndarray, axis: np.ndarray) -> bool:
-    d = _vec(direction)
-    return (np.linalg.norm(np.cross(d, axis)) <= AXIS_TOL
-            and np.linalg.norm(np.cross(_vec(location) - centre, axis)) <= LINE_TOL_MM)
-
-
-def _face_levels(face: Any, hole: Hole, label: str) -> list[tuple[float, float]]:
-    """(depth, radius) of each circular boundary of a hole's wall face (and its cone apex, radius 0).
-
-    Raises ``CadfeatError`` if the face is bounded by anything else than coaxial circles perpendicular
-    to the axis (an oblique entrance/exit, or another feature cutting into the wall).
-    """
-    from OCP.BRep import BRep_Tool
-    from OCP.BRepAdaptor import BRepAdaptor_Curve
-    from OCP.GeomAbs import GeomAbs_Circle
-    from OCP.TopAbs import TopAbs_EDGE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
-
-    centre, axis = np.asarray(hole.centre, float), np.asarray(hole.axis, float)
-    levels = []
-    explorer = TopExp_Explorer(face, TopAbs_EDGE)
-    while explorer.More():
-        edge = TopoDS.Edge_s(explorer.Current())
-        explorer.Next()
-        if BRep_Tool.Degenerated_s(edge) or BRep_Tool.IsClosed_s(edge, face):
-            continue  # cone apex / seam
-        curve = BRepAdaptor_Curve(edge)
-        if curve.GetType() != GeomAbs_Circle or not _coaxial(curve.Circle().Location(),
-                                                              curve.Circle().Axis().Direction(), centre, axis):
-            raise CadfeatError(f"{label}: its wall meets a face that is not perpendicular to its axis (oblique "
-                               "entrance/exit, or another feature cuts into it); re-drilling supports holes "
-                               "that start and end on planes perpendicular to their axis")
-        circle = curve.Circle()
-        levels.append((float(np.dot(centre - _vec(circle.Location()), axis)), float(circle.Radius())))
-    return levels
-
-
-def _wall_segment(face: Any, hole: Hole, label: str) -> tuple[float, float, float, float, bool, float] | None:
-    """(t0, t1, r0, r1, conical, area) of a face if it is part of ``hole``'s wall, else None."""
-    from OCP.BRepAdaptor import BRepAdaptor_Surface
-    from OCP.GeomAbs import GeomAbs_Cone, GeomAbs_Cylinder
-
-    centre, axis = np.asarray(hole.centre, float), np.asarray(hole.axis, float)
-    surface = BRepAdaptor_Surface(face)
-    kind = surface.GetType()
-    if kind == GeomAbs_Cylinder:
-        ax = surface.Cylinder().Axis()
-    elif kind == GeomAbs_Cone:
-        ax = surface.Cone().Axis()
-    else:
-        return None
-    if not _coaxial(ax.Location(), ax.Direction(), centre, axis):
-        return None
-    levels = _face_levels(face, hole, label)
-    if kind == GeomAbs_Cone:
-        apex = surface.Cone().Apex()
-        if len({round(t, 9) for t, _ in levels}) == 1:  # a drill point: one rim, then the apex
-            levels.append((float(np.dot(centre - _vec(apex), axis)), 0.0))
-    if not levels:
-        return None
-    levels.sort()
-    (t0, r0), (t1, r1) = levels[0], levels[-1]
-    if t0 < -LINE_TOL_MM or t0 > hole.depth_mm + LINE_TOL_MM or r0 > hole.radius_mm + LINE_TOL_MM:
-        return None  # another coaxial feature (e.g. a boss on the far side)
-    return t0, t1, r0, r1, kind == GeomAbs_Cone, _face_area(face)
-
-
-def _face_area(face: Any) -> float:
-    from OCP.BRepGProp import BRepGProp
-    from OCP.GProp import GProp_GProps
-
-    props = GProp_GProps()
-    BRepGProp.SurfaceProperties_s(face, props)
-    return float(props.Mass())
-
-
-def hole_profile(shape: Any, hole: Hole) -> HoleProfile:
-    """The wall profile of ``hole`` read from the faces of ``shape`` (exact B-rep geometry).
-
-    Collects the cylindrical and conical faces coaxial with the hole that start between its entrance rim
-    and its depth, groups split faces (their areas must add up to the full 360° wall) and checks that the
-    segments follow each other from the entrance rim (depth 0, radius ``hole.radius_mm``) down.
-    Raises ``CadfeatError`` naming the hole if the wall is not such a stack of surfaces of revolution.
-    """
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp
-    from OCP.TopoDS import TopoDS
-    from OCP.TopTools import TopTools_IndexedMapOfShape
-
-    label = _label(hole)
-    occ = shape.wrapped if hasattr(shape, "wrapped") else shape
-    faces = TopTools_IndexedMapOfShape()
-    TopExp.MapShapes_s(occ, TopAbs_FACE, faces)
-    groups: dict[tuple[float, float], list[tuple[float, float, float, float, bool, float]]] = {}
-    for i in range(1, faces.Extent() + 1):
-        segment = _wall_segment(TopoDS.Face_s(faces.FindKey(i)), hole, label)
-        if segment is not None:
-            groups.setdefault((round(segment[0], 6), round(segment[1], 6)), []).append(segment)
-    if not groups:
-        raise CadfeatError(f"{label}: no wall face coaxial with the hole found in the shape")
-    segments, conical = [], []
-    for key in sorted(groups):
-        parts = groups[key]
-        t0, t1, r0, r1, cone, _ = parts[0]
-        full = np.pi * (r0 + r1) * math.hypot(t1 - t0, r1 - r0)  # lateral area of the whole frustum
-        if abs(sum(p[5] for p in parts) - full) > 1e-6 * full:
-            raise CadfeatError(f"{label}: its wall between depths {t0:.6g} and {t1:.6g} mm is not a full "
-                               "circle (a slot or another feature cuts into it)")
-        segments.append((t0, t1, r0, r1))
-        conical.append(cone)
-    profile = HoleProfile(np.array(segments, dtype=float), np.array(conical, dtype=bool))
-    _check_profile(profile, hole, label)
-    return profile
-
-
-def _check_profile(profile: HoleProfile, hole: Hole, label: str) -> None:
-    seg = profile.segments
-    if abs(seg[0, 0]) > LINE_TOL_MM or abs(seg[0, 2] - hole.radius_mm) > LINE_TOL_MM:
-        raise CadfeatError(f"{label}: its wall does not start at the entrance rim (depth {seg[0, 0]:.6g} mm, "
-                           f"radius {seg[0, 2]:.6g} mm, expected 0 and {hole.radius_mm:.6g} mm)")
-    gaps = np.abs(seg[1:, 0] - seg[:-1, 1])
-    if np.any(gaps > LINE_TOL_MM):
-        k = int(np.argmax(gaps))
-        raise CadfeatError(f"{label}: its wall has a gap between depths {seg[k, 1]:.6g} and {seg[k + 1, 0]:.6g} mm")
-
-
-def _label(hole: Hole) -> str:
-    c = np.asarray(hole.centre, dtype=float)
-    name = getattr(hole, "name", "") or "hole"
-    return f"hole {name} at ({c[0]:.6g}, {c[1]:.6g}, {c[2]:.6g}) mm"
-
-
-def _revolved(profile: HoleProfile, centre: np.ndarray, axis: np.ndarray) -> cq.Solid:
-    """Solid of revolution of ``profile`` about the line (centre, axis); depth runs along −axis."""
-    import cadquery as cq
-
-    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-    radial = np.cross(axis, helper)
-    radial /= np.linalg.norm(radial)
-    section = profile.polygon()
-    points = centre + section[:, :1] * radial - section[:, 1:] * axis
-    wire = cq.Wire.makePolygon([cq.Vector(*p) for p in points], close=True)
-    face = cq.Face.makeFromWires(wire)
-    return cq.Solid.revolve(face, 360.0, cq.Vector(*centre), cq.Vector(*(centre + axis)))
+    return StepPart(name=path.stem, path=path, shape=solid, holes=holes, tolerance=tol, skipped=tuple(skipped))
 
 
 # ----------------------------------------------------------------------------------------- re-drilling
 @dataclass(frozen=True)
 class HoleMove:
     """Re-drill ``hole`` with its entrance-rim centre at ``centre`` (mm, on the same host face plane) and
-    entrance radius ``radius_mm`` (the whole profile scales with it, see ``HoleProfile.scaled``)."""
+    visible entrance radius ``radius_mm`` (``HoleProfile.resized``: a counterbore or countersink widens or
+    narrows, its screw bore stays; a plain hole scales)."""
 
     hole: Hole
     centre: np.ndarray
@@ -345,9 +172,10 @@ class HoleMove:
     def __post_init__(self) -> None:
         centre = np.asarray(self.centre, dtype=float)
         if centre.shape != (3,) or not np.all(np.isfinite(centre)):
-            raise CadfeatError(f"{_label(self.hole)}: new centre must be 3 finite numbers (mm), got {self.centre!r}")
+            raise CadfeatError(f"{hole_label(self.hole)}: new centre must be 3 finite numbers (mm), "
+                               f"got {self.centre!r}")
         if not (math.isfinite(self.radius_mm) and self.radius_mm > 0):
-            raise CadfeatError(f"{_label(self.hole)}: new radius_mm must be > 0, got {self.radius_mm!r}")
+            raise CadfeatError(f"{hole_label(self.hole)}: new radius_mm must be > 0, got {self.radius_mm!r}")
         object.__setattr__(self, "centre", centre)
         object.__setattr__(self, "radius_mm", float(self.radius_mm))
 
@@ -361,15 +189,15 @@ def _host_normal(hole: Hole) -> np.ndarray:
     return np.asarray(hole.axis, dtype=float)
 
 
-def _check_on_host_plane(move: HoleMove) -> None:
+def _check_on_host_plane(move: HoleMove, tol: ModelTolerance, path: Any) -> None:
     offset = float(np.dot(move.centre - np.asarray(move.hole.centre, float), _host_normal(move.hole)))
-    if abs(offset) > PLANE_TOL_MM:
-        raise CadfeatError(f"{_label(move.hole)}: new centre {move.centre.tolist()} is {offset:.3g} mm off its "
-                           f"host face plane (allowed {PLANE_TOL_MM:g} mm)")
+    if abs(offset) > tol.linear_mm:
+        raise CadfeatError(f"{hole_label(move.hole, path)}: new centre {move.centre.tolist()} is {offset:.3g} mm off "
+                           f"its host face plane (allowed {tol.linear_mm:.3g} mm)")
 
 
 def _unify(shape: Any) -> cq.Shape:
-    """Merge same-domain faces and edges (``ShapeUpgrade_UnifySameDomain``)."""
+    """Merge same-domain faces and edges (``ShapeUpgrade_UnifySameDomain``), within the model tolerance."""
     import cadquery as cq
     from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
 
@@ -388,82 +216,166 @@ def _single_solid(shape: Any, what: str) -> cq.Solid:
     return cq.Solid(solids[0].wrapped)
 
 
-def fill_holes(shape: Any, holes: Sequence[Hole]) -> cq.Solid:
+def volume_change_mm3(before: Any, after: Any) -> float:
+    """Volume ``after`` minus ``before`` (mm³), measured on the changed region only: the volumes of the two
+    Boolean differences (material added, material removed), small solids bounded by the changed faces."""
+    from cadfeat.cad.export import shape_volume_mm3
+
+    return shape_volume_mm3(after.cut(before)) - shape_volume_mm3(before.cut(after))
+
+
+def _volume_tolerance(profiles: Sequence[HoleProfile], expected: float, tol: ModelTolerance) -> float:
+    """What a volume change can be off by on this solid: the B-rep tolerance over the changed surface
+    (walls and entrance discs, both sides), plus round-off."""
+    surface = sum(p.lateral_area_mm2 + np.pi * float(p.segments[0, 2]) ** 2 for p in profiles)
+    return 2.0 * tol.linear_mm * surface + VOLUME_RTOL_FLOOR * abs(expected)
+
+
+def fill_holes(shape: Any, holes: Sequence[Hole], tol: ModelTolerance | None = None, path: Any = None) -> cq.Solid:
     """``shape`` with ``holes`` filled: fused with the solid of revolution of each hole's own profile,
     then same-domain faces unified so the filled host faces merge back into one face.
 
-    Checks that the volume grew by exactly the filled profiles' volume (rel ``VOLUME_RTOL``).
+    Checks that the volume grew by the filled profiles' volume within the accuracy of the volume
+    computation on that solid (``_volume_tolerance``).
     """
-    return _fill(shape, holes, [hole_profile(shape, h) for h in holes])
+    tol = tol or ModelTolerance.of_shape(shape)
+    return _fill(shape, holes, [hole_profile(shape, h, tol, path) for h in holes], tol, path)
 
 
-def _fill(shape: Any, holes: Sequence[Hole], profiles: Sequence[HoleProfile]) -> cq.Solid:
+def _fill(shape: Any, holes: Sequence[Hole], profiles: Sequence[HoleProfile], tol: ModelTolerance,
+          path: Any) -> cq.Solid:
     """``fill_holes`` with the holes' profiles already read."""
-    from cadfeat.cad.export import shape_volume_mm3
-
     if not holes:
         return _single_solid(shape, "the part")
-    plugs = [_revolved(p, np.asarray(h.centre, float), np.asarray(h.axis, float)) for p, h in zip(profiles, holes,
-                                                                                                   strict=True)]
-    filled = _single_solid(_unify(shape.fuse(*plugs)), "filling the holes")
-    added = shape_volume_mm3(filled) - shape_volume_mm3(shape)
+    plugs = [revolved(p, np.asarray(h.centre, float), np.asarray(h.axis, float))
+             for p, h in zip(profiles, holes, strict=True)]
+    filled = _single_solid(_unify(shape.fuse(*plugs, tol=tol.linear_mm if tol.linear_mm > 1e-5 else None)),
+                           "filling the holes")
+    added = volume_change_mm3(shape, filled)
     expected = sum(p.volume_mm3 for p in profiles)
-    if abs(added - expected) > VOLUME_RTOL * expected:
-        raise CadfeatError(f"filling {', '.join(_label(h) for h in holes)} added {added:.9g} mm^3 instead of the "
-                           f"holes' {expected:.9g} mm^3 (holes overlap each other or another feature)")
+    allowed = _volume_tolerance(profiles, expected, tol)
+    if abs(added - expected) > allowed:
+        raise CadfeatError(f"filling {', '.join(hole_label(h, path) for h in holes)} added {added:.9g} mm^3 instead "
+                           f"of the holes' {expected:.9g} mm^3 (allowed ±{allowed:.3g} mm^3 on this solid): the holes "
+                           "overlap each other or another feature")
     return filled
 
 
-def redrill(shape: Any, moves: Sequence[HoleMove]) -> cq.Solid:
+def redrill(shape: Any, moves: Sequence[HoleMove], tol: ModelTolerance | None = None, path: Any = None,
+            verify: bool = True) -> cq.Solid:
     """Re-drill holes of ``shape``: fill each ``move.hole`` (``fill_holes``), then cut it again at
-    ``move.centre`` with entrance radius ``move.radius_mm`` (profile scaled, same axis direction and depth),
+    ``move.centre`` with entrance radius ``move.radius_mm`` (``HoleProfile.resized``, same axis direction),
     then unify same-domain faces. The rest of the solid is untouched.
 
-    Validates before any CAD work that each new centre lies on its hole's host face plane (≤ 1e-6 mm).
-    Afterwards checks that the cut removed exactly the new holes' volume (they lie inside the material
-    and do not overlap), that through holes still come out at the same depth (the part is as thick at
-    the new centre), and that the solid is valid.
-    Raises ``CadfeatError`` naming the hole otherwise.
+    Validates before any CAD work that each new centre lies on its hole's host face plane (within the model
+    tolerance ``tol``, default scaled to ``shape``). Afterwards checks that the cut removed the new holes'
+    analytic volume within the accuracy of the volume computation on that solid, that through holes still
+    come out (the part is as thick at the new centre), that the B-rep is valid (if the input was), and — with
+    ``verify`` — that re-extracting the holes finds each new hole at its centre, axis and entrance radius.
+    Raises ``CadfeatError`` naming the file (``path``) and the hole otherwise.
     """
-    from cadfeat.cad.export import check_solid, shape_volume_mm3
+    from cadfeat.cad.export import check_solid
 
+    tol = tol or ModelTolerance.of_shape(shape)
     moves = list(moves)
     if not moves:
         return _single_solid(shape, "the part")
     for move in moves:
-        _check_on_host_plane(move)
-    old_profiles = [hole_profile(shape, m.hole) for m in moves]
-    profiles = [p.scaled(m.radius_mm / m.hole.radius_mm) for p, m in zip(old_profiles, moves, strict=True)]
-    filled = _fill(shape, [m.hole for m in moves], old_profiles)
-    tools = [_revolved(p, m.centre, np.asarray(m.hole.axis, float)) for p, m in zip(profiles, moves, strict=True)]
+        _check_on_host_plane(move, tol, path)
+    old_profiles = [hole_profile(shape, m.hole, tol, path) for m in moves]
+    profiles = []
+    for p, m in zip(old_profiles, moves, strict=True):
+        try:
+            profiles.append(p if abs(m.radius_mm - m.hole.radius_mm) <= 1e-12 else p.resized(m.radius_mm, m.hole.kind))
+        except CadfeatError as exc:
+            raise CadfeatError(f"{hole_label(m.hole, path)}: {exc}") from None
+    filled = _fill(shape, [m.hole for m in moves], old_profiles, tol, path)
+    tools = [revolved(p, m.centre, np.asarray(m.hole.axis, float)) for p, m in zip(profiles, moves, strict=True)]
     result = _single_solid(_unify(filled.cut(*tools)), "re-drilling the holes")
-    removed = shape_volume_mm3(filled) - shape_volume_mm3(result)
+    removed = -volume_change_mm3(filled, result)
     expected = sum(p.volume_mm3 for p in profiles)
-    if abs(removed - expected) > VOLUME_RTOL * expected:
-        raise CadfeatError(f"re-drilling {', '.join(_label(m.hole) for m in moves)} removed {removed:.9g} mm^3 "
-                           f"instead of {expected:.9g} mm^3: a new hole breaks out of the part or overlaps "
-                           "another hole")
+    allowed = _volume_tolerance(profiles, expected, tol)
+    if abs(removed - expected) > allowed:
+        raise CadfeatError(f"re-drilling {', '.join(hole_label(m.hole, path) for m in moves)} removed {removed:.9g} "
+                           f"mm^3 instead of {expected:.9g} mm^3 (allowed ±{allowed:.3g} mm^3 on this solid): a new "
+                           "hole breaks out of the part or overlaps another hole")
     for profile, move in zip(profiles, moves, strict=True):
         if move.hole.through:
-            _check_through(filled, move, profile.depth_mm)
-    if problems := check_solid(result):
-        raise CadfeatError(f"re-drilling gave an invalid solid: {'; '.join(problems[:5])}")
+            _check_through(filled, move, profile.depth_mm, tol, path)
+    if (problems := check_solid(result)) and not check_solid(shape):
+        raise CadfeatError(f"re-drilling {', '.join(hole_label(m.hole, path) for m in moves)} gave an invalid solid: "
+                           f"{'; '.join(problems[:5])}")
+    if verify:
+        _verify(result, moves, profiles, tol, path)
     return result
 
 
-def _check_through(filled: Any, move: HoleMove, depth_mm: float) -> None:
+def _verify(result: Any, moves: Sequence[HoleMove], profiles: Sequence[HoleProfile], tol: ModelTolerance,
+            path: Any) -> None:
+    """Each new hole is found again by extraction at its centre, axis and entrance radius (a through hole may
+    be found from its other end: on the same axis line, with its exit radius)."""
+    from cadfeat.cad.features import extract_holes
+
+    found = extract_holes(result, tol=tol)
+    centres = np.array([h.centre for h in found]).reshape(-1, 3)
+    axes = np.array([h.axis for h in found]).reshape(-1, 3)
+    radii = np.array([h.radius_mm for h in found])
+    near = max(1e-3, 10 * tol.linear_mm)
+    for move, profile in zip(moves, profiles, strict=True):
+        axis = np.asarray(move.hole.axis, float)
+        radius, exit_radius = float(profile.segments[0, 2]), float(profile.segments[-1, 3])
+        parallel = np.linalg.norm(np.cross(axes, axis), axis=-1) <= 10 * tol.angular_rad
+        same = parallel & (np.linalg.norm(centres - move.centre, axis=-1) <= near) & (np.abs(radii - radius) <= near)
+        if move.hole.through:
+            off_line = np.linalg.norm(np.cross(centres - move.centre, axis), axis=-1)
+            same |= parallel & (off_line <= near) & (axes @ axis < 0) & (np.abs(radii - exit_radius) <= near)
+        if not same.any():
+            raise CadfeatError(f"{hole_label(move.hole, path)}: after re-drilling, extraction finds no hole of "
+                               f"entrance radius {radius:.6g} mm at {move.centre.tolist()} (it merged with another "
+                               "feature or lost its rim)")
+
+
+def _check_through(filled: Any, move: HoleMove, depth_mm: float, tol: ModelTolerance, path: Any) -> None:
     """A through hole must still exit at ``depth_mm``: material just above the exit, none just below."""
     from OCP.BRepClass3d import BRepClass3d_SolidClassifier
     from OCP.gp import gp_Pnt
     from OCP.TopAbs import TopAbs_IN, TopAbs_OUT
 
     axis = np.asarray(move.hole.axis, float)
-    eps = min(1e-3, 0.25 * depth_mm)
+    eps = min(max(1e-3, 10 * tol.linear_mm), 0.25 * depth_mm)
     states = []
     for depth in (depth_mm - eps, depth_mm + eps):
         p = move.centre - depth * axis
-        classifier = BRepClass3d_SolidClassifier(filled.wrapped, gp_Pnt(*p), 1e-9)
+        classifier = BRepClass3d_SolidClassifier(filled.wrapped, gp_Pnt(*p), min(1e-7, 0.1 * tol.linear_mm))
         states.append(classifier.State())
     if states != [TopAbs_IN, TopAbs_OUT]:
-        raise CadfeatError(f"{_label(move.hole)}: the part is not {depth_mm:.6g} mm thick at the new centre "
+        raise CadfeatError(f"{hole_label(move.hole, path)}: the part is not {depth_mm:.6g} mm thick at the new centre "
                            f"{move.centre.tolist()}, so the through hole would not come out there")
+
+
+# ------------------------------------------------------------------------------------------- dry run
+def dry_run(part: StepPart, holes: Sequence[Hole], resize: Sequence[bool] | None = None) -> None:
+    """Before optimising: re-drill each of ``holes`` of ``part`` (filled, then cut again) moved by a small
+    step in its host plane (1 % of its radius, at least 10× the model tolerance) — and, where ``resize``,
+    with its entrance 2 % wider — so that a part that cannot be re-drilled is refused at once.
+
+    Raises ``CadfeatError`` naming the file, the hole and why (e.g. its wall is cut by another feature).
+    """
+    resize = list(resize) if resize is not None else [False] * len(holes)
+    for hole, grow in zip(holes, resize, strict=True):
+        step = max(0.01 * hole.radius_mm, 10 * part.tolerance.linear_mm)
+        if hole.outline is not None:
+            u = np.asarray(hole.outline.u, float)
+        else:
+            helper = np.eye(3)[int(np.argmin(np.abs(hole.axis)))]
+            u = np.cross(hole.axis, helper)
+            u /= np.linalg.norm(u)
+        move = HoleMove(hole, np.asarray(hole.centre, float) + step * u, hole.radius_mm * (1.02 if grow else 1.0))
+        try:
+            redrill(part.shape, [move], part.tolerance, part.path)
+        except CadfeatError as exc:
+            text = str(exc)
+            where = f"{part.path}: "
+            raise CadfeatError(f"{where}hole {hole.name} cannot be re-drilled (dry run: moved {step:.3g} mm"
+                               f"{', entrance 2 % wider' if grow else ''}): "
+                               f"{text[len(where):] if text.startswith(where) else text}") from None

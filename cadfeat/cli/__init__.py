@@ -9,14 +9,17 @@ import).
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Callable, Iterator, Sequence
 
 from cadfeat.cli import listing, parts, render, report, study
 from cadfeat.cli.command import Command
-from cadfeat.errors import CadfeatError
+from cadfeat.errors import CadfeatError, Terminated
 
-__all__ = ["COMMANDS", "build_parser", "main"]
+__all__ = ["COMMANDS", "build_parser", "main", "run_guarded"]
 
 #: Every sub-command, in the order ``cadfeat --help`` lists them.
 COMMANDS: tuple[Command, ...] = (*listing.COMMANDS, *parts.COMMANDS, *render.COMMANDS, *report.COMMANDS,
@@ -29,10 +32,54 @@ def build_parser() -> argparse.ArgumentParser:
         prog="cadfeat",
         description="Redesign hole features of CAD parts for vision-guided manipulation.",
     )
+    from cadfeat import __version__
+
+    parser.add_argument("--version", action="version", version=f"cadfeat {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for cmd in COMMANDS:
         cmd.add_parser(sub)
     return parser
+
+
+@contextlib.contextmanager
+def sigterm_as_exception() -> Iterator[None]:
+    """Within the block, SIGTERM raises ``Terminated`` in the main thread: it unwinds like Ctrl-C (staging
+    folders removed, worker processes killed) and the CLI exits with status 143."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def on_term(signum: int, frame: object) -> None:
+        raise Terminated
+
+    previous = signal.signal(signal.SIGTERM, on_term)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def run_guarded(func: Callable[[], int], prog: str = "cadfeat") -> int:
+    """``func()`` with the CLI's error handling: one line for bad input (status 2), ``interrupted`` (130),
+    ``terminated`` (143, SIGTERM); every part-script import and CAD build runs in a worker process with the
+    default time limit unless the command sets its own."""
+    from cadfeat.cad.parts import DEFAULT_BUILD_TIMEOUT_S, build_time_limit
+
+    try:
+        with sigterm_as_exception(), build_time_limit(DEFAULT_BUILD_TIMEOUT_S, start=False):
+            return int(func() or 0)
+    except Terminated:
+        print(f"{prog}: terminated (SIGTERM); nothing half-written was left", file=sys.stderr)
+        return 143
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    except CadfeatError as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # output piped into `head` and the like
+        sys.stderr.close()
+        return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -42,14 +89,4 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "_func", None):
         parser.print_help()
         return 0
-    try:
-        return int(args._func(args) or 0)
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
-    except CadfeatError as exc:
-        print(f"cadfeat: error: {exc}", file=sys.stderr)
-        return 2
-    except BrokenPipeError:  # output piped into `head` and the like
-        sys.stderr.close()
-        return 0
+    return run_guarded(lambda: args._func(args))

@@ -4,7 +4,6 @@ the revised STEP/STL files and the report are, with a short before/after summary
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
@@ -15,17 +14,20 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m cadfeat.cli.demo", description=__doc__)
     parser.add_argument("--out", default=None, help="output folder (default exports/nema17_mount/)")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
+    parser.add_argument("--force", action="store_true",
+                        help="write into an existing folder cadfeat did not create (other files untouched)")
     args = parser.parse_args(argv)
 
-    from cadfeat.errors import CadfeatError
+    from cadfeat.cli import run_guarded
     from cadfeat.study.run import run_study
 
     t0 = time.perf_counter()
-    try:
-        result = run_study(FLAGSHIP, args.out, quiet=args.quiet)
-    except CadfeatError as exc:
-        print(f"cadfeat demo: error: {exc}", file=sys.stderr)
-        return 2
+    results = []
+    status = run_guarded(lambda: results.append(run_study(FLAGSHIP, args.out, quiet=args.quiet, force=args.force)),
+                         "cadfeat demo")
+    if status:
+        return status
+    result = results[0]
     print()
     print(result.summary())
     out = result.out_dir

@@ -1,4 +1,5 @@
-"""``cadfeat parts [DIR] [--holes]``: list the part scripts with their parameters."""
+"""``cadfeat parts [DIR | SCRIPT | PART.step] [--holes]``: list the part scripts with their parameters, or a
+STEP part's holes (the names a study's ``design.holes`` selectors use)."""
 
 from __future__ import annotations
 
@@ -9,17 +10,36 @@ from cadfeat.cli.command import Command
 
 def _arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("directory", nargs="?", default=None,
-                        help="folder of part scripts, or one script (default: the parts/ library)")
+                        help="folder of part scripts, one script, or a STEP part (default: the parts/ library)")
     parser.add_argument("--holes", action="store_true", help="also build each part and list its holes at the defaults")
+    build_timeout_arg(parser)
+
+
+def build_timeout_arg(parser: argparse.ArgumentParser) -> None:
+    """``--build-timeout S``: the time limit of one part-script import or build (worker process)."""
+    from cadfeat.cad.parts import DEFAULT_BUILD_TIMEOUT_S
+
+    parser.add_argument("--build-timeout", type=float, default=DEFAULT_BUILD_TIMEOUT_S, metavar="S",
+                        help=f"time limit of one part-script import or build, s (default {DEFAULT_BUILD_TIMEOUT_S:g})")
 
 
 def parts(args: argparse.Namespace) -> int:
     """List the part scripts: description, parameters (default, bounds, unit), fixed holes."""
+
+    from cadfeat.cad.parts import build_time_limit
+
+    with build_time_limit(args.build_timeout):
+        return _list_parts(args)
+
+
+def _list_parts(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from cadfeat.cad.parts import find_parts, load_part
 
     target = Path(args.directory) if args.directory else None
+    if target is not None and target.suffix.lower() in (".step", ".stp"):
+        return _step_part(target, args.holes)
     paths = [target] if target is not None and target.is_file() else find_parts(target)
     for path in paths:
         part = load_part(path)
@@ -37,6 +57,22 @@ def parts(args: argparse.Namespace) -> int:
                 a = ", ".join(f"{v:.3f}" for v in h.axis)
                 print(f"    {h.name or f'H{i + 1}'}: centre ({c}) mm, axis ({a}), r {h.radius_mm:.3f} mm, {h.kind}, "
                       f"{'through' if h.through else f'blind {h.depth_mm:.3f} mm'}")
+    return 0
+
+
+def _step_part(path: object, holes: bool) -> int:
+    """A STEP part: its holes (names, kind, entrance, host face) and the near-round openings it skips."""
+    from cadfeat.cad.step_parts import load_step
+
+    part = load_step(path)  # type: ignore[arg-type]
+    print(f"{part.name}: STEP part, {len(part.holes)} hole(s), {len(part.skipped)} skipped opening(s)")
+    print(f"    file: {part.path}")
+    print(f"    tolerances: {part.tolerance.describe()}")
+    if holes:
+        for line in part.listing():
+            print(f"    {line}")
+    else:
+        print(f"    holes: {', '.join(h.name for h in part.holes) or 'none'} (--holes lists them)")
     return 0
 
 

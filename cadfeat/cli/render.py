@@ -7,9 +7,12 @@ from pathlib import Path
 from typing import Any
 
 from cadfeat.cli.command import Command
+from cadfeat.cli.parts import build_timeout_arg
 from cadfeat.errors import CadfeatError
 
 STEP_SUFFIXES = (".step", ".stp")
+MAX_SIDE_PX = 8192
+"""Largest side (pixels) of a ``cadfeat render`` picture (bounds the off-screen buffer's memory)."""
 
 
 def _render_arguments(parser: argparse.ArgumentParser) -> None:
@@ -20,7 +23,9 @@ def _render_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--view", default=None, metavar="X,Y,Z",
                         help="direction from the part towards the viewer, part frame (default: the part's "
                              "VIEW_DIRECTION or the mean hole axis, tilted to show depth)")
-    parser.add_argument("--size", default="900x700", metavar="WxH", help="image size in pixels (default 900x700)")
+    parser.add_argument("--size", default="900x700", metavar="WxH",
+                        help=f"image size in pixels (default 900x700, each side at most {MAX_SIDE_PX})")
+    build_timeout_arg(parser)
 
 
 def parse_params(items: list[str]) -> dict[str, float | int]:
@@ -57,6 +62,8 @@ def _parse_size(text: str) -> tuple[int, int]:
     w, sep, h = text.lower().partition("x")
     if not sep or not w.strip().isdigit() or not h.strip().isdigit() or int(w) < 16 or int(h) < 16:
         raise CadfeatError(f"--size: expected WIDTHxHEIGHT in pixels (each ≥ 16), got {text!r}")
+    if max(int(w), int(h)) > MAX_SIDE_PX:
+        raise CadfeatError(f"--size {text}: each side at most {MAX_SIDE_PX} pixels (the limit of cadfeat render)")
     return int(w), int(h)
 
 
@@ -67,6 +74,9 @@ def load_shape(path: Path, params: dict[str, float | int]) -> tuple[Any, list, A
 
     if not path.is_file() and path.suffix == "" and (PARTS_DIR / f"{path}.py").is_file():
         path = PARTS_DIR / f"{path}.py"  # a library part by name, as `cadfeat parts` lists them
+    if path.exists() and not path.is_file():
+        raise CadfeatError(f"{path}: not a regular file (a device, folder or pipe); expected a part script .py or "
+                           "a STEP file .step/.stp")
     if not path.is_file():
         raise CadfeatError(f"{path}: no such file (expected a part script .py, a STEP file .step/.stp "
                            f"or the name of a part in {PARTS_DIR})")
@@ -88,16 +98,19 @@ def load_shape(path: Path, params: dict[str, float | int]) -> tuple[Any, list, A
 
 def render(args: argparse.Namespace) -> int:
     """Render a part script or STEP file to a PNG (off-screen) and print the PNG path."""
+    from cadfeat.cad.parts import build_time_limit
     from cadfeat.render import render_part
     from cadfeat.render.part_views import default_view_direction
 
     path = Path(args.part)
-    shape, holes, view, name = load_shape(path, parse_params(args.param))
+    size = _parse_size(args.size)
+    with build_time_limit(args.build_timeout):
+        shape, holes, view, name = load_shape(path, parse_params(args.param))
     direction = _parse_vector(args.view, "--view") or default_view_direction(holes, towards=view)
     out = Path(args.out) if args.out else Path(f"{name}.png")
     if out.suffix.lower() != ".png":
         raise CadfeatError(f"--out {out}: the picture is a PNG; give a path ending in .png")
-    print(render_part(shape, out, holes, view_direction=direction, size=_parse_size(args.size)))
+    print(render_part(shape, out, holes, view_direction=direction, size=size))
     return 0
 
 

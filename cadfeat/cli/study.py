@@ -16,6 +16,14 @@ def _run_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="DIR", help="output folder (default: exports/<study name>/)")
     parser.add_argument("--seed", type=int, metavar="N", help="random seed (overrides study.seed and optimizer.seed)")
     parser.add_argument("--quiet", action="store_true", help="no progress display, only the summary")
+    _force_arg(parser)
+
+
+def _force_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--force", action="store_true",
+                        help="write into an existing folder cadfeat did not create: cadfeat's files are added, every "
+                             "other file is left untouched (a file of the same name not written by cadfeat is "
+                             "never overwritten)")
 
 
 def _evaluate_args(parser: argparse.ArgumentParser) -> None:
@@ -24,13 +32,15 @@ def _evaluate_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pose", type=int, metavar="K",
                         help="score one trajectory sample only (0-based), like the thesis GUI's single-pose mode")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
+    _force_arg(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run a redesign study: optimise the movable holes, verify and export STEP/STL, results.json, report."""
     from cadfeat.study.run import run_study
 
-    result = run_study(args.study, args.out, seed=args.seed, quiet=args.quiet, progress=not args.quiet)
+    result = run_study(args.study, args.out, seed=args.seed, quiet=args.quiet, progress=not args.quiet,
+                       force=args.force)
     print(result.summary())
     return 0
 
@@ -39,17 +49,25 @@ def evaluate(args: argparse.Namespace) -> int:
     """Score the study's current design without optimising; print the per-feature table (thesis Table 5.1)."""
     from cadfeat.study.run import evaluate_study
 
-    evaluate_study(args.study, args.out, pose=args.pose, quiet=args.quiet, echo=True)
+    evaluate_study(args.study, args.out, pose=args.pose, quiet=args.quiet, echo=True, force=args.force)
     return 0
 
 
 def validate(args: argparse.Namespace) -> int:
-    """Check a study file (sections, keys, types, ranges, files, part parameters) without running it."""
+    """Check a study file (sections, keys, types, ranges, files, part parameters, the part builds / the STEP
+    file reads) without running it."""
+    from cadfeat.cad.parts import build_time_limit
     from cadfeat.study.schema import load_study
 
     config = load_study(args.study)
+    with build_time_limit(config.study.build_timeout_s):
+        _check_part(config)
     names = ", ".join(p.name for p in config.design.parameters) or \
         f"{len(config.design.holes)} STEP hole(s)"
+    if config.study.part_kind == "step":  # re-drill every movable hole once now, not after the optimisation
+        from cadfeat.study.setup import check_step_study
+
+        names += f"; {check_step_study(config)}"
     pre = _preflight_if_buildable(config)
     print(f"{config.label}: ok — study '{config.study.name}', {config.study.part_kind} part {config.study.part}, "
           f"varying {names}; objective {config.objective.combine}/{config.objective.aggregate} of "
@@ -73,6 +91,25 @@ def _preflight_if_buildable(config: object) -> object:
         raise
     except (CadfeatError, ImportError):
         return None
+
+
+def _check_part(config: object) -> None:
+    """Load the part as the run will: a script is imported and built at its defaults (worker process, time
+    limit), a STEP file is read and its holes extracted."""
+    from cadfeat.errors import CadfeatError
+
+    study = config.study  # type: ignore[attr-defined]
+    try:
+        if study.part_kind == "step":
+            from cadfeat.cad.step_parts import load_step
+
+            load_step(study.part_path)
+        else:
+            from cadfeat.cad.parts import load_part
+
+            load_part(study.part_path).build()
+    except CadfeatError as exc:
+        raise CadfeatError(f"{config.label}: study.part: {exc}") from exc  # type: ignore[attr-defined]
 
 
 COMMANDS = (

@@ -325,6 +325,47 @@ def _min_distance(shapes_a: Sequence[Any], shapes_b: Sequence[Any]) -> float:
     return float(best)
 
 
+def _axis_circle_edges(face: Any, hole: Hole, tol: float = 1e-5) -> list:
+    """Circular edges of ``face`` (OCP) of the hole's radius centred on its axis line: its rim on its host face,
+    or its exit rim on the far face of a through hole."""
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
+    from OCP.GeomAbs import GeomAbs_Circle
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    out = []
+    axis = np.asarray(hole.axis, float)
+    exp = TopExp_Explorer(face, TopAbs_EDGE)
+    while exp.More():
+        edge = TopoDS.Edge_s(exp.Current())
+        curve = BRepAdaptor_Curve(edge)
+        if curve.GetType() == GeomAbs_Circle:
+            circ = curve.Circle()
+            loc = circ.Location()
+            c = np.array([loc.X(), loc.Y(), loc.Z()])
+            if np.linalg.norm(np.cross(c - hole.centre, axis)) < tol and abs(circ.Radius() - hole.radius_mm) < tol:
+                out.append(edge)
+        exp.Next()
+    return out
+
+
+def _shared_face_distance(faces: Sequence[Any], a: Hole, b: Hole) -> float | None:
+    """Rim-to-rim distance (mm) of two holes on a face they both open into, or None if they share none.
+
+    A through hole opens into two faces; extraction without a preferred direction may report it from either
+    end, so the host faces of both holes are tried (issue 13: a blind hole on the face where a through hole
+    exits had no ligament check)."""
+    best = None
+    for f in dict.fromkeys((a.host_face, b.host_face)):
+        face = faces[f].wrapped
+        ea, eb = _axis_circle_edges(face, a), _axis_circle_edges(face, b)
+        if ea and eb:
+            d = _min_distance(ea, eb)
+            best = d if best is None else min(best, d)
+    return best
+
+
 def _check(name: str, holes: list[str], required: float, value: float, unit: str, tol: float,
            at_most: bool = False) -> ConstraintCheck:
     margin = (required - value) if at_most else (value - required)
@@ -380,10 +421,11 @@ def verify_on_brep(shape: Any, design_holes: Sequence[Hole], config: ConstraintC
             checks.append(_check("keepout", [names[i]], config.keepout, value, "mm", tol_mm))
     for i in range(len(holes)):
         for j in range(i + 1, len(holes)):
-            if (fixed[i] and fixed[j]) or holes[i].host_face != holes[j].host_face or not (rims[i] and rims[j]):
+            if fixed[i] and fixed[j]:
                 continue
-            value = _min_distance(rims[i], rims[j])
-            checks.append(_check("ligament", [names[i], names[j]], config.ligament_mm, value, "mm", tol_mm))
+            value = _shared_face_distance(faces, holes[i], holes[j])
+            if value is not None:
+                checks.append(_check("ligament", [names[i], names[j]], config.ligament_mm, value, "mm", tol_mm))
     if reference is not None:
         c0, _, r0 = holes_to_arrays(list(reference))
         for i in np.flatnonzero(fixed):

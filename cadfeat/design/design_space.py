@@ -17,7 +17,7 @@ Both give ``features_batch(X (B,P))`` for batched finite differences.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
@@ -276,7 +276,7 @@ class HoleMoveModel(LinearFeatureModel):
     (symmetric pair), same diameter. Fixed holes (not in ``movable``) have no variables.
     """
 
-    def __init__(self, holes: Sequence[Hole], movable: Sequence[int], *, diameter: bool = False,
+    def __init__(self, holes: Sequence[Hole], movable: Sequence[int], *, diameter: bool | Sequence[int] = False,
                  patterns: Sequence[Sequence[int]] = (), mirrors: Sequence[tuple[int, int, Sequence[float]]] = ()):
         holes = list(holes)
         n = len(holes)
@@ -298,40 +298,47 @@ class HoleMoveModel(LinearFeatureModel):
             if leader in follow:
                 raise CadfeatError(f"HoleMoveModel: hole {leader} leads a pattern but follows another one")
         leaders = [i for i in movable if i not in follow]
-        per = 3 if diameter else 2
+        # diameter: True (every movable hole), False, or the hole indices whose entrance diameter varies
+        resized = set(movable) if diameter is True else set() if diameter is False else {int(i) for i in diameter}
+        width = sum(3 if i in resized else 2 for i in leaders)
         names: list[str] = []
         x0: list[float] = []
         kinds: list[str] = []
-        dC = np.zeros((n, 3, per * len(leaders)))
-        dR = np.zeros((n, per * len(leaders)))
-        for k, i in enumerate(leaders):
+        dC = np.zeros((n, 3, width))
+        dR = np.zeros((n, width))
+        col = 0
+        for i in leaders:
             label = holes[i].name or f"H{i + 1}"
             u, v = _in_plane_frame(holes[i])
-            cols = slice(per * k, per * k + 2)
             names += [f"{label}.s", f"{label}.t"]
             x0 += [0.0, 0.0]
             kinds += ["position", "position"]
-            dC[i, :, cols] = np.stack([u, v], axis=1)
-            if diameter:
+            dC[i, :, col:col + 2] = np.stack([u, v], axis=1)
+            col += 2
+            if i in resized:
                 names.append(f"{label}.d")
                 x0.append(2.0 * holes[i].radius_mm)
                 kinds.append("diameter")
-                dR[i, per * k + 2] = 0.5
+                dR[i, col] = 0.5
+                col += 1
         for i, (leader, M) in follow.items():
             dC[i] = M @ dC[leader]
             dR[i] = dR[leader]
         self.movable = movable
-        self.diameter = bool(diameter)
+        self.resized = resized & set(leaders)
+        self.diameter = bool(self.resized)
         self.leaders = leaders
         self.kinds = kinds
         super().__init__(holes, np.array(x0), dC, dR, names)
 
     def design_space(self, offset_bounds_mm: tuple[float, float] | None = None,
                      diameter_bounds_mm: tuple[float, float] | None = None,
-                     standard_sizes: Sequence[float] | None = None) -> DesignSpace:
+                     standard_sizes: Sequence[float] | None = None,
+                     max_offsets_mm: Mapping[int, float] | None = None) -> DesignSpace:
         """A ``DesignSpace`` for these variables. Offsets default to the host outline's bounding box seen from
-        the hole centre (the hole may go anywhere on its face, the constraints keep it inside); diameters
-        default to [0.5, 2]× the current one."""
+        the hole centre (the hole may go anywhere on its face, the constraints keep it inside), or to
+        ±``max_offsets_mm[i]`` for hole index ``i`` whose host face is not planar; diameters default to
+        [0.5, 2]× the current one."""
         variables = []
         for i in self.leaders:
             hole = self.holes[i]
@@ -339,6 +346,9 @@ class HoleMoveModel(LinearFeatureModel):
             if offset_bounds_mm is not None:
                 lo_s = lo_t = float(offset_bounds_mm[0])
                 hi_s = hi_t = float(offset_bounds_mm[1])
+            elif hole.outline is None and max_offsets_mm and i in max_offsets_mm:
+                lo_s = lo_t = -float(max_offsets_mm[i])
+                hi_s = hi_t = float(max_offsets_mm[i])
             elif hole.outline is not None:
                 st = hole.outline.to_face(hole.centre)
                 lo_s, lo_t = hole.outline.outer.min(axis=0) - st
@@ -347,7 +357,7 @@ class HoleMoveModel(LinearFeatureModel):
                 raise CadfeatError(f"hole {label}: its host face is not planar; give offset bounds (mm)")
             variables += [Variable(f"{label}.s", float(lo_s), float(hi_s), "mm", "position"),
                           Variable(f"{label}.t", float(lo_t), float(hi_t), "mm", "position")]
-            if self.diameter:
+            if i in self.resized:
                 d0 = 2.0 * hole.radius_mm
                 lo, hi = diameter_bounds_mm if diameter_bounds_mm is not None else (0.5 * d0, 2.0 * d0)
                 variables.append(Variable(f"{label}.d", float(lo), float(hi), "mm", "diameter",

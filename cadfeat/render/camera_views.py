@@ -178,9 +178,19 @@ def draw_hole_overlay(image: np.ndarray, camera: Camera, holes: Sequence[Hole], 
                     ELLIPSE_COLOUR_RGB, 1, cv2.LINE_AA, shift)
         p = np.round(centre_px[j]).astype(int)
         cv2.drawMarker(out, (int(p[0]), int(p[1])), CENTRE_COLOUR_RGB, cv2.MARKER_CROSS, 7, 1)
-        cv2.putText(out, holes[j].name or f"H{j + 1}", (int(p[0]) + 6, int(p[1]) - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
-                    CENTRE_COLOUR_RGB, 1, cv2.LINE_AA)
+        _label(out, holes[j].name or f"H{j + 1}", (int(p[0]) + 6, int(p[1]) - 6))
     return out
+
+
+def _label(image: np.ndarray, text: str, at: tuple[int, int]) -> None:
+    """A hole name readable when the view is shown at ~600 px wide: text height ≈ 2.2 % of the image width
+    (about 13 px there), white on a black outline."""
+    import cv2
+
+    scale = max(0.5, 0.022 * image.shape[1] / 22.0)  # FONT_HERSHEY_SIMPLEX is ~22 px high at scale 1
+    thick = max(1, int(round(2 * scale)))
+    cv2.putText(image, text, at, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), thick + 3, cv2.LINE_AA)
+    cv2.putText(image, text, at, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), thick, cv2.LINE_AA)
 
 
 def render_camera_views(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray,

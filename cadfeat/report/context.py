@@ -32,15 +32,16 @@ class ReportContext:
     T_task_part: np.ndarray | None = None
     sample_indices: Sequence[int] | None = None
 
-    def samples(self) -> list[int]:
-        """Trajectory sample indices for the camera views: ``sample_indices`` (clipped, unique, sorted)
-        or first/middle/last."""
+    def samples(self, default: Sequence[int] | None = None) -> list[int]:
+        """Trajectory sample indices for the camera views: ``sample_indices`` (clipped, unique, sorted), else
+        ``default`` (the report passes each hole's worst pose), else first/middle/last."""
         if self.trajectory is None:
             return []
         n = len(self.trajectory)
         if n == 0:
             return []
-        chosen = self.sample_indices if self.sample_indices is not None else (0, n // 2, n - 1)
+        chosen = self.sample_indices if self.sample_indices is not None else default if default else \
+            (0, n // 2, n - 1)
         return sorted({min(max(int(i) + (n if int(i) < 0 else 0), 0), n - 1) for i in chosen})
 
     def T_cam_part(self, indices: Sequence[int]) -> np.ndarray:
@@ -50,3 +51,20 @@ class ReportContext:
         T_task_part = np.eye(4) if self.T_task_part is None else np.asarray(self.T_task_part, dtype=float)
         T_task_cam = np.asarray(self.trajectory.T_task_cam, dtype=float)[list(indices)]
         return invert_T(T_task_cam) @ T_task_part
+
+
+#: Most camera views per design (one per distinct worst pose, in hole order).
+MAX_VIEWS = 6
+
+
+def worst_poses(results: dict) -> dict[int, list[str]]:
+    """{trajectory sample: names of the holes whose worst pose it is} over the after (else before) design's
+    per-feature ``worst_pose``, at most ``MAX_VIEWS`` samples."""
+    m = results.get("measures") or {}
+    feats = (m.get("after") or m.get("before") or {}).get("per_feature") or []
+    out: dict[int, list[str]] = {}
+    for i, f in enumerate(feats):
+        k = f.get("worst_pose") if isinstance(f, dict) else None
+        if isinstance(k, int) and not isinstance(k, bool) and (k in out or len(out) < MAX_VIEWS):
+            out.setdefault(k, []).append(str(f.get("name") or f"#{i}"))
+    return out

@@ -1,4 +1,5 @@
-"""HTML building blocks for report.html: escaping, numbers, tables, figures and the page (CSS inline, no JS).
+"""HTML building blocks for report.html: escaping, numbers, tables, figures and the page (CSS inline; the only
+scripts are the interactive 3-D view's, ``cadfeat.report.view3d``).
 
 Every string that comes from the inputs (study, part and hole names, file names, notes, errors) goes
 through ``esc``; numbers go through ``num`` which keeps the full value in a ``data-value`` attribute so
@@ -29,6 +30,12 @@ td.better{color:#1a6b1a} td.worse{color:#a00} td.nz{background:#fff3cd}
 figure{margin:.8em 0} figure img{max-width:100%;border:1px solid #ddd}
 figcaption{font-size:.85em;color:#555}
 .verdict{font-weight:bold} .big{font-size:1.15em}
+.verdict-box{padding:.7em 1em;margin:1em 0;border:2px solid #999;font-weight:bold}
+.verdict-box.adopt{background:#e3f6e3;border-color:#1a6b1a} .verdict-box.care{background:#fff3cd;border-color:#b8860b}
+.verdict-box.reject{background:#fde4e4;border-color:#a00}
+tr.care td{background:#fff3cd} tr.reject td{background:#fde4e4} tr.adopt td:nth-child(2){color:#1a6b1a}
+tr.active td{background:#fff3cd} tr.active td.status{color:#8a6d00;font-weight:bold}
+details{margin:.6em 0} summary{cursor:pointer;color:#444}
 """
 
 
@@ -91,10 +98,24 @@ def table(header: Sequence[str | tuple[str, int]], rows: Iterable[str], table_id
     return f"<table{tid}>{thead}<tbody>{body}</tbody></table>"
 
 
-def figure(src: str, caption: str, alt: str = "") -> str:
-    """An image (``src`` relative to report.html) with a caption."""
-    return (f'<figure><img src="{esc(src)}" alt="{esc(alt or caption)}" loading="eager">'
+def figure(src: str | tuple[str, str], caption: str, alt: str = "") -> str:
+    """An image with a caption. ``src``: a path relative to report.html, or (data URI, that relative path) for
+    an embedded image (the path kept in ``data-file``: the PNG is also written beside the report)."""
+    src, file = src if isinstance(src, tuple) else (src, "")
+    data_file = f' data-file="{esc(file)}"' if file else ""
+    return (f'<figure><img src="{esc(src)}"{data_file} alt="{esc(alt or caption)}" loading="eager">'
             f"<figcaption>{esc(caption)}</figcaption></figure>")
+
+
+def data_uri(path: Any) -> str:
+    """The file as a ``data:`` URI (PNG, SVG, JPEG by suffix; base64)."""
+    import base64
+    from pathlib import Path
+
+    path = Path(path)
+    mime = {".png": "image/png", ".svg": "image/svg+xml", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}.get(
+        path.suffix.lower(), "application/octet-stream")
+    return f"data:{mime};base64,{base64.b64encode(path.read_bytes()).decode('ascii')}"
 
 
 def note(message: str, css: str = "note") -> str:
@@ -108,7 +129,7 @@ def section(title: str, body: str, section_id: str) -> str:
 
 
 def page(title: str, subtitle: str, sections: Sequence[str]) -> str:
-    """The whole document: inline CSS, no scripts, UTF-8."""
+    """The whole document: inline CSS, UTF-8 (scripts only inside sections that bring them: the 3-D view)."""
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
             f"<title>{esc(title)}</title><style>{CSS}</style></head><body>"

@@ -162,12 +162,15 @@ def plot_motion(results: dict, img_dir: Path) -> Plot | None:
 
 
 def plot_convergence(results: dict, img_dir: Path) -> Plot | None:
-    """Objective value per optimiser iteration (feasible points filled, infeasible hollow)."""
-    history = [h for h in results.get("history") or [] if isinstance(h, dict) and h.get("f") is not None]
+    """Combined objective per optimiser iteration, larger is better like everything else in the report
+    (``combined`` of the history, else −f of the minimiser); feasible points filled, infeasible hollow; the
+    original design's value as a dashed line."""
+    history = [h for h in results.get("history") or [] if isinstance(h, dict)
+               and (h.get("combined") is not None or h.get("f") is not None)]
     if len(history) < 1:
         return None
     it = np.array([h.get("iteration", i) for i, h in enumerate(history)], dtype=float)
-    f = np.array([h["f"] for h in history], dtype=float)
+    f = np.array([h["combined"] if h.get("combined") is not None else -h["f"] for h in history], dtype=float)
     feasible = np.array([bool(h.get("feasible", True)) for h in history])
     fig, axes = _figure(1, 1, (7.0, 3.6))
     ax = axes[0, 0]
@@ -175,14 +178,18 @@ def plot_convergence(results: dict, img_dir: Path) -> Plot | None:
     ax.plot(it[feasible], f[feasible], "o", color="#1f77b4", ms=3.5, label="feasible")
     if (~feasible).any():
         ax.plot(it[~feasible], f[~feasible], "o", mfc="none", color="#1f77b4", ms=3.5, label="infeasible")
-    best = np.minimum.accumulate(np.where(feasible, f, np.inf))
+    best = np.maximum.accumulate(np.where(feasible, f, -np.inf))
     if np.isfinite(best).any():
         ax.step(it, best, where="post", color=AFTER, lw=1.5, label="best feasible so far")
+    before = (results.get("objectives") or {}).get("combined_before")
+    if isinstance(before, int | float) and not isinstance(before, bool):
+        ax.axhline(before, color=BEFORE, ls="--", lw=1.2, label="original design")
     ax.set_xlabel("iteration")
-    ax.set_ylabel("objective (minimised)")
+    ax.set_ylabel("combined objective (larger is better)")
     ax.legend(fontsize=8)
-    return Plot("convergence", "Convergence", "Objective per evaluation of the optimiser and the best "
-                "feasible value so far.", _save(fig, img_dir, "convergence"))
+    return Plot("convergence", "Convergence", "Combined objective per evaluation of the optimiser (larger is "
+                "better) and the best feasible value so far; dashed: the original design.",
+                _save(fig, img_dir, "convergence"))
 
 
 def plot_sweep(results: dict, img_dir: Path) -> Plot | None:

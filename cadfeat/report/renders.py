@@ -13,7 +13,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from cadfeat.report.context import ReportContext
+from cadfeat.report.context import ReportContext, worst_poses
 
 log = logging.getLogger(__name__)
 
@@ -28,6 +28,7 @@ class Renders:
     sample_times_s: list[float] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     timings_s: dict[str, float] = field(default_factory=dict)  # "part", "views"
+    worst: dict[int, list[str]] = field(default_factory=dict)  # sample -> holes whose worst pose it is
 
 
 def _camera(context: ReportContext, results: dict):
@@ -92,7 +93,9 @@ def make_renders(context: ReportContext | None, results: dict, img_dir: str | Pa
         designs = [("before", context.shape_before, holes_b), ("after", context.shape_after, holes_a)]
         _render_comparison(renders, render, context, camera, img_dir)
     renders.timings_s["part"] = time.perf_counter() - start
-    samples = context.samples()
+    worst = worst_poses(results)
+    renders.worst = worst
+    samples = context.samples(sorted(worst))
     if camera is None or not samples:
         renders.notes.append("Camera views skipped: no camera or trajectory in the report context.")
         return renders
@@ -120,6 +123,38 @@ def _render_comparison(renders: Renders, render, context: ReportContext, camera,
         renders.comparison = {k: p for k, p in zip(out, _inside(out.values(), img_dir), strict=True)}
     except Exception as exc:
         _fail(renders, "before/after part renders", exc)
+        return
+    try:
+        crop_to_content([p for k, p in renders.comparison.items() if k in ("before", "after")])
+    except Exception as exc:  # a crop is cosmetic: keep the full pictures
+        log.warning("report: overview not cropped: %s", exc)
+
+
+def crop_to_content(paths: list[Path], pad_frac: float = 0.03) -> tuple[int, int, int, int] | None:
+    """Crop PNGs rendered from one viewpoint to the union of their non-background pixels (background = the
+    corner colour) plus ``pad_frac`` of the size, in place and with one box for all (they stay comparable):
+    the overview of part and trajectory then fills the picture. Returns the box (left, top, right, bottom)."""
+    import numpy as np
+    from PIL import Image
+
+    if not paths:
+        return None
+    images = [np.asarray(Image.open(p).convert("RGB")) for p in paths]
+    if len({im.shape for im in images}) != 1:
+        return None
+    mask = np.zeros(images[0].shape[:2], bool)
+    for im in images:
+        mask |= np.any(np.abs(im.astype(int) - im[0, 0].astype(int)) > 8, axis=-1)
+    if not mask.any():
+        return None
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    h, w = mask.shape
+    pad = int(pad_frac * max(h, w))
+    box = (max(int(cols[0]) - pad, 0), max(int(rows[0]) - pad, 0), min(int(cols[-1]) + 1 + pad, w),
+           min(int(rows[-1]) + 1 + pad, h))
+    for p, im in zip(paths, images, strict=True):
+        Image.fromarray(im[box[1]:box[3], box[0]:box[2]]).save(p)
+    return box
 
 
 def _render_part(renders: Renders, render, context: ReportContext, img_dir: Path) -> None:

@@ -1,8 +1,9 @@
 """Assemble report.html: summary, renders, tables, plots and provenance; images beside it in ``img/``.
 
-The page is self-contained (inline CSS, no scripts, images linked relatively) and opens from the file
-system without a server. A section whose data is absent is left out; a section that fails on malformed
-data is replaced by a note and a logged warning: writing the report never stops a study.
+The page is self-contained (inline CSS, images embedded as data URIs, also written to ``img/``) and opens
+from the file system without a server or network. A section whose data is absent is left out; a section
+that fails on malformed data is replaced by a note and a logged warning: writing the report never stops a
+study.
 """
 
 from __future__ import annotations
@@ -19,13 +20,20 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from cadfeat.errors import CadfeatError
 from cadfeat.report import tables, trust
 from cadfeat.report.context import ReportContext
-from cadfeat.report.html import esc, figure, fmt, note, page, section
+from cadfeat.report.holes import hole_table
+from cadfeat.report.html import data_uri, esc, figure, fmt, note, page, section
+from cadfeat.report.patterns import patterns_section
 from cadfeat.report.plots import Plot, make_plots
 from cadfeat.report.renders import Renders, make_renders
+from cadfeat.report.requirements import requirements_table
+from cadfeat.report.robustness import robustness_section
+from cadfeat.report.verdict import verdict_section
+from cadfeat.report.view3d import view3d_section
 
 log = logging.getLogger(__name__)
 
@@ -68,13 +76,15 @@ def read_results(path: str | Path) -> dict:
 
 
 def build_report(out_dir: str | Path, results: dict, context: ReportContext | None = None, *,
-                 parallel: bool | None = None) -> ReportOutput:
+                 parallel: bool | None = None, self_contained: bool = True) -> ReportOutput:
     """``write_report`` that also returns the images, notes and the time of each phase (s).
 
     ``parallel`` (default: off unless ``CADFEAT_REPORT_PARALLEL=1``): when there are renders, draw the plots
     meanwhile in a child process (``python -m cadfeat.report.plots``; if that fails they are drawn here).
     Off by default: with software OpenGL (llvmpipe, no GPU) the renders already use the cores; on the 2-core
     test machine bench_report measured 6 % less wall time when idle (1.71 s vs 1.83 s) but more under load.
+    ``self_contained`` (default True): images embedded as data URIs, so report.html is one file that can be
+    mailed; the PNGs are written to ``img/`` all the same (False: the page links them).
     ``timings_s``: "renders" (with "renders: part"/"renders: views"), "plots" (drawing time, wherever it ran),
     "plots: wait" (time spent waiting for the child after the renders), "html", "total" (wall).
     """
@@ -110,7 +120,15 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
 
     start = time.perf_counter()
     notes = renders.notes + plot_notes
-    document = _document(out_dir, results, renders, plots, notes, timings)
+    try:
+        view = view3d_section(context, results)
+    except Exception as exc:  # the interactive view is an extra: its failure is a note
+        log.warning("report: 3-D view not built: %s", exc)
+        notes.append(f"interactive 3-D view not built: {type(exc).__name__}: {exc}")
+        view = ""
+    timings["view3d"] = time.perf_counter() - start
+    start = time.perf_counter()
+    document = _document(out_dir, results, renders, plots, notes, timings, self_contained, view)
     path = out_dir / REPORT_NAME
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(document, encoding="utf-8")
@@ -192,25 +210,29 @@ def _package_root() -> str:
 
 # ------------------------------------------------------------------------------------------------ sections
 def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot], notes: list[str],
-              timings: dict[str, float]) -> str:
+              timings: dict[str, float], embed: bool = True, view3d: str = "") -> str:
     study = results.get("study") or {}
     kind = "evaluation" if tables.is_evaluation(results) else "report"
     title = f"cadfeat {kind} — {study.get('name') or 'study'}"
     subtitle = f"Part {study.get('part') or '?'}" + (f": {study['description']}" if study.get("description") else "")
-    rel = _relative(out_dir)
+    rel = _relative(out_dir, embed)
     builders: list[tuple[str, str, Callable[[], str]]] = [
+        ("decision", "Decision", lambda: "" if tables.is_evaluation(results) else verdict_section(results)),
         ("summary", "Summary", lambda: tables.summary(results)),
         ("trust", "What limits the answer", lambda: trust.section(results)),
-        ("setup", "Study, camera and trajectory", lambda: tables.setup_table(results)),
+        ("requirements", "Kept requirements (checked on the rebuilt geometry)",
+         lambda: requirements_table(results)),
+        ("holes", "Hole table (shop-ready)", lambda: "" if tables.is_evaluation(results) else hole_table(results)),
+        ("patterns", "Hole patterns", lambda: patterns_section(results)),
+        ("robustness", "Robustness of the optimum", lambda: robustness_section(results)),
+        ("view3d", "Interactive 3-D view, before and after", lambda: view3d),
         ("renders", "The part before and after", lambda: _renders_section(renders, rel)),
         ("views", "What the camera sees", lambda: _views_section(renders, rel)),
         ("features", "Per-feature measures (worst over the trajectory)", lambda: _features_section(results)),
-        ("requirements", "Kept requirements (checked on the rebuilt geometry)",
-         lambda: tables.constraints_table(results)),
-        ("design-matrix", "Design matrix", lambda: tables.design_matrix_table(results)),
+        ("setup", "Study, camera and trajectory", lambda: tables.setup_table(results)),
         ("plots", "Plots", lambda: "".join(f"<h3>{esc(p.title)}</h3>" + figure(rel(p.path), p.caption)
                                            for p in plots)),
-        ("normalisation", "Normalisation of the objectives", lambda: tables.normalisation_note(results)),
+        ("appendix", "Appendix: design matrix and normalisation", lambda: _appendix(results)),
         ("files", "Exported files", lambda: tables.files_table(results) + tables.verification_table(results)),
         ("provenance", "Versions and timings", lambda: _provenance(results, timings)),
     ]
@@ -229,13 +251,15 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
     return page(title, subtitle, sections)
 
 
-def _relative(out_dir: Path) -> Callable[[Path], str]:
-    def rel(path: Path) -> str:
-        return Path(os.path.relpath(Path(path).resolve(), out_dir.resolve())).as_posix()
+def _relative(out_dir: Path, embed: bool = True) -> Callable[[Path], str | tuple[str, str]]:
+    """Image source for ``figure``: the path relative to report.html, or (data URI, that path) when ``embed``."""
+    def rel(path: Path) -> str | tuple[str, str]:
+        relpath = Path(os.path.relpath(Path(path).resolve(), out_dir.resolve())).as_posix()
+        return (data_uri(path), relpath) if embed else relpath
     return rel
 
 
-def _renders_section(renders: Renders, rel: Callable[[Path], str]) -> str:
+def _renders_section(renders: Renders, rel: Callable[[Path], Any]) -> str:
     if not renders.comparison:
         return note("No renders of the part: " + ("; ".join(renders.notes) or "rendering unavailable."))
     captions = {"current": "The current design (evaluation: nothing was moved).",
@@ -261,14 +285,17 @@ def _renders_section(renders: Renders, rel: Callable[[Path], str]) -> str:
     return "".join(out)
 
 
-def _views_section(renders: Renders, rel: Callable[[Path], str]) -> str:
+def _views_section(renders: Renders, rel: Callable[[Path], Any]) -> str:
     if not renders.views:
         return note("No camera views: " + ("; ".join(renders.notes) or "rendering unavailable.")) \
             if renders.samples else ""
-    out = ["<p>Synthetic images with the study camera's intrinsics at trajectory samples; predicted hole "
-           "ellipses overlaid.</p>"]
+    out = ["<p>Synthetic images with the study camera's intrinsics at each hole's worst pose (the trajectory "
+           "sample of its smallest margin); predicted hole ellipses and names overlaid.</p>"]
     for i, (sample, t) in enumerate(zip(renders.samples, renders.sample_times_s, strict=True)):
-        figs = "".join(figure(rel(paths[i]), f"{which}: sample {sample} (t = {fmt(t)} s)", f"{which} view {sample}")
+        worst = renders.worst.get(sample)
+        why = f" — worst pose of {', '.join(worst)}" if worst else ""
+        figs = "".join(figure(rel(paths[i]), f"{which}: sample {sample} (t = {fmt(t)} s){why}",
+                              f"{which} view {sample}")
                        for which, paths in renders.views.items() if i < len(paths))
         out.append(f'<div class="pair">{figs}</div>')
     return "".join(out)
@@ -278,10 +305,13 @@ def _features_section(results: dict) -> str:
     body = tables.feature_table(results)
     if not body:
         return ""
-    return ("<p>Worst margin of each hole over the trajectory (cf. thesis Table 5.1). Margins: positive = "
-            "satisfied; FOV cone margin cos β − cos(α/2) (eq. 3.1-3.3), focus margin relative to half the depth "
-            "of field (eq. 3.4-3.6), resolution = minor ellipse axis − required (px); worst pose = trajectory "
-            "sample of the smallest margin.</p>" + body)
+    return ("<p>Worst margin of each hole over the trajectory: positive = satisfied, negative = the hole is out "
+            "of view, out of focus or too small in the image at its worst pose (the trajectory sample named in "
+            "the last column).</p>" + body
+            + "<details><summary>Definitions (thesis)</summary><p>Thesis Table 5.1. FOV cone margin "
+            "cos β − cos(α/2) (eq. 3.1-3.3); FOV image margin: distance of the projected rim to the image border "
+            "(px); focus margin relative to half the depth of field (eq. 3.4-3.6); resolution = minor ellipse "
+            "axis − required (px).</p></details>")
 
 
 def _provenance(results: dict, timings: dict[str, float]) -> str:
@@ -289,3 +319,10 @@ def _provenance(results: dict, timings: dict[str, float]) -> str:
     return (tables.key_value_table(results.get("versions"), "versions", ("library", "version"))
             + tables.key_value_table({**(results.get("timings_s") or {}), **report_t}, "timings",
                                      ("phase", "seconds")))
+
+
+def _appendix(results: dict) -> str:
+    """Design matrix (thesis §2.2.4) and normalisation: background, folded away."""
+    body = tables.design_matrix_table(results) + tables.normalisation_note(results)
+    return f"<details><summary>Design matrix and normalisation of the objectives</summary>{body}</details>" \
+        if body else ""

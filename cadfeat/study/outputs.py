@@ -23,6 +23,7 @@ import numpy as np
 
 __all__ = [
     "DIGITS",
+    "SCHEMA_VERSION",
     "file_entry",
     "hole_dict",
     "measures_summary",
@@ -32,6 +33,9 @@ __all__ = [
     "write_json",
 ]
 
+SCHEMA_VERSION = 2
+"""Version of the layout of results.json (2: schema_version, requirements_used, camera_poses, shop, patterns,
+robustness added by issue 13); readers compare it before relying on a key."""
 DIGITS = 10
 """Significant digits of floats in results.json (1e-10 relative: far below any tolerance used)."""
 STEP_TIMESTAMP = "1970-01-01T00:00:00"

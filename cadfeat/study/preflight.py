@@ -92,10 +92,10 @@ def check_visibility(measures: Any, label: str, scored: np.ndarray | None = None
         return (f"the scored holes ({which}) are hidden by the part itself wherever they are in view at the "
                 "starting design")
     else:
-        cause = ("no scored hole is ever in front of the camera and inside its image; check [trajectory], "
+        cause = ("no scored hole is ever in front of the camera and inside its field of view; check [trajectory], "
                  "[part_pose] (mm) or objective.score")
-    raise StudyError(f"{label}: the camera never sees the scored holes ({which}) at any of the {L} trajectory "
-                     f"samples: {cause}. Nothing was optimised.")
+    raise StudyError(f"{label}: the camera never sees the part: none of the scored holes ({which}) is seen at any of "
+                     f"the {L} trajectory samples; {cause}. Nothing was optimised.")
 
 
 def _in_image(camera: Any, P: np.ndarray) -> np.ndarray:
@@ -182,9 +182,9 @@ def preflight(config: Any, camera: Any, trajectory: Any, T_task_part: np.ndarray
                      "trajectory's orientation (camera z forward, OpenCV frame: [trajectory] target/rotations) "
                      "and [part_pose]")
         else:
-            cause = ("the trajectory does not look at the part; check [trajectory] target/centre and "
-                     "[part_pose].position_mm (mm, part frame → task frame)")
-        raise StudyError(f"{label}: {where}: {cause}. Nothing was optimised.")
+            cause = ("the part is not in the camera's field of view: the trajectory does not look at it; check "
+                     "[trajectory] target/centre and [part_pose].position_mm (mm, part frame → task frame)")
+        raise StudyError(f"{label}: the camera never sees the part: {where}: {cause}. Nothing was optimised.")
     # 4. scored holes seen somewhere
     hidden_warning = check_visibility(measures, label, scored, names)
     if hidden_warning:

@@ -34,6 +34,7 @@ import numpy as np
 
 from cadfeat.errors import CadfeatError
 from cadfeat.study.outputs import (
+    SCHEMA_VERSION,
     file_entry,
     hole_dict,
     measures_summary,
@@ -58,7 +59,7 @@ SWEEP_SAMPLES = 41
 OUTLINE_ROUNDS = 4
 ROUNDTRIP_TOL_MM = 1e-6
 PREDICTION_TOL_MM = 1e-6
-OUTPUT_FILES = ("original.step", "optimised.step", "optimised.stl", "results.json")
+OUTPUT_FILES = ("original.step", "optimised.step", "optimised.stl", "holes.csv", "results.json")
 
 
 @dataclass(frozen=True)
@@ -162,6 +163,14 @@ def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tu
     if getattr(res, "interrupted", False) and not getattr(res, "history", None) and progress.best_x is None:
         raise KeyboardInterrupt  # stopped before the optimiser evaluated any design: nothing to write
     return res, bool(getattr(res, "interrupted", False))
+
+
+def _with_cad(setup: StudySetup, progress: StudyProgress) -> Any:
+    """``solve_with_cad`` on ``setup`` (a rebuild that raises or times out is an infeasible point)."""
+    from cadfeat.design.optimize import solve_with_cad
+
+    return solve_with_cad(setup.problem, lambda x: setup.rebuild_holes(setup.rebuild_shape(x)), setup.config.optimizer,
+                          progress=progress.iteration)
 
 
 @dataclass
@@ -390,8 +399,10 @@ def _normalisation(setup: StudySetup) -> dict[str, Any]:
 
 
 def _trajectory_info(traj: Any) -> dict[str, Any]:
+    """Kind, sample count, duration and the sampled camera poses (``T_task_cam`` (L, 4, 4), mm; ``time_s``)."""
     table_kind = getattr(traj, "name", "") or ""
-    return {"kind": table_kind, "n_samples": len(traj), "duration_s": float(traj.duration_s)}
+    return {"kind": table_kind, "n_samples": len(traj), "duration_s": float(traj.duration_s),
+            "time_s": np.asarray(traj.times_s, float), "T_task_cam": np.asarray(traj.T_task_cam, float)}
 
 
 def _half_image(camera: Any) -> float:
@@ -409,19 +420,27 @@ def default_out_dir(config: StudyConfig) -> Path:
 
 
 def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int | None = None,
-              quiet: bool = False, progress: bool = True) -> StudyResult:
+              quiet: bool = False, progress: bool = True, force: bool = False) -> StudyResult:
     """Run a study (a TOML path, a dict or a ``StudyConfig``) and write its outputs to ``out_dir``
     (default ``exports/<study name>/``): original.step, optimised.step, optimised.stl, results.json and the
     report. ``seed`` overrides the study's seeds. Raises ``CadfeatError`` (nothing written) on bad input or a
     failed verification; ``KeyboardInterrupt`` before the optimiser found a design also writes nothing.
+
+    The output folder is checked before any work (``cadfeat.cad.output_folder``): a non-empty folder cadfeat
+    did not create is refused unless ``force`` (then cadfeat's files are added, other files untouched).
+    Every part-script import and CAD build runs in a worker process within ``[study] build_timeout_s``.
     """
+    from cadfeat.cad.output_folder import staged_output
+    from cadfeat.cad.parts import build_time_limit
+
     config = _resolve(path_or_dict, seed)
-    out = Path(out_dir) if out_dir is not None else default_out_dir(config)
-    with StudyProgress(config.study.name, enabled=progress and not quiet) as prog:
+    out = out_dir if out_dir is not None else default_out_dir(config)
+    with staged_output(out, force) as stage, build_time_limit(config.study.build_timeout_s), \
+            StudyProgress(config.study.name, enabled=progress and not quiet) as prog:
         results, shapes = _compute(config, prog)
         with prog.phase("export"):
-            final = _write_outputs(config, out, results, shapes, prog)
-    return StudyResult(final, results)
+            _write_outputs(config, stage, results, shapes, prog)
+    return StudyResult(Path(out), results)
 
 
 def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -433,15 +452,17 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         if config.study.part_kind == "step":
             base = setup_study(config)
             setups = [base]
+            m0 = measure_holes(base, base.holes0)
+            pre = _preflight(config, base, m0)  # refuses a study that cannot mean anything, before any work
         else:  # "before" = the part's own integer values; the others share its objective scales
             defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
             base = setup_script(config, defaults, scene)
+            m0 = measure_holes(base, base.holes0)
+            pre = _preflight(config, base, m0)  # before the other combinations (and before any optimisation)
             setups = [base] + [setup_script(config, c, scene, base.problem.normaliser) for c in combos
                                if c != defaults]
             if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
                 setups = setups[1:]
-        m0 = measure_holes(base, base.holes0)
-        pre = _preflight(config, base, m0)  # refuses a study that cannot mean anything, before any work
         obj0, comb0 = score(base, base.holes0)
     best = None
     interrupted = False
@@ -472,16 +493,42 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         raise StudyError(f"{config.label}: no design meets the kept requirements ([constraints], "
                          f"objective.thresholds); the least violating design still breaks: "
                          f"{_violations(setup, x1)}; allowed: relax these requirements or widen design bounds")
+    rebuild_failure = None
+    x_opt = x1
+    verified = getattr(res, "holes", None)
+    with prog.phase("shop"):
+        model = _Anchored(setup.model, x_opt, verified)
+        x1, shop, targets = _shop(setup, x_opt, model)
     with prog.phase("rebuild"):
-        shape1, holes1, pred_err = _rebuild(setup, x1, getattr(res, "holes", None))
+        try:
+            shape1, holes1, pred_err = _rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+        except CadfeatError as exc:
+            if not setup.linear or interrupted:
+                raise
+            # the optimum of the (linear) feature model does not build: an infeasible point; search again
+            # with CAD in the loop (the region shrinks around the buildable start until a rebuild succeeds),
+            # then round the new optimum for the shop as before
+            rebuild_failure = str(exc)
+            prog.log(f"the CAD rebuild of the optimum failed ({exc}); searching again with CAD in the loop")
+            res = _with_cad(setup, prog)
+            history += _history(res, "CAD in the loop")
+            x_opt = np.asarray(res.x_best, float)
+            verified = getattr(res, "holes", None)
+            model = _Anchored(setup.model, x_opt, verified)
+            x1, shop, targets = _shop(setup, x_opt, model)
+            shape1, holes1, pred_err = _rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+        if targets is not None:
+            x1, shape1, holes1, pred_err = _shop_refine(setup, x1, (shape1, holes1, pred_err), targets, shop, model)
         m1 = measure_holes(setup, holes1, mesh=_mesh_of(config, shape1))
         obj1, comb1 = score(setup, holes1)
         checks = _checks(setup, shape1, holes1, "brep")
     with prog.phase("analyse"):
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, x1)
+        robust = _robustness(setup, base.holes0, holes1, comb0)
     traj = setup.trajectory
     results: dict[str, Any] = {
+        "schema_version": SCHEMA_VERSION,
         "cadfeat_version": _version(),
         "created": now_iso(),
         "study": {"name": config.study.name, "file": str(config.file) if config.file else None,
@@ -505,13 +552,18 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                      "after": measures_summary(m1, [h.name or f"H{i + 1}" for i, h in enumerate(holes1)],
                                                traj.times_s, config.objective.min_axis_px, _half_image(setup.camera))},
         "constraints": checks,
+        "requirements_used": _requirements_used(setup, x1),
+        "shop": shop,
+        "patterns": _patterns(base, holes1),
+        "robustness": robust,
         "design_matrix": dmat,
         "history": history,
         "sweep": sweep,
         "pareto": getattr(res, "pareto", None),
         "optimizer": {"method": config.optimizer.method, "n_evals": int(getattr(res, "n_evals", 0) or 0),
                       "linear_feature_map": bool(setup.linear), "prediction_error_mm": pred_err,
-                      "integer_combinations": len(setups)},
+                      "integer_combinations": len(setups),
+                      **({"rebuild_failed_at_model_optimum": rebuild_failure} if rebuild_failure else {})},
         "interrupted": bool(interrupted),
         "preflight": pre.to_dict(),
         "warnings": list(pre.warnings),
@@ -572,6 +624,154 @@ def _scored(setup: Any) -> np.ndarray:
     return np.ones(len(setup.holes0), bool) if mask is None else np.asarray(mask, bool)
 
 
+class _Anchored:
+    """The feature model anchored on the CAD-verified holes at ``x0`` (when the trust-region loop gave them):
+    ``features(x) = verified(x0) + model(x) − model(x0)``, so a nonlinear part's small shop rounding is
+    predicted around the real optimum, not around the linearisation point."""
+
+    def __init__(self, model: Any, x0: np.ndarray, verified: Sequence[Any] | None) -> None:
+        from cadfeat.cad.features import holes_to_arrays
+
+        self.model, self.holes = model, model.holes
+        c0, _, r0 = model.features(x0)
+        self.dc, self.dr = np.zeros_like(c0), np.zeros_like(r0)
+        if verified is not None and len(verified) == len(r0):
+            cv, _, rv = holes_to_arrays(list(verified))
+            self.dc, self.dr = cv - c0, rv - r0
+
+    def features(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        c, a, r = self.model.features(x)
+        return c + self.dc, a, r + self.dr
+
+    def features_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        c, a, r = self.model.features_batch(X)
+        return c + self.dc, a, r + self.dr
+
+    def holes_at(self, x: np.ndarray) -> list[Any]:
+        c, a, r = self.features(x)
+        return [dataclasses.replace(h, centre=np.asarray(c[i]), axis=np.asarray(a[i]), radius_mm=float(r[i]))
+                for i, h in enumerate(self.holes)]
+
+
+def _off_target(holes: Sequence[Any], targets: Any) -> float:
+    """Largest distance (mm) of the rebuilt holes' centres and diameters from the shop targets."""
+    from cadfeat.cad.features import holes_to_arrays
+
+    c, _, r = holes_to_arrays(list(holes))
+    return float(max(np.abs(c - targets.target_centres).max(initial=0.0),
+                     np.abs(2 * r - targets.target_diameters).max(initial=0.0)))
+
+
+def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Any, list[Any], float], targets: Any,
+                 info: dict[str, Any], model: Any, rounds: int = 6) -> tuple[np.ndarray, Any, list[Any], float]:
+    """Where the feature model is only a linearisation (a nonlinear part script), the rebuilt holes may miss the
+    grid/table targets: up to ``rounds`` Newton steps on the real CAD rebuild (model Jacobian, the rebuilt
+    holes' error), each kept only if it gets closer. ``info["rebuilt_off_target_mm"]``: what remains."""
+    from cadfeat.design.shop import _jacobian
+
+    shape, holes, err = rebuilt
+    off = _off_target(holes, targets)
+    for _ in range(rounds):
+        if off <= 1e-6:
+            break
+        from cadfeat.cad.features import holes_to_arrays
+
+        c, _, r = holes_to_arrays(holes)
+        resid = np.concatenate([(targets.target_centres - c).reshape(-1), (targets.target_diameters / 2 - r)])
+        step = np.linalg.lstsq(_jacobian(model, x), resid, rcond=None)[0]
+        x_new = setup.space.snap(setup.space.clip(x + step))
+        if np.asarray(setup.problem.constraints(x_new), float).min(initial=0.0) < -1e-9:
+            break
+        try:
+            cand = _rebuild(setup, x_new, [dataclasses.replace(h, centre=h.centre + d, radius_mm=h.radius_mm + e)
+                                           for h, d, e in zip(holes, model.features(x_new)[0] - model.features(x)[0],
+                                                              model.features(x_new)[2] - model.features(x)[2],
+                                                              strict=True)])
+        except CadfeatError:
+            break
+        off_new = _off_target(cand[1], targets)
+        if off_new >= off:
+            break
+        x, (shape, holes, err), off = x_new, cand, off_new
+    info["rebuilt_off_target_mm"] = off
+    info["x_shop"] = dict(zip(setup.space.names, map(float, x), strict=True))
+    return x, shape, holes, err
+
+
+def _shop(setup: StudySetup, x: np.ndarray, model: Any = None) -> tuple[np.ndarray, dict[str, Any], Any]:
+    """The shop-ready design near the optimum ``x`` (``cadfeat.design.shop``, study ``[shop]``) and its
+    results.json block; the optimum itself when rounding would break a kept requirement of the model (the
+    rebuilt design is verified on the B-rep and the STEP either way)."""
+    from cadfeat.design.shop import hole_sizes, shop_design
+
+    spec = setup.config.shop
+    sizes = hole_sizes(spec.hole_sizes)
+    info: dict[str, Any] = {"grid_mm": spec.grid_mm, "hole_sizes": spec.hole_sizes if isinstance(spec.hole_sizes, str)
+                            else list(spec.hole_sizes), "applied": False, "notes": []}
+    if spec.grid_mm <= 0 and not sizes:
+        info["notes"].append("rounding off ([shop] grid_mm = 0, hole_sizes = \"none\")")
+        return x, info, None
+    sd = shop_design(setup.space, model if model is not None else setup.model, x, grid_mm=spec.grid_mm, sizes=sizes,
+                     problem=setup.problem)
+    info["notes"] += sd.notes
+    margins = np.asarray(setup.problem.constraints(sd.x), float)
+    names = setup.space.names
+    info.update(x_optimum=dict(zip(names, map(float, x), strict=True)),
+                x_shop=dict(zip(names, map(float, sd.x), strict=True)), residual_mm=sd.residual_mm,
+                moved=[h for h, m in zip(setup.hole_names, sd.moved, strict=True) if m],
+                resized=[h for h, m in zip(setup.hole_names, sd.resized, strict=True) if m])
+    if setup.config.objective.combine != "pareto":
+        info.update(combined_optimum=float(setup.problem.combined(x)),
+                    combined_shop=float(setup.problem.combined(sd.x)))
+    if margins.size and margins.min() < -1e-9:
+        labels = setup.problem.constraint_labels()
+        k = int(np.argmin(margins))
+        info["notes"].append(f"rounding would break {labels[k][0]} {'/'.join(labels[k][1])} (margin "
+                             f"{margins[k]:.3g}); the optimiser's design is delivered unrounded")
+        return x, info, None
+    info["applied"] = True
+    return sd.x, info, sd
+
+
+def _robustness(setup: StudySetup, holes0: Sequence[Any], holes1: Sequence[Any],
+                combined_before: float | None) -> dict[str, Any] | None:
+    """Objective drops of the delivered design under the study's ``[robustness]`` tolerances (sampled on
+    features, ``cadfeat.design.robustness``); the holes the shop makes anew are the moved or resized ones."""
+    from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.design.robustness import robustness
+    from cadfeat.design.shop import hole_sizes
+
+    spec = setup.config.robustness
+    if spec.samples <= 0 or len(holes0) != len(holes1):
+        return None
+    c0, _, r0 = holes_to_arrays(list(holes0))
+    c1, a1, r1 = holes_to_arrays(list(holes1))
+    changed = (np.linalg.norm(c1 - c0, axis=1) > 1e-6) | (np.abs(r1 - r0) > 1e-6)
+    return robustness(setup.problem, c1, a1, r1, changed, position_tol_mm=spec.position_tol_mm,
+                      size_steps=spec.size_steps, sizes=hole_sizes(setup.config.shop.hole_sizes),
+                      camera_position_mm=spec.camera_position_mm, camera_angle_deg=spec.camera_angle_deg,
+                      samples=spec.samples, combined_before=combined_before, seed=setup.config.study.seed)
+
+
+def _patterns(base: StudySetup, holes1: Sequence[Any]) -> list[dict[str, Any]]:
+    """The original's hole patterns with a movable hole (``cadfeat.design.patterns``), each with ``broken``."""
+    from cadfeat.design.patterns import check_patterns, find_patterns
+
+    movable = np.asarray(base.movable_mask, bool)
+    found = [p for p in find_patterns(base.holes0) if movable[list(p.holes)].any()]
+    return check_patterns(found, list(holes1), base.hole_names) if len(holes1) == len(base.holes0) else []
+
+
+def _requirements_used(setup: StudySetup, x: np.ndarray) -> list[dict[str, Any]]:
+    """The kept requirements the optimiser's model used (kind, hole names, its 2-D margin at ``x``): the report
+    checks that each one was verified on the rebuilt geometry."""
+    labels = setup.problem.constraint_labels()
+    margins = np.asarray(setup.problem.constraints(x), float).reshape(-1)
+    if len(labels) != margins.size:
+        return [{"name": k, "holes": list(h)} for k, h in labels]
+    return [{"name": k, "holes": list(h), "margin": float(m)} for (k, h), m in zip(labels, margins, strict=True)]
+
+
 def _x0_like(setup: StudySetup, base: Any) -> np.ndarray:
     """The before-values of ``setup``'s continuous variables (the part defaults, as in ``base``)."""
     return np.asarray(base.space.x0, float) if base.space.names == setup.space.names else setup.space.x0
@@ -583,8 +783,9 @@ def _version() -> str:
     return __version__
 
 
-def _write_outputs(config: StudyConfig, out: Path, results: dict[str, Any], shapes: Mapping[str, Any],
-                   prog: StudyProgress) -> Path:
+def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], shapes: Mapping[str, Any],
+                   prog: StudyProgress) -> None:
+    """Write and verify the outputs into the staging folder ``stage`` (published by the caller)."""
     from cadfeat.cad.export import (
         check_solid,
         check_stl,
@@ -592,43 +793,44 @@ def _write_outputs(config: StudyConfig, out: Path, results: dict[str, Any], shap
         export_stl,
         import_step,
         shape_volume_mm3,
-        staged_output,
         verify_step_roundtrip,
     )
 
     setup = shapes["setup"]
     t0 = time.perf_counter()
-    with staged_output(out) as stage:
-        problems = check_solid(shapes["shape1"])
-        if problems:
-            raise CadfeatError(f"{config.label}: the rebuilt optimum is not a valid solid: {'; '.join(problems[:3])}")
-        for name, shape in (("original.step", shapes["shape0"]), ("optimised.step", shapes["shape1"])):
-            export_step(shape, stage / name)
-            normalise_step_header(stage / name, f"{config.study.name} {name[:-5]}")
-        # (the rebuild's holes extracted the way verify_step_roundtrip extracts them: no preferred direction)
-        trip = verify_step_roundtrip(stage / "optimised.step", _extract_plain(shapes["shape1"]),
-                                     tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=shape_volume_mm3(shapes["shape1"]),
-                                     volume_rtol=1e-7)
-        reimported = import_step(stage / "optimised.step")
-        step_holes = _order_like(shapes["holes1"], setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
-        step_checks = _checks(setup, reimported, step_holes, "step")
-        results["constraints"] = results["constraints"] + step_checks
-        _fail_on(results["constraints"], config.label)
-        export_stl(shapes["shape1"], stage / "optimised.stl")
-        stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"])
-        if stl_problems:
-            raise CadfeatError(f"{config.label}: optimised.stl: {'; '.join(stl_problems[:3])}")
-        results["verification"] = {
-            "step_roundtrip_max_error_mm": max(trip.max_centre_error_mm, trip.max_radius_error_mm,
-                                               trip.max_depth_error_mm),
-            "step_roundtrip_max_axis_error_rad": trip.max_axis_error_rad, "brep_valid": True,
-            "stl_watertight": True, "tolerance_mm": ROUNDTRIP_TOL_MM}
-        results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl")]
-        results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
-        results["versions"] = versions()
-        write_json(stage / "results.json", results)
-        _report(stage, results, shapes, prog)
-    return out
+    problems = check_solid(shapes["shape1"])
+    if problems:
+        raise CadfeatError(f"{config.label}: the rebuilt optimum is not a valid solid: {'; '.join(problems[:3])}")
+    for name, shape in (("original.step", shapes["shape0"]), ("optimised.step", shapes["shape1"])):
+        export_step(shape, stage / name)
+        normalise_step_header(stage / name, f"{config.study.name} {name[:-5]}")
+    # (the rebuild's holes extracted the way verify_step_roundtrip extracts them: no preferred direction)
+    trip = verify_step_roundtrip(stage / "optimised.step", _extract_plain(shapes["shape1"]),
+                                 tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=shape_volume_mm3(shapes["shape1"]),
+                                 volume_rtol=1e-7)
+    reimported = import_step(stage / "optimised.step")
+    step_holes = _order_like(shapes["holes1"], setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
+    step_checks = _checks(setup, reimported, step_holes, "step")
+    results["constraints"] = results["constraints"] + step_checks
+    _fail_on(results["constraints"], config.label)
+    export_stl(shapes["shape1"], stage / "optimised.stl")
+    stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"])
+    if stl_problems:
+        raise CadfeatError(f"{config.label}: optimised.stl: {'; '.join(stl_problems[:3])}")
+    results["verification"] = {
+        "step_roundtrip_max_error_mm": max(trip.max_centre_error_mm, trip.max_radius_error_mm,
+                                           trip.max_depth_error_mm),
+        "step_roundtrip_max_axis_error_rad": trip.max_axis_error_rad, "brep_valid": True,
+        "stl_watertight": True, "tolerance_mm": ROUNDTRIP_TOL_MM}
+    from cadfeat.report.holes import write_holes_csv
+
+    write_holes_csv(stage / "holes.csv", plain(results))
+    results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl",
+                                                                 "holes.csv")]
+    results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
+    results["versions"] = versions()
+    write_json(stage / "results.json", results)
+    _report(stage, results, shapes, prog)
 
 
 def _extract_plain(shape: Any) -> list[Any]:
@@ -644,27 +846,38 @@ def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], pro
     from cadfeat import report
 
     setup = shapes["setup"]
-    n = len(setup.trajectory)
     fixed = getattr(setup, "fixed_mask", None)
-    context = report.ReportContext(
+    context = report.ReportContext(  # camera views at each hole's worst pose (the report's default)
         shape_before=shapes["shape0"], shape_after=shapes["shape1"], holes_before=shapes["holes0"],
         holes_after=shapes["holes1"], fixed_mask=np.asarray(fixed, bool), camera=setup.camera,
-        trajectory=setup.trajectory, T_task_part=setup.T_task_part,
-        sample_indices=sorted({0, n // 4, n // 2, (3 * n) // 4, n - 1}))
+        trajectory=setup.trajectory, T_task_part=setup.T_task_part)
     with prog.phase("report"):
         report.write_report(stage, plain(results), context)
 
 
 # ------------------------------------------------------------------------------------------ evaluate
 def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose: int | None = None,
-                   quiet: bool = True, echo: bool = False, seed: int | None = None) -> dict[str, Any]:
+                   quiet: bool = True, echo: bool = False, seed: int | None = None,
+                   force: bool = False) -> dict[str, Any]:
     """Score the study's current design without optimising (the thesis GUI's single-pose mode when ``pose``
     is given: one trajectory sample). Returns the results dict; prints the per-feature table (thesis
     Table 5.1: FOV, focus, resolution margins, visibility, worst pose) and a per-pose summary when ``echo``;
-    writes results.json (+ report) into ``out_dir`` if given."""
-    from cadfeat.study.setup import load_scene, score_rule, setup_study
+    writes results.json (+ report) into ``out_dir`` if given (checked before any work, as by ``run_study``;
+    ``force``: add the files to a folder cadfeat did not create)."""
+    from cadfeat.cad.output_folder import staged_output
+    from cadfeat.cad.parts import build_time_limit
 
     config = _resolve(path_or_dict, seed)
+    with contextlib.ExitStack() as stack:
+        stage = stack.enter_context(staged_output(out_dir, force)) if out_dir is not None else None
+        stack.enter_context(build_time_limit(config.study.build_timeout_s))
+        results = _evaluate(config, stage, pose, quiet, echo)
+    return results
+
+
+def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: bool, echo: bool) -> dict[str, Any]:
+    from cadfeat.study.setup import load_scene, score_rule, setup_study
+
     with StudyProgress(config.study.name, enabled=not quiet) as prog:
         with prog.phase("setup"):
             camera, traj, T_task_part = load_scene(config)
@@ -688,7 +901,8 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
             for f in summary["per_feature"]:
                 f["worst_pose"] = pose
         results = {
-            "cadfeat_version": _version(), "created": now_iso(), "evaluation_only": True,
+            "schema_version": SCHEMA_VERSION, "cadfeat_version": _version(), "created": now_iso(),
+            "evaluation_only": True,
             "study": {"name": config.study.name, "file": str(config.file) if config.file else None,
                       "part": config.study.part, "part_kind": config.study.part_kind, "seed": config.study.seed,
                       "description": config.study.description},
@@ -705,18 +919,15 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
         }
     if echo:
         print(format_table(results, pose))
-    if out_dir is not None:
-        from cadfeat.cad.export import staged_output
-
-        with staged_output(out_dir) as stage:
-            write_json(stage / "results.json", results)
-            same = {**results,
-                    "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
-                    "measures": {"before": summary, "after": summary},
-                    "objectives": {**results["objectives"], "after": values}}
-            shapes = {"shape0": shape, "shape1": shape, "holes0": holes, "holes1": holes,
-                      "setup": _EvalSetup(config, camera, full_traj, T_task_part, holes, fixed)}
-            _report(stage, same, shapes, prog)
+    if stage is not None:
+        write_json(stage / "results.json", results)
+        same = {**results,
+                "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
+                "measures": {"before": summary, "after": summary},
+                "objectives": {**results["objectives"], "after": values}}
+        shapes = {"shape0": shape, "shape1": shape, "holes0": holes, "holes1": holes,
+                  "setup": _EvalSetup(config, camera, full_traj, T_task_part, holes, fixed)}
+        _report(stage, same, shapes, prog)
     return plain(results)
 
 

@@ -11,6 +11,7 @@ what must be kept, what to optimise and how (README, "Study files", has a full a
     [trajectory]   kind = "orbit_arc" + its arguments, or csv = "poses.csv"  (``cadfeat trajectories``)
     [design]       script parts: parameters = ["d", ...] or [design.parameters] d = {lower, upper}
                    STEP parts: holes = [{select = 2 | "H2" | [x, y, z], move, resize, max_offset_mm}]
+                               (move/resize per hole), view_direction = [x, y, z] (towards the camera)
                    both: standard_diameters_mm, fixed = [selectors], patterns = [[selectors], ...]
     [constraints]  edge_distance_mm, ligament_mm, volume_change_max_percent, symmetry
     [objective]    measures, aggregate, combine, weights, thresholds, min_axis_px, rotation_length_mm,
@@ -82,8 +83,27 @@ OPTIMIZER_KEYS = ("method", "starts", "maxiter", "seed", "local_solver", "snap_s
 SCRIPT_SUFFIXES = (".py",)
 STEP_SUFFIXES = (".step", ".stp")
 
-SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer")
+SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer", "shop",
+            "robustness")
+SHOP_KEYS = ("hole_sizes", "grid_mm", "keep_patterns")
+ROBUSTNESS_KEYS = ("position_tol_mm", "size_steps", "camera_position_mm", "camera_angle_deg", "samples")
 REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
+LIMITS = {
+    "trajectory_samples": 100_000,   # [trajectory] n (and the rows of a trajectory CSV)
+    "trajectory_lines": 10_000,      # [trajectory] lines (raster_scan)
+    "trajectory_csv_bytes": 64 * 2**20,
+    "design_variables": 64,          # [design] parameters / movable holes
+    "optimizer_starts": 10_000,      # [optimizer] starts
+    "optimizer_maxiter": 1_000_000,  # [optimizer] maxiter
+    "image_pixels": 50_000_000,      # [camera] width * height
+    "image_side_px": 20_000,         # [camera] width, height
+}
+"""Size limits checked when a study is validated, before anything is allocated (each error names its limit).
+They bound memory and time on an ordinary machine; for a bigger study, raise them here
+(``cadfeat.study.schema.LIMITS[key] = value`` before ``load_study``)."""
+BUILD_TIMEOUT_S = 60.0
+"""Default ``[study] build_timeout_s``: time limit of one part-script import or CAD build (worker process)."""
+
 _MISSING: Any = object()
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
@@ -103,6 +123,7 @@ class StudyInfo:
     part_kind: str          # "script" | "step"
     seed: int
     description: str
+    build_timeout_s: float = BUILD_TIMEOUT_S
 
 
 @dataclass(frozen=True)
@@ -198,6 +219,9 @@ class DesignSpec:
     standard_diameters_mm: tuple[float, ...] | None = None
     fixed: tuple[Selector, ...] = ()
     patterns: tuple[tuple[Selector, ...], ...] = ()
+    view_direction: tuple[float, float, float] | None = None
+    """STEP parts: unit direction (part frame) from the part towards the camera; picks the entrance end of
+    through holes. Default: from the trajectory (mean direction to the camera positions)."""
 
 
 @dataclass(frozen=True)
@@ -208,6 +232,30 @@ class ConstraintSpec:
     ligament_mm: float = 1.0
     volume_change_max_percent: float | None = None
     symmetry: str = "none"
+
+
+@dataclass(frozen=True)
+class ShopSpec:
+    """``[shop]``: shop-ready output (``cadfeat.design.shop``). ``hole_sizes``: a table name of
+    ``shop.HOLE_SIZE_TABLES`` or diameters (mm); ``grid_mm``: drawing grid of moved hole positions (0: off);
+    ``keep_patterns``: holes forming a pattern in the original move as a pattern (false lets them break)."""
+
+    hole_sizes: str | tuple[float, ...] = "iso273-medium"
+    grid_mm: float = 0.1
+    keep_patterns: bool = True
+
+
+@dataclass(frozen=True)
+class RobustnessSpec:
+    """``[robustness]``: tolerances of the robustness study (``cadfeat.design.robustness``): hole positions
+    ±``position_tol_mm``, diameters ±``size_steps`` table steps, camera mount ±``camera_position_mm`` and
+    ±``camera_angle_deg``; ``samples`` random draws each (0: off)."""
+
+    position_tol_mm: float = 0.1
+    size_steps: int = 1
+    camera_position_mm: float = 2.0
+    camera_angle_deg: float = 1.0
+    samples: int = 200
 
 
 @dataclass(frozen=True)
@@ -226,6 +274,8 @@ class StudyConfig:
     optimizer: OptimizerConfig
     part_params: Mapping[str, PartParameter] = field(default_factory=dict, repr=False)
     data: Mapping[str, Any] = field(default_factory=dict, repr=False)
+    shop: ShopSpec = field(default_factory=ShopSpec)
+    robustness: RobustnessSpec = field(default_factory=RobustnessSpec)
 
     @property
     def label(self) -> str:
@@ -289,7 +339,7 @@ class _Table:
             return default
         value = self.data[name]
         if not isinstance(value, str) or (choices is not None and value not in choices) or \
-                (pattern is not None and not pattern.match(value)):
+                (pattern is not None and not pattern.fullmatch(value)):
             self.fail(self.dotted(name), f"{_fmt(value)} is not allowed", allowed)
         return value
 
@@ -446,10 +496,36 @@ def _study_section(t: _Table, base_dir: Path) -> StudyInfo:
                "a path ending in .py, .step or .stp")
     path = (base_dir / part).resolve()
     if not path.is_file():
-        t.fail("study.part", f"file {path} does not exist", "an existing part script or STEP file")
+        shown = base_dir / part if (base_dir / part).is_symlink() else path
+        problem = f"{shown} is not a regular file ({path}: a device, folder or pipe)" if path.exists() else \
+            f"file {path} does not exist"
+        t.fail("study.part", problem, "an existing part script or STEP file")
+    if kind == "step":
+        _check_step_header(t, path)
     seed = t.integer("seed", 0, 0, 2**32 - 1)
     description = t.string("description", default="")
-    return StudyInfo(name, part, path, kind, seed, description)
+    timeout = t.number("build_timeout_s", BUILD_TIMEOUT_S, 0.0, 86_400.0, lo_open=True)
+    return StudyInfo(name, part, path, kind, seed, description, float(timeout))
+
+
+def _check_step_header(t: _Table, path: Path) -> None:
+    """A STEP file is readable and starts like one (``ISO-10303-21;`` header, ``HEADER;`` section)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError as exc:
+        t.fail("study.part", f"{path} cannot be read ({exc.strerror})", "a readable STEP file")
+    text = head.lstrip(b"\xef\xbb\xbf \t\r\n")
+    if not text.startswith(b"ISO-10303-21") or b"HEADER" not in head:
+        what = "is empty" if not head else "does not start with the STEP header 'ISO-10303-21;'"
+        t.fail("study.part", f"{path} {what}", "a STEP file (ISO 10303-21 text, as CAD programs export)")
+
+
+def _check_size(t: _Table, key: str, value: Any, limit: str, what: str) -> None:
+    """``value`` (an int) must not exceed ``LIMITS[limit]`` (checked before anything is allocated)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value > LIMITS[limit]:
+        t.fail(key, f"{value} {what} is more than the limit of {LIMITS[limit]:,}",
+               f"at most {LIMITS[limit]:,} (cadfeat.study.schema.LIMITS[{limit!r}])")
 
 
 def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, dict[str, Any]]:
@@ -458,6 +534,10 @@ def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, 
     fields = [f.name for f in dataclasses.fields(Camera)]
     t = _Table(data, "camera", label, ["preset", "calibration", *fields])
     table = dict(t.data)
+    for side in ("width", "height"):
+        _check_size(t, f"camera.{side}", table.get(side), "image_side_px", "pixels")
+    if all(isinstance(table.get(k), int) for k in ("width", "height")):
+        _check_size(t, "camera.width * camera.height", table["width"] * table["height"], "image_pixels", "pixels")
     if t.has("preset") and t.has("calibration"):
         t.fail("camera.calibration", "given together with camera.preset", "one of preset or calibration")
     if t.has("calibration"):
@@ -500,6 +580,17 @@ def _trajectory_section(data: Any, label: str, base_dir: Path) -> TrajectorySpec
     if not isinstance(data, Mapping):
         raise StudyError(f"{label}: trajectory: expected a table; allowed: kind = <library kind> + arguments, "
                          "or csv = <file>")
+    t = _Table(data, "trajectory", label, list(data))
+    _check_size(t, "trajectory.n", data.get("n"), "trajectory_samples", "samples")
+    _check_size(t, "trajectory.lines", data.get("lines"), "trajectory_lines", "lines")
+    if isinstance(data.get("csv"), str):
+        csv = base_dir / data["csv"]
+        if csv.is_file() and csv.stat().st_size > LIMITS["trajectory_csv_bytes"]:
+            t.fail("trajectory.csv", f"{csv} has {csv.stat().st_size:,} bytes, more than the limit of "
+                   f"{LIMITS['trajectory_csv_bytes']:,}", "a smaller CSV (cadfeat.study.schema.LIMITS"
+                   "['trajectory_csv_bytes'])")
+        if csv.exists() and not csv.is_file():
+            t.fail("trajectory.csv", f"{csv} is not a regular file (a device, folder or pipe)", "a CSV file of poses")
     spec = TrajectorySpec(dict(data), f"{label}: trajectory", base_dir)
     try:
         spec.build()
@@ -538,7 +629,13 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
     if info.part_kind == "script":
         if t.has("holes"):
             t.fail("design.holes", "only for STEP parts (script parts vary their parameters)", "design.parameters")
-        params = part_parameters(info.part_path)
+        from cadfeat.cad.parts import build_time_limit
+
+        with build_time_limit(info.build_timeout_s, start=False):  # (the script runs only for a computed table)
+            params = part_parameters(info.part_path)
+        raw = t.raw("parameters")
+        _check_size(t, "design.parameters", len(raw) if isinstance(raw, list | dict) else None, "design_variables",
+                    "parameters")
         specs = _parameter_specs(t, params, label, info)
         echo["parameters"] = {p.name: {"lower": p.lower, "upper": p.upper,
                                        **({"standard_sizes": list(p.standard_sizes)} if p.standard_sizes else {})}
@@ -546,6 +643,8 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
     else:
         if t.has("parameters"):
             t.fail("design.parameters", "only for part scripts (STEP parts have no parameters)", "design.holes")
+        raw = t.raw("holes")
+        _check_size(t, "design.holes", len(raw) if isinstance(raw, list) else None, "design_variables", "holes")
         holes = _hole_specs(t, label)
         echo["holes"] = [{"select": list(h.select) if isinstance(h.select, tuple) else h.select, "move": h.move,
                           "resize": h.resize, "max_offset_mm": h.max_offset_mm} for h in holes]
@@ -570,10 +669,21 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
             t.fail(f"design.patterns[{i}]", "a pattern needs at least two holes", "a list of ≥ 2 hole selectors")
     if info.part_kind == "step":
         _check_step_design(t, holes, fixed)
+    view = None
+    if t.has("view_direction"):
+        if info.part_kind != "step":
+            t.fail("design.view_direction", "only for STEP parts (a part script gives VIEW_DIRECTION)",
+                   "VIEW_DIRECTION in the part script")
+        view = _vector(t.raw("view_direction"), 3, "design.view_direction", label)
+        norm = math.sqrt(sum(v * v for v in view))
+        if norm == 0:
+            t.fail("design.view_direction", "[0, 0, 0] is not allowed", "a non-zero direction [x, y, z]")
+        view = tuple(v / norm for v in view)
+        echo["view_direction"] = list(view)
     echo.update({"standard_diameters_mm": None if std is None else list(std),
                  "fixed": [list(s) if isinstance(s, tuple) else s for s in fixed],
                  "patterns": [[list(s) if isinstance(s, tuple) else s for s in p] for p in patterns]})
-    return DesignSpec(specs, holes, std, fixed, patterns), params, echo
+    return DesignSpec(specs, holes, std, fixed, patterns, view), params, echo
 
 
 def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
@@ -667,6 +777,29 @@ def _constraints_section(t: _Table) -> ConstraintSpec:
     )
 
 
+def _shop_section(t: _Table) -> ShopSpec:
+    from cadfeat.design.shop import HOLE_SIZE_TABLES, hole_sizes
+
+    raw = t.raw("hole_sizes", "iso273-medium")
+    allowed = f"one of {', '.join(HOLE_SIZE_TABLES)} or a list of diameters > 0 (mm)"
+    if isinstance(raw, str):
+        sizes: str | tuple[float, ...] = t.string("hole_sizes", "iso273-medium", tuple(HOLE_SIZE_TABLES))
+    elif isinstance(raw, list | tuple) and raw and all(_is_num(v) and v > 0 for v in raw):
+        sizes = hole_sizes(raw)
+    else:
+        t.fail("shop.hole_sizes", f"{_fmt(raw)} is not allowed", allowed)
+    return ShopSpec(hole_sizes=sizes, grid_mm=t.number("grid_mm", 0.1, 0.0, 10.0),
+                    keep_patterns=t.boolean("keep_patterns", True))
+
+
+def _robustness_section(t: _Table) -> RobustnessSpec:
+    return RobustnessSpec(position_tol_mm=t.number("position_tol_mm", 0.1, 0.0, 10.0),
+                          size_steps=t.integer("size_steps", 1, 0, 5),
+                          camera_position_mm=t.number("camera_position_mm", 2.0, 0.0, 100.0),
+                          camera_angle_deg=t.number("camera_angle_deg", 1.0, 0.0, 30.0),
+                          samples=t.integer("samples", 200, 0, 10000))
+
+
 def _objective_section(t: _Table) -> ObjectiveConfig:
     measures = t.raw("measures", list(MEASURES))
     if not isinstance(measures, list) or not measures or not all(isinstance(m, str) and m in MEASURES
@@ -730,8 +863,8 @@ def _measure_table(t: _Table, name: str, measures: Sequence[str], lo: float | No
 def _optimizer_section(t: _Table, seed: int) -> OptimizerConfig:
     return OptimizerConfig(
         method=t.string("method", "multistart", METHODS),
-        starts=t.integer("starts", 8, 1, 10_000),
-        maxiter=t.integer("maxiter", 100, 1, 1_000_000),
+        starts=t.integer("starts", 8, 1, LIMITS["optimizer_starts"]),
+        maxiter=t.integer("maxiter", 100, 1, LIMITS["optimizer_maxiter"]),
         seed=t.integer("seed", seed, 0, 2**32 - 1),
         local_solver=t.string("local_solver", "SLSQP", LOCAL_SOLVERS),
         snap_standard_sizes=t.boolean("snap_standard_sizes", True),
@@ -773,7 +906,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
             raise StudyError(f"{label}: [{section}]: missing section; required sections: "
                              f"{', '.join(REQUIRED_SECTIONS)}; optional: "
                              f"{', '.join(s for s in SECTIONS if s not in REQUIRED_SECTIONS)}")
-    st = _Table(top.raw("study"), "study", label, ["name", "part", "seed", "description"])
+    st = _Table(top.raw("study"), "study", label, ["name", "part", "seed", "description", "build_timeout_s"])
     info = _study_section(st, base)
     camera, camera_echo = _camera_section(top.raw("camera"), label, base)
     pose = _pose_section(_Table(top.raw("part_pose", {}), "part_pose", label,
@@ -781,13 +914,15 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     trajectory = _trajectory_section(top.raw("trajectory"), label, base)
     design, params, design_echo = _design_section(
         _Table(top.raw("design"), "design", label,
-               ["parameters", "holes", "standard_diameters_mm", "fixed", "patterns"]), info, label)
+               ["parameters", "holes", "standard_diameters_mm", "fixed", "patterns", "view_direction"]), info, label)
     constraints = _constraints_section(_Table(top.raw("constraints", {}), "constraints", label,
                                               ["edge_distance_mm", "ligament_mm", "volume_change_max_percent",
                                                "symmetry"]))
     objective = _objective_section(_Table(top.raw("objective", {}), "objective", label, list(OBJECTIVE_KEYS)))
     optimizer = _optimizer_section(_Table(top.raw("optimizer", {}), "optimizer", label, list(OPTIMIZER_KEYS)),
                                    info.seed)
+    shop = _shop_section(_Table(top.raw("shop", {}), "shop", label, list(SHOP_KEYS)))
+    robustness = _robustness_section(_Table(top.raw("robustness", {}), "robustness", label, list(ROBUSTNESS_KEYS)))
     if objective.combine == "pareto" and optimizer.method != "pareto":
         raise StudyError(f"{label}: optimizer.method: {optimizer.method!r} cannot give a Pareto front "
                          "(objective.combine = \"pareto\"); allowed: pareto")
@@ -796,7 +931,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
                          "allowed: pareto")
     echo = {
         "study": {"name": info.name, "part": info.part, "seed": info.seed,
-                  "description": info.description},
+                  "description": info.description, "build_timeout_s": info.build_timeout_s},
         "camera": camera_echo,
         "part_pose": {"position_mm": list(pose.position_mm), "rotvec_deg": list(pose.rotvec_deg)},
         "trajectory": copy.deepcopy(dict(trajectory.table)),
@@ -805,9 +940,12 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
         "objective": {**_asdict(objective, OBJECTIVE_KEYS), "measures": list(objective.measures),
                       "weights": dict(objective.weights), "thresholds": dict(objective.thresholds)},
         "optimizer": _asdict(optimizer, OPTIMIZER_KEYS),
+        "shop": {**_asdict(shop), "hole_sizes": shop.hole_sizes if isinstance(shop.hole_sizes, str)
+                 else list(shop.hole_sizes)},
+        "robustness": _asdict(robustness),
     }
     return StudyConfig(path, base, info, camera, pose, trajectory, design, constraints, objective, optimizer,
-                       params, _drop_none(echo))
+                       params, _drop_none(echo), shop=shop, robustness=robustness)
 
 
 def _drop_none(value: Any) -> Any:

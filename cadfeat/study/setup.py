@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -81,7 +82,7 @@ def load_scene(config: StudyConfig) -> tuple[Camera, Trajectory, np.ndarray]:
 
 
 def constraint_config(config: StudyConfig, holes: Sequence[Any] = (), movable: Sequence[int] = (),
-                      volume_mm3: float | None = None) -> Any:
+                      volume_mm3: float | None = None, mirror_tol_mm: float = 1e-6) -> Any:
     """``constraints.ConstraintConfig`` of a study; ``symmetry`` becomes the mirror pairs among the movable
     ``holes`` (about the part's x = 0 / y = 0 planes); ``volume_mm3`` is the original part volume."""
     from cadfeat.design.constraints import ConstraintConfig, SymmetryPair
@@ -89,7 +90,7 @@ def constraint_config(config: StudyConfig, holes: Sequence[Any] = (), movable: S
     c = config.constraints
     frac = None if c.volume_change_max_percent is None else c.volume_change_max_percent / 100.0
     pairs = tuple(SymmetryPair(i, j, (0.0, 0.0, 0.0), normal)
-                  for i, j, normal in _mirror_pairs(holes, movable, (), c.symmetry))
+                  for i, j, normal in _mirror_pairs(holes, movable, (), c.symmetry, tol_mm=mirror_tol_mm))
     if c.symmetry != "none" and not pairs:
         raise StudyError(f"{config.label}: constraints.symmetry: no two movable holes mirror each other about the "
                          f"plane(s) {c.symmetry} = 0 of the part; allowed: none, or a symmetry the part has")
@@ -103,7 +104,9 @@ def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Any = Non
     from cadfeat.design.problem import Problem
 
     movable = np.flatnonzero(~np.asarray(args["fixed_mask"], bool))
-    cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]))
+    part = args.get("part")
+    tol = max(1e-6, 10 * part.tolerance.linear_mm) if hasattr(part, "tolerance") else 1e-6
+    cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]), mirror_tol_mm=tol)
     problem = Problem(args["space"], args["model"], args["camera"], args["trajectory"], args["T_task_part"],
                       config.objective, cc, args["fixed_mask"], normaliser=normaliser,
                       occlusion_mesh=occlusion_mesh(config, args["shape0"]),
@@ -264,20 +267,19 @@ def _extract(shape: Any, prefer_direction: Any = None) -> list[Any]:
 # ----------------------------------------------------------------------------------------- STEP
 def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = None) -> StudySetup:
     """Setup of a STEP study: the selected holes move in their host face planes (``HoleMoveModel``)."""
-    from cadfeat.cad.step_parts import load_step, redrill
+    from cadfeat.cad.step_parts import load_step
     from cadfeat.design.design_space import HoleMoveModel
 
     camera, trajectory, T_task_part = scene or load_scene(config)
-    step = load_step(config.study.part_path)
+    view = config.design.view_direction or camera_direction(config.study.part_path, trajectory, T_task_part)
+    step = load_step(config.study.part_path, prefer_direction=view)
     holes0 = list(step.holes)
     design = config.design
     movable = [_select(config, holes0, h.select, f"design.holes[{i}].select") for i, h in enumerate(design.holes)]
     if len(set(movable)) != len(movable):
         raise StudyError(f"{config.label}: design.holes: two selectors name the same hole; allowed: each hole once")
-    resize = {h.resize for h in design.holes}
-    if len(resize) > 1:
-        raise StudyError(f"{config.label}: design.holes: resize differs between holes; allowed: the same resize for "
-                         "every movable hole (make the others fixed)")
+    max_offsets = step_offset_limits(config, step, movable)
+    step_dry_run(config, step, movable)
     fixed_idx = [_select(config, holes0, s, f"design.fixed[{i}]") for i, s in enumerate(design.fixed)]
     for i, j in enumerate(fixed_idx):
         if j in movable:
@@ -289,15 +291,20 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
         if not set(p) <= set(movable):
             raise StudyError(f"{config.label}: design.patterns[{i}]: every hole of a pattern must be in design.holes; "
                              f"allowed: holes {', '.join(holes0[j].name for j in movable)}")
-    mirrors = _mirror_pairs(holes0, movable, patterns, config.constraints.symmetry)
-    model = HoleMoveModel(holes0, movable, diameter=resize.pop(), patterns=patterns, mirrors=mirrors)
-    space = model.design_space(standard_sizes=design.standard_diameters_mm)
-    space = _limit_offsets(space, holes0, design, movable)
+    mirrors = _mirror_pairs(holes0, movable, patterns, config.constraints.symmetry,
+                            tol_mm=max(1e-6, 10 * step.tolerance.linear_mm))
+    pinned: list[int] = []
+    if config.shop.keep_patterns:
+        patterns, mirrors, pinned = _keep_patterns(holes0, movable, patterns, mirrors)
+    resized = [j for spec, j in zip(design.holes, movable, strict=True) if spec.resize]
+    model = HoleMoveModel(holes0, movable, diameter=resized, patterns=patterns, mirrors=mirrors)
+    space = model.design_space(standard_sizes=design.standard_diameters_mm, max_offsets_mm=max_offsets)
+    space = _limit_offsets(space, holes0, design, movable, pinned)
     movable_mask = np.zeros(len(holes0), bool)
     movable_mask[movable] = True
     fixed = ~movable_mask
     args = dict(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
-                fixed_mask=fixed, holes=holes0, shape0=step.shape)
+                fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
     problem, cc = _problem(args, config)
 
     def rebuild_holes(shape: Any) -> list[Any]:
@@ -307,19 +314,117 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                       shape0=step.shape, holes0=holes0, fixed_mask=fixed, movable_mask=movable_mask, space=space,
                       model=model, problem=problem, constraints=cc,
-                      rebuild_shape=lambda x: redrill(step.shape, model.hole_moves(x)),
+                      rebuild_shape=lambda x: _timed_redrill(config, step, model.hole_moves(x)),
                       rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step)
 
 
-def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Sequence[int]) -> Any:
-    """Per-hole ``max_offset_mm`` (and ``move = false``: position pinned to ±1 µm) applied to the (s, t)
-    bounds of ``HoleMoveModel.design_space``."""
+def _timed_redrill(config: StudyConfig, step: Any, moves: Sequence[Any]) -> Any:
+    """``step_parts.redrill`` within the study's ``build_timeout_s`` (a worker process, as part-script builds)."""
+    from cadfeat.cad.parts import call_with_time_limit
+    from cadfeat.cad.step_parts import redrill
+
+    return call_with_time_limit(redrill, (step.shape, list(moves), step.tolerance, step.path),
+                                f"{config.study.part_path}: re-drilling {len(moves)} hole(s)")
+
+
+def camera_direction(part_path: Any, trajectory: Any, T_task_part: np.ndarray) -> np.ndarray | None:
+    """Unit direction (part frame) from the part towards the camera: the mean of the directions from the
+    part's bounding-box centre to the trajectory's camera positions (None if they cancel out)."""
+    from cadfeat.cad.export import import_step
+
+    box = import_step(part_path).BoundingBox()
+    centre = np.array([box.center.x, box.center.y, box.center.z])
+    T_part_task = np.linalg.inv(np.asarray(T_task_part, float))
+    cams = np.asarray(trajectory.T_task_cam, float)[:, :, 3] @ T_part_task.T
+    d = cams[:, :3] - centre
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    mean = d.mean(axis=0)
+    n = float(np.linalg.norm(mean))
+    return mean / n if n > 1e-9 else None
+
+
+def step_offset_limits(config: StudyConfig, step: Any, movable: Sequence[int]) -> dict[int, float]:
+    """``max_offset_mm`` per movable hole index (1 µm for ``move = false``). A hole whose host face is not
+    planar must give one: ``StudyError`` naming the study, the key and the part file otherwise."""
+    limits: dict[int, float] = {}
+    for i, (spec, j) in enumerate(zip(config.design.holes, movable, strict=True)):
+        limit = 1e-3 if not spec.move else spec.max_offset_mm
+        if limit is not None:
+            limits[j] = float(limit)
+        elif step.holes[j].outline is None:
+            raise StudyError(f"{config.label}: design.holes[{i}].max_offset_mm: missing for hole {step.holes[j].name} "
+                             f"of {step.path}, whose host face is not planar; allowed: a positive offset bound in mm")
+    return limits
+
+
+def check_step_study(config: StudyConfig) -> str:
+    """What ``cadfeat validate`` adds for a STEP study: load the part (holes, entrances from the camera side),
+    resolve the hole selectors, the offset limits, and dry-run every movable hole (``step_dry_run``).
+    Returns a one-line summary; raises ``StudyError`` naming the study, key, hole and why."""
+    from cadfeat.cad.step_parts import load_step
+
+    _, trajectory, T_task_part = load_scene(config)
+    view = config.design.view_direction or camera_direction(config.study.part_path, trajectory, T_task_part)
+    step = load_step(config.study.part_path, prefer_direction=view)
+    holes = list(step.holes)
+    movable = [_select(config, holes, h.select, f"design.holes[{i}].select")
+               for i, h in enumerate(config.design.holes)]
+    if len(set(movable)) != len(movable):
+        raise StudyError(f"{config.label}: design.holes: two selectors name the same hole; allowed: each hole once")
+    step_offset_limits(config, step, movable)
+    step_dry_run(config, step, movable)
+    names = ", ".join(holes[j].name for j in movable)
+    return f"dry run re-drilled {names} of {step.path.name} (moved and, where asked, resized)"
+
+
+def step_dry_run(config: StudyConfig, step: Any, movable: Sequence[int]) -> None:
+    """Re-drill every movable hole once, slightly moved (and resized where asked), before any optimisation:
+    ``StudyError`` naming the study, the key, the hole and why, if one cannot be re-drilled."""
+    from cadfeat.cad.step_parts import dry_run
+
+    for i, (spec, j) in enumerate(zip(config.design.holes, movable, strict=True)):
+        try:
+            dry_run(step, [step.holes[j]], [spec.resize])
+        except CadfeatError as exc:
+            raise StudyError(f"{config.label}: design.holes[{i}]: {exc}") from None
+
+
+def _keep_patterns(holes: Sequence[Any], movable: Sequence[int], patterns: list[list[int]],
+                   mirrors: list[tuple[int, int, tuple[float, float, float]]]
+                   ) -> tuple[list[list[int]], list, list[int]]:
+    """``[shop] keep_patterns``: the bolt circles and grids of the original (``cadfeat.design.patterns``) whose
+    holes are all movable move together (one shared offset: the pattern is translated); mirror pairs of movable
+    holes move as mirror images; a movable hole of a pattern whose other holes are fixed is pinned (a single
+    bolt moved off its circle breaks the circle). Explicit ``design.patterns`` and symmetry pairs come first."""
+    from cadfeat.design.patterns import find_patterns
+
+    mov = set(movable)
+    taken = {i for p in patterns for i in p} | {i for m in mirrors for i in m[:2]}
+    patterns, mirrors, pinned = list(patterns), list(mirrors), []
+    for p in find_patterns(holes):
+        idx = list(p.holes)
+        if taken & set(idx) or not mov & set(idx):
+            continue
+        if set(idx) <= mov and p.kind in ("bolt_circle", "grid"):
+            patterns.append(idx)
+        elif set(idx) <= mov and p.kind == "opposite":  # not enforced (a mirror in the axis needs both normals)
+            continue
+        else:
+            pinned += [i for i in idx if i in mov]
+        taken |= set(idx)
+    return patterns, mirrors, pinned
+
+
+def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Sequence[int],
+                   pinned: Sequence[int] = ()) -> Any:
+    """Per-hole ``max_offset_mm`` (and ``move = false`` or ``pinned`` to keep a pattern: position pinned to
+    ±1 µm) applied to the (s, t) bounds of ``HoleMoveModel.design_space``."""
     from cadfeat.design.design_space import DesignSpace
 
     limits = {}
     for spec, j in zip(design.holes, movable, strict=True):
         label = holes[j].name or f"H{j + 1}"
-        limit = 1e-3 if not spec.move else spec.max_offset_mm
+        limit = 1e-3 if not spec.move or j in pinned else spec.max_offset_mm
         if limit is not None:
             limits[f"{label}.s"] = limits[f"{label}.t"] = float(limit)
     variables = []

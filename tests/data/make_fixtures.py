@@ -22,7 +22,7 @@ STEP_NAME = "plate_holes.step"
 def build_plate(skip: tuple[str, ...] = (), moved: dict[str, tuple[tuple[float, float], float]] | None = None):
     """The fixture plate as a cadquery Solid. ``skip`` leaves out holes by name ("A", "B", "CBORE", "CSINK",
     "BLIND"); ``moved`` replaces a hole's (x, y) and entrance diameter (the tests' direct CAD reference for
-    re-drilling: profiles scale as ``HoleProfile.scaled`` says)."""
+    re-drilling: ``HoleProfile.resized`` — a counterbore or countersink changes its entrance, its bore stays)."""
     import cadquery as cq
 
     moved = moved or {}
@@ -38,11 +38,11 @@ def build_plate(skip: tuple[str, ...] = (), moved: dict[str, tuple[tuple[float, 
     if "CBORE" not in skip:
         xy, bore, cbore, depth = CBORE
         xy, new = moved.get("CBORE", (xy, cbore))
-        wp = top(wp).pushPoints([xy]).cboreHole(bore * new / cbore, new, depth)
+        wp = top(wp).pushPoints([xy]).cboreHole(bore, new, depth)
     if "CSINK" not in skip:
         xy, bore, csink, angle = CSINK
         xy, new = moved.get("CSINK", (xy, csink))
-        wp = top(wp).pushPoints([xy]).cskHole(bore * new / csink, new, angle)
+        wp = top(wp).pushPoints([xy]).cskHole(bore, new, angle)
     if "BLIND" not in skip:
         xy, dia, depth = BLIND
         xy, dia = moved.get("BLIND", (xy, dia))

@@ -122,12 +122,28 @@ class Hole:
     name: str = ""
 
     KINDS = ("plain", "counterbore", "countersink")
+    RIMS = ("chamfered rim", "filleted rim")
+    """Entrance-rim qualifiers: ``kind`` may be ``"<base>, <rim>"`` (e.g. ``"plain, filleted rim"``); the
+    centre is then on the host plane the rim blends into and ``radius_mm`` the rim's outer radius there."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "centre", _frozen_array(self.centre, (3,), "Hole.centre"))
         object.__setattr__(self, "axis", _frozen_array(self.axis, (3,), "Hole.axis"))
-        if self.kind not in self.KINDS:
-            raise CadfeatError(f"Hole.kind: {self.kind!r} is not one of {', '.join(self.KINDS)}")
+        base, _, rim = self.kind.partition(", ")
+        if base not in self.KINDS or (rim and rim not in self.RIMS):
+            raise CadfeatError(f"Hole.kind: {self.kind!r} is not one of {', '.join(self.KINDS)}, optionally "
+                               f"followed by ', ' and one of {', '.join(self.RIMS)}")
+
+    @property
+    def base_kind(self) -> str:
+        """``kind`` without its rim qualifier: plain, counterbore or countersink."""
+        return self.kind.partition(", ")[0]
+
+    @property
+    def rim(self) -> str:
+        """The entrance rim: ``"sharp"``, ``"chamfer"`` or ``"fillet"``."""
+        rim = self.kind.partition(", ")[2]
+        return {"chamfered rim": "chamfer", "filleted rim": "fillet"}.get(rim, "sharp")
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Hole):
@@ -240,7 +256,7 @@ def extract_points(shape: Any, tol_mm: float = 1e-7) -> np.ndarray:
     return pts[np.lexsort((r[:, 2], r[:, 1], r[:, 0]))]
 
 
-def extract_holes(shape: Any, prefer_direction: Sequence[float] | None = None) -> list[Hole]:
+def extract_holes(shape: Any, prefer_direction: Sequence[float] | None = None, tol: Any = None) -> list[Hole]:
     """All circular holes of ``shape`` (algorithm in ``cadfeat.cad.features.extraction``).
 
     A hole is a connected set of coaxial concave cylinders and cones (plus the annular steps and flat
@@ -255,10 +271,16 @@ def extract_holes(shape: Any, prefer_direction: Sequence[float] | None = None) -
     lexicographic order (e.g. +z for a vertical hole through a plate).
 
     Holes are sorted by (axis, centre) rounded to 1e-9; values keep full precision.
+
+    Tolerances (coaxial faces, equal radii, parallel normals) are ``tol`` (a ``cadfeat.cad.tolerance.
+    ModelTolerance``), by default scaled to the model (its size and B-rep tolerances), so that real exports
+    whose faces of one hole are 1e-6..4e-6 mm / 3e-7..8e-7 rad apart group into one hole. An entrance rim
+    blended by a fillet puts the centre on the plane the fillet blends into (kind ``"..., filleted rim"``); a
+    small entrance cone is a chamfer (``"..., chamfered rim"``), a large one a countersink.
     """
     from cadfeat.cad.features import extraction
 
-    return extraction.extract_holes(as_shape(shape), prefer_direction)
+    return extraction.extract_holes(as_shape(shape), prefer_direction, tol)
 
 
 def _xyz(p: Any) -> np.ndarray:

@@ -43,9 +43,11 @@ from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape, TopTools_Ind
 
 from cadfeat.cad.features import OUTLINE_CHORD_ERROR_MM, FaceOutline, Hole
 
-ANGLE_TOL_RAD = 1e-7  # parallel axes / normals
-LINEAR_TOL_MM = 1e-6  # coaxial lines, equal radii
-CLASSIFY_STEP_MM = 1e-4  # step beyond an end along the axis for the inside/outside test
+ANGLE_TOL_RAD = 1e-7  # defaults only: the extractor uses the model's ModelTolerance (cadfeat.cad.tolerance)
+LINEAR_TOL_MM = 1e-6
+CLASSIFY_STEP_MM = 1e-4  # least step beyond an end along the axis for the inside/outside test (10× linear tol)
+NEAR_ROUND_MIN_RAD = np.radians(200.0)  # a concave partial cylinder spanning at least this is a near-round hole
+CHAMFER_MAX_RATIO = 0.5  # an entrance cone widening the bore by less than this × bore radius is a chamfered rim
 SAMPLE_DEFLECTION_MM = OUTLINE_CHORD_ERROR_MM / 2
 MIN_CURVE_POINTS = 17  # per curved edge, so that a loop's angular gaps stay small
 ENCIRCLING_MAX_GAP_RAD = np.pi / 4
@@ -148,9 +150,10 @@ class _Revolution:
     def radius_at(self, point: np.ndarray) -> float:
         return max(0.0, self.r0 + float(self.t(point)) * self.tan_angle)
 
-    def coaxial(self, other: _Revolution) -> bool:
-        return (np.linalg.norm(np.cross(self.d, other.d)) < ANGLE_TOL_RAD
-                and np.linalg.norm(np.cross(other.loc - self.loc, self.d)) < LINEAR_TOL_MM)
+    def coaxial(self, other: _Revolution, lin: float = LINEAR_TOL_MM, ang: float = ANGLE_TOL_RAD) -> bool:
+        """Same axis line: axes parallel within ``ang`` (rad), ``other``'s axis point within ``lin`` (mm)."""
+        return (np.linalg.norm(np.cross(self.d, other.d)) < ang
+                and np.linalg.norm(np.cross(other.loc - self.loc, self.d)) < lin)
 
 
 def _revolution(index: int, face) -> _Revolution | None:
@@ -179,26 +182,34 @@ def _perpendicular_frame(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, np.cross(d, e1)
 
 
-def _closes_full_turn(cylinders: Sequence[_Revolution], d: np.ndarray) -> bool:
-    """Whether the union of the cylinders' angular spans about axis ``d`` covers 360°."""
+def _covered_angle(cylinders: Sequence[_Revolution], d: np.ndarray, ang: float = ANGLE_TOL_RAD) -> float:
+    """Angle (rad, ≤ 2π) covered by the union of the cylinders' angular spans about axis ``d``; spans that
+    meet within ``ang`` (split walls written as two 180° faces) join."""
     e1, e2 = _perpendicular_frame(d)
     intervals = []
     for c in cylinders:
         u0, u1 = c.u_bounds
         length = u1 - u0
-        if length >= 2 * np.pi - ANGLE_TOL_RAD:
-            return True
+        if length >= 2 * np.pi - ang:
+            return 2 * np.pi
         sense = np.sign(np.cross(c.x_dir, c.y_dir) @ d)
         u_start = u0 if sense > 0 else u1
         w = np.cos(u_start) * c.x_dir + np.sin(u_start) * c.y_dir
-        intervals.append((float(np.arctan2(w @ e2, w @ e1)) % (2 * np.pi), length))
+        start = float(np.arctan2(w @ e2, w @ e1)) % (2 * np.pi)
+        intervals += [(start, start + length), (start + 2 * np.pi, start + 2 * np.pi + length)]
     intervals.sort()
-    start, reach = intervals[0][0], intervals[0][0] + intervals[0][1]
-    for s, length in intervals[1:]:
-        if s > reach + 1e-6:
-            return False
-        reach = max(reach, s + length)
-    return reach >= start + 2 * np.pi - 1e-6
+    best, (lo, hi) = 0.0, intervals[0]
+    for s, e in intervals[1:]:
+        if s > hi + ang:
+            best, lo, hi = max(best, hi - lo), s, e
+        else:
+            hi = max(hi, e)
+    return min(2 * np.pi, max(best, hi - lo))
+
+
+def _closes_full_turn(cylinders: Sequence[_Revolution], d: np.ndarray, ang: float = ANGLE_TOL_RAD) -> bool:
+    """Whether the union of the cylinders' angular spans about axis ``d`` covers 360° (within ``ang``)."""
+    return _covered_angle(cylinders, d, ang) >= 2 * np.pi - 2 * ang
 
 
 def _sample_edge(edge, deflection: float = SAMPLE_DEFLECTION_MM, min_points: int = 2) -> np.ndarray:
@@ -246,12 +257,31 @@ class _End:
     radius: float
     wall: _Revolution
     area: float = field(default=0.0)
+    rim: str = "sharp"
+    blend: list[int] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class SkippedHole:
+    """A hole-like opening that is not extracted (mm): a concave partial cylinder of ``span_deg`` < 360°
+    (3-D-printing teardrop, D-bore, keyed bore), with its axis, a point on the axis and the reason."""
+
+    centre: np.ndarray
+    axis: np.ndarray
+    radius_mm: float
+    span_deg: float
+    reason: str
 
 
 class _Extractor:
-    def __init__(self, shape, prefer_direction: Sequence[float] | None) -> None:
+    def __init__(self, shape, prefer_direction: Sequence[float] | None, tol=None) -> None:
+        from cadfeat.cad.tolerance import ModelTolerance
+
         self.shape = shape.wrapped
         self.topo = _Topology.build(self.shape)
+        self.tol = tol if tol is not None else ModelTolerance.of_shape(self.shape)
+        self.lin, self.ang = self.tol.linear_mm, self.tol.angular_rad
+        self.skipped: list[SkippedHole] = []
         self.prefer = None if prefer_direction is None else np.asarray(prefer_direction, dtype=float)
         self.samples: dict[int, np.ndarray] = {}
         self.areas: dict[int, float] = {}
@@ -271,7 +301,7 @@ class _Extractor:
         return self.areas[f]
 
     def is_outside(self, point: np.ndarray) -> bool:
-        self.classifier.Perform(gp_Pnt(*map(float, point)), 1e-7)
+        self.classifier.Perform(gp_Pnt(*map(float, point)), min(1e-7, 0.1 * self.lin))
         return self.classifier.State() == TopAbs_OUT
 
     # ------------------------------------------------------------------------------------- grouping
@@ -284,7 +314,7 @@ class _Extractor:
         for fs in self.topo.edge_faces:
             for a in fs:
                 for b in fs:
-                    if a < b and a in concave and b in concave and concave[a].coaxial(concave[b]):
+                    if a < b and a in concave and b in concave and concave[a].coaxial(concave[b], self.lin, self.ang):
                         uf.union(a, b)
         for f, face in enumerate(self.topo.faces):
             if f not in self.revs and BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane:
@@ -292,23 +322,67 @@ class _Extractor:
         return [g for g in uf.groups() if any(f in concave for f in g)]
 
     def _join_planar_step(self, f: int, face, concave: dict[int, _Revolution], uf: _UnionFind) -> None:
+        """Join a planar annulus (counterbore floor, flat bottom) to the coaxial concave faces around it; the
+        other half of an annulus written as two faces (split walls) may share its seam edges."""
         neighbours = set()
+        halves = set()
+        crowded = False  # the face also meets other features (slots, pockets cut into the step)
+        p, normal, _ = _face_normal_at_mid(face)
         for e in self.topo.face_edges[f]:
             if BRep_Tool.Degenerated_s(self.topo.edges[e]):
                 continue
             others = [g for g in self.topo.edge_faces[e] if g != f]
-            if not others or any(g not in concave for g in others):
+            if not others:
                 return
-            neighbours.update(others)
+            for g in others:
+                if g in concave:
+                    neighbours.add(g)
+                elif self._coplanar(g, p, normal):
+                    halves.add(g)
+                else:
+                    crowded = True
         if not neighbours:
             return
         revs = [concave[g] for g in sorted(neighbours)]
-        _, normal, _ = _face_normal_at_mid(face)
-        if (np.linalg.norm(np.cross(normal, revs[0].d)) > ANGLE_TOL_RAD
-                or not all(revs[0].coaxial(r) for r in revs[1:])):
+        if crowded:
+            wide = max((r for r in revs if not r.is_cone), key=lambda r: r.r0, default=revs[0])
+            revs = [r for r in revs if wide.coaxial(r, self.lin, self.ang)]
+            if not self._is_step_between(f, p, normal, revs):
+                return
+        if (np.linalg.norm(np.cross(normal, revs[0].d)) > self.ang
+                or not all(revs[0].coaxial(r, self.lin, self.ang) for r in revs[1:])):
             return
         for r in revs:
             uf.union(f, r.face)
+        for g in halves:
+            uf.union(f, g)
+
+    def _is_step_between(self, f: int, p: np.ndarray, normal: np.ndarray, revs: list[_Revolution]) -> bool:
+        """A plane that also meets other features is still the step of a stepped bore if it meets coaxial
+        concave cylinders of at least two radii, the wider ones wholly on its outward side and the narrowest
+        wholly on its inner side (a groove around a hole on a face does not qualify)."""
+        cylinders = [r for r in revs if not r.is_cone]
+        if len(cylinders) < 2 or not all(cylinders[0].coaxial(r, self.lin, self.ang) for r in cylinders[1:]):
+            return False
+        r_min, r_max = min(c.r0 for c in cylinders), max(c.r0 for c in cylinders)
+        if r_max <= r_min + self.lin:
+            return False
+        for c in cylinders:
+            pts = np.concatenate([self.edge_points(e) for e in self.topo.face_edges[c.face]])
+            side = (pts - p) @ normal
+            if c.r0 >= r_max - self.lin and side.min() < -self.lin:
+                return False
+            if c.r0 <= r_min + self.lin and side.max() > self.lin:
+                return False
+        return True
+
+    def _coplanar(self, g: int, p: np.ndarray, normal: np.ndarray) -> bool:
+        """Face g is a plane through point p with the same normal (within the model tolerance)."""
+        face = self.topo.faces[g]
+        if BRepAdaptor_Surface(face).GetType() != GeomAbs_Plane:
+            return False
+        q, n, _ = _face_normal_at_mid(face)
+        return np.linalg.norm(np.cross(n, normal)) <= self.ang and abs(float((q - p) @ normal)) <= self.lin
 
     # --------------------------------------------------------------------------------------- a hole
     def hole(self, group: list[int]) -> tuple[Hole, set[int]] | None:
@@ -319,10 +393,12 @@ class _Extractor:
             return None
         by_radius: dict[float, list[_Revolution]] = {}
         for c in cylinders:
-            key = next((k for k in by_radius if abs(k - c.r0) < LINEAR_TOL_MM), c.r0)
+            key = next((k for k in by_radius if abs(k - c.r0) < self.lin), c.r0)
             by_radius.setdefault(key, []).append(c)
         ref = cylinders[0]
-        if not any(_closes_full_turn(cs, ref.d) for cs in by_radius.values()):
+        covered = {k: _covered_angle(cs, ref.d, self.ang) for k, cs in by_radius.items()}
+        if not any(a >= 2 * np.pi - 2 * self.ang for a in covered.values()):
+            self._note_near_round(by_radius, covered, ref)
             return None
         members = set(group)
         face_edges = sorted({e for f in group for e in self.topo.face_edges[f]})
@@ -338,16 +414,48 @@ class _Extractor:
         exits = [e for e in ends if e.sense != entrance.sense]
         depth = self._depth(entrance, exits, ref, all_pts)
         bore = min(c.r0 for c in cylinders)
-        if entrance.wall.is_cone:
-            kind = "countersink"
-        elif entrance.radius > bore + LINEAR_TOL_MM:
-            kind = "counterbore"
-        else:
-            kind = "plain"
+        # a hole is empty inside: not an annular groove round a boss (material at half its radius)
+        mid = entrance.centre - 0.5 * depth * entrance.axis
+        e1, _ = _perpendicular_frame(ref.d)
+        if not all(self.is_outside(mid + k * 0.5 * bore * e1) for k in (1.0, -1.0)):
+            return None
+        kind = self._kind(entrance, revs, bore)
         hole = Hole(centre=entrance.centre + 0.0, axis=entrance.axis + 0.0, radius_mm=entrance.radius,
                     bore_radius_mm=bore, depth_mm=depth, through=bool(exits), kind=kind,
                     host_face=entrance.host, outline=None)
         return hole, {e for end in ends for e in end.edges}
+
+    def _kind(self, entrance: _End, revs: list[_Revolution], bore: float) -> str:
+        """plain / counterbore / countersink, with ", chamfered rim" or ", filleted rim" when the entrance
+        rim is a small cone (widening the bore under its wall by < ``CHAMFER_MAX_RATIO`` × its radius) or a
+        fillet (torus) blending into the host face."""
+        if entrance.wall.is_cone:
+            below = [r for r in revs if not r.is_cone]
+            # the cylinder the entrance cone leads into: the widest one narrower than the cone's rim
+            under = max((c.r0 for c in below if c.r0 < entrance.radius - self.lin), default=bore)
+            if entrance.radius - under < CHAMFER_MAX_RATIO * under:
+                base = "counterbore" if under > bore + self.lin else "plain"
+                return f"{base}, chamfered rim"
+            return "countersink"
+        base = "counterbore" if entrance.wall.r0 > bore + self.lin else "plain"
+        return f"{base}, filleted rim" if entrance.rim == "fillet" else base
+
+    def _note_near_round(self, by_radius: dict[float, list[_Revolution]], covered: dict[float, float],
+                         ref: _Revolution) -> None:
+        """Record the group as a skipped near-round hole if a radius of it covers ≥ ``NEAR_ROUND_MIN_RAD``."""
+        radius = max(covered, key=lambda k: covered[k])
+        angle = covered[radius]
+        if angle < NEAR_ROUND_MIN_RAD:
+            return
+        wall = by_radius[radius][0]
+        pts = np.concatenate([self.edge_points(e) for f in (c.face for c in by_radius[radius])
+                              for e in self.topo.face_edges[f]])
+        t = wall.t(pts)
+        centre = wall.loc + 0.5 * (t.min() + t.max()) * wall.d
+        self.skipped.append(SkippedHole(centre, wall.d + 0.0, float(radius), float(np.degrees(angle)),
+                                        f"near-round: its wall closes {np.degrees(angle):.0f}° of 360° (a "
+                                        "3-D-printing teardrop, D-bore or keyed bore); only round holes are "
+                                        "extracted"))
 
     def _loops(self, rim: list[int], ref: _Revolution) -> list[list[int]]:
         """Rim edges joined by shared vertices; only loops that go round the axis are kept."""
@@ -376,7 +484,14 @@ class _Extractor:
         t = ref.t(p)
         sense = 1.0 if t.mean() >= t_mid else -1.0
         t_extreme = float(t.max() if sense > 0 else t.min())
-        if not self.is_outside(ref.loc + (t_extreme + sense * CLASSIFY_STEP_MM) * ref.d):
+        step = max(CLASSIFY_STEP_MM, 10 * self.lin)
+        beyond = ref.loc + (t_extreme + sense * step) * ref.d
+        if not self.is_outside(beyond):
+            return None
+        # the rim's own disc must be open too, not only the axis (the outer wall of a groove round a hole)
+        radial = p - ref.loc - np.outer(ref.t(p), ref.d)
+        r_rim = float(np.linalg.norm(radial, axis=1).min())
+        if r_rim > 10 * self.lin and not self.is_outside(beyond + 0.9 * r_rim * radial[0] / np.linalg.norm(radial[0])):
             return None
         weights: dict[int, float] = {}
         walls: set[int] = set()
@@ -389,9 +504,48 @@ class _Extractor:
                 else:
                     weights[g] = weights.get(g, 0.0) + length
         host = min(weights, key=lambda g: (-weights[g], g))
-        centre = self._axis_meets_face(host, ref, p)
         wall = self.revs[min(w for w in walls if w in self.revs)]
+        blend = self._fillet_blend(host, ref, members)
+        if blend is not None:
+            plane, outer_edges, radius = blend
+            centre = self._axis_meets_face(plane, ref, p)
+            return _End(loop + outer_edges, sense, plane, centre, sense * ref.d, radius, wall, self.area(plane),
+                        rim="fillet", blend=[host])
+        centre = self._axis_meets_face(host, ref, p)
         return _End(loop, sense, host, centre, sense * ref.d, wall.radius_at(centre), wall, self.area(host))
+
+    def _fillet_blend(self, f: int, ref: _Revolution, members: set[int]) -> tuple[int, list[int], float] | None:
+        """If face ``f`` is a fillet (torus coaxial with the hole) between the hole wall and a plane
+        perpendicular to the axis: (that plane, the fillet's edges on it, their radius mm); else None."""
+        from OCP.GeomAbs import GeomAbs_Torus
+
+        surf = BRepAdaptor_Surface(self.topo.faces[f])
+        if surf.GetType() != GeomAbs_Torus:
+            return None
+        ax = surf.Torus().Position()
+        loc, d = _xyz(ax.Location()), _xyz(ax.Direction())
+        if (np.linalg.norm(np.cross(d, ref.d)) > self.ang
+                or np.linalg.norm(np.cross(loc - ref.loc, ref.d)) > self.lin):
+            return None
+        weights: dict[int, float] = {}
+        edges: dict[int, list[int]] = {}
+        for e in self.topo.face_edges[f]:
+            q = self.edge_points(e)
+            length = float(np.linalg.norm(np.diff(q, axis=0), axis=1).sum()) if len(q) > 1 else 0.0
+            for g in self.topo.edge_faces[e]:
+                if g != f and g not in members:
+                    weights[g] = weights.get(g, 0.0) + length
+                    edges.setdefault(g, []).append(e)
+        planes = [g for g in weights if BRepAdaptor_Surface(self.topo.faces[g]).GetType() == GeomAbs_Plane]
+        if not planes:
+            return None
+        plane = max(planes, key=lambda g: (weights[g], -g))
+        _, normal, _ = _face_normal_at_mid(self.topo.faces[plane])
+        if np.linalg.norm(np.cross(normal, ref.d)) > self.ang:
+            return None
+        pts = np.concatenate([self.edge_points(e) for e in edges[plane]])
+        radial = pts - ref.loc - np.outer(ref.t(pts), ref.d)
+        return plane, edges[plane], float(np.linalg.norm(radial, axis=1).mean())
 
     def _axis_meets_face(self, f: int, ref: _Revolution, rim_points: np.ndarray) -> np.ndarray:
         """Where the hole axis meets the host surface (nearest the rim); the rim's mean axis point otherwise."""
@@ -400,7 +554,7 @@ class _Extractor:
         if BRepAdaptor_Surface(face).GetType() == GeomAbs_Plane:
             p, n, _ = _face_normal_at_mid(face)
             dn = float(ref.d @ n)
-            if abs(dn) > ANGLE_TOL_RAD:
+            if abs(dn) > self.ang:
                 return ref.loc + ((p - ref.loc) @ n / dn) * ref.d
         inter = GeomAPI_IntCS(Geom_Line(gp_Lin(gp_Pnt(*ref.loc), gp_Dir(*ref.d))), BRep_Tool.Surface_s(face))
         if inter.IsDone() and inter.NbPoints() > 0:
@@ -417,11 +571,11 @@ class _Extractor:
         return best
 
     def _better(self, a: _End, b: _End) -> bool:
-        if abs(a.radius - b.radius) > LINEAR_TOL_MM:
+        if abs(a.radius - b.radius) > self.lin:
             return a.radius > b.radius
         if self.prefer is not None:
             da, db = float(a.axis @ self.prefer), float(b.axis @ self.prefer)
-            if abs(da - db) > ANGLE_TOL_RAD:
+            if abs(da - db) > self.ang:
                 return da > db
         if abs(a.area - b.area) > AREA_RTOL * max(a.area, b.area):
             return a.area > b.area
@@ -497,9 +651,16 @@ def _ccw(poly: np.ndarray) -> np.ndarray:
     return poly if signed_area >= 0 else poly[::-1]
 
 
-def extract_holes(shape, prefer_direction: Sequence[float] | None = None) -> list[Hole]:
+def extract_holes(shape, prefer_direction: Sequence[float] | None = None, tol=None) -> list[Hole]:
     """See ``cadfeat.cad.features.extract_holes``; ``shape`` is a ``cadquery.Shape``."""
-    ex = _Extractor(shape, prefer_direction)
+    return extract_holes_and_skipped(shape, prefer_direction, tol)[0]
+
+
+def extract_holes_and_skipped(shape, prefer_direction: Sequence[float] | None = None,
+                              tol=None) -> tuple[list[Hole], list[SkippedHole]]:
+    """The holes (as ``extract_holes``) and the skipped near-round openings, with tolerances ``tol``
+    (``ModelTolerance``; default: scaled to ``shape``)."""
+    ex = _Extractor(shape, prefer_direction, tol)
     found = [h for g in ex.groups() if (h := ex.hole(g)) is not None]
     rim_edges = set().union(*(edges for _, edges in found)) if found else set()
     outlines: dict[int, FaceOutline | None] = {}
@@ -509,7 +670,13 @@ def extract_holes(shape, prefer_direction: Sequence[float] | None = None) -> lis
             outlines[hole.host_face] = ex.outline(hole.host_face, rim_edges)
         holes.append(_with_outline(hole, outlines[hole.host_face]))
     holes.sort(key=lambda h: (tuple(np.round(h.axis, _ORDER)), tuple(np.round(h.centre, _ORDER))))
-    return holes
+    skipped: list[SkippedHole] = []
+    for h in sorted(ex.skipped, key=lambda h: -h.radius_mm):  # one entry per axis line (stepped teardrops)
+        if not any(np.linalg.norm(np.cross(h.axis, k.axis)) < ex.ang
+                   and np.linalg.norm(np.cross(h.centre - k.centre, k.axis)) < ex.lin for k in skipped):
+            skipped.append(h)
+    skipped.sort(key=lambda h: (tuple(np.round(h.axis, 6)), tuple(np.round(h.centre, 6))))
+    return holes, skipped
 
 
 def _with_outline(hole: Hole, outline: FaceOutline | None) -> Hole:

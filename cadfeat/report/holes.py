@@ -1,0 +1,88 @@
+"""The drawing's hole table of the delivered design: name, face, x, y, z, Ø, depth, kind (report and holes.csv).
+
+Rows come from results.json ``holes.after`` (the rebuilt, shop-rounded design; part frame, mm). ``face`` is the
+face the hole opens into, named by its outward normal (the hole axis points out of the material): "+Z" for a
+hole drilled from the top of a part whose top faces +z; a face that is not axis-aligned is given as its
+normal vector. Positions are written to ``POSITION_DECIMALS`` decimals (0.001 mm, finer than the 0.1 mm grid).
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cadfeat.report.html import esc, fmt, num, table, text
+
+HOLE_COLUMNS = ("name", "face", "x_mm", "y_mm", "z_mm", "diameter_mm", "depth_mm", "kind", "moved")
+POSITION_DECIMALS = 3
+
+
+def face_label(axis: Sequence[float]) -> str:
+    """"+X", "−Y", … for an axis-aligned outward normal; else the normal to 3 decimals."""
+    a = np.asarray(axis, float)
+    k = int(np.argmax(np.abs(a)))
+    if abs(abs(a[k]) - 1.0) < 1e-6:
+        return ("+" if a[k] > 0 else "-") + "XYZ"[k]
+    return "(" + ", ".join(f"{v:.3f}" for v in a) + ")"
+
+
+def hole_rows(results: dict) -> list[dict[str, Any]]:
+    """One row per hole of the delivered design (``holes.after``, else ``holes.before``)."""
+    holes = results.get("holes") or {}
+    after = holes.get("after") or holes.get("before") or []
+    before = {h.get("index", i): h for i, h in enumerate(holes.get("before") or [])}
+    rows = []
+    for i, h in enumerate(after):
+        c = np.asarray(h.get("centre_mm", [np.nan] * 3), float)
+        hb = before.get(h.get("index", i)) or h
+        moved = bool(np.linalg.norm(c - np.asarray(hb.get("centre_mm", c), float)) > 1e-6
+                     or abs(float(h.get("radius_mm", 0)) - float(hb.get("radius_mm", 0))) > 1e-6)
+        kind = str(h.get("kind", "")) + (" through" if h.get("through") else " blind")
+        rows.append({"name": str(h.get("name") or f"H{i + 1}"), "face": face_label(h.get("axis", (0, 0, 1))),
+                     "x_mm": float(c[0]), "y_mm": float(c[1]), "z_mm": float(c[2]),
+                     "diameter_mm": 2.0 * float(h.get("radius_mm", np.nan)),
+                     "depth_mm": float(h.get("depth_mm", np.nan)),
+                     "kind": kind.strip(), "moved": moved})
+    return rows
+
+
+def write_holes_csv(path: str | Path, results: dict) -> Path:
+    """``holes.csv``: the hole table (header ``HOLE_COLUMNS``), positions to ``POSITION_DECIMALS`` decimals."""
+    path = Path(path)
+    with path.open("w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(HOLE_COLUMNS)
+        for r in hole_rows(results):
+            w.writerow([r["name"], r["face"], *(f"{r[k]:.{POSITION_DECIMALS}f}" for k in ("x_mm", "y_mm", "z_mm",
+                                                                                           "diameter_mm", "depth_mm")),
+                        r["kind"], "yes" if r["moved"] else "no"])
+    return path
+
+
+def hole_table(results: dict) -> str:
+    """The hole table as HTML (id ``hole-table``) with a note on the rounding that produced it."""
+    rows = hole_rows(results)
+    if not rows:
+        return ""
+    cells = ["".join([text(r["name"]), text(r["face"]), num(r["x_mm"], digits=7), num(r["y_mm"], digits=7),
+                      num(r["z_mm"], digits=7), num(r["diameter_mm"], digits=6), num(r["depth_mm"], digits=6),
+                      text(r["kind"]), text("yes" if r["moved"] else "")]) for r in rows]
+    shop = results.get("shop") or {}
+    head = ""
+    if shop:
+        sizes = shop.get("hole_sizes")
+        head = (f"<p>Moved holes on a {esc(fmt(shop.get('grid_mm')))} mm grid, resized holes on "
+                f"{esc(sizes if isinstance(sizes, str) else 'the study table')} sizes"
+                + ("" if shop.get("applied") else " — <b>not applied</b>") + "; every requirement re-verified on "
+                "the rebuilt B-rep and the re-imported STEP after rounding.</p>")
+        for n in shop.get("notes") or []:
+            head += f'<div class="note">{esc(n)}</div>'
+        if shop.get("combined_optimum") is not None and shop.get("combined_shop") is not None:
+            head += (f"<p>Combined objective (model): optimum {esc(fmt(shop['combined_optimum']))}, shop-ready "
+                     f"{esc(fmt(shop['combined_shop']))}.</p>")
+    return head + table(["hole", "face", "x (mm)", "y (mm)", "z (mm)", "Ø (mm)", "depth (mm)", "kind", "changed"],
+                        cells, "hole-table") + "<p>Also written as <code>holes.csv</code>.</p>"

@@ -1,0 +1,246 @@
+"""The report's decision: adopt / adopt with care / do not adopt, from rules stated in the report.
+
+``decide(results)`` applies the rules of ``RULES`` to the results dict (keys of results.json) and returns a
+``Verdict``: the decision (the most severe outcome over the rules), one ``Finding`` per rule that applied,
+and the per-hole gains and losses in each measure's own unit (``hole_changes``). Nothing here computes a
+measure: it reads what the study computed and verified.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from cadfeat.report.html import esc, fmt, num, table, text
+from cadfeat.report.requirements import ACTIVE_MARGIN_MM, requirement_rows
+
+ADOPT, CARE, REJECT = "adopt", "adopt with care", "do not adopt"
+_SEVERITY = {ADOPT: 0, CARE: 1, REJECT: 2}
+
+#: Relative gain of the combined objective below which the new design is "no better" (fraction of |before|).
+MIN_GAIN_FRAC = 0.01
+
+#: The rules, as printed in the report (the order of ``decide``'s checks).
+RULES = (
+    ("combined", f"The combined objective must improve by at least {100 * MIN_GAIN_FRAC:g} % of its original "
+                 "value; otherwise: do not adopt."),
+    ("requirements", "Every kept requirement must hold on the rebuilt B-rep and the re-imported STEP; a violated "
+                     "or unverified one: do not adopt. An active one (margin below "
+                     f"{ACTIVE_MARGIN_MM:g} mm, the position tolerance): adopt with care."),
+    ("limiting", "The limiting objective (the smallest normalised objective after, the one that decides a max-min "
+                 "design) and every other objective must not get worse; one that does: adopt with care."),
+    ("holes", "No hole may newly fail a measure (a margin ≥ 0 before that is < 0 after); one that does: adopt "
+              "with care. Losses elsewhere are listed below."),
+    ("tracking", "When the pose-estimation validation ran: its verdict must not say the new design tracks worse "
+                 "or fails; if it does: adopt with care."),
+    ("robustness", "When the robustness study ran: if the combined objective's 5th percentile under the shop "
+                   "tolerance or the camera mounting error keeps less than half of the gain (razor-edge optimum): "
+                   "adopt with care."),
+    ("patterns", "A hole pattern of the original (bolt circle, grid, mirror pair) broken by the design: adopt "
+                 "with care."),
+    ("interrupted", "An interrupted optimisation (best design so far, not converged): adopt with care."),
+)
+
+#: Per-hole measures compared (key in per_feature, label, unit), larger = better.
+HOLE_MEASURES = (("fov_min", "FOV cone margin", ""), ("fov_px_min", "FOV image margin", "px"),
+                 ("focus_min", "focus margin", "× half DOF"), ("resolution_px_min", "resolution margin", "px"),
+                 ("visible_frac", "visible fraction", ""))
+#: Changes smaller than this (absolute, in the measure's unit) are "unchanged".
+CHANGE_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One rule's outcome: its key, the decision it asks for, and what was seen."""
+
+    rule: str
+    outcome: str
+    detail: str
+
+
+@dataclass(frozen=True)
+class HoleChange:
+    hole: str
+    measure: str
+    unit: str
+    before: float
+    after: float
+
+    @property
+    def change(self) -> float:
+        return self.after - self.before
+
+    @property
+    def newly_failing(self) -> bool:
+        return self.before >= 0.0 > self.after and self.measure != "visible fraction"
+
+
+@dataclass
+class Verdict:
+    decision: str
+    findings: list[Finding] = field(default_factory=list)
+    changes: list[HoleChange] = field(default_factory=list)
+    limiting: str | None = None
+
+
+def _is_num(x: Any) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool)
+
+
+def hole_changes(results: dict) -> list[HoleChange]:
+    """Per hole and measure: worst value over the trajectory before and after (own units), changed ones only."""
+    m = results.get("measures") or {}
+    before = {f.get("index", i): f for i, f in enumerate((m.get("before") or {}).get("per_feature") or [])}
+    after = {f.get("index", i): f for i, f in enumerate((m.get("after") or {}).get("per_feature") or [])}
+    out = []
+    for idx, fa in after.items():
+        fb = before.get(idx)
+        if fb is None:
+            continue
+        for key, label, unit in HOLE_MEASURES:
+            b, a = fb.get(key), fa.get(key)
+            if _is_num(b) and _is_num(a) and abs(a - b) > CHANGE_TOL:
+                out.append(HoleChange(str(fa.get("name") or f"#{idx}"), label, unit, float(b), float(a)))
+    return out
+
+
+def limiting_objective(obj: dict) -> str | None:
+    """The objective with the smallest normalised value after (``objectives.limiting`` when the study gives it)."""
+    if obj.get("limiting"):
+        return str(obj["limiting"])
+    after = obj.get("after") or {}
+    ref = ((obj.get("normalisation") or {}).get("reference")) or {}
+    vals = {k: v / (abs(ref.get(k)) if _is_num(ref.get(k)) and ref.get(k) else 1.0)
+            for k, v in after.items() if _is_num(v)}
+    return min(vals, key=vals.get) if vals else None
+
+
+def decide(results: dict) -> Verdict:
+    """Apply ``RULES`` to the results; the decision is the most severe outcome."""
+    findings: list[Finding] = []
+    obj = results.get("objectives") or {}
+    cb, ca = obj.get("combined_before"), obj.get("combined_after")
+    if _is_num(cb) and _is_num(ca):
+        gain = ca - cb
+        rel = gain / abs(cb) if cb else float("inf") if gain > 0 else 0.0
+        ok = rel >= MIN_GAIN_FRAC
+        findings.append(Finding("combined", ADOPT if ok else REJECT,
+                                f"combined objective {fmt(cb)} → {fmt(ca)} ({'+' if gain >= 0 else '−'}"
+                                f"{fmt(abs(100 * rel), 3)} %)"))
+    reqs = requirement_rows(results)
+    bad = [r for r in reqs if r.status in ("VIOLATED", "not verified")]
+    active = [r for r in reqs if r.status == "active"]
+    if bad:
+        findings.append(Finding("requirements", REJECT, "; ".join(f"{r.name} {'/'.join(r.holes)}: {r.status}"
+                                                                   for r in bad[:4])))
+    elif active:
+        findings.append(Finding("requirements", CARE, "active: " + "; ".join(
+            f"{r.name} {'/'.join(r.holes)} margin {fmt(r.margin)} {r.unit}" for r in active[:4])))
+    elif reqs:
+        findings.append(Finding("requirements", ADOPT, f"all {len(reqs)} hold with margin ≥ {fmt(ACTIVE_MARGIN_MM)}"))
+    limiting = limiting_objective(obj)
+    before, after = obj.get("before") or {}, obj.get("after") or {}
+    worse = [k for k in after if _is_num(after.get(k)) and _is_num(before.get(k)) and after[k] < before[k]]
+    if limiting is not None:
+        lb, la = before.get(limiting), after.get(limiting)
+        detail = f"limiting objective {limiting}: {fmt(lb)} → {fmt(la)}"
+        if worse:
+            detail += "; worse: " + ", ".join(f"{k} {fmt(before[k])} → {fmt(after[k])}" for k in worse)
+        findings.append(Finding("limiting", CARE if worse else ADOPT, detail))
+    changes = hole_changes(results)
+    failing = [c for c in changes if c.newly_failing]
+    n_gain, n_loss = sum(c.change > 0 for c in changes), sum(c.change < 0 for c in changes)
+    still = _failing_after(results)
+    if changes or still:
+        detail = f"{n_gain} hole measures better, {n_loss} worse"
+        if failing:
+            detail += "; newly failing: " + ", ".join(f"{c.hole} {c.measure}" for c in failing[:6])
+        if still:
+            detail += "; failing at the worst pose after: " + ", ".join(f"{label} ({k} of {n} holes)"
+                                                                        for label, k, n in still)
+        findings.append(Finding("holes", CARE if failing else ADOPT, detail))
+    findings += _tracking(results) + _robustness(results) + _patterns(results)
+    if results.get("interrupted"):
+        findings.append(Finding("interrupted", CARE, "the optimisation was interrupted"))
+    decision = max((f.outcome for f in findings), key=_SEVERITY.get, default=CARE)
+    return Verdict(decision, findings, changes, limiting)
+
+
+def _failing_after(results: dict) -> list[tuple[str, int, int]]:
+    """(measure, holes with a negative worst margin, holes) of the design after, for each margin measure."""
+    feats = ((results.get("measures") or {}).get("after") or {}).get("per_feature") or []
+    out = []
+    for key, label, _ in HOLE_MEASURES[:4]:
+        vals = [f.get(key) for f in feats if _is_num(f.get(key))]
+        k = sum(v < 0 for v in vals)
+        if k:
+            out.append((label, k, len(vals)))
+    return out
+
+
+def _tracking(results: dict) -> list[Finding]:
+    tr = results.get("tracking")
+    if not isinstance(tr, dict) or not tr.get("verdict"):
+        return []
+    v = str(tr["verdict"])
+    bad = any(w in v.lower() for w in ("worse", "fail", "not better", "degrad"))
+    return [Finding("tracking", CARE if bad else ADOPT, v)]
+
+
+def _robustness(results: dict) -> list[Finding]:
+    rb = results.get("robustness")
+    if not isinstance(rb, dict) or "razor_edge" not in rb:
+        return []
+    edges = rb.get("razor_edge") or []
+    return [Finding("robustness", CARE if edges else ADOPT,
+                    ("razor-edge: " + ", ".join(map(str, edges))) if edges
+                    else "the combined objective keeps at least half of its gain under the tolerances")]
+
+
+def _patterns(results: dict) -> list[Finding]:
+    pats = results.get("patterns")
+    if not isinstance(pats, list) or not pats:
+        return []
+    broken = [p for p in pats if isinstance(p, dict) and p.get("broken")]
+    return [Finding("patterns", CARE if broken else ADOPT,
+                    ("broken: " + ", ".join(f"{p.get('kind')} {'/'.join(map(str, p.get('holes') or []))}"
+                                            for p in broken)) if broken
+                    else f"all {len(pats)} patterns of the original kept")]
+
+
+# ------------------------------------------------------------------------------------------------ HTML
+_CSS = {ADOPT: "adopt", CARE: "care", REJECT: "reject"}
+
+
+def verdict_section(results: dict) -> str:
+    """The decision banner, the rules with what each saw, and the per-hole gains and losses."""
+    v = decide(results)
+    rows = []
+    classes = []
+    seen = {f.rule: f for f in v.findings}
+    for key, rule in RULES:
+        f = seen.get(key)
+        rows.append("".join([text(rule), text(f.outcome if f else "n/a"), text(f.detail if f else "did not apply")]))
+        classes.append(_CSS[f.outcome] if f else "")
+    out = (f'<div class="verdict-box {_CSS[v.decision]}"><span class="big">Verdict: '
+           f'<span id="verdict">{esc(v.decision)}</span></span>'
+           + (f' — limiting objective <span id="limiting-objective">{esc(v.limiting)}</span>' if v.limiting else "")
+           + "</div>"
+           + "<p>The decision is the most severe outcome over these rules:</p>"
+           + table(["rule", "outcome", "what the study shows"], rows, "verdict-rules", row_classes=classes))
+    out += changes_table(v.changes)
+    return out
+
+
+def changes_table(changes: list[HoleChange]) -> str:
+    """What got better and what got worse, per hole and measure (worst over the trajectory, own units)."""
+    if not changes:
+        return ""
+    ordered = sorted(changes, key=lambda c: (c.change > 0, c.hole, c.measure))  # losses first
+    rows = ["".join([text(c.hole), text(c.measure), text(c.unit), num(c.before), num(c.after),
+                     num(c.change, "better" if c.change > 0 else "worse"),
+                     text("newly failing" if c.newly_failing else "")]) for c in ordered]
+    n_loss = sum(c.change < 0 for c in changes)
+    return (f"<h3>What got better and what got worse</h3><p>{len(changes) - n_loss} better, {n_loss} worse "
+            "(each hole's worst value over the trajectory; margins: positive = satisfied).</p>"
+            + table(["hole", "measure", "unit", "before", "after", "change", ""], rows, "hole-changes"))
