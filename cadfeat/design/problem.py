@@ -212,7 +212,13 @@ class Problem:
             from cadfeat.measures.depth import DepthMaps
 
             self._depth_maps = DepthMaps(self.occlusion_mesh, self.camera, self.T_cam_part, grid=128)
-        return self._depth_maps
+        maps = self._depth_maps
+        n = len(self.T_cam_part)
+        if maps.n_poses != n and n % maps.n_poses == 0:
+            # poses stacked as S copies of the trajectory, each seen from a slightly displaced camera (the
+            # robustness sampling): the nominal pose's depth map stands for its displaced copies
+            return maps.tile(n // maps.n_poses)
+        return maps
 
     def measures(self, x: np.ndarray) -> Any:
         return self.measures_from_features(*self.model.features(np.asarray(x, dtype=float)))

@@ -65,6 +65,14 @@ class DepthMaps:
         other.n_poses = len(other.maps)
         return other
 
+    def tile(self, copies: int) -> DepthMaps:
+        """The maps repeated ``copies`` times along the poses (S stacked copies of the trajectory)."""
+        other = object.__new__(DepthMaps)
+        other.__dict__.update(self.__dict__)
+        other.maps = np.tile(self.maps, (copies, 1))
+        other.n_poses = len(other.maps)
+        return other
+
     def _index(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         i = np.floor((x - self.lo) / self.cell).astype(np.int64)
         j = np.floor((y - self.lo) / self.cell).astype(np.int64)
