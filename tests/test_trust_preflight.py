@@ -69,7 +69,8 @@ def test_meaningless_study_is_refused_before_any_work(tmp_path, case):
 
 def test_the_tilted_study_itself_passes_and_reports_assumed_optics(tmp_path):
     """The control: read scalar-last, the same poses are fine; optics not given are printed as assumptions."""
-    path = study(tmp_path, trajectory=TILTED, camera={"preset": None, "fx": 231.4, "fy": 231.25, "cx": 64.2,
+    path = study(tmp_path, trajectory=TILTED, camera={"preset": None, "focus_distance_mm": None, "fx": 231.4,
+                                                        "fy": 231.25, "cx": 64.2,
                                                         "cy": 61.5, "width": 128, "height": 128})
     res = cadfeat("validate", str(path))
     assert res.returncode == 0, res.stderr
