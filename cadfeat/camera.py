@@ -148,6 +148,46 @@ class Camera:
         half_y = min(self.cy, self.height - self.cy) / self.fy
         return 2.0 * float(np.arctan(min(half_x, half_y)))
 
+    # ------------------------------------------------------------------ lens fold-over
+    @property
+    def fold_radius(self) -> float:
+        """Largest normalised radius r = ‖(X/Z, Y/Z)‖ up to which the radial distortion r_d = r (1 + k1 r² +
+        k2 r⁴ + k3 r⁶) grows with r (``inf`` if it always does): the smallest positive root s = r² of
+        d r_d / d r = 1 + 3 k1 s + 5 k2 s² + 7 k3 s³. Past it rays fold back into the image (several
+        directions map to one pixel), so points there count as outside the image in every measure."""
+        k1, k2, _, _, k3 = self.dist
+        roots = np.roots([7.0 * k3, 5.0 * k2, 3.0 * k1, 1.0]) if (k1 or k2 or k3) else np.zeros(0)
+        s = [float(r.real) for r in np.atleast_1d(roots) if abs(r.imag) < 1e-12 and r.real > 0]
+        return float(np.sqrt(min(s))) if s else float("inf")
+
+    @property
+    def valid_field_deg(self) -> float:
+        """Half-angle off the optical axis (degrees) of the lens model's valid (monotonic) field: atan of
+        ``fold_radius`` (90 for a lens without fold)."""
+        return float(np.degrees(np.arctan(self.fold_radius)))
+
+    @property
+    def fold_inside_image(self) -> bool:
+        """True when the image of the fold circle (radius fx·r_d(fold) px about the principal point) does not
+        contain the whole image: parts of the image are then reachable only by folded rays — the
+        calibration is not valid over the image (a warning)."""
+        r = self.fold_radius
+        if not np.isfinite(r):
+            return False
+        k1, k2, _, _, k3 = self.dist
+        s = r * r
+        rd = r * (1 + k1 * s + k2 * s * s + k3 * s ** 3)
+        corners = np.array([[0, 0], [self.width, 0], [0, self.height], [self.width, self.height]], float)
+        reach = np.hypot((corners[:, 0] - self.cx) / self.fx, (corners[:, 1] - self.cy) / self.fy)
+        return bool(reach.max() > rd)
+
+    def folded(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """(…) bool: normalised image points (x, y) past ``fold_radius``."""
+        r = self.fold_radius
+        if not np.isfinite(r):
+            return np.zeros(np.broadcast(x, y).shape, dtype=bool)
+        return np.asarray(x) ** 2 + np.asarray(y) ** 2 > r * r
+
     # ------------------------------------------------------------------ optics (eq. 3.4-3.6)
     @property
     def image_distance_mm(self) -> float:

@@ -9,7 +9,7 @@ from collections.abc import Callable
 import numpy as np
 
 from cadfeat.design.design_space import DesignSpace, Variable
-from cadfeat.design.objectives import MEASURES, ObjectiveConfig
+from cadfeat.design.objectives import MEASURES, Normaliser, ObjectiveConfig, combined_indices
 from cadfeat.design.problem import Problem
 
 
@@ -26,6 +26,9 @@ class AnalyticProblem:
         self.objective_config = ObjectiveConfig(measures=measures, combine=combine, weights=weights or {})
         self.names = self.objective_config.names
         self.scales = np.ones(k)
+        self.offsets = np.zeros(k)
+        self.normaliser = Normaliser("none", dict.fromkeys(self.names, 1.0), dict.fromkeys(self.names, "none"))
+        self.combined_idx = np.array(combined_indices(self.objective_config, self.names), dtype=int)
         self.n_evals = 0
 
     def evaluate_batch(self, X):
@@ -36,6 +39,8 @@ class AnalyticProblem:
         return G, C
 
     combined_from = Problem.combined_from
+    normalised = Problem.normalised
+    leximin_key = Problem.leximin_key
     _thr_idx = np.zeros(0, dtype=int)
     _thr = np.zeros(0)
 

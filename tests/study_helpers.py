@@ -12,7 +12,7 @@ STEP = DATA / "plate_holes.step"
 
 BASE = {
     "study": {"name": "plate", "part": "study_plate.py", "seed": 3},
-    "camera": {"preset": "dalsa-cad1-128a"},
+    "camera": {"preset": "dalsa-cad1-128a", "focus_distance_mm": 200.0},  # the depths of the approach (pre-flight)
     "part_pose": {"position_mm": [0, 0, 0]},
     "trajectory": {"kind": "straight_approach", "start": [0, 0, 300], "end": [0, 0, 150], "target": [0, 0, 0],
                    "n": 10},

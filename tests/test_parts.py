@@ -273,7 +273,7 @@ def test_cli_lists_parts(tmp_path, capsys):
         assert f"{path.stem}: " in out
     assert "bolt_circle_radius_mm = 9.65 mm in [8.5, 16]" in out and "hole_count = 5 in [3, 8] (integer)" in out
     assert main(["parts", str(PARTS_DIR / "thesis_single_hole.py"), "--holes"]) == 0
-    assert "hole 0: centre (0.000, 0.000, 0.000) mm, axis (0.000, 0.000, 1.000), r 3.700 mm" in capsys.readouterr().out
+    assert "H1: centre (0.000, 0.000, 0.000) mm, axis (0.000, 0.000, 1.000), r 3.700 mm" in capsys.readouterr().out
     write(tmp_path, "broken.py", "def build(:\n")
     assert main(["parts", str(tmp_path)]) == 2
     assert "broken.py:1: syntax error" in capsys.readouterr().err

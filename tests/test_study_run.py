@@ -17,6 +17,7 @@ import pytest
 from study_helpers import DATA, PLATE, STEP
 
 from cadfeat.study import run as study_mod
+from cadfeat.study.outputs import plain
 from cadfeat.study.run import evaluate_study, run_study
 
 PLATE_HALF = (30.0, 20.0)   # study_plate.py: 60 x 40 mm, centred
@@ -70,7 +71,7 @@ def test_results_json_keys_and_files(small_run):
     result, out, _ = small_run
     data = json.loads((out / "results.json").read_text())
     assert RESULT_KEYS <= set(data)
-    assert data["study"] == result.results["study"] and data["variables"] == result.results["variables"]
+    assert data["study"] == plain(result.results["study"]) and data["variables"] == plain(result.results["variables"])
     for entry in data["files"]:
         path = out / entry["name"]
         assert path.stat().st_size == entry["bytes"] and sha(path) == entry["sha256"]

@@ -284,10 +284,12 @@ class Part:
         return _one_solid(result, f"{self.path}: build({_fmt(params)})")
 
     def holes(self, **overrides: Any) -> list[Hole]:
-        """The extracted holes of ``build(**overrides)`` (through holes enter on the ``view_direction`` side)."""
+        """The extracted holes of ``build(**overrides)`` (through holes enter on the ``view_direction`` side),
+        named by ``name_holes``."""
         from cadfeat.cad.features import extract_holes
 
-        return extract_holes(self.build(**overrides), prefer_direction=self.view_direction)
+        holes = extract_holes(self.build(**overrides), prefer_direction=self.view_direction)
+        return self.name_holes(holes, overrides)
 
     def holes_timed(self, params: Mapping[str, Any] | None = None, timeout_s: float | None = None) -> list[Hole]:
         """``holes(**params)``, built in a worker process with a time limit when ``timeout_s`` is given."""
@@ -295,7 +297,70 @@ class Part:
             return self.holes(**dict(params or {}))
         from cadfeat.cad.features import extract_holes
 
-        return extract_holes(build_shape(self, params, timeout_s), prefer_direction=self.view_direction)
+        holes = extract_holes(build_shape(self, params, timeout_s), prefer_direction=self.view_direction)
+        return self.name_holes(holes, params)
+
+    def name_holes(self, holes: Sequence[Hole], params: Mapping[str, Any] | None = None,
+                   tol_mm: float = 1e-3) -> list[Hole]:
+        """``holes`` (extracted at ``params``) with names that stay with the physical hole:
+
+        - a script with ``expected_holes``: the hole whose centre is within ``tol_mm`` of entry k gets the
+          entry's ``name``, or ``H<k+1>`` (the script's own order, the same for every parameter value);
+        - otherwise: each hole is matched to the holes of the DEFAULT build (extraction order there gives
+          H1 … HN) by geometry — centre distance + radius change + axis change, one to one (Hungarian) —
+          and takes that hole's name, so changing a parameter never swaps two names.
+        Holes left over (a parameter added holes) get ``H<N+1>`` … in extraction order."""
+        import dataclasses
+
+        holes = list(holes)
+        if not holes:
+            return holes
+        names: list[str | None] = [None] * len(holes)
+        centres = np.array([h.centre for h in holes], float)
+        expected = self.expected_holes(**dict(params or {})) if self.module is not None else None
+        if expected:
+            ref = np.array([e["centre"] for e in expected], float).reshape(-1, 3)
+            d = np.linalg.norm(centres[:, None] - ref[None], axis=-1)
+            taken: set[int] = set()
+            for i in np.argsort(d.min(axis=1), kind="stable"):
+                k = int(np.argmin(np.where([j in taken for j in range(len(ref))], np.inf, d[i])))
+                if d[i, k] <= tol_mm:
+                    taken.add(k)
+                    names[i] = str(expected[k].get("name") or f"H{k + 1}")
+            n_ref = len(expected)
+        else:
+            from scipy.optimize import linear_sum_assignment
+
+            reference = self._default_holes()
+            n_ref = len(reference)
+            rc = np.array([h.centre for h in reference], float).reshape(-1, 3)
+            ra = np.array([h.axis for h in reference], float).reshape(-1, 3)
+            rr = np.array([h.radius_mm for h in reference], float)
+            axes = np.array([h.axis for h in holes], float)
+            radii = np.array([h.radius_mm for h in holes], float)
+            cost = (np.linalg.norm(centres[:, None] - rc[None], axis=-1) + np.abs(radii[:, None] - rr[None])
+                    + 100.0 * (1.0 - np.abs(axes @ ra.T)))
+            rows, cols = linear_sum_assignment(cost)
+            for i, k in zip(rows, cols, strict=True):
+                names[int(i)] = reference[int(k)].name or f"H{int(k) + 1}"
+        extra = n_ref
+        out = []
+        for h, name in zip(holes, names, strict=True):
+            if name is None:
+                extra += 1
+                name = f"H{extra}"
+            out.append(dataclasses.replace(h, name=name))
+        return out
+
+    def _default_holes(self) -> list[Hole]:
+        """The holes of the default build (extraction order), cached on the part."""
+        cache = self.__dict__.get("_default_holes_cache")
+        if cache is None:
+            from cadfeat.cad.features import extract_holes
+
+            cache = extract_holes(self.build(), prefer_direction=self.view_direction)
+            object.__setattr__(self, "_default_holes_cache", cache)
+        return cache
 
     def expected_holes(self, **overrides: Any) -> list[dict] | None:
         """The script's analytic holes (``expected_holes(**params)``: dicts centre, axis, radius_mm, optional

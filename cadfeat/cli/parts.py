@@ -55,7 +55,7 @@ def _list_parts(args: argparse.Namespace) -> int:
             for i, h in enumerate(part.holes()):
                 c = ", ".join(f"{v:.3f}" for v in h.centre)
                 a = ", ".join(f"{v:.3f}" for v in h.axis)
-                print(f"    hole {i}: centre ({c}) mm, axis ({a}), r {h.radius_mm:.3f} mm, {h.kind}, "
+                print(f"    {h.name or f'H{i + 1}'}: centre ({c}) mm, axis ({a}), r {h.radius_mm:.3f} mm, {h.kind}, "
                       f"{'through' if h.through else f'blind {h.depth_mm:.3f} mm'}")
     return 0
 

@@ -68,10 +68,29 @@ def validate(args: argparse.Namespace) -> int:
         from cadfeat.study.setup import check_step_study
 
         names += f"; {check_step_study(config)}"
+    pre = _preflight_if_buildable(config)
     print(f"{config.label}: ok — study '{config.study.name}', {config.study.part_kind} part {config.study.part}, "
           f"varying {names}; objective {config.objective.combine}/{config.objective.aggregate} of "
           f"{', '.join(config.objective.measures)}; optimizer {config.optimizer.method}")
+    for line in ([] if pre is None else [f"ASSUMED: {a}" for a in pre.assumptions] +
+                 [f"WARNING: {w}" for w in pre.warnings]):
+        print(f"  {line}")
     return 0
+
+
+def _preflight_if_buildable(config: object) -> object:
+    """The study's pre-flight (``cadfeat.study.preflight``) when the part can be built; its refusal is the
+    command's error. A part that does not build is left to ``run``/``evaluate`` (validate checks the file)."""
+    from cadfeat.errors import CadfeatError
+    from cadfeat.study.run import preflight_study
+    from cadfeat.study.schema import StudyError
+
+    try:
+        return preflight_study(config)
+    except StudyError:
+        raise
+    except (CadfeatError, ImportError):
+        return None
 
 
 def _check_part(config: object) -> None:

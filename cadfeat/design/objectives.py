@@ -17,10 +17,13 @@ Resolvability Λ_k
 
 Objective names: g_FOV (cone margin eq. 3.3, or the image margin in px with ``fov_measure="image"``),
 g_FOC (focus margin eq. 3.4–3.6), g_RES (minor axis − ω in px, §3.3.3), g_DIR (Λ, px/mm, eq. 4.33).
-All are "larger is better". Combination of the normalised objectives ĝ_i = g_i / scale_i (``Normaliser``):
+All are "larger is better". Combination of the normalised objectives ĝ_i = (g_i − offset_i) / scale_i
+(``Normaliser``; default ``"payoff"``: offset = nadir, scale = ideal − nadir, from each objective's own optimum
+over the design space — independent of the starting design):
 
 - ``"weighted"``: maximise Σ w_i ĝ_i (eq. 2.6, weights default 1);
-- ``"maxmin"``: maximise min_i ĝ_i (eq. 3.26, 5.2);
+- ``"maxmin"``: maximise min_i ĝ_i (eq. 3.26, 5.2); ties broken by leximin (then the next-worst ĝ, ...);
+  an objective that does not depend on the design (constant over the design space) is left out and reported;
 - ``"constraint"``: the measures with a ``thresholds`` entry become hard constraints g_i ≥ threshold_i (raw
   units of the aggregated objective); the others are maximised as a weighted sum (if none is left: the
   smallest normalised slack is maximised);
@@ -47,6 +50,9 @@ __all__ = [
     "ObjectiveConfig",
     "aggregate",
     "combine",
+    "combined_indices",
+    "leximin_better",
+    "leximin_key",
     "natural_units",
     "objective_values",
     "per_pose_values",
@@ -57,7 +63,7 @@ MEASURES = {"fov": "g_FOV", "focus": "g_FOC", "resolution": "g_RES", "resolvabil
 AGGREGATES = ("sum", "mean", "min", "smoothmin")
 COMBINES = ("weighted", "maxmin", "constraint", "pareto")
 FEATURE_REDUCTIONS = ("min", "mean", "sum")
-NORMALISATIONS = ("initial", "natural", "none")
+NORMALISATIONS = ("payoff", "initial", "natural", "none")
 TINY_REL = 1e-3  # |g(x0)| below TINY_REL × natural unit → the natural unit is the scale
 
 
@@ -69,7 +75,9 @@ def _choice(key: str, value: Any, allowed: Sequence[str]) -> None:
 @dataclass(frozen=True)
 class ObjectiveConfig:
     """How the measures become objectives (see the module docstring). ``weights``/``thresholds`` are keyed
-    by measure ("fov", ...) or objective name ("g_FOV", ...)."""
+    by measure ("fov", ...) or objective name ("g_FOV", ...). ``occlusion``: holes hidden by the part count
+    as unseen (a ray test against the part's mesh, default on); ``score``: which holes' FOV/focus/resolution
+    count — "movable" (the holes the design moves; all when none moves), "all", or hole names."""
 
     measures: tuple[str, ...] = ("fov", "focus", "resolution", "resolvability")
     aggregate: str = "sum"
@@ -81,7 +89,9 @@ class ObjectiveConfig:
     rotation_length_mm: float = 1.0
     feature_reduce: str = "min"
     fov_measure: str = "cone"
-    normalisation: str = "initial"
+    normalisation: str = "payoff"
+    occlusion: bool = True
+    score: str | tuple[str, ...] = "movable"
 
     def __post_init__(self) -> None:
         measures = tuple(self.measures)
@@ -208,21 +218,37 @@ def natural_units(config: ObjectiveConfig, camera: Any, n_poses: int, n_features
 
 @dataclass(frozen=True)
 class Normaliser:
-    """Scales that make the objectives comparable: ĝ_i = g_i / scale_i.
+    """Scales that make the objectives comparable: ĝ_i = (g_i − offset_i) / scale_i.
 
-    ``method``: ``"initial"`` — scale_i = |g_i(x0)| (the initial design), or the natural unit when
-    |g_i(x0)| < 1e-3 × natural unit (never 1 in raw units); ``"natural"`` — the natural unit; ``"none"``
-    — 1 (raw units). ``reference``: objective name → scale; ``sources``: objective name → "initial" or
-    "natural"."""
+    ``method``:
+
+    - ``"payoff"`` (default): the ideal/nadir normalisation of the payoff table — each objective maximised
+      alone over the design space (on features), ideal_i = its own optimum, nadir_i = its worst value at the
+      other objectives' optima; ĝ_i = (g_i − nadir_i)/(ideal_i − nadir_i), so 1 = the best this objective can
+      reach, 0 = what it falls to when another objective is favoured. Fixed by the design space, camera and
+      trajectory: the same whatever the starting design. An objective whose range is below ``TINY_REL`` of
+      its natural unit does not depend on the design (``constant``): it keeps its natural unit and is left
+      out of the combination;
+    - ``"initial"`` — scale_i = |g_i(x0)| (the initial design), or the natural unit when |g_i(x0)| < 1e-3 ×
+      natural unit. START-DEPENDENT: a max-min optimum then moves with the starting design;
+    - ``"natural"`` — the natural unit; ``"none"`` — 1 (raw units).
+
+    ``reference``: objective name → scale; ``offset``: objective name → offset (0 unless payoff);
+    ``sources``: objective name → "payoff", "initial", "natural" or "none"; ``constant``: objective names that
+    do not depend on the design variables; ``payoff``: the payoff table (rows: the objective maximised)."""
 
     method: str
     reference: dict[str, float]
     sources: dict[str, str]
     note: str = ""
+    offset: dict[str, float] = field(default_factory=dict)
+    constant: tuple[str, ...] = ()
+    payoff: dict[str, Any] | None = None
 
     @classmethod
     def build(cls, method: str, initial: Mapping[str, float], natural: Mapping[str, float]) -> Normaliser:
-        """From the initial objective values and the natural units (both keyed by objective name)."""
+        """From the initial objective values and the natural units (both keyed by objective name); for
+        ``"payoff"`` use ``from_payoff``."""
         _choice("normalisation", method, NORMALISATIONS)
         ref, src = {}, {}
         for name, g0 in initial.items():
@@ -233,32 +259,104 @@ class Normaliser:
                 ref[name], src[name] = abs(float(g0)), "initial"
             else:
                 ref[name], src[name] = unit, "natural"
-        notes = {"initial": "each objective divided by |its value at the initial design|, or by its natural unit "
-                            "when that value is below 1e-3 of the unit",
+        notes = {"initial": "each objective divided by |its value at the initial design| (start-dependent: the "
+                            "optimum moves with the starting design), or by its natural unit when that value is "
+                            "below 1e-3 of the unit",
                  "natural": "each objective divided by its natural unit",
-                 "none": "raw units (max-min compares unlike quantities)"}
-        note = notes[method] + ("; natural units: FOV 1−cos(α/2), focus 1, resolution ω px, resolvability "
-                                "√N·fx/Z̃ px/mm (per pose; ×L for sums)")
+                 "none": "raw units (max-min compares unlike quantities)",
+                 "payoff": "natural units (payoff table not computed)"}
+        note = notes[method] + _UNITS_NOTE
         return cls(method, ref, src, note)
 
+    @classmethod
+    def from_payoff(cls, names: Sequence[str], table: np.ndarray, natural: Mapping[str, float],
+                    sampled_range: np.ndarray | None = None, sampled_min: np.ndarray | None = None) -> Normaliser:
+        """The ideal/nadir normaliser of a payoff table ``table`` (K, K): row i = the raw objectives at the
+        design that maximises objective i alone. ``sampled_range``/``sampled_min`` (K,): the range and minimum
+        of each objective over a fixed sample of the design space (decide ``constant``, and the nadir when the
+        table gives no spread: objectives that do not conflict)."""
+        table = np.asarray(table, dtype=float)
+        ideal = np.diag(table).copy()
+        ideal = np.maximum(ideal, table.max(axis=0))
+        nadir = table.min(axis=0)
+        ref, off, src, constant = {}, {}, {}, []
+        for i, name in enumerate(names):
+            unit = float(natural[name])
+            spread = ideal[i] - nadir[i]
+            varies = sampled_range is None or sampled_range[i] > TINY_REL * unit
+            if spread <= TINY_REL * unit and varies and sampled_min is not None:
+                nadir[i] = min(nadir[i], float(sampled_min[i]))  # no conflict: worst sampled design as nadir
+                spread = ideal[i] - nadir[i]
+            if spread <= TINY_REL * unit and not varies:
+                ref[name], off[name], src[name] = unit, float(ideal[i]), "natural"
+                constant.append(name)
+            elif spread <= TINY_REL * unit:
+                ref[name], off[name], src[name] = unit, float(nadir[i]), "natural"
+            else:
+                ref[name], off[name], src[name] = float(spread), float(nadir[i]), "payoff"
+        note = ("ideal/nadir from the payoff table: each objective maximised alone over the design space (on "
+                "features); ĝ = (g − nadir)/(ideal − nadir), 1 = the objective's own optimum, 0 = its worst at the "
+                "other objectives' optima — independent of the starting design")
+        if constant:
+            note += f"; constant over the design space (left out of the combination): {', '.join(constant)}"
+        payoff = {"names": list(names), "table": table.tolist(), "ideal": ideal.tolist(), "nadir": nadir.tolist()}
+        return cls("payoff", ref, src, note + _UNITS_NOTE, off, tuple(constant), payoff)
+
     def normalise(self, values: Mapping[str, Any]) -> dict[str, Any]:
-        return {k: np.asarray(v) / self.reference[k] for k, v in values.items()}
+        return {k: (np.asarray(v) - self.offset.get(k, 0.0)) / self.reference[k] for k, v in values.items()}
 
     def to_dict(self) -> dict[str, Any]:
-        return {"method": self.method, "reference": dict(self.reference), "sources": dict(self.sources),
-                "note": self.note}
+        out = {"method": self.method, "reference": dict(self.reference), "sources": dict(self.sources),
+               "note": self.note}
+        if self.offset:
+            out["offset"] = dict(self.offset)
+        if self.constant:
+            out["constant"] = list(self.constant)
+        if self.payoff is not None:
+            out["payoff"] = self.payoff
+        return out
 
 
-def combine(G: np.ndarray, config: ObjectiveConfig, names: Sequence[str]) -> np.ndarray:
-    """The scalar to MAXIMISE from normalised objectives ``G`` (..., K) in ``names`` order (module docstring).
-    For "constraint" the thresholded objectives are excluded (they are constraints); for "pareto" the
-    max-min value is returned (the chosen point's criterion)."""
-    G = np.asarray(G, dtype=float)
+_UNITS_NOTE = ("; natural units: FOV 1−cos(α/2), focus 1, resolution ω px, resolvability √N·fx/Z̃ px/mm (per pose; "
+               "×L for sums)")
+
+
+def combined_indices(config: ObjectiveConfig, names: Sequence[str], constant: Sequence[str] = ()) -> list[int]:
+    """Indices (in ``names`` order) of the objectives that enter the combination: not thresholded (for
+    "constraint") and not ``constant`` (unless every one is)."""
     keys = [ObjectiveConfig.key(n) for n in names]
     use = [i for i, k in enumerate(keys) if k in config.objective_measures]
+    varying = [i for i in use if names[i] not in set(constant)]
+    return varying or use
+
+
+def combine(G: np.ndarray, config: ObjectiveConfig, names: Sequence[str], constant: Sequence[str] = ()) -> np.ndarray:
+    """The scalar to MAXIMISE from normalised objectives ``G`` (..., K) in ``names`` order (module docstring).
+    For "constraint" the thresholded objectives are excluded (they are constraints), and so are the
+    ``constant`` ones (they do not depend on the design); for "pareto" the max-min value is returned (the
+    chosen point's criterion)."""
+    G = np.asarray(G, dtype=float)
+    keys = [ObjectiveConfig.key(n) for n in names]
+    use = combined_indices(config, names, constant)
     if config.combine in ("maxmin", "pareto"):
         return G[..., use].min(axis=-1)
     if not use:  # constraint with every measure thresholded: no objective left
         return np.zeros(G.shape[:-1])
     w = np.array([config.weights.get(keys[i], 1.0) for i in use])
     return G[..., use] @ w
+
+
+def leximin_key(G_normalised: np.ndarray) -> np.ndarray:
+    """The normalised objectives (..., K) sorted ascending: max-min compares the first entry, leximin the
+    next ones on ties (the worst objective, then the next-worst, ...)."""
+    return np.sort(np.asarray(G_normalised, dtype=float), axis=-1)
+
+
+def leximin_better(a: np.ndarray, b: np.ndarray, tol: float = 1e-7) -> bool:
+    """Whether sorted vector ``a`` beats ``b`` lexicographically, entries within ``tol`` counted equal."""
+    for x, y in zip(np.asarray(a).ravel(), np.asarray(b).ravel(), strict=True):
+        if x > y + tol:
+            return True
+        if x < y - tol:
+            return False
+    return False

@@ -22,6 +22,8 @@ from cadfeat.design.objectives import (
     ObjectiveConfig,
     aggregate,
     combine,
+    combined_indices,
+    leximin_key,
     natural_units,
     per_pose_values,
 )
@@ -56,13 +58,16 @@ class Problem:
 
     ``T_task_part`` (4,4) places the part in the task frame of ``trajectory`` (``T_task_cam`` poses);
     ``fixed_mask`` (N,) marks holes that may not move (kept out of the constraints that only concern
-    moving holes). ``normaliser`` defaults to ``Normaliser.build(objective_config.normalisation, g(x0),
-    natural units at x0)``.
+    moving holes). ``normaliser`` defaults to the objective config's ``normalisation``: for ``"payoff"``
+    (default) the payoff table of the design space (``payoff_normaliser``), else ``Normaliser.build(method,
+    g(x0), natural units at x0)``. ``feature_mask`` (N,) bool: the holes whose FOV/focus/resolution are scored
+    (default: the movable ones, all when none moves).
     """
 
     def __init__(self, space: DesignSpace, model: FeatureModel, camera: Any, trajectory: Any,
                  T_task_part: np.ndarray, objective_config: ObjectiveConfig, constraint_config: ConstraintConfig,
-                 fixed_mask: Any = None, *, occlusion_mesh: Any = None, normaliser: Normaliser | None = None):
+                 fixed_mask: Any = None, *, occlusion_mesh: Any = None, normaliser: Normaliser | None = None,
+                 feature_mask: Any = None):
         self.space = space
         self.model = model
         self.camera = camera
@@ -73,35 +78,121 @@ class Problem:
         n = len(model.holes)
         self.fixed_mask = np.zeros(n, dtype=bool) if fixed_mask is None else np.asarray(fixed_mask, dtype=bool)
         self.occlusion_mesh = occlusion_mesh
-        self.feature_mask = ~self.fixed_mask if (~self.fixed_mask).any() else None
+        if feature_mask is not None:
+            self.feature_mask = np.asarray(feature_mask, dtype=bool)
+        else:
+            self.feature_mask = ~self.fixed_mask if (~self.fixed_mask).any() else None
         self.T_cam_part = invert_T(np.asarray(trajectory.T_task_cam, dtype=float)) @ self.T_task_part
         self.screws = np.asarray(trajectory.velocity_screws(), dtype=float)
         self.cset = ConstraintSet(model.holes, constraint_config, self.fixed_mask)
         self.names = objective_config.names
         self.n_evals = 0
-        c0, _, _ = model.features(space.x0)
+        c0, _, _ = model.features(0.5 * (space.lower + space.upper))  # the box centre: not start-dependent
         depth = np.einsum("lij,nj->lni", self.T_cam_part[:, :3, :3], c0)[..., 2] + self.T_cam_part[:, None, 2, 3]
         self.units = natural_units(objective_config, camera, len(self.screws), n, float(np.median(depth)))
-        unit_by_name = {MEASURES[m]: u for m, u in self.units.items()}
-        if normaliser is None:
-            g0 = self.features_objectives(*model.features(space.x0))
-            normaliser = Normaliser.build(objective_config.normalisation, dict(zip(self.names, g0, strict=True)),
-                                          unit_by_name)
-        self.normaliser = normaliser
-        self.scales = np.array([normaliser.reference[n] for n in self.names])
+        self._unit_by_name = {MEASURES[m]: u for m, u in self.units.items()}
+        self._normaliser = normaliser  # built on first use (``normaliser``): the payoff table costs solves
         keys = [ObjectiveConfig.key(nm) for nm in self.names]
         self._thr_idx = np.array([i for i, k in enumerate(keys) if k in objective_config.thresholds], dtype=int)
         self._thr = np.array([objective_config.thresholds[keys[i]] for i in self._thr_idx])
 
+    @property
+    def normaliser(self) -> Normaliser:
+        """The objective scales (class docstring), built on first use."""
+        if self._normaliser is None:
+            cfg = self.objective_config
+            if cfg.normalisation == "payoff":
+                self._normaliser = self.payoff_normaliser(self._unit_by_name)
+            else:
+                g0 = self.features_objectives(*self.model.features(self.space.x0))
+                method = "natural" if cfg.normalisation == "payoff" else cfg.normalisation
+                self._normaliser = Normaliser.build(method, dict(zip(self.names, g0, strict=True)),
+                                                    self._unit_by_name)
+        return self._normaliser
+
+    @property
+    def scales(self) -> np.ndarray:
+        return np.array([self.normaliser.reference[n] for n in self.names])
+
+    @property
+    def offsets(self) -> np.ndarray:
+        return np.array([self.normaliser.offset.get(n, 0.0) for n in self.names])
+
+    @property
+    def combined_idx(self) -> np.ndarray:
+        """Indices of the objectives in the combination (``objectives.combined_indices``)."""
+        return np.array(combined_indices(self.objective_config, self.names, self.normaliser.constant), dtype=int)
+
+    def payoff_normaliser(self, unit_by_name: dict[str, float], samples: int = 32) -> Normaliser:
+        """The ideal/nadir ``Normaliser`` of the payoff table (``Normaliser.from_payoff``): each objective
+        maximised alone on features (multi-start from the scaled Sobol points of ``optimize.sobol_starts``
+        and the design-space centre — never from the starting design), under the same 2-D constraints;
+        plus ``samples`` fixed Sobol designs (those meeting the 2-D constraints) to tell an objective that does
+        not depend on the design (constant) from non-conflicting ones."""
+        from dataclasses import replace
+
+        from cadfeat.design.optimize import OptimizerConfig, optimise
+        from cadfeat.design.optimize.solvers import sobol_starts
+
+        cfg = self.objective_config
+        natural = Normaliser.build("natural", dict.fromkeys(self.names, 1.0), unit_by_name)
+        space = self.space
+        centre = 0.5 * (space.lower + space.upper)
+        table = []
+        for m in cfg.measures:
+            sub_cfg = replace(cfg, measures=(m,), combine="weighted", weights={}, thresholds={},
+                              normalisation="natural")
+            sub_norm = Normaliser.build("natural", {MEASURES[m]: 1.0}, unit_by_name)
+            sub = Problem(replace(space, x0=centre), self.model, self.camera, self.trajectory, self.T_task_part,
+                          sub_cfg, self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
+                          normaliser=sub_norm, feature_mask=self.feature_mask)
+            sub._depth_maps = self.occlusion  # the same poses: share the depth maps
+            res = optimise(sub, OptimizerConfig(method="multistart", starts=4, maxiter=60, seed=0,
+                                                snap_standard_sizes=False), x_start=centre)
+            table.append(res.x_best)
+        X = np.vstack(table)
+        G = self.batch_objectives(*self._features_batch(X))
+        U = sobol_starts(space.size, samples, 12345)
+        c, a, r = self._features_batch(space.lower + U * (space.upper - space.lower))
+        S = self.batch_objectives(c, a, r)
+        feasible = self.cset.stacked(c, r).min(axis=-1, initial=0.0) >= -1e-6  # the kept requirements hold
+        S = np.vstack([S[feasible], G])
+        rng = np.ptp(S, axis=0)
+        normaliser = Normaliser.from_payoff(self.names, G, natural.reference, rng, S.min(axis=0))
+        normaliser.payoff["designs"] = X.tolist()
+        return normaliser
+
+    def _features_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        centres, axes, radii = self.model.features_batch(np.atleast_2d(X))
+        return centres, np.broadcast_to(axes, centres.shape), radii
+
+    def normalised(self, G: np.ndarray) -> np.ndarray:
+        """Normalised objectives ĝ = (g − offset)/scale (..., K) of raw objectives G (..., K)."""
+        return (np.asarray(G, dtype=float) - self.offsets) / self.scales
+
+    def leximin_key(self, G: np.ndarray) -> np.ndarray:
+        """Sorted normalised combined objectives (..., K') of raw G: the max-min value first, then the
+        next-worst, ... (``objectives.leximin_key``)."""
+        return leximin_key(self.normalised(G)[..., self.combined_idx])
+
+    def limiting(self, G: np.ndarray) -> str:
+        """Name of the objective that limits a max-min value (the smallest normalised combined objective)."""
+        Gn = self.normalised(G)[..., self.combined_idx]
+        return self.names[int(self.combined_idx[int(np.argmin(Gn))])]
+
     # ------------------------------------------------------------------------------- single designs
     def with_model(self, model: FeatureModel) -> Problem:
         """The same problem on another feature model (same normaliser, so values stay comparable)."""
-        return Problem(self.space, model, self.camera, self.trajectory, self.T_task_part, self.objective_config,
-                       self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
-                       normaliser=self.normaliser)
+        other = Problem(self.space, model, self.camera, self.trajectory, self.T_task_part, self.objective_config,
+                        self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
+                        normaliser=self.normaliser, feature_mask=self.feature_mask)
+        other._depth_maps = getattr(self, "_depth_maps", None)
+        return other
 
-    def measures_from_features(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
-        """``measures.evaluate`` of hole features (part frame) along the trajectory."""
+    def measures_from_features(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                               exact_occlusion: bool = False) -> Any:
+        """``measures.evaluate`` of hole features (part frame) along the trajectory; occlusion by the
+        optimiser's depth maps, or by the exact ray test against the mesh with ``exact_occlusion``."""
         from cadfeat import measures
 
         cfg = self.objective_config
@@ -109,14 +200,34 @@ class Problem:
             raise CadfeatError(f"a design gives a hole radius ≤ 0 mm: {np.asarray(radii).tolist()}")
         return measures.evaluate(self.camera, self.T_cam_part, self.screws, centres, axes, radii,
                                  min_axis_px=cfg.min_axis_px, rotation_length_mm=cfg.rotation_length_mm,
-                                 occlusion_mesh=self.occlusion_mesh)
+                                 occlusion_mesh=self.occlusion_mesh if exact_occlusion else self.occlusion)
+
+    @property
+    def occlusion(self) -> Any:
+        """The optimiser's occlusion test: depth maps of ``occlusion_mesh`` at the trajectory's poses
+        (``measures.depth.DepthMaps``, built once on first use), or None without a mesh."""
+        if self.occlusion_mesh is None:
+            return None
+        if getattr(self, "_depth_maps", None) is None:
+            from cadfeat.measures.depth import DepthMaps
+
+            self._depth_maps = DepthMaps(self.occlusion_mesh, self.camera, self.T_cam_part, grid=128)
+        maps = self._depth_maps
+        n = len(self.T_cam_part)
+        if maps.n_poses != n and n % maps.n_poses == 0:
+            # poses stacked as S copies of the trajectory, each seen from a slightly displaced camera (the
+            # robustness sampling): the nominal pose's depth map stands for its displaced copies
+            return maps.tile(n // maps.n_poses)
+        return maps
 
     def measures(self, x: np.ndarray) -> Any:
         return self.measures_from_features(*self.model.features(np.asarray(x, dtype=float)))
 
-    def features_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """Raw aggregated objectives (K,) in ``names`` order from hole features."""
-        m = self.measures_from_features(centres, axes, radii)
+    def features_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                            exact_occlusion: bool = False) -> np.ndarray:
+        """Raw aggregated objectives (K,) in ``names`` order from hole features (``exact_occlusion``: as
+        ``measures_from_features``; the reported before/after values use it)."""
+        m = self.measures_from_features(centres, axes, radii, exact_occlusion)
         cfg = self.objective_config
         values = per_pose_values(m, cfg, self.feature_mask)
         return np.array([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k]) for k in cfg.measures])
@@ -180,7 +291,7 @@ class Problem:
         cfg = self.objective_config
         if cfg.combine == "constraint" and not cfg.objective_measures:
             return ((np.asarray(G)[..., self._thr_idx] - self._thr) / self.scales[self._thr_idx]).min(axis=-1)
-        return combine(np.asarray(G) / self.scales, cfg, self.names)
+        return combine(self.normalised(G), cfg, self.names, self.normaliser.constant)
 
     # ------------------------------------------------------------------------------ scalar helpers
     def objectives(self, x: np.ndarray) -> dict[str, float]:
@@ -189,7 +300,7 @@ class Problem:
         return dict(zip(self.names, map(float, G[0]), strict=True))
 
     def normalised_objectives(self, x: np.ndarray) -> dict[str, float]:
-        return {k: v / self.normaliser.reference[k] for k, v in self.objectives(x).items()}
+        return self.normaliser.normalise(self.objectives(x))
 
     def combined(self, x: np.ndarray) -> float:
         """The combined objective to maximise at ``x``."""

@@ -8,8 +8,14 @@ summed from the per-point 2×6 blocks, its eigenvalues give σ_min / condition /
 Λ = ‖J γ̇‖/‖γ̃‖ (``resolvability``); only rank-deficient poses build J̃ and take a pseudo-inverse.
 
 Jacobian weighting: a feature's two Jacobian rows count (weight 1) only where it is ``visible`` (in
-front of the camera, facing it, its rim inside the image, and not occluded when a mesh is given); the
-rows of invisible features are zero — the estimator could not measure them. The diagnostics use the
+front of the camera, facing it, its rim inside the image, inside the lens's valid field (``Camera.fold_radius``:
+past it rays fold back into the image) and not hidden by the part when a mesh is given); the rows of
+invisible features are zero — the estimator could not measure them.
+
+Hidden and folded feature-poses (DESIGN.md trust rules): a hole the part hides at a pose, or one past the
+lens's fold radius, never scores better there than the same hole seen — its FOV (cone and image), focus
+and resolution margins at that pose are −|margin| (never positive: the requirement fails there, and the
+farther it is from being met the worse). The diagnostics use the
 scaled Jacobian J̃ = J diag(1, 1, 1, 1/ℓ, 1/ℓ, 1/ℓ) (ℓ = ``rotation_length_mm``), so every column is in px/mm;
 with the default ℓ = 1 mm that is the thesis's J.
 """
@@ -49,7 +55,8 @@ class Measures:
     (eq. 3.6, normalised), ``resolution_px`` (minor axis − min_axis_px), ``minor_axis_px``, ``facing``
     (cos), ``visible`` (bool), ``centre_px`` (L, N, 2), ``axes_px`` (L, N, 2), ``angle_rad``.
     Per pose (L,): ``sigma_min``, ``condition``, ``manipulability`` (eq. 4.20–4.21), ``singular`` (bool),
-    ``resolvability`` Λ_k (eq. 4.32, px/mm).
+    ``resolvability`` Λ_k (eq. 4.32, px/mm). ``hidden`` (L, N) bool: hidden by the part (occlusion mesh);
+    ``folded`` (L, N) bool: past the lens's fold radius (module docstring).
     """
 
     fov: np.ndarray
@@ -67,6 +74,8 @@ class Measures:
     manipulability: np.ndarray
     singular: np.ndarray
     resolvability: np.ndarray
+    hidden: np.ndarray
+    folded: np.ndarray
 
     def as_dict(self) -> dict[str, np.ndarray]:
         """The arrays by field name."""
@@ -103,7 +112,8 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
     """All measures (``Measures``) of holes (centres (N, 3) mm, axes (N, 3) out of the material, radii (N,) mm,
     part frame) seen from poses ``T_cam_part`` (L, 4, 4) moving with ``screws`` (L, 6) = (v mm/s, ω rad/s)
     in the camera frame. ``occlusion_mesh``: optional ``trimesh.Trimesh`` of the part (part frame) for the
-    ray occlusion test of ``visible``. ``resolution_model``: "circle" (default, the rim's exact ellipse) or
+    exact ray occlusion test of ``visible``, or ``measures.depth.DepthMaps`` of the part at these same poses
+    (the optimiser's fast test). ``resolution_model``: "circle" (default, the rim's exact ellipse) or
     "sphere" (the thesis's eq. 3.13–3.18: ``minor_axis_px`` and ``resolution_px`` from the outline of a
     sphere of the rim's radius; the reported ellipses stay the rim's).
 
@@ -129,7 +139,8 @@ def evaluate(camera: Camera, T_cam_part: ArrayLike, screws: ArrayLike, centres: 
     step = max(1, BLOCK_ELEMENTS // max(1, N))
     for i in range(0, L, step):  # slabs of whole pose blocks (cache blocking), each fully batched
         sl = slice(i, i + step)
-        _evaluate(camera, T[sl], s[sl], c, n, r, min_axis_px, rotation_length_mm, occlusion_mesh,
+        occ = occlusion_mesh.select(sl) if hasattr(occlusion_mesh, "select") else occlusion_mesh
+        _evaluate(camera, T[sl], s[sl], c, n, r, min_axis_px, rotation_length_mm, occ,
                   {k: v[sl] for k, v in out.items()}, resolution_model == "sphere")
     return Measures(**out)
 
@@ -142,6 +153,7 @@ def _allocate(L: int, N: int) -> dict[str, np.ndarray]:
     out = {k: np.empty((L, N)) for k in _PER_FEATURE}
     out.update({k: np.empty(L) for k in _PER_POSE})
     out.update(visible=np.empty((L, N), dtype=bool), singular=np.empty(L, dtype=bool),
+               hidden=np.zeros((L, N), dtype=bool), folded=np.zeros((L, N), dtype=bool),
                centre_px=np.empty((L, N, 2)), axes_px=np.empty((L, N, 2)))
     return out
 
@@ -175,14 +187,13 @@ def _evaluate_compiled(kernel: Any, camera: Camera, T: np.ndarray, s: np.ndarray
     visible, valid = np.empty((L, N), dtype=bool), np.empty((L, N), dtype=bool)
     centre, axes_px, lens = np.empty((L, N, 2)), np.empty((L, N, 2)), np.empty((7, L, N))
     kernel(X, Y, Z, nx, ny, nz, nc, dist2, r, cam, mode, consts, sphere, f, visible, valid, centre, axes_px, lens)
-    if occlusion_mesh is not None:
-        visible &= ~occluded(occlusion_mesh, -rt, c, n)
     if not valid.all():  # invalid ellipses: the (depth-clamped) projection of the centre
         bad = ~valid
         centre[bad] = camera.distort_normalized(np.stack([lens[0][bad], lens[1][bad]], axis=-1))
     out = dict(zip(("fov", "fov_px", "focus", "resolution_px", "minor_axis_px", "facing", "angle_rad"), f,
                    strict=True))
     out.update(visible=visible, centre_px=centre, axes_px=axes_px)
+    out.update(_unseen(camera, lens[0], lens[1], r * lens[2], Z, occlusion_mesh, -rt, c, n, out))
     out.update({k: np.empty(L) for k in _PER_POSE}, singular=np.empty(L, dtype=bool))
     D = list(lens[3:]) if mode else [camera.fx, 0.0, 0.0, camera.fy]
     _jacobian_measures(lens[0], lens[1], lens[2], D, visible, s, rotation_length_mm, out)
@@ -206,8 +217,6 @@ def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np
     np.greater(facing, 0.0, out=visible)
     visible &= ell.valid
     visible &= fov_px >= 0
-    if occlusion_mesh is not None:
-        visible &= ~occluded(occlusion_mesh, -rt, c, n)
     np.subtract(Z * inv_dist, np.cos(0.5 * camera.fov_rad), out=out["fov"])
     out["focus"][...] = focus_margin_depth(camera, Z)
     res = ell
@@ -227,7 +236,36 @@ def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np
     if not ell.valid.all():  # invalid ellipses: the (depth-clamped) projection of the centre
         bad = ~ell.valid
         centre[bad] = camera.distort_normalized(np.stack([x[bad], y[bad]], axis=-1))
+    flags = _unseen(camera, x, y, r * inv_z, Z, occlusion_mesh, -rt, c, n, out)
+    out["hidden"][...] = flags["hidden"]
+    out["folded"][...] = flags["folded"]
     _jacobian_measures(x, y, inv_z, D, visible, s, rotation_length_mm, out)
+
+
+def _unseen(camera: Camera, x: np.ndarray, y: np.ndarray, rim_reach: np.ndarray, Z: np.ndarray, mesh: Any,
+            camera_positions: np.ndarray, c: np.ndarray, n: np.ndarray,
+            out: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Hidden (by ``mesh``) and folded (past ``camera.fold_radius``: the centre's normalised radius plus the
+    rim's angular reach R/Z) feature-poses: not ``visible``, and their FOV, focus and resolution margins
+    −|margin| (module docstring). Modifies ``out`` in place; returns {"hidden", "folded"} (L, N) bool."""
+    L, N = x.shape
+    r_fold = camera.fold_radius
+    folded = np.zeros((L, N), dtype=bool)
+    if np.isfinite(r_fold):
+        folded = (np.hypot(x, y) + np.abs(rim_reach) > r_fold) & (Z > MIN_DEPTH_MM)
+    if mesh is None:
+        hidden = np.zeros((L, N), dtype=bool)
+    elif hasattr(mesh, "hidden"):  # depth maps of the part at these poses (``measures.depth.DepthMaps``)
+        hidden = mesh.hidden(x * Z, y * Z, Z)
+    else:  # the exact ray test against the mesh
+        hidden = occluded(mesh, camera_positions, c, n)
+    unseen = hidden | folded
+    if unseen.any():
+        out["visible"] &= ~unseen
+        for key in ("fov", "fov_px", "focus", "resolution_px"):
+            a = out[key]
+            a[unseen] = -np.abs(a[unseen])
+    return {"hidden": hidden, "folded": folded}
 
 
 def _jacobian_measures(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list, visible: np.ndarray,

@@ -151,20 +151,24 @@ def predicted_ellipses(camera: Camera, holes: Sequence[Hole], T_cam_part: np.nda
 
 def draw_hole_overlay(image: np.ndarray, camera: Camera, holes: Sequence[Hole], T_cam_part: np.ndarray) -> np.ndarray:
     """Copy of ``image`` with each hole's predicted rim ellipse (green, ``measures.hole_ellipse``), its
-    projected centre (red cross, ``Camera.project``) and its name. Holes whose rim is not wholly in
-    front of the camera (invalid ellipse) are skipped."""
+    projected centre (red cross, ``Camera.project``) and its name (``H<i+1>`` when the hole has none, the
+    numbering of every other output). Holes whose rim is not wholly in front of the camera (invalid ellipse)
+    or reaches past the lens's fold radius (``Camera.fold_radius``: the image there is folded) are skipped."""
     import cv2
 
     from cadfeat.cad.features import holes_to_arrays
 
     out = np.ascontiguousarray(image.copy())
-    centres, _, _ = holes_to_arrays(holes)
+    centres, _, radii = holes_to_arrays(holes)
     ellipses = predicted_ellipses(camera, holes, T_cam_part)
-    centre_px = camera.project(centres @ T_cam_part[:3, :3].T + T_cam_part[:3, 3])
+    P = centres @ T_cam_part[:3, :3].T + T_cam_part[:3, 3]
+    centre_px = camera.project(P)
+    z = np.maximum(P[:, 2], 1e-9)
+    folded = np.hypot(P[:, 0] / z, P[:, 1] / z) + radii / z > camera.fold_radius
     shift = 4  # cv2 sub-pixel drawing: coordinates scaled by 2**shift
     scale = 1 << shift
     limit = 4.0 * max(camera.width, camera.height)  # cv2 drawing needs bounded integers
-    for j in np.flatnonzero(np.asarray(ellipses.valid)):
+    for j in np.flatnonzero(np.asarray(ellipses.valid) & ~folded):
         c, ax = np.asarray(ellipses.centre_px)[j], np.asarray(ellipses.axes_px)[j]
         if not (np.all(np.isfinite(c)) and np.all(np.abs(c) < limit) and 0 < ax[0] < limit):
             continue
@@ -174,7 +178,7 @@ def draw_hole_overlay(image: np.ndarray, camera: Camera, holes: Sequence[Hole], 
                     ELLIPSE_COLOUR_RGB, 1, cv2.LINE_AA, shift)
         p = np.round(centre_px[j]).astype(int)
         cv2.drawMarker(out, (int(p[0]), int(p[1])), CENTRE_COLOUR_RGB, cv2.MARKER_CROSS, 7, 1)
-        _label(out, holes[j].name or str(j), (int(p[0]) + 6, int(p[1]) - 6))
+        _label(out, holes[j].name or f"H{j + 1}", (int(p[0]) + 6, int(p[1]) - 6))
     return out
 
 

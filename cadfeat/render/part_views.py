@@ -177,7 +177,7 @@ def _picture_mesh(shape: Any) -> Any:
 
 
 def _hole_name(hole: Hole, index: int) -> str:
-    return hole.name or f"#{index}"
+    return hole.name or f"H{index + 1}"
 
 
 def _label_anchor(holes: Sequence[Hole], mesh: Any) -> np.ndarray:

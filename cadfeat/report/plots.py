@@ -80,8 +80,8 @@ def _design_label(results: dict, which: str) -> str:
 
 def _feature_names(results: dict, which: str, n: int) -> list[str]:
     feats = (_measures(results, which) or {}).get("per_feature") or []
-    names = [str(f.get("name") or f"#{f.get('index', i)}") for i, f in enumerate(feats)]
-    return names if len(names) == n else [f"#{i}" for i in range(n)]
+    names = [str(f.get("name") or f"H{f.get('index', i) + 1}") for i, f in enumerate(feats)]
+    return names if len(names) == n else [f"H{i + 1}" for i in range(n)]
 
 
 # ------------------------------------------------------------------------------------------------ the plots

@@ -39,7 +39,7 @@ def _change_css(before: Any, after: Any) -> str:
 
 
 def _label(item: dict, index: Any) -> str:
-    return str(item.get("name") or f"hole {index}")
+    return str(item.get("name") or f"H{index + 1}")
 
 
 # ------------------------------------------------------------------------------------------------ summary

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from cadfeat.errors import CadfeatError
-from cadfeat.report import tables
+from cadfeat.report import tables, trust
 from cadfeat.report.context import ReportContext
 from cadfeat.report.holes import hole_table
 from cadfeat.report.html import data_uri, esc, figure, fmt, note, page, section
@@ -220,6 +220,7 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
     builders: list[tuple[str, str, Callable[[], str]]] = [
         ("decision", "Decision", lambda: "" if tables.is_evaluation(results) else verdict_section(results)),
         ("summary", "Summary", lambda: tables.summary(results)),
+        ("trust", "What limits the answer", lambda: trust.section(results)),
         ("requirements", "Kept requirements (checked on the rebuilt geometry)",
          lambda: requirements_table(results)),
         ("holes", "Hole table (shop-ready)", lambda: "" if tables.is_evaluation(results) else hole_table(results)),

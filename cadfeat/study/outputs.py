@@ -105,16 +105,23 @@ def worst_poses(m: Any, min_axis_px: float, half_image_px: float) -> np.ndarray:
 
 def measures_summary(m: Any, names: Sequence[str], times_s: np.ndarray, min_axis_px: float,
                      half_image_px: float) -> dict[str, Any]:
-    """results.json ``M``: per-feature minima over the trajectory and per-pose series (contracts)."""
+    """results.json ``M``: per-feature minima over the trajectory and per-pose series (contracts); per feature
+    also ``hidden_frac`` (share of poses where the part hides it, occlusion ray test), ``hidden_worst_pose``
+    (first such pose, or None) and ``folded_frac`` (share past the lens's fold radius)."""
     fov = np.asarray(m.fov, float)
     L, N = fov.shape
     fov_px, focus = _arr(m, "fov_px", (L, N)), _arr(m, "focus", (L, N))
     res = _arr(m, "resolution_px", (L, N))
     visible = np.asarray(m.visible, bool)
     worst = worst_poses(m, min_axis_px, half_image_px)
+    hidden = np.asarray(getattr(m, "hidden", np.zeros((L, N), bool)), bool)
+    folded = np.asarray(getattr(m, "folded", np.zeros((L, N), bool)), bool)
     per_feature = [{"index": j, "name": names[j], "fov_min": fov[:, j].min(), "fov_px_min": fov_px[:, j].min(),
                     "focus_min": focus[:, j].min(), "resolution_px_min": res[:, j].min(),
-                    "visible_frac": visible[:, j].mean(), "worst_pose": int(worst[j])} for j in range(N)]
+                    "visible_frac": visible[:, j].mean(), "worst_pose": int(worst[j]),
+                    "hidden_frac": hidden[:, j].mean(),
+                    "hidden_worst_pose": int(np.argmax(hidden[:, j])) if hidden[:, j].any() else None,
+                    "folded_frac": folded[:, j].mean()} for j in range(N)]
     per_pose = {"time_s": np.asarray(times_s, float), "resolvability": _arr(m, "resolvability", (L,)),
                 "sigma_min": _arr(m, "sigma_min", (L,)), "condition": _arr(m, "condition", (L,)),
                 "fov_min": fov.min(axis=1), "focus_min": focus.min(axis=1), "resolution_px_min": res.min(axis=1),

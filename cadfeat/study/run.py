@@ -44,9 +44,9 @@ from cadfeat.study.outputs import (
     versions,
     write_json,
 )
-from cadfeat.study.preflight import check_visibility
 from cadfeat.study.progress import StudyProgress
 from cadfeat.study.schema import StudyConfig, StudyError, load_study
+from cadfeat.study.trust import objective_changes
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.study.setup import StudySetup
@@ -80,10 +80,20 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
                                                      if results.get("interrupted") else "")]
     for v in results["variables"]:
         lines.append(f"  {v['name']:<16} {_num(v['before']):>10} -> {_num(v['after']):>10} {v['unit']}")
+    units = {c["name"]: c.get("unit", "") for c in obj.get("changes", [])}
     for name in obj["names"]:
-        lines.append(f"  {name:<16} {_num(obj['before'].get(name)):>10} -> {_num(obj['after'].get(name)):>10}")
+        lines.append(f"  {name:<16} {_num(obj['before'].get(name)):>10} -> {_num(obj['after'].get(name)):>10}"
+                     f"  {units.get(name, '')}")
     lines.append(f"  {'combined':<16} {_num(obj.get('combined_before')):>10} -> "
                  f"{_num(obj.get('combined_after')):>10}  ({obj['combine']}, larger is better)")
+    if obj.get("limiting"):
+        lines.append(f"  limiting objective: {obj['limiting']} (before: {obj.get('limiting_before')})")
+    if obj.get("score"):
+        lines.append(f"  scored holes: {obj['score']}")
+    for w in obj.get("warnings", []) + list(results.get("warnings", [])):
+        lines.append(f"  WARNING: {w}")
+    for a in (results.get("preflight") or {}).get("assumptions", []):
+        lines.append(f"  ASSUMED: {a}")
     failed = [c for c in results["constraints"] if not c["ok"]]
     lines.append(f"  kept requirements: {len(results['constraints']) - len(failed)} of {len(results['constraints'])} "
                  "hold (B-rep and re-imported STEP)")
@@ -104,26 +114,30 @@ def _num(x: Any) -> str:
 
 
 # ------------------------------------------------------------------------------------------ scoring
-def measure_holes(setup: StudySetup, holes: Sequence[Any], trajectory: Any = None) -> Any:
-    """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``)."""
+def measure_holes(setup: StudySetup, holes: Sequence[Any], trajectory: Any = None, *, mesh: Any = None) -> Any:
+    """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
+    the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off)."""
     from cadfeat import measures
     from cadfeat.cad.features import holes_to_arrays
 
     traj = trajectory if trajectory is not None else setup.trajectory
     o = setup.config.objective
+    if mesh is None:
+        mesh = getattr(getattr(setup, "problem", None), "occlusion_mesh", None)
     T_cam_part = np.linalg.inv(np.asarray(traj.T_task_cam)) @ setup.T_task_part
     c, a, r = holes_to_arrays(list(holes))
     return measures.evaluate(setup.camera, T_cam_part, traj.velocity_screws(), c, a, r, min_axis_px=o.min_axis_px,
-                             rotation_length_mm=o.rotation_length_mm)
+                             rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
 
 
 def score(setup: StudySetup, holes: Sequence[Any]) -> tuple[dict[str, float], float | None]:
     """The aggregated objectives of real holes and their combined value (larger is better), computed exactly
-    as the optimiser does (``Problem.features_objectives`` / ``combined_from``: same normalisation)."""
+    as the optimiser does (``Problem.features_objectives`` / ``combined_from``: same normalisation), with the
+    exact occlusion ray test (the optimiser uses the part's depth maps, ``measures.depth``)."""
     from cadfeat.cad.features import holes_to_arrays
 
     problem = setup.problem
-    G = problem.features_objectives(*holes_to_arrays(list(holes)))
+    G = problem.features_objectives(*holes_to_arrays(list(holes)), exact_occlusion=True)
     values = dict(zip(problem.names, map(float, G), strict=True))
     if setup.config.objective.combine == "pareto":
         return values, None
@@ -430,7 +444,7 @@ def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int
 
 
 def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], dict[str, Any]]:
-    from cadfeat.study.setup import int_grid, load_scene, setup_script, setup_study
+    from cadfeat.study.setup import int_grid, load_scene, score_rule, setup_script, setup_study
 
     with prog.phase("setup"):
         scene = load_scene(config)
@@ -438,17 +452,17 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         if config.study.part_kind == "step":
             base = setup_study(config)
             setups = [base]
+            m0 = measure_holes(base, base.holes0)
+            pre = _preflight(config, base, m0)  # refuses a study that cannot mean anything, before any work
         else:  # "before" = the part's own integer values; the others share its objective scales
             defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
             base = setup_script(config, defaults, scene)
-            check_visibility(measure_holes(base, base.holes0), config.label)  # before the other combinations
+            m0 = measure_holes(base, base.holes0)
+            pre = _preflight(config, base, m0)  # before the other combinations (and before any optimisation)
             setups = [base] + [setup_script(config, c, scene, base.problem.normaliser) for c in combos
                                if c != defaults]
             if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
                 setups = setups[1:]
-        m0 = measure_holes(base, base.holes0)
-        if config.study.part_kind == "step":  # (script parts: checked above, before the other combinations)
-            check_visibility(m0, config.label)
         obj0, comb0 = score(base, base.holes0)
     best = None
     interrupted = False
@@ -505,7 +519,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
             shape1, holes1, pred_err = _rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
         if targets is not None:
             x1, shape1, holes1, pred_err = _shop_refine(setup, x1, (shape1, holes1, pred_err), targets, shop, model)
-        m1 = measure_holes(setup, holes1)
+        m1 = measure_holes(setup, holes1, mesh=_mesh_of(config, shape1))
         obj1, comb1 = score(setup, holes1)
         checks = _checks(setup, shape1, holes1, "brep")
     with prog.phase("analyse"):
@@ -530,7 +544,9 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         "objectives": {"names": list(obj0), "normalisation": _normalisation(setup),
                        "combine": config.objective.combine, "aggregate": config.objective.aggregate,
                        "before": obj0, "after": obj1, "combined_before": comb0, "combined_after": comb1,
-                       "larger_is_better": True},
+                       "larger_is_better": True, **objective_changes(setup.problem, obj0, obj1),
+                       "score": score_rule(config, base.holes0, _scored(base)),
+                       "occlusion": bool(config.objective.occlusion)},
         "measures": {"before": measures_summary(m0, base.hole_names, base.trajectory.times_s,
                                                 config.objective.min_axis_px, _half_image(base.camera)),
                      "after": measures_summary(m1, [h.name or f"H{i + 1}" for i, h in enumerate(holes1)],
@@ -549,10 +565,63 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
                       "integer_combinations": len(setups),
                       **({"rebuild_failed_at_model_optimum": rebuild_failure} if rebuild_failure else {})},
         "interrupted": bool(interrupted),
+        "preflight": pre.to_dict(),
+        "warnings": list(pre.warnings),
     }
     shapes = {"shape0": base.shape0, "shape1": shape1, "holes0": base.holes0, "holes1": holes1, "setup": setup,
               "base": base}
     return results, shapes
+
+
+def part_points(shape: Any, mesh: Any = None, most: int = 4000) -> np.ndarray:
+    """Points of the part (V, 3) mm, part frame, for the pre-flight: the occlusion mesh's vertices (or a coarse
+    mesh of ``shape``), at most ``most`` of them (evenly strided)."""
+    if mesh is None:
+        from cadfeat.cad.export import mesh_from_shape
+
+        mesh = mesh_from_shape(shape, tolerance=0.5)
+    v = np.asarray(mesh.vertices, float)
+    return v[:: max(1, len(v) // most)]
+
+
+def _preflight(config: StudyConfig, setup: Any, m: Any) -> Any:
+    """``preflight.preflight`` of a set-up study with the measures ``m`` of its holes along the trajectory."""
+    from cadfeat.study.preflight import preflight
+
+    pts = part_points(setup.shape0, getattr(setup.problem, "occlusion_mesh", None))
+    return preflight(config, setup.camera, setup.trajectory, setup.T_task_part, pts, m, _scored(setup),
+                     setup.hole_names)
+
+
+def preflight_study(path_or_dict: Any) -> Any:
+    """The pre-flight of a study on its part as it is (``cadfeat validate``): every hole counts as scored
+    (which holes the design moves needs the design map, which ``run`` builds)."""
+    from cadfeat import measures
+    from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.study.preflight import preflight
+    from cadfeat.study.setup import load_scene, occlusion_mesh
+
+    config = _resolve(path_or_dict, None)
+    camera, traj, T_task_part = load_scene(config)
+    shape, holes, _, names = _current_design(config)
+    mesh = occlusion_mesh(config, shape)
+    o = config.objective
+    T_cam_part = np.linalg.inv(np.asarray(traj.T_task_cam)) @ T_task_part
+    m = measures.evaluate(camera, T_cam_part, traj.velocity_screws(), *holes_to_arrays(list(holes)),
+                          min_axis_px=o.min_axis_px, rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
+    return preflight(config, camera, traj, T_task_part, part_points(shape, mesh), m, np.ones(len(holes), bool),
+                     names)
+
+
+def _mesh_of(config: StudyConfig, shape: Any) -> Any:
+    from cadfeat.study.setup import occlusion_mesh
+
+    return occlusion_mesh(config, shape)
+
+
+def _scored(setup: Any) -> np.ndarray:
+    mask = getattr(setup.problem, "feature_mask", None)
+    return np.ones(len(setup.holes0), bool) if mask is None else np.asarray(mask, bool)
 
 
 class _Anchored:
@@ -813,7 +882,7 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
 
 
 def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: bool, echo: bool) -> dict[str, Any]:
-    from cadfeat.study.setup import load_scene
+    from cadfeat.study.setup import load_scene, score_rule, setup_study
 
     with StudyProgress(config.study.name, enabled=not quiet) as prog:
         with prog.phase("setup"):
@@ -821,14 +890,18 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
             if pose is not None and not 0 <= pose < len(traj):
                 raise StudyError(f"{config.label}: --pose {pose}: allowed: 0..{len(traj) - 1} "
                                  f"(the trajectory has {len(traj)} samples)")
-            shape, holes, fixed, names = _current_design(config)
+            setup = setup_study(config)  # the same holes, names, scored holes and occlusion mesh as ``run``
+            shape, holes, fixed, names = setup.shape0, setup.holes0, setup.fixed_mask, setup.hole_names
         full_traj = traj
         if pose is not None:
             traj = _single_pose(traj, pose)
-        ev = _EvalSetup(config, camera, traj, T_task_part, holes, fixed)
         with prog.phase("measures"):
-            m = measure_holes(ev, holes, traj)
-            values = _plain_objectives(config, m)
+            m = measure_holes(setup, holes, traj)
+            values = _plain_objectives(config, m, setup.problem)
+            pre = _preflight(config, setup, m if pose is None else measure_holes(setup, holes, full_traj))
+            trust = objective_changes(setup.problem, values, None) if pose is None else {}
+            combined = float(setup.problem.combined_from(np.array([values[n] for n in setup.problem.names]))) \
+                if pose is None and config.objective.combine != "pareto" else None
         summary = measures_summary(m, names, traj.times_s, config.objective.min_axis_px, _half_image(camera))
         if pose is not None:  # pose indices of the full trajectory
             for f in summary["per_feature"]:
@@ -842,10 +915,13 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
             "inputs": config.to_dict(), "camera": camera.to_dict(),
             "trajectory": {**_trajectory_info(traj), "kind": config.trajectory.table.get("kind", "csv"),
                            "pose": pose},
-            "holes": {"before": [hole_dict(h, i, fixed[i], not fixed[i]) for i, h in enumerate(holes)]},
+            "holes": {"before": [hole_dict(h, i, fixed[i], setup.movable_mask[i]) for i, h in enumerate(holes)]},
             "objectives": {"names": list(values), "combine": config.objective.combine,
-                           "aggregate": config.objective.aggregate, "before": values},
+                           "aggregate": config.objective.aggregate, "before": values, "combined_before": combined,
+                           **trust, "score": score_rule(config, holes, _scored(setup)),
+                           "occlusion": bool(config.objective.occlusion)},
             "measures": {"before": summary}, "timings_s": dict(prog.timings), "versions": versions(),
+            "preflight": pre.to_dict(), "warnings": list(pre.warnings),
         }
     if echo:
         print(format_table(results, pose))
@@ -915,10 +991,12 @@ class _OnePose:
         return self._screws
 
 
-def _plain_objectives(config: StudyConfig, m: Any) -> dict[str, float]:
+def _plain_objectives(config: StudyConfig, m: Any, problem: Any) -> dict[str, float]:
+    """The aggregated objectives of measures ``m`` exactly as the optimiser scores them (the problem's scored
+    holes ``feature_mask`` and natural units for the smooth min)."""
     from cadfeat.design.objectives import objective_values
 
-    return objective_values(m, config.objective)
+    return objective_values(m, config.objective, problem.units, problem.feature_mask)
 
 
 def format_table(results: Mapping[str, Any], pose: int | None = None) -> str:

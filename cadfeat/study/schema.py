@@ -15,7 +15,7 @@ what must be kept, what to optimise and how (README, "Study files", has a full a
                    both: standard_diameters_mm, fixed = [selectors], patterns = [[selectors], ...]
     [constraints]  edge_distance_mm, ligament_mm, volume_change_max_percent, symmetry
     [objective]    measures, aggregate, combine, weights, thresholds, min_axis_px, rotation_length_mm,
-                   smoothmin_beta, normalisation (initial | natural | none), fov_measure (cone | image)
+                   smoothmin_beta, normalisation (payoff | initial | natural | none), fov_measure (cone | image)
     [optimizer]    method, starts, maxiter, seed, local_solver, snap_standard_sizes
     [tracking]     optional closed-loop check (``cadfeat track``, cadfeat.vision): ``TRACKING_KEYS``
 
@@ -74,12 +74,13 @@ COMBINES = ("weighted", "maxmin", "constraint", "pareto")
 METHODS = ("multistart", "local", "global", "pareto")
 LOCAL_SOLVERS = ("SLSQP", "trust-constr")
 SYMMETRIES = ("none", "x", "y", "xy")
-NORMALISATIONS = ("initial", "natural", "none")
+NORMALISATIONS = ("payoff", "initial", "natural", "none")
+SCORES = ("movable", "all")
 FOV_MEASURES = ("cone", "image")
 #: The keys of ``[objective]`` and ``[optimizer]``: the fields of ``ObjectiveConfig`` / ``OptimizerConfig``
 #: a study file may set (the others keep their defaults).
 OBJECTIVE_KEYS = ("measures", "aggregate", "combine", "weights", "thresholds", "min_axis_px", "rotation_length_mm",
-                  "smoothmin_beta", "normalisation", "fov_measure")
+                  "smoothmin_beta", "normalisation", "fov_measure", "occlusion", "score")
 OPTIMIZER_KEYS = ("method", "starts", "maxiter", "seed", "local_solver", "snap_standard_sizes")
 SCRIPT_SUFFIXES = (".py",)
 STEP_SUFFIXES = (".step", ".stp")
@@ -873,9 +874,23 @@ def _objective_section(t: _Table) -> ObjectiveConfig:
         min_axis_px=t.number("min_axis_px", 5.0, 0.0, lo_open=True),
         rotation_length_mm=t.number("rotation_length_mm", 1.0, 0.0, lo_open=True),
         smoothmin_beta=t.number("smoothmin_beta", 20.0, 0.0, lo_open=True),
-        normalisation=t.string("normalisation", "initial", NORMALISATIONS),
+        normalisation=t.string("normalisation", "payoff", NORMALISATIONS),
         fov_measure=t.string("fov_measure", "cone", FOV_MEASURES),
+        occlusion=t.boolean("occlusion", True),
+        score=_score(t),
     )
+
+
+def _score(t: _Table) -> str | tuple[str, ...]:
+    """``objective.score``: which holes' FOV/focus/resolution are scored — "movable" (default: the holes
+    the design moves; all when none moves), "all", or a list of hole names (checked against the part later)."""
+    raw = t.raw("score", "movable")
+    if isinstance(raw, str) and raw in SCORES:
+        return raw
+    if isinstance(raw, list) and raw and all(isinstance(x, str) and x for x in raw) and len(set(raw)) == len(raw):
+        return tuple(raw)
+    t.fail("objective.score", f"{_fmt(raw)} is not allowed",
+           '"movable", "all" or a non-empty list of distinct hole names (e.g. ["H1", "H3"])')
 
 
 def _measure_table(t: _Table, name: str, measures: Sequence[str], lo: float | None) -> dict[str, float]:

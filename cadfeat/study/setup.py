@@ -108,8 +108,51 @@ def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Any = Non
     tol = max(1e-6, 10 * part.tolerance.linear_mm) if hasattr(part, "tolerance") else 1e-6
     cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]), mirror_tol_mm=tol)
     problem = Problem(args["space"], args["model"], args["camera"], args["trajectory"], args["T_task_part"],
-                      config.objective, cc, args["fixed_mask"], normaliser=normaliser)
+                      config.objective, cc, args["fixed_mask"], normaliser=normaliser,
+                      occlusion_mesh=occlusion_mesh(config, args["shape0"]),
+                      feature_mask=score_mask(config, args["holes"], ~np.asarray(args["fixed_mask"], bool)))
     return problem, cc
+
+
+def occlusion_mesh(config: StudyConfig, shape: Any) -> Any:
+    """The part's triangle mesh (part frame, mm) for the occlusion ray test (``objective.occlusion``, default
+    on), or None. Built once per setup from the part as loaded; each hole's OWN position (as the design moves
+    it) is tested against it, so a hole moved behind an upright is hidden, one moved out from behind it seen."""
+    if not getattr(config.objective, "occlusion", True):
+        return None
+    from cadfeat.cad.export import mesh_from_shape
+
+    return mesh_from_shape(shape, tolerance=0.05)
+
+
+def score_mask(config: StudyConfig, holes: Sequence[Any], movable: np.ndarray) -> np.ndarray:
+    """(N,) bool: the holes whose FOV/focus/resolution are scored (``objective.score``): "movable" (default;
+    every hole when none moves), "all", or a list of hole names (``H<i>`` or the part's own names) — the same
+    rule in ``evaluate`` and ``run``."""
+    rule = getattr(config.objective, "score", "movable")
+    n = len(holes)
+    if rule == "all":
+        return np.ones(n, bool)
+    if rule == "movable":
+        movable = np.asarray(movable, bool)
+        return movable.copy() if movable.any() else np.ones(n, bool)
+    names = [h.name or f"H{i + 1}" for i, h in enumerate(holes)]
+    mask = np.zeros(n, bool)
+    for name in rule:
+        hits = [i for i, h in enumerate(holes) if name in (names[i], f"H{i + 1}")]
+        if not hits:
+            raise StudyError(f"{config.label}: objective.score: no hole named {name!r} in {config.study.part}; "
+                             f"allowed: \"movable\", \"all\" or names from {', '.join(names)}")
+        mask[hits[0]] = True
+    return mask
+
+
+def score_rule(config: StudyConfig, holes: Sequence[Any], mask: np.ndarray) -> str:
+    """One line naming the scored holes and the rule that chose them (output and report)."""
+    rule = getattr(config.objective, "score", "movable")
+    names = [h.name or f"H{i + 1}" for i, h in enumerate(holes)]
+    label = rule if isinstance(rule, str) else "names"
+    return f"objective.score = {label}: " + ", ".join(n for n, m in zip(names, mask, strict=True) if m)
 
 
 def _select(config: StudyConfig, holes: Sequence[Any], spec: Any, key: str, tol_mm: float = 0.01) -> int:
@@ -120,8 +163,11 @@ def _select(config: StudyConfig, holes: Sequence[Any], spec: Any, key: str, tol_
         if 1 <= spec <= len(holes):
             return spec - 1
     elif isinstance(spec, str):
+        for i, h in enumerate(holes):  # the hole's own name first (names are not positions in the list)
+            if h.name and spec in (h.name, h.name.lower()):
+                return i
         for i, h in enumerate(holes):
-            if spec in (h.name, f"H{i + 1}", f"h{i + 1}", str(i + 1)):
+            if not h.name and spec in (f"H{i + 1}", f"h{i + 1}", str(i + 1)):
                 return i
     else:
         centres = np.array([h.centre for h in holes], dtype=float).reshape(-1, 3)

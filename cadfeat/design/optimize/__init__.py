@@ -31,7 +31,14 @@ from typing import Any
 import numpy as np
 
 from cadfeat.design.optimize.evaluator import FEAS_TOL, Evaluator
-from cadfeat.design.optimize.solvers import global_solve, local_solve, multistart, pareto_solve, snap_candidates
+from cadfeat.design.optimize.solvers import (
+    global_solve,
+    leximin_refine,
+    local_solve,
+    multistart,
+    pareto_solve,
+    snap_candidates,
+)
 from cadfeat.errors import CadfeatError
 
 __all__ = ["FEAS_TOL", "METHODS", "OptimResult", "OptimizerConfig", "optimise", "solve_with_cad"]
@@ -146,6 +153,8 @@ def optimise(problem: Any, config: OptimizerConfig | None = None,
             local_solve(ev, ev.to_u(x_start), config)
         else:
             starts = multistart(ev, config)
+        if config.method != "pareto":
+            leximin_refine(ev, config)
         if config.snap_standard_sizes and problem.space.discrete.any():
             _snap(ev, problem, config)
     except KeyboardInterrupt:
@@ -170,7 +179,12 @@ def _snap(ev: Evaluator, problem: Any, config: OptimizerConfig) -> None:
         results.append(sub.best)
     feasible = [r for r in results if r["feasible"]]
     pool = feasible or sorted(results, key=lambda r: r["violation"])[:1]
-    ev.best = max(pool, key=lambda r: r["combined"])
+    best = pool[0]
+    for r in pool[1:]:
+        if r["feasible"] and best["feasible"] and ev._improves(r["G"], best) or not best["feasible"] and \
+                r["violation"] < best["violation"]:
+            best = r
+    ev.best = best
 
 
 def solve_with_cad(*args: Any, **kwargs: Any) -> OptimResult:

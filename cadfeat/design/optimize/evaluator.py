@@ -16,6 +16,8 @@ import numpy as np
 
 FEAS_TOL = 1e-6
 """A design is feasible when every constraint margin is ≥ −FEAS_TOL (mm, or normalised units)."""
+LEXIMIN_TOL = 1e-8
+"""Normalised objectives within this of each other count as tied (max-min then compares the next-worst)."""
 
 
 class Evaluator:
@@ -77,11 +79,21 @@ class Evaluator:
         feasible = violation <= FEAS_TOL
         combined = float(self.problem.combined_from(g))
         b = self.best
-        better = (b is None or (feasible and not b["feasible"]) or (feasible and combined > b["combined"])
+        better = (b is None or (feasible and not b["feasible"]) or (feasible and b["feasible"] and self._improves(g, b))
                   or (not feasible and not b["feasible"] and violation < b["violation"]))
         if better:
             self.best = {"x": x.copy(), "combined": combined, "G": g.copy(), "C": c.copy(), "feasible": feasible,
                          "violation": violation}
+
+    def _improves(self, g: np.ndarray, best: dict[str, Any]) -> bool:
+        """Whether feasible objectives ``g`` beat the feasible best: by the combined value; for max-min, ties
+        (within ``LEXIMIN_TOL``) broken by the next-worst normalised objective, and so on (leximin)."""
+        problem = self.problem
+        if problem.objective_config.combine != "maxmin" or not hasattr(problem, "leximin_key"):
+            return float(problem.combined_from(g)) > best["combined"]
+        from cadfeat.design.objectives import leximin_better
+
+        return leximin_better(problem.leximin_key(g), problem.leximin_key(best["G"]), LEXIMIN_TOL)
 
     def combined(self, U: np.ndarray) -> np.ndarray:
         G, _ = self.batch(U)

@@ -13,19 +13,24 @@ from cadfeat.design.optimize.evaluator import Evaluator
 
 
 # -------------------------------------------------------------------------------------------- local
-def local_solve(ev: Evaluator, u0: np.ndarray, config: Any) -> np.ndarray:
+def local_solve(ev: Evaluator, u0: np.ndarray, config: Any, *, use: np.ndarray | None = None,
+                floors: dict[int, float] | None = None) -> np.ndarray:
     """One local solve from u0 (unit coordinates of the free variables); returns the final u.
 
     Max-min (and Pareto's chosen-point criterion) is solved in epigraph form: maximise τ subject to
-    ĝ_i(u) ≥ τ, so the solver sees smooth functions. Gradients: central differences, step
-    ``config.fd_step`` relative to each variable's range, value and Jacobians from one batch."""
+    ĝ_i(u) ≥ τ, so the solver sees smooth functions. ``use``: the objectives in the max-min (default the
+    combined ones); ``floors``: objective index → lower bound ĝ_i ≥ floor (leximin's fixed objectives).
+    Gradients: central differences, step ``config.fd_step`` relative to each variable's range, value and
+    Jacobians from one batch."""
     from scipy.optimize import Bounds, NonlinearConstraint, minimize
 
     problem = ev.problem
     cfg = problem.objective_config
-    keys = [cfg.key(n) for n in problem.names]
-    use = np.array([i for i, k in enumerate(keys) if k in cfg.objective_measures], dtype=int)
-    epigraph = cfg.combine in ("maxmin", "pareto") and use.size > 1
+    use = np.asarray(problem.combined_idx if use is None else use, dtype=int)
+    floors = floors or {}
+    fl_idx = np.array(sorted(floors), dtype=int)
+    fl_val = np.array([floors[i] for i in fl_idx], dtype=float)
+    epigraph = cfg.combine in ("maxmin", "pareto") and (use.size > 1 or bool(floors))
     p = u0.size
     h = config.fd_step
 
@@ -43,7 +48,7 @@ def local_solve(ev: Evaluator, u0: np.ndarray, config: Any) -> np.ndarray:
 
     if epigraph:
         G0, _ = ev.batch(u0[None])
-        tau0 = float((G0[0, use] / problem.scales[use]).min())
+        tau0 = float(problem.normalised(G0[0])[use].min())
         z0 = np.append(u0, tau0)
 
         def fun(z: np.ndarray) -> float:
@@ -56,13 +61,15 @@ def local_solve(ev: Evaluator, u0: np.ndarray, config: Any) -> np.ndarray:
 
         def cons(z: np.ndarray) -> np.ndarray:
             G, C = values(z)
-            return np.concatenate([C, G[use] / problem.scales[use] - z[p]])
+            Gn = problem.normalised(G)
+            return np.concatenate([C, Gn[use] - z[p], Gn[fl_idx] - fl_val])
 
         def cons_jac(z: np.ndarray) -> np.ndarray:
             _, _, dG, dC = grads(z)
             top = np.hstack([dC, np.zeros((dC.shape[0], 1))])
             bottom = np.hstack([dG[use] / problem.scales[use, None], -np.ones((use.size, 1))])
-            return np.vstack([top, bottom])
+            fixed = np.hstack([dG[fl_idx] / problem.scales[fl_idx, None], np.zeros((fl_idx.size, 1))])
+            return np.vstack([top, bottom, fixed])
         lb, ub = np.append(np.zeros(p), -np.inf), np.append(np.ones(p), np.inf)
     else:
         z0 = np.asarray(u0, dtype=float)
@@ -91,7 +98,7 @@ def local_solve(ev: Evaluator, u0: np.ndarray, config: Any) -> np.ndarray:
         G, C = ev.batch(np.asarray(zk)[:p][None])
         ev.record(iteration[0], G[0], C[0])
 
-    n_cons = ev.batch(z0[:p][None])[1].shape[1] + (use.size if epigraph else 0)
+    n_cons = ev.batch(z0[:p][None])[1].shape[1] + (use.size + fl_idx.size if epigraph else 0)
     constraints = []
     if n_cons:
         if config.local_solver == "SLSQP":
@@ -117,6 +124,27 @@ def _combine_weights(problem: Any, G: np.ndarray) -> np.ndarray:
     Gp = G + np.diag(eps)
     Gm = G - np.diag(eps)
     return (np.asarray(problem.combined_from(Gp)) - np.asarray(problem.combined_from(Gm))) / (2 * eps)[:K]
+
+
+def leximin_refine(ev: Evaluator, config: Any, tol: float = 1e-8) -> None:
+    """Break max-min ties by leximin: from the best design, fix the worst normalised objective at its value
+    (− ``tol``) and maximise the smallest of the others, then the next, ... (K' − 1 local solves). The
+    evaluator's best design is compared leximin-wise (``Evaluator._consider``), so the result is the
+    leximin-better of the max-min optimum and its refinements."""
+    problem = ev.problem
+    if problem.objective_config.combine != "maxmin" or ev.best is None:
+        return
+    remaining = [int(i) for i in problem.combined_idx]
+    floors: dict[int, float] = {}
+    phase = ev.phase
+    ev.phase = "leximin"
+    while len(remaining) > 1:
+        Gn = problem.normalised(ev.best["G"])
+        worst = min(remaining, key=lambda i: Gn[i])
+        floors[worst] = float(Gn[worst]) - tol
+        remaining.remove(worst)
+        local_solve(ev, ev.to_u(ev.best["x"]), config, use=np.array(remaining), floors=dict(floors))
+    ev.phase = phase
 
 
 # ----------------------------------------------------------------------------------------- starts
@@ -182,9 +210,7 @@ def pareto_solve(ev: Evaluator, config: Any) -> dict:
     from pymoo.optimize import minimize
 
     problem = ev.problem
-    cfg = problem.objective_config
-    keys = [cfg.key(n) for n in problem.names]
-    use = np.array([i for i, k in enumerate(keys) if k in cfg.objective_measures], dtype=int)
+    use = np.asarray(problem.combined_idx, dtype=int)
     n_cons = ev.batch(ev.to_u(ev.x_base)[None])[1].shape[1]
 
     class _P(PymooProblem):
@@ -193,7 +219,7 @@ def pareto_solve(ev: Evaluator, config: Any) -> dict:
 
         def _evaluate(self, U: np.ndarray, out: dict, *args: Any, **kwargs: Any) -> None:
             G, C = ev.batch(U)
-            out["F"] = -(G[:, use] / problem.scales[use])
+            out["F"] = -problem.normalised(G)[:, use]
             if n_cons:
                 out["G"] = -C
 
@@ -212,12 +238,12 @@ def pareto_solve(ev: Evaluator, config: Any) -> dict:
     X = np.atleast_2d(X)
     G, C = ev.batch(X)
     feasible = np.all(C >= -1e-6, axis=1) if C.shape[1] else np.ones(len(X), dtype=bool)
-    order = np.lexsort(tuple((G[:, use] / problem.scales[use]).T[::-1]))
+    order = np.lexsort(tuple(problem.normalised(G)[:, use].T[::-1]))
     X, G, C, feasible = X[order], G[order], C[order], feasible[order]
     crit = np.where(feasible, problem.combined_from(G), -np.inf)
     chosen = int(np.argmax(crit))
     return {"names": [problem.names[i] for i in use], "points": G[:, use].tolist(),
-            "normalised": (G[:, use] / problem.scales[use]).tolist(), "x": ev.to_x(X).tolist(),
+            "normalised": problem.normalised(G)[:, use].tolist(), "x": ev.to_x(X).tolist(),
             "feasible": feasible.tolist(), "chosen": chosen, "chosen_by": "max-min of the normalised objectives"}
 
 

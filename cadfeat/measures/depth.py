@@ -1,0 +1,107 @@
+"""Fast occlusion for the optimiser: one depth map of the part per trajectory pose, built once.
+
+The exact test (``visibility.occluded``) casts a ray per feature-pose against the mesh (trimesh, rtree) — right
+for reports, but hundreds of times slower than the measures themselves. ``DepthMaps`` instead renders, once per
+study, the depth of the part at every pose on a grid of normalised image coordinates (x, y) = (X/Z, Y/Z), by
+splatting points sampled densely on the mesh (about four per square of half the grid cell's footprint at the
+nearest depth; the smallest depth per cell is kept, ``np.minimum.at``). A hole at
+camera-frame (X, Y, Z) is then hidden when the map's depth at its cell is in front of it by more than
+``tol(Z) = 3 Z Δ + 0.5 mm`` (Δ: the cell size in normalised units; the slack covers a surface's depth change
+across one cell and the hole's own face): one lookup per feature-pose, O(L·N). A moved hole is tested at its
+own position against the part as loaded, like the exact test. Near a silhouette (a ray that passes an edge
+within about one cell) the depth map errs towards "hidden" (the edge shares the hole's cell), which keeps
+the optimiser's holes clear of edges; the reported hidden fractions use the exact test. Measured on the
+flagship: 99.4 % of feature-poses agree with the exact test (tests/test_trust_occlusion.py bounds the
+difference on a wall that hides a hole).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = ["DepthMaps"]
+
+#: Grid cells per side of the depth maps (over the image's normalised field plus a margin).
+GRID = 192
+#: Most surface points splatted (the grid is coarsened if the part would need more).
+MAX_POINTS = 500_000
+
+
+class DepthMaps:
+    """Depth maps (L, GRID, GRID) of ``mesh`` (trimesh, part frame, mm) from poses ``T_cam_part`` (L, 4, 4) of
+    ``camera`` (module docstring). ``hidden(X, Y, Z)`` → (L, M) bool for camera-frame coordinates (L, M)."""
+
+    def __init__(self, mesh: Any, camera: Any, T_cam_part: np.ndarray, grid: int = GRID):
+        T = np.asarray(T_cam_part, dtype=float)
+        self.n_poses = len(T)
+        corners = np.array([[0, 0], [camera.width, 0], [0, camera.height], [camera.width, camera.height]], float)
+        half = np.abs((corners - [camera.cx, camera.cy]) / [camera.fx, camera.fy]).max() * 1.5
+        self.lo, self.cell, self.grid = -half, 2 * half / grid, grid
+        V = np.asarray(mesh.vertices, float)
+        depth = np.einsum("lj,vj->lv", T[:, 2, :3], V) + T[:, None, 2, 3]
+        z_near = float(np.percentile(depth[depth > 0], 1)) if (depth > 0).any() else 1.0
+        area = float(mesh.area)
+        spacing = 0.5 * z_near * self.cell
+        while 4 * area / spacing**2 > MAX_POINTS:  # coarsen: fewer, larger cells
+            self.grid //= 2
+            self.cell *= 2
+            spacing *= 2
+        pts = _surface_points(mesh, spacing)
+        self.maps = np.full((self.n_poses, self.grid * self.grid), np.inf)
+        for k in range(self.n_poses):
+            P = pts @ T[k, :3, :3].T + T[k, :3, 3]
+            front = P[:, 2] > 1e-6
+            P = P[front]
+            idx, ok = self._index(P[:, 0] / P[:, 2], P[:, 1] / P[:, 2])
+            np.minimum.at(self.maps[k], idx[ok], P[ok, 2])
+
+    def select(self, poses: slice) -> DepthMaps:
+        """The depth maps of a slice of the poses (``evaluate`` works in slabs of poses)."""
+        other = object.__new__(DepthMaps)
+        other.__dict__.update(self.__dict__)
+        other.maps = self.maps[poses]
+        other.n_poses = len(other.maps)
+        return other
+
+    def tile(self, copies: int) -> DepthMaps:
+        """The maps repeated ``copies`` times along the poses (S stacked copies of the trajectory)."""
+        other = object.__new__(DepthMaps)
+        other.__dict__.update(self.__dict__)
+        other.maps = np.tile(self.maps, (copies, 1))
+        other.n_poses = len(other.maps)
+        return other
+
+    def _index(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        i = np.floor((x - self.lo) / self.cell).astype(np.int64)
+        j = np.floor((y - self.lo) / self.cell).astype(np.int64)
+        ok = (i >= 0) & (i < self.grid) & (j >= 0) & (j < self.grid)
+        return np.where(ok, j * self.grid + i, 0), ok
+
+    def hidden(self, X: np.ndarray, Y: np.ndarray, Z: np.ndarray) -> np.ndarray:
+        """(L, M) bool: points at camera-frame (X, Y, Z) (L, M) mm behind the part's surface at their cell."""
+        if X.shape[0] != self.n_poses:
+            raise ValueError(f"DepthMaps: built for {self.n_poses} poses, asked about {X.shape[0]}")
+        front = Z > 1e-6
+        z = np.where(front, Z, 1.0)
+        idx, ok = self._index(X / z, Y / z)
+        surface = np.take_along_axis(self.maps, idx, axis=1)
+        return front & ok & (surface < Z - (3.0 * Z * self.cell + 0.5))
+
+
+def _surface_points(mesh: Any, spacing: float) -> np.ndarray:
+    """Points on the mesh about ``spacing`` mm apart: the vertices, plus 4·area/spacing² points per triangle at
+    seeded uniform barycentric positions (deterministic), so every grid cell a surface covers gets samples."""
+    V = np.asarray(mesh.vertices, float)
+    F = np.asarray(mesh.faces, dtype=np.int64)
+    tri = V[F]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    counts = np.ceil(4.0 * area / spacing**2).astype(np.int64)
+    face = np.repeat(np.arange(len(F)), counts)
+    rng = np.random.default_rng(0)
+    u, v = rng.random(len(face)), rng.random(len(face))
+    flip = u + v > 1
+    u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
+    t = tri[face]
+    return np.vstack([V, t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])])
