@@ -158,6 +158,30 @@ def test_solve_with_cad_agrees_with_the_rebuild_in_one_round():
     assert len(res.holes) == 2 and res.holes[0].radius_mm == pytest.approx(4.0, abs=1e-9)
 
 
+def test_solve_with_cad_map_refresh_never_builds_outside_the_bounds():
+    # the resolution optimum puts the diameter on its upper bound; a part script refuses values past its own
+    # bounds, so the finite-difference refresh there must step backwards, not past the bound
+    problem = two_hole_problem(measures=("resolution",), n=6)
+    lower, upper = problem.space.lower, problem.space.upper
+    built = []
+
+    def strict_rebuild(x):
+        x = np.asarray(x, float)
+        built.append(x.copy())
+        if np.any(x < lower - 1e-12) or np.any(x > upper + 1e-12):
+            raise CadfeatError(f"out of bounds: {x}")
+        # slightly nonlinear (hole 2's angle couples to hole 1's x), so round 1 disagrees and the map is
+        # refreshed at the optimum, which sits on the diameter's upper bound
+        rho, theta = np.hypot(x[2], x[3]), np.arctan2(x[3], x[2]) + 0.002 * (x[0] + 20)
+        return extract_holes(plate_with_holes([(x[0], x[1]), (rho * np.cos(theta), rho * np.sin(theta))],
+                                              [x[4] / 2] * 2), prefer_direction=(0, 0, 1))
+
+    res = solve_with_cad(problem, strict_rebuild, OptimizerConfig(method="local"), max_rounds=8)
+    assert len(res.cad_rounds) > 1 and res.cad_rounds[-1]["status"] == "agree", res.cad_rounds
+    assert res.feasible and res.holes[0].radius_mm == pytest.approx(upper[4] / 2, abs=1e-9)
+    assert all(np.all(x >= lower - 1e-12) and np.all(x <= upper + 1e-12) for x in built)
+
+
 def test_solve_with_cad_refreshes_a_nonlinear_map_and_survives_failed_rebuilds():
     # the part is parametrised in polar form (nonlinear): hole 2 at radius ρ, angle θ; the first linear
     # map is wrong away from x0, so rounds refresh it until the prediction matches the CAD rebuild

@@ -58,13 +58,22 @@ def hole_sizes(spec: str | Sequence[float]) -> tuple[float, ...]:
     return sizes
 
 
-def snap_diameters(diameters: np.ndarray, sizes: Sequence[float]) -> np.ndarray:
-    """Each diameter (mm) moved to the nearest size of ``sizes`` (ties: the smaller); ``sizes`` empty: unchanged."""
+def snap_diameters(diameters: np.ndarray, sizes: Sequence[float], lower: np.ndarray | None = None,
+                   upper: np.ndarray | None = None) -> np.ndarray:
+    """Each diameter (mm) moved to the nearest size of ``sizes`` (ties: the smaller); ``sizes`` empty: unchanged.
+    With ``lower``/``upper`` (mm, per diameter: what the design variables can reach), only sizes in that range
+    count; a diameter with no table size in its range keeps its value."""
     d = np.asarray(diameters, float)
     if not len(sizes):
         return d.copy()
     s = np.asarray(sizes, float)
-    return s[np.argmin(np.abs(d[..., None] - s), axis=-1)]
+    dist = np.abs(d[..., None] - s)
+    if lower is not None and upper is not None:
+        tol = 1e-9 * np.maximum(1.0, s)
+        reach = (s >= np.asarray(lower, float)[..., None] - tol) & (s <= np.asarray(upper, float)[..., None] + tol)
+        dist = np.where(reach, dist, np.inf)
+    best = np.argmin(dist, axis=-1)
+    return np.where(np.isfinite(np.min(dist, axis=-1)), s[best], d)
 
 
 def _round_across_axis(centres: np.ndarray, axes: np.ndarray, grid_mm: float) -> np.ndarray:
@@ -156,6 +165,14 @@ def shop_design(space: Any, model: Any, x: np.ndarray, *, grid_mm: float = DEFAU
     return first
 
 
+def _reachable_diameters(space: Any, x: np.ndarray, r: np.ndarray, J_r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) lowest and highest diameter (mm) each hole can have within the variable bounds, to first order about
+    ``x`` (``J_r``: (N, P) dr/dx): a table size outside them cannot be drilled by this design space."""
+    lower, upper = np.asarray(space.lower, float), np.asarray(space.upper, float)
+    lo_step, hi_step = J_r * (lower - x), J_r * (upper - x)
+    return 2 * (r + np.minimum(lo_step, hi_step).sum(axis=1)), 2 * (r + np.maximum(lo_step, hi_step).sum(axis=1))
+
+
 def _feasible(problem: Any, x: np.ndarray) -> bool:
     return float(np.asarray(problem.constraints(x), float).min(initial=0.0)) >= -1e-9
 
@@ -177,7 +194,8 @@ def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: f
     own_sizes = ~np.any(dr & ~np.asarray(space.discrete, bool), axis=1)
     td = 2 * rr
     table = resized & ~own_sizes  # a hole sized by variables with the study's own sizes keeps that size
-    td[table] = snap_diameters(2 * rr[table], sizes)
+    lo, hi = _reachable_diameters(space, xr, rr, J[3 * n:])
+    td[table] = snap_diameters(2 * rr[table], sizes, lo[table], hi[table])
     target = _flat(tc, td / 2)
     step = np.linalg.lstsq(J, target - _flat(cr, rr), rcond=None)[0]
     xs = space.snap(space.clip(xr + step))

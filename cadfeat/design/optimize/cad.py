@@ -53,10 +53,10 @@ def solve_with_cad(problem: Any, rebuild: Callable[[np.ndarray], list[Hole]], co
 
     ``rebuild(x) -> list[Hole]``: build the part at design x and extract its holes (any order; raising =
     infeasible). ``refresh(x, holes) -> FeatureModel``: the feature model linearised at x (``holes``: the
-    extracted holes in model order); default ``LinearFeatureModel.from_rebuild`` with forward steps of
-    ``fd_rel_step`` × each variable's range. Returns an ``OptimResult`` whose ``x_best`` is verified by CAD
-    (unless interrupted in round 1 or no round agreed: see ``message``), ``holes`` the extracted holes
-    (model order) and ``cad_rounds`` one dict per round."""
+    extracted holes in model order); default ``LinearFeatureModel.from_rebuild`` with forward steps (backward at
+    an upper bound, so every rebuild stays within the bounds) of ``fd_rel_step`` × each variable's range.
+    Returns an ``OptimResult`` whose ``x_best`` is verified by CAD (unless interrupted in round 1 or no round
+    agreed: see ``message``), ``holes`` the extracted holes (model order) and ``cad_rounds`` one dict per round."""
     config = config or OptimizerConfig()
     t0 = time.perf_counter()
     n0 = problem.n_evals
@@ -64,7 +64,9 @@ def solve_with_cad(problem: Any, rebuild: Callable[[np.ndarray], list[Hole]], co
     history: list[dict] = []
 
     def default_refresh(x: np.ndarray, holes: list[Hole]) -> Any:
-        return LinearFeatureModel.from_rebuild(rebuild, x, fd_rel_step * space.span, holes0=holes,
+        steps = fd_rel_step * space.span
+        steps = np.where(x + steps > space.upper, -steps, steps)  # backward at an upper bound: stay buildable
+        return LinearFeatureModel.from_rebuild(rebuild, x, steps, holes0=holes,
                                                names=space.names, match_tol_mm=match_tol_mm)
 
     refresh = refresh or default_refresh
