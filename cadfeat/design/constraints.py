@@ -24,7 +24,7 @@ Units: mm; margins positive = satisfied.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -271,15 +271,14 @@ class _RealHole:
     rim_edges: list = field(default_factory=list)
 
 
-def _circle_edges(face: Any, centre: np.ndarray, radius: float, tol: float) -> list:
-    """The circular edges of ``face`` (OCP) with centre ``centre`` and ``radius`` (the hole's rim)."""
+def _face_circles(face: Any) -> Iterator[tuple[Any, np.ndarray, float]]:
+    """(edge, centre mm (3,), radius mm) of every circular edge of ``face`` (OCP)."""
     from OCP.BRepAdaptor import BRepAdaptor_Curve
     from OCP.GeomAbs import GeomAbs_Circle
     from OCP.TopAbs import TopAbs_EDGE
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopoDS import TopoDS
 
-    out = []
     exp = TopExp_Explorer(face, TopAbs_EDGE)
     while exp.More():
         edge = TopoDS.Edge_s(exp.Current())
@@ -287,11 +286,13 @@ def _circle_edges(face: Any, centre: np.ndarray, radius: float, tol: float) -> l
         if curve.GetType() == GeomAbs_Circle:
             circ = curve.Circle()
             loc = circ.Location()
-            c = np.array([loc.X(), loc.Y(), loc.Z()])
-            if np.linalg.norm(c - centre) < tol and abs(circ.Radius() - radius) < tol:
-                out.append(edge)
+            yield edge, np.array([loc.X(), loc.Y(), loc.Z()]), circ.Radius()
         exp.Next()
-    return out
+
+
+def _circle_edges(face: Any, centre: np.ndarray, radius: float, tol: float) -> list:
+    """The circular edges of ``face`` (OCP) with centre ``centre`` and ``radius`` (the hole's rim)."""
+    return [e for e, c, r in _face_circles(face) if np.linalg.norm(c - centre) < tol and abs(r - radius) < tol]
 
 
 def _is_hole_wire(wire: Any, holes: Sequence[Hole], tol: float = 1e-5) -> bool:
@@ -328,26 +329,9 @@ def _min_distance(shapes_a: Sequence[Any], shapes_b: Sequence[Any]) -> float:
 def _axis_circle_edges(face: Any, hole: Hole, tol: float = 1e-5) -> list:
     """Circular edges of ``face`` (OCP) of the hole's radius centred on its axis line: its rim on its host face,
     or its exit rim on the far face of a through hole."""
-    from OCP.BRepAdaptor import BRepAdaptor_Curve
-    from OCP.GeomAbs import GeomAbs_Circle
-    from OCP.TopAbs import TopAbs_EDGE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
-
-    out = []
     axis = np.asarray(hole.axis, float)
-    exp = TopExp_Explorer(face, TopAbs_EDGE)
-    while exp.More():
-        edge = TopoDS.Edge_s(exp.Current())
-        curve = BRepAdaptor_Curve(edge)
-        if curve.GetType() == GeomAbs_Circle:
-            circ = curve.Circle()
-            loc = circ.Location()
-            c = np.array([loc.X(), loc.Y(), loc.Z()])
-            if np.linalg.norm(np.cross(c - hole.centre, axis)) < tol and abs(circ.Radius() - hole.radius_mm) < tol:
-                out.append(edge)
-        exp.Next()
-    return out
+    return [e for e, c, r in _face_circles(face)
+            if np.linalg.norm(np.cross(c - hole.centre, axis)) < tol and abs(r - hole.radius_mm) < tol]
 
 
 def _shared_face_distance(faces: Sequence[Any], a: Hole, b: Hole) -> float | None:
