@@ -515,3 +515,28 @@ def test_shop_rounding_on_a_nonlinear_part(tmp_path, monkeypatch):
     np.testing.assert_allclose(targets[0].centre[:2], -targets[1].centre[:2], atol=2e-3)
     assert all(c["ok"] for c in result.results["constraints"])
     assert [p["broken"] for p in result.results["patterns"]] == [False]
+
+
+def test_flagship_requirements_are_checked_under_the_holes_own_names(tmp_path, monkeypatch):
+    """The B-rep/STEP checks re-extract holes in geometric order; each must carry the design hole's own name
+    (nema17: extraction order and the part's names differ), so every requirement the optimiser used is found
+    verified under the same holes, and the 'fixed' checks name exactly the holes the results call fixed."""
+    import tomllib
+
+    no_report(monkeypatch)
+    root = Path(__file__).parents[1]
+    cfg = tomllib.loads((root / "studies" / "nema17_mount.toml").read_text())
+    cfg["study"]["part"] = str(root / "parts" / "nema17_mount.py")
+    cfg["trajectory"]["n"] = 12
+    cfg["optimizer"].update(starts=2, maxiter=20)
+    cfg["robustness"] = {"samples": 0}
+    data = run_study(cfg, tmp_path / "out", quiet=True).results
+    names = [h["name"] for h in data["holes"]["after"]]
+    fixed = {h["name"] for h in data["holes"]["after"] if h["fixed"]}
+    used = {(u["name"], tuple(sorted(u["holes"]))) for u in data["requirements_used"]}
+    assert used
+    for where in ("brep", "step"):
+        checks = [c for c in data["constraints"] if c["checked_on"] == where]
+        assert used <= {(c["name"], tuple(sorted(c["holes"]))) for c in checks}, where
+        assert {h for c in checks if c["name"] == "fixed" for h in c["holes"]} <= fixed
+        assert all(h in names for c in checks for h in c["holes"])

@@ -274,7 +274,8 @@ def _sweep(setup: StudySetup) -> dict[str, Any] | None:
 
 # ------------------------------------------------------------------------------------------ verification
 def _order_like(reference: Sequence[Any], holes: Sequence[Any], tol_mm: float, what: str) -> list[Any]:
-    """``holes`` reordered to pair with ``reference`` by geometry (nearest centres, one to one)."""
+    """``holes`` reordered to pair with ``reference`` by geometry (nearest centres, one to one), each taking its
+    reference's name."""
     from cadfeat.cad.features import match_holes
 
     if len(holes) != len(reference):
@@ -283,7 +284,8 @@ def _order_like(reference: Sequence[Any], holes: Sequence[Any], tol_mm: float, w
         idx = match_holes(list(reference), list(holes), tol_mm=tol_mm)
     except CadfeatError as exc:
         raise CadfeatError(f"{what}: holes do not match the design: {exc}") from exc
-    return [holes[i] for i in idx]
+    return [dataclasses.replace(holes[i], name=r.name) if r.name else holes[i]
+            for r, i in zip(reference, idx, strict=True)]
 
 
 def _predicted_holes(setup: StudySetup, x: np.ndarray) -> list[Any]:
@@ -327,7 +329,8 @@ def _checks(setup: StudySetup, shape: Any, holes: Sequence[Any], where: str) -> 
 
 def _pair_by_axis(reference: Sequence[Any], holes: Sequence[Any], what: str, tol_mm: float = 1e-3) -> list[Any]:
     """``holes`` reordered to pair with ``reference`` hole by hole: same axis line (parallel axes, either
-    sign, centre on the reference's axis line within ``tol_mm``), nearest centre first."""
+    sign, centre on the reference's axis line within ``tol_mm``), nearest centre first; each paired hole takes
+    its reference's name (a hole keeps one name in every output, whatever order extraction found it in)."""
     if len(holes) != len(reference):
         raise CadfeatError(f"{what}: {len(holes)} holes found, {len(reference)} designed")
     c1 = np.array([h.centre for h in holes], float).reshape(-1, 3)
@@ -344,7 +347,7 @@ def _pair_by_axis(reference: Sequence[Any], holes: Sequence[Any], what: str, tol
             raise CadfeatError(f"{what}: no hole on the axis of design hole {h.name or i + 1} at "
                                f"{np.round(c0, 6).tolist()}")
         used.add(ok[0])
-        out.append(holes[ok[0]])
+        out.append(dataclasses.replace(holes[ok[0]], name=h.name) if h.name else holes[ok[0]])
     return out
 
 
