@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY      = $(VENV)/bin/python
 STAMP   = $(VENV)/.cadfeat-installed
 
-.PHONY: setup demo test lint bench clean
+.PHONY: setup demo test test-kernels lint bench clean
 
 setup: $(STAMP)
 
@@ -22,7 +22,18 @@ test: $(STAMP)
 	tools/ensure_system.sh
 	CADFEAT_CHROMIUM="$$(tools/ensure_chromium.sh)" && export CADFEAT_CHROMIUM && \
 	$(PY) -m ruff check cadfeat tests benchmarks $(wildcard parts studies) && \
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q && \
+	$(MAKE) --no-print-directory test-kernels
+
+# The numerical tests again under another OpenBLAS kernel family that every x86-64 CPU has (Prescott; the
+# first pass runs whatever the CPU picks, e.g. SkylakeX with AVX-512): a tolerance that holds on one kernel's
+# round-off only shows here. Add KERNELS="Prescott Haswell" to try more.
+KERNELS ?= Prescott
+test-kernels: $(STAMP)
+	for k in $(KERNELS); do \
+	  echo "numerical tests under OPENBLAS_CORETYPE=$$k"; \
+	  OPENBLAS_CORETYPE=$$k $(PY) -m pytest -q -m numerics || exit 1; \
+	done
 
 lint: $(STAMP)
 	$(PY) -m ruff check cadfeat tests benchmarks $(wildcard parts studies)

@@ -12,6 +12,8 @@ import pytest
 from cadfeat.camera import PRESETS, Camera, CameraError, camera_from_dict, write_opencv_calibration
 from cadfeat.errors import CadfeatError
 
+pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
+
 DATA = __import__("pathlib").Path(__file__).parent / "data"
 RNG = np.random.default_rng(20050301)
 

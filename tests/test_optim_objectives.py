@@ -12,6 +12,8 @@ from cadfeat.design.axiomatic import classify, design_matrix
 from cadfeat.design.objectives import Normaliser, ObjectiveConfig, aggregate, combine, natural_units, objective_values
 from cadfeat.errors import CadfeatError
 
+pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
+
 
 def test_aggregates_closed_forms_and_smooth_min_bounds():
     rng = np.random.default_rng(0)

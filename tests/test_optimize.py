@@ -13,6 +13,8 @@ from cadfeat.design.optimize import OptimizerConfig, optimise, solve_with_cad
 from cadfeat.design.optimize.evaluator import Evaluator
 from cadfeat.errors import CadfeatError
 
+pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
+
 
 def _circle_problem(solver="SLSQP"):
     # max −((x−1)² + (y−2)²) s.t. x + y ≤ 2: optimum (0.5, 1.5), value −0.5

@@ -27,6 +27,8 @@ from cadfeat.poses import (
     twist_between,
 )
 
+pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
+
 RNG = np.random.default_rng(7)
 
 

@@ -18,6 +18,8 @@ from cadfeat.study.schema import load_study
 from cadfeat.study.setup import setup_study
 from cadfeat.trajectory import Trajectory
 
+pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
+
 STUDY = {
     "study": {"name": "robust_plate", "part": str(PLATE), "seed": 7},
     "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 200.0},

@@ -29,6 +29,8 @@ from cadfeat.trajectory import (
     write_csv,
 )
 
+pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
+
 RNG = np.random.default_rng(42)
 T0 = make_T(Rotation.from_euler("xyz", [20, -35, 110], degrees=True).as_matrix(), [120.0, -40.0, 300.0])
 

@@ -12,6 +12,8 @@ from cadfeat.cad.features import Hole
 from cadfeat.camera import Camera
 from cadfeat.render.camera_views import draw_hole_overlay
 
+pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
+
 THESIS = Camera.preset("dalsa-cad1-128a")
 
 

@@ -19,6 +19,8 @@ from cadfeat.poses import make_T, se3_exp
 from cadfeat.vision.measurement import measure, rim_centre_jacobian, rim_centre_px
 from cadfeat.vision.motion import so3_exp
 
+pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
+
 PINHOLE = Camera(fx=800.0, fy=780.0, cx=320.0, cy=240.0, width=640, height=480)
 DISTORTED = PINHOLE.replace(dist=(-0.21, 0.08, 0.001, -0.002, 0.01))
 

@@ -110,9 +110,12 @@ def gram(J: ArrayLike) -> np.ndarray:
 def diagnostics_from_gram(G: ArrayLike) -> dict[str, np.ndarray]:
     """σ_min, condition σ_max/σ_min, manipulability √det(JᵀJ) (eq. 4.20–4.21), singular flag from JᵀJ.
 
-    Singular values are square roots of the eigenvalues of JᵀJ (batched ``eigvalsh``), accurate to
-    ~1e-8 σ_max — enough for the rank test σ_min ≤ ``SINGULAR_RTOL`` σ_max. A singular Jacobian (rank < 6:
-    fewer than 3 usable features, collinear or degenerate sets, eq. 4.15 discussion) reports the
+    Singular values are square roots of the eigenvalues of JᵀJ (batched ``eigvalsh``). The eigenvalues
+    carry an absolute round-off of ~ε λ_max whatever the BLAS kernel, so σ_i is known to ~√ε σ_max
+    (1e-8 σ_max) near zero and to a relative ε (σ_max/σ_i)² elsewhere — enough for the rank test
+    σ_min ≤ ``SINGULAR_RTOL`` σ_max, not for the value of a vanishing σ. A singular Jacobian (rank < 6:
+    fewer than 3 usable features, collinear or degenerate sets, eq. 4.15 discussion) therefore reports
+    what its numerical rank defines, not round-off: σ_min = 0, manipulability √det(JᵀJ) = 0, and the
     finite ``CONDITION_CAP`` as its condition number.
     """
     lam = np.linalg.eigvalsh(np.asarray(G, dtype=float))
@@ -122,9 +125,9 @@ def diagnostics_from_gram(G: ArrayLike) -> dict[str, np.ndarray]:
     with np.errstate(divide="ignore", invalid="ignore"):
         condition = np.where(singular, CONDITION_CAP, s_max / np.where(singular, 1.0, s_min))
     return {
-        "sigma_min": s_min,
+        "sigma_min": np.where(singular, 0.0, s_min),
         "condition": np.minimum(condition, CONDITION_CAP),
-        "manipulability": np.prod(sigma, axis=-1),
+        "manipulability": np.where(singular, 0.0, np.prod(sigma, axis=-1)),
         "singular": singular,
     }
 
