@@ -106,6 +106,15 @@ def test_folder_with_the_users_files_is_refused_before_any_work(tmp_path, comman
     assert snapshot(d) == before and sorted(p.name for p in tmp_path.iterdir()) == ["d"]
 
 
+def test_force_refuses_the_users_holes_csv_before_any_work(tmp_path):
+    """Issue 16: holes.csv is one of cadfeat's output names, so a user's own is found at once, not at publishing."""
+    d, s, before = user_folder(tmp_path)
+    (d / "holes.csv").write_text("my holes\n")
+    one_error_line(cadfeat("run", str(s), "--out", str(d), "--force", "--quiet"), "holes.csv", "not written by cadfeat")
+    assert snapshot(d) == {**before, "holes.csv": snapshot(d)["holes.csv"]}
+    assert not staging_folders(tmp_path)
+
+
 def test_force_adds_cadfeats_files_and_leaves_the_users_alone(tmp_path):
     d, s, before = user_folder(tmp_path)
     (d / "results.json").write_text("{\"mine\": true}\n")  # a file of a name cadfeat writes, not cadfeat's

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import html
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -89,6 +91,16 @@ def test_results_json_keys_and_files(small_run):
     n = len(data["holes"]["after"])
     assert len(data["measures"]["after"]["per_feature"]) == n
     assert len(data["measures"]["after"]["per_pose"]["resolvability"]) == data["trajectory"]["n_samples"] == 12
+
+
+def test_verdict_in_results_and_summary_is_the_reports(small_run):
+    """Issue 16: results.json and the console summary carry the report's verdict, so a pipeline can gate on it."""
+    result, out, _ = small_run
+    verdict = json.loads((out / "results.json").read_text())["verdict"]
+    shown = re.search(r'<span id="verdict">([^<]*)</span>', (out / "report.html").read_text()).group(1)
+    assert verdict["decision"] == html.unescape(shown) in ("adopt", "adopt with care", "do not adopt")
+    assert {f["rule"] for f in verdict["findings"]} >= {"combined", "requirements"}
+    assert f"verdict: {verdict['decision']}" in result.summary()
 
 
 def test_exported_step_keeps_every_requirement(small_run):

@@ -115,6 +115,10 @@ def track(args: argparse.Namespace) -> int:
     if results_path.is_file():  # written by `cadfeat run`: add (or replace) its tracking section
         results = json.loads(results_path.read_text(encoding="utf-8"))
         results["tracking"] = section
+        if "verdict" in results:  # the tracking rule may change the decision
+            from cadfeat.report.verdict import verdict_json
+
+            results["verdict"] = verdict_json(results)
         _write_json(results_path, results)
     print(f"tracking {config.study.name}: {spec.runs} Monte-Carlo runs, {section['settings']['frames']} frames")
     print("\n".join(summary_lines(section)))

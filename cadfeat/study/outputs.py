@@ -33,9 +33,9 @@ __all__ = [
     "write_json",
 ]
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 """Version of the layout of results.json (2: schema_version, requirements_used, camera_poses, shop, patterns,
-robustness added by issue 13); readers compare it before relying on a key."""
+robustness added by issue 13; 3: ``verdict``, tracking holes named H1…); readers compare it before relying on a key."""
 DIGITS = 10
 """Significant digits of floats in results.json (1e-10 relative: far below any tolerance used)."""
 STEP_TIMESTAMP = "1970-01-01T00:00:00"

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cadfeat.errors import CadfeatError
+from cadfeat.report.verdict import verdict_json
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
     file_entry,
@@ -95,8 +96,13 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
     for a in (results.get("preflight") or {}).get("assumptions", []):
         lines.append(f"  ASSUMED: {a}")
     failed = [c for c in results["constraints"] if not c["ok"]]
+    verdict = results.get("verdict")
     lines.append(f"  kept requirements: {len(results['constraints']) - len(failed)} of {len(results['constraints'])} "
                  "hold (B-rep and re-imported STEP)")
+    if verdict:
+        lines.append(f"  verdict: {verdict['decision']}" + "".join(
+            f"\n    {f['rule']}: {f['outcome']} ({f['detail']})" for f in verdict["findings"]
+            if f["outcome"] != "adopt"))
     if out_dir is not None:
         lines.append(f"  outputs: {out_dir}")
         for name in ("optimised.step", "optimised.stl", "report.html"):
@@ -838,6 +844,7 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
         with prog.phase("tracking"):
             results["tracking"] = run_tracking(config, {"before": (shapes["shape0"], shapes["holes0"]),
                                                         "after": (shapes["shape1"], shapes["holes1"])}, stage)
+    results["verdict"] = verdict_json(plain(results))
     write_json(stage / "results.json", results)
     _report(stage, results, shapes, prog)
 

@@ -130,6 +130,11 @@ def _frames(result: Any, camera: Any, out_dir: Path | None, count: int = 3) -> l
     return entries
 
 
+def _named(holes: Sequence[Any]) -> list[Any]:
+    """The holes with the study's names: a hole without one is ``H<i+1>``, as in every other section."""
+    return [h if h.name else dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(holes)]
+
+
 def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[Any]]], out_dir: Path | None = None,
                  spec: TrackingSpec | None = None, camera_override: Any = None) -> dict[str, Any]:
     """The results.json ``tracking`` section for ``designs`` = {"before": (shape, holes), "after": (...)}.
@@ -140,6 +145,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[
     from cadfeat.vision.closed_loop import track_designs
 
     spec = spec or config.tracking or TrackingSpec()
+    designs = {k: (shape, _named(holes)) for k, (shape, holes) in designs.items()}
     camera, T_cam_part, times, screws = _scene(config)
     _check_frames(config, spec, len(T_cam_part))
     result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec),
