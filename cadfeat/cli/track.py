@@ -72,8 +72,6 @@ def _f(x: Any) -> str:
 
 def track(args: argparse.Namespace) -> int:
     """Does the new design track better? Images → OpenCV detection → EKF/IEKF/PnP pose, before vs after."""
-    import dataclasses
-
     from cadfeat.errors import CadfeatError
     from cadfeat.study.run import default_out_dir
     from cadfeat.study.schema import TrackingSpec, load_study
@@ -84,7 +82,7 @@ def track(args: argparse.Namespace) -> int:
     if args.runs is not None:
         if args.runs < 1:
             raise CadfeatError(f"--runs: {args.runs} is not allowed; allowed: an integer >= 1")
-        spec = dataclasses.replace(spec, runs=args.runs)
+        spec = spec.replace(runs=args.runs)
     values = None
     if args.values:
         try:

@@ -46,12 +46,25 @@ import numpy as np
 from cadfeat.design.objectives import ObjectiveConfig
 from cadfeat.design.optimize import OptimizerConfig
 from cadfeat.errors import CadfeatError
+from cadfeat.study.settings import (
+    SYMMETRIES,
+    TRACKING_ESTIMATORS,
+    ConstraintSettings,
+    RobustnessSettings,
+    ShopSettings,
+    StudyError,
+    TrackingSettings,
+    validate_section,
+)
 
 __all__ = [
     "AGGREGATES",
     "COMBINES",
     "MEASURES",
     "METHODS",
+    "SYMMETRIES",
+    "TRACKING_ESTIMATORS",
+    "TRACKING_KEYS",
     "CameraSpec",
     "ConstraintSpec",
     "DesignSpec",
@@ -73,7 +86,6 @@ AGGREGATES = ("sum", "mean", "min", "smoothmin")
 COMBINES = ("weighted", "maxmin", "constraint", "pareto")
 METHODS = ("multistart", "local", "global", "pareto")
 LOCAL_SOLVERS = ("SLSQP", "trust-constr")
-SYMMETRIES = ("none", "x", "y", "xy")
 NORMALISATIONS = ("payoff", "initial", "natural", "none")
 SCORES = ("movable", "all")
 FOV_MEASURES = ("cone", "image")
@@ -87,8 +99,8 @@ STEP_SUFFIXES = (".step", ".stp")
 
 SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer", "shop",
             "robustness", "tracking")
-SHOP_KEYS = ("hole_sizes", "grid_mm", "keep_patterns")
-ROBUSTNESS_KEYS = ("position_tol_mm", "size_steps", "camera_position_mm", "camera_angle_deg", "samples")
+SHOP_KEYS = tuple(ShopSettings.model_fields)
+ROBUSTNESS_KEYS = tuple(RobustnessSettings.model_fields)
 REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
 LIMITS = {
     "trajectory_samples": 100_000,   # [trajectory] n (and the rows of a trajectory CSV)
@@ -108,10 +120,6 @@ BUILD_TIMEOUT_S = 60.0
 
 _MISSING: Any = object()
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-
-
-class StudyError(CadfeatError):
-    """A study file is invalid: the message names the file, the dotted key and what is allowed."""
 
 
 # ----------------------------------------------------------------------------------------- dataclasses
@@ -226,81 +234,16 @@ class DesignSpec:
     through holes. Default: from the trajectory (mean direction to the camera positions)."""
 
 
-@dataclass(frozen=True)
-class ConstraintSpec:
-    """``[constraints]``: the kept mechanical requirements (mm; percent of the original volume)."""
-
-    edge_distance_mm: float = 1.0
-    ligament_mm: float = 1.0
-    volume_change_max_percent: float | None = None
-    symmetry: str = "none"
+ConstraintSpec = ConstraintSettings
+"""``[constraints]`` (``cadfeat.study.settings``)."""
 
 
-TRACKING_ESTIMATORS = ("ekf", "iekf", "pnp")
-#: The keys of ``[tracking]`` (the fields of ``TrackingSpec``).
-TRACKING_KEYS = ("estimators", "runs", "seed", "noise_grey", "defocus", "exposure_s", "initial_error_mm",
-                 "initial_error_deg", "r_px2", "q_rate_mm2_s2", "q_omega_rad2_s2", "iterations", "tau", "frame_step",
-                 "settle_frames", "converged_mm", "converged_deg", "gate_px", "rim_model", "alpha",
-                 "min_change_percent")
-
-
-@dataclass(frozen=True)
-class TrackingSpec:
-    """``[tracking]``: the closed-loop check of ``cadfeat track`` (``cadfeat.vision.closed_loop.TrackingConfig``).
-
-    Estimators, Monte-Carlo runs and seed; sensor: grey-level noise σ (0..255 scale), thin-lens defocus on/off,
-    exposure (s, 0 = no motion blur); initial pose error (mm, deg); filter tuning (thesis §6.3.3): R = r I (px²),
-    Q = diag(0, q, …) on the linear (mm²/s²) and angular (rad²/s²) rates, IEKF iterations n and threshold τ;
-    every ``frame_step``-th trajectory sample; statistics after ``settle_frames``; convergence bounds;
-    association gate (px); rim ellipse-centre model; significance ``alpha`` of the paired test, and the smallest
-    change of the median RMS error (percent of the error before) that a verdict counts.
-    """
-
-    estimators: tuple[str, ...] = TRACKING_ESTIMATORS
-    runs: int = 20
-    seed: int = 0
-    noise_grey: float = 2.0
-    defocus: bool = True
-    exposure_s: float = 0.0
-    initial_error_mm: float = 10.0
-    initial_error_deg: float = 2.0
-    r_px2: float = 0.25
-    q_rate_mm2_s2: float = 100.0
-    q_omega_rad2_s2: float = 1e-3
-    iterations: int = 30
-    tau: float = 1e-16
-    frame_step: int = 1
-    settle_frames: int = 5
-    converged_mm: float = 2.0
-    converged_deg: float = 1.0
-    gate_px: float = 10.0
-    rim_model: bool = True
-    alpha: float = 0.05
-    min_change_percent: float = 5.0
-
-
-@dataclass(frozen=True)
-class ShopSpec:
-    """``[shop]``: shop-ready output (``cadfeat.design.shop``). ``hole_sizes``: a table name of
-    ``shop.HOLE_SIZE_TABLES`` or diameters (mm); ``grid_mm``: drawing grid of moved hole positions (0: off);
-    ``keep_patterns``: holes forming a pattern in the original move as a pattern (false lets them break)."""
-
-    hole_sizes: str | tuple[float, ...] = "iso273-medium"
-    grid_mm: float = 0.1
-    keep_patterns: bool = True
-
-
-@dataclass(frozen=True)
-class RobustnessSpec:
-    """``[robustness]``: tolerances of the robustness study (``cadfeat.design.robustness``): hole positions
-    ±``position_tol_mm``, diameters ±``size_steps`` table steps, camera mount ±``camera_position_mm`` and
-    ±``camera_angle_deg``; ``samples`` random draws each (0: off)."""
-
-    position_tol_mm: float = 0.1
-    size_steps: int = 1
-    camera_position_mm: float = 2.0
-    camera_angle_deg: float = 1.0
-    samples: int = 200
+#: The keys of ``[tracking]`` (the fields of ``TrackingSettings``).
+TRACKING_KEYS = tuple(TrackingSettings.model_fields)
+TrackingSpec = TrackingSettings
+ShopSpec = ShopSettings
+RobustnessSpec = RobustnessSettings
+"""The ``[tracking]``, ``[shop]`` and ``[robustness]`` sections (``cadfeat.study.settings``): the old names."""
 
 
 @dataclass(frozen=True)
@@ -814,38 +757,6 @@ def _check_step_design(t: _Table, holes: Sequence[HoleSpec], fixed: Sequence[Sel
                    "fixed holes that are not in design.holes")
 
 
-def _constraints_section(t: _Table) -> ConstraintSpec:
-    return ConstraintSpec(
-        edge_distance_mm=t.number("edge_distance_mm", 1.0, 0.0),
-        ligament_mm=t.number("ligament_mm", 1.0, 0.0),
-        volume_change_max_percent=t.number("volume_change_max_percent", None, 0.0, 100.0, lo_open=True),
-        symmetry=t.string("symmetry", "none", SYMMETRIES),
-    )
-
-
-def _shop_section(t: _Table) -> ShopSpec:
-    from cadfeat.design.shop import HOLE_SIZE_TABLES, hole_sizes
-
-    raw = t.raw("hole_sizes", "iso273-medium")
-    allowed = f"one of {', '.join(HOLE_SIZE_TABLES)} or a list of diameters > 0 (mm)"
-    if isinstance(raw, str):
-        sizes: str | tuple[float, ...] = t.string("hole_sizes", "iso273-medium", tuple(HOLE_SIZE_TABLES))
-    elif isinstance(raw, list | tuple) and raw and all(_is_num(v) and v > 0 for v in raw):
-        sizes = hole_sizes(raw)
-    else:
-        t.fail("shop.hole_sizes", f"{_fmt(raw)} is not allowed", allowed)
-    return ShopSpec(hole_sizes=sizes, grid_mm=t.number("grid_mm", 0.1, 0.0, 10.0),
-                    keep_patterns=t.boolean("keep_patterns", True))
-
-
-def _robustness_section(t: _Table) -> RobustnessSpec:
-    return RobustnessSpec(position_tol_mm=t.number("position_tol_mm", 0.1, 0.0, 10.0),
-                          size_steps=t.integer("size_steps", 1, 0, 5),
-                          camera_position_mm=t.number("camera_position_mm", 2.0, 0.0, 100.0),
-                          camera_angle_deg=t.number("camera_angle_deg", 1.0, 0.0, 30.0),
-                          samples=t.integer("samples", 200, 0, 10000))
-
-
 def _objective_section(t: _Table) -> ObjectiveConfig:
     measures = t.raw("measures", list(MEASURES))
     if not isinstance(measures, list) or not measures or not all(isinstance(m, str) and m in MEASURES
@@ -917,29 +828,6 @@ def _optimizer_section(t: _Table, seed: int) -> OptimizerConfig:
     )
 
 
-def _tracking_section(t: _Table, seed: int) -> TrackingSpec:
-    estimators = t.raw("estimators", list(TRACKING_ESTIMATORS))
-    if not isinstance(estimators, list) or not estimators or len(set(map(str, estimators))) != len(estimators) or \
-            not all(isinstance(e, str) and e in TRACKING_ESTIMATORS for e in estimators):
-        t.fail("tracking.estimators", f"{_fmt(estimators)} is not allowed",
-               f"a non-empty list of distinct names from {', '.join(TRACKING_ESTIMATORS)}")
-    return TrackingSpec(
-        estimators=tuple(estimators), runs=t.integer("runs", 20, 1, 10_000), seed=t.integer("seed", seed, 0, 2**32 - 1),
-        noise_grey=t.number("noise_grey", 2.0, 0.0, 100.0), defocus=t.boolean("defocus", True),
-        exposure_s=t.number("exposure_s", 0.0, 0.0, 1.0),
-        initial_error_mm=t.number("initial_error_mm", 10.0, 0.0, 10_000.0),
-        initial_error_deg=t.number("initial_error_deg", 2.0, 0.0, 180.0),
-        r_px2=t.number("r_px2", 0.25, 0.0, lo_open=True), q_rate_mm2_s2=t.number("q_rate_mm2_s2", 100.0, 0.0),
-        q_omega_rad2_s2=t.number("q_omega_rad2_s2", 1e-3, 0.0), iterations=t.integer("iterations", 30, 1, 1000),
-        tau=t.number("tau", 1e-16, 0.0), frame_step=t.integer("frame_step", 1, 1),
-        settle_frames=t.integer("settle_frames", 5, 0), converged_mm=t.number("converged_mm", 2.0, 0.0, lo_open=True),
-        converged_deg=t.number("converged_deg", 1.0, 0.0, lo_open=True),
-        gate_px=t.number("gate_px", 10.0, 0.0, lo_open=True), rim_model=t.boolean("rim_model", True),
-        alpha=t.number("alpha", 0.05, 0.0, 0.5, lo_open=True),
-        min_change_percent=t.number("min_change_percent", 5.0, 0.0, 100.0),
-    )
-
-
 # ------------------------------------------------------------------------------------------- entry point
 def _read(path_or_dict: Any, base_dir: str | Path | None) -> tuple[dict[str, Any], Path | None, Path, str]:
     if isinstance(path_or_dict, Mapping):
@@ -984,14 +872,12 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     design, params, design_echo = _design_section(
         _Table(top.raw("design"), "design", label,
                ["parameters", "holes", "standard_diameters_mm", "fixed", "patterns", "view_direction"]), info, label)
-    constraints = _constraints_section(_Table(top.raw("constraints", {}), "constraints", label,
-                                              ["edge_distance_mm", "ligament_mm", "volume_change_max_percent",
-                                               "symmetry"]))
+    constraints = validate_section(ConstraintSettings, top.raw("constraints", {}), "constraints", label)
     objective = _objective_section(_Table(top.raw("objective", {}), "objective", label, list(OBJECTIVE_KEYS)))
     optimizer = _optimizer_section(_Table(top.raw("optimizer", {}), "optimizer", label, list(OPTIMIZER_KEYS)),
                                    info.seed)
-    shop = _shop_section(_Table(top.raw("shop", {}), "shop", label, list(SHOP_KEYS)))
-    robustness = _robustness_section(_Table(top.raw("robustness", {}), "robustness", label, list(ROBUSTNESS_KEYS)))
+    shop = validate_section(ShopSettings, top.raw("shop", {}), "shop", label)
+    robustness = validate_section(RobustnessSettings, top.raw("robustness", {}), "robustness", label)
     if objective.combine == "pareto" and optimizer.method != "pareto":
         raise StudyError(f"{label}: optimizer.method: {optimizer.method!r} cannot give a Pareto front "
                          "(objective.combine = \"pareto\"); allowed: pareto")
@@ -1000,7 +886,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
                          "allowed: pareto")
     tracking = None
     if "tracking" in data:
-        tracking = _tracking_section(_Table(top.raw("tracking"), "tracking", label, TRACKING_KEYS), info.seed)
+        tracking = validate_section(TrackingSettings, top.raw("tracking"), "tracking", label, {"seed": info.seed})
     echo = {
         "study": {"name": info.name, "part": info.part, "seed": info.seed,
                   "description": info.description, "build_timeout_s": info.build_timeout_s},
@@ -1008,16 +894,15 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
         "part_pose": {"position_mm": list(pose.position_mm), "rotvec_deg": list(pose.rotvec_deg)},
         "trajectory": copy.deepcopy(dict(trajectory.table)),
         "design": design_echo,
-        "constraints": _asdict(constraints),
+        "constraints": constraints.model_dump(mode="json"),
         "objective": {**_asdict(objective, OBJECTIVE_KEYS), "measures": list(objective.measures),
                       "weights": dict(objective.weights), "thresholds": dict(objective.thresholds)},
         "optimizer": _asdict(optimizer, OPTIMIZER_KEYS),
-        "shop": {**_asdict(shop), "hole_sizes": shop.hole_sizes if isinstance(shop.hole_sizes, str)
-                 else list(shop.hole_sizes)},
-        "robustness": _asdict(robustness),
+        "shop": shop.model_dump(mode="json"),
+        "robustness": robustness.model_dump(mode="json"),
     }
     if tracking is not None:
-        echo["tracking"] = {**_asdict(tracking), "estimators": list(tracking.estimators)}
+        echo["tracking"] = tracking.model_dump(mode="json")
     return StudyConfig(path, base, info, camera, pose, trajectory, design, constraints, objective, optimizer,
                        params, _drop_none(echo), shop=shop, robustness=robustness, tracking=tracking)
 

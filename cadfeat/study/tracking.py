@@ -171,15 +171,15 @@ def sweep(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[Any]]],
     for value in (values or SWEEPS[kind]):
         s, cam = base, None
         if kind == "initial_error":
-            s = dataclasses.replace(base, initial_error_mm=float(value), initial_error_deg=0.1 * float(value))
+            s = base.replace(initial_error_mm=float(value), initial_error_deg=0.1 * float(value))
         elif kind == "q":
-            s = dataclasses.replace(base, q_rate_mm2_s2=float(value), q_omega_rad2_s2=float(value) * 1e-5)
+            s = base.replace(q_rate_mm2_s2=float(value), q_omega_rad2_s2=float(value) * 1e-5)
         elif kind == "r":
-            s = dataclasses.replace(base, r_px2=float(value))
+            s = base.replace(r_px2=float(value))
         elif kind == "focal_length":
             cam = camera.replace(fx=camera.fx * float(value), fy=camera.fy * float(value))
         elif kind == "sample_time":
-            s = dataclasses.replace(base, frame_step=int(value), settle_frames=min(base.settle_frames, 2))
+            s = base.replace(frame_step=int(value), settle_frames=min(base.settle_frames, 2))
         section = run_tracking(config, designs, None, s, camera_override=cam)
         row: dict[str, Any] = {"value": float(value)}
         for name, d in section["designs"].items():

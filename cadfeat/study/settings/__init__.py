@@ -1,0 +1,21 @@
+"""Study-file sections declared once, as pydantic v2 models (strict, unknown keys refused, frozen).
+
+``_base``: the ``Settings`` base, field helpers and ``validate_section`` (a ``ValidationError`` → one
+``StudyError`` line: file, dotted key, what is allowed); ``sections``: ``[constraints]``, ``[shop]``,
+``[robustness]``, ``[tracking]``. The models are the configurations the run uses (no copies).
+"""
+
+from __future__ import annotations
+
+from cadfeat.study.settings._base import Settings, StudyError, range_text, validate_section
+from cadfeat.study.settings.sections import (
+    SYMMETRIES,
+    TRACKING_ESTIMATORS,
+    ConstraintSettings,
+    RobustnessSettings,
+    ShopSettings,
+    TrackingSettings,
+)
+
+__all__ = ["SYMMETRIES", "TRACKING_ESTIMATORS", "ConstraintSettings", "RobustnessSettings", "Settings",
+           "ShopSettings", "StudyError", "TrackingSettings", "range_text", "validate_section"]
