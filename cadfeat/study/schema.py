@@ -43,13 +43,17 @@ from typing import Any, NoReturn
 
 import numpy as np
 
-from cadfeat.design.objectives import ObjectiveConfig
-from cadfeat.design.optimize import OptimizerConfig
+from cadfeat.design.objectives import AGGREGATES, COMBINES, ObjectiveConfig
+from cadfeat.design.objectives import MEASURES as _OBJECTIVE_MEASURES
+from cadfeat.design.optimize import METHODS, OptimizerConfig
 from cadfeat.errors import CadfeatError
 from cadfeat.study.settings import (
+    LIMITS,
     SYMMETRIES,
     TRACKING_ESTIMATORS,
     ConstraintSettings,
+    ObjectiveSettings,
+    OptimizerSettings,
     RobustnessSettings,
     ShopSettings,
     StudyError,
@@ -81,19 +85,12 @@ __all__ = [
     "part_parameters",
 ]
 
-MEASURES = ("fov", "focus", "resolution", "resolvability")
-AGGREGATES = ("sum", "mean", "min", "smoothmin")
-COMBINES = ("weighted", "maxmin", "constraint", "pareto")
-METHODS = ("multistart", "local", "global", "pareto")
-LOCAL_SOLVERS = ("SLSQP", "trust-constr")
-NORMALISATIONS = ("payoff", "initial", "natural", "none")
-SCORES = ("movable", "all")
-FOV_MEASURES = ("cone", "image")
+MEASURES = tuple(_OBJECTIVE_MEASURES)
+"""The measure names of ``[objective] measures`` (the design layer's ``MEASURES``; enumerations are not copied)."""
 #: The keys of ``[objective]`` and ``[optimizer]``: the fields of ``ObjectiveConfig`` / ``OptimizerConfig``
 #: a study file may set (the others keep their defaults).
-OBJECTIVE_KEYS = ("measures", "aggregate", "combine", "weights", "thresholds", "min_axis_px", "rotation_length_mm",
-                  "smoothmin_beta", "normalisation", "fov_measure", "occlusion", "score")
-OPTIMIZER_KEYS = ("method", "starts", "maxiter", "seed", "local_solver", "snap_standard_sizes")
+OBJECTIVE_KEYS = tuple(ObjectiveSettings.model_fields)
+OPTIMIZER_KEYS = tuple(OptimizerSettings.model_fields)
 SCRIPT_SUFFIXES = (".py",)
 STEP_SUFFIXES = (".step", ".stp")
 
@@ -102,19 +99,6 @@ SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints
 SHOP_KEYS = tuple(ShopSettings.model_fields)
 ROBUSTNESS_KEYS = tuple(RobustnessSettings.model_fields)
 REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
-LIMITS = {
-    "trajectory_samples": 100_000,   # [trajectory] n (and the rows of a trajectory CSV)
-    "trajectory_lines": 10_000,      # [trajectory] lines (raster_scan)
-    "trajectory_csv_bytes": 64 * 2**20,
-    "design_variables": 64,          # [design] parameters / movable holes
-    "optimizer_starts": 10_000,      # [optimizer] starts
-    "optimizer_maxiter": 1_000_000,  # [optimizer] maxiter
-    "image_pixels": 50_000_000,      # [camera] width * height
-    "image_side_px": 20_000,         # [camera] width, height
-}
-"""Size limits checked when a study is validated, before anything is allocated (each error names its limit).
-They bound memory and time on an ordinary machine; for a bigger study, raise them here
-(``cadfeat.study.schema.LIMITS[key] = value`` before ``load_study``)."""
 BUILD_TIMEOUT_S = 60.0
 """Default ``[study] build_timeout_s``: time limit of one part-script import or CAD build (worker process)."""
 
@@ -757,77 +741,6 @@ def _check_step_design(t: _Table, holes: Sequence[HoleSpec], fixed: Sequence[Sel
                    "fixed holes that are not in design.holes")
 
 
-def _objective_section(t: _Table) -> ObjectiveConfig:
-    measures = t.raw("measures", list(MEASURES))
-    if not isinstance(measures, list) or not measures or not all(isinstance(m, str) and m in MEASURES
-                                                                 for m in measures) \
-            or len(set(measures)) != len(measures):
-        t.fail("objective.measures", f"{_fmt(measures)} is not allowed",
-               f"a non-empty list of distinct names from {', '.join(MEASURES)}")
-    aggregate = t.string("aggregate", "sum", AGGREGATES)
-    combine = t.string("combine", "maxmin", COMBINES)
-    weights = _measure_table(t, "weights", measures, lo=0.0)
-    thresholds = _measure_table(t, "thresholds", measures, lo=None)
-    if combine == "weighted" and weights and not any(w > 0 for w in weights.values()):
-        t.fail("objective.weights", "all weights are zero", "non-negative weights, at least one positive")
-    if combine == "constraint":
-        if not thresholds:
-            t.fail("objective.thresholds", "missing (combine = \"constraint\" makes these measures hard "
-                   "constraints)", f"a table measure = minimum value, measures from {', '.join(measures)}")
-        if set(thresholds) == set(measures):
-            t.fail("objective.thresholds", "every measure is a constraint, none is left to optimise",
-                   "thresholds for some of the measures, not all")
-    elif thresholds:
-        t.fail("objective.thresholds", f"only used with combine = \"constraint\" (combine is {combine!r})",
-               "remove it, or combine = \"constraint\"")
-    return ObjectiveConfig(
-        measures=tuple(measures), aggregate=aggregate, combine=combine, weights=weights, thresholds=thresholds,
-        min_axis_px=t.number("min_axis_px", 5.0, 0.0, lo_open=True),
-        rotation_length_mm=t.number("rotation_length_mm", 1.0, 0.0, lo_open=True),
-        smoothmin_beta=t.number("smoothmin_beta", 20.0, 0.0, lo_open=True),
-        normalisation=t.string("normalisation", "payoff", NORMALISATIONS),
-        fov_measure=t.string("fov_measure", "cone", FOV_MEASURES),
-        occlusion=t.boolean("occlusion", True),
-        score=_score(t),
-    )
-
-
-def _score(t: _Table) -> str | tuple[str, ...]:
-    """``objective.score``: which holes' FOV/focus/resolution are scored — "movable" (default: the holes
-    the design moves; all when none moves), "all", or a list of hole names (checked against the part later)."""
-    raw = t.raw("score", "movable")
-    if isinstance(raw, str) and raw in SCORES:
-        return raw
-    if isinstance(raw, list) and raw and all(isinstance(x, str) and x for x in raw) and len(set(raw)) == len(raw):
-        return tuple(raw)
-    t.fail("objective.score", f"{_fmt(raw)} is not allowed",
-           '"movable", "all" or a non-empty list of distinct hole names (e.g. ["H1", "H3"])')
-
-
-def _measure_table(t: _Table, name: str, measures: Sequence[str], lo: float | None) -> dict[str, float]:
-    raw = t.raw(name, {})
-    key = f"objective.{name}"
-    if not isinstance(raw, Mapping):
-        t.fail(key, f"{_fmt(raw)} is not allowed", f"a table measure = number, measures from {', '.join(measures)}")
-    out = {}
-    for m, v in raw.items():
-        if m not in measures:
-            t.fail(f"{key}.{m}", "not one of objective.measures", ", ".join(measures))
-        out[m] = _number(v, f"{key}.{m}", t.label, lo)
-    return dict(sorted(out.items()))
-
-
-def _optimizer_section(t: _Table, seed: int) -> OptimizerConfig:
-    return OptimizerConfig(
-        method=t.string("method", "multistart", METHODS),
-        starts=t.integer("starts", 8, 1, LIMITS["optimizer_starts"]),
-        maxiter=t.integer("maxiter", 100, 1, LIMITS["optimizer_maxiter"]),
-        seed=t.integer("seed", seed, 0, 2**32 - 1),
-        local_solver=t.string("local_solver", "SLSQP", LOCAL_SOLVERS),
-        snap_standard_sizes=t.boolean("snap_standard_sizes", True),
-    )
-
-
 # ------------------------------------------------------------------------------------------- entry point
 def _read(path_or_dict: Any, base_dir: str | Path | None) -> tuple[dict[str, Any], Path | None, Path, str]:
     if isinstance(path_or_dict, Mapping):
@@ -873,9 +786,9 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
         _Table(top.raw("design"), "design", label,
                ["parameters", "holes", "standard_diameters_mm", "fixed", "patterns", "view_direction"]), info, label)
     constraints = validate_section(ConstraintSettings, top.raw("constraints", {}), "constraints", label)
-    objective = _objective_section(_Table(top.raw("objective", {}), "objective", label, list(OBJECTIVE_KEYS)))
-    optimizer = _optimizer_section(_Table(top.raw("optimizer", {}), "optimizer", label, list(OPTIMIZER_KEYS)),
-                                   info.seed)
+    objective = validate_section(ObjectiveSettings, top.raw("objective", {}), "objective", label).config()
+    optimizer = validate_section(OptimizerSettings, top.raw("optimizer", {}), "optimizer", label,
+                                 {"seed": info.seed}).config()
     shop = validate_section(ShopSettings, top.raw("shop", {}), "shop", label)
     robustness = validate_section(RobustnessSettings, top.raw("robustness", {}), "robustness", label)
     if objective.combine == "pareto" and optimizer.method != "pareto":

@@ -2,7 +2,8 @@
 
 ``_base``: the ``Settings`` base, field helpers and ``validate_section`` (a ``ValidationError`` → one
 ``StudyError`` line: file, dotted key, what is allowed); ``sections``: ``[constraints]``, ``[shop]``,
-``[robustness]``, ``[tracking]``. The models are the configurations the run uses (no copies).
+``[robustness]``, ``[tracking]``; ``solve``: ``[objective]``, ``[optimizer]``. The section models are
+the configurations the run uses; objective and optimizer give the design layer's configs (``.config()``).
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from cadfeat.study.settings.sections import (
     ShopSettings,
     TrackingSettings,
 )
+from cadfeat.study.settings.solve import FOV_MEASURES, LIMITS, SCORES, ObjectiveSettings, OptimizerSettings
 
-__all__ = ["SYMMETRIES", "TRACKING_ESTIMATORS", "ConstraintSettings", "RobustnessSettings", "Settings",
-           "ShopSettings", "StudyError", "TrackingSettings", "range_text", "validate_section"]
+__all__ = ["FOV_MEASURES", "LIMITS", "SCORES", "SYMMETRIES", "TRACKING_ESTIMATORS", "ConstraintSettings",
+           "ObjectiveSettings", "OptimizerSettings", "RobustnessSettings", "Settings", "ShopSettings", "StudyError",
+           "TrackingSettings", "range_text", "validate_section"]

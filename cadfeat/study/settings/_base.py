@@ -11,10 +11,10 @@ context (``info.context``) given to ``validate_section``.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Annotated, Any, TypeVar
+from typing import Annotated, Any, TypeVar, cast
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
-from pydantic_core import PydanticCustomError
+from pydantic_core import ErrorDetails, PydanticCustomError
 
 from cadfeat.errors import CadfeatError
 
@@ -26,9 +26,9 @@ class StudyError(CadfeatError):
     """A study file is invalid: the message names the file, the dotted key and what is allowed."""
 
 
-def _as_tuple(value: Any) -> Any:
+def _as_tuple(value: object) -> object:
     """TOML arrays are lists: a tuple field takes a list as its items (strict validation of each item)."""
-    return tuple(value) if isinstance(value, list) else value
+    return tuple(cast("list[object]", value)) if isinstance(value, list) else value
 
 
 T = TypeVar("T")
@@ -100,15 +100,16 @@ def validate_section(model: type[M], data: Any, section: str, label: str,
     keys = ", ".join(model.model_fields)
     if not isinstance(data, Mapping):
         raise StudyError(f"{label}: {section}: expected a table, got {_fmt(data)}; allowed: a table with keys {keys}")
+    table = dict(cast("Mapping[str, Any]", data))
     try:
-        return model.model_validate(dict(data), context=dict(context or {}))
+        return model.model_validate(table, context=dict(context or {}))
     except ValidationError as exc:
-        raise StudyError(f"{label}: {_message(model, exc.errors()[0], data, section)}") from None
+        raise StudyError(f"{label}: {_message(model, exc.errors()[0], table, section)}") from None
 
 
-def _message(model: type[Settings], err: Any, data: Mapping[str, Any], section: str) -> str:
-    loc = [str(x) for x in err.get("loc", ())]
-    ctx = err.get("ctx") or {}
+def _message(model: type[Settings], err: ErrorDetails, data: Mapping[str, Any], section: str) -> str:
+    loc = [str(x) for x in err["loc"]]
+    ctx: dict[str, Any] = dict(err.get("ctx") or {})
     if err["type"] == "cadfeat":
         return f"{section}.{ctx['key']}: {ctx['problem']}; allowed: {ctx['allowed']}"
     name = loc[0] if loc else ""
@@ -116,8 +117,8 @@ def _message(model: type[Settings], err: Any, data: Mapping[str, Any], section: 
     if err["type"] == "extra_forbidden":
         return f"{key}: unknown key; allowed: keys of [{section}]: {', '.join(model.model_fields)}"
     field = model.model_fields.get(name)
-    extra = field.json_schema_extra if field is not None and isinstance(field.json_schema_extra, dict) else {}
-    allowed = str(extra.get("x-allowed", err.get("msg", "")))
+    extra = cast("dict[str, Any] | None", field.json_schema_extra if field is not None else None)
+    allowed = str(extra.get("x-allowed", err["msg"])) if isinstance(extra, dict) else err["msg"]
     if err["type"] == "missing":
         return f"{key}: missing; allowed: {allowed}"
     return f"{key}: {_fmt(data.get(name, err.get('input')))} is not allowed; allowed: {allowed}"

@@ -6,7 +6,7 @@ Units are in the key names (mm, percent, deg, s, px², grey levels on the 0..255
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 from pydantic import ValidationInfo, field_validator, model_validator
 
@@ -107,11 +107,13 @@ class TrackingSettings(Settings):
 
     @model_validator(mode="before")
     @classmethod
-    def _study_seed(cls, data: Any, info: ValidationInfo) -> Any:
+    def _study_seed(cls, data: object, info: ValidationInfo) -> object:
         """``seed`` defaults to the study's seed (validation context ``seed``)."""
-        if isinstance(data, dict) and "seed" not in data and info.context and "seed" in info.context:
-            return {**data, "seed": info.context["seed"]}
-        return data
+        context = cast("dict[str, Any] | None", info.context)
+        if not isinstance(data, dict) or not context or "seed" not in context:
+            return cast(object, data)
+        table = cast("dict[str, Any]", data)
+        return table if "seed" in table else {**table, "seed": context["seed"]}
 
     @field_validator("estimators")
     @classmethod
