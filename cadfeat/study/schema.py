@@ -91,6 +91,9 @@ MEASURES = tuple(_OBJECTIVE_MEASURES)
 #: a study file may set (the others keep their defaults).
 OBJECTIVE_KEYS = tuple(ObjectiveSettings.model_fields)
 OPTIMIZER_KEYS = tuple(OptimizerSettings.model_fields)
+STUDY_KEYS = ("name", "part", "seed", "description", "build_timeout_s")
+PART_POSE_KEYS = ("position_mm", "rotvec_deg", "quaternion")
+DESIGN_KEYS = ("parameters", "holes", "standard_diameters_mm", "fixed", "patterns", "view_direction")
 SCRIPT_SUFFIXES = (".py",)
 STEP_SUFFIXES = (".step", ".stp")
 
@@ -776,15 +779,13 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
             raise StudyError(f"{label}: [{section}]: missing section; required sections: "
                              f"{', '.join(REQUIRED_SECTIONS)}; optional: "
                              f"{', '.join(s for s in SECTIONS if s not in REQUIRED_SECTIONS)}")
-    st = _Table(top.raw("study"), "study", label, ["name", "part", "seed", "description", "build_timeout_s"])
+    st = _Table(top.raw("study"), "study", label, STUDY_KEYS)
     info = _study_section(st, base)
     camera, camera_echo = _camera_section(top.raw("camera"), label, base)
-    pose = _pose_section(_Table(top.raw("part_pose", {}), "part_pose", label,
-                                ["position_mm", "rotvec_deg", "quaternion"]))
+    pose = _pose_section(_Table(top.raw("part_pose", {}), "part_pose", label, PART_POSE_KEYS))
     trajectory = _trajectory_section(top.raw("trajectory"), label, base)
     design, params, design_echo = _design_section(
-        _Table(top.raw("design"), "design", label,
-               ["parameters", "holes", "standard_diameters_mm", "fixed", "patterns", "view_direction"]), info, label)
+        _Table(top.raw("design"), "design", label, DESIGN_KEYS), info, label)
     constraints = validate_section(ConstraintSettings, top.raw("constraints", {}), "constraints", label)
     objective = validate_section(ObjectiveSettings, top.raw("objective", {}), "objective", label).config()
     optimizer = validate_section(OptimizerSettings, top.raw("optimizer", {}), "optimizer", label,

@@ -77,8 +77,10 @@ def boolean(default: bool, *, description: str = "") -> Any:
 
 def choice(default: Any, allowed: Sequence[str] | str, *, description: str = "") -> Any:
     """A field of an enumeration (``Literal``) or any field with a hand-written allowed text."""
-    text = allowed if isinstance(allowed, str) else ", ".join(allowed)
-    return Field(default, description=description, json_schema_extra={"x-allowed": text})
+    if isinstance(allowed, str):
+        return Field(default, description=description, json_schema_extra={"x-allowed": allowed})
+    return Field(default, description=description,
+                 json_schema_extra={"x-allowed": ", ".join(allowed), "enum": list(allowed)})
 
 
 def reject(key: str, problem: str, allowed: str) -> PydanticCustomError:
