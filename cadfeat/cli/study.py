@@ -56,7 +56,7 @@ def evaluate(args: argparse.Namespace) -> int:
 def validate(args: argparse.Namespace) -> int:
     """Check a study file (sections, keys, types, ranges, files, part parameters, the part builds / the STEP
     file reads) without running it."""
-    from cadfeat.cad.parts import build_time_limit
+    from cadfeat.cad.sandbox import build_time_limit
     from cadfeat.study.schema import load_study
 
     config = load_study(args.study)

@@ -32,8 +32,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat._version import __version__
+from cadfeat.cad.sandbox import build_time_limit
 from cadfeat.errors import CadfeatError
 from cadfeat.report.verdict import verdict_json
+from cadfeat.study.output_folder import staged_output
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
     file_entry,
@@ -435,12 +438,10 @@ def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int
     report. ``seed`` overrides the study's seeds. Raises ``CadfeatError`` (nothing written) on bad input or a
     failed verification; ``KeyboardInterrupt`` before the optimiser found a design also writes nothing.
 
-    The output folder is checked before any work (``cadfeat.cad.output_folder``): a non-empty folder cadfeat
+    The output folder is checked before any work (``cadfeat.study.output_folder``): a non-empty folder cadfeat
     did not create is refused unless ``force`` (then cadfeat's files are added, other files untouched).
     Every part-script import and CAD build runs in a worker process within ``[study] build_timeout_s``.
     """
-    from cadfeat.cad.output_folder import staged_output
-    from cadfeat.cad.parts import build_time_limit
 
     config = _resolve(path_or_dict, seed)
     out = out_dir if out_dir is not None else default_out_dir(config)
@@ -538,7 +539,7 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
     traj = setup.trajectory
     results: dict[str, Any] = {
         "schema_version": SCHEMA_VERSION,
-        "cadfeat_version": _version(),
+        "cadfeat_version": __version__,
         "created": now_iso(),
         "study": {"name": config.study.name, "file": str(config.file) if config.file else None,
                   "part": config.study.part, "part_kind": config.study.part_kind, "seed": config.study.seed,
@@ -786,12 +787,6 @@ def _x0_like(setup: StudySetup, base: Any) -> np.ndarray:
     return np.asarray(base.space.x0, float) if base.space.names == setup.space.names else setup.space.x0
 
 
-def _version() -> str:
-    from cadfeat import __version__
-
-    return __version__
-
-
 def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], shapes: Mapping[str, Any],
                    prog: StudyProgress) -> None:
     """Write and verify the outputs into the staging folder ``stage`` (published by the caller)."""
@@ -880,8 +875,6 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
     Table 5.1: FOV, focus, resolution margins, visibility, worst pose) and a per-pose summary when ``echo``;
     writes results.json (+ report) into ``out_dir`` if given (checked before any work, as by ``run_study``;
     ``force``: add the files to a folder cadfeat did not create)."""
-    from cadfeat.cad.output_folder import staged_output
-    from cadfeat.cad.parts import build_time_limit
 
     config = _resolve(path_or_dict, seed)
     with contextlib.ExitStack() as stack:
@@ -917,7 +910,7 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
             for f in summary["per_feature"]:
                 f["worst_pose"] = pose
         results = {
-            "schema_version": SCHEMA_VERSION, "cadfeat_version": _version(), "created": now_iso(),
+            "schema_version": SCHEMA_VERSION, "cadfeat_version": __version__, "created": now_iso(),
             "evaluation_only": True,
             "study": {"name": config.study.name, "file": str(config.file) if config.file else None,
                       "part": config.study.part, "part_kind": config.study.part_kind, "seed": config.study.seed,

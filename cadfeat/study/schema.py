@@ -605,7 +605,7 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
     if info.part_kind == "script":
         if t.has("holes"):
             t.fail("design.holes", "only for STEP parts (script parts vary their parameters)", "design.parameters")
-        from cadfeat.cad.parts import build_time_limit
+        from cadfeat.cad.sandbox import build_time_limit
 
         with build_time_limit(info.build_timeout_s, start=False):  # (the script runs only for a computed table)
             params = part_parameters(info.part_path)

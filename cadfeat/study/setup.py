@@ -320,7 +320,7 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
 
 def _timed_redrill(config: StudyConfig, step: Any, moves: Sequence[Any]) -> Any:
     """``step_parts.redrill`` within the study's ``build_timeout_s`` (a worker process, as part-script builds)."""
-    from cadfeat.cad.parts import call_with_time_limit
+    from cadfeat.cad.sandbox import call_with_time_limit
     from cadfeat.cad.step_parts import redrill
 
     return call_with_time_limit(redrill, (step.shape, list(moves), step.tolerance, step.path),
