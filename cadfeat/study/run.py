@@ -42,7 +42,6 @@ from cadfeat.study.outputs import (
     file_entry,
     hole_dict,
     measures_summary,
-    normalise_step_header,
     now_iso,
     plain,
     versions,
@@ -51,6 +50,13 @@ from cadfeat.study.outputs import (
 from cadfeat.study.progress import StudyProgress
 from cadfeat.study.schema import StudyConfig, StudyError, load_study
 from cadfeat.study.trust import objective_changes
+from cadfeat.study.verify import (
+    AnchoredModel,
+    export_and_verify,
+    outlines_differ,
+    rebuild,
+    requirement_checks,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.study.setup import StudySetup
@@ -61,8 +67,6 @@ EXPORTS_DIR = Path("exports")
 """Default parent of a study's output folder: ``exports/<study name>/`` (relative to the current folder)."""
 SWEEP_SAMPLES = 41
 OUTLINE_ROUNDS = 4
-ROUNDTRIP_TOL_MM = 1e-6
-PREDICTION_TOL_MM = 1e-6
 OUTPUT_FILES = ("original.step", "optimised.step", "optimised.stl", "holes.csv", "results.json")
 
 
@@ -203,25 +207,6 @@ def _violations(setup: StudySetup, x: np.ndarray, most: int = 5) -> str:
         "(no 2-D constraint; see the optimiser's message)"
 
 
-def _outlines_differ(a: Sequence[Any], b: Sequence[Any], tol_mm: float = 1e-6) -> bool:
-    """Whether the host-face outlines of paired holes differ (outer polygon or keep-outs, mm)."""
-    for h, g in zip(a, b, strict=True):
-        oa, ob = h.outline, g.outline
-        if (oa is None) != (ob is None):
-            return True
-        if oa is None:
-            continue
-        pa, pb = np.asarray(oa.outer, float), np.asarray(ob.outer, float)
-        if pa.shape != pb.shape or np.abs(pa - pb).max(initial=0.0) > tol_mm:
-            return True
-        ka, kb = list(oa.keepouts), list(ob.keepouts)
-        if len(ka) != len(kb) or any(np.asarray(x).shape != np.asarray(y).shape or
-                                     np.abs(np.asarray(x) - np.asarray(y)).max(initial=0.0) > tol_mm
-                                     for x, y in zip(ka, kb, strict=True)):
-            return True
-    return False
-
-
 def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, prog: StudyProgress,
                       label: str) -> tuple[Any, Any, list[dict[str, Any]], bool]:
     """The optimiser's 2-D constraints use the host-face outlines of the design it was linearised at; when a
@@ -235,8 +220,8 @@ def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, 
     for k in range(OUTLINE_ROUNDS):
         x = np.asarray(res.x_best, float)
         try:
-            _, holes, _ = _rebuild(setup, x)
-            if not _outlines_differ(setup.model.holes, holes):
+            _, holes, _ = rebuild(setup, x)
+            if not outlines_differ(setup.model.holes, holes):
                 break
             names = setup.space.names
             new = setup_script(setup.config, setup.int_values, scene, normaliser,
@@ -282,90 +267,6 @@ def _sweep(setup: StudySetup) -> dict[str, Any] | None:
 
 
 # ------------------------------------------------------------------------------------------ verification
-def _order_like(reference: Sequence[Any], holes: Sequence[Any], tol_mm: float, what: str) -> list[Any]:
-    """``holes`` reordered to pair with ``reference`` by geometry (nearest centres, one to one), each taking its
-    reference's name."""
-    from cadfeat.cad.features import match_holes
-
-    if len(holes) != len(reference):
-        raise CadfeatError(f"{what}: {len(holes)} holes found, {len(reference)} designed")
-    try:
-        idx = match_holes(list(reference), list(holes), tol_mm=tol_mm)
-    except CadfeatError as exc:
-        raise CadfeatError(f"{what}: holes do not match the design: {exc}") from exc
-    return [dataclasses.replace(holes[i], name=r.name) if r.name else holes[i]
-            for r, i in zip(reference, idx, strict=True)]
-
-
-def _predicted_holes(setup: StudySetup, x: np.ndarray) -> list[Any]:
-    c, a, r = setup.model.features(x)
-    return [dataclasses.replace(h, centre=np.asarray(c[i]), axis=np.asarray(a[i]), radius_mm=float(r[i]))
-            for i, h in enumerate(setup.model.holes)]
-
-
-def _rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Any] | None = None) -> tuple[Any, list[Any], float]:
-    """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
-    deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
-    loop extracted at ``x``, in model order) when given."""
-    from cadfeat.cad.features import holes_to_arrays
-
-    shape = setup.rebuild_shape(x)
-    predicted = _predicted_holes(setup, x)
-    if verified is not None and len(verified) == len(predicted):
-        predicted = [dataclasses.replace(v, name=p.name) for v, p in zip(verified, predicted, strict=True)]
-    holes = _order_like(predicted, setup.rebuild_holes(shape), 0.5, "CAD rebuild of the optimum")
-    holes = [dataclasses.replace(h, name=p.name) if p.name else h for h, p in zip(holes, predicted, strict=True)]
-    c0, _, r0 = holes_to_arrays(predicted)
-    c1, _, r1 = holes_to_arrays(holes)
-    err = float(max(np.linalg.norm(c1 - c0, axis=1).max(initial=0.0), np.abs(r1 - r0).max(initial=0.0)))
-    return shape, holes, err
-
-
-def _checks(setup: StudySetup, shape: Any, holes: Sequence[Any], where: str) -> list[dict[str, Any]]:
-    """Every kept requirement measured on the solid ``shape`` whose holes are ``holes`` (design order).
-
-    ``verify_on_brep`` re-extracts holes without a preferred direction (a through hole may then be reported
-    from its other end), so the design and reference holes are given to it in that same convention, paired
-    with the design order by their axis lines."""
-    from cadfeat.design.constraints import verify_on_brep
-
-    design = _pair_by_axis(holes, _extract_plain(shape), f"{where} holes")
-    reference = _pair_by_axis(setup.holes0, _extract_plain(setup.shape0), "original holes")
-    checks = verify_on_brep(shape, design, setup.constraints, setup.fixed_mask, reference=reference,
-                            reference_shape=setup.shape0)
-    return [{**c.to_dict(), "checked_on": where} for c in checks]
-
-
-def _pair_by_axis(reference: Sequence[Any], holes: Sequence[Any], what: str, tol_mm: float = 1e-3) -> list[Any]:
-    """``holes`` reordered to pair with ``reference`` hole by hole: same axis line (parallel axes, either
-    sign, centre on the reference's axis line within ``tol_mm``), nearest centre first; each paired hole takes
-    its reference's name (a hole keeps one name in every output, whatever order extraction found it in)."""
-    if len(holes) != len(reference):
-        raise CadfeatError(f"{what}: {len(holes)} holes found, {len(reference)} designed")
-    c1 = np.array([h.centre for h in holes], float).reshape(-1, 3)
-    a1 = np.array([h.axis for h in holes], float).reshape(-1, 3)
-    out, used = [], set()
-    for i, h in enumerate(reference):
-        c0, a0 = np.asarray(h.centre, float), np.asarray(h.axis, float)
-        d = c1 - c0
-        off_line = np.linalg.norm(d - np.outer(d @ a0, a0), axis=1)
-        parallel = np.abs(a1 @ a0) > 1 - 1e-9
-        ok = [k for k in np.argsort(np.linalg.norm(d, axis=1)) if parallel[k] and off_line[k] <= tol_mm
-              and k not in used]
-        if not ok:
-            raise CadfeatError(f"{what}: no hole on the axis of design hole {h.name or i + 1} at "
-                               f"{np.round(c0, 6).tolist()}")
-        used.add(ok[0])
-        out.append(dataclasses.replace(holes[ok[0]], name=h.name) if h.name else holes[ok[0]])
-    return out
-
-
-def _fail_on(checks: Sequence[Mapping[str, Any]], label: str) -> None:
-    bad = [c for c in checks if not c["ok"]]
-    if bad:
-        text = "; ".join(f"{c['name']} {'/'.join(c['holes'])}: {c['value']:.6g} {c['unit']} (required "
-                         f"{c['required']:.6g}, checked on {c['checked_on']})" for c in bad[:6])
-        raise CadfeatError(f"{label}: the optimised design violates kept requirement(s): {text}")
 
 
 # ------------------------------------------------------------------------------------------ results
@@ -507,11 +408,11 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
     x_opt = x1
     verified = getattr(res, "holes", None)
     with prog.phase("shop"):
-        model = _Anchored(setup.model, x_opt, verified)
+        model = AnchoredModel(setup.model, x_opt, verified)
         x1, shop, targets = _shop(setup, x_opt, model)
     with prog.phase("rebuild"):
         try:
-            shape1, holes1, pred_err = _rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+            shape1, holes1, pred_err = rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
         except CadfeatError as exc:
             if not setup.linear or interrupted:
                 raise
@@ -524,14 +425,14 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
             history += _history(res, "CAD in the loop")
             x_opt = np.asarray(res.x_best, float)
             verified = getattr(res, "holes", None)
-            model = _Anchored(setup.model, x_opt, verified)
+            model = AnchoredModel(setup.model, x_opt, verified)
             x1, shop, targets = _shop(setup, x_opt, model)
-            shape1, holes1, pred_err = _rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+            shape1, holes1, pred_err = rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
         if targets is not None:
             x1, shape1, holes1, pred_err = _shop_refine(setup, x1, (shape1, holes1, pred_err), targets, shop, model)
         m1 = measure_holes(setup, holes1, mesh=_mesh_of(config, shape1))
         obj1, comb1 = score(setup, holes1)
-        checks = _checks(setup, shape1, holes1, "brep")
+        checks = requirement_checks(setup, shape1, holes1, "brep")
     with prog.phase("analyse"):
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, x1)
@@ -634,75 +535,13 @@ def _scored(setup: Any) -> np.ndarray:
     return np.ones(len(setup.holes0), bool) if mask is None else np.asarray(mask, bool)
 
 
-class _Anchored:
-    """The feature model anchored on the CAD-verified holes at ``x0`` (when the trust-region loop gave them):
-    ``features(x) = verified(x0) + model(x) − model(x0)``, so a nonlinear part's small shop rounding is
-    predicted around the real optimum, not around the linearisation point."""
-
-    def __init__(self, model: Any, x0: np.ndarray, verified: Sequence[Any] | None) -> None:
-        from cadfeat.cad.features import holes_to_arrays
-
-        self.model, self.holes = model, model.holes
-        c0, _, r0 = model.features(x0)
-        self.dc, self.dr = np.zeros_like(c0), np.zeros_like(r0)
-        if verified is not None and len(verified) == len(r0):
-            cv, _, rv = holes_to_arrays(list(verified))
-            self.dc, self.dr = cv - c0, rv - r0
-
-    def features(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        c, a, r = self.model.features(x)
-        return c + self.dc, a, r + self.dr
-
-    def features_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        c, a, r = self.model.features_batch(X)
-        return c + self.dc, a, r + self.dr
-
-    def holes_at(self, x: np.ndarray) -> list[Any]:
-        c, a, r = self.features(x)
-        return [dataclasses.replace(h, centre=np.asarray(c[i]), axis=np.asarray(a[i]), radius_mm=float(r[i]))
-                for i, h in enumerate(self.holes)]
-
-
-def _off_target(holes: Sequence[Any], targets: Any) -> float:
-    """Largest distance (mm) of the rebuilt holes' centres and diameters from the shop targets."""
-    from cadfeat.cad.features import holes_to_arrays
-
-    c, _, r = holes_to_arrays(list(holes))
-    return float(max(np.abs(c - targets.target_centres).max(initial=0.0),
-                     np.abs(2 * r - targets.target_diameters).max(initial=0.0)))
-
-
 def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Any, list[Any], float], targets: Any,
-                 info: dict[str, Any], model: Any, rounds: int = 6) -> tuple[np.ndarray, Any, list[Any], float]:
-    """Where the feature model is only a linearisation (a nonlinear part script), the rebuilt holes may miss the
-    grid/table targets: up to ``rounds`` Newton steps on the real CAD rebuild (model Jacobian, the rebuilt
-    holes' error), each kept only if it gets closer. ``info["rebuilt_off_target_mm"]``: what remains."""
-    from cadfeat.design.shop import _jacobian
+                 info: dict[str, Any], model: Any) -> tuple[np.ndarray, Any, list[Any], float]:
+    """``shop.refine_on_rebuild`` on the study's CAD rebuild; ``info["rebuilt_off_target_mm"]``: what remains."""
+    from cadfeat.design.shop import refine_on_rebuild
 
-    shape, holes, err = rebuilt
-    off = _off_target(holes, targets)
-    for _ in range(rounds):
-        if off <= 1e-6:
-            break
-        from cadfeat.cad.features import holes_to_arrays
-
-        c, _, r = holes_to_arrays(holes)
-        resid = np.concatenate([(targets.target_centres - c).reshape(-1), (targets.target_diameters / 2 - r)])
-        step = np.linalg.lstsq(_jacobian(model, x), resid, rcond=None)[0]
-        x_new = setup.space.snap(setup.space.clip(x + step))
-        if np.asarray(setup.problem.constraints(x_new), float).min(initial=0.0) < -1e-9:
-            break
-        try:
-            cand = _rebuild(setup, x_new, [dataclasses.replace(h, centre=h.centre + d, radius_mm=h.radius_mm + e)
-                                           for h, d, e in zip(holes, model.features(x_new)[0] - model.features(x)[0],
-                                                              model.features(x_new)[2] - model.features(x)[2],
-                                                              strict=True)])
-        except CadfeatError:
-            break
-        off_new = _off_target(cand[1], targets)
-        if off_new >= off:
-            break
-        x, (shape, holes, err), off = x_new, cand, off_new
+    x, (shape, holes, err), off = refine_on_rebuild(setup.space, model, setup.problem, x, rebuilt, targets,
+                                                    lambda x_new, guess: rebuild(setup, x_new, guess))
     info["rebuilt_off_target_mm"] = off
     info["x_shop"] = dict(zip(setup.space.names, map(float, x), strict=True))
     return x, shape, holes, err
@@ -790,42 +629,9 @@ def _x0_like(setup: StudySetup, base: Any) -> np.ndarray:
 def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], shapes: Mapping[str, Any],
                    prog: StudyProgress) -> None:
     """Write and verify the outputs into the staging folder ``stage`` (published by the caller)."""
-    from cadfeat.cad.export import (
-        check_solid,
-        check_stl,
-        export_step,
-        export_stl,
-        import_step,
-        shape_volume_mm3,
-        verify_step_roundtrip,
-    )
-
-    setup = shapes["setup"]
     t0 = time.perf_counter()
-    problems = check_solid(shapes["shape1"])
-    if problems:
-        raise CadfeatError(f"{config.label}: the rebuilt optimum is not a valid solid: {'; '.join(problems[:3])}")
-    for name, shape in (("original.step", shapes["shape0"]), ("optimised.step", shapes["shape1"])):
-        export_step(shape, stage / name)
-        normalise_step_header(stage / name, f"{config.study.name} {name[:-5]}")
-    # (the rebuild's holes extracted the way verify_step_roundtrip extracts them: no preferred direction)
-    trip = verify_step_roundtrip(stage / "optimised.step", _extract_plain(shapes["shape1"]),
-                                 tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=shape_volume_mm3(shapes["shape1"]),
-                                 volume_rtol=1e-7)
-    reimported = import_step(stage / "optimised.step")
-    step_holes = _order_like(shapes["holes1"], setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
-    step_checks = _checks(setup, reimported, step_holes, "step")
-    results["constraints"] = results["constraints"] + step_checks
-    _fail_on(results["constraints"], config.label)
-    export_stl(shapes["shape1"], stage / "optimised.stl")
-    stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"])
-    if stl_problems:
-        raise CadfeatError(f"{config.label}: optimised.stl: {'; '.join(stl_problems[:3])}")
-    results["verification"] = {
-        "step_roundtrip_max_error_mm": max(trip.max_centre_error_mm, trip.max_radius_error_mm,
-                                           trip.max_depth_error_mm),
-        "step_roundtrip_max_axis_error_rad": trip.max_axis_error_rad, "brep_valid": True,
-        "stl_watertight": True, "tolerance_mm": ROUNDTRIP_TOL_MM}
+    results["constraints"], results["verification"] = export_and_verify(config, stage, shapes,
+                                                                        results["constraints"])
     from cadfeat.report.holes import write_holes_csv
 
     write_holes_csv(stage / "holes.csv", plain(results))
@@ -842,12 +648,6 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
     results["verdict"] = verdict_json(plain(results))
     write_json(stage / "results.json", results)
     _report(stage, results, shapes, prog)
-
-
-def _extract_plain(shape: Any) -> list[Any]:
-    from cadfeat.cad.features import extract_holes
-
-    return extract_holes(shape)
 
 
 def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], prog: StudyProgress) -> None:
