@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features.identity import hole_name
 from cadfeat.cad.sandbox import (
     DEFAULT_BUILD_TIMEOUT_S,
     PartBuildError,
@@ -266,7 +267,7 @@ class Part:
                     + 100.0 * (1.0 - np.abs(axes @ ra.T)))
             rows, cols = linear_sum_assignment(cost)
             for i, k in zip(rows, cols, strict=True):
-                names[int(i)] = reference[int(k)].name or f"H{int(k) + 1}"
+                names[int(i)] = hole_name(reference[int(k)], int(k))
         extra = n_ref
         out = []
         for h, name in zip(holes, names, strict=True):

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features.identity import hole_name as identity_name
 from cadfeat.poses import invert_T
 from cadfeat.render.scene import RenderError
 
@@ -55,7 +56,7 @@ def _view_up(direction: np.ndarray) -> tuple[float, float, float]:
 
 
 def _hole_name(hole: Hole, index: int) -> str:
-    return hole.name or f"H{index + 1}"
+    return identity_name(hole, index)
 
 
 def _label_anchor(holes: Sequence[Hole], mesh: Any) -> np.ndarray:

@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.features.identity import hole_name
+
 __all__ = [
     "DIGITS",
     "SCHEMA_VERSION",
@@ -79,7 +81,7 @@ def hole_dict(hole: Any, index: int, fixed: bool, movable: bool) -> dict[str, An
     """One hole as results.json ``H`` = {index, name, centre_mm, axis, radius_mm, depth_mm, through, kind,
     fixed, movable} (part frame, mm)."""
     return {
-        "index": int(index), "name": hole.name or f"H{index + 1}",
+        "index": int(index), "name": hole_name(hole, index),
         "centre_mm": np.asarray(hole.centre, float).tolist(), "axis": np.asarray(hole.axis, float).tolist(),
         "radius_mm": float(hole.radius_mm), "depth_mm": float(hole.depth_mm), "through": bool(hole.through),
         "kind": str(hole.kind), "fixed": bool(fixed), "movable": bool(movable),

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cadfeat._version import __version__
+from cadfeat.cad.features.identity import hole_names
 from cadfeat.errors import CadfeatError
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
@@ -417,7 +418,7 @@ def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered
                        "occlusion": bool(config.objective.occlusion)},
         "measures": {"before": measures_summary(start.m0, base.hole_names, base.trajectory.times_s,
                                                 config.objective.min_axis_px, half_image(base.camera)),
-                     "after": measures_summary(m1, [h.name or f"H{i + 1}" for i, h in enumerate(done.holes1)],
+                     "after": measures_summary(m1, hole_names(done.holes1),
                                                traj.times_s, config.objective.min_axis_px, half_image(setup.camera))},
         "constraints": checks,
         "requirements_used": _requirements_used(setup, done.x1),

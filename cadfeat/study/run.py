@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cadfeat._version import __version__
+from cadfeat.cad.features.identity import hole_names
 from cadfeat.cad.sandbox import build_time_limit
 from cadfeat.errors import CadfeatError
 from cadfeat.report.verdict import verdict_json
@@ -323,7 +324,7 @@ def _current_design(config: StudyConfig) -> tuple[Any, list[Any], np.ndarray, li
     shape = part.build()
     holes = part.holes()
     fixed = np.asarray(part.fixed_mask(holes), bool)
-    return shape, holes, fixed, [h.name or f"H{i + 1}" for i, h in enumerate(holes)]
+    return shape, holes, fixed, hole_names(holes)
 
 
 def _single_pose(traj: Any, k: int) -> Any:

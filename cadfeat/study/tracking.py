@@ -12,13 +12,13 @@ the focal length the filters assume (the images keep the true camera), or the sa
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.features.identity import named
 from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 
@@ -132,7 +132,7 @@ def _frames(result: Any, camera: Any, out_dir: Path | None, count: int = 3) -> l
 
 def _named(holes: Sequence[Any]) -> list[Any]:
     """The holes with the study's names: a hole without one is ``H<i+1>``, as in every other section."""
-    return [h if h.name else dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(holes)]
+    return named(holes)
 
 
 def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[Any]]], out_dir: Path | None = None,

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features.identity import holes_at, pair_holes, take_names
 from cadfeat.errors import CadfeatError
 from cadfeat.study.outputs import normalise_step_header
 
@@ -51,24 +52,20 @@ def outlines_differ(a: Sequence[Any], b: Sequence[Any], tol_mm: float = 1e-6) ->
 
 
 def order_like(reference: Sequence[Any], holes: Sequence[Any], tol_mm: float, what: str) -> list[Any]:
-    """``holes`` reordered to pair with ``reference`` by geometry (nearest centres, one to one), each taking its
+    """``holes`` reordered to pair with ``reference`` by geometry (``identity.pair_holes``), each taking its
     reference's name."""
-    from cadfeat.cad.features import match_holes
-
     if len(holes) != len(reference):
         raise CadfeatError(f"{what}: {len(holes)} holes found, {len(reference)} designed")
     try:
-        idx = match_holes(list(reference), list(holes), tol_mm=tol_mm)
+        idx = pair_holes(list(reference), list(holes), tol_mm=tol_mm)
     except CadfeatError as exc:
         raise CadfeatError(f"{what}: holes do not match the design: {exc}") from exc
-    return [dataclasses.replace(holes[i], name=r.name) if r.name else holes[i]
-            for r, i in zip(reference, idx, strict=True)]
+    return take_names(reference, holes, idx)
 
 
 def predicted_holes(setup: StudySetup, x: np.ndarray) -> list[Any]:
-    c, a, r = setup.model.features(x)
-    return [dataclasses.replace(h, centre=np.asarray(c[i]), axis=np.asarray(a[i]), radius_mm=float(r[i]))
-            for i, h in enumerate(setup.model.holes)]
+    """The feature model's holes at ``x`` (``identity.holes_at``)."""
+    return holes_at(setup.model, x)
 
 
 def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Any] | None = None) -> tuple[Any, list[Any], float]:
@@ -82,7 +79,6 @@ def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Any] | None = N
     if verified is not None and len(verified) == len(predicted):
         predicted = [dataclasses.replace(v, name=p.name) for v, p in zip(verified, predicted, strict=True)]
     holes = order_like(predicted, setup.rebuild_holes(shape), 0.5, "CAD rebuild of the optimum")
-    holes = [dataclasses.replace(h, name=p.name) if p.name else h for h, p in zip(holes, predicted, strict=True)]
     c0, _, r0 = holes_to_arrays(predicted)
     c1, _, r1 = holes_to_arrays(holes)
     err = float(max(np.linalg.norm(c1 - c0, axis=1).max(initial=0.0), np.abs(r1 - r0).max(initial=0.0)))
@@ -105,27 +101,13 @@ def requirement_checks(setup: StudySetup, shape: Any, holes: Sequence[Any], wher
 
 
 def pair_by_axis(reference: Sequence[Any], holes: Sequence[Any], what: str, tol_mm: float = 1e-3) -> list[Any]:
-    """``holes`` reordered to pair with ``reference`` hole by hole: same axis line (parallel axes, either
-    sign, centre on the reference's axis line within ``tol_mm``), nearest centre first; each paired hole takes
-    its reference's name (a hole keeps one name in every output, whatever order extraction found it in)."""
+    """``holes`` reordered to pair with ``reference`` hole by hole on their axis lines (``identity.pair_holes``
+    with ``along_axis``: parallel axes of either sign, centre within ``tol_mm`` of the reference's axis line,
+    nearest first); each paired hole takes its reference's name."""
     if len(holes) != len(reference):
         raise CadfeatError(f"{what}: {len(holes)} holes found, {len(reference)} designed")
-    c1 = np.array([h.centre for h in holes], float).reshape(-1, 3)
-    a1 = np.array([h.axis for h in holes], float).reshape(-1, 3)
-    out, used = [], set()
-    for i, h in enumerate(reference):
-        c0, a0 = np.asarray(h.centre, float), np.asarray(h.axis, float)
-        d = c1 - c0
-        off_line = np.linalg.norm(d - np.outer(d @ a0, a0), axis=1)
-        parallel = np.abs(a1 @ a0) > 1 - 1e-9
-        ok = [k for k in np.argsort(np.linalg.norm(d, axis=1)) if parallel[k] and off_line[k] <= tol_mm
-              and k not in used]
-        if not ok:
-            raise CadfeatError(f"{what}: no hole on the axis of design hole {h.name or i + 1} at "
-                               f"{np.round(c0, 6).tolist()}")
-        used.add(ok[0])
-        out.append(dataclasses.replace(holes[ok[0]], name=h.name) if h.name else holes[ok[0]])
-    return out
+    return take_names(reference, holes, pair_holes(list(reference), list(holes), tol_mm, along_axis=True,
+                                                   what=what))
 
 
 def fail_on(checks: Sequence[Mapping[str, Any]], label: str) -> None:
@@ -166,9 +148,7 @@ class AnchoredModel:
         return c + self.dc, a, r + self.dr
 
     def holes_at(self, x: np.ndarray) -> list[Any]:
-        c, a, r = self.features(x)
-        return [dataclasses.replace(h, centre=np.asarray(c[i]), axis=np.asarray(a[i]), radius_mm=float(r[i]))
-                for i, h in enumerate(self.holes)]
+        return holes_at(self, x)
 
 
 def export_and_verify(config: StudyConfig, stage: Path, shapes: Mapping[str, Any],
