@@ -14,7 +14,7 @@ Lens distortion is applied after rendering by remapping the pinhole image (``cv2
 maps from ``cv2.undistortPoints``), so a hole's rim lands where ``Camera.project`` puts it.
 The part is light grey, lit from the camera; hole faces are dark; the background is black. Anti-aliasing
 is off (each pixel samples its centre), which keeps edges unbiased: the dark hole regions found by
-thresholding agree with the exact rim ellipses to ~0.2 px (tests/test_render_camera.py).
+thresholding agree with the exact rim ellipses to ~0.2 px (tests/render/test_render_camera.py).
 One plotter serves any number of poses (``CameraViewRenderer``).
 """
 

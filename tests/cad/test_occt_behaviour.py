@@ -25,7 +25,7 @@ from OCP.TopAbs import TopAbs_REVERSED  # noqa: E402
 from cadfeat.cad.export import export_step, import_step  # noqa: E402
 from cadfeat.cad.features import extract_holes  # noqa: E402
 
-SPLIT_WALLS = Path(__file__).resolve().parent / "data" / "corner_cases" / "split_walls.step"
+SPLIT_WALLS = Path(__file__).resolve().parents[1] / "data" / "corner_cases" / "split_walls.step"
 
 
 def _cylinders(shape) -> list[tuple[float, np.ndarray, np.ndarray, bool, float]]:

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 from study_helpers import PLATE, STEP, study, write_toml
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ENV = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/tmp")}
 TINY = {"trajectory": {"n": 4}, "optimizer": {"starts": 1, "maxiter": 5},
         "design": {"parameters": {"x0": {"lower": -15, "upper": -5}}}}  # (no integer parameter: one setup)

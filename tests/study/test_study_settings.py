@@ -21,7 +21,7 @@ from cadfeat.study.schema import load_study
 from cadfeat.study.settings import StudyError, TrackingSettings
 from cadfeat.vision import FilterTuning
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

@@ -332,7 +332,7 @@ def test_studies_folder_validates():
     """Every study in studies/ passes validation (names, bounds, files)."""
     from cadfeat.study.schema import load_study
 
-    folder = Path(__file__).resolve().parents[1] / "studies"
+    folder = Path(__file__).resolve().parents[2] / "studies"
     files = sorted(folder.glob("*.toml"))
     assert len(files) >= 6
     for f in files:
@@ -499,7 +499,7 @@ def test_shop_rounding_on_a_nonlinear_part(tmp_path, monkeypatch):
     from cadfeat.cad.features import extract_holes
 
     no_report(monkeypatch)
-    cfg = {"study": {"name": "flange_shop", "part": str(Path(__file__).parents[1] / "parts" / "pipe_flange_dn50.py"),
+    cfg = {"study": {"name": "flange_shop", "part": str(Path(__file__).parents[2] / "parts" / "pipe_flange_dn50.py"),
                      "seed": 2},
            "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 300.0},
            "trajectory": {"kind": "straight_approach", "start": [-120.0, -150.0, 380.0], "end": [100.0, -60.0, 300.0],
@@ -532,7 +532,7 @@ def test_flagship_requirements_are_checked_under_the_holes_own_names(tmp_path, m
     import tomllib
 
     no_report(monkeypatch)
-    root = Path(__file__).parents[1]
+    root = Path(__file__).parents[2]
     cfg = tomllib.loads((root / "studies" / "nema17_mount.toml").read_text())
     cfg["study"]["part"] = str(root / "parts" / "nema17_mount.py")
     cfg["trajectory"]["n"] = 12
