@@ -58,6 +58,7 @@ from cadfeat.study.settings import (
     ShopSettings,
     StudyError,
     TrackingSettings,
+    range_text,
     validate_section,
 )
 
@@ -323,7 +324,7 @@ class _Table:
                lo_open: bool = False, required: bool = False) -> float | None:
         if name not in self.data:
             if required:
-                self.fail(self.dotted(name), "missing", _range_text(lo, hi, lo_open))
+                self.fail(self.dotted(name), "missing", range_text(lo, hi, lo_open))
             return default
         return _number(self.data[name], self.dotted(name), self.label, lo, hi, lo_open)
 
@@ -350,16 +351,6 @@ class _Table:
         return _vector(self.data[name], n, self.dotted(name), self.label)
 
 
-def _range_text(lo: float | None, hi: float | None, lo_open: bool = False) -> str:
-    if lo is None and hi is None:
-        return "a finite number"
-    if hi is None:
-        return f"a number {'>' if lo_open else '≥'} {lo:g}"
-    if lo is None:
-        return f"a number ≤ {hi:g}"
-    return f"a number in {'(' if lo_open else '['}{lo:g}, {hi:g}]"
-
-
 def _is_num(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
@@ -372,7 +363,7 @@ def _number(value: Any, key: str, label: str, lo: float | None = None, hi: float
     if ok and hi is not None:
         ok = value <= hi
     if not ok:
-        raise StudyError(f"{label}: {key}: {_fmt(value)} is not allowed; allowed: {_range_text(lo, hi, lo_open)}")
+        raise StudyError(f"{label}: {key}: {_fmt(value)} is not allowed; allowed: {range_text(lo, hi, lo_open)}")
     return float(value)
 
 

@@ -13,13 +13,13 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Annotated, Any, TypeVar, cast
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, ValidationInfo, model_validator
 from pydantic_core import ErrorDetails, PydanticCustomError
 
 from cadfeat.errors import CadfeatError
 
 __all__ = ["Settings", "StudyError", "Tuple", "boolean", "choice", "integer", "number", "range_text",
-           "reject", "validate_section"]
+           "reject", "seed_from_context", "validate_section"]
 
 
 class StudyError(CadfeatError):
@@ -42,9 +42,27 @@ class Settings(BaseModel):
 
     model_config = ConfigDict(strict=True, extra="forbid", frozen=True, validate_default=False)
 
+    @model_validator(mode="after")
+    def _enumerations(self) -> Any:
+        """A field declared with ``choice(default, names)`` holds one of ``names`` (its schema ``enum``)."""
+        for name, field in type(self).model_fields.items():
+            extra = cast("dict[str, Any] | None", field.json_schema_extra)
+            if isinstance(extra, dict) and "enum" in extra and getattr(self, name) not in extra["enum"]:
+                raise reject(name, f"{_fmt(getattr(self, name))} is not allowed", str(extra["x-allowed"]))
+        return self
+
     def replace(self, **changes: Any) -> Any:
         """A validated copy with ``changes`` (``dataclasses.replace`` for a settings model)."""
         return type(self).model_validate({**self.model_dump(), **changes})
+
+
+def seed_from_context(data: object, info: ValidationInfo) -> object:
+    """A section's table with ``seed`` defaulting to the study's (validation context ``seed``)."""
+    context = cast("dict[str, Any] | None", info.context)
+    if not isinstance(data, dict) or not context or "seed" not in context:
+        return cast(object, data)
+    table = cast("dict[str, Any]", data)
+    return table if "seed" in table else {**table, "seed": context["seed"]}
 
 
 def range_text(lo: float | None, hi: float | None, lo_open: bool = False) -> str:

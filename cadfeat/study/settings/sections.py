@@ -6,12 +6,12 @@ Units are in the key names (mm, percent, deg, s, px², grey levels on the 0..255
 
 from __future__ import annotations
 
-from typing import Any, Literal, cast
+from typing import Any, Literal
 
 from pydantic import ValidationInfo, field_validator, model_validator
 
 from cadfeat.design.shop import HOLE_SIZE_TABLES, hole_sizes
-from cadfeat.study.settings._base import Settings, Tuple, boolean, choice, integer, number
+from cadfeat.study.settings._base import Settings, Tuple, boolean, choice, integer, number, seed_from_context
 from cadfeat.vision.closed_loop import TrackingConfig
 from cadfeat.vision.estimate import FilterTuning
 from cadfeat.vision.images import SensorModel
@@ -108,12 +108,7 @@ class TrackingSettings(Settings):
     @model_validator(mode="before")
     @classmethod
     def _study_seed(cls, data: object, info: ValidationInfo) -> object:
-        """``seed`` defaults to the study's seed (validation context ``seed``)."""
-        context = cast("dict[str, Any] | None", info.context)
-        if not isinstance(data, dict) or not context or "seed" not in context:
-            return cast(object, data)
-        table = cast("dict[str, Any]", data)
-        return table if "seed" in table else {**table, "seed": context["seed"]}
+        return seed_from_context(data, info)
 
     @field_validator("estimators")
     @classmethod

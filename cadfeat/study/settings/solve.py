@@ -8,13 +8,13 @@ measure, aggregate or method added there is accepted here. ``ObjectiveSettings.c
 from __future__ import annotations
 
 import math
-from typing import Any, cast
+from typing import cast
 
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from cadfeat.design.objectives import AGGREGATES, COMBINES, MEASURES, NORMALISATIONS, ObjectiveConfig
 from cadfeat.design.optimize import LOCAL_SOLVERS, METHODS, OptimizerConfig
-from cadfeat.study.settings._base import Settings, Tuple, boolean, choice, integer, number, reject
+from cadfeat.study.settings._base import Settings, Tuple, boolean, choice, integer, number, reject, seed_from_context
 
 __all__ = ["FOV_MEASURES", "LIMITS", "SCORES", "ObjectiveSettings", "OptimizerSettings"]
 
@@ -64,26 +64,6 @@ class ObjectiveSettings(Settings):
         if not value or len(set(value)) != len(value):
             raise ValueError("not a non-empty list of distinct names")
         return tuple(_one_of(v, list(MEASURES)) for v in value)
-
-    @field_validator("aggregate")
-    @classmethod
-    def _aggregate(cls, value: str) -> str:
-        return _one_of(value, AGGREGATES)
-
-    @field_validator("combine")
-    @classmethod
-    def _combine(cls, value: str) -> str:
-        return _one_of(value, COMBINES)
-
-    @field_validator("normalisation")
-    @classmethod
-    def _normalisation(cls, value: str) -> str:
-        return _one_of(value, NORMALISATIONS)
-
-    @field_validator("fov_measure")
-    @classmethod
-    def _fov_measure(cls, value: str) -> str:
-        return _one_of(value, FOV_MEASURES)
 
     @field_validator("weights", "thresholds")
     @classmethod
@@ -147,22 +127,7 @@ class OptimizerSettings(Settings):
     @model_validator(mode="before")
     @classmethod
     def _study_seed(cls, data: object, info: ValidationInfo) -> object:
-        """``seed`` defaults to the study's seed (validation context ``seed``)."""
-        context = cast("dict[str, Any] | None", info.context)
-        if not isinstance(data, dict) or not context or "seed" not in context:
-            return cast(object, data)
-        table = cast("dict[str, Any]", data)
-        return table if "seed" in table else {**table, "seed": context["seed"]}
-
-    @field_validator("method")
-    @classmethod
-    def _method(cls, value: str) -> str:
-        return _one_of(value, METHODS)
-
-    @field_validator("local_solver")
-    @classmethod
-    def _local_solver(cls, value: str) -> str:
-        return _one_of(value, LOCAL_SOLVERS)
+        return seed_from_context(data, info)
 
     @model_validator(mode="after")
     def _limits(self) -> OptimizerSettings:
