@@ -30,7 +30,6 @@ table is a literal; otherwise ``cadfeat.cad.parts.load_part`` is used.
 
 from __future__ import annotations
 
-import ast
 import copy
 import dataclasses
 import math
@@ -39,7 +38,7 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 
@@ -47,6 +46,7 @@ from cadfeat.design.objectives import AGGREGATES, COMBINES, ObjectiveConfig
 from cadfeat.design.objectives import MEASURES as _OBJECTIVE_MEASURES
 from cadfeat.design.optimize import METHODS, OptimizerConfig
 from cadfeat.errors import CadfeatError
+from cadfeat.study.part_parameters import PartParameter, part_parameters
 from cadfeat.study.settings import (
     LIMITS,
     SYMMETRIES,
@@ -58,9 +58,9 @@ from cadfeat.study.settings import (
     ShopSettings,
     StudyError,
     TrackingSettings,
-    range_text,
     validate_section,
 )
+from cadfeat.study.table import Table, check_seed, fmt, is_num, vector_value
 
 __all__ = [
     "AGGREGATES",
@@ -106,7 +106,6 @@ REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
 BUILD_TIMEOUT_S = 60.0
 """Default ``[study] build_timeout_s``: time limit of one part-script import or CAD build (worker process)."""
 
-_MISSING: Any = object()
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
@@ -167,19 +166,6 @@ class TrajectorySpec:
         from cadfeat.trajectory import trajectory_from_dict
 
         return trajectory_from_dict(copy.deepcopy(dict(self.table)), self.origin, self.base_dir)
-
-
-@dataclass(frozen=True)
-class PartParameter:
-    """A part script's parameter as declared in its ``PARAMETERS`` table."""
-
-    name: str
-    default: float | int
-    lower: float | int
-    upper: float | int
-    unit: str
-    description: str
-    is_int: bool
 
 
 @dataclass(frozen=True)
@@ -265,7 +251,7 @@ class StudyConfig:
 
     def with_seed(self, seed: int) -> StudyConfig:
         """The same study with ``study.seed`` and ``optimizer.seed`` replaced."""
-        _check_seed(seed, self.label, "seed")
+        check_seed(seed, self.label, "seed")
         data = copy.deepcopy(dict(self.data))
         data["study"]["seed"] = int(seed)
         data["optimizer"]["seed"] = int(seed)
@@ -273,184 +259,8 @@ class StudyConfig:
                                    optimizer=dataclasses.replace(self.optimizer, seed=int(seed)), data=data)
 
 
-# ------------------------------------------------------------------------------------------- validator
-def _check_seed(seed: Any, label: str, key: str) -> None:
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= int(seed) < 2**32:
-        raise StudyError(f"{label}: {key}: {seed!r} is not allowed; allowed: an integer in [0, 2^32)")
-
-
-def _fmt(value: Any) -> str:
-    return repr(value) if isinstance(value, str) else str(value)
-
-
-class _Table:
-    """Reads one TOML table, checking each key; ``done()`` rejects keys that were not read."""
-
-    def __init__(self, data: Any, key: str, label: str, allowed: Sequence[str]) -> None:
-        self.key, self.label, self.allowed = key, label, tuple(allowed)
-        if not isinstance(data, Mapping):
-            self.fail(key, f"expected a table, got {_fmt(data)}", f"a table with keys {', '.join(allowed)}")
-        self.data = dict(data)
-        unknown = sorted(set(self.data) - set(allowed))
-        if unknown:
-            self.fail(self.dotted(unknown[0]), "unknown key", f"keys of [{key}]: {', '.join(allowed)}")
-
-    def dotted(self, name: str) -> str:
-        return f"{self.key}.{name}" if self.key else name
-
-    def fail(self, key: str, problem: str, allowed: str) -> NoReturn:
-        raise StudyError(f"{self.label}: {key}: {problem}; allowed: {allowed}")
-
-    def has(self, name: str) -> bool:
-        return name in self.data
-
-    def raw(self, name: str, default: Any = None) -> Any:
-        return self.data.get(name, default)
-
-    def string(self, name: str, default: Any = _MISSING, choices: Sequence[str] | None = None,
-               pattern: re.Pattern[str] | None = None, what: str = "a string") -> str:
-        allowed = ", ".join(choices) if choices else what
-        if name not in self.data:
-            if default is _MISSING:
-                self.fail(self.dotted(name), "missing", allowed)
-            return default
-        value = self.data[name]
-        if not isinstance(value, str) or (choices is not None and value not in choices) or \
-                (pattern is not None and not pattern.fullmatch(value)):
-            self.fail(self.dotted(name), f"{_fmt(value)} is not allowed", allowed)
-        return value
-
-    def number(self, name: str, default: float | None, lo: float | None = None, hi: float | None = None,
-               lo_open: bool = False, required: bool = False) -> float | None:
-        if name not in self.data:
-            if required:
-                self.fail(self.dotted(name), "missing", range_text(lo, hi, lo_open))
-            return default
-        return _number(self.data[name], self.dotted(name), self.label, lo, hi, lo_open)
-
-    def integer(self, name: str, default: int, lo: int, hi: int | None = None) -> int:
-        if name not in self.data:
-            return default
-        value = self.data[name]
-        text = f"an integer ≥ {lo}" if hi is None else f"an integer in [{lo}, {hi}]"
-        if isinstance(value, bool) or not isinstance(value, int) or value < lo or (hi is not None and value > hi):
-            self.fail(self.dotted(name), f"{_fmt(value)} is not allowed", text)
-        return int(value)
-
-    def boolean(self, name: str, default: bool) -> bool:
-        if name not in self.data:
-            return default
-        value = self.data[name]
-        if not isinstance(value, bool):
-            self.fail(self.dotted(name), f"{_fmt(value)} is not allowed", "true or false")
-        return value
-
-    def vector(self, name: str, n: int, default: Sequence[float] | None) -> tuple[float, ...] | None:
-        if name not in self.data:
-            return None if default is None else tuple(float(x) for x in default)
-        return _vector(self.data[name], n, self.dotted(name), self.label)
-
-
-def _is_num(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
-def _number(value: Any, key: str, label: str, lo: float | None = None, hi: float | None = None,
-            lo_open: bool = False) -> float:
-    ok = _is_num(value) and math.isfinite(value)
-    if ok and lo is not None:
-        ok = value > lo if lo_open else value >= lo
-    if ok and hi is not None:
-        ok = value <= hi
-    if not ok:
-        raise StudyError(f"{label}: {key}: {_fmt(value)} is not allowed; allowed: {range_text(lo, hi, lo_open)}")
-    return float(value)
-
-
-def _vector(value: Any, n: int, key: str, label: str) -> tuple[float, ...]:
-    if not isinstance(value, list) or len(value) != n or not all(_is_num(v) and math.isfinite(v) for v in value):
-        raise StudyError(f"{label}: {key}: {_fmt(value)} is not allowed; allowed: a list of {n} finite numbers")
-    return tuple(float(v) for v in value)
-
-
-# ------------------------------------------------------------------------------------ part parameters
-def part_parameters(path: str | Path) -> dict[str, PartParameter]:
-    """A part script's ``PARAMETERS`` (name → ``PartParameter``), read without running the script when the
-    table is a literal (``ast.literal_eval``), else via ``cadfeat.cad.parts.load_part``.
-
-    Raises ``StudyError`` naming the script for a syntax error, a missing or malformed table.
-    """
-    path = Path(path)
-    try:
-        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
-    except SyntaxError as exc:
-        raise StudyError(f"{path}: line {exc.lineno}: syntax error: {exc.msg}") from exc
-    node = next((n.value for n in tree.body if isinstance(n, ast.Assign | ast.AnnAssign)
-                 and any(isinstance(t, ast.Name) and t.id == "PARAMETERS"
-                         for t in (n.targets if isinstance(n, ast.Assign) else [n.target]))), None)
-    if node is None:
-        raise StudyError(f"{path}: PARAMETERS: missing; allowed: a module-level dict "
-                         "{name: {default, bounds, unit, description}}")
-    if _mutated(tree):
-        return _parameters_by_loading(path)
-    try:
-        table = ast.literal_eval(node)
-    except ValueError:
-        return _parameters_by_loading(path)
-    return _parse_parameters(table, path)
-
-
-_MUTATORS = {"update", "setdefault", "pop", "popitem", "clear", "__setitem__"}
-
-
-def _mutated(tree: ast.Module) -> bool:
-    """Whether module-level code (outside functions/classes) changes ``PARAMETERS`` after assigning it:
-    ``PARAMETERS[k] = ...``, ``del PARAMETERS[k]``, ``PARAMETERS.update(...)``, or a second assignment."""
-    assigned = 0
-    for stmt in tree.body:
-        if isinstance(stmt, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
-            continue
-        for n in ast.walk(stmt):
-            if isinstance(n, ast.Name) and n.id == "PARAMETERS" and isinstance(n.ctx, ast.Store):
-                assigned += 1
-            elif isinstance(n, ast.Subscript) and isinstance(n.value, ast.Name) and n.value.id == "PARAMETERS" \
-                    and isinstance(n.ctx, ast.Store | ast.Del):
-                return True
-            elif isinstance(n, ast.Attribute) and isinstance(n.value, ast.Name) and n.value.id == "PARAMETERS" \
-                    and n.attr in _MUTATORS:
-                return True
-    return assigned > 1
-
-
-def _parameters_by_loading(path: Path) -> dict[str, PartParameter]:
-    from cadfeat.cad.parts import load_part  # runs the script (imports cadquery): only for non-literal tables
-
-    part = load_part(path)
-    return {name: PartParameter(name, p.default, p.lower, p.upper, getattr(p, "unit", ""),
-                                getattr(p, "description", ""), bool(getattr(p, "is_int", False)))
-            for name, p in part.parameters.items()}
-
-
-def _parse_parameters(table: Any, path: Path) -> dict[str, PartParameter]:
-    allowed = "a dict {name: {default, bounds: (lower, upper), unit, description}}"
-    if not isinstance(table, Mapping):
-        raise StudyError(f"{path}: PARAMETERS: not a dict; allowed: {allowed}")
-    out = {}
-    for name, spec in table.items():
-        if not isinstance(name, str) or not isinstance(spec, Mapping) or "default" not in spec or \
-                "bounds" not in spec or not isinstance(spec["bounds"], Sequence) or len(spec["bounds"]) != 2:
-            raise StudyError(f"{path}: PARAMETERS.{name}: malformed; allowed: {allowed}")
-        default, (lo, hi) = spec["default"], spec["bounds"]
-        if not all(_is_num(v) for v in (default, lo, hi)):
-            raise StudyError(f"{path}: PARAMETERS.{name}: default and bounds must be numbers; allowed: {allowed}")
-        is_int = isinstance(default, int)
-        out[name] = PartParameter(name, default, lo, hi, str(spec.get("unit", "")),
-                                  str(spec.get("description", "")), is_int)
-    return out
-
-
 # ------------------------------------------------------------------------------------------- sections
-def _study_section(t: _Table, base_dir: Path) -> StudyInfo:
+def _study_section(t: Table, base_dir: Path) -> StudyInfo:
     name = t.string("name", pattern=_NAME, what="a name of letters, digits, '_', '-', '.' (a folder name)")
     part = t.string("part", what="a part script (.py) or STEP file (.step, .stp), relative to the study file")
     suffix = Path(part).suffix.lower()
@@ -475,7 +285,7 @@ def _study_section(t: _Table, base_dir: Path) -> StudyInfo:
     return StudyInfo(name, part, path, kind, seed, description, float(timeout))
 
 
-def _check_step_header(t: _Table, path: Path) -> None:
+def _check_step_header(t: Table, path: Path) -> None:
     """A STEP file is readable and starts like one (``ISO-10303-21;`` header, ``HEADER;`` section)."""
     try:
         with open(path, "rb") as fh:
@@ -488,7 +298,7 @@ def _check_step_header(t: _Table, path: Path) -> None:
         t.fail("study.part", f"{path} {what}", "a STEP file (ISO 10303-21 text, as CAD programs export)")
 
 
-def _check_size(t: _Table, key: str, value: Any, limit: str, what: str) -> None:
+def _check_size(t: Table, key: str, value: Any, limit: str, what: str) -> None:
     """``value`` (an int) must not exceed ``LIMITS[limit]`` (checked before anything is allocated)."""
     if isinstance(value, int) and not isinstance(value, bool) and value > LIMITS[limit]:
         t.fail(key, f"{value} {what} is more than the limit of {LIMITS[limit]:,}",
@@ -499,7 +309,7 @@ def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, 
     from cadfeat.camera import Camera, camera_from_dict
 
     fields = [f.name for f in dataclasses.fields(Camera)]
-    t = _Table(data, "camera", label, ["preset", "calibration", *fields])
+    t = Table(data, "camera", label, ["preset", "calibration", *fields])
     table = dict(t.data)
     for side in ("width", "height"):
         _check_size(t, f"camera.{side}", table.get(side), "image_side_px", "pixels")
@@ -510,7 +320,7 @@ def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, 
     if t.has("calibration"):
         cal = table["calibration"]
         if not isinstance(cal, str):
-            t.fail("camera.calibration", f"{_fmt(cal)} is not allowed", "a path to an OpenCV calibration file")
+            t.fail("camera.calibration", f"{fmt(cal)} is not allowed", "a path to an OpenCV calibration file")
         path = (base_dir / cal).resolve()
         if not path.is_file():
             t.fail("camera.calibration", f"file {path} does not exist", "an existing OpenCV calibration file")
@@ -526,7 +336,7 @@ def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, 
     return CameraSpec(table, origin), echo
 
 
-def _pose_section(t: _Table) -> PartPose:
+def _pose_section(t: Table) -> PartPose:
     position = t.vector("position_mm", 3, (0.0, 0.0, 0.0))
     if t.has("rotvec_deg") and t.has("quaternion"):
         t.fail("part_pose.quaternion", "given together with part_pose.rotvec_deg", "one of rotvec_deg or quaternion")
@@ -547,7 +357,7 @@ def _trajectory_section(data: Any, label: str, base_dir: Path) -> TrajectorySpec
     if not isinstance(data, Mapping):
         raise StudyError(f"{label}: trajectory: expected a table; allowed: kind = <library kind> + arguments, "
                          "or csv = <file>")
-    t = _Table(data, "trajectory", label, list(data))
+    t = Table(data, "trajectory", label, list(data))
     _check_size(t, "trajectory.n", data.get("n"), "trajectory_samples", "samples")
     _check_size(t, "trajectory.lines", data.get("lines"), "trajectory_lines", "lines")
     if isinstance(data.get("csv"), str):
@@ -575,19 +385,19 @@ def _selector(value: Any, key: str, label: str) -> Selector:
     if isinstance(value, str) and value.strip():
         return value
     if isinstance(value, list):
-        return _vector(value, 3, key, label)  # type: ignore[return-value]
-    raise StudyError(f"{label}: {key}: {_fmt(value)} is not allowed; allowed: a 1-based hole index, a hole "
+        return vector_value(value, 3, key, label)  # type: ignore[return-value]
+    raise StudyError(f"{label}: {key}: {fmt(value)} is not allowed; allowed: a 1-based hole index, a hole "
                      "name (\"H2\") or a position [x, y, z] in mm")
 
 
 def _selectors(value: Any, key: str, label: str) -> tuple[Selector, ...]:
     if not isinstance(value, list):
-        raise StudyError(f"{label}: {key}: {_fmt(value)} is not allowed; allowed: a list of hole selectors "
+        raise StudyError(f"{label}: {key}: {fmt(value)} is not allowed; allowed: a list of hole selectors "
                          "(index, name or [x, y, z])")
     return tuple(_selector(v, f"{key}[{i}]", label) for i, v in enumerate(value))
 
 
-def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec, dict[str, PartParameter],
+def _design_section(t: Table, info: StudyInfo, label: str) -> tuple[DesignSpec, dict[str, PartParameter],
                                                                      dict[str, Any]]:
     echo: dict[str, Any] = {}
     params: dict[str, PartParameter] = {}
@@ -621,15 +431,15 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
                "design.parameters.<name>.standard_sizes")
     if t.has("standard_diameters_mm"):
         value = t.raw("standard_diameters_mm")
-        if not isinstance(value, list) or not value or not all(_is_num(v) and v > 0 and math.isfinite(v)
+        if not isinstance(value, list) or not value or not all(is_num(v) and v > 0 and math.isfinite(v)
                                                                for v in value):
-            t.fail("design.standard_diameters_mm", f"{_fmt(value)} is not allowed",
+            t.fail("design.standard_diameters_mm", f"{fmt(value)} is not allowed",
                    "a non-empty list of positive diameters in mm")
         std = tuple(sorted(float(v) for v in value))
     fixed = _selectors(t.raw("fixed", []), "design.fixed", label)
     patterns_raw = t.raw("patterns", [])
     if not isinstance(patterns_raw, list):
-        t.fail("design.patterns", f"{_fmt(patterns_raw)} is not allowed", "a list of lists of hole selectors")
+        t.fail("design.patterns", f"{fmt(patterns_raw)} is not allowed", "a list of lists of hole selectors")
     patterns = tuple(_selectors(p, f"design.patterns[{i}]", label) for i, p in enumerate(patterns_raw))
     for i, p in enumerate(patterns):
         if len(p) < 2:
@@ -641,7 +451,7 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
         if info.part_kind != "step":
             t.fail("design.view_direction", "only for STEP parts (a part script gives VIEW_DIRECTION)",
                    "VIEW_DIRECTION in the part script")
-        view = _vector(t.raw("view_direction"), 3, "design.view_direction", label)
+        view = vector_value(t.raw("view_direction"), 3, "design.view_direction", label)
         norm = math.sqrt(sum(v * v for v in view))
         if norm == 0:
             t.fail("design.view_direction", "[0, 0, 0] is not allowed", "a non-zero direction [x, y, z]")
@@ -653,7 +463,7 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
     return DesignSpec(specs, holes, std, fixed, patterns, view), params, echo
 
 
-def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
+def _parameter_specs(t: Table, params: Mapping[str, PartParameter], label: str,
                      info: StudyInfo) -> tuple[ParameterSpec, ...]:
     raw = t.raw("parameters")
     names_allowed = ", ".join(params) or "(the part has no parameters)"
@@ -662,14 +472,14 @@ def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
                f"{names_allowed}")
     if isinstance(raw, list):
         if not all(isinstance(n, str) for n in raw):
-            t.fail("design.parameters", f"{_fmt(raw)} is not allowed", f"parameter names: {names_allowed}")
+            t.fail("design.parameters", f"{fmt(raw)} is not allowed", f"parameter names: {names_allowed}")
         table: dict[str, Any] = {n: {} for n in raw}
         if len(table) != len(raw):
             t.fail("design.parameters", "a parameter is listed twice", f"distinct names of {names_allowed}")
     elif isinstance(raw, Mapping):
         table = dict(raw)
     else:
-        t.fail("design.parameters", f"{_fmt(raw)} is not allowed",
+        t.fail("design.parameters", f"{fmt(raw)} is not allowed",
                "a list of names or a table name = {lower, upper, standard_sizes}")
     if not table:
         t.fail("design.parameters", "empty", f"at least one of {names_allowed}")
@@ -679,7 +489,7 @@ def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
         if name not in params:
             raise StudyError(f"{label}: {key}: unknown parameter of {info.part}; allowed: {names_allowed}")
         p = params[name]
-        st = _Table(spec, key, label, ["lower", "upper", "standard_sizes"])
+        st = Table(spec, key, label, ["lower", "upper", "standard_sizes"])
         lo = st.number("lower", p.lower, float(p.lower), float(p.upper))
         hi = st.number("upper", p.upper, float(p.lower), float(p.upper))
         if p.is_int:
@@ -693,23 +503,23 @@ def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
         sizes = None
         if st.has("standard_sizes"):
             v = st.raw("standard_sizes")
-            if not isinstance(v, list) or not v or not all(_is_num(s) and lo <= s <= hi for s in v):
-                st.fail(f"{key}.standard_sizes", f"{_fmt(v)} is not allowed",
+            if not isinstance(v, list) or not v or not all(is_num(s) and lo <= s <= hi for s in v):
+                st.fail(f"{key}.standard_sizes", f"{fmt(v)} is not allowed",
                         f"a non-empty list of values in [{lo}, {hi}]")
             sizes = tuple(sorted(float(s) for s in v))
         out.append(ParameterSpec(name, lo, hi, p.default, p.unit, p.is_int, sizes))
     return tuple(out)
 
 
-def _hole_specs(t: _Table, label: str) -> tuple[HoleSpec, ...]:
+def _hole_specs(t: Table, label: str) -> tuple[HoleSpec, ...]:
     raw = t.raw("holes")
     if not isinstance(raw, list) or not raw:
-        t.fail("design.holes", "missing or empty" if raw is None or raw == [] else f"{_fmt(raw)} is not allowed",
+        t.fail("design.holes", "missing or empty" if raw is None or raw == [] else f"{fmt(raw)} is not allowed",
                "a list of tables {select = index | name | [x, y, z], move, resize, max_offset_mm}")
     out = []
     for i, spec in enumerate(raw):
         key = f"design.holes[{i}]"
-        ht = _Table(spec, key, label, ["select", "move", "resize", "max_offset_mm"])
+        ht = Table(spec, key, label, ["select", "move", "resize", "max_offset_mm"])
         if not ht.has("select"):
             ht.fail(f"{key}.select", "missing", "a 1-based hole index, a hole name (\"H2\") or a position [x, y, z]")
         select = _selector(ht.raw("select"), f"{key}.select", label)
@@ -722,7 +532,7 @@ def _hole_specs(t: _Table, label: str) -> tuple[HoleSpec, ...]:
     return tuple(out)
 
 
-def _check_step_design(t: _Table, holes: Sequence[HoleSpec], fixed: Sequence[Selector]) -> None:
+def _check_step_design(t: Table, holes: Sequence[HoleSpec], fixed: Sequence[Selector]) -> None:
     seen = {}
     for i, h in enumerate(holes):
         if h.select in seen:
@@ -764,19 +574,19 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     folder). Raises ``StudyError`` naming the file, the dotted key and the allowed values.
     """
     data, path, base, label = _read(path_or_dict, base_dir)
-    top = _Table(data, "", label, SECTIONS)
+    top = Table(data, "", label, SECTIONS)
     for section in REQUIRED_SECTIONS:
         if section not in data:
             raise StudyError(f"{label}: [{section}]: missing section; required sections: "
                              f"{', '.join(REQUIRED_SECTIONS)}; optional: "
                              f"{', '.join(s for s in SECTIONS if s not in REQUIRED_SECTIONS)}")
-    st = _Table(top.raw("study"), "study", label, STUDY_KEYS)
+    st = Table(top.raw("study"), "study", label, STUDY_KEYS)
     info = _study_section(st, base)
     camera, camera_echo = _camera_section(top.raw("camera"), label, base)
-    pose = _pose_section(_Table(top.raw("part_pose", {}), "part_pose", label, PART_POSE_KEYS))
+    pose = _pose_section(Table(top.raw("part_pose", {}), "part_pose", label, PART_POSE_KEYS))
     trajectory = _trajectory_section(top.raw("trajectory"), label, base)
     design, params, design_echo = _design_section(
-        _Table(top.raw("design"), "design", label, DESIGN_KEYS), info, label)
+        Table(top.raw("design"), "design", label, DESIGN_KEYS), info, label)
     constraints = validate_section(ConstraintSettings, top.raw("constraints", {}), "constraints", label)
     objective = validate_section(ObjectiveSettings, top.raw("objective", {}), "objective", label).config()
     optimizer = validate_section(OptimizerSettings, top.raw("optimizer", {}), "optimizer", label,
