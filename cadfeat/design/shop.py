@@ -21,11 +21,14 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
 
 __all__ = ["DEFAULT_GRID_MM", "HOLE_SIZE_TABLES", "ShopDesign", "hole_sizes", "model_jacobian", "off_target",
            "refine_on_rebuild", "shop_design", "snap_diameters"]
@@ -211,7 +214,7 @@ def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: f
 
 
 # ------------------------------------------------------------------------------ refinement on the CAD rebuild
-def off_target(holes: Sequence[Any], design: ShopDesign) -> float:
+def off_target(holes: Sequence[Hole], design: ShopDesign) -> float:
     """Largest distance (mm) of ``holes``' centres and diameters from the shop design's targets."""
     from cadfeat.cad.features import holes_to_arrays
 
@@ -220,9 +223,9 @@ def off_target(holes: Sequence[Any], design: ShopDesign) -> float:
                      np.abs(2 * r - design.target_diameters).max(initial=0.0)))
 
 
-def refine_on_rebuild(space: Any, model: Any, problem: Any, x: np.ndarray, rebuilt: tuple[Any, list[Any], float],
-                      design: ShopDesign, rebuild: Callable[[np.ndarray, list[Any]], tuple[Any, list[Any], float]],
-                      rounds: int = 6) -> tuple[np.ndarray, tuple[Any, list[Any], float], float]:
+def refine_on_rebuild(space: Any, model: Any, problem: Any, x: np.ndarray, rebuilt: tuple[Any, list[Hole], float],
+                      design: ShopDesign, rebuild: Callable[[np.ndarray, list[Hole]], tuple[Any, list[Hole], float]],
+                      rounds: int = 6) -> tuple[np.ndarray, tuple[Any, list[Hole], float], float]:
     """Where the feature model is only a linearisation (a nonlinear part script), the rebuilt holes may miss the
     grid/table targets of ``design``: up to ``rounds`` Newton steps on the real CAD rebuild (the model's
     Jacobian, the rebuilt holes' error), each kept only if it gets closer and keeps the model's constraints.

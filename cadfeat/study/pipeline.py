@@ -35,6 +35,7 @@ from cadfeat.study.verify import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
     from cadfeat.study.setup import StudySetup
 
 
@@ -44,7 +45,7 @@ OUTLINE_ROUNDS = 4
 SWEEP_SAMPLES = 41
 
 
-def measure_holes(setup: StudySetup, holes: Sequence[Any], trajectory: Any = None, *, mesh: Any = None) -> Any:
+def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Any = None, *, mesh: Any = None) -> Any:
     """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
     the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off)."""
     from cadfeat import measures
@@ -60,7 +61,7 @@ def measure_holes(setup: StudySetup, holes: Sequence[Any], trajectory: Any = Non
                              rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
 
 
-def score(setup: StudySetup, holes: Sequence[Any]) -> tuple[dict[str, float], float | None]:
+def score(setup: StudySetup, holes: Sequence[Hole]) -> tuple[dict[str, float], float | None]:
     """The aggregated objectives of real holes and their combined value (larger is better), computed exactly
     as the optimiser does (``Problem.features_objectives`` / ``combined_from``: same normalisation), with the
     exact occlusion ray test (the optimiser uses the part's depth maps, ``measures.depth``)."""
@@ -197,7 +198,7 @@ def _variables(setup: StudySetup, x0: np.ndarray, x1: np.ndarray, ints0: Mapping
     return out
 
 
-def _holes_block(setup0: Any, holes0: Sequence[Any], setup1: Any, holes1: Sequence[Any]) -> dict[str, Any]:
+def _holes_block(setup0: Any, holes0: Sequence[Hole], setup1: Any, holes1: Sequence[Hole]) -> dict[str, Any]:
     return {"before": [hole_dict(h, i, setup0.fixed_mask[i], setup0.movable_mask[i]) for i, h in enumerate(holes0)],
             "after": [hole_dict(h, i, setup1.fixed_mask[i], setup1.movable_mask[i]) for i, h in enumerate(holes1)]}
 
@@ -240,8 +241,8 @@ class _Start:
     integer combination), the measures, pre-flight and objectives of the design before."""
 
     scene: Any
-    base: Any
-    setups: list[Any]
+    base: StudySetup
+    setups: list[StudySetup]
     m0: Any
     pre: Any
     obj0: dict[str, float]
@@ -265,7 +266,7 @@ class _Delivered:
 
     x1: np.ndarray
     shape1: Any
-    holes1: list[Any]
+    holes1: list[Hole]
     pred_err: float
     shop: dict[str, Any]
     res: Any
@@ -471,8 +472,8 @@ def scored_mask(setup: Any) -> np.ndarray:
     return np.ones(len(setup.holes0), bool) if mask is None else np.asarray(mask, bool)
 
 
-def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Any, list[Any], float], targets: Any,
-                 info: dict[str, Any], model: Any) -> tuple[np.ndarray, Any, list[Any], float]:
+def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Any, list[Hole], float], targets: Any,
+                 info: dict[str, Any], model: Any) -> tuple[np.ndarray, Any, list[Hole], float]:
     """``shop.refine_on_rebuild`` on the study's CAD rebuild; ``info["rebuilt_off_target_mm"]``: what remains."""
     from cadfeat.design.shop import refine_on_rebuild
 
@@ -518,7 +519,7 @@ def _shop(setup: StudySetup, x: np.ndarray, model: Any = None) -> tuple[np.ndarr
     return sd.x, info, sd
 
 
-def _robustness(setup: StudySetup, holes0: Sequence[Any], holes1: Sequence[Any],
+def _robustness(setup: StudySetup, holes0: Sequence[Hole], holes1: Sequence[Hole],
                 combined_before: float | None) -> dict[str, Any] | None:
     """Objective drops of the delivered design under the study's ``[robustness]`` tolerances (sampled on
     features, ``cadfeat.design.robustness``); the holes the shop makes anew are the moved or resized ones."""
@@ -538,7 +539,7 @@ def _robustness(setup: StudySetup, holes0: Sequence[Any], holes1: Sequence[Any],
                       samples=spec.samples, combined_before=combined_before, seed=setup.config.study.seed)
 
 
-def _patterns(base: StudySetup, holes1: Sequence[Any]) -> list[dict[str, Any]]:
+def _patterns(base: StudySetup, holes1: Sequence[Hole]) -> list[dict[str, Any]]:
     """The original's hole patterns with a movable hole (``cadfeat.design.patterns``), each with ``broken``."""
     from cadfeat.design.patterns import check_patterns, find_patterns
 

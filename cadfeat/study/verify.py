@@ -22,6 +22,7 @@ from cadfeat.errors import CadfeatError
 from cadfeat.study.outputs import normalise_step_header
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import StudySetup
 
@@ -32,7 +33,7 @@ ROUNDTRIP_TOL_MM = 1e-6
 PREDICTION_TOL_MM = 1e-6
 
 
-def outlines_differ(a: Sequence[Any], b: Sequence[Any], tol_mm: float = 1e-6) -> bool:
+def outlines_differ(a: Sequence[Hole], b: Sequence[Hole], tol_mm: float = 1e-6) -> bool:
     """Whether the host-face outlines of paired holes differ (outer polygon or keep-outs, mm)."""
     for h, g in zip(a, b, strict=True):
         oa, ob = h.outline, g.outline
@@ -51,7 +52,7 @@ def outlines_differ(a: Sequence[Any], b: Sequence[Any], tol_mm: float = 1e-6) ->
     return False
 
 
-def order_like(reference: Sequence[Any], holes: Sequence[Any], tol_mm: float, what: str) -> list[Any]:
+def order_like(reference: Sequence[Hole], holes: Sequence[Hole], tol_mm: float, what: str) -> list[Hole]:
     """``holes`` reordered to pair with ``reference`` by geometry (``identity.pair_holes``), each taking its
     reference's name."""
     if len(holes) != len(reference):
@@ -63,12 +64,12 @@ def order_like(reference: Sequence[Any], holes: Sequence[Any], tol_mm: float, wh
     return take_names(reference, holes, idx)
 
 
-def predicted_holes(setup: StudySetup, x: np.ndarray) -> list[Any]:
+def predicted_holes(setup: StudySetup, x: np.ndarray) -> list[Hole]:
     """The feature model's holes at ``x`` (``identity.holes_at``)."""
     return holes_at(setup.model, x)
 
 
-def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Any] | None = None) -> tuple[Any, list[Any], float]:
+def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = None) -> tuple[Any, list[Hole], float]:
     """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
     deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
     loop extracted at ``x``, in model order) when given."""
@@ -85,7 +86,7 @@ def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Any] | None = N
     return shape, holes, err
 
 
-def requirement_checks(setup: StudySetup, shape: Any, holes: Sequence[Any], where: str) -> list[dict[str, Any]]:
+def requirement_checks(setup: StudySetup, shape: Any, holes: Sequence[Hole], where: str) -> list[dict[str, Any]]:
     """Every kept requirement measured on the solid ``shape`` whose holes are ``holes`` (design order).
 
     ``verify_on_brep`` re-extracts holes without a preferred direction (a through hole may then be reported
@@ -100,7 +101,7 @@ def requirement_checks(setup: StudySetup, shape: Any, holes: Sequence[Any], wher
     return [{**c.to_dict(), "checked_on": where} for c in checks]
 
 
-def pair_by_axis(reference: Sequence[Any], holes: Sequence[Any], what: str, tol_mm: float = 1e-3) -> list[Any]:
+def pair_by_axis(reference: Sequence[Hole], holes: Sequence[Hole], what: str, tol_mm: float = 1e-3) -> list[Hole]:
     """``holes`` reordered to pair with ``reference`` hole by hole on their axis lines (``identity.pair_holes``
     with ``along_axis``: parallel axes of either sign, centre within ``tol_mm`` of the reference's axis line,
     nearest first); each paired hole takes its reference's name."""
@@ -118,7 +119,7 @@ def fail_on(checks: Sequence[Mapping[str, Any]], label: str) -> None:
         raise CadfeatError(f"{label}: the optimised design violates kept requirement(s): {text}")
 
 
-def extract_plain(shape: Any) -> list[Any]:
+def extract_plain(shape: Any) -> list[Hole]:
     from cadfeat.cad.features import extract_holes
 
     return extract_holes(shape)
@@ -129,7 +130,7 @@ class AnchoredModel:
     ``features(x) = verified(x0) + model(x) − model(x0)``, so a nonlinear part's small shop rounding is
     predicted around the real optimum, not around the linearisation point."""
 
-    def __init__(self, model: Any, x0: np.ndarray, verified: Sequence[Any] | None) -> None:
+    def __init__(self, model: Any, x0: np.ndarray, verified: Sequence[Hole] | None) -> None:
         from cadfeat.cad.features import holes_to_arrays
 
         self.model, self.holes = model, model.holes
@@ -147,7 +148,7 @@ class AnchoredModel:
         c, a, r = self.model.features_batch(X)
         return c + self.dc, a, r + self.dr
 
-    def holes_at(self, x: np.ndarray) -> list[Any]:
+    def holes_at(self, x: np.ndarray) -> list[Hole]:
         return holes_at(self, x)
 
 
