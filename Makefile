@@ -21,7 +21,7 @@ demo: $(STAMP)
 test: $(STAMP)
 	tools/ensure_system.sh
 	CADFEAT_CHROMIUM="$$(tools/ensure_chromium.sh)" && export CADFEAT_CHROMIUM && \
-	$(PY) -m ruff check cadfeat tests benchmarks $(wildcard parts studies) && \
+	$(MAKE) --no-print-directory lint && \
 	$(PY) -m pytest -q && \
 	$(MAKE) --no-print-directory test-kernels
 
@@ -35,8 +35,12 @@ test-kernels: $(STAMP)
 	  OPENBLAS_CORETYPE=$$k $(PY) -m pytest -q -m numerics || exit 1; \
 	done
 
+# ruff; pyright basic on the package (pyrightconfig.json: the rules that fail on the CadQuery/OCP/numpy stubs
+# are listed there, off) and strict on measures/ and the study settings models (pyright-strict.json).
 lint: $(STAMP)
-	$(PY) -m ruff check cadfeat tests benchmarks $(wildcard parts studies)
+	$(PY) -m ruff check cadfeat tests benchmarks tools $(wildcard parts studies)
+	$(VENV)/bin/pyright --pythonpath $(PY)
+	$(VENV)/bin/pyright --pythonpath $(PY) -p pyright-strict.json
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py

@@ -9,15 +9,15 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from cadfeat.camera import Camera
+from cadfeat._version import __version__
 
-__version__ = "0.1.0"
 __all__ = ["Camera", "__version__", "extract_holes", "load_part", "load_step", "redrill", "run_study"]
 
 #: Public CAD names, imported on first use from ``cadfeat.cad`` (CadQuery is heavy).
 _CAD_NAMES = ("extract_holes", "load_part", "load_step", "redrill")
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.camera import Camera
     from cadfeat.study.run import StudyResult
 
 
@@ -29,6 +29,10 @@ def run_study(path_or_dict: Any, out_dir: Any = None, **kwargs: Any) -> StudyRes
 
 
 def __getattr__(name: str) -> Any:
+    if name == "Camera":  # numpy: imported on first use, so that `cadfeat --help` stays fast
+        from cadfeat.camera import Camera
+
+        return Camera
     if name in _CAD_NAMES:
         from cadfeat import cad
 

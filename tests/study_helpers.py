@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import importlib.util
 import json
 from pathlib import Path
 
@@ -55,3 +56,12 @@ def study(tmp_path: Path, **changes: dict) -> Path:
                 data[section][k] = v
     (tmp_path / "study_plate.py").write_text(PLATE.read_text())
     return write_toml(tmp_path / "s.toml", data)
+
+
+def compare_results_tool():
+    """``tools/compare_results.py`` as a module (the tools folder is not a package)."""
+    path = Path(__file__).resolve().parents[1] / "tools" / "compare_results.py"
+    spec = importlib.util.spec_from_file_location("compare_results", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

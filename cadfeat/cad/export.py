@@ -10,9 +10,9 @@ disk is what was designed (DESIGN.md, "Errors and bad input" and the STEP-units 
   and volume.
 - ``export_stl`` / ``mesh_from_shape`` / ``check_stl`` tessellate with an ABSOLUTE chord tolerance in mm
   and check the mesh (watertight, consistent winding, volume within the tessellation bound).
-- ``staged_output`` (from ``cadfeat.cad.output_folder``) writes into a temporary folder beside the destination
-  and moves it into place only when everything succeeded, so a failed or interrupted run never leaves a
-  half-written STEP; it replaces only folders cadfeat created.
+- ``staged_output`` (``cadfeat.study.output_folder``; the name here is kept for older code) writes into a
+  temporary folder beside the destination and moves it into place only when everything succeeded, so a
+  failed or interrupted run never leaves a half-written STEP; it replaces only folders cadfeat created.
 
 CadQuery/OCP and trimesh are imported inside the functions (``import cadfeat`` stays light).
 """
@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cadfeat.cad.output_folder import staged_output
+from cadfeat.cad.output_folder import staged_output  # moved to cadfeat.study.output_folder
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -40,6 +40,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
 
 __all__ = [
+    "staged_output",
     "ExportError",
     "RoundTrip",
     "check_solid",
@@ -50,7 +51,6 @@ __all__ = [
     "mesh_from_shape",
     "sha256_file",
     "shape_volume_mm3",
-    "staged_output",
     "step_length_unit",
     "verify_step_roundtrip",
 ]

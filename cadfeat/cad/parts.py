@@ -19,25 +19,22 @@ script; ``Part.build(**overrides)`` validates the values and returns one ``cadqu
 ``build_shape(part, params, timeout_s)`` runs a build in a worker process with a time limit (DESIGN.md,
 "Known pitfalls": a CAD rebuild may hang), raising ``PartBuildError``; within ``with build_time_limit(s):``
 every ``load_part`` (the script's import) and ``Part.build`` runs that way (the ``cadfeat`` commands do this).
-A part script is Python run with the user's rights: its output is captured, ``sys.exit`` is an error.
+A part script is Python run with the user's rights: its output is captured, ``sys.exit`` is an error. The
+worker processes, the time limit and the output capture live in ``cadfeat.cad.sandbox``.
 
 CadQuery is imported inside the functions (``import cadfeat`` stays light).
 """
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import importlib.util
 import io
 import math
-import multiprocessing
 import os
-import signal
 import sys
-import threading
 import traceback
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -45,6 +42,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features.identity import hole_name
+from cadfeat.cad.sandbox import (
+    DEFAULT_BUILD_TIMEOUT_S,
+    PartBuildError,
+    build_time_limit,
+    call_with_time_limit,
+    contained,
+    current_time_limit,
+    run_worker,
+    start_workers,
+    worker_setup,
+)
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -61,6 +70,7 @@ __all__ = [
     "build_shape",
     "build_time_limit",
     "call_with_time_limit",
+    "start_workers",
     "find_parts",
     "load_part",
     "load_parts",
@@ -70,91 +80,6 @@ __all__ = [
 PARTS_DIR = Path(__file__).resolve().parents[2] / "parts"
 PARAMETER_KEYS = ("default", "bounds", "unit", "description")
 """Keys allowed in one ``PARAMETERS`` entry (``default`` and ``bounds`` are required)."""
-
-
-DEFAULT_BUILD_TIMEOUT_S = 60.0
-"""Time limit (s) of one part-script import or build in the ``cadfeat`` commands (``[study] build_timeout_s``
-changes it for a study, ``--build-timeout`` for ``cadfeat parts`` / ``render``)."""
-TIME_LIMIT_HINT = "if it needs longer, raise [study] build_timeout_s (cadfeat parts / render: --build-timeout S)"
-_time_limit_s: float | None = None  # None: imports and builds run in this process, without a limit
-
-
-class PartBuildError(CadfeatError):
-    """A part build raised, returned no solid, or exceeded its time limit."""
-
-
-# --------------------------------------------------------------------------------- containment
-@contextlib.contextmanager
-def build_time_limit(seconds: float | None, start: bool = True) -> Iterator[None]:
-    """Within the block, every ``load_part`` import and ``Part.build`` runs in a worker process killed after
-    ``seconds`` (``PartBuildError`` naming the script and the limit); ``None``: in this process, no limit.
-    ``start``: start the worker server at once (``start_workers``)."""
-    global _time_limit_s
-    if seconds is not None and not (math.isfinite(seconds) and seconds > 0):
-        raise CadfeatError(f"build time limit: {seconds!r} s is not allowed; allowed: a number of seconds > 0")
-    if seconds is not None and start:
-        start_workers()
-    previous, _time_limit_s = _time_limit_s, seconds
-    try:
-        yield
-    finally:
-        _time_limit_s = previous
-
-
-class _Sink(io.TextIOBase):
-    """A text stream keeping the first ``keep`` characters written to it and counting the rest."""
-
-    def __init__(self, keep: int = 4000) -> None:
-        self.keep, self.text, self.n_chars = keep, "", 0
-
-    def writable(self) -> bool:
-        return True
-
-    def write(self, s: str) -> int:
-        if len(self.text) < self.keep:
-            self.text += s[:self.keep - len(self.text)]
-        self.n_chars += len(s)
-        return len(s)
-
-
-@contextlib.contextmanager
-def _contained(path: Path, what: str, echo: bool = False) -> Iterator[None]:
-    """Run part-script code: its ``print`` output is captured (bounded: a flood cannot fill the terminal or
-    memory; with ``echo``, up to 20 lines are shown on stderr afterwards), ``sys.exit`` becomes a
-    ``CadfeatError``, and Ctrl-C during the block is reported as an interrupt even if the module being
-    imported turned it into another exception (e.g. an ``ImportError`` from an extension module)."""
-    sink = _Sink()
-    interrupted = []
-    main = threading.current_thread() is threading.main_thread()
-    previous = signal.getsignal(signal.SIGINT) if main else None
-
-    def on_sigint(signum: int, frame: Any) -> None:
-        interrupted.append(signum)
-        raise KeyboardInterrupt
-
-    if main and previous is signal.default_int_handler:
-        signal.signal(signal.SIGINT, on_sigint)
-    try:
-        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
-            yield
-    except SystemExit as exc:
-        raise CadfeatError(f"{path}: {what} called sys.exit({exc.code!r}); a part script must not exit "
-                           "(raise an exception to report a problem)") from None
-    except KeyboardInterrupt:
-        raise
-    except BaseException:
-        if interrupted:
-            raise KeyboardInterrupt from None
-        raise
-    finally:
-        if main and previous is signal.default_int_handler:
-            signal.signal(signal.SIGINT, previous)
-        if echo and sink.n_chars:
-            lines = sink.text.splitlines()[:20]
-            shown = sum(len(line) + 1 for line in lines)
-            more = f"\n    ... ({sink.n_chars - shown} more characters not shown)" if sink.n_chars > shown else ""
-            print(f"{path.name} printed while {what}:\n" + "\n".join(f"    {line}" for line in lines) + more,
-                  file=sys.stderr)
 
 
 # ------------------------------------------------------------------------------------------ parameters
@@ -269,11 +194,11 @@ class Part:
     def build(self, **overrides: Any) -> cq.Solid:
         """Build the part: one ``cadquery.Solid`` (mm), in this process, or within ``build_time_limit`` in a
         worker process (``build_shape``). Raises ``PartBuildError``."""
-        if _time_limit_s is not None:
-            return build_shape(self, overrides, _time_limit_s)
+        if current_time_limit() is not None:
+            return build_shape(self, overrides, current_time_limit())
         params = self.resolve(**overrides)
         try:
-            with _contained(self.path, f"build({_fmt(params)})"):
+            with contained(self.path, f"build({_fmt(params)})"):
                 result = self.module.build(**params)
         except PartBuildError:
             raise
@@ -342,7 +267,7 @@ class Part:
                     + 100.0 * (1.0 - np.abs(axes @ ra.T)))
             rows, cols = linear_sum_assignment(cost)
             for i, k in zip(rows, cols, strict=True):
-                names[int(i)] = reference[int(k)].name or f"H{int(k) + 1}"
+                names[int(i)] = hole_name(reference[int(k)], int(k))
         extra = n_ref
         out = []
         for h, name in zip(holes, names, strict=True):
@@ -422,7 +347,7 @@ def _import_script(path: Path) -> ModuleType:
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     try:
-        with _contained(path, "importing the part script", echo=True):
+        with contained(path, "importing the part script", echo=True):
             spec.loader.exec_module(module)
     except (KeyboardInterrupt, CadfeatError):
         sys.modules.pop(name, None)
@@ -454,8 +379,8 @@ def load_part(path: str | os.PathLike[str]) -> Part:
         names = ", ".join(p.stem for p in find_parts()) if PARTS_DIR.is_dir() else "(no library)"
         what = "is not a regular file" if path.exists() else "part script not found"
         raise CadfeatError(f"{path}: {what} (library parts: {names})")
-    if _time_limit_s is not None:
-        _import_in_worker(path, _time_limit_s)  # a loop or a crash at import time stays in the worker
+    if current_time_limit() is not None:
+        _import_in_worker(path, current_time_limit())  # a loop or a crash at import time stays in the worker
     module = _import_script(path)
     where = str(path)
     if not callable(getattr(module, "build", None)):
@@ -517,23 +442,10 @@ def load_parts(directory: str | os.PathLike[str] | None = None) -> list[Part]:
 
 
 # ------------------------------------------------------------------------------ time-limited builds
-def _worker_setup() -> None:
-    """In a worker: die with the forkserver (so with cadfeat), and send C-level output to /dev/null."""
-    with contextlib.suppress(Exception):  # Linux: SIGKILL when the parent (the forkserver) exits
-        import ctypes
-
-        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # PR_SET_PDEATHSIG
-    with contextlib.suppress(OSError):
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, 1)
-        os.dup2(devnull, 2)
-        os.close(devnull)
-
-
 def _worker(path: str, params: dict[str, Any] | None, conn: Any) -> None:
     """Worker process: import the script, build (``params`` None: import only), send ('ok', BRep bytes) or
     ('error', message)."""
-    _worker_setup()
+    worker_setup()
     try:
         part = load_part(path)
         if params is None:
@@ -547,30 +459,6 @@ def _worker(path: str, params: dict[str, Any] | None, conn: Any) -> None:
         conn.send(("error", f"{exc}" if isinstance(exc, CadfeatError) else f"{type(exc).__name__}: {exc}"))
     finally:
         conn.close()
-
-
-_CONTEXT: Any = None
-
-
-def _context() -> Any:
-    """The multiprocessing context: forkserver (cadquery preloaded) where available, spawn otherwise."""
-    global _CONTEXT
-    if _CONTEXT is None:
-        if "forkserver" in multiprocessing.get_all_start_methods():
-            _CONTEXT = multiprocessing.get_context("forkserver")
-            _CONTEXT.set_forkserver_preload(["cadquery", "cadfeat.cad.parts"])
-        else:  # pragma: no cover - Windows / macOS defaults
-            _CONTEXT = multiprocessing.get_context("spawn")
-    return _CONTEXT
-
-
-def start_workers() -> None:
-    """Start the worker server now (it imports CadQuery meanwhile), so the first time-limited import or build
-    does not wait for it; nothing to do with the spawn method."""
-    if _context().get_start_method() == "forkserver":
-        from multiprocessing import forkserver
-
-        forkserver.ensure_running()
 
 
 def build_shape(part: Part, params: Mapping[str, Any] | None = None, timeout_s: float = 30.0) -> cq.Solid:
@@ -594,58 +482,10 @@ def _import_in_worker(path: Path, timeout_s: float) -> None:
 
 
 def _in_worker(path: Path, values: dict[str, Any] | None, timeout_s: float, what: str) -> bytes:
-    status, payload = _run_worker(_worker, (str(path), values), timeout_s, f"{path}: {what}")
+    status, payload = run_worker(_worker, (str(path), values), timeout_s, f"{path}: {what}")
     if status != "ok":
         message = payload if payload.startswith(str(path)) else f"{path}: {payload}"
         raise (PartBuildError if values is not None else CadfeatError)(message)
     return payload
 
 
-def _run_worker(target: Any, args: tuple, timeout_s: float, what: str) -> tuple[str, Any]:
-    """``target(*args, conn)`` in a worker process: its ``(status, payload)`` reply, or ``PartBuildError`` when
-    no reply comes within ``timeout_s`` (the worker is killed) or the worker dies."""
-    ctx = _context()
-    receive, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=target, args=(*args, send), daemon=True)
-    proc.start()
-    send.close()
-    try:
-        if not receive.poll(timeout_s):
-            raise PartBuildError(f"{what} exceeded the time limit of {timeout_s:g} s and was stopped; "
-                                 f"{TIME_LIMIT_HINT}")
-        try:
-            return receive.recv()
-        except EOFError:
-            proc.join(5.0)
-            raise PartBuildError(f"{what}: worker died (exit code {proc.exitcode}): out of memory, or a crash in "
-                                 "the CAD kernel?") from None
-    finally:
-        receive.close()
-        if proc.is_alive():
-            proc.kill()
-        proc.join()
-
-
-def _call_worker(func: Any, args: tuple, conn: Any) -> None:
-    """Worker process: send ('ok', func(*args)) or ('error', message)."""
-    _worker_setup()
-    try:
-        conn.send(("ok", func(*args)))
-    except BaseException as exc:  # noqa: BLE001 - everything goes back to the parent as a message
-        conn.send(("error", f"{exc}" if isinstance(exc, CadfeatError) else f"{type(exc).__name__}: {exc}"))
-    finally:
-        conn.close()
-
-
-def call_with_time_limit(func: Any, args: tuple, what: str, timeout_s: float | None = None) -> Any:
-    """``func(*args)`` in a worker process within ``timeout_s`` (default: the ``build_time_limit`` in force; none:
-    in this process). ``func`` must be importable and ``args`` and the result picklable (CadQuery shapes
-    are). A timeout, a dead worker or an exception raises ``PartBuildError`` starting with ``what``. Used for
-    the CAD work that is not a part script's build, e.g. re-drilling a STEP part's holes."""
-    timeout = timeout_s if timeout_s is not None else _time_limit_s
-    if timeout is None:
-        return func(*args)
-    status, payload = _run_worker(_call_worker, (func, args), timeout, what)
-    if status != "ok":
-        raise PartBuildError(f"{what}: {payload}")
-    return payload

@@ -15,6 +15,8 @@ import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 
+from cadfeat._version import __version__
+from cadfeat.cad.sandbox import DEFAULT_BUILD_TIMEOUT_S, build_time_limit
 from cadfeat.cli import listing, parts, render, report, study, track
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError, Terminated
@@ -32,8 +34,6 @@ def build_parser() -> argparse.ArgumentParser:
         prog="cadfeat",
         description="Redesign hole features of CAD parts for vision-guided manipulation.",
     )
-    from cadfeat import __version__
-
     parser.add_argument("--version", action="version", version=f"cadfeat {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for cmd in COMMANDS:
@@ -63,8 +63,6 @@ def run_guarded(func: Callable[[], int], prog: str = "cadfeat") -> int:
     """``func()`` with the CLI's error handling: one line for bad input (status 2), ``interrupted`` (130),
     ``terminated`` (143, SIGTERM); every part-script import and CAD build runs in a worker process with the
     default time limit unless the command sets its own."""
-    from cadfeat.cad.parts import DEFAULT_BUILD_TIMEOUT_S, build_time_limit
-
     try:
         with sigterm_as_exception(), build_time_limit(DEFAULT_BUILD_TIMEOUT_S, start=False):
             return int(func() or 0)

@@ -17,7 +17,7 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
 
 def build_timeout_arg(parser: argparse.ArgumentParser) -> None:
     """``--build-timeout S``: the time limit of one part-script import or build (worker process)."""
-    from cadfeat.cad.parts import DEFAULT_BUILD_TIMEOUT_S
+    from cadfeat.cad.sandbox import DEFAULT_BUILD_TIMEOUT_S
 
     parser.add_argument("--build-timeout", type=float, default=DEFAULT_BUILD_TIMEOUT_S, metavar="S",
                         help=f"time limit of one part-script import or build, s (default {DEFAULT_BUILD_TIMEOUT_S:g})")
@@ -26,7 +26,7 @@ def build_timeout_arg(parser: argparse.ArgumentParser) -> None:
 def parts(args: argparse.Namespace) -> int:
     """List the part scripts: description, parameters (default, bounds, unit), fixed holes."""
 
-    from cadfeat.cad.parts import build_time_limit
+    from cadfeat.cad.sandbox import build_time_limit
 
     with build_time_limit(args.build_timeout):
         return _list_parts(args)

@@ -98,9 +98,9 @@ def load_shape(path: Path, params: dict[str, float | int]) -> tuple[Any, list, A
 
 def render(args: argparse.Namespace) -> int:
     """Render a part script or STEP file to a PNG (off-screen) and print the PNG path."""
-    from cadfeat.cad.parts import build_time_limit
+    from cadfeat.cad.sandbox import build_time_limit
     from cadfeat.render import render_part
-    from cadfeat.render.part_views import default_view_direction
+    from cadfeat.render.view_geometry import default_view_direction
 
     path = Path(args.part)
     size = _parse_size(args.size)

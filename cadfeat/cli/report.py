@@ -19,8 +19,8 @@ def report(args: argparse.Namespace) -> int:
     """Write report.html (plots and tables; no renders: those need the study's shapes) from a results.json."""
     from pathlib import Path
 
-    from cadfeat.cad.output_folder import REPORT_NAMES, staged_output
     from cadfeat.report import read_results, write_report
+    from cadfeat.study.output_folder import REPORT_NAMES, staged_output
 
     results_path = Path(args.results)
     results = read_results(results_path)

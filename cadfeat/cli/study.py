@@ -56,7 +56,7 @@ def evaluate(args: argparse.Namespace) -> int:
 def validate(args: argparse.Namespace) -> int:
     """Check a study file (sections, keys, types, ranges, files, part parameters, the part builds / the STEP
     file reads) without running it."""
-    from cadfeat.cad.parts import build_time_limit
+    from cadfeat.cad.sandbox import build_time_limit
     from cadfeat.study.schema import load_study
 
     config = load_study(args.study)
@@ -112,8 +112,28 @@ def _check_part(config: object) -> None:
         raise CadfeatError(f"{config.label}: study.part: {exc}") from exc  # type: ignore[attr-defined]
 
 
+def _schema_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", metavar="FILE", help="write the schema to FILE (default: print it)")
+
+
+def schema(args: argparse.Namespace) -> int:
+    """Write the JSON Schema of a study file (editor completion and checking: README, "Study files")."""
+    import json
+    from pathlib import Path
+
+    from cadfeat.study.json_schema import study_json_schema
+
+    text = json.dumps(study_json_schema(), indent=2, ensure_ascii=False) + "\n"
+    if args.out:
+        Path(args.out).write_text(text, encoding="utf-8")
+    else:
+        print(text, end="")
+    return 0
+
+
 COMMANDS = (
     Command("run", _run_args, run),
     Command("evaluate", _evaluate_args, evaluate),
     Command("validate", _study_arg, validate),
+    Command("schema", _schema_args, schema),
 )

@@ -72,8 +72,6 @@ def _f(x: Any) -> str:
 
 def track(args: argparse.Namespace) -> int:
     """Does the new design track better? Images → OpenCV detection → EKF/IEKF/PnP pose, before vs after."""
-    import dataclasses
-
     from cadfeat.errors import CadfeatError
     from cadfeat.study.run import default_out_dir
     from cadfeat.study.schema import TrackingSpec, load_study
@@ -84,7 +82,7 @@ def track(args: argparse.Namespace) -> int:
     if args.runs is not None:
         if args.runs < 1:
             raise CadfeatError(f"--runs: {args.runs} is not allowed; allowed: an integer >= 1")
-        spec = dataclasses.replace(spec, runs=args.runs)
+        spec = spec.replace(runs=args.runs)
     values = None
     if args.values:
         try:
@@ -115,6 +113,10 @@ def track(args: argparse.Namespace) -> int:
     if results_path.is_file():  # written by `cadfeat run`: add (or replace) its tracking section
         results = json.loads(results_path.read_text(encoding="utf-8"))
         results["tracking"] = section
+        if "verdict" in results:  # the tracking rule may change the decision
+            from cadfeat.report.verdict import verdict_json
+
+            results["verdict"] = verdict_json(results)
         _write_json(results_path, results)
     print(f"tracking {config.study.name}: {spec.runs} Monte-Carlo runs, {section['settings']['frames']} frames")
     print("\n".join(summary_lines(section)))

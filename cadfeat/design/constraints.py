@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from cadfeat.cad.features import Hole, holes_to_arrays
+from cadfeat.cad.features.identity import hole_name
 from cadfeat.errors import CadfeatError
 
 __all__ = [
@@ -153,7 +154,7 @@ def _same_face(h1: Hole, h2: Hole, tol: float = 1e-6) -> bool:
 
 
 def _label(holes: Sequence[Hole], i: int) -> str:
-    return holes[i].name or f"H{i + 1}"
+    return hole_name(holes[i], i)
 
 
 class ConstraintSet:

@@ -24,6 +24,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from cadfeat.cad.features import Hole, holes_to_arrays, match_holes
+from cadfeat.cad.features.identity import hole_name
 from cadfeat.errors import CadfeatError
 
 __all__ = [
@@ -308,7 +309,7 @@ class HoleMoveModel(LinearFeatureModel):
         dR = np.zeros((n, width))
         col = 0
         for i in leaders:
-            label = holes[i].name or f"H{i + 1}"
+            label = hole_name(holes[i], i)
             u, v = _in_plane_frame(holes[i])
             names += [f"{label}.s", f"{label}.t"]
             x0 += [0.0, 0.0]
@@ -342,7 +343,7 @@ class HoleMoveModel(LinearFeatureModel):
         variables = []
         for i in self.leaders:
             hole = self.holes[i]
-            label = hole.name or f"H{i + 1}"
+            label = hole_name(hole, i)
             if offset_bounds_mm is not None:
                 lo_s = lo_t = float(offset_bounds_mm[0])
                 hi_s = hi_t = float(offset_bounds_mm[1])

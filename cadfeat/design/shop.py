@@ -18,15 +18,20 @@ STEP), as for any design. ``ShopDesign.residual_mm`` is what the feature model s
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import dataclasses
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.errors import CadfeatError
 
-__all__ = ["DEFAULT_GRID_MM", "HOLE_SIZE_TABLES", "ShopDesign", "hole_sizes", "shop_design", "snap_diameters"]
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
+
+__all__ = ["DEFAULT_GRID_MM", "HOLE_SIZE_TABLES", "ShopDesign", "hole_sizes", "model_jacobian", "off_target",
+           "refine_on_rebuild", "shop_design", "snap_diameters"]
 
 DEFAULT_GRID_MM = 0.1
 """Default drawing grid of hole positions (mm)."""
@@ -100,7 +105,7 @@ class ShopDesign:
     notes: list[str] = field(default_factory=list)
 
 
-def _jacobian(model: Any, x: np.ndarray, h: float = 1e-3) -> np.ndarray:
+def model_jacobian(model: Any, x: np.ndarray, h: float = 1e-3) -> np.ndarray:
     """(4N, P) d(centres, radii)/dx by central differences, one batched feature evaluation."""
     P = x.size
     X = np.concatenate([x + h * np.eye(P), x - h * np.eye(P)])
@@ -188,7 +193,7 @@ def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: f
     tc = cr.copy()
     if grid_mm > 0:
         tc[moved] = _round_across_axis(cr[moved], ar[moved], grid_mm)
-    J = _jacobian(model, xr)
+    J = model_jacobian(model, xr)
     n = len(rr)
     dr = np.abs(J[3 * n:]) > 1e-9  # (N, P): which variables size each hole
     own_sizes = ~np.any(dr & ~np.asarray(space.discrete, bool), axis=1)
@@ -206,3 +211,50 @@ def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: f
         notes.append(f"the design variables cannot put every moved hole on the {grid_mm:g} mm grid and every resized "
                      f"hole on a table size at once (largest remaining difference {residual:.3g} mm, feature model)")
     return ShopDesign(xs, x, float(grid_mm), tuple(sizes), moved, resized, tc, td, residual, notes)
+
+
+# ------------------------------------------------------------------------------ refinement on the CAD rebuild
+def off_target(holes: Sequence[Hole], design: ShopDesign) -> float:
+    """Largest distance (mm) of ``holes``' centres and diameters from the shop design's targets."""
+    from cadfeat.cad.features import holes_to_arrays
+
+    c, _, r = holes_to_arrays(list(holes))
+    return float(max(np.abs(c - design.target_centres).max(initial=0.0),
+                     np.abs(2 * r - design.target_diameters).max(initial=0.0)))
+
+
+def refine_on_rebuild(space: Any, model: Any, problem: Any, x: np.ndarray, rebuilt: tuple[Any, list[Hole], float],
+                      design: ShopDesign, rebuild: Callable[[np.ndarray, list[Hole]], tuple[Any, list[Hole], float]],
+                      rounds: int = 6) -> tuple[np.ndarray, tuple[Any, list[Hole], float], float]:
+    """Where the feature model is only a linearisation (a nonlinear part script), the rebuilt holes may miss the
+    grid/table targets of ``design``: up to ``rounds`` Newton steps on the real CAD rebuild (the model's
+    Jacobian, the rebuilt holes' error), each kept only if it gets closer and keeps the model's constraints.
+
+    ``rebuilt`` = (shape, holes, prediction error) at ``x``; ``rebuild(x, predicted_holes)`` rebuilds at ``x``
+    (raising ``CadfeatError`` when it cannot). Returns (x, rebuilt, remaining off-target distance in mm)."""
+    from cadfeat.cad.features import holes_to_arrays
+
+    shape, holes, err = rebuilt
+    off = off_target(holes, design)
+    for _ in range(rounds):
+        if off <= 1e-6:
+            break
+        c, _, r = holes_to_arrays(holes)
+        resid = np.concatenate([(design.target_centres - c).reshape(-1), (design.target_diameters / 2 - r)])
+        step = np.linalg.lstsq(model_jacobian(model, x), resid, rcond=None)[0]
+        x_new = space.snap(space.clip(x + step))
+        if np.asarray(problem.constraints(x_new), float).min(initial=0.0) < -1e-9:
+            break
+        c_new, _, r_new = model.features(x_new)
+        c_old, _, r_old = model.features(x)
+        guess = [dataclasses.replace(h, centre=h.centre + d, radius_mm=h.radius_mm + e)
+                 for h, d, e in zip(holes, c_new - c_old, r_new - r_old, strict=True)]
+        try:
+            cand = rebuild(x_new, guess)
+        except CadfeatError:
+            break
+        off_new = off_target(cand[1], design)
+        if off_new >= off:
+            break
+        x, (shape, holes, err), off = x_new, cand, off_new
+    return x, (shape, holes, err), off

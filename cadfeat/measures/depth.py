@@ -11,7 +11,7 @@ across one cell and the hole's own face): one lookup per feature-pose, O(L·N). 
 own position against the part as loaded, like the exact test. Near a silhouette (a ray that passes an edge
 within about one cell) the depth map errs towards "hidden" (the edge shares the hole's cell), which keeps
 the optimiser's holes clear of edges; the reported hidden fractions use the exact test. Measured on the
-flagship: 99.4 % of feature-poses agree with the exact test (tests/test_trust_occlusion.py bounds the
+flagship: 99.4 % of feature-poses agree with the exact test (tests/study/test_trust_occlusion.py bounds the
 difference on a wall that hides a hole).
 """
 

@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cadfeat.camera import MIN_DEPTH_MM, Camera
-from cadfeat.measures.lens import distort_terms
+from cadfeat.measures.lens import Array, distort_terms
 
 
 @dataclass(frozen=True)
@@ -137,6 +137,7 @@ def ellipse_parts(camera: Camera, conic: tuple[np.ndarray, ...], in_front: np.nd
     s = -1.0 / np.where(ok, k, 1.0)
     ma, mb, mc = a * s, b * s, c * s  # M = A / (−k): (x − x0)ᵀ M (x − x0) = 1, normalised coordinates
     u, v, d00, d01, d10, d11 = distort_terms(camera, x0, y0)
+    assert u is not None and v is not None  # positions=True
     if any(camera.dist):
         ma, mb, mc = _congruent_inverse(ma, mb, mc, d00, d01, d10, d11)
     else:
@@ -151,7 +152,8 @@ def ellipse_parts(camera: Camera, conic: tuple[np.ndarray, ...], in_front: np.nd
     angle = _major_axis_angle(h, mb, root)
     inv_det_m = okf / (lam_big * lam_small)  # 1/det M (0 where invalid)
     return EllipseParts(
-        u=u, v=v, major=okf * 2.0 / np.sqrt(lam_small), minor=okf * 2.0 / np.sqrt(lam_big), angle=angle * okf,
+        u=np.asarray(u), v=np.asarray(v), major=okf * 2.0 / np.sqrt(lam_small), minor=okf * 2.0 / np.sqrt(lam_big),
+        angle=angle * okf,
         hu=np.sqrt(np.abs(mc * inv_det_m)), hv=np.sqrt(np.abs(ma * inv_det_m)), valid=ok)
 
 
@@ -174,8 +176,8 @@ def conic_to_ellipse(camera: Camera, conic: tuple[np.ndarray, ...], in_front: np
                    angle_rad=parts.angle, valid=parts.valid)
 
 
-def _congruent_inverse(ma: np.ndarray, mb: np.ndarray, mc: np.ndarray, d00: np.ndarray, d01: np.ndarray,
-                       d10: np.ndarray, d11: np.ndarray) -> tuple[np.ndarray, ...]:
+def _congruent_inverse(ma: np.ndarray, mb: np.ndarray, mc: np.ndarray, d00: Array, d01: Array,
+                       d10: Array, d11: Array) -> tuple[np.ndarray, ...]:
     """Entries of D⁻ᵀ M D⁻¹ = adj(D)ᵀ M adj(D) / det(D)² for symmetric M = [[ma, mb], [mb, mc]]."""
     det = d00 * d11 - d01 * d10
     w = 1.0 / np.where(det != 0, det * det, 1.0)

@@ -64,11 +64,11 @@ def fill_jacobian(out: list[np.ndarray], x: np.ndarray, y: np.ndarray, inv_z: np
         mul(db, inv_z, out=o[1])
         np.negative(o[1], out=o[1])
         mul(da, xiz, out=o[2])
-        o[2] += db * yiz
+        o[2] += mul(db, yiz)
         mul(da, xy, out=o[3])
-        o[3] += db * yy1
+        o[3] += mul(db, yy1)
         mul(da, xx1, out=o[4])
-        o[4] += db * xy
+        o[4] += mul(db, xy)
         np.negative(o[4], out=o[4])
         mul(da, y, out=o[5])
         o[5] -= db * x

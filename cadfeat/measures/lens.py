@@ -26,7 +26,8 @@ def _radial(camera: Camera, r2: np.ndarray) -> tuple[Array, Array]:
     return 1.0 + k1 * r2, 2.0 * k1
 
 
-def distort_terms(camera: Camera, x: np.ndarray, y: np.ndarray, positions: bool = True) -> tuple[Array, ...]:
+def distort_terms(camera: Camera, x: np.ndarray, y: np.ndarray, positions: bool = True
+                  ) -> tuple[Array | None, Array | None, Array, Array, Array, Array]:
     """(u, v, d00, d01, d10, d11): pixels and ∂(u, v)/∂(x, y) of normalised coordinates x, y (same shape).
 
     ``positions=False`` skips the pixel positions (returns None for u, v).

@@ -14,7 +14,7 @@ Lens distortion is applied after rendering by remapping the pinhole image (``cv2
 maps from ``cv2.undistortPoints``), so a hole's rim lands where ``Camera.project`` puts it.
 The part is light grey, lit from the camera; hole faces are dark; the background is black. Anti-aliasing
 is off (each pixel samples its centre), which keeps edges unbiased: the dark hole regions found by
-thresholding agree with the exact rim ellipses to ~0.2 px (tests/test_render_camera.py).
+thresholding agree with the exact rim ellipses to ~0.2 px (tests/render/test_render_camera.py).
 One plotter serves any number of poses (``CameraViewRenderer``).
 """
 
@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features.identity import hole_name
 from cadfeat.poses import invert_T
 from cadfeat.render.scene import (
     RenderError,
@@ -178,7 +179,7 @@ def draw_hole_overlay(image: np.ndarray, camera: Camera, holes: Sequence[Hole], 
                     ELLIPSE_COLOUR_RGB, 1, cv2.LINE_AA, shift)
         p = np.round(centre_px[j]).astype(int)
         cv2.drawMarker(out, (int(p[0]), int(p[1])), CENTRE_COLOUR_RGB, cv2.MARKER_CROSS, 7, 1)
-        _label(out, holes[j].name or f"H{j + 1}", (int(p[0]) + 6, int(p[1]) - 6))
+        _label(out, hole_name(holes[j], j), (int(p[0]) + 6, int(p[1]) - 6))
     return out
 
 

@@ -167,6 +167,14 @@ def decide(results: dict) -> Verdict:
     return Verdict(decision, findings, changes, limiting)
 
 
+def verdict_json(results: dict) -> dict[str, Any]:
+    """results.json ``verdict``: the decision (one of ``adopt``, ``adopt with care``, ``do not adopt``), the
+    limiting objective and each applied rule's outcome, so that a pipeline can gate on the run's outcome."""
+    v = decide(results)
+    return {"decision": v.decision, "limiting": v.limiting,
+            "findings": [{"rule": f.rule, "outcome": f.outcome, "detail": f.detail} for f in v.findings]}
+
+
 def _failing_after(results: dict) -> list[tuple[str, int, int]]:
     """(measure, holes with a negative worst margin, holes) of the design after, for each margin measure."""
     feats = ((results.get("measures") or {}).get("after") or {}).get("per_feature") or []

@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.features.identity import hole_name
+
 __all__ = [
     "DIGITS",
     "SCHEMA_VERSION",
@@ -33,9 +35,9 @@ __all__ = [
     "write_json",
 ]
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 """Version of the layout of results.json (2: schema_version, requirements_used, camera_poses, shop, patterns,
-robustness added by issue 13); readers compare it before relying on a key."""
+robustness added by issue 13; 3: ``verdict``, tracking holes named H1…); readers compare it before relying on a key."""
 DIGITS = 10
 """Significant digits of floats in results.json (1e-10 relative: far below any tolerance used)."""
 STEP_TIMESTAMP = "1970-01-01T00:00:00"
@@ -79,7 +81,7 @@ def hole_dict(hole: Any, index: int, fixed: bool, movable: bool) -> dict[str, An
     """One hole as results.json ``H`` = {index, name, centre_mm, axis, radius_mm, depth_mm, through, kind,
     fixed, movable} (part frame, mm)."""
     return {
-        "index": int(index), "name": hole.name or f"H{index + 1}",
+        "index": int(index), "name": hole_name(hole, index),
         "centre_mm": np.asarray(hole.centre, float).tolist(), "axis": np.asarray(hole.axis, float).tolist(),
         "radius_mm": float(hole.radius_mm), "depth_mm": float(hole.depth_mm), "through": bool(hole.through),
         "kind": str(hole.kind), "fixed": bool(fixed), "movable": bool(movable),

@@ -30,7 +30,6 @@ table is a literal; otherwise ``cadfeat.cad.parts.load_part`` is used.
 
 from __future__ import annotations
 
-import ast
 import copy
 import dataclasses
 import math
@@ -39,19 +38,38 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 
-from cadfeat.design.objectives import ObjectiveConfig
-from cadfeat.design.optimize import OptimizerConfig
+from cadfeat.design.objectives import AGGREGATES, COMBINES, ObjectiveConfig
+from cadfeat.design.objectives import MEASURES as _OBJECTIVE_MEASURES
+from cadfeat.design.optimize import METHODS, OptimizerConfig
 from cadfeat.errors import CadfeatError
+from cadfeat.study.part_parameters import PartParameter, part_parameters
+from cadfeat.study.settings import (
+    LIMITS,
+    SYMMETRIES,
+    TRACKING_ESTIMATORS,
+    ConstraintSettings,
+    ObjectiveSettings,
+    OptimizerSettings,
+    RobustnessSettings,
+    ShopSettings,
+    StudyError,
+    TrackingSettings,
+    validate_section,
+)
+from cadfeat.study.table import Table, check_seed, fmt, is_num, vector_value
 
 __all__ = [
     "AGGREGATES",
     "COMBINES",
     "MEASURES",
     "METHODS",
+    "SYMMETRIES",
+    "TRACKING_ESTIMATORS",
+    "TRACKING_KEYS",
     "CameraSpec",
     "ConstraintSpec",
     "DesignSpec",
@@ -68,50 +86,27 @@ __all__ = [
     "part_parameters",
 ]
 
-MEASURES = ("fov", "focus", "resolution", "resolvability")
-AGGREGATES = ("sum", "mean", "min", "smoothmin")
-COMBINES = ("weighted", "maxmin", "constraint", "pareto")
-METHODS = ("multistart", "local", "global", "pareto")
-LOCAL_SOLVERS = ("SLSQP", "trust-constr")
-SYMMETRIES = ("none", "x", "y", "xy")
-NORMALISATIONS = ("payoff", "initial", "natural", "none")
-SCORES = ("movable", "all")
-FOV_MEASURES = ("cone", "image")
+MEASURES = tuple(_OBJECTIVE_MEASURES)
+"""The measure names of ``[objective] measures`` (the design layer's ``MEASURES``; enumerations are not copied)."""
 #: The keys of ``[objective]`` and ``[optimizer]``: the fields of ``ObjectiveConfig`` / ``OptimizerConfig``
 #: a study file may set (the others keep their defaults).
-OBJECTIVE_KEYS = ("measures", "aggregate", "combine", "weights", "thresholds", "min_axis_px", "rotation_length_mm",
-                  "smoothmin_beta", "normalisation", "fov_measure", "occlusion", "score")
-OPTIMIZER_KEYS = ("method", "starts", "maxiter", "seed", "local_solver", "snap_standard_sizes")
+OBJECTIVE_KEYS = tuple(ObjectiveSettings.model_fields)
+OPTIMIZER_KEYS = tuple(OptimizerSettings.model_fields)
+STUDY_KEYS = ("name", "part", "seed", "description", "build_timeout_s")
+PART_POSE_KEYS = ("position_mm", "rotvec_deg", "quaternion")
+DESIGN_KEYS = ("parameters", "holes", "standard_diameters_mm", "fixed", "patterns", "view_direction")
 SCRIPT_SUFFIXES = (".py",)
 STEP_SUFFIXES = (".step", ".stp")
 
 SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer", "shop",
             "robustness", "tracking")
-SHOP_KEYS = ("hole_sizes", "grid_mm", "keep_patterns")
-ROBUSTNESS_KEYS = ("position_tol_mm", "size_steps", "camera_position_mm", "camera_angle_deg", "samples")
+SHOP_KEYS = tuple(ShopSettings.model_fields)
+ROBUSTNESS_KEYS = tuple(RobustnessSettings.model_fields)
 REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
-LIMITS = {
-    "trajectory_samples": 100_000,   # [trajectory] n (and the rows of a trajectory CSV)
-    "trajectory_lines": 10_000,      # [trajectory] lines (raster_scan)
-    "trajectory_csv_bytes": 64 * 2**20,
-    "design_variables": 64,          # [design] parameters / movable holes
-    "optimizer_starts": 10_000,      # [optimizer] starts
-    "optimizer_maxiter": 1_000_000,  # [optimizer] maxiter
-    "image_pixels": 50_000_000,      # [camera] width * height
-    "image_side_px": 20_000,         # [camera] width, height
-}
-"""Size limits checked when a study is validated, before anything is allocated (each error names its limit).
-They bound memory and time on an ordinary machine; for a bigger study, raise them here
-(``cadfeat.study.schema.LIMITS[key] = value`` before ``load_study``)."""
 BUILD_TIMEOUT_S = 60.0
 """Default ``[study] build_timeout_s``: time limit of one part-script import or CAD build (worker process)."""
 
-_MISSING: Any = object()
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-
-
-class StudyError(CadfeatError):
-    """A study file is invalid: the message names the file, the dotted key and what is allowed."""
 
 
 # ----------------------------------------------------------------------------------------- dataclasses
@@ -174,19 +169,6 @@ class TrajectorySpec:
 
 
 @dataclass(frozen=True)
-class PartParameter:
-    """A part script's parameter as declared in its ``PARAMETERS`` table."""
-
-    name: str
-    default: float | int
-    lower: float | int
-    upper: float | int
-    unit: str
-    description: str
-    is_int: bool
-
-
-@dataclass(frozen=True)
 class ParameterSpec:
     """A varying part parameter with its study bounds (``int`` bounds for integer parameters)."""
 
@@ -226,81 +208,16 @@ class DesignSpec:
     through holes. Default: from the trajectory (mean direction to the camera positions)."""
 
 
-@dataclass(frozen=True)
-class ConstraintSpec:
-    """``[constraints]``: the kept mechanical requirements (mm; percent of the original volume)."""
-
-    edge_distance_mm: float = 1.0
-    ligament_mm: float = 1.0
-    volume_change_max_percent: float | None = None
-    symmetry: str = "none"
+ConstraintSpec = ConstraintSettings
+"""``[constraints]`` (``cadfeat.study.settings``)."""
 
 
-TRACKING_ESTIMATORS = ("ekf", "iekf", "pnp")
-#: The keys of ``[tracking]`` (the fields of ``TrackingSpec``).
-TRACKING_KEYS = ("estimators", "runs", "seed", "noise_grey", "defocus", "exposure_s", "initial_error_mm",
-                 "initial_error_deg", "r_px2", "q_rate_mm2_s2", "q_omega_rad2_s2", "iterations", "tau", "frame_step",
-                 "settle_frames", "converged_mm", "converged_deg", "gate_px", "rim_model", "alpha",
-                 "min_change_percent")
-
-
-@dataclass(frozen=True)
-class TrackingSpec:
-    """``[tracking]``: the closed-loop check of ``cadfeat track`` (``cadfeat.vision.closed_loop.TrackingConfig``).
-
-    Estimators, Monte-Carlo runs and seed; sensor: grey-level noise σ (0..255 scale), thin-lens defocus on/off,
-    exposure (s, 0 = no motion blur); initial pose error (mm, deg); filter tuning (thesis §6.3.3): R = r I (px²),
-    Q = diag(0, q, …) on the linear (mm²/s²) and angular (rad²/s²) rates, IEKF iterations n and threshold τ;
-    every ``frame_step``-th trajectory sample; statistics after ``settle_frames``; convergence bounds;
-    association gate (px); rim ellipse-centre model; significance ``alpha`` of the paired test, and the smallest
-    change of the median RMS error (percent of the error before) that a verdict counts.
-    """
-
-    estimators: tuple[str, ...] = TRACKING_ESTIMATORS
-    runs: int = 20
-    seed: int = 0
-    noise_grey: float = 2.0
-    defocus: bool = True
-    exposure_s: float = 0.0
-    initial_error_mm: float = 10.0
-    initial_error_deg: float = 2.0
-    r_px2: float = 0.25
-    q_rate_mm2_s2: float = 100.0
-    q_omega_rad2_s2: float = 1e-3
-    iterations: int = 30
-    tau: float = 1e-16
-    frame_step: int = 1
-    settle_frames: int = 5
-    converged_mm: float = 2.0
-    converged_deg: float = 1.0
-    gate_px: float = 10.0
-    rim_model: bool = True
-    alpha: float = 0.05
-    min_change_percent: float = 5.0
-
-
-@dataclass(frozen=True)
-class ShopSpec:
-    """``[shop]``: shop-ready output (``cadfeat.design.shop``). ``hole_sizes``: a table name of
-    ``shop.HOLE_SIZE_TABLES`` or diameters (mm); ``grid_mm``: drawing grid of moved hole positions (0: off);
-    ``keep_patterns``: holes forming a pattern in the original move as a pattern (false lets them break)."""
-
-    hole_sizes: str | tuple[float, ...] = "iso273-medium"
-    grid_mm: float = 0.1
-    keep_patterns: bool = True
-
-
-@dataclass(frozen=True)
-class RobustnessSpec:
-    """``[robustness]``: tolerances of the robustness study (``cadfeat.design.robustness``): hole positions
-    ±``position_tol_mm``, diameters ±``size_steps`` table steps, camera mount ±``camera_position_mm`` and
-    ±``camera_angle_deg``; ``samples`` random draws each (0: off)."""
-
-    position_tol_mm: float = 0.1
-    size_steps: int = 1
-    camera_position_mm: float = 2.0
-    camera_angle_deg: float = 1.0
-    samples: int = 200
+#: The keys of ``[tracking]`` (the fields of ``TrackingSettings``).
+TRACKING_KEYS = tuple(TrackingSettings.model_fields)
+TrackingSpec = TrackingSettings
+ShopSpec = ShopSettings
+RobustnessSpec = RobustnessSettings
+"""The ``[tracking]``, ``[shop]`` and ``[robustness]`` sections (``cadfeat.study.settings``): the old names."""
 
 
 @dataclass(frozen=True)
@@ -334,7 +251,7 @@ class StudyConfig:
 
     def with_seed(self, seed: int) -> StudyConfig:
         """The same study with ``study.seed`` and ``optimizer.seed`` replaced."""
-        _check_seed(seed, self.label, "seed")
+        check_seed(seed, self.label, "seed")
         data = copy.deepcopy(dict(self.data))
         data["study"]["seed"] = int(seed)
         data["optimizer"]["seed"] = int(seed)
@@ -342,194 +259,8 @@ class StudyConfig:
                                    optimizer=dataclasses.replace(self.optimizer, seed=int(seed)), data=data)
 
 
-# ------------------------------------------------------------------------------------------- validator
-def _check_seed(seed: Any, label: str, key: str) -> None:
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= int(seed) < 2**32:
-        raise StudyError(f"{label}: {key}: {seed!r} is not allowed; allowed: an integer in [0, 2^32)")
-
-
-def _fmt(value: Any) -> str:
-    return repr(value) if isinstance(value, str) else str(value)
-
-
-class _Table:
-    """Reads one TOML table, checking each key; ``done()`` rejects keys that were not read."""
-
-    def __init__(self, data: Any, key: str, label: str, allowed: Sequence[str]) -> None:
-        self.key, self.label, self.allowed = key, label, tuple(allowed)
-        if not isinstance(data, Mapping):
-            self.fail(key, f"expected a table, got {_fmt(data)}", f"a table with keys {', '.join(allowed)}")
-        self.data = dict(data)
-        unknown = sorted(set(self.data) - set(allowed))
-        if unknown:
-            self.fail(self.dotted(unknown[0]), "unknown key", f"keys of [{key}]: {', '.join(allowed)}")
-
-    def dotted(self, name: str) -> str:
-        return f"{self.key}.{name}" if self.key else name
-
-    def fail(self, key: str, problem: str, allowed: str) -> NoReturn:
-        raise StudyError(f"{self.label}: {key}: {problem}; allowed: {allowed}")
-
-    def has(self, name: str) -> bool:
-        return name in self.data
-
-    def raw(self, name: str, default: Any = None) -> Any:
-        return self.data.get(name, default)
-
-    def string(self, name: str, default: Any = _MISSING, choices: Sequence[str] | None = None,
-               pattern: re.Pattern[str] | None = None, what: str = "a string") -> str:
-        allowed = ", ".join(choices) if choices else what
-        if name not in self.data:
-            if default is _MISSING:
-                self.fail(self.dotted(name), "missing", allowed)
-            return default
-        value = self.data[name]
-        if not isinstance(value, str) or (choices is not None and value not in choices) or \
-                (pattern is not None and not pattern.fullmatch(value)):
-            self.fail(self.dotted(name), f"{_fmt(value)} is not allowed", allowed)
-        return value
-
-    def number(self, name: str, default: float | None, lo: float | None = None, hi: float | None = None,
-               lo_open: bool = False, required: bool = False) -> float | None:
-        if name not in self.data:
-            if required:
-                self.fail(self.dotted(name), "missing", _range_text(lo, hi, lo_open))
-            return default
-        return _number(self.data[name], self.dotted(name), self.label, lo, hi, lo_open)
-
-    def integer(self, name: str, default: int, lo: int, hi: int | None = None) -> int:
-        if name not in self.data:
-            return default
-        value = self.data[name]
-        text = f"an integer ≥ {lo}" if hi is None else f"an integer in [{lo}, {hi}]"
-        if isinstance(value, bool) or not isinstance(value, int) or value < lo or (hi is not None and value > hi):
-            self.fail(self.dotted(name), f"{_fmt(value)} is not allowed", text)
-        return int(value)
-
-    def boolean(self, name: str, default: bool) -> bool:
-        if name not in self.data:
-            return default
-        value = self.data[name]
-        if not isinstance(value, bool):
-            self.fail(self.dotted(name), f"{_fmt(value)} is not allowed", "true or false")
-        return value
-
-    def vector(self, name: str, n: int, default: Sequence[float] | None) -> tuple[float, ...] | None:
-        if name not in self.data:
-            return None if default is None else tuple(float(x) for x in default)
-        return _vector(self.data[name], n, self.dotted(name), self.label)
-
-
-def _range_text(lo: float | None, hi: float | None, lo_open: bool = False) -> str:
-    if lo is None and hi is None:
-        return "a finite number"
-    if hi is None:
-        return f"a number {'>' if lo_open else '≥'} {lo:g}"
-    if lo is None:
-        return f"a number ≤ {hi:g}"
-    return f"a number in {'(' if lo_open else '['}{lo:g}, {hi:g}]"
-
-
-def _is_num(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
-def _number(value: Any, key: str, label: str, lo: float | None = None, hi: float | None = None,
-            lo_open: bool = False) -> float:
-    ok = _is_num(value) and math.isfinite(value)
-    if ok and lo is not None:
-        ok = value > lo if lo_open else value >= lo
-    if ok and hi is not None:
-        ok = value <= hi
-    if not ok:
-        raise StudyError(f"{label}: {key}: {_fmt(value)} is not allowed; allowed: {_range_text(lo, hi, lo_open)}")
-    return float(value)
-
-
-def _vector(value: Any, n: int, key: str, label: str) -> tuple[float, ...]:
-    if not isinstance(value, list) or len(value) != n or not all(_is_num(v) and math.isfinite(v) for v in value):
-        raise StudyError(f"{label}: {key}: {_fmt(value)} is not allowed; allowed: a list of {n} finite numbers")
-    return tuple(float(v) for v in value)
-
-
-# ------------------------------------------------------------------------------------ part parameters
-def part_parameters(path: str | Path) -> dict[str, PartParameter]:
-    """A part script's ``PARAMETERS`` (name → ``PartParameter``), read without running the script when the
-    table is a literal (``ast.literal_eval``), else via ``cadfeat.cad.parts.load_part``.
-
-    Raises ``StudyError`` naming the script for a syntax error, a missing or malformed table.
-    """
-    path = Path(path)
-    try:
-        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
-    except SyntaxError as exc:
-        raise StudyError(f"{path}: line {exc.lineno}: syntax error: {exc.msg}") from exc
-    node = next((n.value for n in tree.body if isinstance(n, ast.Assign | ast.AnnAssign)
-                 and any(isinstance(t, ast.Name) and t.id == "PARAMETERS"
-                         for t in (n.targets if isinstance(n, ast.Assign) else [n.target]))), None)
-    if node is None:
-        raise StudyError(f"{path}: PARAMETERS: missing; allowed: a module-level dict "
-                         "{name: {default, bounds, unit, description}}")
-    if _mutated(tree):
-        return _parameters_by_loading(path)
-    try:
-        table = ast.literal_eval(node)
-    except ValueError:
-        return _parameters_by_loading(path)
-    return _parse_parameters(table, path)
-
-
-_MUTATORS = {"update", "setdefault", "pop", "popitem", "clear", "__setitem__"}
-
-
-def _mutated(tree: ast.Module) -> bool:
-    """Whether module-level code (outside functions/classes) changes ``PARAMETERS`` after assigning it:
-    ``PARAMETERS[k] = ...``, ``del PARAMETERS[k]``, ``PARAMETERS.update(...)``, or a second assignment."""
-    assigned = 0
-    for stmt in tree.body:
-        if isinstance(stmt, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
-            continue
-        for n in ast.walk(stmt):
-            if isinstance(n, ast.Name) and n.id == "PARAMETERS" and isinstance(n.ctx, ast.Store):
-                assigned += 1
-            elif isinstance(n, ast.Subscript) and isinstance(n.value, ast.Name) and n.value.id == "PARAMETERS" \
-                    and isinstance(n.ctx, ast.Store | ast.Del):
-                return True
-            elif isinstance(n, ast.Attribute) and isinstance(n.value, ast.Name) and n.value.id == "PARAMETERS" \
-                    and n.attr in _MUTATORS:
-                return True
-    return assigned > 1
-
-
-def _parameters_by_loading(path: Path) -> dict[str, PartParameter]:
-    from cadfeat.cad.parts import load_part  # runs the script (imports cadquery): only for non-literal tables
-
-    part = load_part(path)
-    return {name: PartParameter(name, p.default, p.lower, p.upper, getattr(p, "unit", ""),
-                                getattr(p, "description", ""), bool(getattr(p, "is_int", False)))
-            for name, p in part.parameters.items()}
-
-
-def _parse_parameters(table: Any, path: Path) -> dict[str, PartParameter]:
-    allowed = "a dict {name: {default, bounds: (lower, upper), unit, description}}"
-    if not isinstance(table, Mapping):
-        raise StudyError(f"{path}: PARAMETERS: not a dict; allowed: {allowed}")
-    out = {}
-    for name, spec in table.items():
-        if not isinstance(name, str) or not isinstance(spec, Mapping) or "default" not in spec or \
-                "bounds" not in spec or not isinstance(spec["bounds"], Sequence) or len(spec["bounds"]) != 2:
-            raise StudyError(f"{path}: PARAMETERS.{name}: malformed; allowed: {allowed}")
-        default, (lo, hi) = spec["default"], spec["bounds"]
-        if not all(_is_num(v) for v in (default, lo, hi)):
-            raise StudyError(f"{path}: PARAMETERS.{name}: default and bounds must be numbers; allowed: {allowed}")
-        is_int = isinstance(default, int)
-        out[name] = PartParameter(name, default, lo, hi, str(spec.get("unit", "")),
-                                  str(spec.get("description", "")), is_int)
-    return out
-
-
 # ------------------------------------------------------------------------------------------- sections
-def _study_section(t: _Table, base_dir: Path) -> StudyInfo:
+def _study_section(t: Table, base_dir: Path) -> StudyInfo:
     name = t.string("name", pattern=_NAME, what="a name of letters, digits, '_', '-', '.' (a folder name)")
     part = t.string("part", what="a part script (.py) or STEP file (.step, .stp), relative to the study file")
     suffix = Path(part).suffix.lower()
@@ -554,7 +285,7 @@ def _study_section(t: _Table, base_dir: Path) -> StudyInfo:
     return StudyInfo(name, part, path, kind, seed, description, float(timeout))
 
 
-def _check_step_header(t: _Table, path: Path) -> None:
+def _check_step_header(t: Table, path: Path) -> None:
     """A STEP file is readable and starts like one (``ISO-10303-21;`` header, ``HEADER;`` section)."""
     try:
         with open(path, "rb") as fh:
@@ -567,7 +298,7 @@ def _check_step_header(t: _Table, path: Path) -> None:
         t.fail("study.part", f"{path} {what}", "a STEP file (ISO 10303-21 text, as CAD programs export)")
 
 
-def _check_size(t: _Table, key: str, value: Any, limit: str, what: str) -> None:
+def _check_size(t: Table, key: str, value: Any, limit: str, what: str) -> None:
     """``value`` (an int) must not exceed ``LIMITS[limit]`` (checked before anything is allocated)."""
     if isinstance(value, int) and not isinstance(value, bool) and value > LIMITS[limit]:
         t.fail(key, f"{value} {what} is more than the limit of {LIMITS[limit]:,}",
@@ -578,7 +309,7 @@ def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, 
     from cadfeat.camera import Camera, camera_from_dict
 
     fields = [f.name for f in dataclasses.fields(Camera)]
-    t = _Table(data, "camera", label, ["preset", "calibration", *fields])
+    t = Table(data, "camera", label, ["preset", "calibration", *fields])
     table = dict(t.data)
     for side in ("width", "height"):
         _check_size(t, f"camera.{side}", table.get(side), "image_side_px", "pixels")
@@ -589,7 +320,7 @@ def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, 
     if t.has("calibration"):
         cal = table["calibration"]
         if not isinstance(cal, str):
-            t.fail("camera.calibration", f"{_fmt(cal)} is not allowed", "a path to an OpenCV calibration file")
+            t.fail("camera.calibration", f"{fmt(cal)} is not allowed", "a path to an OpenCV calibration file")
         path = (base_dir / cal).resolve()
         if not path.is_file():
             t.fail("camera.calibration", f"file {path} does not exist", "an existing OpenCV calibration file")
@@ -605,7 +336,7 @@ def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, 
     return CameraSpec(table, origin), echo
 
 
-def _pose_section(t: _Table) -> PartPose:
+def _pose_section(t: Table) -> PartPose:
     position = t.vector("position_mm", 3, (0.0, 0.0, 0.0))
     if t.has("rotvec_deg") and t.has("quaternion"):
         t.fail("part_pose.quaternion", "given together with part_pose.rotvec_deg", "one of rotvec_deg or quaternion")
@@ -626,7 +357,7 @@ def _trajectory_section(data: Any, label: str, base_dir: Path) -> TrajectorySpec
     if not isinstance(data, Mapping):
         raise StudyError(f"{label}: trajectory: expected a table; allowed: kind = <library kind> + arguments, "
                          "or csv = <file>")
-    t = _Table(data, "trajectory", label, list(data))
+    t = Table(data, "trajectory", label, list(data))
     _check_size(t, "trajectory.n", data.get("n"), "trajectory_samples", "samples")
     _check_size(t, "trajectory.lines", data.get("lines"), "trajectory_lines", "lines")
     if isinstance(data.get("csv"), str):
@@ -654,19 +385,19 @@ def _selector(value: Any, key: str, label: str) -> Selector:
     if isinstance(value, str) and value.strip():
         return value
     if isinstance(value, list):
-        return _vector(value, 3, key, label)  # type: ignore[return-value]
-    raise StudyError(f"{label}: {key}: {_fmt(value)} is not allowed; allowed: a 1-based hole index, a hole "
+        return vector_value(value, 3, key, label)  # type: ignore[return-value]
+    raise StudyError(f"{label}: {key}: {fmt(value)} is not allowed; allowed: a 1-based hole index, a hole "
                      "name (\"H2\") or a position [x, y, z] in mm")
 
 
 def _selectors(value: Any, key: str, label: str) -> tuple[Selector, ...]:
     if not isinstance(value, list):
-        raise StudyError(f"{label}: {key}: {_fmt(value)} is not allowed; allowed: a list of hole selectors "
+        raise StudyError(f"{label}: {key}: {fmt(value)} is not allowed; allowed: a list of hole selectors "
                          "(index, name or [x, y, z])")
     return tuple(_selector(v, f"{key}[{i}]", label) for i, v in enumerate(value))
 
 
-def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec, dict[str, PartParameter],
+def _design_section(t: Table, info: StudyInfo, label: str) -> tuple[DesignSpec, dict[str, PartParameter],
                                                                      dict[str, Any]]:
     echo: dict[str, Any] = {}
     params: dict[str, PartParameter] = {}
@@ -675,7 +406,7 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
     if info.part_kind == "script":
         if t.has("holes"):
             t.fail("design.holes", "only for STEP parts (script parts vary their parameters)", "design.parameters")
-        from cadfeat.cad.parts import build_time_limit
+        from cadfeat.cad.sandbox import build_time_limit
 
         with build_time_limit(info.build_timeout_s, start=False):  # (the script runs only for a computed table)
             params = part_parameters(info.part_path)
@@ -700,15 +431,15 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
                "design.parameters.<name>.standard_sizes")
     if t.has("standard_diameters_mm"):
         value = t.raw("standard_diameters_mm")
-        if not isinstance(value, list) or not value or not all(_is_num(v) and v > 0 and math.isfinite(v)
+        if not isinstance(value, list) or not value or not all(is_num(v) and v > 0 and math.isfinite(v)
                                                                for v in value):
-            t.fail("design.standard_diameters_mm", f"{_fmt(value)} is not allowed",
+            t.fail("design.standard_diameters_mm", f"{fmt(value)} is not allowed",
                    "a non-empty list of positive diameters in mm")
         std = tuple(sorted(float(v) for v in value))
     fixed = _selectors(t.raw("fixed", []), "design.fixed", label)
     patterns_raw = t.raw("patterns", [])
     if not isinstance(patterns_raw, list):
-        t.fail("design.patterns", f"{_fmt(patterns_raw)} is not allowed", "a list of lists of hole selectors")
+        t.fail("design.patterns", f"{fmt(patterns_raw)} is not allowed", "a list of lists of hole selectors")
     patterns = tuple(_selectors(p, f"design.patterns[{i}]", label) for i, p in enumerate(patterns_raw))
     for i, p in enumerate(patterns):
         if len(p) < 2:
@@ -720,7 +451,7 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
         if info.part_kind != "step":
             t.fail("design.view_direction", "only for STEP parts (a part script gives VIEW_DIRECTION)",
                    "VIEW_DIRECTION in the part script")
-        view = _vector(t.raw("view_direction"), 3, "design.view_direction", label)
+        view = vector_value(t.raw("view_direction"), 3, "design.view_direction", label)
         norm = math.sqrt(sum(v * v for v in view))
         if norm == 0:
             t.fail("design.view_direction", "[0, 0, 0] is not allowed", "a non-zero direction [x, y, z]")
@@ -732,7 +463,7 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
     return DesignSpec(specs, holes, std, fixed, patterns, view), params, echo
 
 
-def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
+def _parameter_specs(t: Table, params: Mapping[str, PartParameter], label: str,
                      info: StudyInfo) -> tuple[ParameterSpec, ...]:
     raw = t.raw("parameters")
     names_allowed = ", ".join(params) or "(the part has no parameters)"
@@ -741,14 +472,14 @@ def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
                f"{names_allowed}")
     if isinstance(raw, list):
         if not all(isinstance(n, str) for n in raw):
-            t.fail("design.parameters", f"{_fmt(raw)} is not allowed", f"parameter names: {names_allowed}")
+            t.fail("design.parameters", f"{fmt(raw)} is not allowed", f"parameter names: {names_allowed}")
         table: dict[str, Any] = {n: {} for n in raw}
         if len(table) != len(raw):
             t.fail("design.parameters", "a parameter is listed twice", f"distinct names of {names_allowed}")
     elif isinstance(raw, Mapping):
         table = dict(raw)
     else:
-        t.fail("design.parameters", f"{_fmt(raw)} is not allowed",
+        t.fail("design.parameters", f"{fmt(raw)} is not allowed",
                "a list of names or a table name = {lower, upper, standard_sizes}")
     if not table:
         t.fail("design.parameters", "empty", f"at least one of {names_allowed}")
@@ -758,7 +489,7 @@ def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
         if name not in params:
             raise StudyError(f"{label}: {key}: unknown parameter of {info.part}; allowed: {names_allowed}")
         p = params[name]
-        st = _Table(spec, key, label, ["lower", "upper", "standard_sizes"])
+        st = Table(spec, key, label, ["lower", "upper", "standard_sizes"])
         lo = st.number("lower", p.lower, float(p.lower), float(p.upper))
         hi = st.number("upper", p.upper, float(p.lower), float(p.upper))
         if p.is_int:
@@ -772,23 +503,23 @@ def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
         sizes = None
         if st.has("standard_sizes"):
             v = st.raw("standard_sizes")
-            if not isinstance(v, list) or not v or not all(_is_num(s) and lo <= s <= hi for s in v):
-                st.fail(f"{key}.standard_sizes", f"{_fmt(v)} is not allowed",
+            if not isinstance(v, list) or not v or not all(is_num(s) and lo <= s <= hi for s in v):
+                st.fail(f"{key}.standard_sizes", f"{fmt(v)} is not allowed",
                         f"a non-empty list of values in [{lo}, {hi}]")
             sizes = tuple(sorted(float(s) for s in v))
         out.append(ParameterSpec(name, lo, hi, p.default, p.unit, p.is_int, sizes))
     return tuple(out)
 
 
-def _hole_specs(t: _Table, label: str) -> tuple[HoleSpec, ...]:
+def _hole_specs(t: Table, label: str) -> tuple[HoleSpec, ...]:
     raw = t.raw("holes")
     if not isinstance(raw, list) or not raw:
-        t.fail("design.holes", "missing or empty" if raw is None or raw == [] else f"{_fmt(raw)} is not allowed",
+        t.fail("design.holes", "missing or empty" if raw is None or raw == [] else f"{fmt(raw)} is not allowed",
                "a list of tables {select = index | name | [x, y, z], move, resize, max_offset_mm}")
     out = []
     for i, spec in enumerate(raw):
         key = f"design.holes[{i}]"
-        ht = _Table(spec, key, label, ["select", "move", "resize", "max_offset_mm"])
+        ht = Table(spec, key, label, ["select", "move", "resize", "max_offset_mm"])
         if not ht.has("select"):
             ht.fail(f"{key}.select", "missing", "a 1-based hole index, a hole name (\"H2\") or a position [x, y, z]")
         select = _selector(ht.raw("select"), f"{key}.select", label)
@@ -801,7 +532,7 @@ def _hole_specs(t: _Table, label: str) -> tuple[HoleSpec, ...]:
     return tuple(out)
 
 
-def _check_step_design(t: _Table, holes: Sequence[HoleSpec], fixed: Sequence[Selector]) -> None:
+def _check_step_design(t: Table, holes: Sequence[HoleSpec], fixed: Sequence[Selector]) -> None:
     seen = {}
     for i, h in enumerate(holes):
         if h.select in seen:
@@ -812,132 +543,6 @@ def _check_step_design(t: _Table, holes: Sequence[HoleSpec], fixed: Sequence[Sel
         if s in seen:
             t.fail(f"design.fixed[{i}]", f"hole {s!r} is also movable (design.holes[{seen[s]}])",
                    "fixed holes that are not in design.holes")
-
-
-def _constraints_section(t: _Table) -> ConstraintSpec:
-    return ConstraintSpec(
-        edge_distance_mm=t.number("edge_distance_mm", 1.0, 0.0),
-        ligament_mm=t.number("ligament_mm", 1.0, 0.0),
-        volume_change_max_percent=t.number("volume_change_max_percent", None, 0.0, 100.0, lo_open=True),
-        symmetry=t.string("symmetry", "none", SYMMETRIES),
-    )
-
-
-def _shop_section(t: _Table) -> ShopSpec:
-    from cadfeat.design.shop import HOLE_SIZE_TABLES, hole_sizes
-
-    raw = t.raw("hole_sizes", "iso273-medium")
-    allowed = f"one of {', '.join(HOLE_SIZE_TABLES)} or a list of diameters > 0 (mm)"
-    if isinstance(raw, str):
-        sizes: str | tuple[float, ...] = t.string("hole_sizes", "iso273-medium", tuple(HOLE_SIZE_TABLES))
-    elif isinstance(raw, list | tuple) and raw and all(_is_num(v) and v > 0 for v in raw):
-        sizes = hole_sizes(raw)
-    else:
-        t.fail("shop.hole_sizes", f"{_fmt(raw)} is not allowed", allowed)
-    return ShopSpec(hole_sizes=sizes, grid_mm=t.number("grid_mm", 0.1, 0.0, 10.0),
-                    keep_patterns=t.boolean("keep_patterns", True))
-
-
-def _robustness_section(t: _Table) -> RobustnessSpec:
-    return RobustnessSpec(position_tol_mm=t.number("position_tol_mm", 0.1, 0.0, 10.0),
-                          size_steps=t.integer("size_steps", 1, 0, 5),
-                          camera_position_mm=t.number("camera_position_mm", 2.0, 0.0, 100.0),
-                          camera_angle_deg=t.number("camera_angle_deg", 1.0, 0.0, 30.0),
-                          samples=t.integer("samples", 200, 0, 10000))
-
-
-def _objective_section(t: _Table) -> ObjectiveConfig:
-    measures = t.raw("measures", list(MEASURES))
-    if not isinstance(measures, list) or not measures or not all(isinstance(m, str) and m in MEASURES
-                                                                 for m in measures) \
-            or len(set(measures)) != len(measures):
-        t.fail("objective.measures", f"{_fmt(measures)} is not allowed",
-               f"a non-empty list of distinct names from {', '.join(MEASURES)}")
-    aggregate = t.string("aggregate", "sum", AGGREGATES)
-    combine = t.string("combine", "maxmin", COMBINES)
-    weights = _measure_table(t, "weights", measures, lo=0.0)
-    thresholds = _measure_table(t, "thresholds", measures, lo=None)
-    if combine == "weighted" and weights and not any(w > 0 for w in weights.values()):
-        t.fail("objective.weights", "all weights are zero", "non-negative weights, at least one positive")
-    if combine == "constraint":
-        if not thresholds:
-            t.fail("objective.thresholds", "missing (combine = \"constraint\" makes these measures hard "
-                   "constraints)", f"a table measure = minimum value, measures from {', '.join(measures)}")
-        if set(thresholds) == set(measures):
-            t.fail("objective.thresholds", "every measure is a constraint, none is left to optimise",
-                   "thresholds for some of the measures, not all")
-    elif thresholds:
-        t.fail("objective.thresholds", f"only used with combine = \"constraint\" (combine is {combine!r})",
-               "remove it, or combine = \"constraint\"")
-    return ObjectiveConfig(
-        measures=tuple(measures), aggregate=aggregate, combine=combine, weights=weights, thresholds=thresholds,
-        min_axis_px=t.number("min_axis_px", 5.0, 0.0, lo_open=True),
-        rotation_length_mm=t.number("rotation_length_mm", 1.0, 0.0, lo_open=True),
-        smoothmin_beta=t.number("smoothmin_beta", 20.0, 0.0, lo_open=True),
-        normalisation=t.string("normalisation", "payoff", NORMALISATIONS),
-        fov_measure=t.string("fov_measure", "cone", FOV_MEASURES),
-        occlusion=t.boolean("occlusion", True),
-        score=_score(t),
-    )
-
-
-def _score(t: _Table) -> str | tuple[str, ...]:
-    """``objective.score``: which holes' FOV/focus/resolution are scored — "movable" (default: the holes
-    the design moves; all when none moves), "all", or a list of hole names (checked against the part later)."""
-    raw = t.raw("score", "movable")
-    if isinstance(raw, str) and raw in SCORES:
-        return raw
-    if isinstance(raw, list) and raw and all(isinstance(x, str) and x for x in raw) and len(set(raw)) == len(raw):
-        return tuple(raw)
-    t.fail("objective.score", f"{_fmt(raw)} is not allowed",
-           '"movable", "all" or a non-empty list of distinct hole names (e.g. ["H1", "H3"])')
-
-
-def _measure_table(t: _Table, name: str, measures: Sequence[str], lo: float | None) -> dict[str, float]:
-    raw = t.raw(name, {})
-    key = f"objective.{name}"
-    if not isinstance(raw, Mapping):
-        t.fail(key, f"{_fmt(raw)} is not allowed", f"a table measure = number, measures from {', '.join(measures)}")
-    out = {}
-    for m, v in raw.items():
-        if m not in measures:
-            t.fail(f"{key}.{m}", "not one of objective.measures", ", ".join(measures))
-        out[m] = _number(v, f"{key}.{m}", t.label, lo)
-    return dict(sorted(out.items()))
-
-
-def _optimizer_section(t: _Table, seed: int) -> OptimizerConfig:
-    return OptimizerConfig(
-        method=t.string("method", "multistart", METHODS),
-        starts=t.integer("starts", 8, 1, LIMITS["optimizer_starts"]),
-        maxiter=t.integer("maxiter", 100, 1, LIMITS["optimizer_maxiter"]),
-        seed=t.integer("seed", seed, 0, 2**32 - 1),
-        local_solver=t.string("local_solver", "SLSQP", LOCAL_SOLVERS),
-        snap_standard_sizes=t.boolean("snap_standard_sizes", True),
-    )
-
-
-def _tracking_section(t: _Table, seed: int) -> TrackingSpec:
-    estimators = t.raw("estimators", list(TRACKING_ESTIMATORS))
-    if not isinstance(estimators, list) or not estimators or len(set(map(str, estimators))) != len(estimators) or \
-            not all(isinstance(e, str) and e in TRACKING_ESTIMATORS for e in estimators):
-        t.fail("tracking.estimators", f"{_fmt(estimators)} is not allowed",
-               f"a non-empty list of distinct names from {', '.join(TRACKING_ESTIMATORS)}")
-    return TrackingSpec(
-        estimators=tuple(estimators), runs=t.integer("runs", 20, 1, 10_000), seed=t.integer("seed", seed, 0, 2**32 - 1),
-        noise_grey=t.number("noise_grey", 2.0, 0.0, 100.0), defocus=t.boolean("defocus", True),
-        exposure_s=t.number("exposure_s", 0.0, 0.0, 1.0),
-        initial_error_mm=t.number("initial_error_mm", 10.0, 0.0, 10_000.0),
-        initial_error_deg=t.number("initial_error_deg", 2.0, 0.0, 180.0),
-        r_px2=t.number("r_px2", 0.25, 0.0, lo_open=True), q_rate_mm2_s2=t.number("q_rate_mm2_s2", 100.0, 0.0),
-        q_omega_rad2_s2=t.number("q_omega_rad2_s2", 1e-3, 0.0), iterations=t.integer("iterations", 30, 1, 1000),
-        tau=t.number("tau", 1e-16, 0.0), frame_step=t.integer("frame_step", 1, 1),
-        settle_frames=t.integer("settle_frames", 5, 0), converged_mm=t.number("converged_mm", 2.0, 0.0, lo_open=True),
-        converged_deg=t.number("converged_deg", 1.0, 0.0, lo_open=True),
-        gate_px=t.number("gate_px", 10.0, 0.0, lo_open=True), rim_model=t.boolean("rim_model", True),
-        alpha=t.number("alpha", 0.05, 0.0, 0.5, lo_open=True),
-        min_change_percent=t.number("min_change_percent", 5.0, 0.0, 100.0),
-    )
 
 
 # ------------------------------------------------------------------------------------------- entry point
@@ -969,29 +574,25 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     folder). Raises ``StudyError`` naming the file, the dotted key and the allowed values.
     """
     data, path, base, label = _read(path_or_dict, base_dir)
-    top = _Table(data, "", label, SECTIONS)
+    top = Table(data, "", label, SECTIONS)
     for section in REQUIRED_SECTIONS:
         if section not in data:
             raise StudyError(f"{label}: [{section}]: missing section; required sections: "
                              f"{', '.join(REQUIRED_SECTIONS)}; optional: "
                              f"{', '.join(s for s in SECTIONS if s not in REQUIRED_SECTIONS)}")
-    st = _Table(top.raw("study"), "study", label, ["name", "part", "seed", "description", "build_timeout_s"])
+    st = Table(top.raw("study"), "study", label, STUDY_KEYS)
     info = _study_section(st, base)
     camera, camera_echo = _camera_section(top.raw("camera"), label, base)
-    pose = _pose_section(_Table(top.raw("part_pose", {}), "part_pose", label,
-                                ["position_mm", "rotvec_deg", "quaternion"]))
+    pose = _pose_section(Table(top.raw("part_pose", {}), "part_pose", label, PART_POSE_KEYS))
     trajectory = _trajectory_section(top.raw("trajectory"), label, base)
     design, params, design_echo = _design_section(
-        _Table(top.raw("design"), "design", label,
-               ["parameters", "holes", "standard_diameters_mm", "fixed", "patterns", "view_direction"]), info, label)
-    constraints = _constraints_section(_Table(top.raw("constraints", {}), "constraints", label,
-                                              ["edge_distance_mm", "ligament_mm", "volume_change_max_percent",
-                                               "symmetry"]))
-    objective = _objective_section(_Table(top.raw("objective", {}), "objective", label, list(OBJECTIVE_KEYS)))
-    optimizer = _optimizer_section(_Table(top.raw("optimizer", {}), "optimizer", label, list(OPTIMIZER_KEYS)),
-                                   info.seed)
-    shop = _shop_section(_Table(top.raw("shop", {}), "shop", label, list(SHOP_KEYS)))
-    robustness = _robustness_section(_Table(top.raw("robustness", {}), "robustness", label, list(ROBUSTNESS_KEYS)))
+        Table(top.raw("design"), "design", label, DESIGN_KEYS), info, label)
+    constraints = validate_section(ConstraintSettings, top.raw("constraints", {}), "constraints", label)
+    objective = validate_section(ObjectiveSettings, top.raw("objective", {}), "objective", label).config()
+    optimizer = validate_section(OptimizerSettings, top.raw("optimizer", {}), "optimizer", label,
+                                 {"seed": info.seed}).config()
+    shop = validate_section(ShopSettings, top.raw("shop", {}), "shop", label)
+    robustness = validate_section(RobustnessSettings, top.raw("robustness", {}), "robustness", label)
     if objective.combine == "pareto" and optimizer.method != "pareto":
         raise StudyError(f"{label}: optimizer.method: {optimizer.method!r} cannot give a Pareto front "
                          "(objective.combine = \"pareto\"); allowed: pareto")
@@ -1000,7 +601,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
                          "allowed: pareto")
     tracking = None
     if "tracking" in data:
-        tracking = _tracking_section(_Table(top.raw("tracking"), "tracking", label, TRACKING_KEYS), info.seed)
+        tracking = validate_section(TrackingSettings, top.raw("tracking"), "tracking", label, {"seed": info.seed})
     echo = {
         "study": {"name": info.name, "part": info.part, "seed": info.seed,
                   "description": info.description, "build_timeout_s": info.build_timeout_s},
@@ -1008,16 +609,15 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
         "part_pose": {"position_mm": list(pose.position_mm), "rotvec_deg": list(pose.rotvec_deg)},
         "trajectory": copy.deepcopy(dict(trajectory.table)),
         "design": design_echo,
-        "constraints": _asdict(constraints),
+        "constraints": constraints.model_dump(mode="json"),
         "objective": {**_asdict(objective, OBJECTIVE_KEYS), "measures": list(objective.measures),
                       "weights": dict(objective.weights), "thresholds": dict(objective.thresholds)},
         "optimizer": _asdict(optimizer, OPTIMIZER_KEYS),
-        "shop": {**_asdict(shop), "hole_sizes": shop.hole_sizes if isinstance(shop.hole_sizes, str)
-                 else list(shop.hole_sizes)},
-        "robustness": _asdict(robustness),
+        "shop": shop.model_dump(mode="json"),
+        "robustness": robustness.model_dump(mode="json"),
     }
     if tracking is not None:
-        echo["tracking"] = {**_asdict(tracking), "estimators": list(tracking.estimators)}
+        echo["tracking"] = tracking.model_dump(mode="json")
     return StudyConfig(path, base, info, camera, pose, trajectory, design, constraints, objective, optimizer,
                        params, _drop_none(echo), shop=shop, robustness=robustness, tracking=tracking)
 

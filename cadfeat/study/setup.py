@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features.identity import hole_name, hole_names
 from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError
 
@@ -72,7 +73,7 @@ class StudySetup:
 
     @property
     def hole_names(self) -> list[str]:
-        return [h.name or f"H{i + 1}" for i, h in enumerate(self.holes0)]
+        return hole_names(self.holes0)
 
 
 # ----------------------------------------------------------------------------------------- common
@@ -136,7 +137,7 @@ def score_mask(config: StudyConfig, holes: Sequence[Any], movable: np.ndarray) -
     if rule == "movable":
         movable = np.asarray(movable, bool)
         return movable.copy() if movable.any() else np.ones(n, bool)
-    names = [h.name or f"H{i + 1}" for i, h in enumerate(holes)]
+    names = hole_names(holes)
     mask = np.zeros(n, bool)
     for name in rule:
         hits = [i for i, h in enumerate(holes) if name in (names[i], f"H{i + 1}")]
@@ -150,7 +151,7 @@ def score_mask(config: StudyConfig, holes: Sequence[Any], movable: np.ndarray) -
 def score_rule(config: StudyConfig, holes: Sequence[Any], mask: np.ndarray) -> str:
     """One line naming the scored holes and the rule that chose them (output and report)."""
     rule = getattr(config.objective, "score", "movable")
-    names = [h.name or f"H{i + 1}" for i, h in enumerate(holes)]
+    names = hole_names(holes)
     label = rule if isinstance(rule, str) else "names"
     return f"objective.score = {label}: " + ", ".join(n for n, m in zip(names, mask, strict=True) if m)
 
@@ -320,7 +321,7 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
 
 def _timed_redrill(config: StudyConfig, step: Any, moves: Sequence[Any]) -> Any:
     """``step_parts.redrill`` within the study's ``build_timeout_s`` (a worker process, as part-script builds)."""
-    from cadfeat.cad.parts import call_with_time_limit
+    from cadfeat.cad.sandbox import call_with_time_limit
     from cadfeat.cad.step_parts import redrill
 
     return call_with_time_limit(redrill, (step.shape, list(moves), step.tolerance, step.path),
@@ -423,7 +424,7 @@ def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Seque
 
     limits = {}
     for spec, j in zip(design.holes, movable, strict=True):
-        label = holes[j].name or f"H{j + 1}"
+        label = hole_name(holes[j], j)
         limit = 1e-3 if not spec.move or j in pinned else spec.max_offset_mm
         if limit is not None:
             limits[f"{label}.s"] = limits[f"{label}.t"] = float(limit)

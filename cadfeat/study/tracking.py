@@ -12,13 +12,13 @@ the focal length the filters assume (the images keep the true camera), or the sa
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.features.identity import named
 from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 
@@ -130,6 +130,11 @@ def _frames(result: Any, camera: Any, out_dir: Path | None, count: int = 3) -> l
     return entries
 
 
+def _named(holes: Sequence[Any]) -> list[Any]:
+    """The holes with the study's names: a hole without one is ``H<i+1>``, as in every other section."""
+    return named(holes)
+
+
 def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[Any]]], out_dir: Path | None = None,
                  spec: TrackingSpec | None = None, camera_override: Any = None) -> dict[str, Any]:
     """The results.json ``tracking`` section for ``designs`` = {"before": (shape, holes), "after": (...)}.
@@ -140,6 +145,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[
     from cadfeat.vision.closed_loop import track_designs
 
     spec = spec or config.tracking or TrackingSpec()
+    designs = {k: (shape, _named(holes)) for k, (shape, holes) in designs.items()}
     camera, T_cam_part, times, screws = _scene(config)
     _check_frames(config, spec, len(T_cam_part))
     result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec),
@@ -165,15 +171,15 @@ def sweep(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[Any]]],
     for value in (values or SWEEPS[kind]):
         s, cam = base, None
         if kind == "initial_error":
-            s = dataclasses.replace(base, initial_error_mm=float(value), initial_error_deg=0.1 * float(value))
+            s = base.replace(initial_error_mm=float(value), initial_error_deg=0.1 * float(value))
         elif kind == "q":
-            s = dataclasses.replace(base, q_rate_mm2_s2=float(value), q_omega_rad2_s2=float(value) * 1e-5)
+            s = base.replace(q_rate_mm2_s2=float(value), q_omega_rad2_s2=float(value) * 1e-5)
         elif kind == "r":
-            s = dataclasses.replace(base, r_px2=float(value))
+            s = base.replace(r_px2=float(value))
         elif kind == "focal_length":
             cam = camera.replace(fx=camera.fx * float(value), fy=camera.fy * float(value))
         elif kind == "sample_time":
-            s = dataclasses.replace(base, frame_step=int(value), settle_frames=min(base.settle_frames, 2))
+            s = base.replace(frame_step=int(value), settle_frames=min(base.settle_frames, 2))
         section = run_tracking(config, designs, None, s, camera_override=cam)
         row: dict[str, Any] = {"value": float(value)}
         for name, d in section["designs"].items():

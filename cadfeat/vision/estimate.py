@@ -58,7 +58,7 @@ class FilterTuning:
     (P₀ diagonal); ``iterations`` the IEKF's n (thesis 30) and ``tau`` its stop threshold on ‖Δδ‖².
     """
 
-    r_px2: float = 1.0
+    r_px2: float = 0.25
     q_rate_mm2_s2: float = 100.0
     q_omega_rad2_s2: float = 1e-3
     q_pose_mm2: float = 0.0

@@ -173,36 +173,14 @@ def match_holes(reference: Sequence[Hole], candidates: Sequence[Hole], tol_mm: f
                 axis_tol_rad: float = 1e-3) -> np.ndarray:
     """Match holes by geometry: ``idx`` with ``candidates[idx[i]]`` the hole matching ``reference[i]``.
 
-    An optimal assignment (``scipy.optimize.linear_sum_assignment``) minimises the sum of
+    ``cadfeat.cad.features.identity.pair_holes``: an optimal assignment minimises the sum of
     ``‖Δcentre‖ + |Δradius| + tol_mm·angle(axes)/axis_tol_rad`` (mm). A pair is admissible only if the
     centres and radii differ by at most ``tol_mm`` and the axes by at most ``axis_tol_rad``; a reference
     hole without an admissible candidate raises ``CadfeatError``. Extra candidates are ignored.
     """
-    from scipy.optimize import linear_sum_assignment
+    from cadfeat.cad.features.identity import pair_holes  # (identity builds on Hole: imported here)
 
-    if len(reference) == 0:
-        return np.zeros(0, dtype=int)
-    if len(candidates) < len(reference):
-        raise CadfeatError(f"match_holes: {len(reference)} reference holes but only {len(candidates)} candidates")
-    c_ref, a_ref, r_ref = holes_to_arrays(reference)
-    c_can, a_can, r_can = holes_to_arrays(candidates)
-    d_centre = np.linalg.norm(c_ref[:, None, :] - c_can[None, :, :], axis=-1)
-    d_radius = np.abs(r_ref[:, None] - r_can[None, :])
-    cos = np.clip(np.einsum("ik,jk->ij", a_ref, a_can), -1.0, 1.0)
-    d_angle = np.arccos(cos)
-    admissible = (d_centre <= tol_mm) & (d_radius <= tol_mm) & (d_angle <= axis_tol_rad)
-    cost = d_centre + d_radius + tol_mm * d_angle / axis_tol_rad
-    big = 1e6 * (1.0 + cost.max())
-    rows, cols = linear_sum_assignment(np.where(admissible, cost, big))
-    idx = np.empty(len(reference), dtype=int)
-    idx[rows] = cols
-    bad = ~admissible[np.arange(len(reference)), idx]
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        label = reference[i].name or f"#{i}"
-        raise CadfeatError(f"match_holes: reference hole {label} at {np.round(reference[i].centre, 6).tolist()} "
-                           f"has no candidate within tol_mm={tol_mm} mm and axis_tol_rad={axis_tol_rad}")
-    return idx
+    return pair_holes(reference, candidates, tol_mm, axis_tol_rad)
 
 
 # ------------------------------------------------------------------------------------------ shape input

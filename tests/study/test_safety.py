@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 from study_helpers import PLATE, STEP, study, write_toml
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ENV = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/tmp")}
 TINY = {"trajectory": {"n": 4}, "optimizer": {"starts": 1, "maxiter": 5},
         "design": {"parameters": {"x0": {"lower": -15, "upper": -5}}}}  # (no integer parameter: one setup)
@@ -104,6 +104,15 @@ def test_folder_with_the_users_files_is_refused_before_any_work(tmp_path, comman
     one_error_line(res, "did not write", "notes.txt", "--force", "--out NEW_FOLDER")
     assert time.monotonic() - t0 < 60  # refused at once: no CAD import, no build (a run takes longer)
     assert snapshot(d) == before and sorted(p.name for p in tmp_path.iterdir()) == ["d"]
+
+
+def test_force_refuses_the_users_holes_csv_before_any_work(tmp_path):
+    """Issue 16: holes.csv is one of cadfeat's output names, so a user's own is found at once, not at publishing."""
+    d, s, before = user_folder(tmp_path)
+    (d / "holes.csv").write_text("my holes\n")
+    one_error_line(cadfeat("run", str(s), "--out", str(d), "--force", "--quiet"), "holes.csv", "not written by cadfeat")
+    assert snapshot(d) == {**before, "holes.csv": snapshot(d)["holes.csv"]}
+    assert not staging_folders(tmp_path)
 
 
 def test_force_adds_cadfeats_files_and_leaves_the_users_alone(tmp_path):
@@ -350,7 +359,7 @@ def _dead_pid() -> int:
 
 
 def test_only_cadfeats_own_staging_of_dead_runs_is_removed(tmp_path):
-    from cadfeat.cad.output_folder import remove_stale_staging
+    from cadfeat.study.output_folder import remove_stale_staging
 
     dead = _dead_pid()
     gone = _fake_staging(tmp_path, f".out.staging-{dead}-0123abcd", dead)
@@ -370,7 +379,7 @@ def test_concurrent_runs_into_one_folder_end_in_one_complete_result(tmp_path):
     files and a manifest listing them), the other writer gets a one-line error or replaced it, no staging left."""
     import threading
 
-    from cadfeat.cad.output_folder import OutputFolderError, is_cadfeat_folder, staged_output
+    from cadfeat.study.output_folder import OutputFolderError, is_cadfeat_folder, staged_output
 
     out = tmp_path / "out"
     barrier = threading.Barrier(2)
@@ -401,7 +410,7 @@ def test_concurrent_runs_into_one_folder_end_in_one_complete_result(tmp_path):
 def test_output_folder_of_an_older_cadfeat_counts_as_cadfeats(tmp_path):
     """A folder written before manifests existed (only cadfeat's names, a results.json naming cadfeat_version) is
     cadfeat's; one more file of the user's, or a results.json of someone else, and it is not."""
-    from cadfeat.cad.output_folder import is_cadfeat_folder
+    from cadfeat.study.output_folder import is_cadfeat_folder
 
     old = tmp_path / "old"
     old.mkdir()

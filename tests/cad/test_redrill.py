@@ -27,7 +27,7 @@ from cadfeat.cad.export import (
 from cadfeat.cad.step_parts import HoleMove, fill_holes, hole_profile, load_step, redrill
 from cadfeat.errors import CadfeatError
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 STEP = DATA / "plate_holes.step"
 _spec = importlib.util.spec_from_file_location("make_fixtures", DATA / "make_fixtures.py")
 fx = importlib.util.module_from_spec(_spec)

@@ -13,7 +13,7 @@ from study_helpers import write_toml
 from cadfeat.cad.parts import load_part
 from cadfeat.study.run import evaluate_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TWO_HOLES = '''
 PARAMETERS = {"a_x": {"default": -10.0, "bounds": (-20.0, 20.0), "unit": "mm", "description": "x of hole A"}}
 VIEW_DIRECTION = (0.0, 0.0, 1.0)

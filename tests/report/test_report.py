@@ -25,7 +25,7 @@ import cadfeat
 from cadfeat.report import ReportContext, build_report, write_report
 from cadfeat.report.tables import FEATURE_COLUMNS
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

@@ -85,6 +85,9 @@ def test_cadfeat_track_spread_holes_track_better(tmp_path, capsys):
     assert json.loads((out / "results.json").read_text())["tracking"] == section
     assert section["verdicts"]["iekf"]["verdict"] == "better"
     assert set(section["designs"]) == {"before", "after"}
+    for design in section["designs"].values():  # holes named as everywhere else (issue 16), not hole0…
+        names = list(design["detection_rate"])
+        assert names == [f"H{i + 1}" for i in range(len(names))]
     for f in section["frames"]:
         assert (out / f["path"]).is_file()
     # the report section from results.json alone

@@ -73,12 +73,12 @@ def test_part_parameters_read_without_running_script(tmp_path):
 
 def test_part_parameters_built_by_code_are_loaded(tmp_path, monkeypatch):
     """A PARAMETERS table filled by module-level code is not taken from its (empty) literal: the part is loaded."""
-    import cadfeat.study.schema as schema
+    import cadfeat.study.part_parameters as part_parameters_module
 
     script = tmp_path / "p.py"
     script.write_text("PARAMETERS = {}\nfor k in ('a', 'b'):\n    PARAMETERS[k] = {'default': 1.0, 'bounds': (0, 2)}\n")
     seen = []
-    monkeypatch.setattr(schema, "_parameters_by_loading", lambda path: seen.append(path) or {})
+    monkeypatch.setattr(part_parameters_module, "_parameters_by_loading", lambda path: seen.append(path) or {})
     part_parameters(script)
     assert seen == [script]
 

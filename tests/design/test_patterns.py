@@ -15,7 +15,7 @@ import pytest
 from cadfeat.cad.parts import load_part
 from cadfeat.design.patterns import check_patterns, find_patterns
 
-PARTS = Path(__file__).resolve().parents[1] / "parts"
+PARTS = Path(__file__).resolve().parents[2] / "parts"
 
 
 def _holes(name: str, **params):

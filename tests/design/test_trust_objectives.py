@@ -13,7 +13,7 @@ from cadfeat.design.problem import Problem
 from cadfeat.study.schema import load_study
 from cadfeat.study.setup import setup_study
 
-STUDIES = Path(__file__).parent.parent / "studies"
+STUDIES = Path(__file__).parents[2] / "studies"
 
 
 def _problem_from(setup, x0: np.ndarray) -> Problem:

@@ -12,7 +12,7 @@ from study_helpers import study
 
 from cadfeat.trajectory import trajectory_from_dict, write_csv
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TILTED = {"kind": "straight_approach", "start": [80, 30, 250], "end": [60, 20, 150], "target": [0, 0, 0], "n": 10}
 
 

@@ -24,7 +24,7 @@ from cadfeat.cad.features import extract_holes
 from cadfeat.cad.step_parts import HoleMove, dry_run, hole_profile, load_step, redrill, volume_change_mm3
 from cadfeat.errors import CadfeatError
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 CASES = DATA / "corner_cases"
 _spec = importlib.util.spec_from_file_location("make_step_corner_cases", DATA / "make_step_corner_cases.py")
 fx = importlib.util.module_from_spec(_spec)
@@ -316,7 +316,7 @@ def _study(part_file: str, holes: list[dict]) -> object:
 
     from cadfeat.study.schema import load_study
 
-    root = Path(__file__).parents[1]
+    root = Path(__file__).parents[2]
     raw = tomllib.loads((root / "studies" / "step_real_export.toml").read_text())
     raw["study"]["part"] = str(CASES / part_file)
     raw["design"]["holes"] = holes
@@ -366,7 +366,7 @@ def test_a_hole_on_a_curved_host_needs_max_offset_mm_and_the_error_names_study_k
     from cadfeat.study.schema import StudyError
     from cadfeat.study.setup import check_step_study
 
-    hub = load_part(Path(__file__).parents[1] / "parts" / "brake_disc_hub.py")
+    hub = load_part(Path(__file__).parents[2] / "parts" / "brake_disc_hub.py")
     step = export_step(hub.build(), tmp_path / "hub.step")
     config = _study(str(step), [{"select": [35.0, 0.0, 18.0], "move": True}])
     with pytest.raises(StudyError, match=r"design\.holes\[0\]\.max_offset_mm: missing for hole H\d+ of .*hub\.step"):

@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import html
 import json
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
-from study_helpers import DATA, PLATE, STEP
+from study_helpers import DATA, PLATE, STEP, compare_results_tool
 
 from cadfeat.study import run as study_mod
 from cadfeat.study.outputs import plain
@@ -91,6 +93,16 @@ def test_results_json_keys_and_files(small_run):
     assert len(data["measures"]["after"]["per_pose"]["resolvability"]) == data["trajectory"]["n_samples"] == 12
 
 
+def test_verdict_in_results_and_summary_is_the_reports(small_run):
+    """Issue 16: results.json and the console summary carry the report's verdict, so a pipeline can gate on it."""
+    result, out, _ = small_run
+    verdict = json.loads((out / "results.json").read_text())["verdict"]
+    shown = re.search(r'<span id="verdict">([^<]*)</span>', (out / "report.html").read_text()).group(1)
+    assert verdict["decision"] == html.unescape(shown) in ("adopt", "adopt with care", "do not adopt")
+    assert {f["rule"] for f in verdict["findings"]} >= {"combined", "requirements"}
+    assert f"verdict: {verdict['decision']}" in result.summary()
+
+
 def test_exported_step_keeps_every_requirement(small_run):
     """Independent of the optimiser: re-extract the holes of optimised.step, measure edge distances to the
     known plate outline and the ligaments between holes, and find the fixed dowel hole unchanged."""
@@ -140,12 +152,8 @@ def test_same_seed_same_results(tmp_path, monkeypatch):
     no_report(monkeypatch)
     a = run_study(copy.deepcopy(SMALL), tmp_path / "a", quiet=True, seed=3)
     b = run_study(copy.deepcopy(SMALL), tmp_path / "b", quiet=True, seed=3)
+    assert compare_results_tool().compare_files(tmp_path / "a", tmp_path / "b") == []  # tools/compare_results.py
     ja = json.loads((tmp_path / "a" / "results.json").read_text())
-    jb = json.loads((tmp_path / "b" / "results.json").read_text())
-    for j in (ja, jb):
-        j.pop("created")
-        j.pop("timings_s")
-    assert ja == jb
     assert a.results["study"]["seed"] == 3 and ja["inputs"]["optimizer"]["seed"] == 3
     for name in ("original.step", "optimised.step", "optimised.stl"):
         assert sha(tmp_path / "a" / name) == sha(tmp_path / "b" / name)
@@ -200,7 +208,7 @@ def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
     from cadfeat.cad.export import ExportError
 
     no_report(monkeypatch)
-    from cadfeat.cad.export import staged_output
+    from cadfeat.study.output_folder import staged_output
 
     out = tmp_path / "out"
     with staged_output(out) as stage:  # the previous output: a folder cadfeat made
@@ -324,7 +332,7 @@ def test_studies_folder_validates():
     """Every study in studies/ passes validation (names, bounds, files)."""
     from cadfeat.study.schema import load_study
 
-    folder = Path(__file__).resolve().parents[1] / "studies"
+    folder = Path(__file__).resolve().parents[2] / "studies"
     files = sorted(folder.glob("*.toml"))
     assert len(files) >= 6
     for f in files:
@@ -491,7 +499,7 @@ def test_shop_rounding_on_a_nonlinear_part(tmp_path, monkeypatch):
     from cadfeat.cad.features import extract_holes
 
     no_report(monkeypatch)
-    cfg = {"study": {"name": "flange_shop", "part": str(Path(__file__).parents[1] / "parts" / "pipe_flange_dn50.py"),
+    cfg = {"study": {"name": "flange_shop", "part": str(Path(__file__).parents[2] / "parts" / "pipe_flange_dn50.py"),
                      "seed": 2},
            "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 300.0},
            "trajectory": {"kind": "straight_approach", "start": [-120.0, -150.0, 380.0], "end": [100.0, -60.0, 300.0],
@@ -524,7 +532,7 @@ def test_flagship_requirements_are_checked_under_the_holes_own_names(tmp_path, m
     import tomllib
 
     no_report(monkeypatch)
-    root = Path(__file__).parents[1]
+    root = Path(__file__).parents[2]
     cfg = tomllib.loads((root / "studies" / "nema17_mount.toml").read_text())
     cfg["study"]["part"] = str(root / "parts" / "nema17_mount.py")
     cfg["trajectory"]["n"] = 12

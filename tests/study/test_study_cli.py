@@ -8,7 +8,7 @@ from pathlib import Path
 
 from study_helpers import study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def cadfeat(*args: str) -> subprocess.CompletedProcess:

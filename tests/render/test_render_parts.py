@@ -13,7 +13,8 @@ from cadfeat.camera import Camera  # noqa: E402
 from cadfeat.errors import CadfeatError  # noqa: E402
 from cadfeat.poses import invert_T, look_at  # noqa: E402
 from cadfeat.render import render_comparison, render_part  # noqa: E402
-from cadfeat.render.part_views import FIXED, MOVED_AFTER, MOVED_BEFORE, frustum_lines  # noqa: E402
+from cadfeat.render.part_views import FIXED, MOVED_AFTER, MOVED_BEFORE  # noqa: E402
+from cadfeat.render.view_geometry import frustum_lines  # noqa: E402
 
 BEFORE_XY = [(-20.0, -10.0), (15.0, 12.0), (22.0, -15.0)]
 AFTER_XY = [(-12.0, -4.0), (15.0, 12.0), (28.0, -20.0)]
@@ -95,7 +96,7 @@ def test_trajectory_placed_in_part_frame():
     from scipy.spatial.transform import Rotation
 
     from cadfeat.poses import make_T
-    from cadfeat.render.part_views import _trajectory_in_part
+    from cadfeat.render.view_geometry import _trajectory_in_part
     from cadfeat.trajectory import Trajectory
 
     eyes = np.array([[100.0, 0.0, 300.0], [50.0, 20.0, 280.0], [0.0, 40.0, 260.0]])
@@ -143,7 +144,7 @@ def test_closeup_pair_fills_the_picture_and_shows_the_moves(pair, tmp_path):
 
 def test_place_labels_avoids_overlaps():
     """Four labels around four nearby circles: every box inside the image, none overlapping another or a circle."""
-    from cadfeat.render.part_views import _boxes_overlap, place_labels
+    from cadfeat.render.view_geometry import _boxes_overlap, place_labels
 
     anchors = np.array([[100.0, 100.0], [130.0, 100.0], [100.0, 130.0], [130.0, 130.0]])
     radii = np.full(4, 8.0)

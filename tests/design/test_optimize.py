@@ -251,7 +251,7 @@ def test_step_holes_optimised_redrilled_and_verified_on_the_brep():
     from cadfeat.design.problem import Problem
     from cadfeat.trajectory import straight_approach
 
-    part = load_step(Path(__file__).parent / "data" / "plate_holes.step")
+    part = load_step(Path(__file__).parents[1] / "data" / "plate_holes.step")
     holes = list(part.holes)
     a = holes.index(part.select((-25.0, -15.0, 10.0)))
     cb = holes.index(part.select((20.0, -12.0, 10.0)))

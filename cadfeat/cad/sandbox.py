@@ -1,0 +1,204 @@
+"""The sandbox of part-script code and CAD work: captured output, a time limit, worker processes.
+
+A part script is Python run with the user's rights and a CAD rebuild may hang (DESIGN.md, "Known pitfalls"):
+``contained`` runs script code with its output captured and ``sys.exit`` refused; ``run_worker`` runs a
+function in a worker process (forkserver with CadQuery preloaded) killed after a time limit;
+``call_with_time_limit`` is the public form. ``build_time_limit(s)`` sets the limit that ``load_part`` /
+``Part.build`` / ``call_with_time_limit`` use within a block (``current_time_limit``; None: in this process,
+no limit). This module imports no numpy and no CadQuery (``cadfeat --help`` stays fast).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import multiprocessing
+import os
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from cadfeat.errors import CadfeatError
+
+__all__ = ["DEFAULT_BUILD_TIMEOUT_S", "TIME_LIMIT_HINT", "PartBuildError", "build_time_limit", "call_with_time_limit",
+           "contained", "current_time_limit", "run_worker", "start_workers", "worker_setup"]
+
+DEFAULT_BUILD_TIMEOUT_S = 60.0
+"""Time limit (s) of one part-script import or build in the ``cadfeat`` commands (``[study] build_timeout_s``
+changes it for a study, ``--build-timeout`` for ``cadfeat parts`` / ``render``)."""
+TIME_LIMIT_HINT = "if it needs longer, raise [study] build_timeout_s (cadfeat parts / render: --build-timeout S)"
+_time_limit_s: float | None = None  # None: imports and builds run in this process, without a limit
+
+
+class PartBuildError(CadfeatError):
+    """A part build raised, returned no solid, or exceeded its time limit."""
+
+
+@contextlib.contextmanager
+def build_time_limit(seconds: float | None, start: bool = True) -> Iterator[None]:
+    """Within the block, every ``load_part`` import and ``Part.build`` runs in a worker process killed after
+    ``seconds`` (``PartBuildError`` naming the script and the limit); ``None``: in this process, no limit.
+    ``start``: start the worker server at once (``start_workers``)."""
+    global _time_limit_s
+    if seconds is not None and not (math.isfinite(seconds) and seconds > 0):
+        raise CadfeatError(f"build time limit: {seconds!r} s is not allowed; allowed: a number of seconds > 0")
+    if seconds is not None and start:
+        start_workers()
+    previous, _time_limit_s = _time_limit_s, seconds
+    try:
+        yield
+    finally:
+        _time_limit_s = previous
+
+
+class _Sink(io.TextIOBase):
+    """A text stream keeping the first ``keep`` characters written to it and counting the rest."""
+
+    def __init__(self, keep: int = 4000) -> None:
+        self.keep, self.text, self.n_chars = keep, "", 0
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, s: str) -> int:
+        if len(self.text) < self.keep:
+            self.text += s[:self.keep - len(self.text)]
+        self.n_chars += len(s)
+        return len(s)
+
+
+@contextlib.contextmanager
+def contained(path: Path, what: str, echo: bool = False) -> Iterator[None]:
+    """Run part-script code: its ``print`` output is captured (bounded: a flood cannot fill the terminal or
+    memory; with ``echo``, up to 20 lines are shown on stderr afterwards), ``sys.exit`` becomes a
+    ``CadfeatError``, and Ctrl-C during the block is reported as an interrupt even if the module being
+    imported turned it into another exception (e.g. an ``ImportError`` from an extension module)."""
+    sink = _Sink()
+    interrupted = []
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.getsignal(signal.SIGINT) if main else None
+
+    def on_sigint(signum: int, frame: Any) -> None:
+        interrupted.append(signum)
+        raise KeyboardInterrupt
+
+    if main and previous is signal.default_int_handler:
+        signal.signal(signal.SIGINT, on_sigint)
+    try:
+        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+            yield
+    except SystemExit as exc:
+        raise CadfeatError(f"{path}: {what} called sys.exit({exc.code!r}); a part script must not exit "
+                           "(raise an exception to report a problem)") from None
+    except KeyboardInterrupt:
+        raise
+    except BaseException:
+        if interrupted:
+            raise KeyboardInterrupt from None
+        raise
+    finally:
+        if main and previous is signal.default_int_handler:
+            signal.signal(signal.SIGINT, previous)
+        if echo and sink.n_chars:
+            lines = sink.text.splitlines()[:20]
+            shown = sum(len(line) + 1 for line in lines)
+            more = f"\n    ... ({sink.n_chars - shown} more characters not shown)" if sink.n_chars > shown else ""
+            print(f"{path.name} printed while {what}:\n" + "\n".join(f"    {line}" for line in lines) + more,
+                  file=sys.stderr)
+
+
+def current_time_limit() -> float | None:
+    """The time limit (s) of the enclosing ``build_time_limit`` block; None outside one (no worker, no limit)."""
+    return _time_limit_s
+
+
+# ------------------------------------------------------------------------------------ worker processes
+def worker_setup() -> None:
+    """In a worker: die with the forkserver (so with cadfeat), and send C-level output to /dev/null."""
+    with contextlib.suppress(Exception):  # Linux: SIGKILL when the parent (the forkserver) exits
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # PR_SET_PDEATHSIG
+    with contextlib.suppress(OSError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 1)
+        os.dup2(devnull, 2)
+        os.close(devnull)
+
+
+_CONTEXT: Any = None
+
+
+def _context() -> Any:
+    """The multiprocessing context: forkserver (cadquery preloaded) where available, spawn otherwise."""
+    global _CONTEXT
+    if _CONTEXT is None:
+        if "forkserver" in multiprocessing.get_all_start_methods():
+            _CONTEXT = multiprocessing.get_context("forkserver")
+            _CONTEXT.set_forkserver_preload(["cadquery", "cadfeat.cad.parts", "cadfeat.cad.sandbox"])
+        else:  # pragma: no cover - Windows / macOS defaults
+            _CONTEXT = multiprocessing.get_context("spawn")
+    return _CONTEXT
+
+
+def start_workers() -> None:
+    """Start the worker server now (it imports CadQuery meanwhile), so the first time-limited import or build
+    does not wait for it; nothing to do with the spawn method."""
+    if _context().get_start_method() == "forkserver":
+        from multiprocessing import forkserver
+
+        forkserver.ensure_running()
+
+
+def run_worker(target: Any, args: tuple, timeout_s: float, what: str) -> tuple[str, Any]:
+    """``target(*args, conn)`` in a worker process: its ``(status, payload)`` reply, or ``PartBuildError`` when
+    no reply comes within ``timeout_s`` (the worker is killed) or the worker dies."""
+    ctx = _context()
+    receive, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=target, args=(*args, send), daemon=True)
+    proc.start()
+    send.close()
+    try:
+        if not receive.poll(timeout_s):
+            raise PartBuildError(f"{what} exceeded the time limit of {timeout_s:g} s and was stopped; "
+                                 f"{TIME_LIMIT_HINT}")
+        try:
+            return receive.recv()
+        except EOFError:
+            proc.join(5.0)
+            raise PartBuildError(f"{what}: worker died (exit code {proc.exitcode}): out of memory, or a crash in "
+                                 "the CAD kernel?") from None
+    finally:
+        receive.close()
+        if proc.is_alive():
+            proc.kill()
+        proc.join()
+
+
+def _call_worker(func: Any, args: tuple, conn: Any) -> None:
+    """Worker process: send ('ok', func(*args)) or ('error', message)."""
+    worker_setup()
+    try:
+        conn.send(("ok", func(*args)))
+    except BaseException as exc:  # noqa: BLE001 - everything goes back to the parent as a message
+        conn.send(("error", f"{exc}" if isinstance(exc, CadfeatError) else f"{type(exc).__name__}: {exc}"))
+    finally:
+        conn.close()
+
+
+def call_with_time_limit(func: Any, args: tuple, what: str, timeout_s: float | None = None) -> Any:
+    """``func(*args)`` in a worker process within ``timeout_s`` (default: the ``build_time_limit`` in force; none:
+    in this process). ``func`` must be importable and ``args`` and the result picklable (CadQuery shapes
+    are). A timeout, a dead worker or an exception raises ``PartBuildError`` starting with ``what``. Used for
+    the CAD work that is not a part script's build, e.g. re-drilling a STEP part's holes."""
+    timeout = timeout_s if timeout_s is not None else _time_limit_s
+    if timeout is None:
+        return func(*args)
+    status, payload = run_worker(_call_worker, (func, args), timeout, what)
+    if status != "ok":
+        raise PartBuildError(f"{what}: {payload}")
+    return payload

@@ -1,0 +1,563 @@
+"""The phases of a study run: set up, optimise, deliver (shop rounding and CAD rebuild), analyse, and the
+results they give (``compute``).
+
+``compute(config, progress)`` returns the results.json content (before export) and the shapes the export and
+the report need; ``cadfeat.study.run`` stages, exports (``cadfeat.study.verify``) and publishes. Each phase is a
+function of its own below, in run order.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cadfeat._version import __version__
+from cadfeat.cad.features.identity import hole_names
+from cadfeat.errors import CadfeatError
+from cadfeat.study.outputs import (
+    SCHEMA_VERSION,
+    hole_dict,
+    measures_summary,
+    now_iso,
+)
+from cadfeat.study.progress import StudyProgress
+from cadfeat.study.schema import StudyConfig, StudyError
+from cadfeat.study.trust import objective_changes
+from cadfeat.study.verify import (
+    AnchoredModel,
+    outlines_differ,
+    rebuild,
+    requirement_checks,
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
+    from cadfeat.study.setup import StudySetup
+
+
+OUTLINE_ROUNDS = 4
+
+
+SWEEP_SAMPLES = 41
+
+
+def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Any = None, *, mesh: Any = None) -> Any:
+    """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
+    the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off)."""
+    from cadfeat import measures
+    from cadfeat.cad.features import holes_to_arrays
+
+    traj = trajectory if trajectory is not None else setup.trajectory
+    o = setup.config.objective
+    if mesh is None:
+        mesh = getattr(getattr(setup, "problem", None), "occlusion_mesh", None)
+    T_cam_part = np.linalg.inv(np.asarray(traj.T_task_cam)) @ setup.T_task_part
+    c, a, r = holes_to_arrays(list(holes))
+    return measures.evaluate(setup.camera, T_cam_part, traj.velocity_screws(), c, a, r, min_axis_px=o.min_axis_px,
+                             rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
+
+
+def score(setup: StudySetup, holes: Sequence[Hole]) -> tuple[dict[str, float], float | None]:
+    """The aggregated objectives of real holes and their combined value (larger is better), computed exactly
+    as the optimiser does (``Problem.features_objectives`` / ``combined_from``: same normalisation), with the
+    exact occlusion ray test (the optimiser uses the part's depth maps, ``measures.depth``)."""
+    from cadfeat.cad.features import holes_to_arrays
+
+    problem = setup.problem
+    G = problem.features_objectives(*holes_to_arrays(list(holes)), exact_occlusion=True)
+    values = dict(zip(problem.names, map(float, G), strict=True))
+    if setup.config.objective.combine == "pareto":
+        return values, None
+    return values, float(problem.combined_from(G))
+
+
+def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tuple[Any, bool]:
+    """Optimise one setup; returns (OptimResult-like, interrupted)."""
+    from cadfeat.design.optimize import optimise, solve_with_cad
+
+    oc = setup.config.optimizer
+    try:
+        if setup.linear:
+            res = optimise(setup.problem, oc, progress=progress.iteration)
+        else:
+            res = solve_with_cad(setup.problem, lambda x: setup.rebuild_holes(setup.rebuild_shape(x)), oc,
+                                 progress=progress.iteration)
+    except KeyboardInterrupt:
+        if progress.best_x is None:
+            raise
+        res = _Interrupted(progress.best_x, progress.best_f)
+    if getattr(res, "interrupted", False) and not getattr(res, "history", None) and progress.best_x is None:
+        raise KeyboardInterrupt  # stopped before the optimiser evaluated any design: nothing to write
+    return res, bool(getattr(res, "interrupted", False))
+
+
+def _with_cad(setup: StudySetup, progress: StudyProgress) -> Any:
+    """``solve_with_cad`` on ``setup`` (a rebuild that raises or times out is an infeasible point)."""
+    from cadfeat.design.optimize import solve_with_cad
+
+    return solve_with_cad(setup.problem, lambda x: setup.rebuild_holes(setup.rebuild_shape(x)), setup.config.optimizer,
+                          progress=progress.iteration)
+
+
+@dataclass
+class _Interrupted:
+    """Stand-in result when the optimiser itself was stopped by Ctrl-C before returning."""
+
+    x_best: np.ndarray
+    f_best: float
+    history: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    interrupted: bool = True
+    pareto: dict[str, Any] | None = None
+    n_evals: int = 0
+
+
+def _violations(setup: StudySetup, x: np.ndarray, most: int = 5) -> str:
+    """The most violated 2-D constraints at ``x``: "kind (holes) by N mm", worst first."""
+    C = np.asarray(setup.problem.constraints(x), float)
+    labels = setup.problem.constraint_labels()
+    order = [int(i) for i in np.argsort(C) if C[i] < 0][:most]
+    return "; ".join(f"{labels[i][0]} ({', '.join(labels[i][1]) or '-'}) by {-C[i]:.4g}" for i in order) or \
+        "(no 2-D constraint; see the optimiser's message)"
+
+
+def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, prog: StudyProgress,
+                      label: str) -> tuple[Any, Any, list[dict[str, Any]], bool]:
+    """The optimiser's 2-D constraints use the host-face outlines of the design it was linearised at; when a
+    parameter also changes the faces (e.g. a block that grows with the hole spacing), rebuild at the
+    optimum, linearise again there (new outlines) and re-optimise from it, until the outlines agree (at
+    most ``OUTLINE_ROUNDS`` rounds; a round is kept only if it improves the objective)."""
+    from cadfeat.study.setup import setup_script
+
+    history: list[dict[str, Any]] = []
+    stopped = False
+    for k in range(OUTLINE_ROUNDS):
+        x = np.asarray(res.x_best, float)
+        try:
+            _, holes, _ = rebuild(setup, x)
+            if not outlines_differ(setup.model.holes, holes):
+                break
+            names = setup.space.names
+            new = setup_script(setup.config, setup.int_values, scene, normaliser,
+                               at=dict(zip(names, x, strict=True)))
+            res2, stopped = _optimise(new, prog, label)
+        except CadfeatError:
+            break
+        except KeyboardInterrupt:  # keep the design of the previous round
+            return setup, res, history, True
+        history += _history(res2, f"{label} outlines round {k + 1}".strip())
+        if float(res2.f_best) < float(res.f_best) - 1e-12:
+            setup, res = new, res2
+        if stopped:
+            break
+    return setup, res, history, stopped
+
+
+def _history(res: Any, label: str) -> list[dict[str, Any]]:
+    out = []
+    for i, h in enumerate(getattr(res, "history", None) or []):
+        h = dict(h) if isinstance(h, Mapping) else {"f": h}
+        out.append({"iteration": int(h.get("iteration", i)), "f": h.get("f"), "combined": h.get("combined"),
+                    "feasible": bool(h.get("feasible", True)), "phase": (label + " " if label else "")
+                    + str(h.get("phase", "")).strip()})
+    return out
+
+
+def _sweep(setup: StudySetup) -> dict[str, Any] | None:
+    """For a one-variable study: the objectives over the variable's range (thesis Figs. 5.10/5.11)."""
+    space = setup.space
+    if space.size != 1:
+        return None
+    v = space.variables[0]
+    values = np.linspace(v.lower, v.upper, SWEEP_SAMPLES)
+    objectives: dict[str, list[float]] = {}
+    combined = []
+    for x in values:
+        obj = setup.problem.objectives(np.array([x]))
+        for k, g in obj.items():
+            objectives.setdefault(k, []).append(float(g))
+        combined.append(-float(setup.problem.objective(np.array([x]))))
+    return {"variable": v.name, "unit": v.unit, "values": values, "objectives": objectives, "combined": combined}
+
+
+def _variables(setup: StudySetup, x0: np.ndarray, x1: np.ndarray, ints0: Mapping[str, int],
+               ints1: Mapping[str, int]) -> list[dict[str, Any]]:
+    out = []
+    for v, a, b in zip(setup.space.variables, x0, x1, strict=True):
+        out.append({"name": v.name, "unit": v.unit, "kind": v.kind, "lower": v.lower, "upper": v.upper,
+                    "before": float(a), "after": float(b),
+                    "standard_sizes": None if v.standard_sizes is None else list(v.standard_sizes)})
+    specs = {p.name: p for p in setup.config.design.parameters}
+    for name in ints0:
+        p = specs[name]
+        out.append({"name": name, "unit": p.unit, "kind": "integer", "lower": int(p.lower), "upper": int(p.upper),
+                    "before": int(ints0[name]), "after": int(ints1[name]), "standard_sizes": None})
+    return out
+
+
+def _holes_block(setup0: Any, holes0: Sequence[Hole], setup1: Any, holes1: Sequence[Hole]) -> dict[str, Any]:
+    return {"before": [hole_dict(h, i, setup0.fixed_mask[i], setup0.movable_mask[i]) for i, h in enumerate(holes0)],
+            "after": [hole_dict(h, i, setup1.fixed_mask[i], setup1.movable_mask[i]) for i, h in enumerate(holes1)]}
+
+
+def _design_matrix(setup: StudySetup, x: np.ndarray) -> dict[str, Any] | None:
+    try:
+        from cadfeat.design.axiomatic import design_matrix
+    except ImportError:
+        return None
+    dm = design_matrix(setup.problem, x)
+    note = getattr(dm, "note", "") or ("sensitivities of each objective and kept requirement (rows) to each group "
+                                       "of design parameters (columns) at the optimum, thesis §2.2.4")
+    return {"rows": list(dm.rows), "cols": list(dm.cols), "matrix": np.asarray(dm.matrix, float),
+            "verdict": dm.verdict, "note": note}
+
+
+def _normalisation(setup: StudySetup) -> dict[str, Any]:
+    normaliser = getattr(setup.problem, "normaliser", None)
+    if normaliser is None:
+        return {"method": "none", "reference": {}, "note": "objectives in their own units"}
+    d = normaliser.to_dict()
+    return {"method": d.get("method"), "reference": d.get("reference", {}), "note": d.get("note", ""),
+            **({"sources": d["sources"]} if "sources" in d else {})}
+
+
+def trajectory_info(traj: Any) -> dict[str, Any]:
+    """Kind, sample count, duration and the sampled camera poses (``T_task_cam`` (L, 4, 4), mm; ``time_s``)."""
+    table_kind = getattr(traj, "name", "") or ""
+    return {"kind": table_kind, "n_samples": len(traj), "duration_s": float(traj.duration_s),
+            "time_s": np.asarray(traj.times_s, float), "T_task_cam": np.asarray(traj.T_task_cam, float)}
+
+
+def half_image(camera: Any) -> float:
+    return 0.5 * min(camera.width, camera.height)
+
+
+@dataclass
+class _Start:
+    """What the set-up phase gives: the base set-up (the part as it is), every set-up to optimise (one per
+    integer combination), the measures, pre-flight and objectives of the design before."""
+
+    scene: Any
+    base: StudySetup
+    setups: list[StudySetup]
+    m0: Any
+    pre: Any
+    obj0: dict[str, float]
+    comb0: float | None
+
+
+@dataclass
+class _Optimum:
+    """What the optimise phase gives: the best set-up and its optimiser result, the history, interrupted?"""
+
+    setup: Any
+    res: Any
+    history: list[dict[str, Any]]
+    interrupted: bool
+
+
+@dataclass
+class _Delivered:
+    """The delivered design: variables ``x1``, its CAD rebuild (shape, holes, prediction error), the shop block
+    and the model's rebuild failure at its optimum (if the CAD-in-the-loop search had to take over)."""
+
+    x1: np.ndarray
+    shape1: Any
+    holes1: list[Hole]
+    pred_err: float
+    shop: dict[str, Any]
+    res: Any
+    rebuild_failure: str | None
+
+
+def compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The study's phases in order: set up, optimise, deliver (shop rounding, CAD rebuild, scores and
+    requirement checks on the B-rep), analyse; returns (results, shapes) for the export and the report."""
+    with prog.phase("setup"):
+        start = _set_up(config)
+    with prog.phase("optimise"):
+        opt = _optimise_all(config, start, prog)
+    setup = opt.setup
+    x1 = np.asarray(opt.res.x_best, float)
+    if not opt.interrupted and getattr(opt.res, "feasible", True) is False:
+        raise StudyError(f"{config.label}: no design meets the kept requirements ([constraints], "
+                         f"objective.thresholds); the least violating design still breaks: "
+                         f"{_violations(setup, x1)}; allowed: relax these requirements or widen design bounds")
+    with prog.phase("shop"):
+        x_opt = x1
+        verified = getattr(opt.res, "holes", None)
+        model = AnchoredModel(setup.model, x_opt, verified)
+        x1, shop, targets = _shop(setup, x_opt, model)
+    with prog.phase("rebuild"):
+        done = _deliver(setup, opt, prog, (x_opt, x1, shop, targets, model, verified))
+        m1 = measure_holes(setup, done.holes1, mesh=_mesh_of(config, done.shape1))
+        obj1, comb1 = score(setup, done.holes1)
+        checks = requirement_checks(setup, done.shape1, done.holes1, "brep")
+    with prog.phase("analyse"):
+        sweep = _sweep(setup)
+        dmat = _design_matrix(setup, done.x1)
+        robust = _robustness(setup, start.base.holes0, done.holes1, start.comb0)
+    results = _results(config, start, opt, done, (m1, obj1, comb1, checks), (sweep, dmat, robust))
+    shapes = {"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,
+              "holes1": done.holes1, "setup": setup, "base": start.base}
+    return results, shapes
+
+
+def _set_up(config: StudyConfig) -> _Start:
+    """The part as it is and every set-up to optimise; the pre-flight refuses a study that cannot mean
+    anything before any optimisation."""
+    from cadfeat.study.setup import int_grid, load_scene, setup_script, setup_study
+
+    scene = load_scene(config)
+    combos = int_grid(config) if config.study.part_kind == "script" else [{}]
+    if config.study.part_kind == "step":
+        base = setup_study(config)
+        setups = [base]
+        m0 = measure_holes(base, base.holes0)
+        pre = preflight_setup(config, base, m0)  # refuses a study that cannot mean anything, before any work
+    else:  # "before" = the part's own integer values; the others share its objective scales
+        defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
+        base = setup_script(config, defaults, scene)
+        m0 = measure_holes(base, base.holes0)
+        pre = preflight_setup(config, base, m0)  # before the other combinations (and before any optimisation)
+        setups = [base] + [setup_script(config, c, scene, base.problem.normaliser) for c in combos
+                           if c != defaults]
+        if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
+            setups = setups[1:]
+    obj0, comb0 = score(base, base.holes0)
+    return _Start(scene, base, setups, m0, pre, obj0, comb0)
+
+
+def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _Optimum:
+    """One optimisation per set-up (integer combination), the best kept; Ctrl-C keeps the best so far."""
+    best = None
+    interrupted = False
+    history: list[dict[str, Any]] = []
+    setups = start.setups
+    for s in setups:
+        label = ", ".join(f"{k}={v}" for k, v in s.int_values.items()) if len(setups) > 1 else ""
+        prog.best_x, prog.best_f = None, np.inf
+        try:
+            res, stopped = _optimise(s, prog, label)
+        except KeyboardInterrupt:
+            if best is None:
+                raise
+            interrupted = True
+            break
+        history += _history(res, label)
+        if not stopped and config.study.part_kind == "script":
+            s, res, extra, stopped = _refresh_outlines(s, res, start.scene, start.base.problem.normaliser, prog,
+                                                       label)
+            history += extra
+        if best is None or float(res.f_best) < float(best[1].f_best):
+            best = (s, res)
+        if stopped:
+            interrupted = True
+            break
+    assert best is not None  # (an interrupt before the first result re-raises above)
+    return _Optimum(best[0], best[1], history, interrupted)
+
+
+def _deliver(setup: Any, opt: _Optimum, prog: StudyProgress, shopped: tuple[Any, ...]) -> _Delivered:
+    """The CAD rebuild of the shop-rounded optimum; when the linear feature model's optimum does not build,
+    an infeasible point: search again with CAD in the loop, round that optimum for the shop, rebuild."""
+    x_opt, x1, shop, targets, model, verified = shopped
+    res, rebuild_failure = opt.res, None
+    try:
+        shape1, holes1, pred_err = rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+    except CadfeatError as exc:
+        if not setup.linear or opt.interrupted:
+            raise
+        # the optimum of the (linear) feature model does not build: an infeasible point; search again
+        # with CAD in the loop (the region shrinks around the buildable start until a rebuild succeeds),
+        # then round the new optimum for the shop as before
+        rebuild_failure = str(exc)
+        prog.log(f"the CAD rebuild of the optimum failed ({exc}); searching again with CAD in the loop")
+        res = _with_cad(setup, prog)
+        opt.history += _history(res, "CAD in the loop")
+        x_opt = np.asarray(res.x_best, float)
+        verified = getattr(res, "holes", None)
+        model = AnchoredModel(setup.model, x_opt, verified)
+        x1, shop, targets = _shop(setup, x_opt, model)
+        shape1, holes1, pred_err = rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+    if targets is not None:
+        x1, shape1, holes1, pred_err = _shop_refine(setup, x1, (shape1, holes1, pred_err), targets, shop, model)
+    return _Delivered(x1, shape1, holes1, pred_err, shop, res, rebuild_failure)
+
+
+def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered, after: tuple[Any, ...],
+             analysis: tuple[Any, ...]) -> dict[str, Any]:
+    """The results.json content of a run (before export: files, verification, timings and verdict follow)."""
+    from cadfeat.study.setup import score_rule
+
+    m1, obj1, comb1, checks = after
+    sweep, dmat, robust = analysis
+    base, setup, res = start.base, opt.setup, done.res
+    traj = setup.trajectory
+    return {
+        "schema_version": SCHEMA_VERSION,
+        "cadfeat_version": __version__,
+        "created": now_iso(),
+        "study": {"name": config.study.name, "file": str(config.file) if config.file else None,
+                  "part": config.study.part, "part_kind": config.study.part_kind, "seed": config.study.seed,
+                  "description": config.study.description},
+        "inputs": config.to_dict(),
+        "camera": setup.camera.to_dict(),
+        "trajectory": {**trajectory_info(traj), "kind": config.trajectory.table.get("kind", "csv")},
+        "part_pose": {"T_task_part": setup.T_task_part},
+        "variables": _variables(setup, base.space.x0 if base is setup else _x0_like(setup, base), done.x1,
+                                base.int_values, setup.int_values),
+        "holes": _holes_block(base, base.holes0, setup, done.holes1),
+        "objectives": {"names": list(start.obj0), "normalisation": _normalisation(setup),
+                       "combine": config.objective.combine, "aggregate": config.objective.aggregate,
+                       "before": start.obj0, "after": obj1, "combined_before": start.comb0, "combined_after": comb1,
+                       "larger_is_better": True, **objective_changes(setup.problem, start.obj0, obj1),
+                       "score": score_rule(config, base.holes0, scored_mask(base)),
+                       "occlusion": bool(config.objective.occlusion)},
+        "measures": {"before": measures_summary(start.m0, base.hole_names, base.trajectory.times_s,
+                                                config.objective.min_axis_px, half_image(base.camera)),
+                     "after": measures_summary(m1, hole_names(done.holes1),
+                                               traj.times_s, config.objective.min_axis_px, half_image(setup.camera))},
+        "constraints": checks,
+        "requirements_used": _requirements_used(setup, done.x1),
+        "shop": done.shop,
+        "patterns": _patterns(base, done.holes1),
+        "robustness": robust,
+        "design_matrix": dmat,
+        "history": opt.history,
+        "sweep": sweep,
+        "pareto": getattr(res, "pareto", None),
+        "optimizer": {"method": config.optimizer.method, "n_evals": int(getattr(res, "n_evals", 0) or 0),
+                      "linear_feature_map": bool(setup.linear), "prediction_error_mm": done.pred_err,
+                      "integer_combinations": len(start.setups),
+                      **({"rebuild_failed_at_model_optimum": done.rebuild_failure} if done.rebuild_failure
+                         else {})},
+        "interrupted": bool(opt.interrupted),
+        "preflight": start.pre.to_dict(),
+        "warnings": list(start.pre.warnings),
+    }
+
+
+def part_points(shape: Any, mesh: Any = None, most: int = 4000) -> np.ndarray:
+    """Points of the part (V, 3) mm, part frame, for the pre-flight: the occlusion mesh's vertices (or a coarse
+    mesh of ``shape``), at most ``most`` of them (evenly strided)."""
+    if mesh is None:
+        from cadfeat.cad.export import mesh_from_shape
+
+        mesh = mesh_from_shape(shape, tolerance=0.5)
+    v = np.asarray(mesh.vertices, float)
+    return v[:: max(1, len(v) // most)]
+
+
+def preflight_setup(config: StudyConfig, setup: Any, m: Any) -> Any:
+    """``preflight.preflight`` of a set-up study with the measures ``m`` of its holes along the trajectory."""
+    from cadfeat.study.preflight import preflight
+
+    pts = part_points(setup.shape0, getattr(setup.problem, "occlusion_mesh", None))
+    return preflight(config, setup.camera, setup.trajectory, setup.T_task_part, pts, m, scored_mask(setup),
+                     setup.hole_names)
+
+
+def _mesh_of(config: StudyConfig, shape: Any) -> Any:
+    from cadfeat.study.setup import occlusion_mesh
+
+    return occlusion_mesh(config, shape)
+
+
+def scored_mask(setup: Any) -> np.ndarray:
+    mask = getattr(setup.problem, "feature_mask", None)
+    return np.ones(len(setup.holes0), bool) if mask is None else np.asarray(mask, bool)
+
+
+def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Any, list[Hole], float], targets: Any,
+                 info: dict[str, Any], model: Any) -> tuple[np.ndarray, Any, list[Hole], float]:
+    """``shop.refine_on_rebuild`` on the study's CAD rebuild; ``info["rebuilt_off_target_mm"]``: what remains."""
+    from cadfeat.design.shop import refine_on_rebuild
+
+    x, (shape, holes, err), off = refine_on_rebuild(setup.space, model, setup.problem, x, rebuilt, targets,
+                                                    lambda x_new, guess: rebuild(setup, x_new, guess))
+    info["rebuilt_off_target_mm"] = off
+    info["x_shop"] = dict(zip(setup.space.names, map(float, x), strict=True))
+    return x, shape, holes, err
+
+
+def _shop(setup: StudySetup, x: np.ndarray, model: Any = None) -> tuple[np.ndarray, dict[str, Any], Any]:
+    """The shop-ready design near the optimum ``x`` (``cadfeat.design.shop``, study ``[shop]``) and its
+    results.json block; the optimum itself when rounding would break a kept requirement of the model (the
+    rebuilt design is verified on the B-rep and the STEP either way)."""
+    from cadfeat.design.shop import hole_sizes, shop_design
+
+    spec = setup.config.shop
+    sizes = hole_sizes(spec.hole_sizes)
+    info: dict[str, Any] = {"grid_mm": spec.grid_mm, "hole_sizes": spec.hole_sizes if isinstance(spec.hole_sizes, str)
+                            else list(spec.hole_sizes), "applied": False, "notes": []}
+    if spec.grid_mm <= 0 and not sizes:
+        info["notes"].append("rounding off ([shop] grid_mm = 0, hole_sizes = \"none\")")
+        return x, info, None
+    sd = shop_design(setup.space, model if model is not None else setup.model, x, grid_mm=spec.grid_mm, sizes=sizes,
+                     problem=setup.problem)
+    info["notes"] += sd.notes
+    margins = np.asarray(setup.problem.constraints(sd.x), float)
+    names = setup.space.names
+    info.update(x_optimum=dict(zip(names, map(float, x), strict=True)),
+                x_shop=dict(zip(names, map(float, sd.x), strict=True)), residual_mm=sd.residual_mm,
+                moved=[h for h, m in zip(setup.hole_names, sd.moved, strict=True) if m],
+                resized=[h for h, m in zip(setup.hole_names, sd.resized, strict=True) if m])
+    if setup.config.objective.combine != "pareto":
+        info.update(combined_optimum=float(setup.problem.combined(x)),
+                    combined_shop=float(setup.problem.combined(sd.x)))
+    if margins.size and margins.min() < -1e-9:
+        labels = setup.problem.constraint_labels()
+        k = int(np.argmin(margins))
+        info["notes"].append(f"rounding would break {labels[k][0]} {'/'.join(labels[k][1])} (margin "
+                             f"{margins[k]:.3g}); the optimiser's design is delivered unrounded")
+        return x, info, None
+    info["applied"] = True
+    return sd.x, info, sd
+
+
+def _robustness(setup: StudySetup, holes0: Sequence[Hole], holes1: Sequence[Hole],
+                combined_before: float | None) -> dict[str, Any] | None:
+    """Objective drops of the delivered design under the study's ``[robustness]`` tolerances (sampled on
+    features, ``cadfeat.design.robustness``); the holes the shop makes anew are the moved or resized ones."""
+    from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.design.robustness import robustness
+    from cadfeat.design.shop import hole_sizes
+
+    spec = setup.config.robustness
+    if spec.samples <= 0 or len(holes0) != len(holes1):
+        return None
+    c0, _, r0 = holes_to_arrays(list(holes0))
+    c1, a1, r1 = holes_to_arrays(list(holes1))
+    changed = (np.linalg.norm(c1 - c0, axis=1) > 1e-6) | (np.abs(r1 - r0) > 1e-6)
+    return robustness(setup.problem, c1, a1, r1, changed, position_tol_mm=spec.position_tol_mm,
+                      size_steps=spec.size_steps, sizes=hole_sizes(setup.config.shop.hole_sizes),
+                      camera_position_mm=spec.camera_position_mm, camera_angle_deg=spec.camera_angle_deg,
+                      samples=spec.samples, combined_before=combined_before, seed=setup.config.study.seed)
+
+
+def _patterns(base: StudySetup, holes1: Sequence[Hole]) -> list[dict[str, Any]]:
+    """The original's hole patterns with a movable hole (``cadfeat.design.patterns``), each with ``broken``."""
+    from cadfeat.design.patterns import check_patterns, find_patterns
+
+    movable = np.asarray(base.movable_mask, bool)
+    found = [p for p in find_patterns(base.holes0) if movable[list(p.holes)].any()]
+    return check_patterns(found, list(holes1), base.hole_names) if len(holes1) == len(base.holes0) else []
+
+
+def _requirements_used(setup: StudySetup, x: np.ndarray) -> list[dict[str, Any]]:
+    """The kept requirements the optimiser's model used (kind, hole names, its 2-D margin at ``x``): the report
+    checks that each one was verified on the rebuilt geometry."""
+    labels = setup.problem.constraint_labels()
+    margins = np.asarray(setup.problem.constraints(x), float).reshape(-1)
+    if len(labels) != margins.size:
+        return [{"name": k, "holes": list(h)} for k, h in labels]
+    return [{"name": k, "holes": list(h), "margin": float(m)} for (k, h), m in zip(labels, margins, strict=True)]
+
+
+def _x0_like(setup: StudySetup, base: Any) -> np.ndarray:
+    """The before-values of ``setup``'s continuous variables (the part defaults, as in ``base``)."""
+    return np.asarray(base.space.x0, float) if base.space.names == setup.space.names else setup.space.x0

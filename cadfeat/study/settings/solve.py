@@ -1,0 +1,142 @@
+"""``[objective]`` and ``[optimizer]`` of a study file, declared once as ``Settings`` models.
+
+The enumerations are the design layer's own (``cadfeat.design.objectives``, ``cadfeat.design.optimize``): a
+measure, aggregate or method added there is accepted here. ``ObjectiveSettings.config()`` /
+``OptimizerSettings.config()`` give the solver's configuration objects.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import cast
+
+from pydantic import Field, ValidationInfo, field_validator, model_validator
+
+from cadfeat.design.objectives import AGGREGATES, COMBINES, MEASURES, NORMALISATIONS, ObjectiveConfig
+from cadfeat.design.optimize import LOCAL_SOLVERS, METHODS, OptimizerConfig
+from cadfeat.study.settings._base import Settings, Tuple, boolean, choice, integer, number, reject, seed_from_context
+
+__all__ = ["FOV_MEASURES", "LIMITS", "SCORES", "ObjectiveSettings", "OptimizerSettings"]
+
+FOV_MEASURES = ("cone", "image")
+SCORES = ("movable", "all")
+LIMITS = {
+    "trajectory_samples": 100_000,   # [trajectory] n (and the rows of a trajectory CSV)
+    "trajectory_lines": 10_000,      # [trajectory] lines (raster_scan)
+    "trajectory_csv_bytes": 64 * 2**20,
+    "design_variables": 64,          # [design] parameters / movable holes
+    "optimizer_starts": 10_000,      # [optimizer] starts
+    "optimizer_maxiter": 1_000_000,  # [optimizer] maxiter
+    "image_pixels": 50_000_000,      # [camera] width * height
+    "image_side_px": 20_000,         # [camera] width, height
+}
+"""Size limits checked when a study is validated, before anything is allocated (each error names its limit).
+They bound memory and time on an ordinary machine; for a bigger study, raise them here
+(``cadfeat.study.schema.LIMITS[key] = value`` before ``load_study``)."""
+
+
+def _one_of(value: str, names: tuple[str, ...] | list[str]) -> str:
+    if value not in names:
+        raise ValueError("not one of the names")
+    return value
+
+
+class ObjectiveSettings(Settings):
+    """``[objective]``: how the measures become objectives (``cadfeat.design.objectives.ObjectiveConfig``)."""
+
+    measures: Tuple[str] = choice(tuple(MEASURES), f"a non-empty list of distinct names from {', '.join(MEASURES)}")
+    aggregate: str = choice("sum", AGGREGATES)
+    combine: str = choice("maxmin", COMBINES)
+    weights: dict[str, float] = choice({}, "a table measure = number ≥ 0, measures from objective.measures")
+    thresholds: dict[str, float] = choice({}, "a table measure = minimum value, measures from objective.measures")
+    min_axis_px: float = number(5.0, 0.0, lo_open=True)
+    rotation_length_mm: float = number(1.0, 0.0, lo_open=True)
+    smoothmin_beta: float = number(20.0, 0.0, lo_open=True)
+    normalisation: str = choice("payoff", NORMALISATIONS)
+    fov_measure: str = choice("cone", FOV_MEASURES)
+    occlusion: bool = boolean(True)
+    score: str | Tuple[str] = choice(
+        "movable", '"movable", "all" or a non-empty list of distinct hole names (e.g. ["H1", "H3"])')
+
+    @field_validator("measures")
+    @classmethod
+    def _measures(cls, value: tuple[str, ...]) -> tuple[str, ...]:
+        if not value or len(set(value)) != len(value):
+            raise ValueError("not a non-empty list of distinct names")
+        return tuple(_one_of(v, list(MEASURES)) for v in value)
+
+    @field_validator("weights", "thresholds")
+    @classmethod
+    def _finite(cls, value: dict[str, float]) -> dict[str, float]:
+        if not all(math.isfinite(v) for v in value.values()):
+            raise ValueError("not finite")
+        return dict(sorted(value.items()))
+
+    @field_validator("score")
+    @classmethod
+    def _score(cls, value: str | tuple[str, ...]) -> str | tuple[str, ...]:
+        if isinstance(value, str):
+            return _one_of(value, SCORES)
+        if not value or not all(value) or len(set(value)) != len(value):
+            raise ValueError("not a non-empty list of distinct names")
+        return value
+
+    @model_validator(mode="after")
+    def _rules(self) -> ObjectiveSettings:
+        """Weights and thresholds name chosen measures; thresholds exactly with combine = "constraint"."""
+        allowed = ", ".join(self.measures)
+        for name in ("weights", "thresholds"):
+            table = cast("dict[str, float]", getattr(self, name))
+            for m, v in table.items():
+                if m not in self.measures:
+                    raise reject(f"{name}.{m}", "not one of objective.measures", allowed)
+                if name == "weights" and v < 0:
+                    raise reject(f"weights.{m}", f"{v} is not allowed", "a number ≥ 0")
+        if self.combine == "weighted" and self.weights and not any(w > 0 for w in self.weights.values()):
+            raise reject("weights", "all weights are zero", "non-negative weights, at least one positive")
+        if self.combine == "constraint":
+            if not self.thresholds:
+                raise reject("thresholds", "missing (combine = \"constraint\" makes these measures hard constraints)",
+                             f"a table measure = minimum value, measures from {allowed}")
+            if set(self.thresholds) == set(self.measures):
+                raise reject("thresholds", "every measure is a constraint, none is left to optimise",
+                             "thresholds for some of the measures, not all")
+        elif self.thresholds:
+            raise reject("thresholds", f"only used with combine = \"constraint\" (combine is {self.combine!r})",
+                         "remove it, or combine = \"constraint\"")
+        return self
+
+    def config(self) -> ObjectiveConfig:
+        """The design layer's objective configuration of these settings."""
+        return ObjectiveConfig(**self.model_dump())
+
+
+class OptimizerSettings(Settings):
+    """``[optimizer]``: the solver (``cadfeat.design.optimize.OptimizerConfig``); ``seed`` defaults to the
+    study's (validation context ``seed``); ``starts``/``maxiter`` are bounded by ``LIMITS``."""
+
+    method: str = choice("multistart", METHODS)
+    starts: int = Field(8, description="multistart: number of local starts", json_schema_extra={
+        "minimum": 1, "x-allowed": "an integer in [1, LIMITS['optimizer_starts']]"})
+    maxiter: int = Field(100, description="iterations of each local solve", json_schema_extra={
+        "minimum": 1, "x-allowed": "an integer in [1, LIMITS['optimizer_maxiter']]"})
+    seed: int = integer(0, 0, 2**32 - 1)
+    local_solver: str = choice("SLSQP", LOCAL_SOLVERS)
+    snap_standard_sizes: bool = boolean(True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _study_seed(cls, data: object, info: ValidationInfo) -> object:
+        return seed_from_context(data, info)
+
+    @model_validator(mode="after")
+    def _limits(self) -> OptimizerSettings:
+        for key, limit in (("starts", "optimizer_starts"), ("maxiter", "optimizer_maxiter")):
+            value = cast(int, getattr(self, key))
+            if not 1 <= value <= LIMITS[limit]:
+                raise reject(key, f"{value} is not allowed", f"an integer in [1, {LIMITS[limit]}]")
+        return self
+
+    def config(self) -> OptimizerConfig:
+        """The solver configuration of these settings."""
+        return OptimizerConfig(**self.model_dump())

@@ -1,0 +1,195 @@
+"""Verification of a study's answer on real CAD: rebuild, pair, check, export.
+
+The answer of a study is the CAD model rebuilt at the optimum, never the surrogate: ``rebuild`` builds it and
+pairs its holes with the design (``order_like``: nearest centres, one to one, each taking the design hole's
+name); ``requirement_checks`` measures every kept requirement on a solid (``verify_on_brep``), pairing the
+re-extracted holes by their axis lines (``pair_by_axis``); ``export_and_verify`` writes original.step,
+optimised.step and optimised.stl into the staging folder, re-imports the STEP, matches its holes to the design
+to ``ROUNDTRIP_TOL_MM`` and checks every requirement again on the re-imported solid.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cadfeat.cad.features.identity import holes_at, pair_holes, take_names
+from cadfeat.errors import CadfeatError
+from cadfeat.study.outputs import normalise_step_header
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
+    from cadfeat.study.schema import StudyConfig
+    from cadfeat.study.setup import StudySetup
+
+__all__ = ["PREDICTION_TOL_MM", "ROUNDTRIP_TOL_MM", "AnchoredModel", "export_and_verify", "extract_plain", "fail_on",
+           "order_like", "outlines_differ", "pair_by_axis", "predicted_holes", "rebuild", "requirement_checks"]
+
+ROUNDTRIP_TOL_MM = 1e-6
+PREDICTION_TOL_MM = 1e-6
+
+
+def outlines_differ(a: Sequence[Hole], b: Sequence[Hole], tol_mm: float = 1e-6) -> bool:
+    """Whether the host-face outlines of paired holes differ (outer polygon or keep-outs, mm)."""
+    for h, g in zip(a, b, strict=True):
+        oa, ob = h.outline, g.outline
+        if (oa is None) != (ob is None):
+            return True
+        if oa is None:
+            continue
+        pa, pb = np.asarray(oa.outer, float), np.asarray(ob.outer, float)
+        if pa.shape != pb.shape or np.abs(pa - pb).max(initial=0.0) > tol_mm:
+            return True
+        ka, kb = list(oa.keepouts), list(ob.keepouts)
+        if len(ka) != len(kb) or any(np.asarray(x).shape != np.asarray(y).shape or
+                                     np.abs(np.asarray(x) - np.asarray(y)).max(initial=0.0) > tol_mm
+                                     for x, y in zip(ka, kb, strict=True)):
+            return True
+    return False
+
+
+def order_like(reference: Sequence[Hole], holes: Sequence[Hole], tol_mm: float, what: str) -> list[Hole]:
+    """``holes`` reordered to pair with ``reference`` by geometry (``identity.pair_holes``), each taking its
+    reference's name."""
+    if len(holes) != len(reference):
+        raise CadfeatError(f"{what}: {len(holes)} holes found, {len(reference)} designed")
+    try:
+        idx = pair_holes(list(reference), list(holes), tol_mm=tol_mm)
+    except CadfeatError as exc:
+        raise CadfeatError(f"{what}: holes do not match the design: {exc}") from exc
+    return take_names(reference, holes, idx)
+
+
+def predicted_holes(setup: StudySetup, x: np.ndarray) -> list[Hole]:
+    """The feature model's holes at ``x`` (``identity.holes_at``)."""
+    return holes_at(setup.model, x)
+
+
+def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = None) -> tuple[Any, list[Hole], float]:
+    """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
+    deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
+    loop extracted at ``x``, in model order) when given."""
+    from cadfeat.cad.features import holes_to_arrays
+
+    shape = setup.rebuild_shape(x)
+    predicted = predicted_holes(setup, x)
+    if verified is not None and len(verified) == len(predicted):
+        predicted = [dataclasses.replace(v, name=p.name) for v, p in zip(verified, predicted, strict=True)]
+    holes = order_like(predicted, setup.rebuild_holes(shape), 0.5, "CAD rebuild of the optimum")
+    c0, _, r0 = holes_to_arrays(predicted)
+    c1, _, r1 = holes_to_arrays(holes)
+    err = float(max(np.linalg.norm(c1 - c0, axis=1).max(initial=0.0), np.abs(r1 - r0).max(initial=0.0)))
+    return shape, holes, err
+
+
+def requirement_checks(setup: StudySetup, shape: Any, holes: Sequence[Hole], where: str) -> list[dict[str, Any]]:
+    """Every kept requirement measured on the solid ``shape`` whose holes are ``holes`` (design order).
+
+    ``verify_on_brep`` re-extracts holes without a preferred direction (a through hole may then be reported
+    from its other end), so the design and reference holes are given to it in that same convention, paired
+    with the design order by their axis lines."""
+    from cadfeat.design.constraints import verify_on_brep
+
+    design = pair_by_axis(holes, extract_plain(shape), f"{where} holes")
+    reference = pair_by_axis(setup.holes0, extract_plain(setup.shape0), "original holes")
+    checks = verify_on_brep(shape, design, setup.constraints, setup.fixed_mask, reference=reference,
+                            reference_shape=setup.shape0)
+    return [{**c.to_dict(), "checked_on": where} for c in checks]
+
+
+def pair_by_axis(reference: Sequence[Hole], holes: Sequence[Hole], what: str, tol_mm: float = 1e-3) -> list[Hole]:
+    """``holes`` reordered to pair with ``reference`` hole by hole on their axis lines (``identity.pair_holes``
+    with ``along_axis``: parallel axes of either sign, centre within ``tol_mm`` of the reference's axis line,
+    nearest first); each paired hole takes its reference's name."""
+    if len(holes) != len(reference):
+        raise CadfeatError(f"{what}: {len(holes)} holes found, {len(reference)} designed")
+    return take_names(reference, holes, pair_holes(list(reference), list(holes), tol_mm, along_axis=True,
+                                                   what=what))
+
+
+def fail_on(checks: Sequence[Mapping[str, Any]], label: str) -> None:
+    bad = [c for c in checks if not c["ok"]]
+    if bad:
+        text = "; ".join(f"{c['name']} {'/'.join(c['holes'])}: {c['value']:.6g} {c['unit']} (required "
+                         f"{c['required']:.6g}, checked on {c['checked_on']})" for c in bad[:6])
+        raise CadfeatError(f"{label}: the optimised design violates kept requirement(s): {text}")
+
+
+def extract_plain(shape: Any) -> list[Hole]:
+    from cadfeat.cad.features import extract_holes
+
+    return extract_holes(shape)
+
+
+class AnchoredModel:
+    """The feature model anchored on the CAD-verified holes at ``x0`` (when the trust-region loop gave them):
+    ``features(x) = verified(x0) + model(x) − model(x0)``, so a nonlinear part's small shop rounding is
+    predicted around the real optimum, not around the linearisation point."""
+
+    def __init__(self, model: Any, x0: np.ndarray, verified: Sequence[Hole] | None) -> None:
+        from cadfeat.cad.features import holes_to_arrays
+
+        self.model, self.holes = model, model.holes
+        c0, _, r0 = model.features(x0)
+        self.dc, self.dr = np.zeros_like(c0), np.zeros_like(r0)
+        if verified is not None and len(verified) == len(r0):
+            cv, _, rv = holes_to_arrays(list(verified))
+            self.dc, self.dr = cv - c0, rv - r0
+
+    def features(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        c, a, r = self.model.features(x)
+        return c + self.dc, a, r + self.dr
+
+    def features_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        c, a, r = self.model.features_batch(X)
+        return c + self.dc, a, r + self.dr
+
+    def holes_at(self, x: np.ndarray) -> list[Hole]:
+        return holes_at(self, x)
+
+
+def export_and_verify(config: StudyConfig, stage: Path, shapes: Mapping[str, Any],
+                      constraints: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Write original.step, optimised.step and optimised.stl into ``stage`` and verify them: a valid solid, the
+    re-imported STEP's holes equal to the design's within ``ROUNDTRIP_TOL_MM`` (and its volume), every kept
+    requirement again on the re-imported solid (raises ``CadfeatError`` naming a violated one), a watertight
+    STL. Returns (the B-rep and STEP requirement checks, the results.json ``verification`` block)."""
+    from cadfeat.cad.export import (
+        check_solid,
+        check_stl,
+        export_step,
+        export_stl,
+        import_step,
+        shape_volume_mm3,
+        verify_step_roundtrip,
+    )
+
+    setup = shapes["setup"]
+    problems = check_solid(shapes["shape1"])
+    if problems:
+        raise CadfeatError(f"{config.label}: the rebuilt optimum is not a valid solid: {'; '.join(problems[:3])}")
+    for name, shape in (("original.step", shapes["shape0"]), ("optimised.step", shapes["shape1"])):
+        export_step(shape, stage / name)
+        normalise_step_header(stage / name, f"{config.study.name} {name[:-5]}")
+    # (the rebuild's holes extracted the way verify_step_roundtrip extracts them: no preferred direction)
+    trip = verify_step_roundtrip(stage / "optimised.step", extract_plain(shapes["shape1"]),
+                                 tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=shape_volume_mm3(shapes["shape1"]),
+                                 volume_rtol=1e-7)
+    reimported = import_step(stage / "optimised.step")
+    step_holes = order_like(shapes["holes1"], setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
+    checks = constraints + requirement_checks(setup, reimported, step_holes, "step")
+    fail_on(checks, config.label)
+    export_stl(shapes["shape1"], stage / "optimised.stl")
+    stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"])
+    if stl_problems:
+        raise CadfeatError(f"{config.label}: optimised.stl: {'; '.join(stl_problems[:3])}")
+    verification = {
+        "step_roundtrip_max_error_mm": max(trip.max_centre_error_mm, trip.max_radius_error_mm,
+                                           trip.max_depth_error_mm),
+        "step_roundtrip_max_axis_error_rad": trip.max_axis_error_rad, "brep_valid": True,
+        "stl_watertight": True, "tolerance_mm": ROUNDTRIP_TOL_MM}
+    return checks, verification

@@ -1,0 +1,11 @@
+"""Test-suite set-up: the shared helpers of ``tests/`` (``study_helpers``, ``optim_helpers``, ``report_fixture``,
+``report_html``) importable from the sub-folders that mirror the package (tests/cad/, tests/study/, …)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+_TESTS = str(Path(__file__).resolve().parent)
+if _TESTS not in sys.path:
+    sys.path.insert(0, _TESTS)

@@ -1,0 +1,62 @@
+"""Study settings as pydantic models and the JSON Schema of a study file (``cadfeat schema``).
+
+Independent references: the ``jsonschema`` library validates every study of studies/ (and the README's
+example) against the written schema and refuses planted mistakes; the vision layer's own defaults
+(``FilterTuning``) are what a study without ``[tracking]`` keys gets.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import tomllib
+from pathlib import Path
+
+import jsonschema
+import pytest
+from study_helpers import BASE, study
+
+from cadfeat.cli import main
+from cadfeat.study.schema import load_study
+from cadfeat.study.settings import StudyError, TrackingSettings
+from cadfeat.vision import FilterTuning
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def validator(tmp_path_factory):
+    out = tmp_path_factory.mktemp("schema") / "study.schema.json"
+    assert main(["schema", "--out", str(out)]) == 0
+    schema = json.loads(out.read_text())
+    jsonschema.Draft202012Validator.check_schema(schema)
+    return jsonschema.Draft202012Validator(schema)
+
+
+def test_every_study_file_meets_the_schema(validator):
+    files = sorted((ROOT / "studies").glob("*.toml"))
+    assert files
+    for f in files:
+        errors = list(validator.iter_errors(tomllib.loads(f.read_text())))
+        assert not errors, (f.name, [e.message for e in errors[:3]])
+
+
+@pytest.mark.parametrize("section,key,value", [("objective", "agregate", "sum"), ("objective", "combine", "product"),
+                                               ("tracking", "r_px2", -1.0), ("optimizer", "maxiter", 1.5),
+                                               ("shop", "grid_mm", 20.0), ("study", "nmae", "x")])
+def test_schema_refuses_what_load_study_refuses(validator, tmp_path, section, key, value):
+    data = copy.deepcopy(BASE)
+    data.setdefault(section, {})[key] = value
+    assert not validator.is_valid(data)
+    with pytest.raises(StudyError, match=rf"{section}\.{key}"):
+        load_study(study(tmp_path, **{section: {key: value}}))
+
+
+def test_one_default_per_setting(tmp_path):
+    """[tracking] defaults are the vision layer's (one declaration: the r_px2 drift 0.25 vs 1.0 is gone)."""
+    cfg = load_study(study(tmp_path, tracking={"runs": 2}))
+    assert cfg.tracking.r_px2 == FilterTuning().r_px2 == TrackingSettings().r_px2
+    assert cfg.tracking.seed == BASE["study"]["seed"]  # the study's seed unless given
+    assert cfg.tracking.replace(runs=3).runs == 3
+    with pytest.raises(Exception, match="frozen"):
+        cfg.tracking.runs = 4
