@@ -28,7 +28,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
     from cadfeat.cad.parts import Part
 
-__all__ = ["LINEAR_TOL_MM", "MOVE_TOL", "DesignMap", "design_map"]
+__all__ = ["LINEAR_TOL_MM", "MOVE_TOL", "DesignMap", "design_map", "reference_design_map", "reference_designs"]
 
 LINEAR_TOL_MM = 1e-6
 """Largest deviation (mm) from the linear prediction at the check step for a parameter to count as linear."""
@@ -207,3 +207,57 @@ def _check_linear(part: Part, x: dict[str, Any], name: str, holes0: Sequence[Hol
     dev_mm = max(float(np.linalg.norm(c - pc, axis=-1).max(initial=0.0)), float(np.abs(r - pr).max(initial=0.0)))
     dev_rad = float(np.linalg.norm(a - pa, axis=-1).max(initial=0.0))  # chord = angle to first order
     return dev_mm <= LINEAR_TOL_MM and dev_rad <= LINEAR_TOL_RAD, dev_mm, h
+
+
+#: Sobol points of the design box tried (after its centre) as the reference design of ``reference_design_map``.
+REFERENCE_CANDIDATES = 8
+
+
+def reference_designs(lower: Sequence[float], upper: Sequence[float], n: int = REFERENCE_CANDIDATES) -> np.ndarray:
+    """(1 + n, P) candidate reference designs of a design box: its centre, then ``n`` points of a fixed
+    scrambled Sobol sequence of the box (seed 0). They depend on the bounds only, never on the part's values."""
+    from scipy.stats import qmc
+
+    lo, hi = np.asarray(lower, float), np.asarray(upper, float)
+    u = qmc.Sobol(d=lo.size, scramble=True, seed=0).random_base2(int(np.ceil(np.log2(max(n, 1)))))[:n]
+    return np.vstack([0.5 * (lo + hi), lo + u * (hi - lo)])
+
+
+def reference_design_map(part: Part, names: Sequence[str], start: Mapping[str, Any], lower: Sequence[float],
+                         upper: Sequence[float], **kwargs: Any) -> tuple[DesignMap, list[Hole]]:
+    """The design map of ``part`` linearised at a reference design that does not depend on the starting design
+    (issue 16: a map built at the part's current values is exact only near them, so the optimum moved with
+    them): the centre of the box [``lower``, ``upper``] of the variables ``names``, else the first of the
+    ``reference_designs`` whose build has the same holes (by name) as the build at ``start``. Parameters that
+    are not design variables keep their ``start`` values (integers, fixed dimensions).
+
+    Returns the map (rows in the order of the holes at ``start``) and the holes at ``start`` (the part as it
+    is: the "before" design). Falls back to the map at ``start`` when no reference design builds the same
+    holes (then the answer may depend on the start: the part's hole set changes across its design box).
+    ``kwargs`` go to ``design_map``."""
+    names = tuple(names)
+    start = dict(start)
+    holes_start = part.holes_timed(part.resolve(**start), kwargs.get("timeout_s"))
+    labels = [h.name for h in holes_start]
+    if len(set(labels)) != len(labels) or None in labels:
+        return design_map(part, names, at=start, **kwargs), holes_start
+    for x in reference_designs(lower, upper):
+        at = {**start, **{n: float(v) for n, v in zip(names, x, strict=True)}}
+        try:
+            dm = design_map(part, names, at=at, **kwargs)
+        except CadfeatError:
+            continue
+        order = {h.name: i for i, h in enumerate(dm.holes0)}
+        if sorted(order) != sorted(labels):
+            continue
+        return _reordered(dm, [order[name] for name in labels]), holes_start
+    return design_map(part, names, at=start, **kwargs), holes_start
+
+
+def _reordered(dm: DesignMap, idx: Sequence[int]) -> DesignMap:
+    """``dm`` with its hole rows in the order ``idx`` (new row k = old row idx[k])."""
+    idx = list(idx)
+    new_of_old = {old: new for new, old in enumerate(idx)}
+    moved_by = {n: sorted(new_of_old[i] for i in rows) for n, rows in dm.moved_by.items()}
+    return dataclasses.replace(dm, holes0=[dm.holes0[i] for i in idx], dC=dm.dC[idx], dA=dm.dA[idx],
+                               dR=dm.dR[idx], moved_by=moved_by)

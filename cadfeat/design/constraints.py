@@ -160,7 +160,10 @@ class ConstraintSet:
     """The 2-D constraints of one problem, compiled once (index arrays, padded polygons) and then evaluated
     batched: ``margins(centres (...,N,3), radii (...,N)) -> {name: (..., M_name)}``."""
 
-    def __init__(self, holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool]):
+    def __init__(self, holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool],
+                 radii0: Sequence[float] | None = None):
+        """``holes``: the reference holes (host face outlines, depths, names); ``radii0`` (N,) mm: the original
+        part's radii for the volume requirement (default: the reference holes')."""
         self.holes = list(holes)
         self.config = config
         fixed = np.asarray(fixed_mask, dtype=bool).reshape(-1)
@@ -169,6 +172,8 @@ class ConstraintSet:
         self.fixed = fixed
         moving = [i for i in range(len(self.holes)) if not fixed[i]]
         self._c0, _, self._r0 = holes_to_arrays(self.holes)
+        if radii0 is not None:
+            self._r0 = np.asarray(radii0, dtype=float).reshape(-1)
         # edge: moving holes on planar faces
         self.edge_idx = np.array([i for i in moving if self.holes[i].outline is not None], dtype=int)
         outlines = [self.holes[i].outline for i in self.edge_idx]

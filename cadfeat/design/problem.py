@@ -84,7 +84,12 @@ class Problem:
             self.feature_mask = ~self.fixed_mask if (~self.fixed_mask).any() else None
         self.T_cam_part = invert_T(np.asarray(trajectory.T_task_cam, dtype=float)) @ self.T_task_part
         self.screws = np.asarray(trajectory.velocity_screws(), dtype=float)
-        self.cset = ConstraintSet(model.holes, constraint_config, self.fixed_mask)
+        # the volume requirement is relative to the part as it is (the start): its radii, not the map's anchor's
+        from cadfeat.design.memory import check_fits
+
+        check_fits(len(self.screws), n, occlusion=occlusion_mesh is not None, what="optimisation problem")
+        self.cset = ConstraintSet(model.holes, constraint_config, self.fixed_mask,
+                                  radii0=model.features(space.x0)[2])
         self.names = objective_config.names
         self.n_evals = 0
         c0, _, _ = model.features(0.5 * (space.lower + space.upper))  # the box centre: not start-dependent
@@ -209,9 +214,11 @@ class Problem:
         if self.occlusion_mesh is None:
             return None
         if getattr(self, "_depth_maps", None) is None:
+            from cadfeat.design.memory import DEPTH_GRID, check_fits
             from cadfeat.measures.depth import DepthMaps
 
-            self._depth_maps = DepthMaps(self.occlusion_mesh, self.camera, self.T_cam_part, grid=128)
+            check_fits(len(self.T_cam_part), len(self.model.holes), what="the optimiser's occlusion test")
+            self._depth_maps = DepthMaps(self.occlusion_mesh, self.camera, self.T_cam_part, grid=DEPTH_GRID)
         maps = self._depth_maps
         n = len(self.T_cam_part)
         if maps.n_poses != n and n % maps.n_poses == 0:
@@ -233,6 +240,16 @@ class Problem:
         return np.array([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k]) for k in cfg.measures])
 
     def batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N): ``_batch_objectives``
+        on chunks of designs within the memory budget (``cadfeat.design.memory``; one pass when they fit)."""
+        from cadfeat.design.memory import chunked, design_bytes
+
+        B, N = np.shape(radii)
+        axes = np.broadcast_to(axes, np.shape(centres))
+        return chunked(lambda sl: self._batch_objectives(centres[sl], axes[sl], radii[sl]), B,
+                       design_bytes(len(self.screws), N), "the optimiser's batched evaluation")
+
+    def _batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
         """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N) in one pass.
 
         The per-feature measures come from ONE ``measures.evaluate`` call on the B·N features side by side

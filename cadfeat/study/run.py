@@ -294,6 +294,23 @@ def _predicted_holes(setup: StudySetup, x: np.ndarray) -> list[Any]:
             for i, h in enumerate(setup.model.holes)]
 
 
+def _rebuild_delivered(setup: StudySetup, x1: np.ndarray, x_opt: np.ndarray, verified: Sequence[Any] | None,
+                       model: Any, shop: dict[str, Any], targets: Any) -> tuple[np.ndarray, Any, tuple[Any, list[Any],
+                                                                                                        float]]:
+    """The CAD rebuild of the delivered design: the shop-rounded ``x1``; when that does not build (a CAD failure
+    is an infeasible point, issue 16), the optimum ``x_opt`` unrounded (``shop`` notes it). Returns (x, shop
+    targets or None, ``_rebuild``'s result); ``CadfeatError`` when neither builds."""
+    try:
+        return x1, targets, _rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+    except CadfeatError as exc:
+        if x1 is x_opt or np.array_equal(x1, x_opt):
+            raise
+        shop["applied"] = False
+        shop["notes"].append(f"the shop-rounded design does not build ({exc}); the optimiser's design is "
+                             "delivered unrounded")
+    return x_opt, None, _rebuild(setup, x_opt, verified)
+
+
 def _rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Any] | None = None) -> tuple[Any, list[Any], float]:
     """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
     deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
@@ -447,10 +464,13 @@ def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int
 
 
 def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], dict[str, Any]]:
+    from cadfeat.design.memory import check_fits
     from cadfeat.study.setup import int_grid, load_scene, score_rule, setup_script, setup_study
 
     with prog.phase("setup"):
         scene = load_scene(config)
+        check_fits(len(scene[1]), occlusion=config.objective.occlusion, robustness_samples=config.robustness.samples,
+                   what=config.label)  # issue 16: refuse what cannot fit in memory, before any CAD work
         combos = int_grid(config) if config.study.part_kind == "script" else [{}]
         if config.study.part_kind == "step":
             base = setup_study(config)
@@ -504,7 +524,8 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
         x1, shop, targets = _shop(setup, x_opt, model)
     with prog.phase("rebuild"):
         try:
-            shape1, holes1, pred_err = _rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+            x1, targets, (shape1, holes1, pred_err) = _rebuild_delivered(setup, x1, x_opt, verified, model, shop,
+                                                                         targets)
         except CadfeatError as exc:
             if not setup.linear or interrupted:
                 raise
@@ -519,7 +540,8 @@ def _compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], 
             verified = getattr(res, "holes", None)
             model = _Anchored(setup.model, x_opt, verified)
             x1, shop, targets = _shop(setup, x_opt, model)
-            shape1, holes1, pred_err = _rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+            x1, targets, (shape1, holes1, pred_err) = _rebuild_delivered(setup, x1, x_opt, verified, model, shop,
+                                                                         targets)
         if targets is not None:
             x1, shape1, holes1, pred_err = _shop_refine(setup, x1, (shape1, holes1, pred_err), targets, shop, model)
         m1 = measure_holes(setup, holes1, mesh=_mesh_of(config, shape1))

@@ -7,7 +7,9 @@ real CAD rebuild. Otherwise the map is refreshed (linearised again) at the rebui
 new centre unless its true (re-extracted) combined objective is worse than the centre's — then the region
 shrinks around the centre. The best CAD-evaluated design (feasible first) is kept throughout and returned
 if no round agrees within ``max_rounds``. A rebuild that raises (or times out, in the caller's
-``rebuild``) is an infeasible point: the region shrinks around the centre.
+``rebuild``), also one of the map refresh's, is an infeasible point: the region shrinks around the centre;
+when no rebuild at all succeeded, ``CadfeatError`` "no buildable design". The first centre is the feature
+model's anchor (``model.x0``), not the part's current values.
 
 Ctrl-C in round 1 returns the best design on the feature model, marked interrupted (not yet verified);
 later, the best verified design so far.
@@ -71,7 +73,10 @@ def solve_with_cad(problem: Any, rebuild: Callable[[np.ndarray], list[Hole]], co
 
     refresh = refresh or default_refresh
     prob = problem
-    x_c = space.x0.copy()
+    # the first centre of the trust region: the feature model's own anchor (a design that was built), not the
+    # part's current values, so that a shrinking region does not depend on where the part started (issue 16)
+    anchor = getattr(problem.model, "x0", None)
+    x_c = space.x0.copy() if anchor is None or np.shape(anchor) != space.x0.shape else space.clip(anchor)
     centre_value: float | None = None
     radius: np.ndarray | None = None
     rounds: list[dict] = []
@@ -146,9 +151,18 @@ def solve_with_cad(problem: Any, rebuild: Callable[[np.ndarray], list[Hole]], co
             radius = shrink * (space.span if radius is None else radius)
         else:  # move on (a tiny violation from the model's error is corrected by the next, refreshed map)
             x_c, centre_value = x_new.copy(), combined
-        prob = problem.with_model(refresh(x_new, holes))
+        try:
+            prob = problem.with_model(refresh(x_new, holes))
+        except KeyboardInterrupt:
+            return finish(res, True, "interrupted: best CAD-verified design so far")
+        except Exception as exc:  # noqa: BLE001 - a rebuild near x_new failed: keep the map, trust a smaller region
+            entry["refresh_failed"] = f"{type(exc).__name__}: {exc}"
+            radius = shrink * (space.span if radius is None else radius)
+            continue
         entry["refreshed_at"] = x_new.tolist()
-    if last is None:
-        raise CadfeatError("solve_with_cad: every CAD rebuild failed; no design could be verified")
+    if last is None or verified is None:
+        failed = "; ".join(r.get("error", "") for r in rounds if r.get("error"))[:300]
+        raise CadfeatError(f"no buildable design: every CAD rebuild the trust-region loop tried failed "
+                           f"({len(rounds)} round(s); {failed or 'no design'})")
     return finish(last, False, f"no agreement between the feature model and CAD after {max_rounds} rounds: best "
                                "CAD-evaluated design returned")
