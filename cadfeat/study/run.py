@@ -227,7 +227,8 @@ def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, 
         x = np.asarray(res.x_best, float)
         try:
             _, holes, _ = _rebuild(setup, x)
-            if not _outlines_differ(setup.model.holes, holes):
+            if not _outlines_differ(setup.model.holes_at(x) if hasattr(setup.model, "holes_at") else setup.model.holes,
+                                    holes):  # the outlines the model predicts at x (they may move with x)
                 break
             names = setup.space.names
             new = setup_script(setup.config, setup.int_values, scene, normaliser,

@@ -132,7 +132,7 @@ def solve_with_cad(problem: Any, rebuild: Callable[[np.ndarray], list[Hole]], co
             continue
         c, a, r = holes_to_arrays(holes)
         g = prob.features_objectives(c, a, r)
-        cons = prob.features_constraints(c[None], r[None], g[None])[0]
+        cons = prob.features_constraints(c[None], r[None], g[None], x_new[None])[0]
         violation = float(max(0.0, -cons.min(initial=0.0)))
         combined = float(prob.combined_from(g))
         entry.update(status="agree" if err <= tol_mm else "differ", max_error_mm=err, true_combined=combined,
