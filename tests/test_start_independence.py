@@ -28,7 +28,7 @@ STUDIES = Path(__file__).parent.parent / "studies"
 ALL = sorted(p.stem for p in STUDIES.glob("*.toml"))
 #: Where the two other starts lie: this fraction of the way from the part's defaults towards the point at the
 #: given fraction of each variable's range (feasible and buildable on every library part).
-TOWARDS, FRACTIONS = 0.6, (0.15, 0.85)
+TOWARDS, FRACTIONS = 0.5, (0.15, 0.85)
 X_TOL = 1e-3  # of each variable's range
 COMBINED_TOL = 1e-6
 
