@@ -67,8 +67,36 @@ def test_a_failing_map_refresh_is_an_infeasible_point():
     assert res.holes is not None  # a design that was rebuilt for real
 
 
-def test_no_buildable_design_is_one_clear_error():
+def test_when_nothing_else_builds_the_anchor_is_the_answer():
+    """Every rebuild of the loop fails: the answer is the map's anchor, the one design the set-up built (its holes
+    are the model's reference holes, extracted from CAD)."""
     problem = two_hole_problem(measures=("resolution",), n=6)
+
+    def broken(x):
+        raise RuntimeError("kernel failure everywhere")
+
+    res = solve_with_cad(problem, broken, OptimizerConfig(method="local"), max_rounds=2)
+    assert all(r["status"] == "rebuild failed" for r in res.cad_rounds)
+    np.testing.assert_allclose(res.x_best, problem.model.x0, atol=0)
+    assert res.holes == problem.model.holes
+
+
+def test_no_buildable_design_is_one_clear_error():
+    """Without a CAD-built anchor (a feature model that names no anchor design) and no rebuild that works: one
+    clear error."""
+
+    class NoAnchor:  # the same features, but no ``x0`` at which its holes were built
+        def __init__(self, model):
+            self.holes, self._model = model.holes, model
+
+        def features(self, x):
+            return self._model.features(x)
+
+        def features_batch(self, X):
+            return self._model.features_batch(X)
+
+    problem = two_hole_problem(measures=("resolution",), n=6)
+    problem = problem.with_model(NoAnchor(problem.model))
 
     def broken(x):
         raise RuntimeError("kernel failure everywhere")
