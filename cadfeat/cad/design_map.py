@@ -28,7 +28,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
     from cadfeat.cad.parts import Part
 
-__all__ = ["LINEAR_TOL_MM", "MOVE_TOL", "DesignMap", "design_map"]
+__all__ = ["LINEAR_TOL_MM", "MOVE_TOL", "DesignMap", "design_map", "reference_design_map", "reference_designs"]
 
 LINEAR_TOL_MM = 1e-6
 """Largest deviation (mm) from the linear prediction at the check step for a parameter to count as linear."""
@@ -47,7 +47,8 @@ class DesignMap:
     parameter → indices of the holes it moves or resizes; ``unused``: parameters that change no hole;
     ``linear_by``: parameter → whether the map is linear in it (checked at ``check_steps``), ``linear``:
     all of them; ``deviation_mm``: parameter → the largest deviation from the linear prediction at the
-    check step; ``n_builds``: CAD builds spent.
+    check step; ``n_builds``: CAD builds spent; ``outline_rates``: per hole, how its host face's outline moves
+    with the parameters (``cadfeat.design.outline_motion.OutlineRates``, None where it cannot be paired).
     """
 
     part_name: str
@@ -64,6 +65,7 @@ class DesignMap:
     deviation_mm: dict[str, float]
     n_builds: int
     unused: list[str] = field(default_factory=list)
+    outline_rates: list[Any] | None = None
 
     @property
     def linear(self) -> bool:
@@ -113,8 +115,8 @@ def _arrays(holes: Sequence[Hole]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _matched(part: Part, params: dict[str, Any], reference: Sequence[Hole], what: str,
-             tol_mm: float, timeout_s: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Holes of a build at ``params`` in ``reference`` order (matched by geometry)."""
+             tol_mm: float, timeout_s: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Hole]]:
+    """Centres, axes, radii and the holes of a build at ``params`` in ``reference`` order (matched by geometry)."""
     from cadfeat.cad.features import match_holes
 
     holes = part.holes_timed(params, timeout_s)
@@ -126,7 +128,7 @@ def _matched(part: Part, params: dict[str, Any], reference: Sequence[Hole], what
     except CadfeatError as exc:
         raise CadfeatError(f"{part.path}: {what}: holes cannot be matched to the design point ({exc})") from None
     c, a, r = _arrays(holes)
-    return c[idx], a[idx], r[idx]
+    return c[idx], a[idx], r[idx], [holes[i] for i in idx]
 
 
 def _steps(part: Part, name: str, x0: float, h: float) -> tuple[float, float]:
@@ -166,16 +168,21 @@ def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = 
     linear_by: dict[str, bool] = {}
     deviation: dict[str, float] = {}
     builds = 1
+    sides: list[list[Any]] = [[], []]  # matched holes at +step / −step of each parameter (outline rates)
+    spans = np.zeros(p)
     for j, name in enumerate(names):
         lo, hi = _steps(part, name, x[name], step_mm)
         if lo + hi <= 0:
             raise CadfeatError(f"{part.path}: parameter {name!r} has no room between its bounds")
-        plus = _matched(part, {**x, name: x[name] + hi}, holes0, f"{name} + {hi:g}", match_tol_mm, timeout_s) \
-            if hi else (c0, a0, r0)
-        minus = _matched(part, {**x, name: x[name] - lo}, holes0, f"{name} - {lo:g}", match_tol_mm, timeout_s) \
-            if lo else (c0, a0, r0)
+        *plus, holes_plus = _matched(part, {**x, name: x[name] + hi}, holes0, f"{name} + {hi:g}", match_tol_mm,
+                                     timeout_s) if hi else (c0, a0, r0, None)
+        *minus, holes_minus = _matched(part, {**x, name: x[name] - lo}, holes0, f"{name} - {lo:g}", match_tol_mm,
+                                       timeout_s) if lo else (c0, a0, r0, None)
+        sides[0].append(holes_plus)
+        sides[1].append(holes_minus)
         builds += (hi > 0) + (lo > 0)
         span = lo + hi
+        spans[j] = span
         dC[..., j], dA[..., j], dR[:, j] = ((u - v) / span for u, v in zip(plus, minus, strict=True))
         steps[j] = span / 2 if lo and hi else span
         moved = (np.abs(dC[..., j]).max(axis=-1) > MOVE_TOL) | (np.abs(dA[..., j]).max(axis=-1) > MOVE_TOL) \
@@ -186,8 +193,11 @@ def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = 
             timeout_s)
         builds += 1
     unused = [nm for nm in names if not moved_by[nm]]
+    from cadfeat.design.outline_motion import outline_rates
+
     return DesignMap(part.name, names, {nm: float(x[nm]) for nm in names}, holes0, dC, dA, dR, steps, checks,
-                     moved_by, linear_by, deviation, builds, unused)
+                     moved_by, linear_by, deviation, builds, unused,
+                     outline_rates(holes0, sides[0], sides[1], spans))
 
 
 def _check_linear(part: Part, x: dict[str, Any], name: str, holes0: Sequence[Hole],
@@ -202,8 +212,63 @@ def _check_linear(part: Part, x: dict[str, Any], name: str, holes0: Sequence[Hol
     pa = pa / np.linalg.norm(pa, axis=-1, keepdims=True)
     predicted = [dataclasses.replace(hole, centre=pc[i], axis=pa[i], radius_mm=float(pr[i]))
                  for i, hole in enumerate(holes0)]
-    c, a, r = _matched(part, {**x, name: x[name] + h}, predicted, f"{name} {h:+g} (linearity check)", match_tol_mm,
+    c, a, r, _ = _matched(part, {**x, name: x[name] + h}, predicted, f"{name} {h:+g} (linearity check)", match_tol_mm,
                        timeout_s)
     dev_mm = max(float(np.linalg.norm(c - pc, axis=-1).max(initial=0.0)), float(np.abs(r - pr).max(initial=0.0)))
     dev_rad = float(np.linalg.norm(a - pa, axis=-1).max(initial=0.0))  # chord = angle to first order
     return dev_mm <= LINEAR_TOL_MM and dev_rad <= LINEAR_TOL_RAD, dev_mm, h
+
+
+#: Sobol points of the design box tried (after its centre) as the reference design of ``reference_design_map``.
+REFERENCE_CANDIDATES = 8
+
+
+def reference_designs(lower: Sequence[float], upper: Sequence[float], n: int = REFERENCE_CANDIDATES) -> np.ndarray:
+    """(1 + n, P) candidate reference designs of a design box: its centre, then ``n`` points of a fixed
+    scrambled Sobol sequence of the box (seed 0). They depend on the bounds only, never on the part's values."""
+    from scipy.stats import qmc
+
+    lo, hi = np.asarray(lower, float), np.asarray(upper, float)
+    u = qmc.Sobol(d=lo.size, scramble=True, seed=0).random_base2(int(np.ceil(np.log2(max(n, 1)))))[:n]
+    return np.vstack([0.5 * (lo + hi), lo + u * (hi - lo)])
+
+
+def reference_design_map(part: Part, names: Sequence[str], start: Mapping[str, Any], lower: Sequence[float],
+                         upper: Sequence[float], **kwargs: Any) -> tuple[DesignMap, list[Hole]]:
+    """The design map of ``part`` linearised at a reference design that does not depend on the starting design
+    (issue 16: a map built at the part's current values is exact only near them, so the optimum moved with
+    them): the centre of the box [``lower``, ``upper``] of the variables ``names``, else the first of the
+    ``reference_designs`` whose build has the same holes (by name) as the build at ``start``. Parameters that
+    are not design variables keep their ``start`` values (integers, fixed dimensions).
+
+    Returns the map (rows in the order of the holes at ``start``) and the holes at ``start`` (the part as it
+    is: the "before" design). Falls back to the map at ``start`` when no reference design builds the same
+    holes (then the answer may depend on the start: the part's hole set changes across its design box).
+    ``kwargs`` go to ``design_map``."""
+    names = tuple(names)
+    start = dict(start)
+    holes_start = part.holes_timed(part.resolve(**start), kwargs.get("timeout_s"))
+    labels = [h.name for h in holes_start]
+    if len(set(labels)) != len(labels) or None in labels:
+        return design_map(part, names, at=start, **kwargs), holes_start
+    for x in reference_designs(lower, upper):
+        at = {**start, **{n: float(v) for n, v in zip(names, x, strict=True)}}
+        try:
+            dm = design_map(part, names, at=at, **kwargs)
+        except CadfeatError:
+            continue
+        order = {h.name: i for i, h in enumerate(dm.holes0)}
+        if sorted(order) != sorted(labels):
+            continue
+        return _reordered(dm, [order[name] for name in labels]), holes_start
+    return design_map(part, names, at=start, **kwargs), holes_start
+
+
+def _reordered(dm: DesignMap, idx: Sequence[int]) -> DesignMap:
+    """``dm`` with its hole rows in the order ``idx`` (new row k = old row idx[k])."""
+    idx = list(idx)
+    new_of_old = {old: new for new, old in enumerate(idx)}
+    moved_by = {n: sorted(new_of_old[i] for i in rows) for n, rows in dm.moved_by.items()}
+    rates = None if dm.outline_rates is None else [dm.outline_rates[i] for i in idx]
+    return dataclasses.replace(dm, holes0=[dm.holes0[i] for i in idx], dC=dm.dC[idx], dA=dm.dA[idx],
+                               dR=dm.dR[idx], moved_by=moved_by, outline_rates=rates)

@@ -122,6 +122,19 @@ def _pad_polygons(polygons: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarra
     return a, b, valid
 
 
+def _pad_rates(rates: Sequence[np.ndarray | None], valid: np.ndarray, P: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vertex rates (S_k, 2, P) of K polygons (None: fixed) padded like ``_pad_polygons``: for the segment starts
+    (K, S, 2, P) and ends (K, S, 2, P)."""
+    k, s_max = valid.shape
+    a = np.zeros((k, s_max, 2, P))
+    b = np.zeros((k, s_max, 2, P))
+    for i, r in enumerate(rates):
+        if r is not None:
+            a[i, :len(r)] = r
+            b[i, :len(r)] = np.roll(r, -1, axis=0)
+    return a, b
+
+
 def point_polygon_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray,
                            valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distance (..., K) mm from points (..., K, 2) to polygon k's boundary, and inside (..., K) bool.
@@ -161,7 +174,13 @@ class ConstraintSet:
     """The 2-D constraints of one problem, compiled once (index arrays, padded polygons) and then evaluated
     batched: ``margins(centres (...,N,3), radii (...,N)) -> {name: (..., M_name)}``."""
 
-    def __init__(self, holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool]):
+    def __init__(self, holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool],
+                 radii0: Sequence[float] | None = None, outline_rates: Sequence[Any] | None = None,
+                 x_anchor: Sequence[float] | None = None):
+        """``holes``: the reference holes (host face outlines, depths, names); ``radii0`` (N,) mm: the original
+        part's radii for the volume requirement (default: the reference holes'); ``outline_rates`` (per hole,
+        ``outline_motion.OutlineRates`` or None) with ``x_anchor`` (P,): host-face outlines that move with the
+        design x (``margins(..., X=x)``), exact for a face whose size is linear in x (issue 16)."""
         self.holes = list(holes)
         self.config = config
         fixed = np.asarray(fixed_mask, dtype=bool).reshape(-1)
@@ -170,16 +189,28 @@ class ConstraintSet:
         self.fixed = fixed
         moving = [i for i in range(len(self.holes)) if not fixed[i]]
         self._c0, _, self._r0 = holes_to_arrays(self.holes)
+        if radii0 is not None:
+            self._r0 = np.asarray(radii0, dtype=float).reshape(-1)
         # edge: moving holes on planar faces
         self.edge_idx = np.array([i for i in moving if self.holes[i].outline is not None], dtype=int)
         outlines = [self.holes[i].outline for i in self.edge_idx]
         self._edge_poly = _pad_polygons([o.outer for o in outlines])
         self._edge_frames = self._frames(outlines)
         # keep-outs: (hole, keep-out polygon) pairs
-        ko = [(i, k) for i in self.edge_idx for k in self.holes[i].outline.keepouts]
+        ko = [(i, k) for i in self.edge_idx for k in range(len(self.holes[i].outline.keepouts))]
         self.keepout_idx = np.array([i for i, _ in ko], dtype=int)
-        self._ko_poly = _pad_polygons([k for _, k in ko])
+        self._ko_poly = _pad_polygons([self.holes[i].outline.keepouts[k] for i, k in ko])
         self._ko_frames = self._frames([self.holes[i].outline for i, _ in ko])
+        # outline motion: vertex rates padded like the polygons (None: fixed outlines)
+        self._x_anchor = None if x_anchor is None else np.asarray(x_anchor, dtype=float).reshape(-1)
+        rates = list(outline_rates) if outline_rates is not None else [None] * len(self.holes)
+        self._edge_rates = self._ko_rates = None
+        if self._x_anchor is not None and any(r is not None and r.moves for r in rates):
+            P = self._x_anchor.size
+            self._edge_rates = _pad_rates([None if rates[i] is None else rates[i].outer for i in self.edge_idx],
+                                          self._edge_poly[2], P)
+            self._ko_rates = _pad_rates([None if rates[i] is None else rates[i].keepouts[k] for i, k in ko],
+                                        self._ko_poly[2], P)
         # ligaments
         n = len(self.holes)
         pairs = [(i, j) for i in range(n) for j in range(i + 1, n)
@@ -216,21 +247,31 @@ class ConstraintSet:
             out["volume"] = [[]]
         return out
 
-    def margins(self, centres: np.ndarray, radii: np.ndarray) -> dict[str, np.ndarray]:
-        """Margins (mm or mm³) ≥ 0 feasible, each (..., M_kind), for centres (..., N, 3), radii (..., N)."""
+    def _polygons(self, poly: tuple, rates: tuple | None, X: np.ndarray | None) -> tuple:
+        """The padded polygons (a, b, valid), moved to the designs X (..., P) when the outlines move."""
+        if rates is None or X is None:
+            return poly
+        dX = np.asarray(X, dtype=float) - self._x_anchor
+        a, b, valid = poly
+        ra, rb = rates
+        return (a + np.einsum("ksdp,...p->...ksd", ra, dX), b + np.einsum("ksdp,...p->...ksd", rb, dX), valid)
+
+    def margins(self, centres: np.ndarray, radii: np.ndarray, X: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Margins (mm or mm³) ≥ 0 feasible, each (..., M_kind), for centres (..., N, 3), radii (..., N); ``X``
+        (..., P): the designs, for outlines that move with the design (``outline_rates``)."""
         centres = np.asarray(centres, dtype=float)
         radii = np.asarray(radii, dtype=float)
         cfg = self.config
         out: dict[str, np.ndarray] = {}
         if self.edge_idx.size:
             st = self._to_face(centres[..., self.edge_idx, :], self._edge_frames)
-            d, inside = point_polygon_distance(st, *self._edge_poly)
+            d, inside = point_polygon_distance(st, *self._polygons(self._edge_poly, self._edge_rates, X))
             out["edge"] = np.where(inside, d, -d) - radii[..., self.edge_idx] - cfg.edge_distance_mm
         else:
             out["edge"] = np.zeros(radii.shape[:-1] + (0,))
         if self.keepout_idx.size:
             st = self._to_face(centres[..., self.keepout_idx, :], self._ko_frames)
-            d, inside = point_polygon_distance(st, *self._ko_poly)
+            d, inside = point_polygon_distance(st, *self._polygons(self._ko_poly, self._ko_rates, X))
             out["keepout"] = np.where(inside, -d, d) - radii[..., self.keepout_idx] - cfg.keepout
         else:
             out["keepout"] = np.zeros(radii.shape[:-1] + (0,))
@@ -250,9 +291,9 @@ class ConstraintSet:
             out["volume"] = (cfg.volume_change_max_frac * cfg.part_volume_mm3 - np.abs(dv))[..., None]
         return out
 
-    def stacked(self, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """All margins concatenated (..., M)."""
-        return np.concatenate(list(self.margins(centres, radii).values()), axis=-1)
+    def stacked(self, centres: np.ndarray, radii: np.ndarray, X: np.ndarray | None = None) -> np.ndarray:
+        """All margins concatenated (..., M) (``X``: as ``margins``)."""
+        return np.concatenate(list(self.margins(centres, radii, X).values()), axis=-1)
 
 
 def constraint_margins(centres: np.ndarray, radii: np.ndarray, holes: Sequence[Hole], config: ConstraintConfig,

@@ -181,7 +181,8 @@ class LinearFeatureModel:
 
     ``c(x) = centres0 + dC @ (x - x0)`` with ``dC`` (N,3,P) mm per unit, ``r(x) = radii0 + dR @ (x - x0)``
     (N,P); axes ``a0 + dA @ (x - x0)`` normalised (``dA`` (N,3,P), default zero: constant axes).
-    ``holes`` are the reference holes at ``x0`` (outlines for the constraints).
+    ``holes`` are the reference holes at ``x0`` (outlines for the constraints); ``outline_rates``: per hole, how
+    its host face's outline moves with x (``cadfeat.design.outline_motion.OutlineRates`` or None: fixed).
     """
 
     holes: list[Hole]
@@ -190,6 +191,7 @@ class LinearFeatureModel:
     dR: np.ndarray
     names: list[str] = field(default_factory=list)
     dA: np.ndarray | None = None
+    outline_rates: list[Any] | None = None
 
     def __post_init__(self) -> None:
         self.holes = list(self.holes)
@@ -209,7 +211,8 @@ class LinearFeatureModel:
         if dC.shape[-1] != len(names) or dR.shape[-1] != len(names) or x0.size != len(names):
             raise CadfeatError(f"design map has {dC.shape[-1]} parameter columns, expected {len(names)} ({names})")
         dA = getattr(dm, "dA", None)
-        return cls(list(dm.holes0), x0, dC, dR, list(names), None if dA is None else np.asarray(dA, dtype=float))
+        return cls(list(dm.holes0), x0, dC, dR, list(names), None if dA is None else np.asarray(dA, dtype=float),
+                   getattr(dm, "outline_rates", None))
 
     @classmethod
     def from_rebuild(cls, rebuild: Callable[[np.ndarray], list[Hole]], x0: np.ndarray, steps: np.ndarray,
@@ -249,6 +252,26 @@ class LinearFeatureModel:
         else:
             axes = np.broadcast_to(self.axes0, centres.shape)
         return centres, axes, radii
+
+    def holes_at(self, x: np.ndarray) -> list[Hole]:
+        """The reference holes with the features at ``x`` and their host-face outlines moved to ``x``
+        (``outline_rates``; outlines without rates as at ``x0``)."""
+        import dataclasses
+
+        from cadfeat.cad.features import FaceOutline
+
+        c, a, r = self.features(x)
+        dx = np.asarray(x, dtype=float) - self.x0
+        out = []
+        for i, h in enumerate(self.holes):
+            o, rates = h.outline, (self.outline_rates or [None] * len(self.holes))[i]
+            if o is not None and rates is not None:
+                outer = o.outer + rates.outer @ dx if rates.outer is not None else o.outer
+                kos = tuple(k + kr @ dx if kr is not None else k for k, kr in zip(o.keepouts, rates.keepouts,
+                                                                                      strict=True))
+                o = FaceOutline(o.origin, o.u, o.v, outer, kos)
+            out.append(dataclasses.replace(h, centre=c[i], axis=a[i], radius_mm=float(r[i]), outline=o))
+        return out
 
     def moved_mask(self) -> np.ndarray:
         """(N,) bool: holes that any variable moves or resizes."""

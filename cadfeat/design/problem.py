@@ -84,7 +84,14 @@ class Problem:
             self.feature_mask = ~self.fixed_mask if (~self.fixed_mask).any() else None
         self.T_cam_part = invert_T(np.asarray(trajectory.T_task_cam, dtype=float)) @ self.T_task_part
         self.screws = np.asarray(trajectory.velocity_screws(), dtype=float)
-        self.cset = ConstraintSet(model.holes, constraint_config, self.fixed_mask)
+        # the volume requirement is relative to the part as it is (the start): its radii, not the map's anchor's
+        from cadfeat.design.memory import check_fits
+
+        check_fits(len(self.screws), n, occlusion=occlusion_mesh is not None, what="optimisation problem")
+        self.cset = ConstraintSet(model.holes, constraint_config, self.fixed_mask,
+                                  radii0=model.features(space.x0)[2],
+                                  outline_rates=getattr(model, "outline_rates", None),
+                                  x_anchor=getattr(model, "x0", None))
         self.names = objective_config.names
         self.n_evals = 0
         c0, _, _ = model.features(0.5 * (space.lower + space.upper))  # the box centre: not start-dependent
@@ -125,7 +132,7 @@ class Problem:
 
     def payoff_normaliser(self, unit_by_name: dict[str, float], samples: int = 32) -> Normaliser:
         """The ideal/nadir ``Normaliser`` of the payoff table (``Normaliser.from_payoff``): each objective
-        maximised alone on features (multi-start from the scaled Sobol points of ``optimize.sobol_starts``
+        maximised alone on features (multi-start from three scaled Sobol points of ``optimize.sobol_starts``
         and the design-space centre — never from the starting design), under the same 2-D constraints;
         plus ``samples`` fixed Sobol designs (those meeting the 2-D constraints) to tell an objective that does
         not depend on the design (constant) from non-conflicting ones."""
@@ -147,15 +154,16 @@ class Problem:
                           sub_cfg, self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
                           normaliser=sub_norm, feature_mask=self.feature_mask)
             sub._depth_maps = self.occlusion  # the same poses: share the depth maps
-            res = optimise(sub, OptimizerConfig(method="multistart", starts=4, maxiter=60, seed=0,
+            res = optimise(sub, OptimizerConfig(method="multistart", starts=3, maxiter=60, seed=0,
                                                 snap_standard_sizes=False), x_start=centre)
             table.append(res.x_best)
         X = np.vstack(table)
         G = self.batch_objectives(*self._features_batch(X))
         U = sobol_starts(space.size, samples, 12345)
-        c, a, r = self._features_batch(space.lower + U * (space.upper - space.lower))
+        XS = space.lower + U * (space.upper - space.lower)
+        c, a, r = self._features_batch(XS)
         S = self.batch_objectives(c, a, r)
-        feasible = self.cset.stacked(c, r).min(axis=-1, initial=0.0) >= -1e-6  # the kept requirements hold
+        feasible = self.cset.stacked(c, r, XS).min(axis=-1, initial=0.0) >= -1e-6  # the kept requirements hold
         S = np.vstack([S[feasible], G])
         rng = np.ptp(S, axis=0)
         normaliser = Normaliser.from_payoff(self.names, G, natural.reference, rng, S.min(axis=0))
@@ -209,9 +217,11 @@ class Problem:
         if self.occlusion_mesh is None:
             return None
         if getattr(self, "_depth_maps", None) is None:
+            from cadfeat.design.memory import DEPTH_GRID, check_fits
             from cadfeat.measures.depth import DepthMaps
 
-            self._depth_maps = DepthMaps(self.occlusion_mesh, self.camera, self.T_cam_part, grid=128)
+            check_fits(len(self.T_cam_part), len(self.model.holes), what="the optimiser's occlusion test")
+            self._depth_maps = DepthMaps(self.occlusion_mesh, self.camera, self.T_cam_part, grid=DEPTH_GRID)
         maps = self._depth_maps
         n = len(self.T_cam_part)
         if maps.n_poses != n and n % maps.n_poses == 0:
@@ -233,6 +243,16 @@ class Problem:
         return np.array([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k]) for k in cfg.measures])
 
     def batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N): ``_batch_objectives``
+        on chunks of designs within the memory budget (``cadfeat.design.memory``; one pass when they fit)."""
+        from cadfeat.design.memory import chunked, design_bytes
+
+        B, N = np.shape(radii)
+        axes = np.broadcast_to(axes, np.shape(centres))
+        return chunked(lambda sl: self._batch_objectives(centres[sl], axes[sl], radii[sl]), B,
+                       design_bytes(len(self.screws), N), "the optimiser's batched evaluation")
+
+    def _batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
         """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N) in one pass.
 
         The per-feature measures come from ONE ``measures.evaluate`` call on the B·N features side by side
@@ -267,9 +287,11 @@ class Problem:
         return np.stack([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k])
                          for k in cfg.measures], axis=-1)
 
-    def features_constraints(self, centres: np.ndarray, radii: np.ndarray, g: np.ndarray) -> np.ndarray:
-        """Constraint margins (..., M) from features and raw objectives g (..., K)."""
-        mech = self.cset.stacked(centres, radii)
+    def features_constraints(self, centres: np.ndarray, radii: np.ndarray, g: np.ndarray,
+                             X: np.ndarray | None = None) -> np.ndarray:
+        """Constraint margins (..., M) from features and raw objectives g (..., K) of designs X (..., P) (for
+        host-face outlines that move with the design; None: the outlines of the reference holes)."""
+        mech = self.cset.stacked(centres, radii, X)
         thr = (np.asarray(g)[..., self._thr_idx] - self._thr) / self.scales[self._thr_idx]
         return np.concatenate([mech, thr], axis=-1)
 
@@ -283,7 +305,7 @@ class Problem:
         centres, axes, radii = self.model.features_batch(X)
         G = self.batch_objectives(centres, np.broadcast_to(axes, centres.shape), radii)
         self.n_evals += len(X)
-        return G, self.features_constraints(centres, radii, G)
+        return G, self.features_constraints(centres, radii, G, X)
 
     def combined_from(self, G: np.ndarray) -> np.ndarray:
         """The scalar to maximise (...,) from raw objectives G (..., K) (``objectives.combine``); with every

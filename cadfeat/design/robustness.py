@@ -4,13 +4,14 @@ Sampled on features (cheap, no CAD): ``robustness(problem, centres, axes, radii,
 
 - manufacturing: each changed hole (moved or resized) displaced uniformly within ±``position_tol_mm`` along
   two directions across its axis, and its diameter moved by a random whole number of steps in
-  [−``size_steps``, ``size_steps``] of the size table (a drill one size off); all ``samples`` draws evaluated
-  in ONE batched call (``Problem.batch_objectives``);
+  [−``size_steps``, ``size_steps``] of the size table (a drill one size off); the ``samples`` draws evaluated
+  batched (``Problem.batch_objectives``, chunked to the memory budget);
 - camera mount: the camera frame displaced by a rigid ``ΔT`` (translation uniform within ±``camera_position_mm``
   per axis, rotation vector within ±``camera_angle_deg`` per axis), the same for every pose of a draw (a
   mounting error is constant): ``T_cam'_part = ΔT⁻¹ T_cam_part`` and the camera twist
-  ``v' = Rᵀ (v − p × ω)``, ``ω' = Rᵀ ω``; the ``samples`` draws are evaluated as one stack of L·S poses
-  (one ``measures.evaluate`` call) and aggregated per draw.
+  ``v' = Rᵀ (v − p × ω)``, ``ω' = Rᵀ ω``; the ``samples`` draws are evaluated as stacks of L·S poses
+  (one ``measures.evaluate`` call per chunk of draws within the memory budget, ``cadfeat.design.memory``) and
+  aggregated per draw.
 
 For each objective and the combined value: nominal, mean, 5th percentile and minimum over the draws. The
 optimum is a *razor edge* when the combined value's 5th percentile under either perturbation keeps less than
@@ -57,7 +58,20 @@ def _stats(G: np.ndarray, nominal: np.ndarray) -> dict[str, np.ndarray]:
 
 def camera_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                       dT: np.ndarray) -> np.ndarray:
-    """Raw objectives (S, K) of one design seen by S displaced cameras ``dT`` (S, 4, 4) (camera frame)."""
+    """Raw objectives (S, K) of one design seen by S displaced cameras ``dT`` (S, 4, 4) (camera frame), the draws
+    evaluated in chunks within the memory budget (``cadfeat.design.memory``: each draw stacks L poses and, with
+    occlusion, its own copy of the L depth maps)."""
+    from cadfeat.design.memory import chunked, design_bytes
+
+    per_draw = design_bytes(len(problem.screws), len(radii), depth_maps=problem.occlusion_mesh is not None)
+    _ = problem.occlusion  # the nominal poses' depth maps, built once and shared by every chunk's stacked copy
+    return chunked(lambda sl: _camera_objectives(problem, centres, axes, radii, dT[sl]), len(dT), per_draw,
+                   "robustness analysis (camera-mount draws)")
+
+
+def _camera_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                       dT: np.ndarray) -> np.ndarray:
+    """``camera_objectives`` of one chunk of draws, as one stack of S·L poses."""
     from cadfeat.design.objectives import aggregate, per_pose_values
 
     S = len(dT)

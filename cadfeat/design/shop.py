@@ -5,9 +5,9 @@ An optimum comes out at Ø2.906 mm and positions to 0.0001 mm: not a drill size,
 
 1. position variables (``Variable.kind == "position"``) rounded to the grid (a row ``x0 + i·pitch`` then stays
    evenly spaced and on the grid);
-2. target features: each MOVED hole's centre rounded to the grid (components across its axis; along the axis
-   the hole stays on its face), each RESIZED hole's diameter snapped to the nearest size of the table (ISO 273
-   clearance holes by default); unchanged holes keep their features;
+2. target features: each MOVABLE hole's centre (one a design variable moves) rounded to the grid (components
+   across its axis; along the axis the hole stays on its face), each RESIZABLE hole's diameter snapped to the
+   nearest size of the table (ISO 273 clearance holes by default); other holes keep their features;
 3. a least-squares step of the design variables towards those targets (finite-difference Jacobian of the
    feature model, batched), clipped to the bounds; variables with their own standard sizes snapped to them.
 
@@ -185,16 +185,16 @@ def _feasible(problem: Any, x: np.ndarray) -> bool:
 def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: float, sizes: Sequence[float],
                tol_mm: float) -> ShopDesign:
     """Targets from the rounded variables ``xr`` and the least-squares step towards them."""
-    c0, a0, r0 = (np.asarray(v, float) for v in model.features(space.x0))
-    c1, a1, r1 = (np.asarray(v, float) for v in model.features(x))
-    moved = np.linalg.norm(c1 - c0, axis=1) > tol_mm
-    resized = np.abs(r1 - r0) > tol_mm
     cr, ar, rr = (np.asarray(v, float) for v in model.features(xr))
+    J = model_jacobian(model, xr)
+    n = len(rr)
+    # the holes the design variables move / resize (not "the holes that moved from the start": which holes are
+    # rounded must not depend on the part's current values, issue 16)
+    moved = np.abs(J[:3 * n]).reshape(n, 3, -1).max(axis=(1, 2), initial=0.0) > tol_mm
+    resized = np.abs(J[3 * n:]).max(axis=1, initial=0.0) > tol_mm
     tc = cr.copy()
     if grid_mm > 0:
         tc[moved] = _round_across_axis(cr[moved], ar[moved], grid_mm)
-    J = model_jacobian(model, xr)
-    n = len(rr)
     dr = np.abs(J[3 * n:]) > 1e-9  # (N, P): which variables size each hole
     own_sizes = ~np.any(dr & ~np.asarray(space.discrete, bool), axis=1)
     td = 2 * rr

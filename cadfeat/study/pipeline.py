@@ -138,7 +138,8 @@ def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, 
         x = np.asarray(res.x_best, float)
         try:
             _, holes, _ = rebuild(setup, x)
-            if not outlines_differ(setup.model.holes, holes):
+            if not outlines_differ(setup.model.holes_at(x) if hasattr(setup.model, "holes_at") else setup.model.holes,
+                                   holes):  # the outlines the model predicts at x (they may move with x)
                 break
             names = setup.space.names
             new = setup_script(setup.config, setup.int_values, scene, normaliser,
@@ -309,9 +310,12 @@ def compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], d
 def _set_up(config: StudyConfig) -> _Start:
     """The part as it is and every set-up to optimise; the pre-flight refuses a study that cannot mean
     anything before any optimisation."""
+    from cadfeat.design.memory import check_fits
     from cadfeat.study.setup import int_grid, load_scene, setup_script, setup_study
 
     scene = load_scene(config)
+    check_fits(len(scene[1]), occlusion=config.objective.occlusion, robustness_samples=config.robustness.samples,
+               what=config.label)  # issue 16: refuse what cannot fit in memory, before any CAD work
     combos = int_grid(config) if config.study.part_kind == "script" else [{}]
     if config.study.part_kind == "step":
         base = setup_study(config)
@@ -361,13 +365,30 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
     return _Optimum(best[0], best[1], history, interrupted)
 
 
+def _rebuild_delivered(setup: StudySetup, x1: np.ndarray, x_opt: np.ndarray, verified: Sequence[Hole] | None,
+                       model: Any, shop: dict[str, Any], targets: Any) -> tuple[np.ndarray, Any, tuple[Any, list[Hole],
+                                                                                                        float]]:
+    """The CAD rebuild of the delivered design: the shop-rounded ``x1``; when that does not build (a CAD failure
+    is an infeasible point, issue 16), the optimum ``x_opt`` unrounded (``shop`` notes it). Returns (x, shop
+    targets or None, ``rebuild``'s result); ``CadfeatError`` when neither builds."""
+    try:
+        return x1, targets, rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+    except CadfeatError as exc:
+        if x1 is x_opt or np.array_equal(x1, x_opt):
+            raise
+        shop["applied"] = False
+        shop["notes"].append(f"the shop-rounded design does not build ({exc}); the optimiser's design is "
+                             "delivered unrounded")
+    return x_opt, None, rebuild(setup, x_opt, verified)
+
+
 def _deliver(setup: Any, opt: _Optimum, prog: StudyProgress, shopped: tuple[Any, ...]) -> _Delivered:
     """The CAD rebuild of the shop-rounded optimum; when the linear feature model's optimum does not build,
     an infeasible point: search again with CAD in the loop, round that optimum for the shop, rebuild."""
     x_opt, x1, shop, targets, model, verified = shopped
     res, rebuild_failure = opt.res, None
     try:
-        shape1, holes1, pred_err = rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+        x1, targets, (shape1, holes1, pred_err) = _rebuild_delivered(setup, x1, x_opt, verified, model, shop, targets)
     except CadfeatError as exc:
         if not setup.linear or opt.interrupted:
             raise
@@ -382,7 +403,7 @@ def _deliver(setup: Any, opt: _Optimum, prog: StudyProgress, shopped: tuple[Any,
         verified = getattr(res, "holes", None)
         model = AnchoredModel(setup.model, x_opt, verified)
         x1, shop, targets = _shop(setup, x_opt, model)
-        shape1, holes1, pred_err = rebuild(setup, x1, verified if x1 is x_opt else model.holes_at(x1))
+        x1, targets, (shape1, holes1, pred_err) = _rebuild_delivered(setup, x1, x_opt, verified, model, shop, targets)
     if targets is not None:
         x1, shape1, holes1, pred_err = _shop_refine(setup, x1, (shape1, holes1, pred_err), targets, shop, model)
     return _Delivered(x1, shape1, holes1, pred_err, shop, res, rebuild_failure)

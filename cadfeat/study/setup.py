@@ -200,7 +200,7 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     """Setup of a part-script study with the integer parameters at ``int_values`` (default: their defaults);
     ``normaliser``: the objective scales of another setup (so that integer combinations compare); ``at``:
     linearise at these continuous parameter values instead of the part's defaults."""
-    from cadfeat.cad.design_map import design_map
+    from cadfeat.cad.design_map import design_map, reference_design_map
     from cadfeat.cad.parts import load_part
     from cadfeat.design.design_space import DesignSpace, LinearFeatureModel, Variable
 
@@ -210,6 +210,7 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     ints = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
     ints.update({k: int(v) for k, v in (int_values or {}).items()})
     names = [p.name for p in specs]
+    linearise_at = at is not None
     at = {**part.defaults(), **ints, **{k: float(v) for k, v in (at or {}).items() if k in names}}
 
     def values(x: np.ndarray) -> dict[str, Any]:
@@ -222,10 +223,13 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     if not names:  # only integer parameters vary: nothing continuous to optimise at this combination
         raise StudyError(f"{config.label}: design.parameters: only integer parameters "
                          f"({', '.join(ints)}) vary; allowed: at least one continuous parameter of {config.study.part}")
-    dm = design_map(part, names, at=at)
-    holes0 = list(dm.holes0)
+    if linearise_at:  # the optimum of an earlier round: linearise there
+        dm = design_map(part, names, at=at)
+        holes0 = list(dm.holes0)
+    else:  # a reference design that does not depend on the part's current values (issue 16)
+        dm, holes0 = reference_design_map(part, names, at, [p.lower for p in specs], [p.upper for p in specs])
     x0 = np.array([float(at[n]) for n in names])
-    model = LinearFeatureModel.from_design_map(dm, names, x0)
+    model = LinearFeatureModel.from_design_map(dm, names, [float(dm.at[n]) for n in names])
     variables = []
     for p in specs:
         resizes = np.abs(np.asarray(dm.dR)[:, names.index(p.name)]).max(initial=0.0) > 0

@@ -52,7 +52,8 @@ def test_multistart_and_global_escape_a_local_optimum():
     local = optimise(_multimodal(), OptimizerConfig(method="local"))
     assert local.x_best[0] < 0
     multi = optimise(_multimodal(), OptimizerConfig(method="multistart", starts=4, seed=1))
-    assert multi.x_best[0] == pytest.approx(2.0, abs=1e-4) and len(multi.starts) == 4
+    assert multi.x_best[0] == pytest.approx(2.0, abs=1e-4) and len(multi.starts) == 4 + 1  # Sobol + the initial
+    assert multi.starts[-1]["x_start"] == [-2.5]  # the initial design is the extra, last start
     glob = optimise(_multimodal(), OptimizerConfig(method="global", seed=2, de_maxiter=20))
     assert glob.x_best[0] == pytest.approx(2.0, abs=1e-4)
 

@@ -2,8 +2,8 @@
 
 ``optimise(problem, config, progress=None) -> OptimResult`` with ``config.method``:
 
-- ``"multistart"`` (default): SLSQP (or trust-constr) from the initial design and from ``starts − 1`` points
-  of a scrambled Sobol design (``scipy.stats.qmc``, seeded);
+- ``"multistart"`` (default): SLSQP (or trust-constr) from ``starts`` points of a scrambled Sobol design
+  (``scipy.stats.qmc``, seeded), then from the initial design (one extra start, last: it never decides a tie);
 - ``"local"``: one local solve from the initial design;
 - ``"global"``: ``scipy.optimize.differential_evolution`` (seeded, constraints as ``NonlinearConstraint``)
   followed by a local polish;

@@ -159,9 +159,14 @@ def sobol_starts(p: int, n: int, seed: int) -> np.ndarray:
 
 
 def multistart(ev: Evaluator, config: Any) -> list[dict]:
-    """Local solves from the initial design and ``config.starts − 1`` Sobol points; one summary per start."""
+    """Local solves from ``config.starts`` points of a seeded Sobol design of the search box (they cover it
+    whatever the initial design), then from the initial design as one extra start; one summary per start.
+
+    The initial design comes last so that it never decides a tie: the best design so far is replaced only by a
+    strictly better one (``Evaluator._consider``), so among equally good optima the Sobol starts' is kept and
+    the answer does not depend on where the part's current values happen to be (issue 16)."""
     u0 = ev.to_u(ev.x_base)
-    starts = np.vstack([u0[None], sobol_starts(u0.size, max(config.starts - 1, 0), config.seed)])
+    starts = np.vstack([sobol_starts(u0.size, config.starts, config.seed), u0[None]])
     summaries = []
     for k, u in enumerate(starts):
         ev.start = k
@@ -195,8 +200,7 @@ def global_solve(ev: Evaluator, config: Any) -> np.ndarray:
         warnings.simplefilter("ignore")
         res = differential_evolution(lambda u: -float(ev.combined(u[None])[0]), [(0.0, 1.0)] * p,
                                      constraints=constraints, seed=config.seed, maxiter=config.de_maxiter,
-                                     popsize=config.de_popsize, polish=False, callback=callback, tol=1e-8,
-                                     x0=ev.to_u(ev.x_base))
+                                     popsize=config.de_popsize, polish=False, callback=callback, tol=1e-8)
     ev.phase = "polish"
     return local_solve(ev, np.asarray(res.x), config)
 
