@@ -258,41 +258,45 @@ def posterior_crlb(information: ArrayLike, times_s: ArrayLike, tuning: Any = Non
                    omega_rad_s: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Posterior CRLB of the constant-velocity filter along the trajectory (module docstring).
 
-    information : (L, 6, 6) per-frame measurement information I_k (``PoseInformation.information``, without a
-        prior), δ = (δp mm, δθ rad).
+    information : (..., L, 6, 6) per-frame measurement information I_k (``PoseInformation.information``,
+        without a prior), δ = (δp mm, δθ rad); leading axes batch independent trajectories (e.g. Monte-Carlo
+        truths).
     times_s : (L,) increasing frame times, s.
     tuning : ``vision.FilterTuning`` (P₀, Q: ``q_rate_mm2_s2``, ``q_omega_rad2_s2``, ``q_pose_*``); default
         the closed loop's.
-    omega_rad_s : (L, 3) the true angular rates (camera frame) for F_k (``motion.predict``); None = 0.
+    omega_rad_s : (..., L, 3) the true angular rates (camera frame) for F_k (``motion.predict``); None = 0.
 
-    Returns (bound (L, 12, 12) on the filter's error-state covariance, its pose block's √tr as
-    (σ_t mm, σ_r deg) stacked (L, 2)).
+    Returns (bound (..., L, 12, 12) on the filter's error-state covariance, (..., L, 2) the √tr of its
+    translation and rotation blocks as (σ_t mm, σ_r deg)).
     """
     from cadfeat.vision.estimate import FilterTuning
     from cadfeat.vision.motion import PoseState, predict, process_noise
 
     I_ = np.asarray(information, dtype=float)
     t = np.asarray(times_s, dtype=float)
-    L = len(I_)
-    if I_.shape != (L, 6, 6) or t.shape != (L,) or np.any(np.diff(t) <= 0):
-        raise CadfeatError(f"posterior_crlb: information (L, 6, 6) and increasing times_s (L,) must agree, got "
-                           f"{I_.shape}, {t.shape}")
+    L = len(t)
+    if I_.shape[-3:] != (L, 6, 6) or t.ndim != 1 or np.any(np.diff(t) <= 0):
+        raise CadfeatError(f"posterior_crlb: information (..., L, 6, 6) and increasing times_s (L,) must agree, "
+                           f"got {I_.shape}, {t.shape}")
     tuning = tuning or FilterTuning()
     Q = process_noise(0.0, tuning.q_rate_mm2_s2, tuning.q_omega_rad2_s2, (tuning.q_pose_mm2, tuning.q_pose_rad2))
-    w = np.zeros((L, 3)) if omega_rad_s is None else np.asarray(omega_rad_s, dtype=float)
-    H = np.zeros((L, 12, 12))
-    H[:, :6, :6] = I_
-    P = np.linalg.inv(np.linalg.inv(tuning.P0()) + H[0])
-    out = np.empty((L, 12, 12))
-    out[0] = P
-    state = PoseState.at_rest(np.eye(4)[None])
-    for k in range(1, L):  # the time recursion (sequential by nature)
-        state.omega_rad_s = w[k - 1][None]
+    batch = I_.shape[:-3]
+    w = np.zeros(batch + (L, 3)) if omega_rad_s is None else np.broadcast_to(np.asarray(omega_rad_s, float),
+                                                                              batch + (L, 3))
+    H = np.zeros(batch + (L, 12, 12))
+    H[..., :6, :6] = I_
+    P = np.linalg.inv(np.linalg.inv(tuning.P0()) + H[..., 0, :, :])
+    out = np.empty(batch + (L, 12, 12))
+    out[..., 0, :, :] = P
+    eye = np.broadcast_to(np.eye(4), batch + (4, 4))
+    for k in range(1, L):  # the time recursion (sequential by nature), batched over the leading axes
+        state = PoseState.at_rest(eye)
+        state.omega_rad_s = np.array(w[..., k - 1, :])
         _, F = predict(state, float(t[k] - t[k - 1]))
-        P_pred = F[0] @ P @ F[0].T + Q
-        P = np.linalg.inv(np.linalg.inv(P_pred) + H[k])
-        P = 0.5 * (P + P.T)
-        out[k] = P
-    sig = np.stack([np.sqrt(np.trace(out[:, :3, :3], axis1=-2, axis2=-1)),
-                    np.degrees(np.sqrt(np.trace(out[:, 3:6, 3:6], axis1=-2, axis2=-1)))], axis=-1)
+        P_pred = F @ P @ np.swapaxes(F, -1, -2) + Q
+        P = np.linalg.inv(np.linalg.inv(P_pred) + H[..., k, :, :])
+        P = 0.5 * (P + np.swapaxes(P, -1, -2))
+        out[..., k, :, :] = P
+    sig = np.stack([np.sqrt(np.trace(out[..., :3, :3], axis1=-2, axis2=-1)),
+                    np.degrees(np.sqrt(np.trace(out[..., 3:6, 3:6], axis1=-2, axis2=-1)))], axis=-1)
     return out, sig

@@ -94,7 +94,14 @@ def hole_geometry(camera: Camera, T_cam_part: np.ndarray, centres: np.ndarray, n
     d = camera.project(z1) - camera.project(z0)
     dn = np.linalg.norm(d, axis=-1, keepdims=True)
     axis_dir = np.where(dn > 1e-12, d / np.where(dn > 1e-12, dn, 1.0), 0.0)
-    return HoleGeometry(minor, major, image_margin_from_ellipse(camera, e), facing_margin(c, n),
+    point = r <= 0  # point features (radius 0): no rim, no facing; the projected point must be in the image
+    valid = np.where(point, in_front, valid)
+    facing = np.where(point, 1.0, facing_margin(c, n))
+    pp = camera.project(np.where(in_front[..., None], c, np.array([0.0, 0.0, 1.0])))
+    point_margin = np.minimum(np.minimum(pp[..., 0], camera.width - pp[..., 0]),
+                              np.minimum(pp[..., 1], camera.height - pp[..., 1]))
+    margin = np.where(point, point_margin, image_margin_from_ellipse(camera, e))
+    return HoleGeometry(minor, major, margin, facing,
                         defocus_diameter_px(camera, np.maximum(Z, 1.0)), rim, axis_dir, valid, in_front)
 
 
