@@ -16,6 +16,19 @@ border, and its boundary lies within ``max_residual_px`` of the fitted ellipse �
 one region, a rim cut by an occluding edge or a noise speckle fail that test and are dropped, not
 fitted.
 
+A rim that is partly hidden by another part of the object, or crossed by another edge, can still give a dark
+region that passes the ellipse test with a shifted centre (measured on the flagship: base holes half behind
+the motor plate, up to 9 px). Such a candidate is rejected by the **surround test**: the grey levels on a
+ring just outside the fitted ellipse (``ring_gap_px`` beyond the boundary) must be homogeneous — a whole rim
+on one face is surrounded by that face only, so the spread (98th − 2nd percentile) of the ring must stay
+below ``max_surround`` × the hole's contrast (ring median − interior median). A ring that crosses another
+face, the part's silhouette or another hole fails. The detector also fits the rim's edge rather than the dark
+region's area: the contour of the thresholded region *is* the rim where the bore's walls and bottom are dark
+(as the renderer paints them); where something lit shows through the bore (a wide through hole over another
+face) the region is a crescent, which the residual test rejects. The closed loop additionally drops a hole
+whose rim the part hides according to the predicted pose (``closed_loop``: association with the predicted
+occlusion), so a cut rim is never measured as if whole.
+
 Association (``associate``): the model holes' predicted ellipses (from a predicted pose) are matched to
 detections by ``scipy.optimize.linear_sum_assignment`` on the centre distance, with a gate per hole:
 min(``gate_px``, half the distance to the nearest other predicted hole) (strict: a blob midway between
@@ -62,12 +75,47 @@ def _boundary_residual_px(pts: np.ndarray, centre: np.ndarray, axes: np.ndarray,
     return float(np.max(np.abs(rho - 1.0)) * min(a, b)) if len(rho) else np.inf
 
 
+def _ring_levels(img: np.ndarray, centre: np.ndarray, axes: np.ndarray, angle_rad: float, grow_px: float,
+                 samples: int = 72) -> np.ndarray:
+    """Grey levels (bilinear) at ``samples`` points of the ellipse grown by ``grow_px`` on each semi-axis
+    (negative = shrunk); points outside the image give NaN."""
+    a, b = max(axes[0] / 2 + grow_px, 0.5), max(axes[1] / 2 + grow_px, 0.5)
+    t = 2 * np.pi * np.arange(samples) / samples
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    x = centre[0] + a * np.cos(t) * c - b * np.sin(t) * s
+    y = centre[1] + a * np.cos(t) * s + b * np.sin(t) * c
+    h, w = img.shape
+    ok = (x >= 0) & (y >= 0) & (x <= w - 1.001) & (y <= h - 1.001)
+    x0, y0 = np.floor(np.where(ok, x, 0)).astype(int), np.floor(np.where(ok, y, 0)).astype(int)
+    fx, fy = np.where(ok, x, 0) - x0, np.where(ok, y, 0) - y0
+    im = img.astype(np.float64)
+    v = (im[y0, x0] * (1 - fx) * (1 - fy) + im[y0, x0 + 1] * fx * (1 - fy) + im[y0 + 1, x0] * (1 - fx) * fy
+         + im[y0 + 1, x0 + 1] * fx * fy)
+    return np.where(ok, v, np.nan)
+
+
+def surround_ok(img: np.ndarray, centre: np.ndarray, axes: np.ndarray, angle_rad: float, gap_px: float,
+                max_surround: float) -> bool:
+    """The surround test of the module docstring: the ring ``gap_px`` outside the ellipse is one face."""
+    outer = _ring_levels(img, centre, axes, angle_rad, gap_px)
+    inner = _ring_levels(img, centre, axes, angle_rad, -min(gap_px, 0.3 * axes[1]))
+    if np.isnan(outer).any():
+        return False
+    contrast = float(np.median(outer) - np.nanmedian(inner))
+    if not contrast > 0:
+        return False
+    lo, hi = np.percentile(outer, [2, 98])
+    return bool(hi - lo <= max_surround * contrast)
+
+
 def detect_holes(image: np.ndarray, *, min_points: int = 10, max_residual_px: float = 1.5,
-                 min_minor_px: float = 2.5, smooth_sigma_px: float = 0.8) -> Detections:
+                 min_minor_px: float = 2.5, smooth_sigma_px: float = 0.8, ring_gap_px: float = 2.5,
+                 max_surround: float = 0.15) -> Detections:
     """Dark elliptic regions enclosed by the bright part in a grey uint8 image (H, W) (module docstring).
 
     ``smooth_sigma_px`` Gaussian pre-smoothing against pixel noise (0 = none); ``min_minor_px`` smallest
-    minor axis kept; ``max_residual_px`` ellipse-fit acceptance.
+    minor axis kept; ``max_residual_px`` ellipse-fit acceptance; ``ring_gap_px`` / ``max_surround`` the
+    surround test (partly hidden or crossed rims; ``max_surround`` = inf switches it off).
     """
     import cv2
 
@@ -96,6 +144,9 @@ def detect_holes(image: np.ndarray, *, min_points: int = 10, max_residual_px: fl
         axes = np.array([max(d1, d2), min(d1, d2)])
         residual = _boundary_residual_px(pts, np.array([cx, cy]), axes, angle)
         if residual > max_residual_px:
+            continue
+        if np.isfinite(max_surround) and not surround_ok(img, np.array([cx, cy]), axes, angle, ring_gap_px,
+                                                         max_surround):
             continue
         angle = (angle + np.pi / 2) % np.pi - np.pi / 2
         rows.append((cx, cy, axes[0], axes[1], angle, residual))
