@@ -108,23 +108,57 @@ def surround_ok(img: np.ndarray, centre: np.ndarray, axes: np.ndarray, angle_rad
     return bool(hi - lo <= max_surround * contrast)
 
 
+def refine_edges(img: np.ndarray, pts: np.ndarray, level: float, reach_px: float = 2.0) -> np.ndarray:
+    """Sub-pixel edge points (M, 2): each contour pixel moved along the local grey-level gradient to where the
+    (smoothed, float) image crosses ``level`` (linear interpolation between samples 0.25 px apart within
+    ±``reach_px``; the crossing nearest the pixel). Points without a crossing keep their pixel position."""
+    gy, gx = np.gradient(img)
+    ix, iy = pts[:, 0].astype(int), pts[:, 1].astype(int)
+    g = np.stack([gx[iy, ix], gy[iy, ix]], axis=-1)
+    norm = np.linalg.norm(g, axis=-1, keepdims=True)
+    d = np.where(norm > 1e-9, g / np.where(norm > 1e-9, norm, 1.0), 0.0)
+    t = np.arange(-reach_px, reach_px + 1e-9, 0.25)
+    xy = pts[:, None, :] + t[None, :, None] * d[:, None, :]                          # (M, T, 2)
+    h, w = img.shape
+    x = np.clip(xy[..., 0], 0, w - 1.001)
+    y = np.clip(xy[..., 1], 0, h - 1.001)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = x - x0, y - y0
+    prof = (img[y0, x0] * (1 - fx) * (1 - fy) + img[y0, x0 + 1] * fx * (1 - fy) + img[y0 + 1, x0] * (1 - fx) * fy
+            + img[y0 + 1, x0 + 1] * fx * fy) - level                                  # (M, T)
+    cross = (prof[:, :-1] <= 0) & (prof[:, 1:] > 0) | (prof[:, :-1] > 0) & (prof[:, 1:] <= 0)
+    mid = 0.5 * (t[:-1] + t[1:])
+    dist = np.where(cross, np.abs(mid)[None], np.inf)
+    k = np.argmin(dist, axis=1)
+    rows = np.arange(len(pts))
+    a, b = prof[rows, k], prof[rows, k + 1]
+    frac = np.where(np.abs(b - a) > 1e-12, a / np.where(np.abs(b - a) > 1e-12, a - b, 1.0), 0.5)
+    step = t[k] + frac * (t[k + 1] - t[k])
+    ok = np.isfinite(dist[rows, k])
+    return np.where(ok[:, None], pts + step[:, None] * d, pts)
+
+
 def detect_holes(image: np.ndarray, *, min_points: int = 10, max_residual_px: float = 1.5,
                  min_minor_px: float = 2.5, smooth_sigma_px: float = 0.8, ring_gap_px: float = 2.5,
-                 max_surround: float = 0.15) -> Detections:
+                 max_surround: float = 0.15, subpixel: bool = True) -> Detections:
     """Dark elliptic regions enclosed by the bright part in a grey uint8 image (H, W) (module docstring).
 
     ``smooth_sigma_px`` Gaussian pre-smoothing against pixel noise (0 = none); ``min_minor_px`` smallest
     minor axis kept; ``max_residual_px`` ellipse-fit acceptance; ``ring_gap_px`` / ``max_surround`` the
-    surround test (partly hidden or crossed rims; ``max_surround`` = inf switches it off).
+    surround test (partly hidden or crossed rims; ``max_surround`` = inf switches it off); ``subpixel``: fit
+    the rim's sub-pixel edge (``refine_edges``) instead of the region's boundary pixels.
     """
     import cv2
 
     img = np.asarray(image)
     if img.ndim == 3:
         img = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+    img = img.astype(np.float32)
     if smooth_sigma_px > 0:
         img = cv2.GaussianBlur(img, (0, 0), smooth_sigma_px)
-    _, binary = cv2.threshold(img, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    level, binary = cv2.threshold(np.clip(np.rint(img), 0, 255).astype(np.uint8), 0, 255,
+                                  cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    level = float(level) + 0.5  # Otsu keeps grey levels > level: the edge lies between level and level + 1
     contours, hierarchy = cv2.findContours(binary, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     if hierarchy is None:
         return _empty()
@@ -136,6 +170,8 @@ def detect_holes(image: np.ndarray, *, min_points: int = 10, max_residual_px: fl
         pts = contour[:, 0, :].astype(np.float64)
         if pts[:, 0].min() <= 0 or pts[:, 1].min() <= 0 or pts[:, 0].max() >= w - 1 or pts[:, 1].max() >= h - 1:
             continue
+        if subpixel:
+            pts = refine_edges(img, pts, level)
         (cx, cy), (d1, d2), angle_deg = cv2.fitEllipse(pts.astype(np.float32))
         if not (np.isfinite(cx) and np.isfinite(cy)) or min(d1, d2) < min_minor_px:
             continue
