@@ -22,7 +22,10 @@ the motor plate, up to 9 px). Such a candidate is rejected by the **surround tes
 ring just outside the fitted ellipse (``ring_gap_px`` beyond the boundary) must be homogeneous — a whole rim
 on one face is surrounded by that face only, so the spread (98th − 2nd percentile) of the ring must stay
 below ``max_surround`` × the hole's contrast (ring median − interior median). A ring that crosses another
-face, the part's silhouette or another hole fails. The detector also fits the rim's edge rather than the dark
+face, the part's silhouette or another hole fails. A cut by an edge of the *same* grey (a wall's top face
+parallel to the hole's face) is invisible to it: the calibration (``tools/calibrate_detection.py``) measured
+such rims accepted up to ~30 % hidden with offsets up to ~1 px — hence the association below.
+The detector also fits the rim's edge rather than the dark
 region's area: the contour of the thresholded region *is* the rim where the bore's walls and bottom are dark
 (as the renderer paints them); where something lit shows through the bore (a wide through hole over another
 face) the region is a crescent, which the residual test rejects. The closed loop additionally drops a hole
