@@ -94,7 +94,6 @@ class PoseInformation:
     share: np.ndarray
     weakest: np.ndarray
     weakest_sigma: np.ndarray
-    weakest_words: tuple[str, ...]
     probability: np.ndarray
     sigma_px: np.ndarray
     offset_px: np.ndarray
@@ -104,7 +103,12 @@ class PoseInformation:
     rotation_length_mm: float = 1.0
 
     def as_dict(self) -> dict[str, Any]:
-        return {f.name: getattr(self, f.name) for f in fields(self)}
+        return {**{f.name: getattr(self, f.name) for f in fields(self)}, "weakest_words": self.weakest_words}
+
+    @property
+    def weakest_words(self) -> tuple[str, ...]:
+        """(L,) the weakest direction in words per pose (``direction_words``; built on demand, for reports)."""
+        return tuple(direction_words(v) for v in self.weakest)
 
     def error_mm(self, rotation_length_mm: float | None = None) -> np.ndarray:
         """(L,) predicted error in one length: √(e_t² + (ℓ e_r)²), e_r in rad, ℓ mm (default: the result's)."""
@@ -248,9 +252,8 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     weakest = V[:, :, 0]
     weakest_sigma = np.where(w[:, 0] > RANK_TOL * np.maximum(w[:, -1], 1e-300),
                              1.0 / np.sqrt(np.maximum(w[:, 0], 1e-300)), np.inf)
-    words = tuple(direction_words(v) for v in weakest)  # strings (one per pose) for the report
     return PoseInformation(info, cov, sig_t, sig_r, bias, b_t, b_r, np.hypot(b_t, sig_t), np.hypot(b_r, sig_r),
-                           share, weakest, weakest_sigma, words, p, sig, off, z, J, p >= 0.5,
+                           share, weakest, weakest_sigma, p, sig, off, z, J, p >= 0.5,
                            float(rotation_length_mm))
 
 
