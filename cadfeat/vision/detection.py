@@ -25,9 +25,11 @@ below ``max_surround`` × the hole's contrast (ring median − interior median).
 face, the part's silhouette or another hole fails. A cut by an edge of the *same* grey (a wall's top face
 parallel to the hole's face) is invisible to it: the calibration (``tools/calibrate_detection.py``) measured
 such rims accepted up to ~30 % hidden with offsets up to ~1 px — hence the association below.
-The detector also fits the rim's edge rather than the dark
-region's area: the contour of the thresholded region *is* the rim where the bore's walls and bottom are dark
-(as the renderer paints them); where something lit shows through the bore (a wide through hole over another
+The detector fits the rim's **sub-pixel edge** (``refine_edges``: each contour pixel moved along the grey-level
+gradient to where the smoothed image crosses the threshold), not the thresholded region's boundary pixels,
+whose pixel quantisation made runs with 2 grey levels of noise identical and left offsets of a few tenths of a
+pixel; the dark region's edge is the rim where the bore's walls and bottom are dark (as the renderer paints
+them); where something lit shows through the bore (a wide through hole over another
 face) the region is a crescent, which the residual test rejects. The closed loop additionally drops a hole
 whose rim the part hides according to the predicted pose (``closed_loop``: association with the predicted
 occlusion), so a cut rim is never measured as if whole.
