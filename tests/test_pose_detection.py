@@ -2,8 +2,9 @@
 
 - On held-out render conditions (radii, depths, view angles, distances and blurs not in the calibration grid
   of ``tools/calibrate_detection.py``): the detection rate within ±0.25 of the model's probability, the
-  measured centre noise within a factor 3 of the model's σ (12 noise draws: the estimate itself is ±25 %), and
-  the mean centre offset within 0.15 px of the model's;
+  measured centre noise within a factor 3 of the model's noise term (12 noise draws: the estimate itself is
+  ±25 %), and the mean centre offset within 3σ of the model's systematic offset (σ including the pixel-grid
+  term, whose draw one placement is);
 - a rim partly hidden by a wall is dropped by the closed loop (association with the predicted occlusion),
   which the raw detector would measure off by about 1 px, and the model gives it p < 0.1;
 - the committed table and the committed model agree (rate within 0.15 on average over the table).
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -52,11 +54,13 @@ def test_models_agree_with_the_detector_on_held_out_renders(radius, kind, ratio,
     p = float(model.detection_probability(geo, np.zeros((1, 1)))[0, 0])
     assert abs(row["rate"] - p) <= 0.25, (row, p)
     if row["rate"] >= 0.5:
-        sigma, off = model.measurement_model(geo, depth_ratio=[ratio], through=[kind == "through"],
-                                             noise_grey=C.NOISE_GREY)
-        assert sigma[0, 0] / 3 <= row["sigma_px"] <= 3 * sigma[0, 0], (row, sigma)
+        noise, off = replace(model, k_alias_px=0.0).measurement_model(
+            geo, depth_ratio=[ratio], through=[kind == "through"], noise_grey=C.NOISE_GREY)
+        assert noise[0, 0] / 3 <= row["sigma_px"] <= 3 * noise[0, 0], (row, noise)  # over noise draws
+        sigma, _ = model.measurement_model(geo, noise_grey=C.NOISE_GREY)  # + the pixel-grid term
         measured = np.array([row["offset_u_px"], row["offset_v_px"]])
-        assert np.linalg.norm(measured - off[0, 0]) <= 0.15, (measured, off)
+        # one placement's offset: the systematic part plus a pixel-grid draw of per-axis RMS ≈ σ (3σ band)
+        assert np.linalg.norm(measured - off[0, 0]) <= 3 * np.sqrt(2) * sigma[0, 0], (measured, off, sigma)
 
 
 def test_a_partly_hidden_rim_is_rejected_not_measured_as_if_whole():

@@ -184,6 +184,9 @@ def fit(rows: list[dict]) -> PoseModels:
     D = np.where(a["through"][ok] > 0, 1.0, 0.5)
     A = np.column_stack([blur * sin_t, D * sin_t * np.minimum(a["depth_ratio"][ok], 2.0)])
     (k_b, k_d), *_ = np.linalg.lstsq(A, a["offset_axis_px"][ok], rcond=None)
+    # what the systematic offset leaves: the pixel-grid error (per-axis RMS k_a / √ρ, pose_models docstring)
+    resid2 = (a["offset_u_px"][ok] ** 2 + a["offset_v_px"][ok] ** 2 - (A @ np.array([k_b, k_d])) ** 2)
+    k_alias = float(np.sqrt(max(np.mean(0.5 * np.maximum(resid2, 0.0) * rho), 0.0)))
     # occlusion: the raw detector accepts rims cut by an edge of the same grey (a wall's top face over the
     # plate) up to ~30 % hidden, with centre offsets up to ~1 px (the table's hidden > 0 rows); the closed
     # loop therefore drops every hole whose predicted rim is more than RIM_HIDDEN_MAX hidden, and the model
@@ -193,7 +196,7 @@ def fit(rows: list[dict]) -> PoseModels:
     o0 = float(RIM_HIDDEN_MAX)
     return replace(base, m0_px=float(m0), w_m_px=float(w_m), kappa_blur=float(kappa), c0=float(c0),
                    w_c=float(w_c), sigma0_px=float(s0), k_sigma=float(k_s), w0_px=float(w0), k_b=float(k_b),
-                   k_d=float(k_d), o0=o0,
+                   k_d=float(k_d), k_alias_px=k_alias, o0=o0,
                    source=f"tools/calibrate_detection.py: {len(rows)} rendered conditions, noise {NOISE_GREY} grey")
 
 
