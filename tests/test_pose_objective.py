@@ -3,6 +3,8 @@
 - A hole hidden by a wall (exact ray test against a trimesh box, checked by an independent slab test) at every
   pose: shrinking it or moving it (still hidden) never improves g_FOV, g_FOC, g_RES, g_DIR or g_POSE — before
   issue 17, g_RES rewarded shrinking it towards the threshold (−|margin|).
+- ``rim_occlusion`` (hidden fraction of each rim) equals an independent slab test per rim point (exact ray
+  test), and the optimiser's depth-map version is within 0.2 on average;
 - g_POSE is larger-is-better: adding a seen hole never lowers it (more information), for every aggregation;
   worst ≤ rms; as a constraint threshold −0.05 means "predicted error ≤ 0.05 mm".
 """
@@ -98,3 +100,23 @@ def test_g_pose_is_larger_is_better_and_works_as_a_constraint():
         ObjectiveConfig(measures=("pose",), pose_aggregate="median")
     with pytest.raises(CadfeatError, match="pose information"):
         objective_values(object(), ObjectiveConfig(measures=("pose",)))
+
+
+def test_rim_occlusion_matches_an_independent_slab_test_per_rim_point():
+    from cadfeat.measures.depth import DepthMaps
+    from cadfeat.measures.rim_occlusion import rim_points
+
+    mesh, T, _, c, n, r = _scene()
+    c = c.copy()
+    c[3] = [-1.0, 42.0, 0.0]  # beyond the wall's end: partly hidden depending on the view
+    frac = rim_occlusion(mesh, T, c, n, r, samples=16)
+    cams = invert_T(T)[:, :3, 3]
+    pts = rim_points(c, n, r, 16)
+    slab = np.stack([[_hits_wall(p, cams) for p in pts[j]] for j in range(len(c))])      # (N, K, L)
+    expected = slab.mean(axis=1).T                                                        # (L, N)
+    np.testing.assert_allclose(frac, expected, atol=1e-12)
+    assert ((expected > 0) & (expected < 1)).any()  # the scene has partly hidden rims
+    fast = rim_occlusion(DepthMaps(mesh, CAMERA, T), T, c, n, r, samples=16)  # the optimiser's approximation
+    # (measured: mean |difference| 0.12, up to 0.44 at rims half behind the wall's edge — the maps' cells are
+    # as wide as the rim; good enough to steer an optimiser, reports use the exact test)
+    assert np.mean(np.abs(fast - expected)) < 0.2
