@@ -11,8 +11,8 @@ log σ and on the offset) and both are written as package data:
     cadfeat/measures/data/detection_calibration.csv   the measured table
     cadfeat/measures/data/detection_model.json        the fitted ``PoseModels``
 
-Grid (coarse, ~3 min on one core): 2 radii × 3 hole kinds (blind shallow, blind deep, through) × 5 view
-angles × 2 distances = 60 renders, each with 3 blurs × 12 noise seeds; plus 5 partial-occlusion renders (a
+Grid (coarse, ~2 min on one core): 3 radii × 3 hole kinds (blind shallow, blind deep, through) × 5 view
+angles × 2 distances = 90 renders, each with 3 blurs × 12 noise seeds; plus 5 partial-occlusion renders (a
 wall whose edge covers part of the rim). Run: ``python tools/calibrate_detection.py`` (``--quick`` for a
 smaller grid, no files written).
 """
@@ -38,7 +38,7 @@ from cadfeat.measures.pose_models import PoseModels, hole_geometry  # noqa: E402
 DATA = ROOT / "cadfeat" / "measures" / "data"
 CAMERA = Camera(fx=800.0, fy=800.0, cx=160.0, cy=120.0, width=320, height=240, focus_distance_mm=300.0)
 NOISE_GREY = 2.0
-RADII = (1.5, 3.0)
+RADII = (1.5, 3.0, 5.0)
 KINDS = (("blind", 0.3), ("blind", 1.0), ("through", 5.0 / 6.0))   # (kind, depth / diameter)
 ANGLES_DEG = (0.0, 25.0, 45.0, 60.0, 72.0)
 DISTANCES = (300.0, 520.0)
@@ -157,7 +157,7 @@ def _arrays(rows: list[dict]) -> dict[str, np.ndarray]:
 
 def fit(rows: list[dict]) -> PoseModels:
     """Least-squares fits of the detection rate, log σ and the axis offset (module docstring)."""
-    from scipy.optimize import least_squares
+    from scipy.optimize import least_squares, nnls
 
     a = _arrays(rows)
     base = PoseModels()
@@ -185,8 +185,10 @@ def fit(rows: list[dict]) -> PoseModels:
     A = np.column_stack([blur * sin_t, D * sin_t * np.minimum(a["depth_ratio"][ok], 2.0)])
     (k_b, k_d), *_ = np.linalg.lstsq(A, a["offset_axis_px"][ok], rcond=None)
     # what the systematic offset leaves: the pixel-grid error (per-axis RMS k_a / √ρ, pose_models docstring)
-    resid2 = (a["offset_u_px"][ok] ** 2 + a["offset_v_px"][ok] ** 2 - (A @ np.array([k_b, k_d])) ** 2)
-    k_alias = float(np.sqrt(max(np.mean(0.5 * np.maximum(resid2, 0.0) * rho), 0.0)))
+    resid2 = 0.5 * np.maximum(a["offset_u_px"][ok] ** 2 + a["offset_v_px"][ok] ** 2
+                              - (A @ np.array([k_b, k_d])) ** 2, 0.0)        # per-axis squared residual
+    (floor2, ka2), _ = nnls(np.column_stack([np.ones(len(rho)), 1.0 / rho]), resid2)
+    k_alias, alias_floor = float(np.sqrt(ka2)), float(np.sqrt(floor2))
     # occlusion: the raw detector accepts rims cut by an edge of the same grey (a wall's top face over the
     # plate) up to ~30 % hidden, with centre offsets up to ~1 px (the table's hidden > 0 rows); the closed
     # loop therefore drops every hole whose predicted rim is more than RIM_HIDDEN_MAX hidden, and the model
@@ -196,7 +198,7 @@ def fit(rows: list[dict]) -> PoseModels:
     o0 = float(RIM_HIDDEN_MAX)
     return replace(base, m0_px=float(m0), w_m_px=float(w_m), kappa_blur=float(kappa), c0=float(c0),
                    w_c=float(w_c), sigma0_px=float(s0), k_sigma=float(k_s), w0_px=float(w0), k_b=float(k_b),
-                   k_d=float(k_d), k_alias_px=k_alias, o0=o0,
+                   k_d=float(k_d), k_alias_px=k_alias, alias_floor_px=alias_floor, o0=o0,
                    source=f"tools/calibrate_detection.py: {len(rows)} rendered conditions, noise {NOISE_GREY} grey")
 
 

@@ -188,8 +188,8 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
         0 = a point feature, measured at its projection).
     sigma_px : a number (or (L, N) array) fixes the centre noise σ (px) and switches the offsets off; None
         uses the measurement model (``pose_models``).
-    detection : False counts every hole in front of the camera (p = 1 where the ellipse is valid and the hole
-        faces the camera; for checks); True uses the smooth detection model.
+    detection : False counts every hole in front of the camera (p = 1 where the hole faces the camera and, when
+        ``occlusion`` is given, its rim is not hidden; for checks); True uses the smooth detection model.
     occlusion : (L, N) hidden fraction of each rim in [0, 1] (``rim_occlusion``), or bool (hidden); None = none.
     depth_ratio, kinds, through : per hole (N,) depth/diameter, kind ("plain", "counterbore", ...) and through
         flag for the offset model; None = shallow plain blind holes.
@@ -219,7 +219,7 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     if detection:
         p = models.detection_probability(geo, occ)
     else:
-        p = (geo.in_front & (geo.facing > 0)).astype(float)
+        p = (geo.in_front & (geo.facing > 0) & (occ <= models.o0)).astype(float)
     if sigma_px is not None:
         sig = np.broadcast_to(np.asarray(sigma_px, dtype=float), (L, N)).copy()
         if np.any(~(sig > 0)):

@@ -18,13 +18,15 @@ whole).
 **Centre noise** (px): a least-squares ellipse through ρ boundary points, each with edge noise proportional to
 the grey-level noise and to the edge width √(w₀² + β²), has a centre noise ∝ 1/√ρ:
 
-    σ = √(σ₀² + (k_σ · (noise_grey / 2) · √(w₀² + β²))² / ρ + k_a² / ρ)
+    σ = √(σ₀² + (k_σ · (noise_grey / 2) · √(w₀² + β²))² / ρ + a² + k_a² / ρ)
 
 The last term is the **pixel-grid (aliasing) error**: the rendered rim is a staircase on the pixel grid, so the
 fitted centre is off by a few hundredths of a pixel in a direction that depends on the rim's sub-pixel
 placement. It does not average out over noise draws (the calibration table shows it as a per-condition
 offset), but it changes from frame to frame as the part moves: for the pose it acts as noise (zero mean over
-placements, per-axis RMS k_a / √ρ, fitted to the table's offsets that the systematic model leaves).
+placements, per-axis RMS √(a² + k_a²/ρ), fitted to the table's offsets that the systematic model leaves: a part
+that averages over the rim (k_a) and a floor a that does not — on the flagship the closed loop's measured
+offsets, 0.050 px per axis at ρ ≈ 60–90 px, match it; a 1/√ρ law alone gave 0.032).
 
 **Systematic offset** (px, along d̂): the detector fits the rim's edge; what remains is the asymmetric blur of
 an oblique rim and, for holes whose far wall shows inside the rim, the wall's share of the dark region:
@@ -129,6 +131,7 @@ class PoseModels:
     k_b: float = 0.0
     k_d: float = 0.0
     k_alias_px: float = 0.0
+    alias_floor_px: float = 0.0
     source: str = "defaults (not calibrated)"
 
     def detection_probability(self, geo: HoleGeometry, occlusion: np.ndarray) -> np.ndarray:
@@ -145,7 +148,7 @@ class PoseModels:
         """Centre noise σ (L, N) px and systematic offset b (L, N, 2) px (module docstring)."""
         rho = np.maximum(geo.rim_px, 1.0)
         edge = self.k_sigma * (noise_grey / 2.0) * np.sqrt(self.w0_px ** 2 + geo.blur_px ** 2)
-        sigma = np.sqrt(self.sigma0_px ** 2 + (edge ** 2 + self.k_alias_px ** 2) / rho)
+        sigma = np.sqrt(self.sigma0_px ** 2 + self.alias_floor_px ** 2 + (edge ** 2 + self.k_alias_px ** 2) / rho)
         N = geo.minor_px.shape[-1]
         ratio = np.zeros(N) if depth_ratio is None else np.broadcast_to(np.asarray(depth_ratio, float), (N,))
         thr = np.zeros(N, bool) if through is None else np.broadcast_to(np.asarray(through, bool), (N,))
