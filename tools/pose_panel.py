@@ -1,4 +1,4 @@
-"""Panel: predicted pose error vs the closed loop on designs of the flagship (studies/nema17_mount.toml).
+"""Panel: predicted pose error vs the closed loop on designs of a study's part (default: the flagship).
 
 Designs: the original and ``--designs − 1`` scrambled-Sobol points of the study's design space (seeded). For each:
 the part is rebuilt, its holes extracted (with the part's view direction), the rims' hidden fractions computed
@@ -66,6 +66,8 @@ def score(setup, x, T, times, tuning) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--study", type=Path, default=ROOT / "studies" / "nema17_mount.toml",
+                    help="a part-script study (default: the flagship)")
     ap.add_argument("--designs", type=int, default=12)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--frame-step", type=int, default=2)
@@ -79,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     from cadfeat.vision import FilterTuning, SensorModel
     from cadfeat.vision.closed_loop import TrackingConfig, observe, track_design
 
-    setup = setup_study(load_study(ROOT / "studies" / "nema17_mount.toml"))
+    setup = setup_study(load_study(args.study))
     traj = setup.trajectory
     idx = np.arange(0, len(traj.T_task_cam), args.frame_step)
     T = (invert_T(np.asarray(traj.T_task_cam)) @ setup.T_task_part)[idx]
