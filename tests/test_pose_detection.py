@@ -54,7 +54,7 @@ def test_models_agree_with_the_detector_on_held_out_renders(radius, kind, ratio,
     p = float(model.detection_probability(geo, np.zeros((1, 1)))[0, 0])
     assert abs(row["rate"] - p) <= 0.25, (row, p)
     if row["rate"] >= 0.5:
-        noise, off = replace(model, k_alias_px=0.0).measurement_model(
+        noise, off = replace(model, k_alias_px=0.0, alias_floor_px=0.0).measurement_model(
             geo, depth_ratio=[ratio], through=[kind == "through"], noise_grey=C.NOISE_GREY)
         assert noise[0, 0] / 3 <= row["sigma_px"] <= 3 * noise[0, 0], (row, noise)  # over noise draws
         sigma, _ = model.measurement_model(geo, noise_grey=C.NOISE_GREY)  # + the pixel-grid term
