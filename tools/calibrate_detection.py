@@ -148,6 +148,23 @@ def run_grid(radii=RADII, kinds=KINDS, angles=ANGLES_DEG, distances=DISTANCES, b
     return rows
 
 
+def study_grid(path: Path) -> list[dict]:
+    """The grid with a study's camera, its trajectory's depth range and its holes' radii (up to 3)."""
+    from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.poses import invert_T
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.setup import setup_study
+
+    global CAMERA
+    setup = setup_study(load_study(path))
+    CAMERA = setup.camera
+    T = invert_T(np.asarray(setup.trajectory.T_task_cam)) @ setup.T_task_part
+    c, _, r = holes_to_arrays(setup.holes0)
+    depth = float(np.median((c @ T[:, :3, :3].transpose(0, 2, 1) + T[:, None, :3, 3])[..., 2]))
+    radii = tuple(float(v) for v in np.quantile(np.unique(np.round(r, 1)), [0.0, 0.5, 1.0]))
+    return run_grid(radii=tuple(sorted(set(radii))), distances=(0.85 * depth, 1.15 * depth), seeds=8)
+
+
 # ------------------------------------------------------------------------------------------------ fitting
 def _arrays(rows: list[dict]) -> dict[str, np.ndarray]:
     def num(v: object) -> float:
@@ -230,8 +247,23 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a small grid, print only (no files written)")
     ap.add_argument("--refit", action="store_true", help="refit the models to the committed table (no renders)")
+    ap.add_argument("--study", type=Path, default=None,
+                    help="calibrate with this study's camera, depths and hole radii (written to --out)")
+    ap.add_argument("--out", type=Path, default=None, help="folder for --study's table and model")
     args = ap.parse_args(argv)
     start = time.perf_counter()
+    if args.study is not None:
+        if args.out is None:
+            ap.error("--study needs --out (a folder for the study's calibration)")
+        rows = study_grid(args.study)
+        model = replace(fit(rows), source=f"tools/calibrate_detection.py --study {args.study.name}: {len(rows)} "
+                                          f"rendered conditions with the study's camera")
+        global DATA
+        DATA = args.out
+        write(rows, model)
+        print(f"{len(rows)} conditions in {time.perf_counter() - start:.0f} s -> {args.out}")
+        print(model.to_json())
+        return 0
     if args.refit:
         rows = list(csv.DictReader((DATA / "detection_calibration.csv").open()))
     elif args.quick:

@@ -39,7 +39,7 @@ def designs(space, count: int, seed: int = 0) -> list[np.ndarray]:
     return [np.asarray(space.x0, float)] + [lo + p * (hi - lo) for p in pts[: count - 1]]
 
 
-def score(setup, x, T, times, tuning) -> dict:
+def score(setup, x, T, times, tuning, model=None) -> dict:
     from cadfeat.cad.export import mesh_from_shape
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.measures.pose_information import pose_information, posterior_crlb
@@ -52,9 +52,10 @@ def score(setup, x, T, times, tuning) -> dict:
                         through=[h.through for h in holes], depth_mm=[h.depth_mm for h in holes])
     ratio = [h.depth_mm / (2 * h.radius_mm) for h in holes]
     pi = pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio,
-                          through=[h.through for h in holes], prior_sigma=(20.0, 0.1))
+                          through=[h.through for h in holes], prior_sigma=(20.0, 0.1), model=model)
     _, sig = posterior_crlb(pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio,
-                                             through=[h.through for h in holes]).information, times, tuning)
+                                             through=[h.through for h in holes], model=model).information,
+                            times, tuning)
     rms = lambda a: float(np.sqrt(np.mean(np.square(a))))  # noqa: E731
     return {"shape": shape, "holes": holes,
             "pnp_t": rms(pi.error_translation_mm), "pnp_r": rms(pi.error_rotation_deg),
@@ -72,6 +73,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--frame-step", type=int, default=2)
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--model", type=Path, default=None,
+                    help="a detection_model.json (calibrate_detection.py --study); default: the committed one")
     args = ap.parse_args(argv)
     from scipy.stats import spearmanr
 
@@ -87,12 +90,17 @@ def main(argv: list[str] | None = None) -> int:
     T = (invert_T(np.asarray(traj.T_task_cam)) @ setup.T_task_part)[idx]
     times = np.asarray(traj.times_s)[idx]
     tuning = FilterTuning()
+    model = None
+    if args.model is not None:
+        from cadfeat.measures.pose_models import PoseModels
+
+        model = PoseModels(**json.loads(args.model.read_text()))
     config = TrackingConfig(estimators=("pnp", "iekf"), runs=args.runs, sensor=SensorModel(noise_grey=2.0),
                             tuning=tuning)
     rows = []
     for i, x in enumerate(designs(setup.space, args.designs)):
         start = time.perf_counter()
-        s = score(setup, x, T, times, tuning)
+        s = score(setup, x, T, times, tuning, model)
         obs = observe(s["shape"], s["holes"], setup.camera, T, config.sensor)
         res = track_design(setup.camera, obs, T, times, config)
         sim = {m: (np.nanmean([q["trans_mm_rms"] for q in res.summaries[m]]),
