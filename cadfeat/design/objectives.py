@@ -16,8 +16,13 @@ Resolvability Λ_k
   the min (β → ∞; within s·log(L)/β of it) and the mean (β → 0), and is smooth.
 
 Objective names: g_FOV (cone margin eq. 3.3, or the image margin in px with ``fov_measure="image"``),
-g_FOC (focus margin eq. 3.4–3.6), g_RES (minor axis − ω in px, §3.3.3), g_DIR (Λ, px/mm, eq. 4.33).
-All are "larger is better". Combination of the normalised objectives ĝ_i = (g_i − offset_i) / scale_i
+g_FOC (focus margin eq. 3.4–3.6), g_RES (minor axis − ω in px, §3.3.3), g_DIR (Λ, px/mm, eq. 4.33),
+g_POSE (the predicted pose error, ``pose_objective``: minus the error in mm, so larger is better; measure key
+"pose", needs ``measures.pose`` = a ``cadfeat.measures.PoseInformation`` of the same poses). All are "larger
+is better". Hidden and folded holes: FOV/focus/resolution score each measure's constant floor at those poses
+(``measures.evaluate.unseen_floors``), Λ and g_POSE give them no rows / no information — so no objective
+improves when a hole the camera cannot see shrinks, moves (staying unseen) or vanishes.
+Combination of the normalised objectives ĝ_i = (g_i − offset_i) / scale_i
 (``Normaliser``; default ``"payoff"``: offset = nadir, scale = ideal − nadir, from each objective's own optimum
 over the design space — independent of the starting design):
 
@@ -56,10 +61,15 @@ __all__ = [
     "natural_units",
     "objective_values",
     "per_pose_values",
+    "pose_objective",
 ]
 
 #: measure key → objective name
-MEASURES = {"fov": "g_FOV", "focus": "g_FOC", "resolution": "g_RES", "resolvability": "g_DIR"}
+MEASURES = {"fov": "g_FOV", "focus": "g_FOC", "resolution": "g_RES", "resolvability": "g_DIR", "pose": "g_POSE"}
+#: g_POSE's aggregation over the trajectory (``pose_objective``)
+POSE_AGGREGATES = ("rms", "worst", "logdet")
+#: predicted error (mm) standing for an unobservable pose (singular information) in g_POSE
+POSE_UNOBSERVABLE_MM = 1e3
 AGGREGATES = ("sum", "mean", "min", "smoothmin")
 COMBINES = ("weighted", "maxmin", "constraint", "pareto")
 FEATURE_REDUCTIONS = ("min", "mean", "sum")
@@ -92,6 +102,7 @@ class ObjectiveConfig:
     normalisation: str = "payoff"
     occlusion: bool = True
     score: str | tuple[str, ...] = "movable"
+    pose_aggregate: str = "rms"
 
     def __post_init__(self) -> None:
         measures = tuple(self.measures)
@@ -107,6 +118,7 @@ class ObjectiveConfig:
         _choice("feature_reduce", self.feature_reduce, FEATURE_REDUCTIONS)
         _choice("fov_measure", self.fov_measure, ("cone", "image"))
         _choice("normalisation", self.normalisation, NORMALISATIONS)
+        _choice("pose_aggregate", self.pose_aggregate, POSE_AGGREGATES)
         if not (self.smoothmin_beta > 0):
             raise CadfeatError(f"objective.smoothmin_beta: must be > 0, got {self.smoothmin_beta!r}")
         object.__setattr__(self, "weights", {self.key(k): float(v) for k, v in dict(self.weights).items()})
@@ -154,6 +166,9 @@ def per_pose_values(measures: Any, config: ObjectiveConfig,
     out = {}
     mask = None if feature_mask is None or not np.any(feature_mask) else np.asarray(feature_mask, dtype=bool)
     for m in config.measures:
+        if m == "pose":
+            out[m] = -_pose_errors(_pose_of(measures), config.rotation_length_mm)
+            continue
         if m == "resolvability":
             out[m] = np.asarray(measures.resolvability, dtype=float)
             continue
@@ -188,8 +203,53 @@ def objective_values(measures: Any, config: ObjectiveConfig, units: Mapping[str,
     units = units or {}
     out = {}
     for m, v in per_pose_values(measures, config, feature_mask).items():
+        if m == "pose":
+            out[MEASURES[m]] = pose_objective(_pose_of(measures), config.pose_aggregate, config.rotation_length_mm)
+            continue
         out[MEASURES[m]] = float(aggregate(v, config.aggregate, config.smoothmin_beta, units.get(m, 1.0)))
     return out
+
+
+def _pose_of(measures: Any) -> Any:
+    pose = getattr(measures, "pose", None)
+    if pose is None:
+        raise CadfeatError("objective.measures: 'pose' (g_POSE) needs the pose information of the same poses "
+                           "(measures.pose = cadfeat.measures.pose_information(...)); none was computed")
+    return pose
+
+
+def _pose_errors(pose: Any, rotation_length_mm: float) -> np.ndarray:
+    """(..., L) predicted error per pose, mm: √(e_t² + (ℓ e_r)²) with bias and noise (``PoseInformation``),
+    unobservable poses at ``POSE_UNOBSERVABLE_MM``."""
+    e = np.asarray(pose.error_mm(rotation_length_mm), dtype=float)
+    return np.where(np.isfinite(e), np.minimum(e, POSE_UNOBSERVABLE_MM), POSE_UNOBSERVABLE_MM)
+
+
+def pose_objective(pose: Any, how: str = "rms", rotation_length_mm: float = 50.0) -> float:
+    """g_POSE (mm, larger is better) of a ``PoseInformation`` along the trajectory.
+
+    Per pose the predicted error e_k = √(‖δ_b,p‖² + σ_t² + ℓ² (‖δ_b,θ‖² + σ_θ²)) (bias and noise; δθ in rad,
+    ℓ = ``rotation_length_mm``: a rotation error of 1 rad counts as ℓ mm, as in the resolvability's scaling),
+    then over the L poses (``how``):
+
+    - ``"rms"``: g = −√(mean_k e_k²);
+    - ``"worst"``: g = −max_k e_k;
+    - ``"logdet"`` (D-optimal, noise only): g = −exp(−mean_k log det(S I_k S) / 12), S = diag(1,1,1,1/ℓ,1/ℓ,1/ℓ):
+      minus the geometric-mean standard deviation over the six directions and the poses, mm.
+
+    An unobservable pose (fewer than three holes seen) counts as ``POSE_UNOBSERVABLE_MM``. As a constraint,
+    ``thresholds = {"pose": -0.05}`` means "predicted error ≤ 0.05 mm".
+    """
+    _choice("pose_aggregate", how, POSE_AGGREGATES)
+    if how == "logdet":
+        s = np.array([1.0, 1.0, 1.0] + [1.0 / rotation_length_mm] * 3)
+        info = np.asarray(pose.information, dtype=float) * s[:, None] * s[None, :]
+        sign, logdet = np.linalg.slogdet(info)
+        floor = -12.0 * np.log(POSE_UNOBSERVABLE_MM)
+        logdet = np.where((sign > 0) & np.isfinite(logdet), np.maximum(logdet, floor), floor)
+        return float(-np.exp(-np.mean(logdet) / 12.0))
+    e = _pose_errors(pose, rotation_length_mm)
+    return float(-np.sqrt(np.mean(e * e, axis=-1))) if how == "rms" else float(-np.max(e, axis=-1))
 
 
 def natural_units(config: ObjectiveConfig, camera: Any, n_poses: int, n_features: int,
@@ -203,6 +263,7 @@ def natural_units(config: ObjectiveConfig, camera: Any, n_poses: int, n_features
     - resolution: ω = min_axis_px (px; 1 px if ω = 0);
     - resolvability: √N · f_x / Z̃ px/mm — Λ of N points at the median depth Z̃ (at the reference design)
       translating parallel to the image plane (each moves f_x/Z̃ px per mm);
+    - pose: Z̃ / f_x mm, one pixel's footprint at the median depth (g_POSE is in mm, never summed over poses);
 
     times L for ``aggregate="sum"``."""
     per_pose = {
@@ -211,9 +272,10 @@ def natural_units(config: ObjectiveConfig, camera: Any, n_poses: int, n_features
         "focus": 1.0,
         "resolution": config.min_axis_px if config.min_axis_px > 0 else 1.0,
         "resolvability": np.sqrt(max(n_features, 1)) * camera.fx / max(median_depth_mm, 1e-9),
+        "pose": max(median_depth_mm, 1e-9) / camera.fx,
     }
     factor = n_poses if config.aggregate == "sum" else 1
-    return {m: float(per_pose[m] * factor) for m in config.measures}
+    return {m: float(per_pose[m] * (1 if m == "pose" else factor)) for m in config.measures}
 
 
 @dataclass(frozen=True)
@@ -318,7 +380,7 @@ class Normaliser:
 
 
 _UNITS_NOTE = ("; natural units: FOV 1−cos(α/2), focus 1, resolution ω px, resolvability √N·fx/Z̃ px/mm (per pose; "
-               "×L for sums)")
+               "×L for sums), pose Z̃/fx mm")
 
 
 def combined_indices(config: ObjectiveConfig, names: Sequence[str], constant: Sequence[str] = ()) -> list[int]:

@@ -13,9 +13,14 @@ past it rays fold back into the image) and not hidden by the part when a mesh is
 invisible features are zero — the estimator could not measure them.
 
 Hidden and folded feature-poses (DESIGN.md trust rules): a hole the part hides at a pose, or one past the
-lens's fold radius, never scores better there than the same hole seen — its FOV (cone and image), focus
-and resolution margins at that pose are −|margin| (never positive: the requirement fails there, and the
-farther it is from being met the worse). The diagnostics use the
+lens's fold radius, never scores better there than the same hole seen, and never scores better by shrinking,
+moving or vanishing while it stays unseen — its FOV (cone and image), focus and resolution margins at that pose
+are each measure's floor, a constant independent of the hole's size and position (``unseen_floors``: the value
+of a feature behind the camera — cone −1 − cos(α/2), image ``behind_px``, resolution −ω − max(W, H) — and for
+focus −(near + far)/scale, below any seen hole up to a depth of 2·far + near). Before, they were −|margin|,
+which let an optimiser improve g_RES by shrinking a hidden hole towards the threshold (issue 17). Partly
+hidden holes (centre ray clear, part of the rim hidden) count as seen in these proxies; ``pose_information``
+models them (the detector rejects them). The diagnostics use the
 scaled Jacobian J̃ = J diag(1, 1, 1, 1/ℓ, 1/ℓ, 1/ℓ) (ℓ = ``rotation_length_mm``), so every column is in px/mm;
 with the default ℓ = 1 mm that is the thesis's J.
 """
@@ -193,7 +198,7 @@ def _evaluate_compiled(kernel: Any, camera: Camera, T: np.ndarray, s: np.ndarray
     out = dict(zip(("fov", "fov_px", "focus", "resolution_px", "minor_axis_px", "facing", "angle_rad"), f,
                    strict=True))
     out.update(visible=visible, centre_px=centre, axes_px=axes_px)
-    out.update(_unseen(camera, lens[0], lens[1], r * lens[2], Z, occlusion_mesh, -rt, c, n, out))
+    out.update(_unseen(camera, lens[0], lens[1], r * lens[2], Z, occlusion_mesh, -rt, c, n, out, min_axis_px))
     out.update({k: np.empty(L) for k in _PER_POSE}, singular=np.empty(L, dtype=bool))
     D = list(lens[3:]) if mode else [camera.fx, 0.0, 0.0, camera.fy]
     _jacobian_measures(lens[0], lens[1], lens[2], D, visible, s, rotation_length_mm, out)
@@ -236,18 +241,27 @@ def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np
     if not ell.valid.all():  # invalid ellipses: the (depth-clamped) projection of the centre
         bad = ~ell.valid
         centre[bad] = camera.distort_normalized(np.stack([x[bad], y[bad]], axis=-1))
-    flags = _unseen(camera, x, y, r * inv_z, Z, occlusion_mesh, -rt, c, n, out)
+    flags = _unseen(camera, x, y, r * inv_z, Z, occlusion_mesh, -rt, c, n, out, min_axis_px)
     out["hidden"][...] = flags["hidden"]
     out["folded"][...] = flags["folded"]
     _jacobian_measures(x, y, inv_z, D, visible, s, rotation_length_mm, out)
 
 
+def unseen_floors(camera: Camera, min_axis_px: float) -> dict[str, float]:
+    """The constant margins of an unseen (hidden or folded) feature-pose, per measure (module docstring)."""
+    near, far = camera.depth_of_field_mm
+    return {"fov": -1.0 - float(np.cos(0.5 * camera.fov_rad)), "fov_px": behind_px(camera),
+            "focus": -(near + (far if np.isfinite(far) else 0.0)) / focus_scale_mm(camera),
+            "resolution_px": -float(min_axis_px) - float(max(camera.width, camera.height))}
+
+
 def _unseen(camera: Camera, x: np.ndarray, y: np.ndarray, rim_reach: np.ndarray, Z: np.ndarray, mesh: Any,
             camera_positions: np.ndarray, c: np.ndarray, n: np.ndarray,
-            out: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+            out: dict[str, np.ndarray], min_axis_px: float = 5.0) -> dict[str, np.ndarray]:
     """Hidden (by ``mesh``) and folded (past ``camera.fold_radius``: the centre's normalised radius plus the
     rim's angular reach R/Z) feature-poses: not ``visible``, and their FOV, focus and resolution margins
-    −|margin| (module docstring). Modifies ``out`` in place; returns {"hidden", "folded"} (L, N) bool."""
+    the constant floors of ``unseen_floors`` (module docstring). Modifies ``out`` in place; returns
+    {"hidden", "folded"} (L, N) bool."""
     L, N = x.shape
     r_fold = camera.fold_radius
     folded = np.zeros((L, N), dtype=bool)
@@ -262,9 +276,8 @@ def _unseen(camera: Camera, x: np.ndarray, y: np.ndarray, rim_reach: np.ndarray,
     unseen = hidden | folded
     if unseen.any():
         out["visible"] &= ~unseen
-        for key in ("fov", "fov_px", "focus", "resolution_px"):
-            a = out[key]
-            a[unseen] = -np.abs(a[unseen])
+        for key, floor in unseen_floors(camera, min_axis_px).items():
+            out[key][unseen] = floor
     return {"hidden": hidden, "folded": folded}
 
 

@@ -33,6 +33,8 @@ if TYPE_CHECKING:  # pragma: no cover
 ROI_MARGIN_PX = 12
 #: Grey level above which a clean-render pixel belongs to the lit part.
 PART_LEVEL = 20.0
+#: A hole whose rim the part hides by more than this fraction at the predicted pose is not associated.
+RIM_HIDDEN_MAX = 0.03
 
 
 @dataclass(frozen=True)
@@ -71,7 +73,10 @@ class TrackingConfig:
 @dataclass
 class Observation:
     """One design seen along the trajectory: per frame the blurred noiseless ROI image (float32), its
-    top-left offset (u0, v0) px, the holes' predicted ellipses at the nominal pose, and the model arrays."""
+    top-left offset (u0, v0) px, the holes' predicted ellipses at the nominal pose, the model arrays and
+    ``rim_hidden`` (F, N): the fraction of each rim the part hides at the nominal pose (``measures.rim_occlusion``;
+    None = not computed). A hole with more than ``RIM_HIDDEN_MAX`` hidden is not associated (association with
+    the predicted occlusion: a cut rim is never measured as if whole)."""
 
     optical: list[np.ndarray]
     offsets: np.ndarray
@@ -80,6 +85,7 @@ class Observation:
     normals: np.ndarray
     radii: np.ndarray
     names: list[str]
+    rim_hidden: np.ndarray | None = None
 
 
 @dataclass
@@ -104,8 +110,9 @@ class DesignTracking:
 
 
 def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, sensor: SensorModel,
-            screws: np.ndarray | None = None) -> Observation:
-    """Render + blur once (module docstring). T_cam_part (F, 4, 4) mm, screws (F, 6) for motion blur."""
+            screws: np.ndarray | None = None, predict_occlusion: bool = True) -> Observation:
+    """Render + blur once (module docstring). T_cam_part (F, 4, 4) mm, screws (F, 6) for motion blur;
+    ``predict_occlusion``: the rims' hidden fractions at these poses (``Observation.rim_hidden``)."""
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.measures import hole_ellipse
 
@@ -131,12 +138,24 @@ def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.nd
 
     predicted = [_E(ell.centre_px[k], ell.axes_px[k], ell.angle_rad[k], ell.valid[k]) for k in range(len(T))]
     names = [h.name or f"hole{j}" for j, h in enumerate(holes)]
-    return Observation(optical, offsets, predicted, centres, normals, radii, names)
+    hidden = _rim_hidden(shape, holes, T, centres, normals, radii) if predict_occlusion else None
+    return Observation(optical, offsets, predicted, centres, normals, radii, names, hidden)
+
+
+def _rim_hidden(shape: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
+                radii: np.ndarray) -> np.ndarray:
+    """(F, N) hidden fraction of each rim (ray test against the part's mesh, ``measures.rim_occlusion``)."""
+    from cadfeat.cad.export import mesh_from_shape
+    from cadfeat.measures.rim_occlusion import rim_occlusion
+
+    mesh = mesh_from_shape(shape, tolerance=0.05)
+    return rim_occlusion(mesh, T, centres, normals, radii, samples=12, through=[h.through for h in holes],
+                         depth_mm=[h.depth_mm for h in holes])
 
 
 def _expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.ndarray:
     """(F, N): a hole counts as expected when its ellipse is valid, inside the image with its whole extent,
-    facing the camera and its minor axis ≥ 3 px (detectable in principle; occlusion not modelled)."""
+    facing the camera, its minor axis ≥ 3 px and (when predicted) its rim not hidden by the part."""
     c_cam = np.einsum("fij,nj->fni", T[:, :3, :3], obs.centres) + T[:, None, :3, 3]
     n_cam = np.einsum("fij,nj->fni", T[:, :3, :3], obs.normals)
     facing = np.einsum("fnk,fnk->fn", n_cam, -c_cam) > 0
@@ -146,6 +165,8 @@ def _expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.nda
         cu, cv = np.asarray(e.centre_px)[:, 0], np.asarray(e.centre_px)[:, 1]
         inside = (cu > half) & (cv > half) & (cu < camera.width - half) & (cv < camera.height - half)
         out[k] = np.asarray(e.valid) & inside & facing[k] & (np.asarray(e.axes_px)[:, 1] >= 3.0)
+    if obs.rim_hidden is not None:
+        out &= obs.rim_hidden <= RIM_HIDDEN_MAX
     return out
 
 
@@ -198,6 +219,8 @@ def detect_sequence(obs: Observation, noise_grey: float, seed: int, gate_px: flo
         d = Detections(d.centre_px + obs.offsets[k], d.axes_px, d.angle_rad, d.residual_px)
         dets.append(d)
         pixels[k] = associate(obs.predicted[k], d, gate_px)
+        if obs.rim_hidden is not None:
+            pixels[k, obs.rim_hidden[k] > RIM_HIDDEN_MAX] = np.nan
     return pixels, dets
 
 

@@ -18,6 +18,7 @@ from scipy.spatial.transform import Rotation
 from cadfeat import measures
 from cadfeat.camera import Camera
 from cadfeat.errors import CadfeatError
+from cadfeat.measures.evaluate import unseen_floors
 from cadfeat.poses import invert_T, look_at, make_T, points_in_frames, rotate_vectors
 
 pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
@@ -152,18 +153,24 @@ def test_evaluate_matches_the_individual_measures(ell):
     P = points_in_frames(T, c)
     Nc = rotate_vectors(T[:, None], n_unit[None])
     e = measures.hole_ellipse(cam, P, Nc, r)
-    # past the lens's fold radius (thesis lens: 23° off axis) a feature is unseen: margins −|margin| there
+    # past the lens's fold radius (thesis lens: 23° off axis) a feature is unseen: margins at their constant
+    # floors there (independent of the feature's size and position; issue 17)
     reach = np.hypot(P[..., 0], P[..., 1]) / P[..., 2] + r / P[..., 2]
     folded = reach > cam.fold_radius
     assert folded.any() and not folded.all()
     np.testing.assert_array_equal(m.folded, folded)
 
-    def unseen(a):
-        return np.where(folded, -np.abs(a), a)
-    np.testing.assert_allclose(m.fov, unseen(measures.fov_cone_margin(cam, P)), atol=1e-12)
-    np.testing.assert_allclose(m.fov_px, unseen(measures.fov_image_margin_px(cam, P, Nc, r)), atol=1e-8)
-    np.testing.assert_allclose(m.focus, unseen(measures.focus_margin(cam, P)), atol=1e-12)
-    np.testing.assert_allclose(m.resolution_px, unseen(measures.resolution_margin_px(cam, P, Nc, r, 3.0)), atol=1e-8)
+    floors = unseen_floors(cam, 3.0)
+
+    def unseen(a, key):
+        return np.where(folded, floors[key], a)
+    np.testing.assert_allclose(m.fov, unseen(measures.fov_cone_margin(cam, P), "fov"), atol=1e-12)
+    np.testing.assert_allclose(m.fov_px, unseen(measures.fov_image_margin_px(cam, P, Nc, r), "fov_px"), atol=1e-8)
+    np.testing.assert_allclose(m.focus, unseen(measures.focus_margin(cam, P), "focus"), atol=1e-12)
+    np.testing.assert_allclose(m.resolution_px, unseen(measures.resolution_margin_px(cam, P, Nc, r, 3.0),
+                                                       "resolution_px"), atol=1e-8)
+    for key in floors:  # the floor is never better than the same feature seen
+        assert np.all(floors[key] <= getattr(m, key) + 1e-12)
     assert not (m.visible & folded).any()
     np.testing.assert_allclose(m.facing, measures.facing_margin(P, Nc), atol=1e-12)
     np.testing.assert_allclose(m.centre_px, e.centre_px, atol=1e-8)
@@ -194,7 +201,8 @@ def test_evaluate_sphere_resolution_model():
     m = measures.evaluate(cam, T, s, c, n, r, min_axis_px=3.0, resolution_model="sphere")
     P = points_in_frames(T, c)
     expected = measures.resolution_margin_sphere(cam, P, None, r, 3.0)
-    np.testing.assert_allclose(m.resolution_px, np.where(m.folded, -np.abs(expected), expected), atol=1e-8)
+    floor = unseen_floors(cam, 3.0)["resolution_px"]
+    np.testing.assert_allclose(m.resolution_px, np.where(m.folded, floor, expected), atol=1e-8)
     circle = measures.evaluate(cam, T, s, c, n, r, min_axis_px=3.0)
     np.testing.assert_array_equal(m.axes_px, circle.axes_px)
     pin = cam.without_distortion()  # the sphere contains the rim, so its outline is never thinner (exact pinhole)

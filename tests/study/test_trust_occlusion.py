@@ -57,7 +57,10 @@ def test_optimum_moves_out_from_behind_the_wall(tmp_path):
     res = optimise(seen.problem, seen.config.optimizer)
     x = float(res.x_best[0])
     m = seen.problem.measures(res.x_best)
-    assert x > 38.0 and m.hidden.mean() <= 0.25  # (the optimum sits where a ray grazes the wall's edge)
+    # (issue 17: a hidden feature-pose now scores a constant floor, so the objective is a staircase in the
+    # number of hidden poses — no gradient inside a step — and the local starts stop on a step short of the
+    # grazing edge: 5 of 12 poses hidden, where the old −|margin| rule's slope reached ≤ 3)
+    assert x > 38.0 and m.hidden.mean() <= 0.45
     from cadfeat import measures
 
     p = seen.problem

@@ -1,0 +1,171 @@
+"""Detection and measurement models of a hole's rim-ellipse centre, calibrated on cadfeat's own detector.
+
+Inputs per hole and pose (``hole_geometry``, camera frame): the rim's image ellipse (``hole_ellipse``: minor
+axis m px, major M px), its image margin f px (``image_margin_from_ellipse``; ≥ 0 when the whole rim is in the
+image), the facing cosine cos θ (θ the view angle from the hole's axis), the thin-lens defocus blur β px at the
+hole's depth (``vision.images.defocus_diameter_px``), the rim's length ρ px (Ramanujan's ellipse perimeter) and
+the image direction d̂ of the hole's axis into the material.
+
+**Detection probability** (smooth, for the optimiser; ``detected = p ≥ 0.5`` for reports), a product of
+logistic terms s(x) = 1 / (1 + e⁻ˣ):
+
+    p = s((m − κ β − m₀)/w_m) · s(f / w_f) · s((cos θ − c₀)/w_c) · o(occ) · [ellipse valid, in front]
+
+with o(occ) = s((o₀ − occ)/w_o) / s(o₀/w_o) for the hidden fraction occ of the rim (1 at occ = 0, → 0 once a
+few per cent are hidden: the detector rejects a rim that is cut or crossed by an edge — never accepts it as
+whole).
+
+**Centre noise** (px): a least-squares ellipse through ρ boundary points, each with edge noise proportional to
+the grey-level noise and to the edge width √(w₀² + β²), has a centre noise ∝ 1/√ρ:
+
+    σ = √(σ₀² + (k_σ · (noise_grey / 2) · √(w₀² + β²))² / ρ + a² + k_a² / ρ)
+
+The last term is the **pixel-grid (aliasing) error**: the rendered rim is a staircase on the pixel grid, so the
+fitted centre is off by a few hundredths of a pixel in a direction that depends on the rim's sub-pixel
+placement. It does not average out over noise draws (the calibration table shows it as a per-condition
+offset), but it changes from frame to frame as the part moves: for the pose it acts as noise (zero mean over
+placements, per-axis RMS √(a² + k_a²/ρ), fitted to the table's offsets that the systematic model leaves: a part
+that averages over the rim (k_a) and a floor a that does not — on the flagship the closed loop's measured
+offsets, 0.050 px per axis at ρ ≈ 60–90 px, match it; a 1/√ρ law alone gave 0.032).
+
+**Systematic offset** (px, along d̂): the detector fits the rim's edge; what remains is the asymmetric blur of
+an oblique rim and, for holes whose far wall shows inside the rim, the wall's share of the dark region:
+
+    b = (k_b · β + k_d · D · sin θ · min(depth/diameter, 2)) · d̂,     D = 1 for through holes, 0.5 blind
+
+Parameters (``PoseModels``) are fitted by ``tools/calibrate_detection.py`` on rendered images of a test
+plate over a grid of causes; the table it measured and the fitted values are package data
+(``measures/data/detection_calibration.csv`` and ``detection_model.json``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from functools import lru_cache
+from importlib import resources
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from cadfeat.camera import Camera
+
+DATA = "data"
+MODEL_FILE = "detection_model.json"
+TABLE_FILE = "detection_calibration.csv"
+
+
+class HoleGeometry(NamedTuple):
+    """Per pose × hole (L, N) quantities the models use (module docstring); ``axis_dir_px`` (L, N, 2)."""
+
+    minor_px: np.ndarray
+    major_px: np.ndarray
+    margin_px: np.ndarray
+    facing: np.ndarray
+    blur_px: np.ndarray
+    rim_px: np.ndarray
+    axis_dir_px: np.ndarray
+    valid: np.ndarray
+    in_front: np.ndarray
+
+
+def _sigmoid(x: np.ndarray) -> np.ndarray:
+    return 0.5 * (1.0 + np.tanh(0.5 * np.asarray(x, dtype=float)))
+
+
+def hole_geometry(camera: Camera, T_cam_part: np.ndarray, centres: np.ndarray, normals: np.ndarray,
+                  radii_mm: np.ndarray) -> HoleGeometry:
+    """``HoleGeometry`` of holes (N, 3), (N, 3), (N,) (part frame, mm) at poses (L, 4, 4)."""
+    from cadfeat.measures.ellipse import hole_ellipse
+    from cadfeat.measures.fov import image_margin_from_ellipse
+    from cadfeat.measures.visibility import facing_margin
+    from cadfeat.vision.images import defocus_diameter_px
+
+    T = np.asarray(T_cam_part, dtype=float)
+    Rm, t = T[:, :3, :3], T[:, :3, 3]
+    c = np.einsum("lij,nj->lni", Rm, centres) + t[:, None, :]
+    nrm = np.linalg.norm(normals, axis=-1, keepdims=True)
+    n = np.einsum("lij,nj->lni", Rm, normals / np.where(nrm > 0, nrm, 1.0))
+    r = np.broadcast_to(np.asarray(radii_mm, dtype=float), c.shape[:-1])
+    e = hole_ellipse(camera, c, n, r)
+    valid = np.asarray(e.valid, dtype=bool)
+    major, minor = e.axes_px[..., 0], e.axes_px[..., 1]
+    a, b = 0.5 * major, 0.5 * minor
+    h = ((a - b) / np.maximum(a + b, 1e-12)) ** 2
+    rim = np.pi * (a + b) * (1.0 + 3.0 * h / (10.0 + np.sqrt(np.maximum(4.0 - 3.0 * h, 0.0))))
+    Z = c[..., 2]
+    in_front = Z > 1.0
+    step = np.maximum(r, 0.1)[..., None] * 0.1
+    deeper = c - step * n
+    z0 = np.where(in_front[..., None], c, np.array([0.0, 0.0, 1.0]))
+    z1 = np.where(in_front[..., None] & (deeper[..., 2:] > 1.0), deeper, z0)
+    d = camera.project(z1) - camera.project(z0)
+    dn = np.linalg.norm(d, axis=-1, keepdims=True)
+    axis_dir = np.where(dn > 1e-12, d / np.where(dn > 1e-12, dn, 1.0), 0.0)
+    point = r <= 0  # point features (radius 0): no rim, no facing; the projected point must be in the image
+    valid = np.where(point, in_front, valid)
+    facing = np.where(point, 1.0, facing_margin(c, n))
+    pp = camera.project(np.where(in_front[..., None], c, np.array([0.0, 0.0, 1.0])))
+    point_margin = np.minimum(np.minimum(pp[..., 0], camera.width - pp[..., 0]),
+                              np.minimum(pp[..., 1], camera.height - pp[..., 1]))
+    margin = np.where(point, point_margin, image_margin_from_ellipse(camera, e))
+    return HoleGeometry(minor, major, margin, facing,
+                        defocus_diameter_px(camera, np.maximum(Z, 1.0)), rim, axis_dir, valid, in_front)
+
+
+@dataclass(frozen=True)
+class PoseModels:
+    """Parameters of the detection and measurement models (module docstring; px unless stated)."""
+
+    m0_px: float = 5.0
+    w_m_px: float = 1.0
+    kappa_blur: float = 0.3
+    w_f_px: float = 1.0
+    c0: float = 0.2
+    w_c: float = 0.05
+    o0: float = 0.03
+    w_o: float = 0.01
+    sigma0_px: float = 0.01
+    k_sigma: float = 1.0
+    w0_px: float = 1.0
+    k_b: float = 0.0
+    k_d: float = 0.0
+    k_alias_px: float = 0.0
+    alias_floor_px: float = 0.0
+    source: str = "defaults (not calibrated)"
+
+    def detection_probability(self, geo: HoleGeometry, occlusion: np.ndarray) -> np.ndarray:
+        """p (L, N) in [0, 1] (module docstring); ``occlusion`` (L, N) hidden fraction of the rim (or bool)."""
+        occ = np.asarray(occlusion, dtype=float)
+        size = _sigmoid((geo.minor_px - self.kappa_blur * geo.blur_px - self.m0_px) / self.w_m_px)
+        fov = _sigmoid(np.maximum(geo.margin_px, -50.0 * self.w_f_px) / self.w_f_px)
+        facing = _sigmoid((geo.facing - self.c0) / self.w_c)
+        occl = _sigmoid((self.o0 - occ) / self.w_o) / _sigmoid(self.o0 / self.w_o)
+        return np.where(geo.valid & geo.in_front & (geo.facing > 0), size * fov * facing * occl, 0.0)
+
+    def measurement_model(self, geo: HoleGeometry, *, depth_ratio: Any = None, kinds: Any = None,
+                          through: Any = None, noise_grey: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+        """Centre noise σ (L, N) px and systematic offset b (L, N, 2) px (module docstring)."""
+        rho = np.maximum(geo.rim_px, 1.0)
+        edge = self.k_sigma * (noise_grey / 2.0) * np.sqrt(self.w0_px ** 2 + geo.blur_px ** 2)
+        sigma = np.sqrt(self.sigma0_px ** 2 + self.alias_floor_px ** 2 + (edge ** 2 + self.k_alias_px ** 2) / rho)
+        N = geo.minor_px.shape[-1]
+        ratio = np.zeros(N) if depth_ratio is None else np.broadcast_to(np.asarray(depth_ratio, float), (N,))
+        thr = np.zeros(N, bool) if through is None else np.broadcast_to(np.asarray(through, bool), (N,))
+        del kinds  # plain / counterbore / countersink: the calibration found no kind-specific offset (docstring)
+        sin_t = np.sqrt(np.clip(1.0 - geo.facing ** 2, 0.0, 1.0))
+        mag = self.k_b * geo.blur_px * sin_t + self.k_d * np.where(thr, 1.0, 0.5) * sin_t * np.minimum(ratio, 2.0)
+        return sigma, mag[..., None] * geo.axis_dir_px
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=2)
+
+
+@lru_cache(maxsize=1)
+def default_models() -> PoseModels:
+    """The committed calibration (``measures/data/detection_model.json``), or the defaults if it is absent."""
+    try:
+        text = resources.files("cadfeat.measures").joinpath(DATA, MODEL_FILE).read_text()
+    except (FileNotFoundError, OSError):
+        return PoseModels()
+    return PoseModels(**json.loads(text))
