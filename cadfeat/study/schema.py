@@ -197,6 +197,9 @@ class ParameterSpec:
     unit: str
     is_int: bool
     standard_sizes: tuple[float, ...] | None = None
+    start: float | int | None = None
+    """The design the study starts from (``evaluate`` scores it, ``run`` starts the optimiser there); None:
+    the part's default."""
 
 
 @dataclass(frozen=True)
@@ -467,6 +470,8 @@ def part_parameters(path: str | Path) -> dict[str, PartParameter]:
     node = next((n.value for n in tree.body if isinstance(n, ast.Assign | ast.AnnAssign)
                  and any(isinstance(t, ast.Name) and t.id == "PARAMETERS"
                          for t in (n.targets if isinstance(n, ast.Assign) else [n.target]))), None)
+    if node is None and _is_cqgi(path):
+        return _parameters_by_loading(path)  # a cq-editor / CQGI script: its constants (cadfeat.cad.cqgi_parts)
     if node is None:
         raise StudyError(f"{path}: PARAMETERS: missing; allowed: a module-level dict "
                          "{name: {default, bounds, unit, description}}")
@@ -480,6 +485,12 @@ def part_parameters(path: str | Path) -> dict[str, PartParameter]:
 
 
 _MUTATORS = {"update", "setdefault", "pop", "popitem", "clear", "__setitem__"}
+
+
+def _is_cqgi(path: Path) -> bool:
+    from cadfeat.cad.cqgi_parts import is_cqgi_script
+
+    return is_cqgi_script(path)
 
 
 def _mutated(tree: ast.Module) -> bool:
@@ -684,7 +695,8 @@ def _design_section(t: _Table, info: StudyInfo, label: str) -> tuple[DesignSpec,
                     "parameters")
         specs = _parameter_specs(t, params, label, info)
         echo["parameters"] = {p.name: {"lower": p.lower, "upper": p.upper,
-                                       **({"standard_sizes": list(p.standard_sizes)} if p.standard_sizes else {})}
+                                       **({"standard_sizes": list(p.standard_sizes)} if p.standard_sizes else {}),
+                                       **({"start": p.start} if p.start is not None else {})}
                               for p in specs}
     else:
         if t.has("parameters"):
@@ -758,9 +770,12 @@ def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
         if name not in params:
             raise StudyError(f"{label}: {key}: unknown parameter of {info.part}; allowed: {names_allowed}")
         p = params[name]
-        st = _Table(spec, key, label, ["lower", "upper", "standard_sizes"])
+        st = _Table(spec, key, label, ["lower", "upper", "standard_sizes", "start"])
         lo = st.number("lower", p.lower, float(p.lower), float(p.upper))
         hi = st.number("upper", p.upper, float(p.lower), float(p.upper))
+        if not (math.isfinite(lo) and math.isfinite(hi)):  # a CQGI constant without a bounds comment
+            st.fail(key, f"{name} has no bounds in {info.part}", "lower and upper here (or a '# [lower, upper] "
+                    "unit' comment on the constant's line in the script)")
         if p.is_int:
             for which, v in (("lower", lo), ("upper", hi)):
                 if float(v) != round(float(v)):
@@ -776,7 +791,12 @@ def _parameter_specs(t: _Table, params: Mapping[str, PartParameter], label: str,
                 st.fail(f"{key}.standard_sizes", f"{_fmt(v)} is not allowed",
                         f"a non-empty list of values in [{lo}, {hi}]")
             sizes = tuple(sorted(float(s) for s in v))
-        out.append(ParameterSpec(name, lo, hi, p.default, p.unit, p.is_int, sizes))
+        start = st.number("start", None, float(lo), float(hi))
+        if start is not None and p.is_int:
+            if float(start) != round(float(start)):
+                st.fail(f"{key}.start", f"{start!r} is not an integer", f"an integer in [{lo}, {hi}]")
+            start = int(round(start))
+        out.append(ParameterSpec(name, lo, hi, p.default, p.unit, p.is_int, sizes, start))
     return tuple(out)
 
 
