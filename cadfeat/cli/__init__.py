@@ -15,7 +15,7 @@ import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 
-from cadfeat.cli import listing, parts, render, report, study, track
+from cadfeat.cli import explore, listing, parts, render, report, study, track
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError, Terminated
 
@@ -23,7 +23,7 @@ __all__ = ["COMMANDS", "build_parser", "main", "run_guarded"]
 
 #: Every sub-command, in the order ``cadfeat --help`` lists them.
 COMMANDS: tuple[Command, ...] = (*listing.COMMANDS, *parts.COMMANDS, *render.COMMANDS, *report.COMMANDS,
-                                 *study.COMMANDS, *track.COMMANDS)
+                                 *study.COMMANDS, *track.COMMANDS, *explore.COMMANDS)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,193 @@
+"""``cadfeat explore`` driven by headless Chromium over the DevTools protocol (a websocket from aiohttp).
+
+The explorer runs as the command a user types (``cadfeat explore STUDY --port 0 --no-browser``) on a copy of
+the CQGI pillow-block study (tests/data/cqgi). Chromium comes from ``$CADFEAT_CHROMIUM`` or PATH
+(``tools/ensure_chromium.sh``), as in test_report_browser.py; every host but 127.0.0.1 is unreachable for it.
+References: ``cadfeat.study.evaluate_study`` of the study TOML the page's own "write as study start" button
+wrote (CAD rebuilt at the slider's values, holes re-extracted); the pixels of the canvases.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from test_report_browser import chromium
+
+DATA = Path(__file__).parent / "data" / "cqgi"
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _explorer(study: Path) -> tuple[subprocess.Popen, str]:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    proc = subprocess.Popen([sys.executable, "-m", "cadfeat", "explore", str(study), "--port", "0", "--no-browser"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=study.parent)
+    line = proc.stdout.readline()  # printed once the study is loaded
+    if "http://127.0.0.1:" not in line:
+        proc.kill()
+        pytest.fail(f"the explorer did not start: {line!r} {proc.stderr.read()[-2000:]}")
+    return proc, line.split()[2]
+
+
+class Page:
+    """One Chromium tab over the DevTools protocol: ``call(method, **params)``, ``js(expression)``; records the
+    URL of every request the page makes."""
+
+    def __init__(self, ws, loop) -> None:
+        self.ws, self.loop, self.n, self.requests = ws, loop, 0, []
+
+    async def _call(self, method: str, params: dict) -> dict:
+        self.n += 1
+        await self.ws.send_json({"id": self.n, "method": method, "params": params})
+        while True:
+            msg = await self.ws.receive_json(timeout=60)
+            if msg.get("method") == "Network.requestWillBeSent":
+                self.requests.append(msg["params"]["request"]["url"])
+            if msg.get("id") == self.n:
+                if "error" in msg:
+                    raise AssertionError(f"{method}: {msg['error']}")
+                return msg["result"]
+
+    def call(self, method: str, **params) -> dict:
+        return self.loop.run_until_complete(self._call(method, params))
+
+    def js(self, expression: str):
+        res = self.call("Runtime.evaluate", expression=expression, returnByValue=True, awaitPromise=True)
+        if "exceptionDetails" in res:
+            raise AssertionError(f"{expression}: {res['exceptionDetails']}")
+        return res["result"].get("value")
+
+    def wait(self, expression: str, timeout_s: float = 60.0):
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            value = self.js(expression)
+            if value:
+                return value
+            self.loop.run_until_complete(asyncio.sleep(0.1))
+        raise AssertionError(f"timed out waiting for {expression}")
+
+
+@pytest.fixture(scope="module")
+def explorer(tmp_path_factory):
+    import aiohttp
+
+    work = tmp_path_factory.mktemp("explore")
+    for name in ("ex003_study.toml", "Ex003_Pillow_Block_With_Counterbored_Holes.py"):
+        shutil.copyfile(DATA / name, work / name)
+    proc, url = _explorer(work / "ex003_study.toml")
+    profile = work / "profile"
+    browser = subprocess.Popen(
+        [chromium(), "--headless", "--no-sandbox", "--disable-dev-shm-usage", "--no-first-run",
+         "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--proxy-server=127.0.0.1:9",
+         "--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1",
+         "--window-size=1400,1000", "--remote-debugging-port=0", f"--user-data-dir={profile}", "about:blank"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env={**os.environ, "HOME": str(work)})
+    loop = asyncio.new_event_loop()
+    try:
+        port_file = profile / "DevToolsActivePort"
+        end = time.monotonic() + 30
+        while not port_file.is_file() or not port_file.read_text().strip():
+            assert time.monotonic() < end and browser.poll() is None, "Chromium did not start"
+            time.sleep(0.1)
+        port = int(port_file.read_text().split()[0])
+
+        async def connect():
+            session = aiohttp.ClientSession()
+            async with session.get(f"http://127.0.0.1:{port}/json/list") as r:
+                targets = await r.json(content_type=None)
+            page = next(t for t in targets if t["type"] == "page")
+            return session, await session.ws_connect(page["webSocketDebuggerUrl"], max_msg_size=0)
+
+        session, ws = loop.run_until_complete(connect())
+        page = Page(ws, loop)
+        page.call("Network.enable")
+        page.call("Page.enable")
+        page.call("Page.navigate", url=url)
+        page.wait("document.body && document.body.dataset.state === 'idle' && +document.body.dataset.evals >= 1", 90)
+        yield page, proc, url, work
+        loop.run_until_complete(ws.close())
+        loop.run_until_complete(session.close())
+    finally:
+        browser.kill()
+        browser.wait()
+        loop.close()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def _objectives(page: Page) -> dict[str, float]:
+    rows = page.js("JSON.stringify(Array.from(document.querySelectorAll('#objectives tbody tr'))"
+                   ".map(function (tr) { return [tr.dataset.name, tr.dataset.value]; }))")
+    return {name: float(value) for name, value in json.loads(rows)}
+
+
+def _move(page: Page, selector: str, value: float) -> None:
+    """Move a slider as a user does (its value, then an ``input`` event) and wait for the page's numbers."""
+    n = int(page.js("document.body.dataset.evals"))
+    page.js(f"(function () {{ var el = document.querySelector('{selector}'); el.value = {value!r};"
+            "el.dispatchEvent(new Event('input', {bubbles: true})); return true; })()")
+    page.wait(f"+document.body.dataset.evals > {n} && document.body.dataset.state === 'idle'")
+
+
+def test_slider_numbers_equal_cadfeat_evaluate(explorer):
+    """Moving a slider shows the objectives `cadfeat evaluate` gives for the same parameters (1e-9)."""
+    from cadfeat.study import evaluate_study
+
+    page, _, _, work = explorer
+    before = _objectives(page)
+    shot0 = page.js("JSON.stringify(cadfeatExplore.snapshot3d())")
+    _move(page, 'input[data-name="cbore_inset"]', 21.5)
+    shown = _objectives(page)
+    assert shown != before
+    values = json.loads(page.js("JSON.stringify(cadfeatExplore.last().values)"))
+    assert values["cbore_inset"] == pytest.approx(21.5, abs=0.03)  # (the slider's step)
+    shot1 = page.js("JSON.stringify(cadfeatExplore.snapshot3d())")
+    page.js("document.getElementById('save-start').click(); true")
+    text = page.wait("(document.getElementById('message').textContent.indexOf('wrote ') === 0) && "
+                     "document.getElementById('message').textContent")
+    start = Path(text[len("wrote "):])
+    assert start.parent == work and start.name == "ex003_study-start-1.toml"
+    results = evaluate_study(start)
+    assert results["objectives"]["before"].keys() == shown.keys()
+    for name, value in results["objectives"]["before"].items():
+        assert shown[name] == pytest.approx(value, rel=1e-9, abs=1e-12), name
+    # the 3-D canvas is drawn and changed with the design (the hole rings moved)
+    s0, s1 = json.loads(shot0), json.loads(shot1)
+    assert s0["width"] > 300 and s0["std"] > 5.0 and s1["std"] > 5.0, (s0, s1)
+    assert s0["hash"] != s1["hash"]
+
+
+def test_camera_view_follows_the_pose_slider(explorer):
+    page, _, _, _ = explorer
+    cam0 = json.loads(page.js("JSON.stringify(cadfeatExplore.snapshotCamera())"))
+    ov0 = page.js("cadfeatExplore.overlayHash()")
+    _move(page, "#pose", 7)
+    assert page.js("cadfeatExplore.last().pose.index") == 7
+    cam1 = json.loads(page.js("JSON.stringify(cadfeatExplore.snapshotCamera())"))
+    assert cam0["std"] > 5.0 and cam1["std"] > 5.0, (cam0, cam1)  # the part seen by the study camera
+    assert cam0["hash"] != cam1["hash"] and page.js("cadfeatExplore.overlayHash()") != ov0
+    ellipses = page.js("cadfeatExplore.last().pose.axes_px")
+    assert len(ellipses) == 5 and all(a[0] >= a[1] > 0 for a in ellipses)
+
+
+def test_no_network_beyond_localhost_and_clean_shutdown(explorer):
+    page, proc, url, _ = explorer
+    assert page.requests, "no request recorded"
+    foreign = [u for u in page.requests if not u.startswith(url) and not u.startswith(("data:", "blob:"))]
+    assert not foreign, foreign
+    port = int(url.rstrip("/").rsplit(":", 1)[1])
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=30) == 0
+    assert "stopped" in proc.stderr.read()
+    with pytest.raises(OSError), socket.create_connection(("127.0.0.1", port), timeout=2):
+        pass
