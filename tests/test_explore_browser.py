@@ -83,6 +83,10 @@ def explorer(tmp_path_factory):
     work = tmp_path_factory.mktemp("explore")
     for name in ("ex003_study.toml", "Ex003_Pillow_Block_With_Counterbored_Holes.py"):
         shutil.copyfile(DATA / name, work / name)
+    optimum = work / "exports" / "cqgi_ex003" / "results.json"  # a run's result: 'current vs optimum'
+    optimum.parent.mkdir(parents=True)
+    optimum.write_text(json.dumps({"variables": [{"name": "cbore_inset", "after": 25.0},
+                                                 {"name": "center_hole_dia", "after": 18.0}]}))
     proc, url = _explorer(work / "ex003_study.toml")
     profile = work / "profile"
     browser = subprocess.Popen(
@@ -178,6 +182,50 @@ def test_camera_view_follows_the_pose_slider(explorer):
     assert cam0["hash"] != cam1["hash"] and page.js("cadfeatExplore.overlayHash()") != ov0
     ellipses = page.js("cadfeatExplore.last().pose.axes_px")
     assert len(ellipses) == 5 and all(a[0] >= a[1] > 0 for a in ellipses)
+
+
+def _click(page: Page, button: str) -> None:
+    n = int(page.js("document.body.dataset.evals"))
+    page.js(f"document.getElementById('{button}').click(); true")
+    page.wait(f"+document.body.dataset.evals > {n} && document.body.dataset.state === 'idle'")
+
+
+def test_current_vs_optimum(explorer):
+    page, _, _, _ = explorer
+    _click(page, "reset")
+    current = _objectives(page)
+    _click(page, "toggle")
+    assert json.loads(page.js("JSON.stringify(cadfeatExplore.last().values)")) == {"cbore_inset": 25.0,
+                                                                                   "center_hole_dia": 18.0}
+    assert _objectives(page) != current
+    _click(page, "toggle")
+    assert _objectives(page) == current
+
+
+def test_export_step_and_glb(explorer):
+    """The export button rebuilds the CAD model: the STEP re-imported has the holes of CQGI's own build at the
+    page's values; the GLB's nodes are the page's hole names."""
+    import cadquery as cq
+    import numpy as np
+    import trimesh
+    from test_cqgi_parts import _cqgi_solid
+
+    from cadfeat.cad.features import extract_holes
+
+    page, _, _, work = explorer
+    _move(page, 'input[data-name="cbore_inset"]', 16.0)
+    values = json.loads(page.js("JSON.stringify(cadfeatExplore.last().values)"))
+    page.js("document.getElementById('export').click(); true")
+    text = page.wait("(document.getElementById('message').textContent.indexOf('exported ') === 0) && "
+                     "document.getElementById('message').textContent", 90)
+    step, glb = (Path(p) for p in text[len("exported "):].split(" and "))
+    assert step.parent.parent == work and step.parent.name == "cqgi_ex003-explore-1"
+    got = extract_holes(cq.importers.importStep(str(step)).val())
+    want = extract_holes(_cqgi_solid(DATA / "Ex003_Pillow_Block_With_Counterbored_Holes.py", values))
+    key = lambda hs: sorted((tuple(np.round(h.centre, 6)), round(h.radius_mm, 6)) for h in hs)  # noqa: E731
+    assert key(got) == key(want)
+    names = json.loads(page.js("JSON.stringify(cadfeatExplore.scene().holes)"))
+    assert set(trimesh.load(glb).graph.nodes_geometry) == set(names) | {"part"}
 
 
 def test_no_network_beyond_localhost_and_clean_shutdown(explorer):
