@@ -47,8 +47,10 @@
                                        new THREE.LineBasicMaterial({color: 0xd62728}));
     V.helpers.add(V.current);
     V.cam = new THREE.PerspectiveCamera(35, 1, V.size * 0.01, V.size * 1000); V.cam.up.set(0, 0, 1);
-    var far = path.reduce(function (d, p) { return Math.max(d, p.distanceTo(ctr)); }, V.size);
-    V.cam.position.copy(ctr).add(new THREE.Vector3(1.2, -1.6, 1.0).normalize().multiplyScalar(far * 1.3));
+    var all = bb.clone(); path.forEach(function (p) { all.expandByPoint(p); });  // frame part and path
+    ctr = all.getCenter(new THREE.Vector3());
+    var r = all.getSize(new THREE.Vector3()).length() * 0.5;
+    V.cam.position.copy(ctr).add(new THREE.Vector3(1.2, -1.6, 1.0).normalize().multiplyScalar(r * 2.6));
     V.cam.lookAt(ctr);
     V.controls = new THREE.OrbitControls(V.cam, V.renderer.domElement);
     V.controls.target.copy(ctr); V.controls.update();
