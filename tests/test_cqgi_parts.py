@@ -198,3 +198,17 @@ def test_a_study_runs_on_each_script(study, tmp_path, monkeypatch):
     assert got == want
     assert part_path.read_bytes() == before
     assert result is not None
+
+
+def test_study_start_must_lie_within_the_bounds(tmp_path):
+    from cadfeat.study.schema import StudyError, load_study
+
+    text = (DATA / "ex003_study.toml").read_text().replace('part = "', f'part = "{DATA}/')
+    ok = tmp_path / "ok.toml"
+    ok.write_text(text.replace("lower = 8.0, upper = 30.0 }", "lower = 8.0, upper = 30.0, start = 17.5 }"))
+    assert {p.name: p.start for p in load_study(ok).design.parameters} == {"cbore_inset": 17.5,
+                                                                          "center_hole_dia": None}
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("lower = 8.0, upper = 30.0 }", "lower = 8.0, upper = 30.0, start = 31.0 }"))
+    with pytest.raises(StudyError, match=r"design.parameters.cbore_inset.start"):
+        load_study(bad)
