@@ -226,6 +226,11 @@ def test_export_step_and_glb(explorer):
     assert key(got) == key(want)
     names = json.loads(page.js("JSON.stringify(cadfeatExplore.scene().holes)"))
     assert set(trimesh.load(glb).graph.nodes_geometry) == set(names) | {"part"}
+    # "rebuild CAD" shows the rebuilt part: the camera view changes (the holes moved in the mesh too)
+    cam0 = page.js("cadfeatExplore.snapshotCamera().hash")
+    page.js("document.getElementById('rebuild').click(); true")
+    assert int(page.wait("document.body.dataset.rebuilt !== 'busy' && document.body.dataset.rebuilt", 90)) > 100
+    assert page.js("cadfeatExplore.snapshotCamera().hash") != cam0
 
 
 def test_no_network_beyond_localhost_and_clean_shutdown(explorer):
@@ -234,6 +239,14 @@ def test_no_network_beyond_localhost_and_clean_shutdown(explorer):
     foreign = [u for u in page.requests if not u.startswith(url) and not u.startswith(("data:", "blob:"))]
     assert not foreign, foreign
     port = int(url.rstrip("/").rsplit(":", 1)[1])
+    import urllib.error
+    import urllib.request
+
+    bad = urllib.request.Request(url + "api/evaluate", b'{"values": {"cbore_inset": 99}}',
+                                 {"Content-Type": "application/json"})
+    with pytest.raises(urllib.error.HTTPError) as err:
+        urllib.request.urlopen(bad, timeout=30)
+    assert err.value.code == 400 and "cbore_inset = 99 is outside [8, 30]" in err.value.read().decode()
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(timeout=30) == 0
     assert "stopped" in proc.stderr.read()

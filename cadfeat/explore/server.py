@@ -8,6 +8,7 @@ Routes (JSON in and out):
 - ``GET /api/scene``: ``ExploreSession.scene()`` (once per page load);
 - ``POST /api/evaluate`` ``{"values": {name: value}, "pose": k}``: ``ExploreSession.evaluate``;
 - ``POST /api/save-start`` ``{"values": ...}``: writes a new study TOML that starts at the design;
+- ``POST /api/rebuild`` ``{"values": ...}``: the CAD model rebuilt at the design, as a mesh for the views;
 - ``POST /api/export`` ``{"values": ...}``: CAD rebuild, ``design.step`` + ``design.glb`` into a new folder.
 
 A bad request gets status 400 with ``{"error": message}``. ``serve(session, port)`` returns a running
@@ -89,6 +90,8 @@ class _Handler(BaseHTTPRequestHandler):
                 self._json(HTTPStatus.OK, session.evaluate(values, body.get("pose", 0)))
             elif route == "/api/save-start":
                 self._json(HTTPStatus.OK, {"path": str(session.save_start(values))})
+            elif route == "/api/rebuild":
+                self._json(HTTPStatus.OK, {"mesh": session.rebuilt_mesh(values)})
             elif route == "/api/export":
                 self._json(HTTPStatus.OK, session.export(values))
             else:

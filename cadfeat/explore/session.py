@@ -212,6 +212,13 @@ class ExploreSession:
         with build_time_limit(self.timeout_s):
             return self.setup.rebuild_shape(x)
 
+    def rebuilt_mesh(self, values: Mapping[str, Any] | None) -> dict[str, Any]:
+        """The CAD model rebuilt at the chosen design, triangulated for the page (vertices mm, triangles)."""
+        from cadfeat.report.view3d import mesh_arrays
+
+        verts, tris = mesh_arrays(self.rebuild(values))
+        return {"vertices": _plain(verts.astype(np.float32)), "triangles": tris.astype(int).tolist()}
+
     def _named(self, holes: list[Any], x: np.ndarray) -> list[Any]:
         """Rebuilt ``holes`` named as the explorer names them: each takes the name of the predicted hole
         (feature model at ``x``) it matches one to one by centre distance and radius (Hungarian)."""

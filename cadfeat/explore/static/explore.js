@@ -26,11 +26,7 @@
     V.scene = new THREE.Scene(); V.scene.background = new THREE.Color(0xf7f7f7);
     V.scene.add(new THREE.AmbientLight(0xffffff, 0.55));
     V.sun = new THREE.DirectionalLight(0xffffff, 0.7); V.scene.add(V.sun);
-    var geo = new THREE.BufferGeometry();
-    geo.setAttribute('position', new THREE.BufferAttribute(dec(S.mesh.vertices, Float32Array), 3));
-    geo.setIndex(new THREE.BufferAttribute(dec(S.mesh.triangles, Uint32Array), 1));
-    geo.computeVertexNormals();
-    V.part = new THREE.Mesh(geo, new THREE.MeshLambertMaterial({color: 0xb8b8b8, side: THREE.DoubleSide}));
+    V.part = new THREE.Mesh(geometry(S.mesh), new THREE.MeshLambertMaterial({color: 0xb8b8b8, side: THREE.DoubleSide}));
     V.scene.add(V.part);
     V.rings = new THREE.Group(); V.scene.add(V.rings);
     V.helpers = new THREE.Group(); V.scene.add(V.helpers);  // path + frusta: hidden in the camera view
@@ -63,6 +59,14 @@
     resize();
     window.addEventListener('resize', function () { resize(); drawAll(); });
   }
+  function geometry(mesh) {
+    var geo = new THREE.BufferGeometry();
+    geo.setAttribute('position', new THREE.BufferAttribute(dec(mesh.vertices, Float32Array), 3));
+    geo.setIndex(new THREE.BufferAttribute(dec(mesh.triangles, Uint32Array), 1));
+    geo.computeVertexNormals();
+    return geo;
+  }
+  function setMesh(mesh) { V.part.geometry.dispose(); V.part.geometry = geometry(mesh); }
   function frustum(k) {
     var T = S.T_part_cam[k], c = S.camera, d = 0.15 * V.size;
     var uv = [[0, 0], [c.width, 0], [c.width, c.height], [0, c.height]];
@@ -250,6 +254,14 @@
       message('writing…');
       post('/api/save-start', {values: values}).then(function (r) { message('wrote ' + r.path); })
         .catch(function (e) { message(String(e.message || e), true); });
+    });
+    $('rebuild').addEventListener('click', function () {
+      message('rebuilding the CAD model…');
+      document.body.dataset.rebuilt = 'busy';
+      post('/api/rebuild', {values: values}).then(function (r) {
+        setMesh(r.mesh); drawAll(); message('rebuilt at this design (' + r.mesh.triangles.length + ' triangles)');
+        document.body.dataset.rebuilt = String(r.mesh.triangles.length);
+      }).catch(function (e) { message(String(e.message || e), true); document.body.dataset.rebuilt = 'error'; });
     });
     $('export').addEventListener('click', function () {
       message('rebuilding the CAD model…');
