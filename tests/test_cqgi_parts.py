@@ -156,6 +156,11 @@ def test_bad_scripts(tmp_path):
     wrapped.write_text("import cadquery as cq\nw = 5.0  # [1, 9]\nclass P:\n    def __init__(s, x): s.wrapped = x\n"
                        "show_object(P(cq.Workplane().box(w, w, w).val().wrapped))\n")
     assert load_part(wrapped).build(w=2.0).Volume() == pytest.approx(8.0)
+    (tmp_path / "helper_dims.py").write_text("SIDE = 3.0\n")  # a helper module beside the script (as cq-cli)
+    helped = tmp_path / "helped.py"
+    helped.write_text("import cadquery as cq\nfrom helper_dims import SIDE\nh = 1.0  # [0.5, 2]\n"
+                      "show_object(cq.Workplane().box(SIDE, SIDE, h))\n")
+    assert load_part(helped).build(h=2.0).Volume() == pytest.approx(18.0)
 
 
 def test_study_needs_bounds_for_an_unbounded_constant(tmp_path):

@@ -165,6 +165,8 @@ def test_slider_numbers_equal_cadfeat_evaluate(explorer):
     assert results["objectives"]["before"].keys() == shown.keys()
     for name, value in results["objectives"]["before"].items():
         assert shown[name] == pytest.approx(value, rel=1e-9, abs=1e-12), name
+    combined = float(page.js("document.getElementById('combined').dataset.value"))
+    assert combined == pytest.approx(results["objectives"]["combined_before"], rel=1e-9)
     # the 3-D canvas is drawn and changed with the design (the hole rings moved)
     s0, s1 = json.loads(shot0), json.loads(shot1)
     assert s0["width"] > 300 and s0["std"] > 5.0 and s1["std"] > 5.0, (s0, s1)

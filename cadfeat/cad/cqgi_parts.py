@@ -197,6 +197,23 @@ def _two_argument_describe() -> Iterator[None]:
         cqgi.ScriptCallback.describe_parameter = original
 
 
+@contextlib.contextmanager
+def _script_dir_on_path(path: Path) -> Iterator[None]:
+    """The script's folder on ``sys.path`` during a build, as cq-cli sets it: a script may import its own
+    helper modules from beside it."""
+    import sys
+
+    folder = str(path.parent)
+    added = folder not in sys.path
+    if added:
+        sys.path.insert(0, folder)
+    try:
+        yield
+    finally:
+        if added and folder in sys.path:
+            sys.path.remove(folder)
+
+
 def _builder(path: Path, model: Any, names: list[str]) -> Any:
     """``build(**params)``: run the script through CQGI with ``params`` and return its one solid."""
 
@@ -206,7 +223,7 @@ def _builder(path: Path, model: Any, names: list[str]) -> Any:
             raise CadfeatError(f"{path}: unknown parameter(s) {', '.join(unknown)}; allowed: {', '.join(names)}")
         # CQGI writes the values into its syntax tree: every build passes every parameter, so none keeps a
         # value of an earlier build.
-        with _two_argument_describe():
+        with _two_argument_describe(), _script_dir_on_path(path):
             result = model.build(build_parameters={k: params[k] for k in names if k in params})
         if not result.success:
             exc = result.exception
