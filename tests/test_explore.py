@@ -87,3 +87,18 @@ def test_new_path_never_reuses_a_name(tmp_path):
     path = new_path(tmp_path, "s-start", ".toml")
     assert path.name == "s-start-2.toml"
     assert (tmp_path / "s-start-1.toml").read_text() == "mine"
+
+
+def test_busy_port_is_refused_before_any_work(capsys):
+    """The port is checked before the study is loaded: a busy port fails at once, naming the address."""
+    import socket
+
+    from cadfeat.cli import main
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        assert main(["explore", str(DATA / "ex003_study.toml"), "--port", str(port), "--no-browser"]) == 2
+    err = capsys.readouterr().err
+    assert f"cannot listen on 127.0.0.1:{port}" in err and "loading" not in err

@@ -26,6 +26,7 @@ def explore(args: argparse.Namespace) -> int:
 
     if not 0 <= args.port <= 65535:
         raise CadfeatError(f"--port {args.port}: allowed: 0..65535 (0: any free port)")
+    _check_port(args.port)  # a busy port is said before the minute of set-up, not after
     print(f"cadfeat explore: loading {args.study} (CAD builds and the design map, once)...", file=sys.stderr,
           flush=True)
     session = ExploreSession(args.study, args.results)
@@ -42,6 +43,24 @@ def explore(args: argparse.Namespace) -> int:
         server.stop()
     print("cadfeat explore: stopped", file=sys.stderr, flush=True)
     return 0
+
+
+def _check_port(port: int) -> None:
+    """``CadfeatError`` if 127.0.0.1:``port`` cannot be bound now (0: any port, always fine)."""
+    import socket
+
+    from cadfeat.errors import CadfeatError
+    from cadfeat.explore.server import HOST
+
+    if port == 0:
+        return
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((HOST, port))
+        except OSError as exc:
+            raise CadfeatError(f"explore: cannot listen on {HOST}:{port}: {exc.strerror or exc}; allowed: a free "
+                               "port (--port N, 0 for any)") from None
 
 
 COMMANDS = (
