@@ -8,7 +8,8 @@ Latency: the HTTP round trip of ``POST /api/evaluate`` as the page sends it (JSO
 out: objectives, (L, N) measures, ellipses at the pose), for a drag of each design variable across its range
 in 25 steps (each step a new design: the moved holes' occlusion rays are traced, the others come from the
 cache) — median and 95th percentile; and the server's own compute time per request (``elapsed_s``).
-The page's drawing after the numbers arrive is not included (a few ms in Chromium).
+In headless Chromium (SwiftShader: software WebGL), the same drags timed in the page from the slider's ``input``
+event until the new numbers are shown, and until the plots, the 3-D view and the camera view are redrawn too.
 """
 
 from __future__ import annotations
@@ -39,6 +40,37 @@ def _post(url: str, body: dict) -> dict:
         return json.loads(r.read())
 
 
+def _browser(url: str, variables: list[dict]) -> list[list[float]]:
+    """Slider → page in headless Chromium, timed in the page from the slider's ``input`` event: [ms until the
+    new numbers are shown, ms until plots and views are redrawn too] per move, every variable dragged in
+    ``STEPS`` steps; [] without Chromium."""
+    import shutil
+    import tempfile
+
+    exe = os.environ.get("CADFEAT_CHROMIUM") or shutil.which("chromium") or shutil.which("chromium-browser")
+    if not exe:
+        return []
+    sys.path.insert(0, str(ROOT / "tests"))
+    from cdp_helpers import open_page
+
+    out = []
+    with tempfile.TemporaryDirectory() as home, open_page(exe, url, Path(home)) as page:
+        page.wait("document.body && document.body.dataset.state === 'idle' && +document.body.dataset.evals >= 1",
+                  120)
+        for v in variables:
+            for k in range(STEPS):
+                value = v["lower"] + (v["upper"] - v["lower"]) * k / (STEPS - 1)
+                out.append(page.js(
+                    "new Promise(function (done) { var n = +document.body.dataset.evals, t0 = performance.now(), t1;"
+                    f"var el = document.querySelector('input[data-name=\"{v['name']}\"]'); el.value = {value!r};"
+                    "el.dispatchEvent(new Event('input', {bubbles: true}));"
+                    "(function poll() { var b = document.body.dataset;"
+                    " if (t1 === undefined && +b.evals > n) t1 = performance.now();"
+                    " if (t1 !== undefined && b.state === 'idle') done([t1 - t0, performance.now() - t0]);"
+                    " else setTimeout(poll, 1); })(); })"))
+    return out
+
+
 def main() -> str:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
     t0 = time.perf_counter()
@@ -61,6 +93,7 @@ def main() -> str:
                 res = _post(url + "api/evaluate", {"values": values, "pose": k % len(scene["times_s"])})
                 rtt.append(time.perf_counter() - start)
                 server.append(res["elapsed_s"])
+        page_ms = _browser(url, variables)
     finally:
         proc.terminate()
         proc.wait(30)
@@ -69,6 +102,12 @@ def main() -> str:
         return 1e3 * statistics.quantiles(a, n=100, method="inclusive")[q - 1]
 
     n_moves = len(rtt)
+    shown, drawn = [t[0] / 1e3 for t in page_ms], [t[1] / 1e3 for t in page_ms]
+    browser_rows = (f"| Chromium, slider → numbers shown (page-timed), median / 95th percentile | "
+                    f"{1e3 * statistics.median(shown):.0f} / {pct(shown, 95):.0f} ms |\n"
+                    f"| Chromium, slider → plots, 3-D and camera view redrawn too, median / 95th percentile | "
+                    f"{1e3 * statistics.median(drawn):.0f} / {pct(drawn, 95):.0f} ms |\n"
+                    if page_ms else "| in Chromium | not measured (no Chromium found) |\n")
     text = f"""## Explorer on the flagship (bench_explore)
 
 `cadfeat explore studies/nema17_mount.toml` ({len(variables)} design variables, {len(scene['holes'])} holes,
@@ -82,7 +121,7 @@ moves (each variable dragged across its range in {STEPS} steps).
 | slider → numbers, HTTP round trip, median | {1e3 * statistics.median(rtt):.0f} ms |
 | slider → numbers, HTTP round trip, 95th percentile | {pct(rtt, 95):.0f} ms |
 | server compute per move, median / 95th percentile | {1e3 * statistics.median(server):.0f} / {pct(server, 95):.0f} ms |
-
+{browser_rows}
 Target (issue 20): numbers within 0.3 s of a slider move.
 """
     return save_section("bench_explore", text)

@@ -9,7 +9,6 @@ wrote (CAD rebuilt at the slider's values, holes re-extracted); the pixels of th
 
 from __future__ import annotations
 
-import asyncio
 import json
 import os
 import shutil
@@ -17,10 +16,10 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
+from cdp_helpers import Page, open_page
 from test_report_browser import chromium
 
 DATA = Path(__file__).parent / "data" / "cqgi"
@@ -38,48 +37,8 @@ def _explorer(study: Path) -> tuple[subprocess.Popen, str]:
     return proc, line.split()[2]
 
 
-class Page:
-    """One Chromium tab over the DevTools protocol: ``call(method, **params)``, ``js(expression)``; records the
-    URL of every request the page makes."""
-
-    def __init__(self, ws, loop) -> None:
-        self.ws, self.loop, self.n, self.requests = ws, loop, 0, []
-
-    async def _call(self, method: str, params: dict) -> dict:
-        self.n += 1
-        await self.ws.send_json({"id": self.n, "method": method, "params": params})
-        while True:
-            msg = await self.ws.receive_json(timeout=60)
-            if msg.get("method") == "Network.requestWillBeSent":
-                self.requests.append(msg["params"]["request"]["url"])
-            if msg.get("id") == self.n:
-                if "error" in msg:
-                    raise AssertionError(f"{method}: {msg['error']}")
-                return msg["result"]
-
-    def call(self, method: str, **params) -> dict:
-        return self.loop.run_until_complete(self._call(method, params))
-
-    def js(self, expression: str):
-        res = self.call("Runtime.evaluate", expression=expression, returnByValue=True, awaitPromise=True)
-        if "exceptionDetails" in res:
-            raise AssertionError(f"{expression}: {res['exceptionDetails']}")
-        return res["result"].get("value")
-
-    def wait(self, expression: str, timeout_s: float = 60.0):
-        end = time.monotonic() + timeout_s
-        while time.monotonic() < end:
-            value = self.js(expression)
-            if value:
-                return value
-            self.loop.run_until_complete(asyncio.sleep(0.1))
-        raise AssertionError(f"timed out waiting for {expression}")
-
-
 @pytest.fixture(scope="module")
 def explorer(tmp_path_factory):
-    import aiohttp
-
     work = tmp_path_factory.mktemp("explore")
     for name in ("ex003_study.toml", "Ex003_Pillow_Block_With_Counterbored_Holes.py"):
         shutil.copyfile(DATA / name, work / name)
@@ -88,42 +47,12 @@ def explorer(tmp_path_factory):
     optimum.write_text(json.dumps({"variables": [{"name": "cbore_inset", "after": 25.0},
                                                  {"name": "center_hole_dia", "after": 18.0}]}))
     proc, url = _explorer(work / "ex003_study.toml")
-    profile = work / "profile"
-    browser = subprocess.Popen(
-        [chromium(), "--headless", "--no-sandbox", "--disable-dev-shm-usage", "--no-first-run",
-         "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--proxy-server=127.0.0.1:9",
-         "--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1",
-         "--window-size=1400,1000", "--remote-debugging-port=0", f"--user-data-dir={profile}", "about:blank"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env={**os.environ, "HOME": str(work)})
-    loop = asyncio.new_event_loop()
     try:
-        port_file = profile / "DevToolsActivePort"
-        end = time.monotonic() + 30
-        while not port_file.is_file() or not port_file.read_text().strip():
-            assert time.monotonic() < end and browser.poll() is None, "Chromium did not start"
-            time.sleep(0.1)
-        port = int(port_file.read_text().split()[0])
-
-        async def connect():
-            session = aiohttp.ClientSession()
-            async with session.get(f"http://127.0.0.1:{port}/json/list") as r:
-                targets = await r.json(content_type=None)
-            page = next(t for t in targets if t["type"] == "page")
-            return session, await session.ws_connect(page["webSocketDebuggerUrl"], max_msg_size=0)
-
-        session, ws = loop.run_until_complete(connect())
-        page = Page(ws, loop)
-        page.call("Network.enable")
-        page.call("Page.enable")
-        page.call("Page.navigate", url=url)
-        page.wait("document.body && document.body.dataset.state === 'idle' && +document.body.dataset.evals >= 1", 90)
-        yield page, proc, url, work
-        loop.run_until_complete(ws.close())
-        loop.run_until_complete(session.close())
+        with open_page(chromium(), url, work) as page:
+            page.wait("document.body && document.body.dataset.state === 'idle' && +document.body.dataset.evals >= 1",
+                      90)
+            yield page, proc, url, work
     finally:
-        browser.kill()
-        browser.wait()
-        loop.close()
         if proc.poll() is None:
             proc.kill()
             proc.wait()

@@ -204,12 +204,15 @@
     document.body.dataset.state = 'busy';
     var sent = JSON.stringify(values), sentPose = pose;
     post('/api/evaluate', {values: values, pose: pose}).then(function (res) {
-      E = res; drawAll();
+      E = res; tables();  // the numbers first ...
       $('status').textContent = 'scored in ' + (1000 * res.elapsed_s).toFixed(0) + ' ms (server)';
       if (JSON.stringify(values) === sent && pose === sentPose) nEvals += 1;
+      document.body.dataset.evals = String(nEvals);
+      return new Promise(function (done) {  // ... then the plots and both views, in the next frame
+        requestAnimationFrame(function () { drawAll(); done(); });
+      });
     }).catch(function (e) { message(String(e.message || e), true); }).then(function () {
       inflight = false;
-      document.body.dataset.evals = String(nEvals);
       if (pending) evaluate(); else document.body.dataset.state = 'idle';
     });
   }
