@@ -58,6 +58,12 @@ def explorer(tmp_path_factory):
             proc.wait()
 
 
+def _post(page: Page, route: str, body: dict) -> dict:
+    """A JSON request from the page itself (same origin), as its own script makes them."""
+    return json.loads(page.js(f"fetch('{route}', {{method: 'POST', body: JSON.stringify({json.dumps(body)})}})"
+                              ".then(function (r) { return r.text(); })"))
+
+
 def _objectives(page: Page) -> dict[str, float]:
     rows = page.js("JSON.stringify(Array.from(document.querySelectorAll('#objectives tbody tr'))"
                    ".map(function (tr) { return [tr.dataset.name, tr.dataset.value]; }))")
@@ -96,6 +102,17 @@ def test_slider_numbers_equal_cadfeat_evaluate(explorer):
         assert shown[name] == pytest.approx(value, rel=1e-9, abs=1e-12), name
     combined = float(page.js("document.getElementById('combined').dataset.value"))
     assert combined == pytest.approx(results["objectives"]["combined_before"], rel=1e-9)
+    # the sweep along the moved variable (the optimiser's evaluation) passes through the same design's scores
+    sweep = json.loads(page.wait("cadfeatExplore.sweep() && cadfeatExplore.sweep().name === 'cbore_inset' && "
+                                 "JSON.stringify(cadfeatExplore.sweep())"))
+    assert len(sweep["x"]) == 41  # (it depends on the other variables only: moving this one reuses it)
+    assert sweep["x"][0] == 8.0 and sweep["x"][-1] == 30.0
+    ends = _post(page, "/api/sweep", {"values": values, "name": "cbore_inset", "n": 2})
+    for k, inset in enumerate((8.0, 30.0)):  # the optimiser's batch (depth maps) = the exact single evaluation
+        exact = _post(page, "/api/evaluate", {"values": {**values, "cbore_inset": inset}})
+        for name, value in exact["normalised"].items():
+            assert ends["normalised"][name][k] == pytest.approx(value, abs=1e-9), (inset, name)  # (scale: 1)
+        assert ends["combined"][k] == pytest.approx(exact["combined"], abs=1e-9)
     # the 3-D canvas is drawn and changed with the design (the hole rings moved)
     s0, s1 = json.loads(shot0), json.loads(shot1)
     assert s0["width"] > 300 and s0["std"] > 5.0 and s1["std"] > 5.0, (s0, s1)

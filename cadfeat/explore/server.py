@@ -8,6 +8,7 @@ Routes (JSON in and out):
 - ``GET /api/scene``: ``ExploreSession.scene()`` (once per page load);
 - ``POST /api/evaluate`` ``{"values": {name: value}, "pose": k}``: ``ExploreSession.evaluate``;
 - ``POST /api/save-start`` ``{"values": ...}``: writes a new study TOML that starts at the design;
+- ``POST /api/sweep`` ``{"values": ..., "name": variable, "n": 41}``: the objectives along one variable;
 - ``POST /api/rebuild`` ``{"values": ...}``: the CAD model rebuilt at the design, as a mesh for the views;
 - ``POST /api/export`` ``{"values": ...}``: CAD rebuild, ``design.step`` + ``design.glb`` into a new folder.
 
@@ -90,6 +91,8 @@ class _Handler(BaseHTTPRequestHandler):
                 self._json(HTTPStatus.OK, session.evaluate(values, body.get("pose", 0)))
             elif route == "/api/save-start":
                 self._json(HTTPStatus.OK, {"path": str(session.save_start(values))})
+            elif route == "/api/sweep":
+                self._json(HTTPStatus.OK, session.sweep(values, body.get("name"), body.get("n", 41)))
             elif route == "/api/rebuild":
                 self._json(HTTPStatus.OK, {"mesh": session.rebuilt_mesh(values)})
             elif route == "/api/export":

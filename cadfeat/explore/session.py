@@ -177,6 +177,30 @@ class ExploreSession:
             "elapsed_s": elapsed,
         }
 
+    def sweep(self, values: Mapping[str, Any] | None, name: str, n: int = 41) -> dict[str, Any]:
+        """The objectives along design variable ``name`` over its bounds, the others at ``values`` (as the thesis
+        plots them against the design variable, Figs. 5.10-5.11): ``n`` designs scored in one batch by the
+        optimiser's own function (``Problem.evaluate_batch``: the depth-map occlusion test), normalised, with
+        the combined score and whether the kept requirements hold there."""
+        x = self.design(values)
+        if name not in self.names:
+            raise CadfeatError(f"explore: unknown design variable {name!r}; allowed: {', '.join(self.names)}")
+        if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= 201:
+            raise CadfeatError(f"explore: sweep of {n!r} points; allowed: 2..201")
+        i = self.names.index(name)
+        v = self.variables[i]
+        X = np.repeat(x[None], n, axis=0)
+        X[:, i] = np.linspace(v.lower, v.upper, n)
+        problem = self.setup.problem
+        with self.lock:
+            G, C = problem.evaluate_batch(X)
+            normalised = problem.normalised(G)
+            combined = None if self.config.objective.combine == "pareto" else problem.combined_from(G)
+        feasible = np.all(np.asarray(C) >= 0, axis=1) if np.size(C) else np.ones(n, bool)
+        return {"name": name, "x": _plain(X[:, i]), "at": float(x[i]),
+                "normalised": {k: _plain(normalised[:, j]) for j, k in enumerate(problem.names)},
+                "combined": None if combined is None else _plain(combined), "feasible": _plain(feasible)}
+
     # ------------------------------------------------------------------------------------ outputs
     def save_start(self, values: Mapping[str, Any] | None) -> Path:
         """Write the study with ``[design.parameters] NAME.start`` = the chosen design, next to the study file

@@ -194,7 +194,47 @@
   function drawAll() {
     if (!E) return;
     updateRings(); draw3d(); drawCamera(); tables();
-    Array.prototype.forEach.call(document.querySelectorAll('.plot'), plot);
+    Array.prototype.forEach.call(document.querySelectorAll('.plot[data-measure]'), plot);
+    drawSweep();
+  }
+  // objectives along one design variable (thesis Figs. 5.10-5.11), fetched after the numbers, off the slider's path
+  var SW = null, sweepKey = null, moved = null, nSweeps = 0;
+  function requestSweep() {
+    var name = moved || S.variables[0].name, others = {};
+    Object.keys(values).forEach(function (k) { if (k !== name) others[k] = values[k]; });
+    var key = name + JSON.stringify(others);
+    if (key === sweepKey) { drawSweep(); return; }
+    sweepKey = key;
+    post('/api/sweep', {values: values, name: name}).then(function (r) {
+      SW = r; nSweeps += 1; document.body.dataset.sweeps = String(nSweeps); drawSweep();
+    }).catch(function (e) { message(String(e.message || e), true); });
+  }
+  function drawSweep() {
+    var canvas = $('plot-sweep');
+    if (!SW || !canvas) return;
+    var w = canvas.width = canvas.clientWidth, h = canvas.height = canvas.clientHeight, ctx = canvas.getContext('2d');
+    var xs = SW.x, series = Object.keys(SW.normalised).map(function (k) { return [k, SW.normalised[k]]; });
+    if (SW.combined) series.push(['combined', SW.combined]);
+    var all = [].concat.apply([], series.map(function (s) { return s[1]; })).filter(function (v) { return v !== null && isFinite(v); });
+    var lo = Math.min.apply(null, all.concat([0])), hi = Math.max.apply(null, all.concat([1]));
+    var pad = {l: 44, r: 90, t: 16, b: 18};
+    var X = function (v) { return pad.l + (v - xs[0]) / ((xs[xs.length - 1] - xs[0]) || 1) * (w - pad.l - pad.r); };
+    var Y = function (v) { return h - pad.b - (v - lo) / ((hi - lo) || 1) * (h - pad.t - pad.b); };
+    ctx.clearRect(0, 0, w, h); ctx.font = '11px sans-serif';
+    ctx.fillStyle = '#ddd';
+    var step = (X(xs[1]) - X(xs[0])) || 2;
+    SW.feasible.forEach(function (ok, k) { if (!ok) ctx.fillRect(X(xs[k]) - step / 2, pad.t, step, h - pad.t - pad.b); });
+    ctx.fillStyle = '#333'; ctx.fillText(canvas.dataset.title.replace('the last moved variable', SW.name), pad.l, 11);
+    ctx.fillText(fmt(hi, 3), 2, pad.t + 8); ctx.fillText(fmt(lo, 3), 2, h - pad.b);
+    ctx.fillText(SW.name + ' = ' + fmt(xs[0], 4) + ' … ' + fmt(xs[xs.length - 1], 4), pad.l, h - 4);
+    ctx.strokeStyle = '#d62728'; ctx.beginPath(); ctx.moveTo(X(values[SW.name]), pad.t); ctx.lineTo(X(values[SW.name]), h - pad.b); ctx.stroke();
+    series.forEach(function (s, j) {
+      ctx.strokeStyle = s[0] === 'combined' ? '#000' : colour(j); ctx.lineWidth = s[0] === 'combined' ? 2 : 1;
+      ctx.beginPath();
+      s[1].forEach(function (v, k) { if (v === null) return; if (k) ctx.lineTo(X(xs[k]), Y(v)); else ctx.moveTo(X(xs[k]), Y(v)); });
+      ctx.stroke(); ctx.fillStyle = ctx.strokeStyle; ctx.fillText(s[0], w - pad.r + 6, pad.t + 10 + 12 * j);
+    });
+    ctx.lineWidth = 1;
   }
 
   // ----------------------------------------------------------------------------------- evaluation
@@ -213,7 +253,7 @@
       });
     }).catch(function (e) { message(String(e.message || e), true); }).then(function () {
       inflight = false;
-      if (pending) evaluate(); else document.body.dataset.state = 'idle';
+      if (pending) evaluate(); else { document.body.dataset.state = 'idle'; requestSweep(); }
     });
   }
   function setValues(v) {
@@ -238,7 +278,7 @@
       div.querySelector('.val').textContent = fmt(v.value);
       el.addEventListener('input', function () {
         values[v.name] = parseFloat(el.value); div.querySelector('.val').textContent = fmt(values[v.name]);
-        showing = 'current*'; evaluate();
+        moved = v.name; showing = 'current*'; evaluate();
       });
       box.appendChild(div);
     });
@@ -281,7 +321,7 @@
     var m = s / n; return {width: w, height: h, mean: m, std: Math.sqrt(Math.max(s2 / n - m * m, 0)), hash: hash};
   }
   window.cadfeatExplore = {
-    scene: function () { return S; }, last: function () { return E; },
+    scene: function () { return S; }, last: function () { return E; }, sweep: function () { return SW; },
     snapshot3d: function () { draw3d(); return snapshot(V.renderer); },
     snapshotCamera: function () { drawCamera(); return snapshot(C.renderer); },
     overlayHash: function () { var d = $('camoverlay').getContext('2d').getImageData(0, 0, C.w, C.h).data, h = 0;
