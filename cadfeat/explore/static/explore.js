@@ -46,7 +46,7 @@
     var all = bb.clone(); path.forEach(function (p) { all.expandByPoint(p); });  // frame part and path
     ctr = all.getCenter(new THREE.Vector3());
     var r = all.getSize(new THREE.Vector3()).length() * 0.5;
-    V.cam.position.copy(ctr).add(new THREE.Vector3(1.2, -1.6, 1.0).normalize().multiplyScalar(r * 2.6));
+    V.cam.position.copy(ctr).add(new THREE.Vector3(1.2, -1.6, 1.0).normalize().multiplyScalar(r * 3.0));
     V.cam.lookAt(ctr);
     V.controls = new THREE.OrbitControls(V.cam, V.renderer.domElement);
     V.controls.target.copy(ctr); V.controls.update();
