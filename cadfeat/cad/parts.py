@@ -379,6 +379,10 @@ def load_part(path: str | os.PathLike[str]) -> Part:
         names = ", ".join(p.stem for p in find_parts()) if PARTS_DIR.is_dir() else "(no library)"
         what = "is not a regular file" if path.exists() else "part script not found"
         raise CadfeatError(f"{path}: {what} (library parts: {names})")
+    from cadfeat.cad import cqgi_parts
+
+    if cqgi_parts.is_cqgi_script(path):  # a cq-editor / CQGI script: parsed by CQGI, run only to build
+        return cqgi_parts.load_cqgi_part(path)
     if current_time_limit() is not None:
         _import_in_worker(path, current_time_limit())  # a loop or a crash at import time stays in the worker
     module = _import_script(path)

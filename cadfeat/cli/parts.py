@@ -1,5 +1,6 @@
-"""``cadfeat parts [DIR | SCRIPT | PART.step] [--holes]``: list the part scripts with their parameters, or a
-STEP part's holes (the names a study's ``design.holes`` selectors use)."""
+"""``cadfeat parts [DIR | SCRIPT | PART.step] [--holes] [--params]``: list the part scripts with their parameters,
+or a STEP part's holes (the names a study's ``design.holes`` selectors use); ``--params``: one script's
+parameters as cq-cli's ``--getparams`` JSON."""
 
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("directory", nargs="?", default=None,
                         help="folder of part scripts, one script, or a STEP part (default: the parts/ library)")
     parser.add_argument("--holes", action="store_true", help="also build each part and list its holes at the defaults")
+    parser.add_argument("--params", action="store_true",
+                        help="print one script's parameters as cq-cli --getparams JSON (CQGI scripts: as cq-cli)")
     build_timeout_arg(parser)
 
 
@@ -38,6 +41,8 @@ def _list_parts(args: argparse.Namespace) -> int:
     from cadfeat.cad.parts import find_parts, load_part
 
     target = Path(args.directory) if args.directory else None
+    if getattr(args, "params", False):
+        return _params_json(target)
     if target is not None and target.suffix.lower() in (".step", ".stp"):
         return _step_part(target, args.holes)
     paths = [target] if target is not None and target.is_file() else find_parts(target)
@@ -57,6 +62,21 @@ def _list_parts(args: argparse.Namespace) -> int:
                 a = ", ".join(f"{v:.3f}" for v in h.axis)
                 print(f"    {h.name or f'H{i + 1}'}: centre ({c}) mm, axis ({a}), r {h.radius_mm:.3f} mm, {h.kind}, "
                       f"{'through' if h.through else f'blind {h.depth_mm:.3f} mm'}")
+    return 0
+
+
+def _params_json(target: object) -> int:
+    """``--params``: the parameters of one script as cq-cli's ``--getparams`` JSON."""
+    import json
+    from pathlib import Path
+
+    from cadfeat.cad.cqgi_parts import parameter_listing
+    from cadfeat.errors import CadfeatError
+
+    if target is None or not Path(str(target)).is_file():
+        raise CadfeatError(f"--params: {target or '(no script)'} is not a script file; allowed: one part script "
+                           "(cadfeat parts SCRIPT.py --params)")
+    print(json.dumps(parameter_listing(Path(str(target)))))
     return 0
 
 

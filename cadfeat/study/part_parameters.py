@@ -45,6 +45,8 @@ def part_parameters(path: str | Path) -> dict[str, PartParameter]:
     node = next((n.value for n in tree.body if isinstance(n, ast.Assign | ast.AnnAssign)
                  and any(isinstance(t, ast.Name) and t.id == "PARAMETERS"
                          for t in (n.targets if isinstance(n, ast.Assign) else [n.target]))), None)
+    if node is None and _is_cqgi(path):
+        return _parameters_by_loading(path)  # a cq-editor / CQGI script: its constants (cadfeat.cad.cqgi_parts)
     if node is None:
         raise StudyError(f"{path}: PARAMETERS: missing; allowed: a module-level dict "
                          "{name: {default, bounds, unit, description}}")
@@ -58,6 +60,12 @@ def part_parameters(path: str | Path) -> dict[str, PartParameter]:
 
 
 _MUTATORS = {"update", "setdefault", "pop", "popitem", "clear", "__setitem__"}
+
+
+def _is_cqgi(path: Path) -> bool:
+    from cadfeat.cad.cqgi_parts import is_cqgi_script
+
+    return is_cqgi_script(path)
 
 
 def _mutated(tree: ast.Module) -> bool:

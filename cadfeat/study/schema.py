@@ -179,6 +179,9 @@ class ParameterSpec:
     unit: str
     is_int: bool
     standard_sizes: tuple[float, ...] | None = None
+    start: float | int | None = None
+    """The design the study starts from (``evaluate`` scores it, ``run`` starts the optimiser there); None:
+    the part's default."""
 
 
 @dataclass(frozen=True)
@@ -415,7 +418,8 @@ def _design_section(t: Table, info: StudyInfo, label: str) -> tuple[DesignSpec, 
                     "parameters")
         specs = _parameter_specs(t, params, label, info)
         echo["parameters"] = {p.name: {"lower": p.lower, "upper": p.upper,
-                                       **({"standard_sizes": list(p.standard_sizes)} if p.standard_sizes else {})}
+                                       **({"standard_sizes": list(p.standard_sizes)} if p.standard_sizes else {}),
+                                       **({"start": p.start} if p.start is not None else {})}
                               for p in specs}
     else:
         if t.has("parameters"):
@@ -489,9 +493,12 @@ def _parameter_specs(t: Table, params: Mapping[str, PartParameter], label: str,
         if name not in params:
             raise StudyError(f"{label}: {key}: unknown parameter of {info.part}; allowed: {names_allowed}")
         p = params[name]
-        st = Table(spec, key, label, ["lower", "upper", "standard_sizes"])
+        st = Table(spec, key, label, ["lower", "upper", "standard_sizes", "start"])
         lo = st.number("lower", p.lower, float(p.lower), float(p.upper))
         hi = st.number("upper", p.upper, float(p.lower), float(p.upper))
+        if not (math.isfinite(lo) and math.isfinite(hi)):  # a CQGI constant without a bounds comment
+            st.fail(key, f"{name} has no bounds in {info.part}", "lower and upper here (or a '# [lower, upper] "
+                    "unit' comment on the constant's line in the script)")
         if p.is_int:
             for which, v in (("lower", lo), ("upper", hi)):
                 if float(v) != round(float(v)):
@@ -507,7 +514,12 @@ def _parameter_specs(t: Table, params: Mapping[str, PartParameter], label: str,
                 st.fail(f"{key}.standard_sizes", f"{fmt(v)} is not allowed",
                         f"a non-empty list of values in [{lo}, {hi}]")
             sizes = tuple(sorted(float(s) for s in v))
-        out.append(ParameterSpec(name, lo, hi, p.default, p.unit, p.is_int, sizes))
+        start = st.number("start", None, float(lo), float(hi))
+        if start is not None and p.is_int:
+            if float(start) != round(float(start)):
+                st.fail(f"{key}.start", f"{start!r} is not an integer", f"an integer in [{lo}, {hi}]")
+            start = int(round(start))
+        out.append(ParameterSpec(name, lo, hi, p.default, p.unit, p.is_int, sizes, start))
     return tuple(out)
 
 

@@ -207,11 +207,12 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     camera, trajectory, T_task_part = scene or load_scene(config)
     part = load_part(config.study.part_path)
     specs = [p for p in config.design.parameters if not p.is_int]
-    ints = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
+    ints = {p.name: int(p.default if p.start is None else p.start) for p in config.design.parameters if p.is_int}
     ints.update({k: int(v) for k, v in (int_values or {}).items()})
     names = [p.name for p in specs]
     linearise_at = at is not None
-    at = {**part.defaults(), **ints, **{k: float(v) for k, v in (at or {}).items() if k in names}}
+    starts = {p.name: float(p.start) for p in specs if p.start is not None}  # [design.parameters] NAME.start
+    at = {**part.defaults(), **ints, **starts, **{k: float(v) for k, v in (at or {}).items() if k in names}}
 
     def values(x: np.ndarray) -> dict[str, Any]:
         out = dict(at)

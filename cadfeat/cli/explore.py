@@ -1,0 +1,68 @@
+"""``cadfeat explore STUDY [--port N] [--no-browser] [--results results.json]``: the interactive explorer."""
+
+from __future__ import annotations
+
+import argparse
+
+from cadfeat.cli.command import Command
+
+
+def _arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("study", help="study TOML file")
+    parser.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (default 8765; 0: any free port)")
+    parser.add_argument("--no-browser", action="store_true", help="do not open the web browser")
+    parser.add_argument("--results", default=None, metavar="JSON",
+                        help="results.json of a run, for 'current vs optimum' (default: exports/<study name>/)")
+
+
+def explore(args: argparse.Namespace) -> int:
+    """Explore a study in the browser: sliders -> measures and objectives along the path, 3-D and camera view."""
+    import sys
+    import time
+    import webbrowser
+
+    from cadfeat.errors import CadfeatError, Terminated
+    from cadfeat.explore import ExploreSession, serve
+
+    if not 0 <= args.port <= 65535:
+        raise CadfeatError(f"--port {args.port}: allowed: 0..65535 (0: any free port)")
+    _check_port(args.port)  # a busy port is said before the minute of set-up, not after
+    print(f"cadfeat explore: loading {args.study} (CAD builds and the design map, once)...", file=sys.stderr,
+          flush=True)
+    session = ExploreSession(args.study, args.results)
+    server = serve(session, args.port)
+    print(f"cadfeat explore: {server.url}  (study loaded in {session.setup_s:.1f} s; Ctrl-C to stop)", flush=True)
+    try:
+        if not args.no_browser:
+            webbrowser.open(server.url)
+        while True:
+            time.sleep(0.5)
+    except (KeyboardInterrupt, Terminated):
+        pass
+    finally:
+        server.stop()
+    print("cadfeat explore: stopped", file=sys.stderr, flush=True)
+    return 0
+
+
+def _check_port(port: int) -> None:
+    """``CadfeatError`` if 127.0.0.1:``port`` cannot be bound now (0: any port, always fine)."""
+    import socket
+
+    from cadfeat.errors import CadfeatError
+    from cadfeat.explore.server import HOST
+
+    if port == 0:
+        return
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((HOST, port))
+        except OSError as exc:
+            raise CadfeatError(f"explore: cannot listen on {HOST}:{port}: {exc.strerror or exc}; allowed: a free "
+                               "port (--port N, 0 for any)") from None
+
+
+COMMANDS = (
+    Command("explore", _arguments, explore),
+)

@@ -1,0 +1,104 @@
+"""The explorer's pieces without a browser: the exact ray cache, the GLB export, never overwriting.
+
+References: trimesh's own ray queries and ``measures.visibility.occluded`` on the bare mesh (the cache must give
+the same booleans and hit points), the STL that ``cadfeat.cad.export.export_stl`` writes of the same solid
+(the GLB re-imported with trimesh must be the same surface), the part's own hole names.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cadfeat.explore.raycache import CachedRayMesh
+from cadfeat.explore.session import new_path
+
+DATA = Path(__file__).parent / "data" / "cqgi"
+
+
+def _plate_mesh():
+    from cadfeat.cad.export import mesh_from_shape
+    from cadfeat.cad.parts import load_part
+
+    part = load_part(DATA / "Ex003_Pillow_Block_With_Counterbored_Holes.py")
+    return part, mesh_from_shape(part.build(), tolerance=0.05)
+
+
+def test_ray_cache_is_exact():
+    """Occlusion through the cache = occlusion on the bare mesh, for a first call, a repeated call and a call in
+    which only some holes moved (those rays are traced again, the others come from the cache)."""
+    from cadfeat.measures.visibility import occluded
+
+    _, mesh = _plate_mesh()
+    rng = np.random.default_rng(0)
+    cams = np.column_stack([rng.uniform(-80, 80, 30), rng.uniform(-80, 80, 30), rng.uniform(-40, 200, 30)])
+    centres = np.array([[-34, -44, 5], [34, 44, 5], [0, 0, 5], [0, 0, -5], [40, 0, 0]], float)
+    axes = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [0, 0, -1], [1, 0, 0]], float)
+    cached = CachedRayMesh(mesh)
+    first = occluded(cached, cams, centres, axes)
+    np.testing.assert_array_equal(first, occluded(mesh, cams, centres, axes))
+    assert first.any() and not first.all()
+    np.testing.assert_array_equal(occluded(cached, cams, centres, axes), first)
+    assert cached.hits == first.size
+    moved = centres.copy()
+    moved[0] += [3.0, -2.0, 0.0]
+    np.testing.assert_array_equal(occluded(cached, cams, moved, axes), occluded(mesh, cams, moved, axes))
+    assert cached.misses == first.size + len(cams)  # only the moved hole's rays were traced again
+    o, d = rng.normal(size=(50, 3)) * 30 + [0, 0, 100], rng.normal(size=(50, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    want = mesh.ray.intersects_location(o, d, multiple_hits=True)
+    got = CachedRayMesh(mesh).intersects_location(o, d, multiple_hits=True)
+    key = lambda r: sorted(zip(r[1].tolist(), r[2].tolist(), map(tuple, np.round(r[0], 9)), strict=True))  # noqa: E731
+    assert key(got) == key(want)
+
+
+def test_glb_nodes_are_hole_names_and_geometry_is_the_stl(tmp_path):
+    import trimesh
+
+    from cadfeat.cad.export import export_stl
+    from cadfeat.cad.gltf import MM_TO_M, export_glb
+
+    part, _ = _plate_mesh()
+    shape, holes = part.build(cbore_inset=18.0), part.holes(cbore_inset=18.0)
+    export_glb(shape, holes, tmp_path / "p.glb")
+    export_stl(shape, tmp_path / "p.stl")
+    scene = trimesh.load(tmp_path / "p.glb")
+    nodes = set(scene.graph.nodes_geometry)
+    assert nodes == {h.name for h in holes} | {"part"}
+    stl = trimesh.load(tmp_path / "p.stl")
+    glb = trimesh.util.concatenate([scene.geometry[scene.graph[n][1]] for n in nodes])
+    assert len(glb.faces) == len(stl.faces)
+    np.testing.assert_allclose(glb.bounds / MM_TO_M, stl.bounds, atol=1e-4)
+    assert glb.area / MM_TO_M**2 == pytest.approx(stl.area, rel=1e-6)
+    glb_m = glb.copy()
+    glb_m.merge_vertices(digits_vertex=6)
+    assert glb_m.is_watertight and glb_m.volume / MM_TO_M**3 == pytest.approx(stl.volume, rel=1e-6)
+    for h in holes:  # each hole's node sits in that hole: within its rim radius of its axis
+        mesh = scene.geometry[scene.graph[h.name][1]]
+        d = mesh.vertices / MM_TO_M - h.centre
+        radial = np.linalg.norm(d - np.outer(d @ h.axis, h.axis), axis=1)
+        assert radial.max() <= h.radius_mm + 1e-3
+
+
+def test_new_path_never_reuses_a_name(tmp_path):
+    (tmp_path / "s-start-1.toml").write_text("mine")
+    path = new_path(tmp_path, "s-start", ".toml")
+    assert path.name == "s-start-2.toml"
+    assert (tmp_path / "s-start-1.toml").read_text() == "mine"
+
+
+def test_busy_port_is_refused_before_any_work(capsys):
+    """The port is checked before the study is loaded: a busy port fails at once, naming the address."""
+    import socket
+
+    from cadfeat.cli import main
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        assert main(["explore", str(DATA / "ex003_study.toml"), "--port", str(port), "--no-browser"]) == 2
+    err = capsys.readouterr().err
+    assert f"cannot listen on 127.0.0.1:{port}" in err and "loading" not in err
