@@ -24,6 +24,7 @@ __all__ = ["COMMANDS", "build_parser", "main", "run_guarded"]
 #: Every sub-command, in the order ``cadfeat --help`` lists them.
 COMMANDS: tuple[Command, ...] = (*listing.COMMANDS, *parts.COMMANDS, *render.COMMANDS, *report.COMMANDS,
                                  *study.COMMANDS, *track.COMMANDS)
+COMMANDS += __import__("cadfeat.cli.campaign", fromlist=["COMMANDS"]).COMMANDS  # cadfeat campaign (issue 21)
 
 
 def build_parser() -> argparse.ArgumentParser:
