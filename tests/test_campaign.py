@@ -149,8 +149,10 @@ def test_failing_and_overrunning_cases_are_recorded_and_rerun(client, tmp_path: 
     rows = (out / "campaign.csv").read_text()
     assert "this part does not build" in rows and ",timeout," in rows
     before = _mtimes(out)
-    again = run_campaign(path, out, client=client, quiet=True)  # the two unfinished cases run again, only they
+    # the two unfinished cases run again, only they — this time attached to the cluster by its scheduler's address
+    again = run_campaign(path, out, scheduler=client.scheduler.address, quiet=True)
     assert (again.ran, again.skipped) == (2, 1) and _mtimes(out) == before
+    assert sorted(r["status"] for r in again.records) == ["done", "failed", "timeout"]
 
 
 def test_killed_worker_case_is_retried_or_recorded(client, tmp_path: Path) -> None:

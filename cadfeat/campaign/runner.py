@@ -120,7 +120,13 @@ def run_campaign(path_or_campaign: str | os.PathLike[str] | Campaign, out_dir: s
         if todo:
             with _client(scheduler, workers, campaign.retries, client) as c, \
                     _Display(len(todo), skipped, enabled=progress and not quiet) as display:
-                _Execution(c, store, todo, display, outcomes).run()
+                execution = _Execution(c, store, todo, display, outcomes)
+                try:
+                    execution.run()
+                except BaseException:
+                    if scheduler is None and client is None:  # our own LocalCluster: stop now, not after the study
+                        execution.kill_busy_workers()
+                    raise
     except BaseException:
         _cleanup_after_stop(store)
         for case in todo:
@@ -159,6 +165,46 @@ def _alive(pid: int) -> bool:
     return True
 
 
+class _Stop:
+    """A SIGINT / SIGTERM noted by ``_deferred_signals``, raised by ``check`` from the campaign's own loop."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.previous: dict[int, Any] = {}
+
+    def check(self) -> None:
+        if self.signum is None:
+            return
+        handler = self.previous.get(self.signum)
+        if callable(handler):
+            handler(self.signum, None)  # Ctrl-C: KeyboardInterrupt; SIGTERM under the CLI: Terminated
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _deferred_signals() -> Iterator[_Stop]:
+    """Within the block, SIGINT and SIGTERM only set a flag that the loop checks (``_Stop.check``): raised
+    directly, the interrupt can land in a callback of Dask's own (a garbage-collection hook) and be swallowed
+    there ("Exception ignored in ..."), and the campaign would run on."""
+    import signal
+
+    stop = _Stop()
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+
+    def note(signum: int, frame: Any) -> None:
+        stop.signum = signum
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        stop.previous[sig] = signal.signal(sig, note)
+    try:
+        yield stop
+    finally:
+        for sig, handler in stop.previous.items():
+            signal.signal(sig, handler)
+
+
 class _Execution:
     """Submit the cases, follow them, enforce the hard time limit, record outcomes as they arrive."""
 
@@ -168,6 +214,7 @@ class _Execution:
         self.started: dict[str, dict[str, Any]] = {}
         self.lock = threading.Lock()
         self.cases = {self._key(c): c for c in todo}
+        self.outcomes_keys: set[str] = set()
 
     def _key(self, case: Case) -> str:
         return f"cadfeat-case-{case.name}-{case.input_hash[:8]}-{os.getpid()}-{time.monotonic_ns()}"
@@ -190,26 +237,43 @@ class _Execution:
             futures[key] = self.client.submit(run_case, payload, key=key, pure=False)
         pending = dict(futures)
         try:
-            while pending:
-                for key, fut in list(pending.items()):
-                    outcome = self._outcome(key, fut)
-                    if outcome is None:
-                        continue
-                    del pending[key]
-                    case = self.cases[key]
-                    self.outcomes[case.name] = self.store.save(case, outcome)
-                    self.display.finished(outcome["status"])
-                    with contextlib.suppress(Exception):
-                        write_csv(self.store, self.store.campaign)
-                with self.lock:
-                    running = sum(1 for k in pending if k in self.started)
-                self.display.running(running)
-                time.sleep(POLL_S)
+            with _deferred_signals() as stop:
+                while pending:
+                    stop.check()
+                    for key, fut in list(pending.items()):
+                        outcome = self._outcome(key, fut)
+                        if outcome is None:
+                            continue
+                        del pending[key]
+                        self.outcomes_keys.add(key)
+                        case = self.cases[key]
+                        self.outcomes[case.name] = self.store.save(case, outcome)
+                        self.display.finished(outcome["status"])
+                        with contextlib.suppress(Exception):
+                            write_csv(self.store, self.store.campaign)
+                    with self.lock:
+                        running = sum(1 for k in pending if k in self.started)
+                    self.display.running(running)
+                    time.sleep(POLL_S)
+                stop.check()
         finally:
             if pending:
                 self.client.cancel(list(pending.values()))
             with contextlib.suppress(Exception):
                 self.client.unsubscribe_topic(EVENT_TOPIC)
+
+    def kill_busy_workers(self) -> None:
+        """SIGKILL the local worker processes still running a case (Ctrl-C on a LocalCluster): a graceful close
+        would wait for their studies to finish. Their staging folders are removed afterwards (owner gone)."""
+        import signal
+        import socket
+
+        with self.lock:
+            busy = [s for k, s in self.started.items() if k not in self.outcomes_keys]
+        for start in busy:
+            if start.get("host") == socket.gethostname():
+                with contextlib.suppress(OSError, TypeError, ValueError):
+                    os.kill(int(start["pid"]), signal.SIGKILL)
 
     def _outcome(self, key: str, fut: Any) -> dict[str, Any] | None:
         """The outcome of a finished future; None while it runs (after enforcing the hard time limit)."""

@@ -25,7 +25,7 @@ import time
 from collections.abc import Iterator, Mapping
 from typing import Any
 
-__all__ = ["EVENT_TOPIC", "CaseTimeout", "run_case"]
+__all__ = ["EVENT_TOPIC", "CaseTimeout", "run_case", "warm_worker"]
 
 #: The Dask event topic on which a worker announces the start of a case (key, pid, address, time).
 EVENT_TOPIC = "cadfeat-campaign"
@@ -70,7 +70,8 @@ def _announce(key: str | None) -> None:
         worker = get_worker()
     except (ImportError, ValueError):
         return
-    worker.log_event(EVENT_TOPIC, {"key": key, "pid": os.getpid(), "worker": worker.address, "start": time.time()})
+    worker.log_event(EVENT_TOPIC, {"key": key, "pid": os.getpid(), "host": socket.gethostname(),
+                                   "worker": worker.address, "start": time.time()})
 
 
 def _check_files(files: Mapping[str, str]) -> str | None:
@@ -132,3 +133,14 @@ def _run(payload: Mapping[str, Any]) -> None:
     from cadfeat.study import run_study
 
     run_study(dict(payload["study"]), payload["out_dir"], quiet=True, progress=False)
+
+
+def warm_worker() -> int:
+    """Import the study code and start the CAD worker server (CadQuery preloaded) in this worker, what its first
+    case would otherwise pay; returns the worker's pid."""
+    from cadfeat.cad.parts import call_with_time_limit, start_workers
+    from cadfeat.study import run  # noqa: F401
+
+    start_workers()
+    call_with_time_limit(os.getpid, (), "campaign worker warm-up", 300.0)  # waits until the server is up
+    return os.getpid()
