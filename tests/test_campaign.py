@@ -109,6 +109,7 @@ def test_grid_resolves_paths_and_hash_follows_the_part_bytes(tmp_path: Path) -> 
 
 
 # ----------------------------------------------------------------------------------------- on Dask
+@pytest.mark.slow
 def test_campaign_matches_serial_runs_and_rerun_skips(client, tmp_path: Path) -> None:
     from cadfeat.study import run_study
 
@@ -132,6 +133,7 @@ def test_campaign_matches_serial_runs_and_rerun_skips(client, tmp_path: Path) ->
     assert _mtimes(out) == before
 
 
+@pytest.mark.slow
 def test_failing_and_overrunning_cases_are_recorded_and_rerun(client, tmp_path: Path) -> None:
     broken = tmp_path / "broken_points.py"
     broken.write_text(PART.read_text().replace("    sx, sy, sz = PLATE_MM\n",
@@ -155,6 +157,7 @@ def test_failing_and_overrunning_cases_are_recorded_and_rerun(client, tmp_path: 
     assert sorted(r["status"] for r in again.records) == ["done", "failed", "timeout"]
 
 
+@pytest.mark.slow
 def test_killed_worker_case_is_retried_or_recorded(client, tmp_path: Path) -> None:
     path = _campaign(tmp_path, ['"trajectory.radius_end_mm" = 8.5', '"trajectory.radius_end_mm" = 9.5'], "k")
     out = tmp_path / "out"
@@ -179,12 +182,13 @@ def test_killed_worker_case_is_retried_or_recorded(client, tmp_path: Path) -> No
     assert result.count("done") >= 1
     for r in result.records:
         if r["status"] == "failed":
-            assert "worker" in r["error"]
+            assert "worker process died" in r["error"]
         else:
             _intact(out / "cases" / r["case"])
     assert _staging(out) == []
 
 
+@pytest.mark.slow
 def test_sigint_keeps_finished_cases_and_leaves_no_staging(tmp_path: Path) -> None:
     path = _campaign(tmp_path, ['"trajectory.radius_end_mm" = 7.5', '"trajectory.radius_end_mm" = 8.5',
                                 '"trajectory.radius_end_mm" = 9.5'], "s")

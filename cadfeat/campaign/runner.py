@@ -65,24 +65,30 @@ class CampaignResult:
 @contextlib.contextmanager
 def local_cluster(workers: int | None, retries: int = 1) -> Iterator[Any]:
     """A ``LocalCluster`` client: ``workers`` processes (default: the CPU count), one thread each, non-daemonic
-    (a study starts CAD build processes), no dashboard; a case is re-run ``retries`` times if its worker dies."""
+    (a study starts CAD build processes), no dashboard, the cores shared out among the workers' render threads
+    (``LP_NUM_THREADS``, Mesa llvmpipe); a case is re-run ``retries`` times if its worker dies."""
     import logging
 
     import dask
     from distributed import Client, LocalCluster
 
     n = workers or os.cpu_count() or 1
-    with dask.config.set({"distributed.worker.daemon": False, "distributed.scheduler.allowed-failures": retries}):
+    environ = {**dask.config.get("distributed.nanny.pre-spawn-environ", {}),
+               "LP_NUM_THREADS": max(1, (os.cpu_count() or 1) // n)}  # the report's software renderer: the
+    # workers already fill the cores, more render threads per worker would only compete
+    # (the settings hold for the cluster's whole life: a nanny reads them again when it restarts a dead worker)
+    with dask.config.set({"distributed.worker.daemon": False, "distributed.scheduler.allowed-failures": retries,
+                          "distributed.nanny.pre-spawn-environ": environ}):
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                                silence_logs=logging.ERROR)
         client = Client(cluster)
-    try:
-        yield client
-    finally:
-        with contextlib.suppress(Exception):
-            client.close()
-        with contextlib.suppress(Exception):
-            cluster.close()
+        try:
+            yield client
+        finally:
+            with contextlib.suppress(Exception):
+                client.close()
+            with contextlib.suppress(Exception):
+                cluster.close()
 
 
 @contextlib.contextmanager
