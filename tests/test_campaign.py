@@ -134,27 +134,35 @@ def test_campaign_matches_serial_runs_and_rerun_skips(client, tmp_path: Path) ->
 
 
 @pytest.mark.slow
-def test_failing_and_overrunning_cases_are_recorded_and_rerun(client, tmp_path: Path) -> None:
+def test_failing_and_overrunning_cases_are_recorded_and_rerun(client, tmp_path: Path, monkeypatch) -> None:
+    from cadfeat.campaign import runner
+
     broken = tmp_path / "broken_points.py"
     broken.write_text(PART.read_text().replace("    sx, sy, sz = PLATE_MM\n",
                                                "    raise RuntimeError('this part does not build')\n"))
+    stuck = tmp_path / "slow_points.py"  # its build sleeps (in the build process): the study waits in C code
+    stuck.write_text(PART.read_text().replace("    sx, sy, sz = PLATE_MM\n",
+                                              "    __import__('time').sleep(20)\n    sx, sy, sz = PLATE_MM\n"))
+    monkeypatch.setattr(runner, "GRACE_S", 2.0)
     path = _campaign(tmp_path, [f'part = "{broken}"', '"trajectory.radius_end_mm" = 9.0\ntimeout_s = 0.5',
-                                '"trajectory.radius_end_mm" = 11.0'])
+                                '"trajectory.radius_end_mm" = 11.0', f'part = "{stuck}"\ntimeout_s = 1.0'])
     out = tmp_path / "out"
     result = run_campaign(path, out, client=client, quiet=True)
-    by_status = {r["status"]: r for r in result.records}
-    assert sorted(by_status) == ["done", "failed", "timeout"]
-    assert "this part does not build" in by_status["failed"]["error"]
-    assert "time limit of 0.5 s" in by_status["timeout"]["error"]
-    assert sorted(p.name for p in (out / "cases").iterdir()) == [by_status["done"]["case"]]  # nothing half-written
-    _intact(out / "cases" / by_status["done"]["case"])
+    status = [r["status"] for r in result.records]
+    assert status == ["failed", "timeout", "done", "timeout"], [r.get("error") for r in result.records]
+    assert "this part does not build" in result.records[0]["error"]
+    assert "time limit of 0.5 s" in result.records[1]["error"]
+    assert "its worker was restarted" in result.records[3]["error"]  # stuck in C: stopped by the campaign
+    done = result.records[2]["case"]
+    assert sorted(p.name for p in (out / "cases").iterdir()) == [done]  # nothing half-written
+    _intact(out / "cases" / done)
     rows = (out / "campaign.csv").read_text()
     assert "this part does not build" in rows and ",timeout," in rows
     before = _mtimes(out)
-    # the two unfinished cases run again, only they — this time attached to the cluster by its scheduler's address
+    # the unfinished cases run again, only they — this time attached to the cluster by its scheduler's address
     again = run_campaign(path, out, scheduler=client.scheduler.address, quiet=True)
-    assert (again.ran, again.skipped) == (2, 1) and _mtimes(out) == before
-    assert sorted(r["status"] for r in again.records) == ["done", "failed", "timeout"]
+    assert (again.ran, again.skipped) == (3, 1) and _mtimes(out) == before
+    assert [r["status"] for r in again.records] == status
 
 
 @pytest.mark.slow
