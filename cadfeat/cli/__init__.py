@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator, Sequence
 
 from cadfeat._version import __version__
 from cadfeat.cad.sandbox import DEFAULT_BUILD_TIMEOUT_S, build_time_limit
-from cadfeat.cli import explore, listing, parts, render, report, study, track
+from cadfeat.cli import campaign, explore, listing, parts, render, report, study, track
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError, Terminated
 
@@ -25,7 +25,8 @@ __all__ = ["COMMANDS", "build_parser", "main", "run_guarded"]
 
 #: Every sub-command, in the order ``cadfeat --help`` lists them.
 COMMANDS: tuple[Command, ...] = (*listing.COMMANDS, *parts.COMMANDS, *render.COMMANDS, *report.COMMANDS,
-                                 *study.COMMANDS, *track.COMMANDS, *explore.COMMANDS)
+                                 *study.COMMANDS, *track.COMMANDS, *explore.COMMANDS,
+                                 *campaign.COMMANDS)
 
 
 def build_parser() -> argparse.ArgumentParser:

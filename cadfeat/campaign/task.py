@@ -1,0 +1,146 @@
+"""What a Dask worker runs for one case: ``run_case(payload)`` — one study, exactly as ``cadfeat run``.
+
+The payload is plain data (the resolved study dict, the output folder, the time limit, the expected file
+hashes): no CAD object crosses the network. The worker checks that it reads the same part / calibration /
+CSV bytes as the machine that planned the campaign (a shared folder with the same paths), then calls
+``cadfeat.study.run_study`` into the case's folder (staged and published by the study layer: a case stopped
+for any reason leaves no half-written folder) and returns an outcome dict; it never raises for a failing study.
+
+Time limit: a watchdog thread raises ``CaseTimeout`` (a ``BaseException``, so no ``except Exception`` in the
+study swallows it) in the study's thread when ``timeout_s`` has passed (``PyThreadState_SetAsyncExc``; it is
+delivered at the next Python bytecode, so at the latest when a running CAD build returns — those have their
+own limit, ``[study] build_timeout_s``). A study stuck longer in C code is stopped by the campaign, which
+restarts the worker (``cadfeat.campaign.runner``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import multiprocessing
+import os
+import socket
+import threading
+import time
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+__all__ = ["EVENT_TOPIC", "CaseTimeout", "run_case", "warm_worker"]
+
+#: The Dask event topic on which a worker announces the start of a case (key, pid, address, time).
+EVENT_TOPIC = "cadfeat-campaign"
+
+
+class CaseTimeout(BaseException):  # noqa: N818 - an interruption like KeyboardInterrupt, not an error class
+    """Raised inside a case's thread when its wall-time limit has passed."""
+
+
+@contextlib.contextmanager
+def time_limit(seconds: float) -> Iterator[None]:
+    """Raise ``CaseTimeout`` in this thread after ``seconds`` unless the block has finished by then."""
+    tid = threading.get_ident()
+    lock = threading.Lock()
+    state = {"done": False, "fired": False}
+
+    def fire() -> None:
+        with lock:
+            if not state["done"]:
+                state["fired"] = True
+                ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), ctypes.py_object(CaseTimeout))
+
+    timer = threading.Timer(seconds, fire)
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        with lock:
+            state["done"] = True
+            timer.cancel()
+            if state["fired"]:  # not yet delivered (the block ended first): withdraw it
+                ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), None)
+
+
+def _announce(key: str | None) -> None:
+    """Tell the campaign (Dask event) that this worker started ``key``: it counts running cases and knows which
+    worker to restart if the case overruns its limit in C code."""
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+    except (ImportError, ValueError):
+        return
+    worker.log_event(EVENT_TOPIC, {"key": key, "pid": os.getpid(), "host": socket.gethostname(),
+                                   "worker": worker.address, "start": time.time()})
+
+
+def _check_files(files: Mapping[str, str]) -> str | None:
+    """None if every file exists here with the expected SHA-256, else the problem (one line)."""
+    from cadfeat.campaign.plan import sha256_file
+
+    for path, digest in files.items():
+        if not os.path.isfile(path):
+            return f"{path} does not exist on worker host {socket.gethostname()} (the campaign's files must be " \
+                   "at the same paths on every worker: a shared folder)"
+        if sha256_file(path) != digest:
+            return f"{path} on worker host {socket.gethostname()} differs from the file the campaign was planned " \
+                   "with (same path, other bytes)"
+    return None
+
+
+def _daemonic() -> bool:
+    return bool(multiprocessing.current_process().daemon)
+
+
+def run_case(payload: Mapping[str, Any]) -> dict[str, Any]:
+    """Run one case (keys: ``key``, ``study``, ``out_dir``, ``timeout_s``, ``files``); returns its outcome:
+    ``status`` ("done" | "failed" | "timeout"), ``error`` (one line or None), ``wall_s``, ``host``, ``pid``,
+    and for a finished study ``results_sha256`` (of its results.json)."""
+    _announce(payload.get("key"))
+    t0 = time.perf_counter()
+    out = {"host": socket.gethostname(), "pid": os.getpid(), "error": None}
+    problem = _check_files(payload.get("files", {}))
+    if problem is None and _daemonic():
+        problem = ("this Dask worker is a daemonic process, which may not start the CAD build processes a study "
+                   "needs; start workers with DASK_DISTRIBUTED__WORKER__DAEMON=False (README, \"Campaigns\")")
+    if problem is not None:
+        return {**out, "status": "failed", "error": problem, "wall_s": time.perf_counter() - t0}
+    try:
+        with time_limit(float(payload["timeout_s"])):
+            _run(payload)
+    except CaseTimeout:
+        return {**out, "status": "timeout", "wall_s": time.perf_counter() - t0,
+                "error": f"exceeded the case time limit of {float(payload['timeout_s']):g} s and was stopped "
+                         "(campaign.timeout_s or the case's timeout_s)"}
+    except Exception as exc:  # noqa: BLE001 - a failing study is an outcome, recorded with its error
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        return {**out, "status": "failed", "wall_s": time.perf_counter() - t0,
+                "error": text if _is_cadfeat(exc) else f"{type(exc).__name__}: {text}"}
+    from cadfeat.campaign.plan import sha256_file
+
+    results = os.path.join(payload["out_dir"], "results.json")
+    return {**out, "status": "done", "wall_s": time.perf_counter() - t0, "results_sha256": sha256_file(results)}
+
+
+def _is_cadfeat(exc: BaseException) -> bool:
+    from cadfeat.errors import CadfeatError
+
+    return isinstance(exc, CadfeatError)
+
+
+def _run(payload: Mapping[str, Any]) -> None:
+    """The study itself, as ``cadfeat run`` runs it (no progress display in a worker)."""
+    from cadfeat.study import run_study
+
+    run_study(dict(payload["study"]), payload["out_dir"], quiet=True, progress=False)
+
+
+def warm_worker() -> int:
+    """Import the study code and start the CAD worker server (CadQuery preloaded) in this worker, what its first
+    case would otherwise pay; returns the worker's pid."""
+    from cadfeat.cad.parts import call_with_time_limit, start_workers
+    from cadfeat.study import run  # noqa: F401
+
+    start_workers()
+    call_with_time_limit(os.getpid, (), "campaign worker warm-up", 300.0)  # waits until the server is up
+    return os.getpid()
