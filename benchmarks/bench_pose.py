@@ -33,11 +33,12 @@ def main() -> str:
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.cad.parts import load_part
     from cadfeat.measures.depth import DepthMaps
-    from cadfeat.measures.pose_information import pose_information, posterior_crlb
+    from cadfeat.measures.pose_information import pose_information
     from cadfeat.measures.rim_occlusion import rim_occlusion
     from cadfeat.poses import invert_T
     from cadfeat.study.schema import load_study
     from cadfeat.study.setup import _extract, load_scene
+    from cadfeat.vision.crlb import posterior_crlb
 
     cfg = load_study(ROOT / "studies" / "nema17_mount.toml")
     camera, traj, T_task_part = load_scene(cfg)

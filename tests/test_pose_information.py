@@ -20,8 +20,9 @@ from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
 from cadfeat.camera import Camera
-from cadfeat.measures.pose_information import direction_words, pose_information, posterior_crlb
+from cadfeat.measures.pose_information import direction_words, pose_information
 from cadfeat.poses import hat, invert_T, look_at, make_T
+from cadfeat.vision.crlb import posterior_crlb
 
 cv2 = pytest.importorskip("cv2")
 

@@ -42,8 +42,9 @@ def designs(space, count: int, seed: int = 0) -> list[np.ndarray]:
 def score(setup, x, T, times, tuning, model=None) -> dict:
     from cadfeat.cad.export import mesh_from_shape
     from cadfeat.cad.features import holes_to_arrays
-    from cadfeat.measures.pose_information import pose_information, posterior_crlb
+    from cadfeat.measures.pose_information import pose_information
     from cadfeat.measures.rim_occlusion import rim_occlusion
+    from cadfeat.vision.crlb import posterior_crlb
 
     shape = setup.rebuild_shape(x)
     holes = setup.rebuild_holes(shape)
@@ -110,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
         # true pose) propagated through the pose Jacobians (δ = (JᵀWJ)⁻¹JᵀW b, the holes it detected)
         from cadfeat.cad.features import holes_to_arrays
         from cadfeat.measures.pose_information import pose_information
-        from cadfeat.vision.measurement import measure
+        from cadfeat.measures.rim_centre import measure
 
         c, n, r = holes_to_arrays(s["holes"])
         z_true, _ = measure(setup.camera, T, c, n, r, jacobian=False)

@@ -40,7 +40,7 @@ import contextlib
 import math
 import re
 import types
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -94,12 +94,11 @@ def _model(path: Path) -> Any:
     return cqgi.parse(path.read_text(encoding="utf-8"))
 
 
-def cqgi_parameters(path: str | Path, model: Any = None) -> dict[str, Any]:
-    """The numeric constants CQGI finds in the script, as ``cadfeat.cad.parts.Parameter`` (name → parameter),
-    in the script's order; bounds and unit from the ``# [lower, upper] unit`` comment (else ±inf)."""
+def cqgi_parameters(path: str | Path, parameter_cls: Callable[..., Any], model: Any = None) -> dict[str, Any]:
+    """The numeric constants CQGI finds in the script, as ``parameter_cls`` (``cadfeat.cad.parts.Parameter``,
+    passed in so that this module does not import ``parts``, which dispatches here) by name, in the script's
+    order; bounds and unit from the ``# [lower, upper] unit`` comment (else ±inf)."""
     from cadquery import cqgi
-
-    from cadfeat.cad.parts import Parameter
 
     path = Path(path)
     model = model if model is not None else _model(path)
@@ -128,7 +127,7 @@ def cqgi_parameters(path: str | Path, model: Any = None) -> dict[str, Any]:
                 raise CadfeatError(f"{where}: {name} = {default!r} is outside its bounds comment "
                                    f"[{match.group(1)}, {match.group(2)}]; allowed: lower <= value <= upper")
         description = p.desc if isinstance(p.desc, str) and p.desc else comment
-        out[name] = Parameter(name, default, lower, upper, unit, description, is_int)
+        out[name] = parameter_cls(name, default, lower, upper, unit, description, is_int)
     return out
 
 
@@ -233,15 +232,13 @@ def _builder(path: Path, model: Any, names: list[str]) -> Any:
     return build
 
 
-def load_cqgi_part(path: str | Path) -> Any:
-    """A cq-editor / CQGI script as a ``cadfeat.cad.parts.Part`` (nothing of the script runs here: CQGI only
-    parses it; ``Part.build`` runs it). Raises ``CadfeatError`` naming the file for a syntax error or a bad
-    bounds comment."""
-    from cadfeat.cad.parts import Part
-
+def load_cqgi_part(path: str | Path, part_cls: Callable[..., Any], parameter_cls: Callable[..., Any]) -> Any:
+    """A cq-editor / CQGI script as a ``part_cls`` (``cadfeat.cad.parts.Part``, whose ``load_part`` dispatches
+    here and passes its classes in; nothing of the script runs here: CQGI only parses it; ``Part.build`` runs
+    it). Raises ``CadfeatError`` naming the file for a syntax error or a bad bounds comment."""
     path = Path(path).resolve()
     model = _model(path)
-    parameters = cqgi_parameters(path, model)
+    parameters = cqgi_parameters(path, parameter_cls, model)
     text = _text_constants(model, path)
     module = types.ModuleType(f"cadfeat_cqgi_{path.stem}")
     module.__file__ = str(path)
@@ -249,7 +246,7 @@ def load_cqgi_part(path: str | Path) -> Any:
     module.PARAMETERS = {n: {"default": p.default, "bounds": (p.lower, p.upper), "unit": p.unit,  # type: ignore
                              "description": p.description} for n, p in parameters.items()}
     module.CQGI_MODEL = model  # type: ignore[attr-defined]
-    return Part(path.stem, path, parameters, text["DESCRIPTION"], text["FIXED_HOLES"], text["VIEW_DIRECTION"],
+    return part_cls(path.stem, path, parameters, text["DESCRIPTION"], text["FIXED_HOLES"], text["VIEW_DIRECTION"],
                 module)
 
 
@@ -275,17 +272,3 @@ def getparams(path: str | Path) -> list[dict[str, Any]]:
             entry["step"] = entry["max"] - entry["min"] if entry["max"] - entry["min"] > 0 else 1
         out.append(entry)
     return out
-
-
-def parameter_listing(path: str | Path) -> list[dict[str, Any]]:
-    """``cadfeat parts SCRIPT --params``: cq-cli's ``--getparams`` JSON objects. A CQGI script: exactly
-    ``getparams``. A cadfeat part script (``PARAMETERS`` + ``build``, which CQGI cannot list): the same fields
-    from its ``PARAMETERS`` — ``type`` number, ``name``, ``caption`` (description), ``initial`` (default) and
-    ``min`` / ``max`` (bounds)."""
-    if is_cqgi_script(path):
-        return getparams(path)
-    from cadfeat.cad.parts import load_part
-
-    part = load_part(path)
-    return [{"type": "number", "name": p.name, **({"caption": p.description} if p.description else {}),
-             "initial": p.default, "min": p.lower, "max": p.upper} for p in part.parameters.values()]

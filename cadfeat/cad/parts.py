@@ -382,7 +382,7 @@ def load_part(path: str | os.PathLike[str]) -> Part:
     from cadfeat.cad import cqgi_parts
 
     if cqgi_parts.is_cqgi_script(path):  # a cq-editor / CQGI script: parsed by CQGI, run only to build
-        return cqgi_parts.load_cqgi_part(path)
+        return cqgi_parts.load_cqgi_part(path, Part, Parameter)
     if current_time_limit() is not None:
         _import_in_worker(path, current_time_limit())  # a loop or a crash at import time stays in the worker
     module = _import_script(path)

@@ -5,6 +5,8 @@ parameters as cq-cli's ``--getparams`` JSON."""
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+from typing import Any
 
 from cadfeat.cli.command import Command
 
@@ -70,7 +72,6 @@ def _params_json(target: object) -> int:
     import json
     from pathlib import Path
 
-    from cadfeat.cad.cqgi_parts import parameter_listing
     from cadfeat.errors import CadfeatError
 
     if target is None or not Path(str(target)).is_file():
@@ -78,6 +79,21 @@ def _params_json(target: object) -> int:
                            "(cadfeat parts SCRIPT.py --params)")
     print(json.dumps(parameter_listing(Path(str(target)))))
     return 0
+
+
+def parameter_listing(path: Path) -> list[dict[str, Any]]:
+    """``cadfeat parts SCRIPT --params``: cq-cli's ``--getparams`` JSON objects. A CQGI script: exactly
+    ``cqgi_parts.getparams``. A cadfeat part script (``PARAMETERS`` + ``build``, which CQGI cannot list): the same
+    fields from its ``PARAMETERS`` — ``type`` number, ``name``, ``caption`` (description), ``initial`` (default)
+    and ``min`` / ``max`` (bounds)."""
+    from cadfeat.cad.cqgi_parts import getparams, is_cqgi_script
+    from cadfeat.cad.parts import load_part
+
+    if is_cqgi_script(path):
+        return getparams(path)
+    part = load_part(path)
+    return [{"type": "number", "name": p.name, **({"caption": p.description} if p.description else {}),
+             "initial": p.default, "min": p.lower, "max": p.upper} for p in part.parameters.values()]
 
 
 def _step_part(path: object, holes: bool) -> int:

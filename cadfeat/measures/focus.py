@@ -35,3 +35,13 @@ def focus_margin_depth(camera: Camera, z: np.ndarray) -> np.ndarray:
     near, far = camera.depth_of_field_mm
     margin = z - near if not np.isfinite(far) else np.minimum(z - near, far - z)
     return margin / focus_scale_mm(camera)
+
+
+def defocus_diameter_px(camera: Camera, depth_mm: ArrayLike) -> np.ndarray:
+    """Thin-lens circle-of-confusion diameter (px) of a point at ``depth_mm`` (camera z, mm): with aperture a = f/N,
+    focal length f and focus distance s, c = a f |Z − s| / (Z (s − f)) mm on the sensor (the relation behind the
+    depth of field, eq. 3.4–3.6), divided by the pixel pitch. Depths are clipped just beyond f."""
+    Z = np.maximum(np.asarray(depth_mm, dtype=float), camera.focal_length_mm * 1.001)
+    f, s, a = camera.focal_length_mm, camera.focus_distance_mm, camera.aperture_mm
+    c_mm = a * f * np.abs(Z - s) / (Z * (s - f))
+    return c_mm / camera.pixel_pitch_mm

@@ -13,7 +13,7 @@ is the same first-order perturbation with φ = δθ and ρ = δp − δθ × p.)
 σ_t = √tr Σ_pp and σ_r = √tr Σ_θθ are their RMS values.
 
 **Measurement** of hole j at pose k: the centre z_jk (px) of its rim's image ellipse (not the image of the hole
-centre), with the 2×6 Jacobian J_jk = ∂z_jk/∂δ of ``cadfeat.vision.measurement.measure``. Each detected hole
+centre), with the 2×6 Jacobian J_jk = ∂z_jk/∂δ of ``cadfeat.measures.rim_centre.measure``. Each detected hole
 gives z = h(δ) + b_jk + ε, ε ~ N(0, σ_jk² I), b_jk a systematic offset of the detector (px), σ_jk its noise
 (``pose_models.measurement_model``), detected with probability p_jk (``pose_models.detection_probability``).
 
@@ -33,8 +33,8 @@ error (RMS) per pose is √(‖δ_b,p‖² + σ_t²) mm and √(‖δ_b,θ‖² 
 
     J_k = (Q + F_k J_{k−1}⁻¹ F_kᵀ)⁻¹ + E[H_kᵀ R_k⁻¹ H_k],   E[H_kᵀ R_k⁻¹ H_k] = [[I_k, 0], [0, 0]],
 
-``posterior_crlb``; J₀ = P₀⁻¹ + [[I₀, 0], [0, 0]]. The recursion runs along the trajectory (a loop over time
-steps, which is sequential by nature; each step is 12×12).
+``cadfeat.vision.posterior_crlb``; J₀ = P₀⁻¹ + [[I₀, 0], [0, 0]]. The recursion runs along the trajectory (a loop
+over time steps, which is sequential by nature; each step is 12×12).
 
 **Hidden and partly hidden holes** (rule of this measure): a hole behind the camera, facing away, with its rim
 outside the image or hidden by the part has p = 0: it adds no information and no bias, whatever its size or
@@ -57,7 +57,7 @@ from numpy.typing import ArrayLike
 from cadfeat.camera import Camera
 from cadfeat.errors import CadfeatError
 
-__all__ = ["PoseInformation", "direction_words", "pose_information", "posterior_crlb"]
+__all__ = ["PoseInformation", "direction_words", "pose_information"]
 
 #: Eigenvalues below this fraction of the largest (in the scaled metric) count as unobservable directions.
 RANK_TOL = 1e-12
@@ -202,7 +202,7 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     model : a ``pose_models.PoseModels`` (default: the committed calibration).
     """
     from cadfeat.measures import pose_models
-    from cadfeat.vision.measurement import measure
+    from cadfeat.measures.rim_centre import measure
 
     T = np.asarray(T_cam_part, dtype=float)
     c = np.asarray(centres, dtype=float)
@@ -255,51 +255,3 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     return PoseInformation(info, cov, sig_t, sig_r, bias, b_t, b_r, np.hypot(b_t, sig_t), np.hypot(b_r, sig_r),
                            share, weakest, weakest_sigma, p, sig, off, z, J, p >= 0.5,
                            float(rotation_length_mm))
-
-
-def posterior_crlb(information: ArrayLike, times_s: ArrayLike, tuning: Any = None,
-                   omega_rad_s: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Posterior CRLB of the constant-velocity filter along the trajectory (module docstring).
-
-    information : (..., L, 6, 6) per-frame measurement information I_k (``PoseInformation.information``,
-        without a prior), δ = (δp mm, δθ rad); leading axes batch independent trajectories (e.g. Monte-Carlo
-        truths).
-    times_s : (L,) increasing frame times, s.
-    tuning : ``vision.FilterTuning`` (P₀, Q: ``q_rate_mm2_s2``, ``q_omega_rad2_s2``, ``q_pose_*``); default
-        the closed loop's.
-    omega_rad_s : (..., L, 3) the true angular rates (camera frame) for F_k (``motion.predict``); None = 0.
-
-    Returns (bound (..., L, 12, 12) on the filter's error-state covariance, (..., L, 2) the √tr of its
-    translation and rotation blocks as (σ_t mm, σ_r deg)).
-    """
-    from cadfeat.vision.estimate import FilterTuning
-    from cadfeat.vision.motion import PoseState, predict, process_noise
-
-    I_ = np.asarray(information, dtype=float)
-    t = np.asarray(times_s, dtype=float)
-    L = len(t)
-    if I_.shape[-3:] != (L, 6, 6) or t.ndim != 1 or np.any(np.diff(t) <= 0):
-        raise CadfeatError(f"posterior_crlb: information (..., L, 6, 6) and increasing times_s (L,) must agree, "
-                           f"got {I_.shape}, {t.shape}")
-    tuning = tuning or FilterTuning()
-    Q = process_noise(0.0, tuning.q_rate_mm2_s2, tuning.q_omega_rad2_s2, (tuning.q_pose_mm2, tuning.q_pose_rad2))
-    batch = I_.shape[:-3]
-    w = np.zeros(batch + (L, 3)) if omega_rad_s is None else np.broadcast_to(np.asarray(omega_rad_s, float),
-                                                                              batch + (L, 3))
-    H = np.zeros(batch + (L, 12, 12))
-    H[..., :6, :6] = I_
-    P = np.linalg.inv(np.linalg.inv(tuning.P0()) + H[..., 0, :, :])
-    out = np.empty(batch + (L, 12, 12))
-    out[..., 0, :, :] = P
-    eye = np.broadcast_to(np.eye(4), batch + (4, 4))
-    for k in range(1, L):  # the time recursion (sequential by nature), batched over the leading axes
-        state = PoseState.at_rest(eye)
-        state.omega_rad_s = np.array(w[..., k - 1, :])
-        _, F = predict(state, float(t[k] - t[k - 1]))
-        P_pred = F @ P @ np.swapaxes(F, -1, -2) + Q
-        P = np.linalg.inv(np.linalg.inv(P_pred) + H[..., k, :, :])
-        P = 0.5 * (P + np.swapaxes(P, -1, -2))
-        out[..., k, :, :] = P
-    sig = np.stack([np.sqrt(np.trace(out[..., :3, :3], axis1=-2, axis2=-1)),
-                    np.degrees(np.sqrt(np.trace(out[..., 3:6, 3:6], axis1=-2, axis2=-1)))], axis=-1)
-    return out, sig

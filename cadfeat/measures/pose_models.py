@@ -3,7 +3,7 @@
 Inputs per hole and pose (``hole_geometry``, camera frame): the rim's image ellipse (``hole_ellipse``: minor
 axis m px, major M px), its image margin f px (``image_margin_from_ellipse``; ≥ 0 when the whole rim is in the
 image), the facing cosine cos θ (θ the view angle from the hole's axis), the thin-lens defocus blur β px at the
-hole's depth (``vision.images.defocus_diameter_px``), the rim's length ρ px (Ramanujan's ellipse perimeter) and
+hole's depth (``measures.focus.defocus_diameter_px``), the rim's length ρ px (Ramanujan's ellipse perimeter) and
 the image direction d̂ of the hole's axis into the material.
 
 **Detection probability** (smooth, for the optimiser; ``detected = p ≥ 0.5`` for reports), a product of
@@ -77,9 +77,9 @@ def hole_geometry(camera: Camera, T_cam_part: np.ndarray, centres: np.ndarray, n
                   radii_mm: np.ndarray) -> HoleGeometry:
     """``HoleGeometry`` of holes (N, 3), (N, 3), (N,) (part frame, mm) at poses (L, 4, 4)."""
     from cadfeat.measures.ellipse import hole_ellipse
+    from cadfeat.measures.focus import defocus_diameter_px
     from cadfeat.measures.fov import image_margin_from_ellipse
     from cadfeat.measures.visibility import facing_margin
-    from cadfeat.vision.images import defocus_diameter_px
 
     T = np.asarray(T_cam_part, dtype=float)
     Rm, t = T[:, :3, :3], T[:, :3, 3]

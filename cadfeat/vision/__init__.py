@@ -11,9 +11,10 @@ OpenCV, SciPy and the renderer are imported where used.
 
 from __future__ import annotations
 
+from cadfeat.measures.rim_centre import rim_centre_jacobian, rim_centre_px
+from cadfeat.vision.crlb import posterior_crlb
 from cadfeat.vision.estimate import METHODS, FilterTuning, Track, TrackingError, estimate_poses
 from cadfeat.vision.images import SensorModel
-from cadfeat.vision.measurement import rim_centre_jacobian, rim_centre_px
 
-__all__ = ["METHODS", "FilterTuning", "SensorModel", "Track", "TrackingError", "estimate_poses",
+__all__ = ["METHODS", "FilterTuning", "SensorModel", "Track", "TrackingError", "estimate_poses", "posterior_crlb",
            "rim_centre_jacobian", "rim_centre_px"]

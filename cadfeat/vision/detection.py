@@ -2,7 +2,7 @@
 
 Why threshold + contours + ``cv2.fitEllipse`` (and not ``cv2.SimpleBlobDetector`` or Hough circles):
 a hole's rim is a dark ellipse inside the bright part face; the quantity the filters need is that ellipse's
-centre (``cadfeat.vision.measurement``). Contours of the thresholded image give the whole rim boundary,
+centre (``cadfeat.measures.rim_centre``). Contours of the thresholded image give the whole rim boundary,
 and a least-squares ellipse fit through its points has a sub-pixel centre (errors average over the
 boundary), plus axes and angle that let us reject what is not one whole hole. The blob detector reports
 region centroids with no shape model and filters by circularity (rejecting the oblique holes we want);

@@ -1,7 +1,7 @@
 """Pose tracking from hole measurements: EKF and IEKF (thesis §6.3.1–6.3.2) and OpenCV solvePnP per frame.
 
 ``estimate_poses(camera, points_part, pixels, times_s, method=...)`` is the public entry point
-(DESIGN.md "Closed loop"). All three use the same measurement model (``cadfeat.vision.measurement``):
+(DESIGN.md "Closed loop"). All three use the same measurement model (``cadfeat.measures.rim_centre``):
 the image positions of the holes through the full camera model with distortion, and — when the holes'
 normals and radii are given — the centre of each rim's image ellipse rather than the projected centre.
 
@@ -37,8 +37,8 @@ from numpy.typing import ArrayLike
 
 from cadfeat.camera import Camera
 from cadfeat.errors import CadfeatError
+from cadfeat.measures.rim_centre import measure
 from cadfeat.poses import make_T
-from cadfeat.vision.measurement import measure
 from cadfeat.vision.motion import PoseState, predict, process_noise, so3_exp, so3_log
 
 METHODS = ("ekf", "iekf", "pnp")

@@ -29,6 +29,7 @@ import numpy as np
 
 from cadfeat.camera import Camera
 from cadfeat.measures import image_jacobian
+from cadfeat.measures.focus import defocus_diameter_px
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
@@ -63,14 +64,6 @@ def render_sequence(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_par
 def grey(rgb: np.ndarray) -> np.ndarray:
     """Luma (ITU-R BT.601, as ``cv2.COLOR_RGB2GRAY``) of an RGB uint8 image, float32 (H, W)."""
     return (rgb[..., :3].astype(np.float32) @ np.array([0.299, 0.587, 0.114], dtype=np.float32))
-
-
-def defocus_diameter_px(camera: Camera, depth_mm: np.ndarray) -> np.ndarray:
-    """Thin-lens circle-of-confusion diameter (px) for objects at ``depth_mm`` (...) (module docstring)."""
-    Z = np.maximum(np.asarray(depth_mm, dtype=float), camera.focal_length_mm * 1.001)
-    f, s, a = camera.focal_length_mm, camera.focus_distance_mm, camera.aperture_mm
-    c_mm = a * f * np.abs(Z - s) / (Z * (s - f))
-    return c_mm / camera.pixel_pitch_mm
 
 
 def image_velocity_px_s(camera: Camera, point_cam: np.ndarray, screw: np.ndarray) -> np.ndarray:

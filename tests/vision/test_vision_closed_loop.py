@@ -19,12 +19,13 @@ cq = pytest.importorskip("cadquery")
 from cadfeat.cad.features import extract_holes, holes_to_arrays  # noqa: E402
 from cadfeat.camera import Camera  # noqa: E402
 from cadfeat.measures import hole_ellipse  # noqa: E402
+from cadfeat.measures.focus import defocus_diameter_px  # noqa: E402
 from cadfeat.poses import invert_T, look_at  # noqa: E402
 from cadfeat.trajectory import orbit_arc  # noqa: E402
 from cadfeat.vision import FilterTuning, SensorModel  # noqa: E402
 from cadfeat.vision.closed_loop import TrackingConfig, compare, design_json, observe, track_design  # noqa: E402
 from cadfeat.vision.detection import Detections, associate, detect_holes  # noqa: E402
-from cadfeat.vision.images import defocus_diameter_px, render_sequence, sensor_images  # noqa: E402
+from cadfeat.vision.images import render_sequence, sensor_images  # noqa: E402
 
 CAMERA = Camera(fx=420.0, fy=420.0, cx=160.0, cy=120.0, width=320, height=240, dist=(-0.12, 0.02, 0.0, 0.0, 0.0),
                 focus_distance_mm=300.0)

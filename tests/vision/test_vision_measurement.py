@@ -15,8 +15,8 @@ import pytest
 
 from cadfeat.camera import Camera
 from cadfeat.measures import hole_ellipse, image_jacobian
+from cadfeat.measures.rim_centre import measure, rim_centre_jacobian, rim_centre_px
 from cadfeat.poses import make_T, se3_exp
-from cadfeat.vision.measurement import measure, rim_centre_jacobian, rim_centre_px
 from cadfeat.vision.motion import so3_exp
 
 pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)

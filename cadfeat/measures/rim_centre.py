@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cadfeat.camera import MIN_DEPTH_MM, Camera
-from cadfeat.measures import image_jacobian
+from cadfeat.measures.jacobian import image_jacobian
 from cadfeat.measures.lens import distort_terms
 from cadfeat.poses import hat
 
