@@ -29,6 +29,7 @@ from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
+    from cadfeat.cad.features.identity import FeatureModel
 
 __all__ = ["DEFAULT_GRID_MM", "HOLE_SIZE_TABLES", "ShopDesign", "hole_sizes", "model_jacobian", "off_target",
            "refine_on_rebuild", "shop_design", "snap_diameters"]
@@ -223,7 +224,8 @@ def off_target(holes: Sequence[Hole], design: ShopDesign) -> float:
                      np.abs(2 * r - design.target_diameters).max(initial=0.0)))
 
 
-def refine_on_rebuild(space: Any, model: Any, problem: Any, x: np.ndarray, rebuilt: tuple[Any, list[Hole], float],
+def refine_on_rebuild(space: Any, model: FeatureModel, problem: Any, x: np.ndarray,
+                      rebuilt: tuple[Any, list[Hole], float],
                       design: ShopDesign, rebuild: Callable[[np.ndarray, list[Hole]], tuple[Any, list[Hole], float]],
                       rounds: int = 6) -> tuple[np.ndarray, tuple[Any, list[Hole], float], float]:
     """Where the feature model is only a linearisation (a nonlinear part script), the rebuilt holes may miss the

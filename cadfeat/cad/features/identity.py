@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from typing import Any
+from typing import Protocol
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -30,10 +30,19 @@ from scipy.optimize import linear_sum_assignment
 from cadfeat.cad.features import Hole, holes_to_arrays
 from cadfeat.errors import CadfeatError
 
-__all__ = ["DEFAULT_NAME", "hole_name", "hole_names", "holes_at", "named", "pair_holes", "take_names"]
+__all__ = ["DEFAULT_NAME", "FeatureModel", "hole_name", "hole_names", "holes_at", "named", "pair_holes", "take_names"]
 
 DEFAULT_NAME = "H{number}"
 """The name of an unnamed hole: ``H1``, ``H2``, … by its 1-based place in its list."""
+
+
+class FeatureModel(Protocol):
+    """What a feature model offers (``cadfeat.cad.design_map``'s models, ``study.verify.AnchoredModel``): its
+    holes at the reference design and, at a design ``x``, centres (N, 3) mm, unit axes (N, 3), radii (N,) mm."""
+
+    holes: Sequence[Hole]
+
+    def features(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
 
 def hole_name(hole: Hole, index: int) -> str:
@@ -101,7 +110,7 @@ def take_names(reference: Sequence[Hole], holes: Sequence[Hole], idx: np.ndarray
             for r, k in zip(reference, idx, strict=True)]
 
 
-def holes_at(model: Any, x: np.ndarray) -> list[Hole]:
+def holes_at(model: FeatureModel, x: np.ndarray) -> list[Hole]:
     """The holes of the feature model ``model`` (``features(x)`` → centres, axes, radii; ``holes``) at ``x``."""
     c, a, r = model.features(x)
     return [dataclasses.replace(h, centre=np.asarray(c[i]), axis=np.asarray(a[i]), radius_mm=float(r[i]))

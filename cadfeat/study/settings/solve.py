@@ -41,22 +41,25 @@ def _one_of(value: str, names: tuple[str, ...] | list[str]) -> str:
     return value
 
 
+_OC, _OPT = ObjectiveConfig, OptimizerConfig  # their defaults are the sections' defaults (one declaration)
+
+
 class ObjectiveSettings(Settings):
     """``[objective]``: how the measures become objectives (``cadfeat.design.objectives.ObjectiveConfig``)."""
 
-    measures: Tuple[str] = choice(tuple(MEASURES), f"a non-empty list of distinct names from {', '.join(MEASURES)}")
-    aggregate: str = choice("sum", AGGREGATES)
-    combine: str = choice("maxmin", COMBINES)
+    measures: Tuple[str] = choice(_OC.measures, f"a non-empty list of distinct names from {', '.join(MEASURES)}")
+    aggregate: str = choice(_OC.aggregate, AGGREGATES)
+    combine: str = choice(_OC.combine, COMBINES)
     weights: dict[str, float] = choice({}, "a table measure = number ≥ 0, measures from objective.measures")
     thresholds: dict[str, float] = choice({}, "a table measure = minimum value, measures from objective.measures")
-    min_axis_px: float = number(5.0, 0.0, lo_open=True)
-    rotation_length_mm: float = number(1.0, 0.0, lo_open=True)
-    smoothmin_beta: float = number(20.0, 0.0, lo_open=True)
-    normalisation: str = choice("payoff", NORMALISATIONS)
-    fov_measure: str = choice("cone", FOV_MEASURES)
-    occlusion: bool = boolean(True)
+    min_axis_px: float = number(_OC.min_axis_px, 0.0, lo_open=True)
+    rotation_length_mm: float = number(_OC.rotation_length_mm, 0.0, lo_open=True)
+    smoothmin_beta: float = number(_OC.smoothmin_beta, 0.0, lo_open=True)
+    normalisation: str = choice(_OC.normalisation, NORMALISATIONS)
+    fov_measure: str = choice(_OC.fov_measure, FOV_MEASURES)
+    occlusion: bool = boolean(_OC.occlusion)
     score: str | Tuple[str] = choice(
-        "movable", '"movable", "all" or a non-empty list of distinct hole names (e.g. ["H1", "H3"])')
+        _OC.score, '"movable", "all" or a non-empty list of distinct hole names (e.g. ["H1", "H3"])')
 
     @field_validator("measures")
     @classmethod
@@ -115,14 +118,14 @@ class OptimizerSettings(Settings):
     """``[optimizer]``: the solver (``cadfeat.design.optimize.OptimizerConfig``); ``seed`` defaults to the
     study's (validation context ``seed``); ``starts``/``maxiter`` are bounded by ``LIMITS``."""
 
-    method: str = choice("multistart", METHODS)
-    starts: int = Field(8, description="multistart: number of local starts", json_schema_extra={
+    method: str = choice(_OPT.method, METHODS)
+    starts: int = Field(_OPT.starts, description="multistart: number of local starts", json_schema_extra={
         "minimum": 1, "x-allowed": "an integer in [1, LIMITS['optimizer_starts']]"})
-    maxiter: int = Field(100, description="iterations of each local solve", json_schema_extra={
+    maxiter: int = Field(_OPT.maxiter, description="iterations of each local solve", json_schema_extra={
         "minimum": 1, "x-allowed": "an integer in [1, LIMITS['optimizer_maxiter']]"})
-    seed: int = integer(0, 0, 2**32 - 1)
-    local_solver: str = choice("SLSQP", LOCAL_SOLVERS)
-    snap_standard_sizes: bool = boolean(True)
+    seed: int = integer(_OPT.seed, 0, 2**32 - 1)
+    local_solver: str = choice(_OPT.local_solver, LOCAL_SOLVERS)
+    snap_standard_sizes: bool = boolean(_OPT.snap_standard_sizes)
 
     @model_validator(mode="before")
     @classmethod
