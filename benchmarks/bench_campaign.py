@@ -107,7 +107,7 @@ def main(quick: bool = False) -> str:
         "",
         f"Machine: {machine}; load average {load0:.1f} at the start, {load1:.1f} at the end (a shared machine: "
         "other processes compete for the 2 cores). Cases: campaigns/four_points_small.toml's study (thesis four "
-        f"points, 6 poses, 1 optimiser start, with report) over 2 cameras x {n_radii} helix radii; "
+        f"points, 6 poses, 1 optimiser start, no occlusion test, with report) over 2 cameras x {n_radii} helix radii; "
         f"{done}/{n} done.",
         "",
         "| run | wall time (s) | per case (s) |",

@@ -4,7 +4,7 @@ References: the per-case results.json of a campaign on a 2-worker ``LocalCluster
 ``run_study`` of the same study dict run serially in this process (apart from ``created`` and ``timings_s``);
 file integrity is checked with hashlib against the SHA-256 each results.json lists; "not run again" is checked
 on the files' modification times; a worker is killed with SIGKILL and the campaign process gets a real SIGINT.
-All studies are the thesis's four points with 6 trajectory samples and one optimiser start.
+All studies are the thesis's four points with 6 trajectory samples, one optimiser start, no occlusion test.
 """
 
 from __future__ import annotations
@@ -40,7 +40,8 @@ def client():
 def _campaign(tmp_path: Path, cases: list[str], name: str = "t") -> Path:
     """A campaign of ``cases`` (TOML inline tables) over the tiny four-points study."""
     text = (f'[campaign]\nname = "{name}"\nstudy = "{BASE}"\ntimeout_s = 600\n'
-            "[overrides.trajectory]\nn = 6\n[overrides.optimizer]\nstarts = 1\nmaxiter = 20\n")
+            "[overrides.trajectory]\nn = 6\n[overrides.objective]\nocclusion = false\n"
+            "[overrides.optimizer]\nstarts = 1\nmaxiter = 20\n")
     text += "".join(f"[[cases]]\n{c}\n" for c in cases)
     path = tmp_path / f"{name}.toml"
     path.write_text(text)
@@ -140,9 +141,8 @@ def test_failing_and_overrunning_cases_are_recorded_and_rerun(client, tmp_path: 
     broken = tmp_path / "broken_points.py"
     broken.write_text(PART.read_text().replace("    sx, sy, sz = PLATE_MM\n",
                                                "    raise RuntimeError('this part does not build')\n"))
-    stuck = tmp_path / "slow_points.py"  # its build sleeps (in the build process): the study waits in C code
-    stuck.write_text(PART.read_text().replace("    sx, sy, sz = PLATE_MM\n",
-                                              "    __import__('time').sleep(20)\n    sx, sy, sz = PLATE_MM\n"))
+    stuck = tmp_path / "slow_points.py"  # its import sleeps (in the CAD worker process): the study waits in C code
+    stuck.write_text("__import__('time').sleep(20)\n" + PART.read_text())
     monkeypatch.setattr(runner, "GRACE_S", 2.0)
     path = _campaign(tmp_path, [f'part = "{broken}"', '"trajectory.radius_end_mm" = 9.0\ntimeout_s = 0.5',
                                 '"trajectory.radius_end_mm" = 11.0', f'part = "{stuck}"\ntimeout_s = 1.0'])

@@ -231,15 +231,18 @@ def axis_plot(table: Sequence[Mapping[str, Any]], axis: str) -> str | None:
     done = [r for r in table if r.get("status") == "done"]
     if not done:
         return None
-    labels = sorted({str(r.get(axis)) for r in done})
+    def label(r: Mapping[str, Any]) -> str:  # a case of a list that does not set this axis: the base study's value
+        return "(base)" if r.get(axis) is None else str(r.get(axis))
+
+    labels = sorted({label(r) for r in done})
     pos = {lab: i for i, lab in enumerate(labels)}
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.4))
-    for side, marker in (("before", "o"), ("after", "s")):
-        pts = [(pos[str(r.get(axis))], r[f"combined_{side}"]) for r in done if _num(r.get(f"combined_{side}"))
-               is not None]
+    for side, marker, face in (("before", "o", "none"), ("after", "s", "C0")):
+        pts = [(pos[label(r)], r[f"combined_{side}"]) for r in done if _num(r.get(f"combined_{side}")) is not None]
         if pts:
             x, y = zip(*pts, strict=True)
-            ax1.scatter(x, y, marker=marker, facecolors="none" if side == "before" else None, label=side)
+            ax1.scatter(x, y, marker=marker, facecolors=face, edgecolors="C1" if side == "before" else "C0",
+                        label=side)
     ax1.set_xticks(range(len(labels)), labels, rotation=20, ha="right", fontsize=8)
     ax1.set_xlabel(axis)
     ax1.set_ylabel("combined objective (larger is better)")
@@ -247,7 +250,7 @@ def axis_plot(table: Sequence[Mapping[str, Any]], axis: str) -> str | None:
     verdicts = sorted({str(r.get("verdict")) for r in done})
     bottom = [0] * len(labels)
     for v in verdicts:
-        counts = [sum(1 for r in done if str(r.get(axis)) == lab and str(r.get("verdict")) == v) for lab in labels]
+        counts = [sum(1 for r in done if label(r) == lab and str(r.get("verdict")) == v) for lab in labels]
         ax2.bar(range(len(labels)), counts, bottom=bottom, label=v)
         bottom = [b + c for b, c in zip(bottom, counts, strict=True)]
     ax2.set_xticks(range(len(labels)), labels, rotation=20, ha="right", fontsize=8)
