@@ -31,7 +31,10 @@ EXPLICIT = {
     "test_features": "cad", "test_parts": "cad", "test_redrill": "cad", "test_export": "cad",
     "test_design_map": "cad", "test_optimize": "design", "test_shop": "design", "test_robustness": "design",
     "test_patterns": "design", "test_camera": "", "test_poses": "", "test_trajectory": "", "test_package": "",
-    "test_layout": "",
+    "test_layout": "", "test_build_failures": "study", "test_start_independence": "study",
+    "test_memory_budget": "design", "test_outline_motion": "design", "test_pose_objective": "design",
+    "test_cqgi_parts": "cad", "test_real_step_parts": "cad", "test_explore": "explore",
+    "test_explore_browser": "explore", "test_campaign": "campaign",
 }
 #: Name prefix → folder, tried in order after ``EXPLICIT``.
 PREFIXES = (("test_measures_", "measures"), ("test_step_", "cad"), ("test_optim_", "design"),
