@@ -180,7 +180,7 @@ def _shown_shape(results: list[Any], where: str) -> Any:
 def _two_argument_describe() -> Iterator[None]:
     """CQGI reads ``describe_parameter(name, "text")`` (two arguments: its parser and cadquery's docs), but its
     run-time callback ``ScriptCallback.describe_parameter(self, var_data)`` takes one, so such a script fails in
-    ``CQModel.build`` (cadquery 2.5-2.8; ``tests/test_cqgi_parts.py`` pins it). During a build the callback
+    ``CQModel.build`` (cadquery 2.5-2.8; ``tests/cad/test_cqgi_parts.py`` pins it). During a build the callback
     accepts both forms; it does nothing either way, as CQGI's own."""
     from cadquery import cqgi
 

@@ -4,7 +4,7 @@
 for all L·N rays from the holes to the camera positions. When a slider moves one hole, the rays of every other
 hole are the same floats as before; ``CachedRayMesh`` answers those from a dictionary keyed by the ray's exact
 bytes and sends only the new rays to trimesh. Each ray's hits do not depend on the other rays of the batch, so
-the result is identical to the uncached query (``tests/test_explore.py`` checks it).
+the result is identical to the uncached query (``tests/explore/test_explore.py`` checks it).
 """
 
 from __future__ import annotations

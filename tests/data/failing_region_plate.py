@@ -1,6 +1,6 @@
 """Fault injection (issue 16): the study plate (tests/data/study_plate.py) whose ``build`` raises for a first hole
 at -16 < x0 < -13 mm — a "kernel failure in this region", which contains the study's optimum (x0 ≈ -14.65 mm
-for tests/test_build_failures.py's study). Everywhere else it is the study plate.
+for tests/study/test_build_failures.py's study). Everywhere else it is the study plate.
 """
 
 FAIL_X0_MM = (-16.0, -13.0)

@@ -24,7 +24,7 @@ from cadfeat.design.problem import Problem
 from cadfeat.study.schema import load_study
 from cadfeat.study.setup import setup_study
 
-STUDIES = Path(__file__).parent.parent / "studies"
+STUDIES = Path(__file__).parents[2] / "studies"
 ALL = sorted(p.stem for p in STUDIES.glob("*.toml"))
 #: Where the two other starts lie: this fraction of the way from the part's defaults towards the point at the
 #: given fraction of each variable's range (feasible and buildable on every library part).

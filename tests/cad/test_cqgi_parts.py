@@ -22,7 +22,7 @@ from cadfeat.cad.cqgi_parts import getparams, is_cqgi_script
 from cadfeat.cad.parts import build_time_limit, load_part
 from cadfeat.errors import CadfeatError
 
-DATA = Path(__file__).parent / "data" / "cqgi"
+DATA = Path(__file__).parents[1] / "data" / "cqgi"
 EX002 = DATA / "Ex002_Block_With_Bored_Center_Hole.py"
 EX003 = DATA / "Ex003_Pillow_Block_With_Counterbored_Holes.py"
 EX007 = DATA / "Ex007_Using_Point_Lists.py"

@@ -22,7 +22,7 @@ import pytest
 
 pytest.importorskip("cadquery")
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tools"))
 
 import calibrate_detection as C  # noqa: E402

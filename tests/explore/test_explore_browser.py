@@ -22,8 +22,8 @@ import pytest
 from cdp_helpers import Page, open_page
 from test_report_browser import chromium
 
-DATA = Path(__file__).parent / "data" / "cqgi"
-ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(__file__).parents[1] / "data" / "cqgi"
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _explorer(study: Path) -> tuple[subprocess.Popen, str]:

@@ -15,7 +15,7 @@ import pytest
 from cadfeat.explore.raycache import CachedRayMesh
 from cadfeat.explore.session import new_path
 
-DATA = Path(__file__).parent / "data" / "cqgi"
+DATA = Path(__file__).parents[1] / "data" / "cqgi"
 
 
 def _plate_mesh():

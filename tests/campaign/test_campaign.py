@@ -25,7 +25,7 @@ from cadfeat.campaign.plan import load_campaign
 from cadfeat.campaign.runner import local_cluster, run_campaign
 from cadfeat.campaign.spec import CampaignError
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SMALL = ROOT / "campaigns" / "four_points_small.toml"
 BASE = ROOT / "studies" / "thesis_four_points.toml"
 PART = ROOT / "parts" / "thesis_four_points.py"
