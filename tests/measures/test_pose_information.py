@@ -24,6 +24,8 @@ from cadfeat.measures.pose_information import direction_words, pose_information
 from cadfeat.poses import hat, invert_T, look_at, make_T
 from cadfeat.vision.crlb import posterior_crlb
 
+pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
+
 cv2 = pytest.importorskip("cv2")
 
 CAMERA = Camera(fx=900.0, fy=905.0, cx=640.0, cy=500.0, width=1280, height=1024,
