@@ -10,10 +10,13 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import os
+import shutil
 import subprocess
 import time
 from collections.abc import Iterator
 from pathlib import Path
+
+import pytest
 
 
 class Page:
@@ -97,3 +100,16 @@ def open_page(exe: str, url: str, home: Path) -> Iterator[Page]:
         browser.kill()
         browser.wait()
         loop.close()
+
+
+def chromium() -> str:
+    """Path of a Chromium executable, or fail pointing to tools/ensure_chromium.sh."""
+    exe = os.environ.get("CADFEAT_CHROMIUM", "").strip()
+    if exe and Path(exe).is_file():
+        return exe
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        found = shutil.which(name)
+        if found:
+            return found
+    pytest.fail("no headless Chromium for the report test: run tools/ensure_chromium.sh (installs Debian's "
+                "chromium) or set CADFEAT_CHROMIUM to a Chromium/Chrome executable")

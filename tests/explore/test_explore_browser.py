@@ -19,8 +19,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from cdp_helpers import Page, open_page
-from test_report_browser import chromium
+from cdp_helpers import Page, chromium, open_page
 
 DATA = Path(__file__).parents[1] / "data" / "cqgi"
 ROOT = Path(__file__).resolve().parents[2]

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cdp_helpers import chromium
 from PIL import Image
 from report_fixture import shared_case
 from report_html import parse_report
@@ -36,19 +37,6 @@ window.addEventListener('load', function () {
   document.body.appendChild(pre);
 });
 </script>"""
-
-
-def chromium() -> str:
-    """Path of a Chromium executable, or fail pointing to tools/ensure_chromium.sh."""
-    exe = os.environ.get("CADFEAT_CHROMIUM", "").strip()
-    if exe and Path(exe).is_file():
-        return exe
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        found = shutil.which(name)
-        if found:
-            return found
-    pytest.fail("no headless Chromium for the report test: run tools/ensure_chromium.sh (installs Debian's "
-                "chromium) or set CADFEAT_CHROMIUM to a Chromium/Chrome executable")
 
 
 def _run(args: list[str], home: Path) -> subprocess.CompletedProcess:
