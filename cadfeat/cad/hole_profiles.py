@@ -186,9 +186,10 @@ class _Reader:
     def depth(self, p: np.ndarray) -> float:
         return float(np.dot(self.centre - p, self.axis))
 
-    def levels(self, face: Any) -> list[tuple[float, float]]:
-        """(depth, radius) of each circular boundary of a wall face. Straight edges in a plane through the
-        axis (the seams between split wall faces) are skipped; any other boundary raises ``CadfeatError``."""
+    def levels(self, face: Any) -> tuple[list[tuple[float, float]], bool]:
+        """(depth, radius) of each circular boundary of a wall face, and whether it has another boundary
+        (an oblique entrance or exit, another feature cutting into it). Straight edges in a plane through the
+        axis (the seams between split wall faces) are skipped."""
         from OCP.BRep import BRep_Tool
         from OCP.BRepAdaptor import BRepAdaptor_Curve
         from OCP.GeomAbs import GeomAbs_Circle, GeomAbs_Line
@@ -196,7 +197,7 @@ class _Reader:
         from OCP.TopExp import TopExp_Explorer
         from OCP.TopoDS import TopoDS
 
-        levels = []
+        levels, other = [], False
         explorer = TopExp_Explorer(face, TopAbs_EDGE)
         while explorer.More():
             edge = TopoDS.Edge_s(explorer.Current())
@@ -211,10 +212,27 @@ class _Reader:
                 continue
             if kind == GeomAbs_Line and self._generator(curve):
                 continue
-            raise CadfeatError(f"{self.label}: its wall meets a face that is not perpendicular to its axis "
-                               "(oblique entrance/exit, or another feature cuts into it); re-drilling supports "
-                               "holes that start and end on planes perpendicular to their axis")
-        return levels
+            other = True
+        return levels, other
+
+    def _oblique(self) -> CadfeatError:
+        return CadfeatError(f"{self.label}: its wall meets a face that is not perpendicular to its axis (oblique "
+                            "entrance/exit, or another feature cuts into it); re-drilling supports holes that start "
+                            "and end on planes perpendicular to their axis")
+
+    def concave(self, face: Any) -> bool:
+        """The face bounds the material from outside (a hole wall), not a boss, pin or outer rounded edge:
+        its outward normal points towards the axis."""
+        from OCP.BRepGProp import BRepGProp_Face
+        from OCP.BRepTools import BRepTools
+        from OCP.gp import gp_Pnt, gp_Vec
+
+        u0, u1, v0, v1 = BRepTools.UVBounds_s(face)
+        p, n = gp_Pnt(), gp_Vec()
+        BRepGProp_Face(face).Normal(0.5 * (u0 + u1), 0.5 * (v0 + v1), p, n)
+        d = _vec(p) - self.centre
+        radial = d - (d @ self.axis) * self.axis
+        return float(_vec(n) @ radial) < 0.0
 
     def _generator(self, curve: Any) -> bool:
         """A straight edge lying in a plane through the axis (a split seam of a cylinder or cone)."""
@@ -245,7 +263,11 @@ class _Reader:
             return None
         if not self.coaxial(ax.Location(), ax.Direction()):
             return None
-        levels = self.levels(face)
+        if typ == CYLINDER and surface.Cylinder().Radius() > self.hole.radius_mm + self.lin:
+            return None  # a wider coaxial feature (a cradle, the outer wall of a lug)
+        if typ != FILLET and not self.concave(face):
+            return None  # a convex face round the hole: a boss, a lug's outer chamfer
+        levels, other = self.levels(face)
         if typ == CONE:
             apex = surface.Cone().Apex()
             if len({round(t / max(self.lin, 1e-12)) for t, _ in levels}) == 1:  # drill point: one rim + apex
@@ -257,8 +279,10 @@ class _Reader:
         if typ == FILLET:
             if abs(t0) > self.lin or r0 > self.hole.radius_mm + self.lin:
                 return None  # a fillet elsewhere on the axis
-        elif t0 < -self.lin or t0 > self.hole.depth_mm + self.lin or r0 > self.hole.radius_mm + self.lin:
-            return None  # another coaxial feature (e.g. a boss on the far side)
+        elif t0 < -self.lin or t0 > self.hole.depth_mm - self.lin or r0 > self.hole.radius_mm + self.lin:
+            return None  # another coaxial feature (e.g. a boss on the far side, a cavity the hole opens into)
+        if other:
+            raise self._oblique()
         return t0, t1, r0, r1, typ, _face_area(face)
 
 

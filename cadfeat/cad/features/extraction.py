@@ -47,7 +47,8 @@ ANGLE_TOL_RAD = 1e-7  # defaults only: the extractor uses the model's ModelToler
 LINEAR_TOL_MM = 1e-6
 CLASSIFY_STEP_MM = 1e-4  # least step beyond an end along the axis for the inside/outside test (10× linear tol)
 NEAR_ROUND_MIN_RAD = np.radians(200.0)  # a concave partial cylinder spanning at least this is a near-round hole
-CHAMFER_MAX_RATIO = 0.5  # an entrance cone widening the bore by less than this × bore radius is a chamfered rim
+CHAMFER_MAX_RATIO = 0.35  # an entrance cone widening the bore by at most max(CHAMFER_MAX_MM, this × bore radius)
+CHAMFER_MAX_MM = 1.0      # is a chamfered rim (a 1 × 45° chamfer on an M4 bore), a wider one a countersink
 SAMPLE_DEFLECTION_MM = OUTLINE_CHORD_ERROR_MM / 2
 MIN_CURVE_POINTS = 17  # per curved edge, so that a loop's angular gaps stay small
 ENCIRCLING_MAX_GAP_RAD = np.pi / 4
@@ -427,13 +428,14 @@ class _Extractor:
 
     def _kind(self, entrance: _End, revs: list[_Revolution], bore: float) -> str:
         """plain / counterbore / countersink, with ", chamfered rim" or ", filleted rim" when the entrance
-        rim is a small cone (widening the bore under its wall by < ``CHAMFER_MAX_RATIO`` × its radius) or a
+        rim is a small cone (widening the bore under it by at most max(``CHAMFER_MAX_MM``, ``CHAMFER_MAX_RATIO`` ×
+        its radius): a 1 × 45° chamfer on a Ø4 bore, 0.5 × 45° on Ø8; a Ø6 countersink on Ø3.4 is wider) or a
         fillet (torus) blending into the host face."""
         if entrance.wall.is_cone:
             below = [r for r in revs if not r.is_cone]
             # the cylinder the entrance cone leads into: the widest one narrower than the cone's rim
             under = max((c.r0 for c in below if c.r0 < entrance.radius - self.lin), default=bore)
-            if entrance.radius - under < CHAMFER_MAX_RATIO * under:
+            if entrance.radius - under <= max(CHAMFER_MAX_MM, CHAMFER_MAX_RATIO * under) + self.lin:
                 base = "counterbore" if under > bore + self.lin else "plain"
                 return f"{base}, chamfered rim"
             return "countersink"
