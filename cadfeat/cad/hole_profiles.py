@@ -35,7 +35,9 @@ class HoleProfile:
 
     ``segments[k] = (t0, t1, r0, r1)``: from depth ``t0`` to ``t1`` (from the entrance rim on the host plane
     into the material, along −axis) the radius goes from ``r0`` to ``r1``: linearly for a cylinder (r0 = r1)
-    or a cone, along a quarter circle for an entrance fillet (centre (r0, t1), radius t1 − t0 = r0 − r1). A step
+    or a cone, along a quarter circle for a fillet of radius ρ = t1 − t0 = |r1 − r0| with centre (max r, depth
+    of the smaller r): an entrance fillet (r0 > r1, centre (r0, t1)) or, on a through hole, an exit fillet
+    blending the bore into the far face (r1 > r0, centre (r1, t0)). A step
     between segments is a flat annulus (counterbore floor). ``types[k]`` is ``CYLINDER``, ``CONE`` or
     ``FILLET``.
     """
@@ -62,7 +64,8 @@ class HoleProfile:
         frustum = np.pi * h * (r0 * r0 + r0 * r1 + r1 * r1) / 3.0
         rho = h
         xbar = rho * (5.0 / 6.0 - np.pi / 4.0) / (1.0 - np.pi / 4.0)
-        fillet = np.pi * r1 * r1 * rho + 2 * np.pi * (r1 + xbar) * rho * rho * (1.0 - np.pi / 4.0)
+        bore = np.minimum(r0, r1)  # an exit fillet is the entrance one mirrored
+        fillet = np.pi * bore * bore * rho + 2 * np.pi * (bore + xbar) * rho * rho * (1.0 - np.pi / 4.0)
         return float(np.sum(np.where(self.types == FILLET, fillet, frustum)))
 
     @property
@@ -79,7 +82,10 @@ class HoleProfile:
         segments[:, 2:] *= factor
         for k in np.flatnonzero(self.types == FILLET):  # fillet radius kept: its outer radius follows the bore
             rho = self.segments[k, 1] - self.segments[k, 0]
-            segments[k, 2] = segments[k, 3] + rho
+            if self.segments[k, 2] >= self.segments[k, 3]:
+                segments[k, 2] = segments[k, 3] + rho
+            else:
+                segments[k, 3] = segments[k, 2] + rho
         return self._restacked(segments)
 
     def resized(self, entrance_radius_mm: float, kind: str) -> HoleProfile:
@@ -188,8 +194,9 @@ class _Reader:
 
     def levels(self, face: Any) -> tuple[list[tuple[float, float]], bool]:
         """(depth, radius) of each circular boundary of a wall face, and whether it has another boundary
-        (an oblique entrance or exit, another feature cutting into it). Straight edges in a plane through the
-        axis (the seams between split wall faces) are skipped."""
+        (an oblique entrance or exit, another feature cutting into it; ``self.span`` is then the depth range
+        of those other boundaries). Straight edges in a plane through the axis (the seams between split wall
+        faces) are skipped."""
         from OCP.BRep import BRep_Tool
         from OCP.BRepAdaptor import BRepAdaptor_Curve
         from OCP.GeomAbs import GeomAbs_Circle, GeomAbs_Line
@@ -197,7 +204,7 @@ class _Reader:
         from OCP.TopExp import TopExp_Explorer
         from OCP.TopoDS import TopoDS
 
-        levels, other = [], False
+        levels, other, span = [], False, (math.inf, -math.inf)
         explorer = TopExp_Explorer(face, TopAbs_EDGE)
         while explorer.More():
             edge = TopoDS.Edge_s(explorer.Current())
@@ -212,8 +219,39 @@ class _Reader:
                 continue
             if kind == GeomAbs_Line and self._generator(curve):
                 continue
+            if kind not in (GeomAbs_Circle, GeomAbs_Line):  # B-spline trimming curves (Rhino writes every edge so)
+                sampled = self._sampled(curve)
+                if sampled == "seam":
+                    continue
+                if sampled is not None:
+                    levels.append(sampled)
+                    continue
             other = True
+            ends = [self.depth(_vec(curve.Value(x))) for x in np.linspace(curve.FirstParameter(),
+                                                                           curve.LastParameter(), 5)]
+            span = (min(span[0], *ends), max(span[1], *ends))
+        self.span = span
         return levels, other
+
+    def _sampled(self, curve: Any, n: int = 9) -> tuple[float, float] | str | None:
+        """A free-form edge that is a coaxial circle within the tolerance: its (depth, radius); a straight seam
+        in a plane through the axis: ``"seam"``; anything else: None. From ``n`` points along the edge."""
+        u = np.linspace(curve.FirstParameter(), curve.LastParameter(), n)
+        pts = np.array([_vec(curve.Value(float(x))) for x in u])
+        d = pts - self.centre
+        t = d @ self.axis
+        radial = d - np.outer(t, self.axis)
+        r = np.linalg.norm(radial, axis=1)
+        if np.ptp(t) <= self.lin and np.ptp(r) <= self.lin:
+            return float(-t.mean()), float(r.mean())
+        chord = pts[-1] - pts[0]
+        length = float(np.linalg.norm(chord))
+        if length > self.lin and r.min() > self.lin:
+            off = np.linalg.norm(np.cross(pts - pts[0], chord / length), axis=1)
+            normal = np.cross(self.axis, radial[n // 2] / r[n // 2])
+            if off.max() <= self.lin and np.abs(d @ normal).max() <= self.lin + self.ang * length:
+                return "seam"
+        return None
 
     def _oblique(self) -> CadfeatError:
         return CadfeatError(f"{self.label}: its wall meets a face that is not perpendicular to its axis (oblique "
@@ -257,7 +295,7 @@ class _Reader:
             ax, typ = surface.Cylinder().Axis(), CYLINDER
         elif kind == GeomAbs_Cone:
             ax, typ = surface.Cone().Axis(), CONE
-        elif kind == GeomAbs_Torus and self.hole.kind.endswith("filleted rim"):
+        elif kind == GeomAbs_Torus:
             ax, typ = surface.Torus().Axis(), FILLET
         else:
             return None
@@ -268,6 +306,8 @@ class _Reader:
         if typ != FILLET and not self.concave(face):
             return None  # a convex face round the hole: a boss, a lug's outer chamfer
         levels, other = self.levels(face)
+        if other and typ != FILLET and self.span[0] < -self.lin < self.lin < self.span[1]:
+            raise self._oblique()  # the hole's own wall runs past its entrance on one side: an oblique rim
         if typ == CONE:
             apex = surface.Cone().Apex()
             if len({round(t / max(self.lin, 1e-12)) for t, _ in levels}) == 1:  # drill point: one rim + apex
@@ -277,7 +317,9 @@ class _Reader:
         levels.sort()
         (t0, r0), (t1, r1) = levels[0], levels[-1]
         if typ == FILLET:
-            if abs(t0) > self.lin or r0 > self.hole.radius_mm + self.lin:
+            entrance = abs(t0) <= self.lin and r0 <= self.hole.radius_mm + self.lin and r0 > r1
+            exit_ = self.hole.through and abs(t1 - self.hole.depth_mm) <= self.lin and r1 > r0
+            if not (entrance and self.hole.kind.endswith("filleted rim") or exit_):
                 return None  # a fillet elsewhere on the axis
         elif t0 < -self.lin or t0 > self.hole.depth_mm - self.lin or r0 > self.hole.radius_mm + self.lin:
             return None  # another coaxial feature (e.g. a boss on the far side, a cavity the hole opens into)
@@ -333,7 +375,7 @@ def hole_profile(shape: Any, hole: Hole, tol: ModelTolerance | None = None, path
         t0, t1, r0, r1, typ, _ = parts[0]
         if typ == FILLET:
             rho = t1 - t0
-            full = 2 * np.pi * rho * (np.pi / 2 * (r1 + rho) - rho)  # quarter torus: 2π ∫ r ds
+            full = 2 * np.pi * rho * (np.pi / 2 * (min(r0, r1) + rho) - rho)  # quarter torus: 2π ∫ r ds
         else:
             full = np.pi * (r0 + r1) * math.hypot(t1 - t0, r1 - r0)
         got = sum(p[5] for p in parts)
@@ -380,7 +422,8 @@ def revolved(profile: HoleProfile, centre: np.ndarray, axis: np.ndarray) -> cq.S
                 cursor = target
         if typ == FILLET:
             rho = t1 - t0
-            mid = (r0 - rho * math.sqrt(0.5), t0 + rho * (1 - math.sqrt(0.5)))  # centre (r0, t1)
+            r_c, t_c, t_plane = (r0, t1, t0) if r0 > r1 else (r1, t0, t1)  # entrance / exit fillet
+            mid = (r_c - rho * math.sqrt(0.5), t_c + (t_plane - t_c) * math.sqrt(0.5))
             edges.append(cq.Edge.makeThreePointArc(at(r0, t0), at(*mid), at(r1, t1)))
         elif np.hypot(r1 - r0, t1 - t0) > 1e-12:
             edges.append(cq.Edge.makeLine(at(r0, t0), at(r1, t1)))

@@ -51,6 +51,8 @@ __all__ = [
     "redrill",
 ]
 
+STL_TOLERANCE_MM = 0.01
+"""Chord tolerance of the exported STL (``export.export_stl``'s default), which the dry run meshes at."""
 VOLUME_RTOL_FLOOR = 1e-9
 """Least relative tolerance of a volume change (round-off)."""
 
@@ -376,8 +378,11 @@ def dry_run(part: StepPart, holes: Sequence[Hole], resize: Sequence[bool] | None
     step in its host plane (1 % of its radius, at least 10× the model tolerance) — and, where ``resize``,
     with its entrance 2 % wider — so that a part that cannot be re-drilled is refused at once.
 
-    Raises ``CadfeatError`` naming the file, the hole and why (e.g. its wall is cut by another feature).
+    Each re-drilled solid is also meshed as the run's STL export will mesh it. Raises ``CadfeatError`` naming
+    the file, the hole and why (e.g. its wall is cut by another feature, a face cannot be triangulated).
     """
+    from cadfeat.cad.export import mesh_from_shape
+
     resize = list(resize) if resize is not None else [False] * len(holes)
     for hole, grow in zip(holes, resize, strict=True):
         step = max(0.01 * hole.radius_mm, 10 * part.tolerance.linear_mm)
@@ -389,7 +394,8 @@ def dry_run(part: StepPart, holes: Sequence[Hole], resize: Sequence[bool] | None
             u /= np.linalg.norm(u)
         move = HoleMove(hole, np.asarray(hole.centre, float) + step * u, hole.radius_mm * (1.02 if grow else 1.0))
         try:
-            redrill(part.shape, [move], part.tolerance, part.path)
+            result = redrill(part.shape, [move], part.tolerance, part.path)
+            mesh_from_shape(result, tolerance=STL_TOLERANCE_MM)  # the run exports the re-drilled part as STL
         except CadfeatError as exc:
             text = str(exc)
             where = f"{part.path}: "

@@ -796,6 +796,7 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
         export_stl,
         import_step,
         shape_volume_mm3,
+        stl_watertight,
         verify_step_roundtrip,
     )
 
@@ -817,14 +818,15 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
     results["constraints"] = results["constraints"] + step_checks
     _fail_on(results["constraints"], config.label)
     export_stl(shapes["shape1"], stage / "optimised.stl")
-    stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"])
+    stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"],
+                             original=shapes["shape0"] if config.study.part_kind == "step" else None)
     if stl_problems:
         raise CadfeatError(f"{config.label}: optimised.stl: {'; '.join(stl_problems[:3])}")
     results["verification"] = {
         "step_roundtrip_max_error_mm": max(trip.max_centre_error_mm, trip.max_radius_error_mm,
                                            trip.max_depth_error_mm),
         "step_roundtrip_max_axis_error_rad": trip.max_axis_error_rad, "brep_valid": True,
-        "stl_watertight": True, "tolerance_mm": ROUNDTRIP_TOL_MM}
+        "stl_watertight": stl_watertight(stage / "optimised.stl"), "tolerance_mm": ROUNDTRIP_TOL_MM}
     from cadfeat.report.holes import write_holes_csv
 
     write_holes_csv(stage / "holes.csv", plain(results))

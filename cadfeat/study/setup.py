@@ -373,6 +373,7 @@ def check_step_study(config: StudyConfig) -> str:
         raise StudyError(f"{config.label}: design.holes: two selectors name the same hole; allowed: each hole once")
     step_offset_limits(config, step, movable)
     step_dry_run(config, step, movable)
+    occlusion_mesh(config, step.shape)  # as run's set-up does: a part BRepMesh cannot mesh is refused now
     names = ", ".join(holes[j].name for j in movable)
     return f"dry run re-drilled {names} of {step.path.name} (moved and, where asked, resized)"
 

@@ -506,7 +506,7 @@ class _Extractor:
                 else:
                     weights[g] = weights.get(g, 0.0) + length
         host = min(weights, key=lambda g: (-weights[g], g))
-        wall = self.revs[min(w for w in walls if w in self.revs)]
+        wall = self._end_wall(walls, members, ref, t_extreme)
         blend = self._fillet_blend(host, ref, members)
         if blend is not None:
             plane, outer_edges, radius = blend
@@ -515,6 +515,18 @@ class _Extractor:
                         rim="fillet", blend=[host])
         centre = self._axis_meets_face(host, ref, p)
         return _End(loop, sense, host, centre, sense * ref.d, wall.radius_at(centre), wall, self.area(host))
+
+    def _end_wall(self, walls: set[int], members: set[int], ref: _Revolution, t_end: float) -> _Revolution:
+        """The cylinder or cone of the hole at an end: one the rim loop runs along, else (the loop runs along a
+        planar step of the group only) the member nearest the end along the axis."""
+        if on_loop := [w for w in walls if w in self.revs]:
+            return self.revs[min(on_loop)]
+
+        def distance(f: int) -> float:
+            pts = np.concatenate([self.edge_points(e) for e in self.topo.face_edges[f]])
+            return float(np.min(np.abs(ref.t(pts) - t_end)))
+
+        return self.revs[min((m for m in members if m in self.revs), key=lambda m: (distance(m), m))]
 
     def _fillet_blend(self, f: int, ref: _Revolution, members: set[int]) -> tuple[int, list[int], float] | None:
         """If face ``f`` is a fillet (torus coaxial with the hole) between the hole wall and a plane
