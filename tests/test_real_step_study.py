@@ -1,7 +1,10 @@
 """A study on a real third-party STEP export (``../shared/real_step``, issue 16 item 3): it runs end to end.
 
-OpenBot's NX 9 bearing cover: a camera approaching the face with the four Ø3.5 screw holes and the bearing seat;
-one screw hole may move by up to 1 mm. Reference: ``truth.json`` (holes found with OCP alone) against the holes
+poseidon's Fusion 360 pump carriage: a camera approaching from above and the +x side; the long vertical Ø5 hole
+may move by up to 0.5 mm. Two things broke such a study before issue 16: the occlusion mesh ("a face could not
+be triangulated": BRepMesh leaves the 45° rim-chamfer cones empty) and the CAD rebuild check ("match_holes:
+reference hole H3 ... has no candidate": the rebuilt part's holes were extracted without the camera's entrance
+side, so a lug hole came back from its other end). Reference: ``truth.json`` (holes found with OCP alone) against the holes
 re-extracted from the written optimised.step: the fixed holes where the truth has them, the moved one on its
 face within its offset bound with its own diameter and axis. Kept cheap: 6 poses, one start, few iterations.
 """
@@ -21,16 +24,16 @@ if FOLDER is None:
         raise RuntimeError("tests/test_real_step_study.py: no shared/real_step beside the repository")
     pytest.skip("no shared/real_step beside the repository (CADFEAT_REAL_STEP unset)", allow_module_level=True)
 
-PART = "openbot_bearing_cover.step"
-MOVED = [0.0, 0.0, 9.0]  # the Ø3.5 hole at +z on the x = 0 face
-LIMIT_MM = 1.0
+PART = "poseidon_pump_carriage.step"
+MOVED = [-91.5, 38.5, 26.5]  # the top of the 53 mm long Ø5 vertical hole (0.5 x 45° rim chamfers)
+LIMIT_MM = 0.5
 STUDY = {
-    "study": {"name": "real_bearing_cover", "part": str(FOLDER / PART), "seed": 1},
+    "study": {"name": "real_pump_carriage", "part": str(FOLDER / PART), "seed": 1},
     "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 200.0},
-    "trajectory": {"kind": "straight_approach", "start": [260.0, -40.0, 30.0], "end": [180.0, 30.0, -20.0],
-                   "target": [0.0, 0.0, 0.0], "n": 6, "duration_s": 2.0},
+    "trajectory": {"kind": "straight_approach", "start": [0.0, 250.0, 200.0], "end": [-60.0, 180.0, 150.0],
+                   "target": MOVED, "n": 6, "duration_s": 2.0},
     "design": {"holes": [{"select": MOVED, "max_offset_mm": LIMIT_MM}]},
-    "constraints": {"edge_distance_mm": 1.0, "ligament_mm": 1.0},
+    "constraints": {"edge_distance_mm": 0.5, "ligament_mm": 0.5},
     "objective": {"measures": ["fov", "resolution", "resolvability"], "aggregate": "sum", "combine": "maxmin",
                   "rotation_length_mm": 50.0},
     "optimizer": {"method": "multistart", "starts": 1, "maxiter": 10},
@@ -60,5 +63,6 @@ def test_a_study_on_a_real_export_runs_and_writes_the_true_holes(tmp_path, monke
                 if np.linalg.norm(np.cross(h.axis, t["axis"])) < 1e-6
                 and abs(2 * h.bore_radius_mm - t["bore_diameter"]) < 1e-3
                 and abs(float(np.dot(h.centre - e, t["axis"]))) < 1e-3]  # on the same face plane
-        limit = LIMIT_MM + 1e-6 if any(np.allclose(e, MOVED, atol=1e-3) for e in ends) else 1e-4
+        # max_offset_mm bounds each of the two in-plane offsets: the moved hole is within √2 of it
+        limit = LIMIT_MM * np.sqrt(2) + 1e-6 if any(np.allclose(e, MOVED, atol=1e-3) for e in ends) else 1e-4
         assert gaps and min(gaps) <= limit, (t["id"], gaps)
