@@ -4,7 +4,8 @@ poseidon's Fusion 360 pump carriage: a camera approaching from above and the +x 
 may move by up to 0.5 mm. Two things broke such a study before issue 16: the occlusion mesh ("a face could not
 be triangulated": BRepMesh leaves the 45° rim-chamfer cones empty) and the CAD rebuild check ("match_holes:
 reference hole H3 ... has no candidate": the rebuilt part's holes were extracted without the camera's entrance
-side, so a lug hole came back from its other end). Reference: ``truth.json`` (holes found with OCP alone) against the holes
+side, so a lug hole came back from its other end).
+Reference: ``truth.json`` (holes found with OCP alone) against the holes
 re-extracted from the written optimised.step: the fixed holes where the truth has them, the moved one on its
 face within its offset bound with its own diameter and axis. Kept cheap: 6 poses, one start, few iterations.
 """
