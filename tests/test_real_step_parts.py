@@ -41,9 +41,6 @@ REFUSED = {
     ("ps2_lower_display_mount.step", "H3"): CUT_INTO,
     ("tinymovr_gimbal_bracket.step", "H5"): CUT_INTO,
 }
-# Truth holes whose ends are oblique (truth "ends_not_perpendicular"): the entrance centre and depth depend on
-# which of the faces the rim crosses is called the host, so only the axis line, bore, kind and through are checked.
-LOOSE_ENDS = "ends_not_perpendicular"
 
 
 @cache
@@ -69,8 +66,6 @@ def test_holes_match_the_truth(name):
             problems[t["id"]] = ["not found"]
             continue
         errs = rs.hole_errors(h, t)
-        if LOOSE_ENDS in t:
-            errs = [e for e in errs if not e.startswith(("entrance ", "depth "))]
         if errs:
             problems[t["id"]] = errs
     matched = {id(h) for h in found if h is not None}

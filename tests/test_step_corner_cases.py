@@ -213,9 +213,12 @@ def test_set_screw_hole_entrance_is_on_the_camera_side_not_inside_the_bore():
     np.testing.assert_allclose(h.centre, [bx / 2, 0.0, z], atol=1e-9)
     np.testing.assert_allclose(h.axis, [1.0, 0.0, 0.0], atol=1e-12)
     assert 2 * h.radius_mm == pytest.approx(screw) and h.outline is not None
-    assert h.depth_mm == pytest.approx(bx / 2 - bore / 2, abs=1e-9)  # to where the axis meets the bore wall
+    # the wall ends where the saddle it cuts in the bore reaches deepest, √(R² − r²) from the bore axis (the
+    # "axial length of the hole wall", as truth.json of ../shared/real_step defines depth for oblique ends)
+    wall_end = math.sqrt((bore / 2) ** 2 - (screw / 2) ** 2)
+    assert h.depth_mm == pytest.approx(bx / 2 - wall_end, abs=1e-6)
     (inner,) = [g for g in part("set_screw", prefer=(-1.0, 0.0, 0.0)).holes if abs(g.axis[0]) > 0.5]
-    assert inner.centre[0] == pytest.approx(bore / 2, abs=1e-9) and inner.outline is None  # on the bore wall
+    assert inner.centre[0] == pytest.approx(wall_end, abs=1e-6) and inner.outline is None  # in the bore
 
 
 # ------------------------------------------------------------------------------------------ resize rules

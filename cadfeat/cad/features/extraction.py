@@ -53,6 +53,7 @@ SAMPLE_DEFLECTION_MM = OUTLINE_CHORD_ERROR_MM / 2
 MIN_CURVE_POINTS = 17  # per curved edge, so that a loop's angular gaps stay small
 ENCIRCLING_MAX_GAP_RAD = np.pi / 4
 AREA_RTOL = 1e-6
+OBLIQUE_RIM_MM = 1e-3  # a rim loop spanning more than this along the axis is not perpendicular to it
 
 
 def _xyz(p: gp_Pnt | gp_Vec | gp_Dir) -> np.ndarray:
@@ -513,7 +514,13 @@ class _Extractor:
             centre = self._axis_meets_face(plane, ref, p)
             return _End(loop + outer_edges, sense, plane, centre, sense * ref.d, radius, wall, self.area(plane),
                         rim="fillet", blend=[host])
-        centre = self._axis_meets_face(host, ref, p)
+        if float(np.ptp(t)) > OBLIQUE_RIM_MM + self.lin and sense * (t_extreme - ref.t(
+                self._axis_meets_face(host, ref, p))) > self.lin:
+            # an oblique or saddle rim whose wall runs out past where the axis meets the host (a passage
+            # entering a bore or a slanted face): the end is where the wall ends along the axis
+            centre = ref.loc + t_extreme * ref.d
+        else:
+            centre = self._axis_meets_face(host, ref, p)
         return _End(loop, sense, host, centre, sense * ref.d, wall.radius_at(centre), wall, self.area(host))
 
     def _end_wall(self, walls: set[int], members: set[int], ref: _Revolution, t_end: float) -> _Revolution:
