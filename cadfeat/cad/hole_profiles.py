@@ -306,8 +306,9 @@ class _Reader:
         if typ != FILLET and not self.concave(face):
             return None  # a convex face round the hole: a boss, a lug's outer chamfer
         levels, other = self.levels(face)
-        if other and typ != FILLET and self.span[0] < -self.lin < self.lin < self.span[1]:
-            raise self._oblique()  # the hole's own wall runs past its entrance on one side: an oblique rim
+        if other and typ != FILLET and (self.span[0] < -self.lin < self.lin < self.span[1] or not levels and (
+                self.span[0] < self.hole.depth_mm - self.lin and self.span[1] > self.lin)):
+            raise self._oblique()  # the hole's own wall runs past its entrance (an oblique rim) or has no round end
         if typ == CONE:
             apex = surface.Cone().Apex()
             if len({round(t / max(self.lin, 1e-12)) for t, _ in levels}) == 1:  # drill point: one rim + apex
@@ -321,7 +322,8 @@ class _Reader:
             exit_ = self.hole.through and abs(t1 - self.hole.depth_mm) <= self.lin and r1 > r0
             if not (entrance and self.hole.kind.endswith("filleted rim") or exit_):
                 return None  # a fillet elsewhere on the axis
-        elif t0 < -self.lin or t0 > self.hole.depth_mm - self.lin or r0 > self.hole.radius_mm + self.lin:
+        elif (start := min(t0, self.span[0]) if other else t0) < -self.lin or start > self.hole.depth_mm - self.lin \
+                or r0 > self.hole.radius_mm + self.lin:
             return None  # another coaxial feature (e.g. a boss on the far side, a cavity the hole opens into)
         if other:
             raise self._oblique()
