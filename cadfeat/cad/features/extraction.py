@@ -514,10 +514,11 @@ class _Extractor:
             centre = self._axis_meets_face(plane, ref, p)
             return _End(loop + outer_edges, sense, plane, centre, sense * ref.d, radius, wall, self.area(plane),
                         rim="fillet", blend=[host])
-        if float(np.ptp(t)) > OBLIQUE_RIM_MM + self.lin and sense * (t_extreme - ref.t(
+        curved = BRepAdaptor_Surface(self.topo.faces[host]).GetType() != GeomAbs_Plane
+        if curved and float(np.ptp(t)) > OBLIQUE_RIM_MM + self.lin and sense * (t_extreme - ref.t(
                 self._axis_meets_face(host, ref, p))) > self.lin:
-            # an oblique or saddle rim whose wall runs out past where the axis meets the host (a passage
-            # entering a bore or a slanted face): the end is where the wall ends along the axis
+            # a saddle rim on a curved host whose wall runs out past where the axis meets it (a passage or a
+            # radial hole opening into a bore): the end is where the wall ends along the axis
             centre = ref.loc + t_extreme * ref.d
         else:
             centre = self._axis_meets_face(host, ref, p)
@@ -606,11 +607,12 @@ class _Extractor:
 
     @staticmethod
     def _depth(entrance: _End, exits: list[_End], ref: _Revolution, all_pts: np.ndarray) -> float:
-        """Along the axis: to the farthest exit centre (through) or to the deepest point (blind)."""
+        """Along the axis from the entrance centre to the farthest point of the wall: the exit plane of a
+        through hole with a perpendicular exit, where the wall ends at an oblique or saddle exit (the axial
+        length of the wall), the deepest point of a blind hole."""
         t_c = float(ref.t(entrance.centre))
-        if exits:
-            return max(abs(t_c - float(ref.t(e.centre))) for e in exits)
-        return float(np.max(entrance.sense * (t_c - ref.t(all_pts))))
+        wall = float(np.max(entrance.sense * (t_c - ref.t(all_pts))))
+        return max([wall] + [abs(t_c - float(ref.t(e.centre))) for e in exits])  # an exit fillet's plane
 
     # ------------------------------------------------------------------------------------- outlines
     def outline(self, f: int, rim_edges: set[int]) -> FaceOutline | None:
