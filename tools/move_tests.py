@@ -34,7 +34,8 @@ EXPLICIT = {
     "test_layout": "", "test_build_failures": "study", "test_start_independence": "study",
     "test_memory_budget": "design", "test_outline_motion": "design", "test_pose_objective": "design",
     "test_cqgi_parts": "cad", "test_real_step_parts": "cad", "test_explore": "explore",
-    "test_explore_browser": "explore", "test_campaign": "campaign",
+    "test_explore_browser": "explore", "test_campaign": "campaign", "test_real_step_study": "study",
+    "test_occt_real_exports": "cad",
 }
 #: Name prefix → folder, tried in order after ``EXPLICIT``.
 PREFIXES = (("test_measures_", "measures"), ("test_step_", "cad"), ("test_optim_", "design"),

@@ -35,7 +35,9 @@ class HoleProfile:
 
     ``segments[k] = (t0, t1, r0, r1)``: from depth ``t0`` to ``t1`` (from the entrance rim on the host plane
     into the material, along −axis) the radius goes from ``r0`` to ``r1``: linearly for a cylinder (r0 = r1)
-    or a cone, along a quarter circle for an entrance fillet (centre (r0, t1), radius t1 − t0 = r0 − r1). A step
+    or a cone, along a quarter circle for a fillet of radius ρ = t1 − t0 = |r1 − r0| with centre (max r, depth
+    of the smaller r): an entrance fillet (r0 > r1, centre (r0, t1)) or, on a through hole, an exit fillet
+    blending the bore into the far face (r1 > r0, centre (r1, t0)). A step
     between segments is a flat annulus (counterbore floor). ``types[k]`` is ``CYLINDER``, ``CONE`` or
     ``FILLET``.
     """
@@ -62,7 +64,8 @@ class HoleProfile:
         frustum = np.pi * h * (r0 * r0 + r0 * r1 + r1 * r1) / 3.0
         rho = h
         xbar = rho * (5.0 / 6.0 - np.pi / 4.0) / (1.0 - np.pi / 4.0)
-        fillet = np.pi * r1 * r1 * rho + 2 * np.pi * (r1 + xbar) * rho * rho * (1.0 - np.pi / 4.0)
+        bore = np.minimum(r0, r1)  # an exit fillet is the entrance one mirrored
+        fillet = np.pi * bore * bore * rho + 2 * np.pi * (bore + xbar) * rho * rho * (1.0 - np.pi / 4.0)
         return float(np.sum(np.where(self.types == FILLET, fillet, frustum)))
 
     @property
@@ -79,7 +82,10 @@ class HoleProfile:
         segments[:, 2:] *= factor
         for k in np.flatnonzero(self.types == FILLET):  # fillet radius kept: its outer radius follows the bore
             rho = self.segments[k, 1] - self.segments[k, 0]
-            segments[k, 2] = segments[k, 3] + rho
+            if self.segments[k, 2] >= self.segments[k, 3]:
+                segments[k, 2] = segments[k, 3] + rho
+            else:
+                segments[k, 3] = segments[k, 2] + rho
         return self._restacked(segments)
 
     def resized(self, entrance_radius_mm: float, kind: str) -> HoleProfile:
@@ -186,9 +192,11 @@ class _Reader:
     def depth(self, p: np.ndarray) -> float:
         return float(np.dot(self.centre - p, self.axis))
 
-    def levels(self, face: Any) -> list[tuple[float, float]]:
-        """(depth, radius) of each circular boundary of a wall face. Straight edges in a plane through the
-        axis (the seams between split wall faces) are skipped; any other boundary raises ``CadfeatError``."""
+    def levels(self, face: Any) -> tuple[list[tuple[float, float]], bool]:
+        """(depth, radius) of each circular boundary of a wall face, and whether it has another boundary
+        (an oblique entrance or exit, another feature cutting into it; ``self.span`` is then the depth range
+        of those other boundaries). Straight edges in a plane through the axis (the seams between split wall
+        faces) are skipped."""
         from OCP.BRep import BRep_Tool
         from OCP.BRepAdaptor import BRepAdaptor_Curve
         from OCP.GeomAbs import GeomAbs_Circle, GeomAbs_Line
@@ -196,7 +204,7 @@ class _Reader:
         from OCP.TopExp import TopExp_Explorer
         from OCP.TopoDS import TopoDS
 
-        levels = []
+        levels, other, span = [], False, (math.inf, -math.inf)
         explorer = TopExp_Explorer(face, TopAbs_EDGE)
         while explorer.More():
             edge = TopoDS.Edge_s(explorer.Current())
@@ -211,10 +219,58 @@ class _Reader:
                 continue
             if kind == GeomAbs_Line and self._generator(curve):
                 continue
-            raise CadfeatError(f"{self.label}: its wall meets a face that is not perpendicular to its axis "
-                               "(oblique entrance/exit, or another feature cuts into it); re-drilling supports "
-                               "holes that start and end on planes perpendicular to their axis")
-        return levels
+            if kind not in (GeomAbs_Circle, GeomAbs_Line):  # B-spline trimming curves (Rhino writes every edge so)
+                sampled = self._sampled(curve)
+                if sampled == "seam":
+                    continue
+                if sampled is not None:
+                    levels.append(sampled)
+                    continue
+            other = True
+            ends = [self.depth(_vec(curve.Value(x))) for x in np.linspace(curve.FirstParameter(),
+                                                                           curve.LastParameter(), 5)]
+            span = (min(span[0], *ends), max(span[1], *ends))
+        self.span = span
+        return levels, other
+
+    def _sampled(self, curve: Any, n: int = 9) -> tuple[float, float] | str | None:
+        """A free-form edge that is a coaxial circle within the tolerance: its (depth, radius); a straight seam
+        in a plane through the axis: ``"seam"``; anything else: None. From ``n`` points along the edge."""
+        u = np.linspace(curve.FirstParameter(), curve.LastParameter(), n)
+        pts = np.array([_vec(curve.Value(float(x))) for x in u])
+        d = pts - self.centre
+        t = d @ self.axis
+        radial = d - np.outer(t, self.axis)
+        r = np.linalg.norm(radial, axis=1)
+        if np.ptp(t) <= self.lin and np.ptp(r) <= self.lin:
+            return float(-t.mean()), float(r.mean())
+        chord = pts[-1] - pts[0]
+        length = float(np.linalg.norm(chord))
+        if length > self.lin and r.min() > self.lin:
+            off = np.linalg.norm(np.cross(pts - pts[0], chord / length), axis=1)
+            normal = np.cross(self.axis, radial[n // 2] / r[n // 2])
+            if off.max() <= self.lin and np.abs(d @ normal).max() <= self.lin + self.ang * length:
+                return "seam"
+        return None
+
+    def _oblique(self) -> CadfeatError:
+        return CadfeatError(f"{self.label}: its wall meets a face that is not perpendicular to its axis (oblique "
+                            "entrance/exit, or another feature cuts into it); re-drilling supports holes that start "
+                            "and end on planes perpendicular to their axis")
+
+    def concave(self, face: Any) -> bool:
+        """The face bounds the material from outside (a hole wall), not a boss, pin or outer rounded edge:
+        its outward normal points towards the axis."""
+        from OCP.BRepGProp import BRepGProp_Face
+        from OCP.BRepTools import BRepTools
+        from OCP.gp import gp_Pnt, gp_Vec
+
+        u0, u1, v0, v1 = BRepTools.UVBounds_s(face)
+        p, n = gp_Pnt(), gp_Vec()
+        BRepGProp_Face(face).Normal(0.5 * (u0 + u1), 0.5 * (v0 + v1), p, n)
+        d = _vec(p) - self.centre
+        radial = d - (d @ self.axis) * self.axis
+        return float(_vec(n) @ radial) < 0.0
 
     def _generator(self, curve: Any) -> bool:
         """A straight edge lying in a plane through the axis (a split seam of a cylinder or cone)."""
@@ -239,13 +295,20 @@ class _Reader:
             ax, typ = surface.Cylinder().Axis(), CYLINDER
         elif kind == GeomAbs_Cone:
             ax, typ = surface.Cone().Axis(), CONE
-        elif kind == GeomAbs_Torus and self.hole.kind.endswith("filleted rim"):
+        elif kind == GeomAbs_Torus:
             ax, typ = surface.Torus().Axis(), FILLET
         else:
             return None
         if not self.coaxial(ax.Location(), ax.Direction()):
             return None
-        levels = self.levels(face)
+        if typ == CYLINDER and surface.Cylinder().Radius() > self.hole.radius_mm + self.lin:
+            return None  # a wider coaxial feature (a cradle, the outer wall of a lug)
+        if typ != FILLET and not self.concave(face):
+            return None  # a convex face round the hole: a boss, a lug's outer chamfer
+        levels, other = self.levels(face)
+        if other and typ != FILLET and (self.span[0] < -self.lin < self.lin < self.span[1] or not levels and (
+                self.span[0] < self.hole.depth_mm - self.lin and self.span[1] > self.lin)):
+            raise self._oblique()  # the hole's own wall runs past its entrance (an oblique rim) or has no round end
         if typ == CONE:
             apex = surface.Cone().Apex()
             if len({round(t / max(self.lin, 1e-12)) for t, _ in levels}) == 1:  # drill point: one rim + apex
@@ -255,10 +318,15 @@ class _Reader:
         levels.sort()
         (t0, r0), (t1, r1) = levels[0], levels[-1]
         if typ == FILLET:
-            if abs(t0) > self.lin or r0 > self.hole.radius_mm + self.lin:
+            entrance = abs(t0) <= self.lin and r0 <= self.hole.radius_mm + self.lin and r0 > r1
+            exit_ = self.hole.through and abs(t1 - self.hole.depth_mm) <= self.lin and r1 > r0
+            if not (entrance and self.hole.kind.endswith("filleted rim") or exit_):
                 return None  # a fillet elsewhere on the axis
-        elif t0 < -self.lin or t0 > self.hole.depth_mm + self.lin or r0 > self.hole.radius_mm + self.lin:
-            return None  # another coaxial feature (e.g. a boss on the far side)
+        elif (start := min(t0, self.span[0]) if other else t0) < -self.lin or start > self.hole.depth_mm - self.lin \
+                or r0 > self.hole.radius_mm + self.lin:
+            return None  # another coaxial feature (e.g. a boss on the far side, a cavity the hole opens into)
+        if other:
+            raise self._oblique()
         return t0, t1, r0, r1, typ, _face_area(face)
 
 
@@ -309,7 +377,7 @@ def hole_profile(shape: Any, hole: Hole, tol: ModelTolerance | None = None, path
         t0, t1, r0, r1, typ, _ = parts[0]
         if typ == FILLET:
             rho = t1 - t0
-            full = 2 * np.pi * rho * (np.pi / 2 * (r1 + rho) - rho)  # quarter torus: 2π ∫ r ds
+            full = 2 * np.pi * rho * (np.pi / 2 * (min(r0, r1) + rho) - rho)  # quarter torus: 2π ∫ r ds
         else:
             full = np.pi * (r0 + r1) * math.hypot(t1 - t0, r1 - r0)
         got = sum(p[5] for p in parts)
@@ -356,7 +424,8 @@ def revolved(profile: HoleProfile, centre: np.ndarray, axis: np.ndarray) -> cq.S
                 cursor = target
         if typ == FILLET:
             rho = t1 - t0
-            mid = (r0 - rho * math.sqrt(0.5), t0 + rho * (1 - math.sqrt(0.5)))  # centre (r0, t1)
+            r_c, t_c, t_plane = (r0, t1, t0) if r0 > r1 else (r1, t0, t1)  # entrance / exit fillet
+            mid = (r_c - rho * math.sqrt(0.5), t_c + (t_plane - t_c) * math.sqrt(0.5))
             edges.append(cq.Edge.makeThreePointArc(at(r0, t0), at(*mid), at(r1, t1)))
         elif np.hypot(r1 - r0, t1 - t0) > 1e-12:
             edges.append(cq.Edge.makeLine(at(r0, t0), at(r1, t1)))

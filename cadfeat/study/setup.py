@@ -264,10 +264,10 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
                       linear=bool(getattr(dm, "linear", True)), int_values=ints, part=part)
 
 
-def _extract(shape: Any, prefer_direction: Any = None) -> list[Any]:
+def _extract(shape: Any, prefer_direction: Any = None, tol: Any = None) -> list[Any]:
     from cadfeat.cad.features import extract_holes
 
-    return extract_holes(shape, prefer_direction=prefer_direction)
+    return extract_holes(shape, prefer_direction=prefer_direction, tol=tol)
 
 
 # ----------------------------------------------------------------------------------------- STEP
@@ -313,8 +313,8 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
                 fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
     problem, cc = _problem(args, config)
 
-    def rebuild_holes(shape: Any) -> list[Any]:
-        holes = _extract(shape)
+    def rebuild_holes(shape: Any) -> list[Any]:  # as the part was read: the same entrance side and tolerances
+        holes = _extract(shape, view, step.tolerance)
         return [dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(holes)]
 
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
@@ -379,6 +379,7 @@ def check_step_study(config: StudyConfig) -> str:
         raise StudyError(f"{config.label}: design.holes: two selectors name the same hole; allowed: each hole once")
     step_offset_limits(config, step, movable)
     step_dry_run(config, step, movable)
+    occlusion_mesh(config, step.shape)  # as run's set-up does: a part BRepMesh cannot mesh is refused now
     names = ", ".join(holes[j].name for j in movable)
     return f"dry run re-drilled {names} of {step.path.name} (moved and, where asked, resized)"
 

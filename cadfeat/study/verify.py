@@ -165,6 +165,7 @@ def export_and_verify(config: StudyConfig, stage: Path, shapes: Mapping[str, Any
         export_stl,
         import_step,
         shape_volume_mm3,
+        stl_watertight,
         verify_step_roundtrip,
     )
 
@@ -184,12 +185,13 @@ def export_and_verify(config: StudyConfig, stage: Path, shapes: Mapping[str, Any
     checks = constraints + requirement_checks(setup, reimported, step_holes, "step")
     fail_on(checks, config.label)
     export_stl(shapes["shape1"], stage / "optimised.stl")
-    stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"])
+    stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"],
+                             original=shapes["shape0"] if config.study.part_kind == "step" else None)
     if stl_problems:
         raise CadfeatError(f"{config.label}: optimised.stl: {'; '.join(stl_problems[:3])}")
     verification = {
         "step_roundtrip_max_error_mm": max(trip.max_centre_error_mm, trip.max_radius_error_mm,
                                            trip.max_depth_error_mm),
         "step_roundtrip_max_axis_error_rad": trip.max_axis_error_rad, "brep_valid": True,
-        "stl_watertight": True, "tolerance_mm": ROUNDTRIP_TOL_MM}
+        "stl_watertight": stl_watertight(stage / "optimised.stl"), "tolerance_mm": ROUNDTRIP_TOL_MM}
     return checks, verification

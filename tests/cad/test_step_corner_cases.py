@@ -213,9 +213,12 @@ def test_set_screw_hole_entrance_is_on_the_camera_side_not_inside_the_bore():
     np.testing.assert_allclose(h.centre, [bx / 2, 0.0, z], atol=1e-9)
     np.testing.assert_allclose(h.axis, [1.0, 0.0, 0.0], atol=1e-12)
     assert 2 * h.radius_mm == pytest.approx(screw) and h.outline is not None
-    assert h.depth_mm == pytest.approx(bx / 2 - bore / 2, abs=1e-9)  # to where the axis meets the bore wall
+    # the wall ends where the saddle it cuts in the bore reaches deepest, √(R² − r²) from the bore axis (the
+    # "axial length of the hole wall", as truth.json of ../shared/real_step defines depth for oblique ends)
+    wall_end = math.sqrt((bore / 2) ** 2 - (screw / 2) ** 2)
+    assert h.depth_mm == pytest.approx(bx / 2 - wall_end, abs=1e-6)
     (inner,) = [g for g in part("set_screw", prefer=(-1.0, 0.0, 0.0)).holes if abs(g.axis[0]) > 0.5]
-    assert inner.centre[0] == pytest.approx(bore / 2, abs=1e-9) and inner.outline is None  # on the bore wall
+    assert inner.centre[0] == pytest.approx(wall_end, abs=1e-6) and inner.outline is None  # in the bore
 
 
 # ------------------------------------------------------------------------------------------ resize rules
@@ -374,3 +377,31 @@ def test_a_hole_on_a_curved_host_needs_max_offset_mm_and_the_error_names_study_k
     config = _study(str(step), [{"select": [35.0, 0.0, 18.0], "move": True, "max_offset_mm": 1.0}])
     with pytest.raises(StudyError, match=r"design\.holes\[0\]: .*hub\.step: hole H\d+ cannot be re-drilled"):
         check_step_study(config)
+
+
+# ---------------------------------------------------------------------------------- filleted at both ends
+def test_through_hole_filleted_at_both_ends_keeps_its_depth_and_profile_when_moved():
+    """Issue 16: moving a through hole whose rims are filleted at both ends changed its depth (7 → 6 mm) and
+    profile (the exit fillet was left behind). Reference: the same plate built directly in CadQuery with the
+    hole at the new place (volume, extracted hole), and the closed-form volume of the wall (cylinder + two
+    quarter-torus fillets, Pappus)."""
+    t, d, rho = fx.FILLET_BOTH
+    p = part("filleted_both_ends")
+    (h,) = p.holes
+    assert h.kind == "plain, filleted rim" and h.through
+    assert h.depth_mm == pytest.approx(t, abs=1e-6) and h.radius_mm == pytest.approx(d / 2 + rho, abs=1e-6)
+    profile = hole_profile(p.shape, h, p.tolerance)
+    r = d / 2
+    xbar = rho * (5 / 6 - math.pi / 4) / (1 - math.pi / 4)
+    fillet = math.pi * r * r * rho + 2 * math.pi * (r + xbar) * rho * rho * (1 - math.pi / 4)
+    assert profile.volume_mm3 == pytest.approx(math.pi * r * r * (t - 2 * rho) + 2 * fillet, rel=1e-9)
+    new_xy = (0.5, 0.0)
+    moved = redrill(p.shape, [HoleMove(h, np.array([*new_xy, t]), h.radius_mm)], p.tolerance)
+    direct = fx.filleted_both_ends(new_xy)
+    assert shape_volume_mm3(moved) == pytest.approx(shape_volume_mm3(direct), rel=1e-9)
+    (a,), (b,) = extract_holes(moved, tol=p.tolerance), extract_holes(direct, tol=p.tolerance)
+    for got in (a, b):
+        assert np.allclose(got.centre, [*new_xy, t], atol=1e-6) and got.kind == h.kind and got.through
+        assert got.depth_mm == pytest.approx(t, abs=1e-6) and got.radius_mm == pytest.approx(h.radius_mm, abs=1e-6)
+    plate = fx.PLATE[0] * fx.PLATE[1] * t
+    assert plate - shape_volume_mm3(p.shape) == pytest.approx(profile.volume_mm3, rel=1e-9)

@@ -160,6 +160,23 @@ def rimmed(kind: str, xy=None, bore=None):
     return (edges.fillet(size) if kind == "fillet" else edges.chamfer(size)).val()
 
 
+FILLET_BOTH = (7.0, 6.0, 1.0)                       # plate thickness; hole diameter; fillet radius at both rims
+
+
+def filleted_both_ends(xy=(0.0, 0.0)):
+    """A 7 mm plate with one Ø6 through hole at ``xy`` whose rims are filleted r1 at BOTH ends (the hole wall is
+    then a 5 mm cylinder between two quarter tori)."""
+    import cadquery as cq
+
+    t, d, r = FILLET_BOTH
+    x, y = xy
+    wp = cq.Workplane("XY").box(PLATE[0], PLATE[1], t, centered=(True, True, False))
+    wp = wp.faces(">Z").workplane(centerOption="ProjectedOrigin", origin=(0, 0, 0)).pushPoints([(x, y)]).hole(d)
+    for z in (t, 0.0):
+        wp = wp.edges(cq.selectors.NearestToPointSelector((x + d / 2, y, z))).fillet(r)
+    return wp.val()
+
+
 def near_round():
     import cadquery as cq
 
@@ -242,7 +259,8 @@ def set_screw():
 CASES = {"split_walls": split_walls, "offset_faces": offset_faces,
          "filleted_rim": lambda: rimmed("fillet"), "chamfered_rim": lambda: rimmed("chamfer"),
          "near_round": near_round, "freeform": freeform, "far_from_origin": far_from_origin, "slot_cut": slot_cut,
-         "crowded_step": crowded_step, "grooved": grooved, "set_screw": set_screw}
+         "crowded_step": crowded_step, "grooved": grooved, "set_screw": set_screw,
+         "filleted_both_ends": filleted_both_ends}
 
 
 def main() -> None:

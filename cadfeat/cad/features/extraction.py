@@ -47,11 +47,13 @@ ANGLE_TOL_RAD = 1e-7  # defaults only: the extractor uses the model's ModelToler
 LINEAR_TOL_MM = 1e-6
 CLASSIFY_STEP_MM = 1e-4  # least step beyond an end along the axis for the inside/outside test (10× linear tol)
 NEAR_ROUND_MIN_RAD = np.radians(200.0)  # a concave partial cylinder spanning at least this is a near-round hole
-CHAMFER_MAX_RATIO = 0.5  # an entrance cone widening the bore by less than this × bore radius is a chamfered rim
+CHAMFER_MAX_RATIO = 0.35  # an entrance cone widening the bore by at most max(CHAMFER_MAX_MM, this × bore radius)
+CHAMFER_MAX_MM = 1.0      # is a chamfered rim (a 1 × 45° chamfer on an M4 bore), a wider one a countersink
 SAMPLE_DEFLECTION_MM = OUTLINE_CHORD_ERROR_MM / 2
 MIN_CURVE_POINTS = 17  # per curved edge, so that a loop's angular gaps stay small
 ENCIRCLING_MAX_GAP_RAD = np.pi / 4
 AREA_RTOL = 1e-6
+OBLIQUE_RIM_MM = 1e-3  # a rim loop spanning more than this along the axis is not perpendicular to it
 
 
 def _xyz(p: gp_Pnt | gp_Vec | gp_Dir) -> np.ndarray:
@@ -427,13 +429,14 @@ class _Extractor:
 
     def _kind(self, entrance: _End, revs: list[_Revolution], bore: float) -> str:
         """plain / counterbore / countersink, with ", chamfered rim" or ", filleted rim" when the entrance
-        rim is a small cone (widening the bore under its wall by < ``CHAMFER_MAX_RATIO`` × its radius) or a
+        rim is a small cone (widening the bore under it by at most max(``CHAMFER_MAX_MM``, ``CHAMFER_MAX_RATIO`` ×
+        its radius): a 1 × 45° chamfer on a Ø4 bore, 0.5 × 45° on Ø8; a Ø6 countersink on Ø3.4 is wider) or a
         fillet (torus) blending into the host face."""
         if entrance.wall.is_cone:
             below = [r for r in revs if not r.is_cone]
             # the cylinder the entrance cone leads into: the widest one narrower than the cone's rim
             under = max((c.r0 for c in below if c.r0 < entrance.radius - self.lin), default=bore)
-            if entrance.radius - under < CHAMFER_MAX_RATIO * under:
+            if entrance.radius - under <= max(CHAMFER_MAX_MM, CHAMFER_MAX_RATIO * under) + self.lin:
                 base = "counterbore" if under > bore + self.lin else "plain"
                 return f"{base}, chamfered rim"
             return "countersink"
@@ -504,15 +507,34 @@ class _Extractor:
                 else:
                     weights[g] = weights.get(g, 0.0) + length
         host = min(weights, key=lambda g: (-weights[g], g))
-        wall = self.revs[min(w for w in walls if w in self.revs)]
+        wall = self._end_wall(walls, members, ref, t_extreme)
         blend = self._fillet_blend(host, ref, members)
         if blend is not None:
             plane, outer_edges, radius = blend
             centre = self._axis_meets_face(plane, ref, p)
             return _End(loop + outer_edges, sense, plane, centre, sense * ref.d, radius, wall, self.area(plane),
                         rim="fillet", blend=[host])
-        centre = self._axis_meets_face(host, ref, p)
+        curved = BRepAdaptor_Surface(self.topo.faces[host]).GetType() != GeomAbs_Plane
+        if curved and float(np.ptp(t)) > OBLIQUE_RIM_MM + self.lin and sense * (t_extreme - ref.t(
+                self._axis_meets_face(host, ref, p))) > self.lin:
+            # a saddle rim on a curved host whose wall runs out past where the axis meets it (a passage or a
+            # radial hole opening into a bore): the end is where the wall ends along the axis
+            centre = ref.loc + t_extreme * ref.d
+        else:
+            centre = self._axis_meets_face(host, ref, p)
         return _End(loop, sense, host, centre, sense * ref.d, wall.radius_at(centre), wall, self.area(host))
+
+    def _end_wall(self, walls: set[int], members: set[int], ref: _Revolution, t_end: float) -> _Revolution:
+        """The cylinder or cone of the hole at an end: one the rim loop runs along, else (the loop runs along a
+        planar step of the group only) the member nearest the end along the axis."""
+        if on_loop := [w for w in walls if w in self.revs]:
+            return self.revs[min(on_loop)]
+
+        def distance(f: int) -> float:
+            pts = np.concatenate([self.edge_points(e) for e in self.topo.face_edges[f]])
+            return float(np.min(np.abs(ref.t(pts) - t_end)))
+
+        return self.revs[min((m for m in members if m in self.revs), key=lambda m: (distance(m), m))]
 
     def _fillet_blend(self, f: int, ref: _Revolution, members: set[int]) -> tuple[int, list[int], float] | None:
         """If face ``f`` is a fillet (torus coaxial with the hole) between the hole wall and a plane
@@ -585,11 +607,12 @@ class _Extractor:
 
     @staticmethod
     def _depth(entrance: _End, exits: list[_End], ref: _Revolution, all_pts: np.ndarray) -> float:
-        """Along the axis: to the farthest exit centre (through) or to the deepest point (blind)."""
+        """Along the axis from the entrance centre to the farthest point of the wall: the exit plane of a
+        through hole with a perpendicular exit, where the wall ends at an oblique or saddle exit (the axial
+        length of the wall), the deepest point of a blind hole."""
         t_c = float(ref.t(entrance.centre))
-        if exits:
-            return max(abs(t_c - float(ref.t(e.centre))) for e in exits)
-        return float(np.max(entrance.sense * (t_c - ref.t(all_pts))))
+        wall = float(np.max(entrance.sense * (t_c - ref.t(all_pts))))
+        return max([wall] + [abs(t_c - float(ref.t(e.centre))) for e in exits])  # an exit fillet's plane
 
     # ------------------------------------------------------------------------------------- outlines
     def outline(self, f: int, rim_edges: set[int]) -> FaceOutline | None:
