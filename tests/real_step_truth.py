@@ -7,7 +7,7 @@ repository. ``CADFEAT_REAL_STEP`` overrides the folder.
 Truth conventions (``truth.json`` "about"): centre = centre of the entrance rim on its host face, axis out of
 the material there, ``diameters`` from the entrance inwards, ``kind`` without rim chamfers/fillets, ``depth`` =
 axial length of the wall, ``entrance_either_end`` = either end of a plain through hole is a right entrance.
-Used by ``tests/test_real_step_parts.py`` and by ``python tests/real_step_truth.py`` (the score table).
+Used by ``tests/cad/test_real_step_parts.py`` and by ``python tests/real_step_truth.py`` (the score table).
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ import real_step_truth as rs
 FOLDER = rs.real_step_dir()
 if FOLDER is None:
     if os.environ.get("CI"):
-        raise RuntimeError("tests/test_real_step_study.py: no shared/real_step beside the repository")
+        raise RuntimeError("tests/study/test_real_step_study.py: no shared/real_step beside the repository")
     pytest.skip("no shared/real_step beside the repository (CADFEAT_REAL_STEP unset)", allow_module_level=True)
 
 PART = "poseidon_pump_carriage.step"

@@ -21,7 +21,7 @@ import real_step_truth as rs
 FOLDER = rs.real_step_dir()
 if FOLDER is None or not (FOLDER / "truth.json").is_file():
     if os.environ.get("CI"):
-        raise RuntimeError("tests/test_real_step_parts.py: no shared/real_step beside the repository (set "
+        raise RuntimeError("tests/cad/test_real_step_parts.py: no shared/real_step beside the repository (set "
                            "CADFEAT_REAL_STEP to the folder of truth.json)")
     pytest.skip("no shared/real_step beside the repository (CADFEAT_REAL_STEP unset)", allow_module_level=True)
 

@@ -49,7 +49,7 @@ def test_defeaturing_a_counterbore_across_two_levels_silently_changes_nothing():
     """``BRepAlgoAPI_Defeaturing`` asked to remove the faces of a counterbore whose rim straddles a rail top and
     a ledge 2 mm lower (PS2-Portable, SolidWorks) reports success and returns the part unchanged. So cadfeat
     fills holes with the solid of revolution of their own profile and refuses such a hole with the reason
-    (tests/test_real_step_parts.py ``REFUSED``) rather than trusting defeaturing."""
+    (tests/cad/test_real_step_parts.py ``REFUSED``) rather than trusting defeaturing."""
     from OCP.BRepAlgoAPI import BRepAlgoAPI_Defeaturing
 
     from cadfeat.cad.export import shape_volume_mm3
