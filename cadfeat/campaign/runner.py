@@ -69,7 +69,7 @@ def local_cluster(workers: int | None, retries: int = 1) -> Iterator[Any]:
     (``LP_NUM_THREADS``, Mesa llvmpipe); a case is re-run ``retries`` times if its worker dies."""
     import logging
 
-    import dask
+    import dask.config
     from distributed import Client, LocalCluster
 
     n = workers or os.cpu_count() or 1

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cadfeat.camera import Camera
+from cadfeat.errors import CadfeatError
 
 
 def focus_scale_mm(camera: Camera) -> float:
@@ -43,5 +44,8 @@ def defocus_diameter_px(camera: Camera, depth_mm: ArrayLike) -> np.ndarray:
     depth of field, eq. 3.4–3.6), divided by the pixel pitch. Depths are clipped just beyond f."""
     Z = np.maximum(np.asarray(depth_mm, dtype=float), camera.focal_length_mm * 1.001)
     f, s, a = camera.focal_length_mm, camera.focus_distance_mm, camera.aperture_mm
+    if a is None:
+        raise CadfeatError("defocus_diameter_px: the camera has no aperture; allowed: a Camera with f_number or "
+                           "aperture_mm")
     c_mm = a * f * np.abs(Z - s) / (Z * (s - f))
     return c_mm / camera.pixel_pitch_mm

@@ -215,6 +215,7 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     models = model or pose_models.default_models()
     geo = pose_models.hole_geometry(camera, T, c, n, r)
     z, J = measure(camera, T, c, n, r)                                    # (L, N, 2), (L, N, 2, 6)
+    assert J is not None  # (measure with jacobian=True)
     occ = np.zeros((L, N)) if occlusion is None else np.broadcast_to(np.asarray(occlusion, dtype=float), (L, N))
     if detection:
         p = models.detection_probability(geo, occ)

@@ -68,7 +68,8 @@ def _centre_system(c: np.ndarray, n: np.ndarray, R: np.ndarray) -> tuple[np.ndar
     return a00, a01, a11, b0, b1, s, q
 
 
-def _solve_centre(c: np.ndarray, n: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple]:
+def _solve_centre(c: np.ndarray, n: np.ndarray, R: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
     """Ellipse centre x₀ (..., 2), validity (...) and the system (``_centre_system``) it came from."""
     system = _centre_system(c, n, R)
     a00, a01, a11, b0, b1 = system[:5]
@@ -136,6 +137,7 @@ def _centre_and_jacobian(camera: Camera, c: np.ndarray, n: np.ndarray, R: np.nda
     J[..., 1, :] = np.asarray(d10)[..., None] * dx + np.asarray(d11)[..., None] * dy
     if not np.all(ok):
         J = np.where(ok[..., None, None], J, image_jacobian(camera, c))
+    assert u is not None and v is not None  # (distort_terms with positions=True)
     return np.stack([u, v], axis=-1), J
 
 
