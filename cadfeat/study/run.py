@@ -255,6 +255,10 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
             traj = _single_pose(traj, pose)
         with prog.phase("measures"):
             m = measure_holes(setup, holes, traj)
+            if "pose" in config.objective.measures:  # g_POSE: the holes' pose information at these poses
+                from cadfeat.study.pose_accuracy import with_pose
+
+                m = with_pose(setup, holes, traj, m)
             values = _plain_objectives(config, m, setup.problem)
             pre = preflight_setup(config, setup, m if pose is None else measure_holes(setup, holes, full_traj))
             trust = objective_changes(setup.problem, values, None) if pose is None else {}
