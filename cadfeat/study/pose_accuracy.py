@@ -223,10 +223,11 @@ class _MeasuresWithPose:
         return getattr(self._m, name)
 
 
-def with_pose(setup: Any, holes: Sequence[Any], trajectory: Any, measures: Any) -> Any:
+def with_pose(setup: Any, holes: Sequence[Any], trajectory: Any, measures: Any, mesh: Any = None) -> Any:
     """``measures`` of ``holes`` along ``trajectory`` with their ``PoseInformation`` attached as ``pose``: the
-    exact rim test against the set-up's part mesh (as ``Problem.features_objectives(exact_occlusion=True)``)."""
+    exact rim test against ``mesh`` (default the set-up's part mesh, as
+    ``Problem.features_objectives(exact_occlusion=True)``)."""
     T = np.linalg.inv(np.asarray(trajectory.T_task_cam)) @ setup.T_task_part
-    mesh = getattr(setup.problem, "occlusion_mesh", None)
+    mesh = mesh if mesh is not None else getattr(setup.problem, "occlusion_mesh", None)
     info, _ = predict(setup.camera, T, holes, mesh, float(setup.config.objective.rotation_length_mm))
     return _MeasuresWithPose(measures, info)

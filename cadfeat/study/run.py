@@ -384,5 +384,7 @@ def format_table(results: Mapping[str, Any], pose: int | None = None) -> str:
                   f"Jacobian condition: max {np.max(cond):.6g}; poses with < 3 visible features: "
                   f"{int(np.sum(np.asarray(pp['visible']) < 3))}")
     for name, g in results["objectives"]["before"].items():
-        console.print(f"{name} = {_num(g)} ({results['objectives']['aggregate']} over the trajectory)")
+        how = (results.get("inputs", {}).get("objective", {}).get("pose_aggregate", "rms") if name == "g_POSE"
+               else results["objectives"]["aggregate"])  # g_POSE: pose_aggregate (predicted error, mm)
+        console.print(f"{name} = {_num(g)} ({how} over the trajectory)")
     return buffer.getvalue().rstrip()

@@ -87,3 +87,32 @@ def test_help_most_agrees_with_moving_the_hole(scene):
     resized = _rms(_direct(camera, T, _holes(dr_b=0.3)).error_translation_mm)
     assert np.sign(resized - e0) == np.sign(dr)
     assert "B" in hm["best"]["sentence"]
+
+
+def test_g_pose_of_a_study_equals_a_direct_assembly(tmp_path):
+    """The study's reported g_POSE (``pipeline.score``: exact rim occlusion) equals pose_information on the
+    study's holes with the rim test on a mesh of its part built here, aggregated by pose_objective."""
+    from study_helpers import study
+
+    from cadfeat.cad.export import mesh_from_shape
+    from cadfeat.design.objectives import pose_objective
+    from cadfeat.measures.rim_occlusion import rim_occlusion
+    from cadfeat.study.pipeline import score
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.setup import setup_study
+
+    config = load_study(study(tmp_path, objective={"measures": ["fov", "pose"], "pose_aggregate": "worst",
+                                                   "rotation_length_mm": 20.0}))
+    setup = setup_study(config)
+    values, _ = score(setup, setup.holes0)
+    holes = setup.holes0
+    c = np.array([h.centre for h in holes])
+    a = np.array([h.axis for h in holes])
+    r = np.array([h.radius_mm for h in holes])
+    T = invert_T(np.asarray(setup.trajectory.T_task_cam)) @ setup.T_task_part
+    through = np.array([h.through for h in holes])
+    depth = np.array([h.depth_mm for h in holes])
+    occ = rim_occlusion(mesh_from_shape(setup.shape0, tolerance=0.05), T, c, a, r, through=through, depth_mm=depth)
+    info = pose_information(setup.camera, T, c, a, r, occlusion=occ, through=through, depth_ratio=depth / (2 * r),
+                            rotation_length_mm=20.0)
+    assert values["g_POSE"] == pytest.approx(pose_objective(info, "worst", 20.0), rel=1e-9)
