@@ -5,10 +5,11 @@ each rim's hidden fraction from ``measures.rim_occlusion``: the optimiser's dept
 or the exact ray test against the part's mesh for reported values (as the other measures do). The hole depth
 and through flag of the reference holes feed the offset model (depth/diameter at the design's radii).
 
-``pose_values`` gives g_POSE of B designs (``objectives.pose_objective`` per design, batched over the B designs'
-information): one ``pose_information`` call per design (L poses × N holes each, batched inside; ~4–7 ms for the
-flagship's 40 × 9 on this machine, so a batch of 64 designs costs ~0.3–0.4 s). The loop over the B designs is
-the only Python loop; ``pose_information`` takes one hole set per call.
+``pose_values`` gives g_POSE of B designs (``objectives.pose_objective``, batched over the B designs): in the
+optimiser, ONE ``pose_information`` call on the B·L stacked poses, each pose with its own design's holes (the
+rims of all B designs tested against each pose's depth map in one call); the exact ray test of reported
+values goes one design at a time (a few seconds). Cost on the flagship (40 poses × 9 holes): ~2.6 ms per design
+(0.17 s for a batch of 64, vs 0.02 s for the four thesis measures).
 """
 
 from __future__ import annotations
@@ -72,13 +73,47 @@ def pose_aggregate_batch(errors_mm: np.ndarray, information: np.ndarray, how: st
 
 def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                 exact_occlusion: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """(g_POSE (B,), per-pose value −e (B, L)) of B designs' features (B, N, 3), (B, N, 3), (B, N)."""
+    """(g_POSE (B,), per-pose value −e (B, L)) of B designs' features (B, N, 3), (B, N, 3), (B, N).
+
+    The optimiser's path (depth-map occlusion or none) is ONE ``pose_information`` call on the B·L stacked poses,
+    each with its own design's holes; the exact ray test (reported values) takes one design at a time."""
     cfg = problem.objective_config
     ell = cfg.rotation_length_mm
-    infos = [pose_of_features(problem, c, a, r, exact_occlusion) for c, a, r in zip(centres, axes, radii,
-                                                                                     strict=True)]
-    errors = np.stack([p.error_mm(ell) for p in infos])
-    information = np.stack([p.information for p in infos])
+    B, N = np.shape(radii)
+    L = len(problem.T_cam_part)
+    if exact_occlusion and problem.occlusion_mesh is not None:
+        infos = [pose_of_features(problem, c, a, r, True) for c, a, r in zip(centres, axes, radii, strict=True)]
+        errors = np.stack([p.error_mm(ell) for p in infos])
+        information = np.stack([p.information for p in infos])
+    else:
+        info = _stacked(problem, np.asarray(centres, float), np.asarray(axes, float), np.asarray(radii, float))
+        errors = info.error_mm(ell).reshape(B, L)
+        information = info.information.reshape(B, L, 6, 6)
     g = pose_aggregate_batch(errors, information, cfg.pose_aggregate, ell)
     per_pose = -np.where(np.isfinite(errors), np.minimum(errors, POSE_UNOBSERVABLE_MM), POSE_UNOBSERVABLE_MM)
     return g, per_pose
+
+
+def _stacked(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
+    """``pose_information`` of B designs as B·L poses (design-major), holes per pose; occlusion by the problem's
+    depth maps (every design's rims at each of the L poses in one ``rim_occlusion`` call)."""
+    from cadfeat.measures import pose_information
+    from cadfeat.measures.rim_occlusion import rim_occlusion
+
+    B, N = radii.shape
+    T = problem.T_cam_part
+    L = len(T)
+    TT = np.tile(T, (B, 1, 1))
+
+    def per_pose(a: np.ndarray) -> np.ndarray:  # (B, N, ...) → (B·L, N, ...)
+        return np.repeat(a, L, axis=0)
+    c, a, r = per_pose(centres), per_pose(axes), per_pose(radii)
+    through, depth, ratio = hole_attributes(problem, r)
+    maps = problem.occlusion
+    occlusion = None
+    if maps is not None:  # the B·N holes side by side at the L poses (one depth map per pose), then design-major
+        hidden = rim_occlusion(maps, T, centres.reshape(B * N, 3), axes.reshape(B * N, 3), radii.reshape(B * N),
+                               samples=RIM_SAMPLES)
+        occlusion = np.moveaxis(hidden.reshape(L, B, N), 1, 0).reshape(B * L, N)
+    return pose_information(problem.camera, TT, c, a, r, occlusion=occlusion, depth_ratio=ratio, through=through,
+                            rotation_length_mm=problem.objective_config.rotation_length_mm)

@@ -69,3 +69,23 @@ def test_batched_aggregate_matches_pose_objective():
     for how in ("rms", "worst", "logdet"):
         g = pose_aggregate_batch(info.error_mm(50.0)[None], info.information[None], how, 50.0)
         assert g[0] == pytest.approx(pose_objective(info, how, 50.0), rel=1e-12)
+
+
+def test_stacked_designs_with_depth_map_occlusion_equal_one_design_at_a_time(tmp_path):
+    """The optimiser's one-call path (B·L stacked poses, every design's rims against each pose's depth map)
+    equals ``pose_of_features`` design by design (holes (N, 3), its own rim test) on a study with occlusion."""
+    from study_helpers import study
+
+    from cadfeat.design.pose_terms import pose_of_features
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.setup import setup_study
+
+    problem = setup_study(load_study(study(tmp_path, objective={"measures": ["pose"]}))).problem
+    assert problem.occlusion is not None
+    rng = np.random.default_rng(5)
+    X = problem.space.lower + rng.random((3, problem.space.size)) * problem.space.span
+    G, _ = problem.evaluate_batch(X)
+    for b, x in enumerate(X):
+        info = pose_of_features(problem, *problem.model.features(x))
+        assert G[b, 0] == pytest.approx(pose_objective(info, "rms", problem.objective_config.rotation_length_mm),
+                                        rel=1e-9)
