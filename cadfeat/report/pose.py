@@ -132,8 +132,10 @@ def pose_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path], A
         parts.append(note(f"no pose-error plot: {exc}"))
     parts.append("<p>Share of the pose information per hole (mean over the trajectory):</p>" + _share_table(pose))
     parts.append(_weakest(pose))
-    best = (pose.get("after", {}).get("help_most") or {}).get("best")
+    which = "after" if pose.get("after") else "before"
+    best = (pose.get(which, {}).get("help_most") or {}).get("best")
     if best:
-        parts.append(f'<p class="help-most">What would help most (delivered design): {esc(best["sentence"])}</p>')
+        label = "delivered design" if which == "after" else "this design"
+        parts.append(f'<p class="help-most">What would help most ({label}): {esc(best["sentence"])}</p>')
     parts.append(_closed_loop(pose, results.get("tracking")))
     return "".join(parts)

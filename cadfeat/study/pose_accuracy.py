@@ -179,10 +179,11 @@ def design_pose_accuracy(camera: Any, T_cam_part: np.ndarray, times_s: np.ndarra
     }
 
 
-def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, setup: Any, holes1: Sequence[Any],
-                  mesh1: Any) -> dict[str, Any]:
+def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, setup: Any = None,
+                  holes1: Sequence[Any] | None = None, mesh1: Any = None) -> dict[str, Any]:
     """results.json ``pose_accuracy``: the original (``base``, ``holes0``) and the delivered design (``setup``,
-    ``holes1``), each with its own part mesh for the rim test (module docstring)."""
+    ``holes1``; None: the original only, ``cadfeat evaluate``), each with its own part mesh for the rim test
+    (module docstring)."""
     from cadfeat.cad.features.identity import hole_names
 
     tuning = _tuning(config)
@@ -196,7 +197,8 @@ def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, set
         "tuning": {"r_px2": tuning.r_px2, "q_rate_mm2_s2": tuning.q_rate_mm2_s2,
                    "q_omega_rad2_s2": tuning.q_omega_rad2_s2},
     }
-    for key, s, holes, mesh in (("before", base, holes0, mesh0), ("after", setup, holes1, mesh1)):
+    designs = [("before", base, holes0, mesh0)] + ([("after", setup, holes1, mesh1)] if holes1 is not None else [])
+    for key, s, holes, mesh in designs:
         T = np.linalg.inv(np.asarray(s.trajectory.T_task_cam)) @ s.T_task_part
         out[key] = design_pose_accuracy(s.camera, T, np.asarray(s.trajectory.times_s, float), holes,
                                         hole_names(list(holes)), movable, mesh, tuning, ell)

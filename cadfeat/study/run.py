@@ -265,6 +265,11 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
             combined = float(setup.problem.combined_from(np.array([values[n] for n in setup.problem.names]))) \
                 if pose is None and config.objective.combine != "pareto" else None
         summary = measures_summary(m, names, traj.times_s, config.objective.min_axis_px, half_image(camera))
+        pose_block = None
+        if pose is None:  # the predicted pose error of the design as it is (``study.pose_accuracy``)
+            from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy
+
+            pose_block = pose_accuracy(config, setup, holes, part_mesh(config, shape, setup.problem.occlusion_mesh))
         if pose is not None:  # pose indices of the full trajectory
             for f in summary["per_feature"]:
                 f["worst_pose"] = pose
@@ -284,6 +289,7 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
                            "occlusion": bool(config.objective.occlusion)},
             "measures": {"before": summary}, "timings_s": dict(prog.timings), "versions": versions(),
             "preflight": pre.to_dict(), "warnings": list(pre.warnings),
+            **({"pose_accuracy": pose_block} if pose_block is not None else {}),
         }
     if echo:
         print(format_table(results, pose))
