@@ -53,6 +53,27 @@ class _Arrays:
         self.__dict__.update(arrays)
 
 
+class _BatchPose:
+    """g_POSE's per-pose predicted errors (..., L) mm and aggregated value (...,) (``design.pose_terms``), read
+    by ``objectives.per_pose_values`` as ``measures.pose``."""
+
+    def __init__(self, errors_mm: np.ndarray, g: Any):
+        self.errors_mm, self.g = errors_mm, g
+
+    def error_mm(self, rotation_length_mm: float | None = None) -> np.ndarray:
+        return self.errors_mm
+
+
+class _WithPose:
+    """A ``Measures`` with ``pose`` attached (None when g_POSE is not chosen)."""
+
+    def __init__(self, measures: Any, pose: Any):
+        self._m, self.pose = measures, pose
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._m, name)
+
+
 class Problem:
     """A feature-design problem (see module docstring).
 
@@ -239,8 +260,15 @@ class Problem:
         ``measures_from_features``; the reported before/after values use it)."""
         m = self.measures_from_features(centres, axes, radii, exact_occlusion)
         cfg = self.objective_config
-        values = per_pose_values(m, cfg, self.feature_mask)
-        return np.array([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k]) for k in cfg.measures])
+        pose = None
+        if "pose" in cfg.measures:  # g_POSE: pose information + pose_objective (``design.pose_terms``)
+            from cadfeat.design.pose_terms import pose_values
+
+            g_pose, e = pose_values(self, centres[None], axes[None], radii[None], exact_occlusion)
+            pose = _BatchPose(-e[0], g_pose[0])
+        values = per_pose_values(_WithPose(m, pose), cfg, self.feature_mask)
+        return np.array([pose.g if k == "pose" else aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta,
+                                                                self.units[k]) for k in cfg.measures])
 
     def batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
         """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N): ``_batch_objectives``
@@ -273,7 +301,12 @@ class Problem:
             return np.moveaxis(a.reshape(L, B, N), 1, 0)
         attrs = {"fov": "fov" if cfg.fov_measure == "cone" else "fov_px", "focus": "focus",
                  "resolution": "resolution_px", "resolvability": "visible"}
-        arrays = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures}
+        arrays: dict[str, Any] = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
+        if "pose" in cfg.measures:  # g_POSE: one pose_information per design (``design.pose_terms``)
+            from cadfeat.design.pose_terms import pose_values
+
+            g_pose, e = pose_values(self, centres, axes, radii)
+            arrays["pose"] = _BatchPose(-e, g_pose)
         if "resolvability" in cfg.measures and B == 1:  # evaluate's own Λ is the design's
             arrays["resolvability"] = np.asarray(m.resolvability)[None]
         elif "resolvability" in cfg.measures:
@@ -284,7 +317,8 @@ class Problem:
             arrays["resolvability"] = _resolvability(J, np.tile(self.screws, (B, 1)),
                                                      cfg.rotation_length_mm).reshape(B, L)
         values = per_pose_values(_Arrays(arrays), cfg, self.feature_mask)
-        return np.stack([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k])
+        return np.stack([arrays["pose"].g if k == "pose" else
+                         aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k])
                          for k in cfg.measures], axis=-1)
 
     def features_constraints(self, centres: np.ndarray, radii: np.ndarray, g: np.ndarray,

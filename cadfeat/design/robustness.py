@@ -22,6 +22,7 @@ Units: mm, degrees; objectives in their own units, larger = better.
 from __future__ import annotations
 
 import copy
+import types
 from collections.abc import Sequence
 from typing import Any
 
@@ -94,8 +95,18 @@ def _camera_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radi
             a = np.asarray(getattr(m, name))
             return a.reshape((S, L) + a.shape[1:])
 
+    g_pose = None
+    if "pose" in cfg.measures:  # g_POSE: one pose_information on the S·L stacked poses (``design.pose_terms``)
+        from cadfeat.design.pose_terms import pose_aggregate_batch, pose_of_features
+
+        info = pose_of_features(stacked, centres, axes, radii)
+        e = info.error_mm(cfg.rotation_length_mm).reshape(S, L)
+        g_pose = pose_aggregate_batch(e, info.information.reshape(S, L, 6, 6), cfg.pose_aggregate,
+                                      cfg.rotation_length_mm)
+        _PerDraw.pose = types.SimpleNamespace(error_mm=lambda _ell=None: e)  # type: ignore[attr-defined]
     values = per_pose_values(_PerDraw(), cfg, problem.feature_mask)
-    return np.stack([aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, problem.units[k])
+    return np.stack([g_pose if k == "pose" else aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta,
+                                                          problem.units[k])
                      for k in cfg.measures], axis=-1)
 
 

@@ -156,8 +156,13 @@ class ExploreSession:
         t0 = time.perf_counter()
         with self.lock:
             c, a, r = s.model.features(x)
-            holes = [SimpleNamespace(centre=c[j], axis=a[j], radius_mm=float(r[j])) for j in range(len(r))]
+            holes = [SimpleNamespace(centre=c[j], axis=a[j], radius_mm=float(r[j]), through=h.through,
+                                     depth_mm=h.depth_mm) for j, h in enumerate(s.model.holes)]
             m = measure_holes(s, holes, mesh=self.occlusion)
+            if "pose" in self.config.objective.measures:  # g_POSE: the pose information of these holes
+                from cadfeat.study.pose_accuracy import with_pose
+
+                m = with_pose(s, holes, s.trajectory, m, mesh=self.occlusion)
             objectives = objective_values(m, self.config.objective, s.problem.units, s.problem.feature_mask)
             G = np.array([objectives[n] for n in s.problem.names])
             combined = None if self.config.objective.combine == "pareto" else float(s.problem.combined_from(G))

@@ -119,13 +119,14 @@ class PoseInformation:
 def _check(T: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray) -> None:
     if T.ndim != 3 or T.shape[1:] != (4, 4):
         raise CadfeatError(f"pose_information: T_cam_part must have shape (L, 4, 4), got {T.shape}")
-    if c.ndim != 2 or c.shape[1] != 3 or n.shape != c.shape or r.shape != c.shape[:1]:
-        raise CadfeatError(f"pose_information: centres (N, 3), normals (N, 3) and radii_mm (N,) must agree, got "
-                           f"{c.shape}, {n.shape}, {r.shape}")
+    per_pose = c.ndim == 3 and c.shape[0] == T.shape[0]  # one hole set per pose (designs stacked along L)
+    if (c.ndim != 2 and not per_pose) or c.shape[-1] != 3 or n.shape != c.shape or r.shape != c.shape[:-1]:
+        raise CadfeatError(f"pose_information: centres (N, 3), normals (N, 3) and radii_mm (N,) (or (L, N, 3), "
+                           f"(L, N, 3), (L, N): one hole set per pose) must agree, got {c.shape}, {n.shape}, {r.shape}")
     for name, a in (("T_cam_part", T), ("centres", c), ("normals", n), ("radii_mm", r)):
         if not np.all(np.isfinite(a)):
             raise CadfeatError(f"pose_information: {name} must be finite")
-    if np.any(r < 0) or np.any(np.linalg.norm(n, axis=1)[r > 0] == 0):
+    if np.any(r < 0) or np.any(np.linalg.norm(n, axis=-1)[r > 0] == 0):
         raise CadfeatError("pose_information: radii_mm must be >= 0 and normals non-zero where radii_mm > 0")
 
 
@@ -185,7 +186,8 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     camera : the camera (intrinsics, distortion, focus and aperture for the defocus blur).
     T_cam_part : (L, 4, 4) poses of the part in the camera frame, mm.
     centres, normals, radii_mm : (N, 3) rim centres (mm), (N, 3) axes out of the material, (N,) rim radii (mm;
-        0 = a point feature, measured at its projection).
+        0 = a point feature, measured at its projection); or (L, N, 3), (L, N, 3), (L, N): one hole set per pose
+        (several designs' trajectories stacked along L; ``depth_ratio`` may then be (L, N)).
     sigma_px : a number (or (L, N) array) fixes the centre noise σ (px) and switches the offsets off; None
         uses the measurement model (``pose_models``).
     detection : False counts every hole in front of the camera (p = 1 where the hole faces the camera and, when
@@ -211,7 +213,7 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     _check(T, c, n, r)
     if not (rotation_length_mm > 0):
         raise CadfeatError(f"pose_information: rotation_length_mm must be > 0, got {rotation_length_mm!r}")
-    L, N = T.shape[0], c.shape[0]
+    L, N = T.shape[0], c.shape[-2]
     models = model or pose_models.default_models()
     geo = pose_models.hole_geometry(camera, T, c, n, r)
     z, J = measure(camera, T, c, n, r)                                    # (L, N, 2), (L, N, 2, 6)

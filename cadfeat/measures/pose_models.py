@@ -83,9 +83,10 @@ def hole_geometry(camera: Camera, T_cam_part: np.ndarray, centres: np.ndarray, n
 
     T = np.asarray(T_cam_part, dtype=float)
     Rm, t = T[:, :3, :3], T[:, :3, 3]
-    c = np.einsum("lij,nj->lni", Rm, centres) + t[:, None, :]
+    sub = "lij,lnj->lni" if np.ndim(centres) == 3 else "lij,nj->lni"  # holes (N, 3) or one set per pose (L, N, 3)
+    c = np.einsum(sub, Rm, centres) + t[:, None, :]
     nrm = np.linalg.norm(normals, axis=-1, keepdims=True)
-    n = np.einsum("lij,nj->lni", Rm, normals / np.where(nrm > 0, nrm, 1.0))
+    n = np.einsum(sub, Rm, normals / np.where(nrm > 0, nrm, 1.0))
     r = np.broadcast_to(np.asarray(radii_mm, dtype=float), c.shape[:-1])
     e = hole_ellipse(camera, c, n, r)
     valid = np.asarray(e.valid, dtype=bool)
@@ -149,9 +150,9 @@ class PoseModels:
         rho = np.maximum(geo.rim_px, 1.0)
         edge = self.k_sigma * (noise_grey / 2.0) * np.sqrt(self.w0_px ** 2 + geo.blur_px ** 2)
         sigma = np.sqrt(self.sigma0_px ** 2 + self.alias_floor_px ** 2 + (edge ** 2 + self.k_alias_px ** 2) / rho)
-        N = geo.minor_px.shape[-1]
-        ratio = np.zeros(N) if depth_ratio is None else np.broadcast_to(np.asarray(depth_ratio, float), (N,))
-        thr = np.zeros(N, bool) if through is None else np.broadcast_to(np.asarray(through, bool), (N,))
+        shape = geo.minor_px.shape  # (L, N); per-hole (N,) or per-pose (L, N) inputs
+        ratio = np.zeros(shape) if depth_ratio is None else np.broadcast_to(np.asarray(depth_ratio, float), shape)
+        thr = np.zeros(shape, bool) if through is None else np.broadcast_to(np.asarray(through, bool), shape)
         del kinds  # plain / counterbore / countersink: the calibration found no kind-specific offset (docstring)
         sin_t = np.sqrt(np.clip(1.0 - geo.facing ** 2, 0.0, 1.0))
         mag = self.k_b * geo.blur_px * sin_t + self.k_d * np.where(thr, 1.0, 0.5) * sin_t * np.minimum(ratio, 2.0)

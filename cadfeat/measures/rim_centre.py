@@ -169,8 +169,8 @@ def measure(camera: Camera, T_cam_part: np.ndarray, points_part: np.ndarray, nor
     """
     T = np.asarray(T_cam_part, dtype=float)
     Rm, p = T[..., :3, :3], T[..., :3, 3]
-    c = np.einsum("...ij,nj->...ni", Rm, points_part) + p[..., None, :]
-    n = np.einsum("...ij,nj->...ni", Rm, normals_part)
+    c = np.einsum("...ij,...nj->...ni", Rm, points_part) + p[..., None, :]  # holes (N, 3) or one set per pose
+    n = np.einsum("...ij,...nj->...ni", Rm, normals_part)
     R = np.broadcast_to(np.asarray(radii_mm, dtype=float), c.shape[:-1])
     if not jacobian:
         return rim_centre_px(camera, c, n, R), None

@@ -29,6 +29,7 @@ from cadfeat.report.holes import hole_table
 from cadfeat.report.html import data_uri, esc, figure, fmt, note, page, section
 from cadfeat.report.patterns import patterns_section
 from cadfeat.report.plots import Plot, make_plots
+from cadfeat.report.pose import pose_section
 from cadfeat.report.renders import Renders, make_renders
 from cadfeat.report.requirements import requirements_table
 from cadfeat.report.robustness import robustness_section
@@ -233,6 +234,7 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
         ("setup", "Study, camera and trajectory", lambda: tables.setup_table(results)),
         ("plots", "Plots", lambda: "".join(f"<h3>{esc(p.title)}</h3>" + figure(rel(p.path), p.caption)
                                            for p in plots)),
+        ("pose", "How well will the robot know the part's pose?", lambda: pose_section(results, out_dir, rel)),
         ("tracking", "Does the new design track better?", lambda: tracking_section(results, out_dir, rel)),
         ("appendix", "Appendix: design matrix and normalisation", lambda: _appendix(results)),
         ("files", "Exported files", lambda: tables.files_table(results) + tables.verification_table(results)),

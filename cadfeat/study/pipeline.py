@@ -301,10 +301,21 @@ def compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], d
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, done.x1)
         robust = _robustness(setup, start.base.holes0, done.holes1, start.comb0)
+        pose = _pose_accuracy(config, start, setup, done)
     results = _results(config, start, opt, done, (m1, obj1, comb1, checks), (sweep, dmat, robust))
+    results["pose_accuracy"] = pose
     shapes = {"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,
               "holes1": done.holes1, "setup": setup, "base": start.base}
     return results, shapes
+
+
+def _pose_accuracy(config: StudyConfig, start: _Start, setup: Any, done: _Delivered) -> dict[str, Any]:
+    """results.json ``pose_accuracy`` (``study.pose_accuracy``): predicted pose error before and after."""
+    from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy
+
+    base = start.base
+    return pose_accuracy(config, base, base.holes0, part_mesh(config, base.shape0, base.problem.occlusion_mesh),
+                         setup, done.holes1, part_mesh(config, done.shape1))
 
 
 def _set_up(config: StudyConfig) -> _Start:

@@ -255,12 +255,21 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
             traj = _single_pose(traj, pose)
         with prog.phase("measures"):
             m = measure_holes(setup, holes, traj)
+            if "pose" in config.objective.measures:  # g_POSE: the holes' pose information at these poses
+                from cadfeat.study.pose_accuracy import with_pose
+
+                m = with_pose(setup, holes, traj, m)
             values = _plain_objectives(config, m, setup.problem)
             pre = preflight_setup(config, setup, m if pose is None else measure_holes(setup, holes, full_traj))
             trust = objective_changes(setup.problem, values, None) if pose is None else {}
             combined = float(setup.problem.combined_from(np.array([values[n] for n in setup.problem.names]))) \
                 if pose is None and config.objective.combine != "pareto" else None
         summary = measures_summary(m, names, traj.times_s, config.objective.min_axis_px, half_image(camera))
+        pose_block = None
+        if pose is None:  # the predicted pose error of the design as it is (``study.pose_accuracy``)
+            from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy
+
+            pose_block = pose_accuracy(config, setup, holes, part_mesh(config, shape, setup.problem.occlusion_mesh))
         if pose is not None:  # pose indices of the full trajectory
             for f in summary["per_feature"]:
                 f["worst_pose"] = pose
@@ -280,6 +289,7 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
                            "occlusion": bool(config.objective.occlusion)},
             "measures": {"before": summary}, "timings_s": dict(prog.timings), "versions": versions(),
             "preflight": pre.to_dict(), "warnings": list(pre.warnings),
+            **({"pose_accuracy": pose_block} if pose_block is not None else {}),
         }
     if echo:
         print(format_table(results, pose))
@@ -380,5 +390,7 @@ def format_table(results: Mapping[str, Any], pose: int | None = None) -> str:
                   f"Jacobian condition: max {np.max(cond):.6g}; poses with < 3 visible features: "
                   f"{int(np.sum(np.asarray(pp['visible']) < 3))}")
     for name, g in results["objectives"]["before"].items():
-        console.print(f"{name} = {_num(g)} ({results['objectives']['aggregate']} over the trajectory)")
+        how = (results.get("inputs", {}).get("objective", {}).get("pose_aggregate", "rms") if name == "g_POSE"
+               else results["objectives"]["aggregate"])  # g_POSE: pose_aggregate (predicted error, mm)
+        console.print(f"{name} = {_num(g)} ({how} over the trajectory)")
     return buffer.getvalue().rstrip()

@@ -43,7 +43,8 @@ def test_every_study_file_meets_the_schema(validator):
 
 @pytest.mark.parametrize("section,key,value", [("objective", "agregate", "sum"), ("objective", "combine", "product"),
                                                ("tracking", "r_px2", -1.0), ("optimizer", "maxiter", 1.5),
-                                               ("shop", "grid_mm", 20.0), ("study", "nmae", "x")])
+                                               ("shop", "grid_mm", 20.0), ("study", "nmae", "x"),
+                                               ("objective", "pose_aggregate", "mean")])
 def test_schema_refuses_what_load_study_refuses(validator, tmp_path, section, key, value):
     data = copy.deepcopy(BASE)
     data.setdefault(section, {})[key] = value
@@ -60,3 +61,14 @@ def test_one_default_per_setting(tmp_path):
     assert cfg.tracking.replace(runs=3).runs == 3
     with pytest.raises(Exception, match="frozen"):
         cfg.tracking.runs = 4
+
+
+def test_pose_measure_and_its_aggregate(tmp_path):
+    """g_POSE: "pose" in [objective] measures with pose_aggregate rms | worst | logdet (one-line errors)."""
+    cfg = load_study(study(tmp_path, objective={"measures": ["pose"], "pose_aggregate": "worst"}))
+    assert cfg.objective.pose_aggregate == "worst" and cfg.objective.names == ["g_POSE"]
+    assert load_study(study(tmp_path, objective={"measures": ["pose"]})).objective.pose_aggregate == "rms"
+    with pytest.raises(StudyError) as err:
+        load_study(study(tmp_path, objective={"measures": ["pose"], "pose_aggregate": "median"}))
+    assert str(err.value).count("\n") == 0
+    assert "objective.pose_aggregate: 'median' is not allowed; allowed: rms, worst, logdet" in str(err.value)

@@ -12,7 +12,14 @@ from typing import cast
 
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
-from cadfeat.design.objectives import AGGREGATES, COMBINES, MEASURES, NORMALISATIONS, ObjectiveConfig
+from cadfeat.design.objectives import (
+    AGGREGATES,
+    COMBINES,
+    MEASURES,
+    NORMALISATIONS,
+    POSE_AGGREGATES,
+    ObjectiveConfig,
+)
 from cadfeat.design.optimize import LOCAL_SOLVERS, METHODS, OptimizerConfig
 from cadfeat.study.settings._base import Settings, Tuple, boolean, choice, integer, number, reject, seed_from_context
 
@@ -60,6 +67,8 @@ class ObjectiveSettings(Settings):
     occlusion: bool = boolean(_OC.occlusion)
     score: str | Tuple[str] = choice(
         _OC.score, '"movable", "all" or a non-empty list of distinct hole names (e.g. ["H1", "H3"])')
+    pose_aggregate: str = choice(_OC.pose_aggregate, POSE_AGGREGATES,
+                                 description='g_POSE over the trajectory ("pose" in measures): rms, worst or logdet')
 
     @field_validator("measures")
     @classmethod

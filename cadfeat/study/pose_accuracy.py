@@ -1,0 +1,235 @@
+"""results.json ``pose_accuracy``: how well the robot will know the part's pose, before and after (issue 17).
+
+Always computed, whatever the objective, on the real (re-extracted) holes of the original and the delivered
+design, along the study's trajectory:
+
+- the predicted error per pose of a single-frame estimate (``measures.pose_information``, the calibrated
+  detection and measurement models, each rim's hidden fraction from the exact ray test against the part's mesh
+  ``measures.rim_occlusion``): translation (mm) and rotation (deg), the bias part (the detector's systematic
+  offsets propagated through the pose Jacobians) and the noise part (the Cramér–Rao bound) separately, with
+  their RMS and worst over the poses;
+- the IEKF's posterior CRLB along the trajectory (``vision.posterior_crlb``) with the study's filter tuning
+  (``[tracking]``, the vision defaults when the study has none), noise only, zero angular rate in F;
+- the weakest direction in words per phase of the path (the trajectory split into 3 equal phases; the most
+  frequent ``weakest_words`` of the phase's poses and the median standard deviation along it, mm at ℓ);
+- each hole's mean share of the information (tr(S I S), ``PoseInformation.share``), by hole name;
+- "what would help most": for each movable hole, central finite differences of the predicted RMS translation
+  error (mm) on the hole's features — its centre moved in its face's plane (the steepest-descent direction of
+  the two in-plane axes, mm of error per mm of move) and its radius (mm per mm) — with each rim's hidden
+  fraction held at the design's exact value (the step is 0.25 mm; occlusion changes are not differentiated).
+  The hole and change that lower the error most are named.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+__all__ = ["PHASES", "design_pose_accuracy", "help_most", "pose_accuracy", "predict", "with_pose"]
+
+PHASES = ("start", "middle", "end")
+STEP_MM = 0.25
+
+
+def _tuning(config: Any) -> Any:
+    from cadfeat.study.settings import TrackingSettings
+    from cadfeat.study.tracking import tracking_config
+
+    spec = config.tracking if getattr(config, "tracking", None) is not None else TrackingSettings()
+    return tracking_config(spec).tuning
+
+
+def _arrays(holes: Sequence[Any]) -> tuple[np.ndarray, ...]:
+    from cadfeat.cad.features import holes_to_arrays
+
+    c, a, r = holes_to_arrays(list(holes))
+    through = np.array([bool(h.through) for h in holes])
+    depth = np.array([float(h.depth_mm) for h in holes])
+    return c, a, r, through, depth
+
+
+def predict(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], mesh: Any, rotation_length_mm: float,
+            occlusion: np.ndarray | None = None, arrays: tuple[np.ndarray, ...] | None = None) -> tuple[Any, Any]:
+    """(``PoseInformation``, rim hidden fraction (L, N)) of ``holes`` at the poses, exact rim test on ``mesh``
+    (None: nothing hidden) unless ``occlusion`` is given; ``arrays`` replaces the holes' (c, a, r, through, depth)."""
+    from cadfeat.measures import pose_information
+    from cadfeat.measures.rim_occlusion import rim_occlusion
+
+    c, a, r, through, depth = arrays if arrays is not None else _arrays(holes)
+    if occlusion is None:
+        occlusion = (np.zeros((len(T_cam_part), len(c))) if mesh is None else
+                     rim_occlusion(mesh, T_cam_part, c, a, r, samples=16, through=through, depth_mm=depth))
+    info = pose_information(camera, T_cam_part, c, a, r, occlusion=occlusion, through=through,
+                            depth_ratio=depth / (2.0 * np.maximum(r, 1e-9)), rotation_length_mm=rotation_length_mm)
+    return info, occlusion
+
+
+def _rms(v: np.ndarray) -> float:
+    v = np.asarray(v, float)
+    return float(np.sqrt(np.mean(v * v)))
+
+
+def _in_plane(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    a = axis / np.linalg.norm(axis)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(a, helper)
+    u /= np.linalg.norm(u)
+    return u, np.cross(a, u)
+
+
+def help_most(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], names: Sequence[str],
+              movable: Sequence[str], occlusion: np.ndarray, rotation_length_mm: float) -> dict[str, Any]:
+    """Per movable hole: d(RMS translation error)/d(move) along the steepest in-plane direction and
+    d/d(radius) (mm per mm, central differences, ``STEP_MM``; module docstring), and the best single change."""
+    base = _arrays(holes)
+    c0, a0, r0, through, depth = base
+
+    def rms(c: np.ndarray, r: np.ndarray) -> float:
+        info, _ = predict(camera, T_cam_part, holes, None, rotation_length_mm, occlusion,
+                          (c, a0, r, through, depth))
+        return _rms(info.error_translation_mm)
+
+    e0 = rms(c0, r0)
+    out: dict[str, Any] = {}
+    for j, name in enumerate(names):
+        if name not in movable:
+            continue
+        u, v = _in_plane(a0[j])
+        grad = []
+        for d in (u, v):
+            cp, cm = c0.copy(), c0.copy()
+            cp[j] += STEP_MM * d
+            cm[j] -= STEP_MM * d
+            grad.append((rms(cp, r0) - rms(cm, r0)) / (2 * STEP_MM))
+        g = np.asarray(grad)
+        norm = float(np.linalg.norm(g))
+        direction = -(g[0] * u + g[1] * v) / norm if norm > 0 else np.zeros(3)
+        rp, rm = r0.copy(), r0.copy()
+        rp[j] += STEP_MM
+        rm[j] = max(r0[j] - STEP_MM, 1e-3)
+        d_radius = (rms(c0, rp) - rms(c0, rm)) / (rp[j] - rm[j])
+        out[name] = {"d_error_per_mm_move": 0.0 - norm, "move_direction": direction.tolist(),
+                     "d_error_per_mm_radius": float(d_radius)}
+    best = None
+    for name, d in out.items():
+        for what, value in (("move", d["d_error_per_mm_move"]), ("radius", d["d_error_per_mm_radius"])):
+            gain = value if what == "move" else -abs(value)
+            if best is None or gain < best[2]:
+                best = (name, what, gain, value)
+    return {"rms_translation_mm": e0, "step_mm": STEP_MM, "holes": out,
+            "best": None if best is None else {"hole": best[0], "change": best[1], "d_error_per_mm": best[3],
+                                               "sentence": _sentence(best, out)}}
+
+
+def _sentence(best: tuple[Any, ...], holes: dict[str, Any]) -> str:
+    name, what, gain, value = best
+    if gain >= 0 or not np.isfinite(gain):
+        return "No small move or resize of a movable hole lowers the predicted error."
+    if what == "move":
+        d = np.round(holes[name]["move_direction"], 2).tolist()
+        return (f"Moving {name} (direction {d} in the part frame) helps most: the predicted RMS translation "
+                f"error falls by {abs(value) * 1000:.2f} µm per mm of move.")
+    verb = "Enlarging" if value < 0 else "Shrinking"
+    return (f"{verb} {name} helps most: the predicted RMS translation error falls by {abs(value) * 1000:.2f} µm "
+            f"per mm of radius.")
+
+
+def _phases(info: Any) -> list[dict[str, Any]]:
+    words = info.weakest_words
+    out = []
+    for phase, idx in zip(PHASES, np.array_split(np.arange(len(words)), len(PHASES)), strict=True):
+        if len(idx) == 0:
+            continue
+        top, count = Counter(words[i] for i in idx).most_common(1)[0]
+        sig = np.asarray(info.weakest_sigma, float)[idx]
+        out.append({"phase": phase, "poses": [int(idx[0]), int(idx[-1])], "weakest": top,
+                    "fraction": count / len(idx),
+                    "sigma_mm": float(np.median(sig)) if np.all(np.isfinite(sig)) else None})
+    return out
+
+
+def _finite(v: np.ndarray) -> list[float | None]:
+    return [float(x) if np.isfinite(x) else None for x in np.asarray(v, float)]
+
+
+def design_pose_accuracy(camera: Any, T_cam_part: np.ndarray, times_s: np.ndarray, holes: Sequence[Any],
+                         names: Sequence[str], movable: Sequence[str], mesh: Any, tuning: Any,
+                         rotation_length_mm: float) -> dict[str, Any]:
+    """The ``pose_accuracy`` block of one design (module docstring)."""
+    from cadfeat.vision import posterior_crlb
+
+    info, occ = predict(camera, T_cam_part, holes, mesh, rotation_length_mm)
+    _, crlb = posterior_crlb(info.information, times_s, tuning)
+    per_pose = {"error_translation_mm": info.error_translation_mm, "error_rotation_deg": info.error_rotation_deg,
+                "bias_translation_mm": info.bias_translation_mm, "bias_rotation_deg": info.bias_rotation_deg,
+                "noise_translation_mm": info.sigma_translation_mm, "noise_rotation_deg": info.sigma_rotation_deg,
+                "iekf_translation_mm": crlb[:, 0], "iekf_rotation_deg": crlb[:, 1]}
+    share = np.asarray(info.share, float).mean(axis=0)
+    return {
+        "per_pose": {k: _finite(v) for k, v in per_pose.items()},
+        "rms": {k: _rms(v) for k, v in per_pose.items()},
+        "worst": {k: float(np.max(v)) for k, v in per_pose.items()},
+        "holes_detected_mean": float(np.asarray(info.detected, float).sum(axis=1).mean()),
+        "share": dict(zip(names, map(float, share), strict=True)),
+        "weakest": _phases(info),
+        "help_most": help_most(camera, T_cam_part, holes, names, movable, occ, rotation_length_mm),
+    }
+
+
+def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, setup: Any = None,
+                  holes1: Sequence[Any] | None = None, mesh1: Any = None) -> dict[str, Any]:
+    """results.json ``pose_accuracy``: the original (``base``, ``holes0``) and the delivered design (``setup``,
+    ``holes1``; None: the original only, ``cadfeat evaluate``), each with its own part mesh for the rim test
+    (module docstring)."""
+    from cadfeat.cad.features.identity import hole_names
+
+    tuning = _tuning(config)
+    ell = float(config.objective.rotation_length_mm)
+    movable = [n for n, fixed in zip(base.hole_names, base.problem.fixed_mask, strict=True) if not fixed]
+    out: dict[str, Any] = {
+        "model": "measures.pose_information (calibrated detection and measurement models, exact rim occlusion); "
+                 "IEKF: vision.posterior_crlb with the [tracking] filter tuning",
+        "times_s": [float(t) for t in base.trajectory.times_s],
+        "phases": list(PHASES), "rotation_length_mm": ell, "movable": movable,
+        "tuning": {"r_px2": tuning.r_px2, "q_rate_mm2_s2": tuning.q_rate_mm2_s2,
+                   "q_omega_rad2_s2": tuning.q_omega_rad2_s2},
+    }
+    designs = [("before", base, holes0, mesh0)] + ([("after", setup, holes1, mesh1)] if holes1 is not None else [])
+    for key, s, holes, mesh in designs:
+        T = np.linalg.inv(np.asarray(s.trajectory.T_task_cam)) @ s.T_task_part
+        out[key] = design_pose_accuracy(s.camera, T, np.asarray(s.trajectory.times_s, float), holes,
+                                        hole_names(list(holes)), movable, mesh, tuning, ell)
+    return out
+
+
+def part_mesh(config: Any, shape: Any, mesh: Any = None) -> Any:
+    """The part mesh for the rim test: ``mesh`` when the study built one, else one of ``shape`` (the pose
+    prediction always tests occlusion, even when ``objective.occlusion`` is off)."""
+    if mesh is not None:
+        return mesh
+    from cadfeat.cad.export import mesh_from_shape
+
+    return mesh_from_shape(shape, tolerance=0.05)
+
+
+class _MeasuresWithPose:
+    """``measures`` with ``pose`` attached (read by ``objectives.objective_values``)."""
+
+    def __init__(self, measures: Any, pose: Any):
+        self._m, self.pose = measures, pose
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._m, name)
+
+
+def with_pose(setup: Any, holes: Sequence[Any], trajectory: Any, measures: Any, mesh: Any = None) -> Any:
+    """``measures`` of ``holes`` along ``trajectory`` with their ``PoseInformation`` attached as ``pose``: the
+    exact rim test against ``mesh`` (default the set-up's part mesh, as
+    ``Problem.features_objectives(exact_occlusion=True)``)."""
+    T = np.linalg.inv(np.asarray(trajectory.T_task_cam)) @ setup.T_task_part
+    mesh = mesh if mesh is not None else getattr(setup.problem, "occlusion_mesh", None)
+    info, _ = predict(setup.camera, T, holes, mesh, float(setup.config.objective.rotation_length_mm))
+    return _MeasuresWithPose(measures, info)

@@ -1,0 +1,91 @@
+"""g_POSE inside the optimisation problem (``design.pose_terms``, ``Problem``): equals an independent assembly of
+``measures.pose_information`` + ``objectives.pose_objective`` on the same holes; batched = one by one; usable in
+weighted and max-min combinations and as a constraint."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cadfeat.design.objectives import pose_objective
+from cadfeat.design.pose_terms import pose_aggregate_batch
+from cadfeat.measures import pose_information
+from cadfeat.poses import invert_T
+from tests.optim_helpers import two_hole_problem
+
+
+def _direct(problem, x, how):
+    """Independent assembly: the camera poses from the trajectory, the holes from the model, no occlusion mesh."""
+    c, a, r = problem.model.features(x)
+    T = invert_T(np.asarray(problem.trajectory.T_task_cam)) @ np.eye(4)
+    ell = problem.objective_config.rotation_length_mm
+    holes = problem.model.holes
+    info = pose_information(problem.camera, T, c, a, r, rotation_length_mm=ell,
+                            through=[h.through for h in holes],
+                            depth_ratio=[h.depth_mm / (2 * ri) for h, ri in zip(holes, r, strict=True)])
+    return pose_objective(info, how, ell), info
+
+
+@pytest.mark.parametrize("how", ["rms", "worst", "logdet"])
+def test_g_pose_equals_pose_information_and_pose_objective(how):
+    problem = two_hole_problem(measures=("pose",), rotation_length_mm=50.0, pose_aggregate=how,
+                               normalisation="natural")
+    x = problem.space.x0
+    g = problem.features_objectives(*problem.model.features(x))
+    expected, _ = _direct(problem, x, how)
+    assert g[0] == pytest.approx(expected, rel=1e-9)
+    assert expected < 0
+
+
+def test_batched_g_pose_equals_one_by_one_and_mixes_with_the_thesis_measures():
+    problem = two_hole_problem(measures=("resolution", "pose"), combine="maxmin", rotation_length_mm=50.0,
+                               normalisation="natural")
+    rng = np.random.default_rng(3)
+    X = problem.space.lower + rng.random((4, problem.space.size)) * problem.space.span
+    G, _ = problem.evaluate_batch(X)
+    for b, x in enumerate(X):
+        one = problem.features_objectives(*problem.model.features(x))
+        np.testing.assert_allclose(G[b], one, rtol=1e-9)
+        assert G[b, 1] == pytest.approx(_direct(problem, x, "rms")[0], rel=1e-9)
+    assert np.all(np.isfinite(problem.combined_from(G)))
+    weighted = two_hole_problem(measures=("resolution", "pose"), combine="weighted", rotation_length_mm=50.0,
+                                normalisation="natural", weights={"pose": 1.0, "resolution": 0.5})
+    assert np.all(np.isfinite(weighted.combined_from(weighted.evaluate_batch(X)[0])))
+
+
+def test_g_pose_as_a_constraint_predicted_error_at_most():
+    problem = two_hole_problem(measures=("resolution", "pose"), combine="constraint", rotation_length_mm=50.0,
+                               thresholds={"pose": -0.05}, normalisation="natural")
+    x = problem.space.x0
+    G, C = problem.evaluate_batch(x[None])
+    err = -_direct(problem, x, "rms")[0]
+    # the last margin is (g − (−0.05)) / scale: positive exactly when the predicted error is ≤ 0.05 mm
+    assert C[0, -1] * problem.scales[1] == pytest.approx(0.05 - err, rel=1e-9)
+
+
+def test_batched_aggregate_matches_pose_objective():
+    problem = two_hole_problem(measures=("pose",), rotation_length_mm=50.0)
+    _, info = _direct(problem, problem.space.x0, "rms")
+    for how in ("rms", "worst", "logdet"):
+        g = pose_aggregate_batch(info.error_mm(50.0)[None], info.information[None], how, 50.0)
+        assert g[0] == pytest.approx(pose_objective(info, how, 50.0), rel=1e-12)
+
+
+def test_stacked_designs_with_depth_map_occlusion_equal_one_design_at_a_time(tmp_path):
+    """The optimiser's one-call path (B·L stacked poses, every design's rims against each pose's depth map)
+    equals ``pose_of_features`` design by design (holes (N, 3), its own rim test) on a study with occlusion."""
+    from study_helpers import study
+
+    from cadfeat.design.pose_terms import pose_of_features
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.setup import setup_study
+
+    problem = setup_study(load_study(study(tmp_path, objective={"measures": ["pose"]}))).problem
+    assert problem.occlusion is not None
+    rng = np.random.default_rng(5)
+    X = problem.space.lower + rng.random((3, problem.space.size)) * problem.space.span
+    G, _ = problem.evaluate_batch(X)
+    for b, x in enumerate(X):
+        info = pose_of_features(problem, *problem.model.features(x))
+        assert G[b, 0] == pytest.approx(pose_objective(info, "rms", problem.objective_config.rotation_length_mm),
+                                        rel=1e-9)
