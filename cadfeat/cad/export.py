@@ -333,13 +333,11 @@ def _triangulate(occ: Any, tolerance_mm: float, angular_tolerance_rad: float) ->
             return
 
 
-def mesh_from_shape(shape: Any, tolerance: float = 0.01, angular_tolerance_rad: float = 0.1) -> trimesh.Trimesh:
-    """Triangle mesh (mm) of a B-rep solid: chord error ≤ ``tolerance`` mm, faces outward, shared vertices.
-
-    Triangles of reversed faces are flipped so every normal points out of the material; vertices that
-    coincide on shared edges are merged, so a valid closed solid gives a watertight mesh.
-    """
-    import trimesh
+def face_meshes(shape: Any, tolerance_mm: float = 0.01,
+                angular_tolerance_rad: float = 0.1) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per B-rep face: vertices (V, 3) mm and triangles (T, 3) (vertex indices of that face) oriented out of the
+    material (reversed faces flipped), from the triangulation ``export_stl`` writes with these tolerances (chord
+    error ≤ ``tolerance_mm``; the retries of ``_triangulate`` where OCCT leaves faces empty)."""
     from OCP.BRep import BRep_Tool
     from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
     from OCP.TopExp import TopExp_Explorer
@@ -347,10 +345,8 @@ def mesh_from_shape(shape: Any, tolerance: float = 0.01, angular_tolerance_rad: 
     from OCP.TopoDS import TopoDS
 
     occ = _occ_shape(shape)
-    _triangulate(occ, tolerance, angular_tolerance_rad)
-    vertices: list[np.ndarray] = []
-    triangles: list[np.ndarray] = []
-    offset = 0
+    _triangulate(occ, tolerance_mm, angular_tolerance_rad)
+    out: list[tuple[np.ndarray, np.ndarray]] = []
     explorer = TopExp_Explorer(occ, TopAbs_FACE)
     while explorer.More():
         face = TopoDS.Face_s(explorer.Current())
@@ -358,20 +354,33 @@ def mesh_from_shape(shape: Any, tolerance: float = 0.01, angular_tolerance_rad: 
         loc = TopLoc_Location()
         poly = BRep_Tool.Triangulation_s(face, loc)
         if poly is None:
-            raise ExportError(f"a face could not be triangulated (chord tolerance {tolerance} mm, angular "
+            raise ExportError(f"a face could not be triangulated (chord tolerance {tolerance_mm} mm, angular "
                               f"{angular_tolerance_rad} rad and up to {MESH_ANGLE_RETRIES_RAD[-1]} rad, "
-                              f"interiors up to {MESH_INTERIOR_RETRIES[-1] * tolerance:g} mm)")
+                              f"interiors up to {MESH_INTERIOR_RETRIES[-1] * tolerance_mm:g} mm)")
         trsf = loc.Transformation()
         nodes = [poly.Node(i).Transformed(trsf) for i in range(1, poly.NbNodes() + 1)]
         tri = np.array([poly.Triangle(i).Get() for i in range(1, poly.NbTriangles() + 1)], dtype=np.int64) - 1
         if face.Orientation() == TopAbs_REVERSED:
             tri = tri[:, ::-1]
-        vertices.append(np.array([(p.X(), p.Y(), p.Z()) for p in nodes], dtype=float))
-        triangles.append(tri + offset)
-        offset += len(nodes)
-    if not triangles:
+        out.append((np.array([(p.X(), p.Y(), p.Z()) for p in nodes], dtype=float).reshape(-1, 3),
+                    tri.reshape(-1, 3)))
+    return out
+
+
+def mesh_from_shape(shape: Any, tolerance: float = 0.01, angular_tolerance_rad: float = 0.1) -> trimesh.Trimesh:
+    """Triangle mesh (mm) of a B-rep solid: chord error ≤ ``tolerance`` mm, faces outward, shared vertices.
+
+    Triangles of reversed faces are flipped so every normal points out of the material (``face_meshes``);
+    vertices that coincide on shared edges are merged, so a valid closed solid gives a watertight mesh.
+    """
+    import trimesh
+
+    faces = face_meshes(shape, tolerance, angular_tolerance_rad)
+    if not faces:
         raise ExportError("the shape has no faces to mesh")
-    return trimesh.Trimesh(np.concatenate(vertices), np.concatenate(triangles), process=True)
+    offsets = np.cumsum([0] + [len(v) for v, _ in faces[:-1]])
+    return trimesh.Trimesh(np.concatenate([v for v, _ in faces]),
+                           np.concatenate([t + o for (_, t), o in zip(faces, offsets, strict=True)]), process=True)
 
 
 def export_stl(shape: Any, path: str | os.PathLike[str], tolerance_mm: float = 0.01,

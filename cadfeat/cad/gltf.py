@@ -18,41 +18,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["MM_TO_M", "export_glb", "face_meshes"]
+__all__ = ["MM_TO_M", "export_glb"]
 
 MM_TO_M = 1e-3
-
-
-def face_meshes(shape: Any, tolerance_mm: float = 0.01,
-                angular_tolerance_rad: float = 0.1) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Per B-rep face: vertices (V, 3) mm and triangles (T, 3) oriented out of the material, from the same
-    triangulation as ``export_stl`` with these tolerances."""
-    from OCP.BRep import BRep_Tool
-    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopLoc import TopLoc_Location
-    from OCP.TopoDS import TopoDS
-
-    from cadfeat.cad.export import ExportError, _occ_shape, _triangulate
-
-    occ = _occ_shape(shape)
-    _triangulate(occ, tolerance_mm, angular_tolerance_rad)
-    out = []
-    explorer = TopExp_Explorer(occ, TopAbs_FACE)
-    while explorer.More():
-        face = TopoDS.Face_s(explorer.Current())
-        explorer.Next()
-        loc = TopLoc_Location()
-        poly = BRep_Tool.Triangulation_s(face, loc)
-        if poly is None:
-            raise ExportError("a face could not be triangulated")
-        trsf = loc.Transformation()
-        nodes = [poly.Node(i).Transformed(trsf) for i in range(1, poly.NbNodes() + 1)]
-        tri = np.array([poly.Triangle(i).Get() for i in range(1, poly.NbTriangles() + 1)], dtype=np.int64) - 1
-        if face.Orientation() == TopAbs_REVERSED:
-            tri = tri[:, ::-1]
-        out.append((np.array([(p.X(), p.Y(), p.Z()) for p in nodes], dtype=float).reshape(-1, 3), tri.reshape(-1, 3)))
-    return out
 
 
 def _owner(vertices: np.ndarray, holes: Sequence[Any], tol_mm: float) -> int | None:
@@ -75,6 +43,8 @@ def export_glb(shape: Any, holes: Sequence[Any], path: str | os.PathLike[str], t
     """Write ``path`` (.glb): node ``part`` and one node per hole named ``hole.name`` (see the module
     docstring). Returns the path."""
     import trimesh
+
+    from cadfeat.cad.export import face_meshes
 
     path = Path(path)
     groups: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {"part": []}

@@ -32,6 +32,7 @@ from typing import Any
 from cadfeat.campaign.plan import Campaign, Case, load_campaign
 from cadfeat.campaign.store import CampaignStore
 from cadfeat.campaign.task import EVENT_TOPIC, run_case
+from cadfeat.study.output_folder import pid_alive
 
 __all__ = ["EXPORTS_DIR", "CampaignResult", "local_cluster", "run_campaign"]
 
@@ -156,19 +157,11 @@ def _cleanup_after_stop(store: CampaignStore, wait_s: float = 20.0) -> None:
             pid = int(json.loads((stage / ".cadfeat-output.json").read_text())["pid"])
         except (OSError, ValueError, KeyError, TypeError):
             continue
-        while time.monotonic() < deadline and _alive(pid):
+        while time.monotonic() < deadline and pid_alive(pid):
             time.sleep(0.1)
     store.remove_stale_staging()
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 class _Stop:

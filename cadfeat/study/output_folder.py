@@ -34,7 +34,7 @@ from cadfeat._version import __version__
 from cadfeat.errors import CadfeatError
 
 __all__ = ["MANIFEST", "OUTPUT_NAMES", "REPORT_NAMES", "OutputFolderError", "check_output_folder", "is_cadfeat_folder",
-           "remove_stale_staging", "staged_output"]
+           "pid_alive", "remove_stale_staging", "staged_output"]
 
 MANIFEST = ".cadfeat-output.json"
 """The ownership manifest cadfeat writes into every folder it creates (and every staging folder)."""
@@ -154,9 +154,8 @@ def check_output_folder(final_dir: str | os.PathLike[str], force: bool = False,
     return final
 
 
-def _owner_alive(pid: int, host: str) -> bool:
-    if host != socket.gethostname():
-        return True  # another machine's (shared filesystem): never ours to judge
+def pid_alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists on this machine (one we may not signal counts as alive)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -164,6 +163,12 @@ def _owner_alive(pid: int, host: str) -> bool:
     except PermissionError:
         return True
     return True
+
+
+def _owner_alive(pid: int, host: str) -> bool:
+    if host != socket.gethostname():
+        return True  # another machine's (shared filesystem): never ours to judge
+    return pid_alive(pid)
 
 
 def remove_stale_staging(parent: str | os.PathLike[str]) -> list[Path]:
