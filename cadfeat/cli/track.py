@@ -59,7 +59,9 @@ def summary_lines(section: dict[str, Any]) -> list[str]:
             t, r = e["trans_mm_rms"], e["rot_deg_rms"]
             lines.append(f"  {name:<7} {m:<5} translation RMS {_f(t['mean'])} mm [{_f(t['ci_low'])}, "
                          f"{_f(t['ci_high'])}]   rotation RMS {_f(r['mean'])} deg [{_f(r['ci_low'])}, "
-                         f"{_f(r['ci_high'])}]   lost {_f(e['frames_lost']['mean'])} frames")
+                         f"{_f(r['ci_high'])}]   lost {_f(e['frames_lost']['mean'])} frames"
+                         + (f" ({_f(100 * e['lost_frac']['mean'])} % after settling, counted at the last "
+                            "estimate's error)" if (e.get("lost_frac") or {}).get("mean") else ""))
     for m, v in section.get("verdicts", {}).items():
         lines.append(f"  {m}: {v['verdict']} (Wilcoxon p = {_f(v['translation']['p_value'])} translation, "
                      f"{_f(v['rotation']['p_value'])} rotation; {v['translation']['runs']} paired runs)")
