@@ -1,7 +1,9 @@
 """Sub-command ``cadfeat track STUDY``: does the new design track better? (closed loop, ``cadfeat.vision``).
 
 Reads the designs a previous ``cadfeat run`` exported (``original.step``, ``optimised.step`` in the output
-folder), renders the camera images along the study trajectory, detects the holes and tracks the part pose with
+folder) with the holes that run tracked (results.json ``holes``: same names, entrances and view direction, so
+``cadfeat track`` and ``cadfeat run`` give the same numbers; ``study.tracking.exported_designs``), renders
+the camera images along the study trajectory, detects the holes and tracks the part pose with
 the EKF, IEKF and solvePnP, before and after. Writes ``tracking/`` (tracking.json, frames with detected vs
 predicted ellipses) and the ``tracking`` section of results.json; ``--sweep`` runs the thesis §6.3.3
 sensitivity study instead (``tracking/sweep_<kind>.json`` and ``.png``).
@@ -27,22 +29,6 @@ def _track_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--values", metavar="V,V,...", help="the sweep's values (default: a thesis-like range)")
 
 
-def _designs(out: Path, label: str) -> dict[str, tuple[Any, list[Any]]]:
-    from cadfeat.cad.export import import_step
-    from cadfeat.cad.features import extract_holes
-    from cadfeat.errors import CadfeatError
-
-    designs = {}
-    for name, file in (("before", "original.step"), ("after", "optimised.step")):
-        path = out / file
-        if not path.is_file():
-            raise CadfeatError(f"{label}: {path} not found; allowed: the output folder of `cadfeat run` "
-                               f"(run `cadfeat run {label}` first, or give --out DIR)")
-        shape = import_step(path)
-        designs[name] = (shape, extract_holes(shape))
-    return designs
-
-
 def _write_json(path: Path, data: dict[str, Any]) -> None:
     from cadfeat.study.outputs import write_json
 
@@ -59,7 +45,9 @@ def summary_lines(section: dict[str, Any]) -> list[str]:
             t, r = e["trans_mm_rms"], e["rot_deg_rms"]
             lines.append(f"  {name:<7} {m:<5} translation RMS {_f(t['mean'])} mm [{_f(t['ci_low'])}, "
                          f"{_f(t['ci_high'])}]   rotation RMS {_f(r['mean'])} deg [{_f(r['ci_low'])}, "
-                         f"{_f(r['ci_high'])}]   lost {_f(e['frames_lost']['mean'])} frames")
+                         f"{_f(r['ci_high'])}]   lost {_f(e['frames_lost']['mean'])} frames"
+                         + (f" ({_f(100 * e['lost_frac']['mean'])} % after settling, counted at the last "
+                            "estimate's error)" if (e.get("lost_frac") or {}).get("mean") else ""))
     for m, v in section.get("verdicts", {}).items():
         lines.append(f"  {m}: {v['verdict']} (Wilcoxon p = {_f(v['translation']['p_value'])} translation, "
                      f"{_f(v['rotation']['p_value'])} rotation; {v['translation']['runs']} paired runs)")
@@ -75,7 +63,7 @@ def track(args: argparse.Namespace) -> int:
     from cadfeat.errors import CadfeatError
     from cadfeat.study.run import default_out_dir
     from cadfeat.study.schema import TrackingSpec, load_study
-    from cadfeat.study.tracking import run_tracking, sweep
+    from cadfeat.study.tracking import exported_designs, run_tracking, sweep
 
     config = load_study(args.study)
     spec = config.tracking or TrackingSpec(seed=config.study.seed)
@@ -91,7 +79,7 @@ def track(args: argparse.Namespace) -> int:
             raise CadfeatError(f"--values: {args.values!r} is not allowed; allowed: numbers separated by commas") \
                 from None
     out = Path(args.out) if args.out else default_out_dir(config)
-    designs = _designs(out, str(config.label))
+    designs = exported_designs(config, out)
     folder = out / "tracking"
     folder.mkdir(parents=True, exist_ok=True)
     if args.sweep:

@@ -123,7 +123,8 @@ def tracking_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path
             rows.append("<tr>" + "".join(f"<td>{x}</td>" for x in (
                 esc(name), esc(m.upper()), _interval(e["trans_mm_rms"]), fmt(e["trans_mm_p95"]["mean"], 3),
                 fmt(e["trans_mm_max"]["mean"], 3), _interval(e["rot_deg_rms"]), fmt(e["rot_deg_p95"]["mean"], 3),
-                fmt(e["frames_lost"]["mean"], 3),
+                fmt(e["frames_lost"]["mean"], 3) + (f' ({fmt(100 * e["lost_frac"]["mean"], 2)} %)'
+                                                     if (e.get("lost_frac") or {}).get("mean") else ""),
                 fmt(conv["mean"], 3) + (f" ({conv['runs_not_finite']} never)" if conv.get("runs_not_finite") else "")))
                 + "</tr>")
     parts.append(table(["design", "estimator", "RMS translation (mm)", "p95 (mm)", "max (mm)", "RMS rotation (deg)",

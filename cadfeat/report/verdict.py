@@ -31,9 +31,10 @@ RULES = (
                  "design) and every other objective must not get worse; one that does: adopt with care."),
     ("holes", "No hole may newly fail a measure (a margin ≥ 0 before that is < 0 after); one that does: adopt "
               "with care. Losses elsewhere are listed below."),
-    ("tracking", "When the pose-tracking validation ran (cadfeat track, [tracking]): no estimator may track the "
-                 "new design significantly worse, nor mixed (better in one of translation/rotation, worse in the "
-                 "other); one that does: adopt with care."),
+    ("tracking", "When the pose-tracking validation ran (cadfeat track, [tracking]), it is decisive: an estimator "
+                 "that tracks the new design significantly worse (translation and rotation), whatever the "
+                 "objectives say: do not adopt. Mixed (better in one of translation/rotation, worse in the "
+                 "other): adopt with care."),
     ("robustness", "When the robustness study ran: if the combined objective's 5th percentile under the shop "
                    "tolerance or the camera mounting error keeps less than half of the gain (razor-edge optimum): "
                    "adopt with care."),
@@ -189,15 +190,18 @@ def _failing_after(results: dict) -> list[tuple[str, int, int]]:
 
 def _tracking(results: dict) -> list[Finding]:
     """The closed-loop pose-tracking verdicts (results.json ``tracking.verdicts``: per estimator "better",
-    "worse", "mixed" or "no significant difference", ``cadfeat.vision.closed_loop.compare``)."""
+    "worse", "mixed" or "no significant difference", ``cadfeat.vision.closed_loop.compare``).
+
+    The closed loop measures what the objectives only predict, so its rule is decisive: one estimator "worse"
+    makes the decision "do not adopt" whatever the other rules say; "mixed" asks for care (issue 17)."""
     tr = results.get("tracking")
     verdicts = tr.get("verdicts") if isinstance(tr, dict) else None
     if not isinstance(verdicts, dict) or not verdicts:
         return []
     per = {str(m): str(v.get("verdict", "")) if isinstance(v, dict) else str(v) for m, v in verdicts.items()}
     text = "pose tracking, after vs before: " + ", ".join(f"{m.upper()} {v}" for m, v in per.items())
-    bad = any(v in ("worse", "mixed") for v in per.values())
-    return [Finding("tracking", CARE if bad else ADOPT, text)]
+    outcome = REJECT if "worse" in per.values() else CARE if "mixed" in per.values() else ADOPT
+    return [Finding("tracking", outcome, text)]
 
 
 def _robustness(results: dict) -> list[Finding]:

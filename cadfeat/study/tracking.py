@@ -135,6 +135,77 @@ def _named(holes: Sequence[Any]) -> list[Any]:
     return named(holes)
 
 
+#: The exported designs ``cadfeat track`` reads: design name → STEP file in the output folder.
+EXPORTED = {"before": "original.step", "after": "optimised.step"}
+
+
+def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Any, list[Any]]]:
+    """The designs a ``cadfeat run`` exported to ``out``, with the holes that run tracked (one closed loop).
+
+    Shapes: ``original.step`` and ``optimised.step``. Holes: those of results.json ``holes.before`` /
+    ``holes.after`` — the study's own holes (its extraction with its view direction, its names), exactly what
+    ``cadfeat run`` passes to ``run_tracking``. Without them (an older output folder) the holes are extracted
+    from the STEP files with the study's view direction (``design.view_direction``, the part script's
+    ``VIEW_DIRECTION``, or the direction towards the trajectory's cameras), so through holes enter on the side
+    the camera sees, and named ``H<i+1>``.
+    """
+    import json
+
+    from cadfeat.cad.export import import_step
+
+    shapes = {}
+    for name, file in EXPORTED.items():
+        path = Path(out) / file
+        if not path.is_file():
+            raise CadfeatError(f"{config.label}: {path} not found; allowed: the output folder of `cadfeat run` "
+                               f"(run `cadfeat run {config.label}` first, or give --out DIR)")
+        shapes[name] = import_step(path)
+    results_path = Path(out) / "results.json"
+    holes = {}
+    if results_path.is_file():
+        try:
+            block = json.loads(results_path.read_text(encoding="utf-8")).get("holes") or {}
+        except (ValueError, AttributeError) as exc:
+            raise CadfeatError(f"{results_path}: not a results.json of `cadfeat run` ({exc})") from None
+        if all(isinstance(block.get(k), list) and block[k] for k in EXPORTED):
+            holes = {k: [_hole_from_json(h, results_path, k, i) for i, h in enumerate(block[k])] for k in EXPORTED}
+    if not holes:
+        view = _view_direction(config, Path(out) / EXPORTED["before"])
+        from cadfeat.cad.features import extract_holes
+
+        holes = {k: extract_holes(shapes[k], prefer_direction=view) for k in EXPORTED}
+    return {k: (shapes[k], _named(holes[k])) for k in EXPORTED}
+
+
+def _hole_from_json(h: Any, path: Path, key: str, i: int) -> Any:
+    """A ``Hole`` from a results.json hole entry (``study.outputs.hole_dict``). The closed loop uses the entrance
+    rim only (centre, axis, radius, depth, through); the narrowest bore is not stored and is taken as the rim."""
+    from cadfeat.cad.features import Hole
+
+    try:
+        return Hole(centre=np.asarray(h["centre_mm"], float), axis=np.asarray(h["axis"], float),
+                    radius_mm=float(h["radius_mm"]), bore_radius_mm=float(h["radius_mm"]),
+                    depth_mm=float(h["depth_mm"]), through=bool(h["through"]), kind=str(h.get("kind", "plain")),
+                    host_face=-1, outline=None, name=str(h.get("name") or ""))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CadfeatError(f"{path}: holes.{key}[{i}]: {exc!s}; allowed: a hole entry of `cadfeat run` "
+                           "(centre_mm, axis, radius_mm, depth_mm, through)") from None
+
+
+def _view_direction(config: StudyConfig, original_step: Path) -> Any:
+    """The side the study's camera looks from (part frame), as the study's own extraction uses it."""
+    if config.study.part_kind == "step":
+        if config.design.view_direction is not None:
+            return np.asarray(config.design.view_direction, float)
+        from cadfeat.study.setup import camera_direction, load_scene
+
+        _, traj, T_task_part = load_scene(config)
+        return camera_direction(original_step, traj, T_task_part)
+    from cadfeat.cad.parts import load_part
+
+    return load_part(config.study.part_path).view_direction
+
+
 def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[Any]]], out_dir: Path | None = None,
                  spec: TrackingSpec | None = None, camera_override: Any = None) -> dict[str, Any]:
     """The results.json ``tracking`` section for ``designs`` = {"before": (shape, holes), "after": (...)}.

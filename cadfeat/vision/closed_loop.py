@@ -6,8 +6,9 @@ regions *enclosed* by the lit part). ``track_design`` then runs the Monte-Carlo 
 and 8-bit quantisation (``images.sensor_images``), detection and association to the model's holes at the
 nominal pose (``detection``; the robot knows its commanded trajectory and the nominal part placement), and
 every estimator from the same perturbed initial pose (``estimate.estimate_poses``). ``compare`` gives the
-paired verdict per estimator (``metrics.paired_verdict``). Run r uses the same noise seed and initial error
-for both designs, which is what makes the test paired.
+paired verdict per estimator (``metrics.paired_verdict``) on the same per-run RMS errors, where a frame without
+an estimate counts at the error of the last estimate before it (``metrics.hold_last``). Run r uses the same
+noise seed and initial error for both designs, which is what makes the test paired.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from cadfeat.camera import Camera
 from cadfeat.vision.detection import Detections, associate, detect_holes
 from cadfeat.vision.estimate import FilterTuning, estimate_poses
 from cadfeat.vision.images import SensorModel, apply_optics, optics_kernels, render_sequence, sensor_images
-from cadfeat.vision.metrics import aggregate_runs, paired_verdict, pose_errors, run_summary
+from cadfeat.vision.metrics import aggregate_runs, hold_last, paired_verdict, pose_errors, run_summary
 from cadfeat.vision.motion import so3_exp
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -90,7 +91,8 @@ class Observation:
 
 @dataclass
 class DesignTracking:
-    """Result of ``track_design``: ``errors[est]`` = (trans_mm (R, F), rot_deg (R, F)); ``summaries[est]`` per
+    """Result of ``track_design``: ``errors[est]`` = (trans_mm (R, F), rot_deg (R, F)), a lost frame at the error of
+    the last estimate before it (``metrics.hold_last``: lost frames count against a design); ``summaries[est]`` per
     run dicts; ``pixels`` (R, F, N, 2); ``detection_rate`` (N,) detected / expected; ``expected`` (F, N)."""
 
     errors: dict[str, tuple[np.ndarray, np.ndarray]]
@@ -258,10 +260,11 @@ def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: 
     for m in config.estimators:  # all runs at once (the filters are batched over runs)
         track = estimate_poses(estimator_camera or camera, obs.centres, pixels, times_s, m, T0,
                                normals_part=normals, radii_mm=radii, tuning=config.tuning)
-        et, er = pose_errors(track.T_cam_part, T_true[None])
+        held, lost = hold_last(track.T_cam_part, T0)  # a lost frame counts at the last estimate's error
+        et, er = pose_errors(held, T_true[None])
         errors[m] = (et, er)
         summaries[m] = [run_summary(et[run], er[run], times_s, config.settle_frames, config.converged_mm,
-                                    config.converged_deg) for run in range(R_)]
+                                    config.converged_deg, lost[run]) for run in range(R_)]
     return DesignTracking(errors, summaries, pixels, _expected_visible(camera, obs, T_true), obs.names,
                           np.asarray(times_s, dtype=float), first)
 

@@ -2,10 +2,16 @@
 
 - Errors per frame (thesis §6.3.3 measures the error in Cartesian space): translation error ‖p̂ − p‖ (mm)
   and rotation error, the angle of R̂ Rᵀ (deg), of T_cam_part.
+- Lost frames (no estimate: PnP with fewer than 4 holes, a filter that failed) count against the design: at
+  a lost frame the robot can only act on the pose it last knew, so ``hold_last`` replaces the missing
+  estimate by the previous frame's estimate (the initial pose before the first one) and the frame's error is
+  that held pose's error against the *current* true pose. The statistics below are over every frame after
+  ``settle_frames``, lost ones included at that error (issue 17: leaving them out rewarded a design for
+  losing the part at the poses it images worst); ``frames_lost`` and ``lost_frac`` say how many.
 - Summary of one run after ``settle_frames`` frames (the thesis's "steady state in the first five sampling
-  periods"): RMS, 95th percentile, max; lost frames count as errors of ``lost_error`` (inf → they are
-  reported separately and excluded). Convergence time: the first time after which the translation error
-  stays ≤ ``converged_mm`` and the rotation error ≤ ``converged_deg`` (inf if never).
+  periods"): RMS, 95th percentile, max. Convergence time: the first time after which the translation error
+  stays ≤ ``converged_mm`` and the rotation error ≤ ``converged_deg`` (inf if never; a lost frame is not
+  converged).
 - Over Monte-Carlo runs: mean of each per-run number with a percentile-bootstrap confidence interval
   (seeded, so reports are reproducible).
 - Before vs after: Wilcoxon signed-rank test on the per-run RMS errors, paired by run (same noise seed and
@@ -33,6 +39,22 @@ def pose_errors(T_est: np.ndarray, T_true: np.ndarray) -> tuple[np.ndarray, np.n
     return np.where(finite, dt, np.nan), np.where(finite, ang, np.nan)
 
 
+def hold_last(T_est: np.ndarray, T_initial: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The estimates with each lost frame (non-finite pose) replaced by the last finite one before it, and the
+    lost mask. T_est (..., F, 4, 4); T_initial (..., 4, 4), the estimators' initial pose, stands in before the
+    first estimate. Returns (T_held (..., F, 4, 4), lost (..., F) bool)."""
+    T = np.array(T_est, dtype=float)
+    lost = ~np.all(np.isfinite(T.reshape(T.shape[:-2] + (16,))), axis=-1)
+    F_ = T.shape[-3]
+    # index of the last finite frame at or before k (-1: none yet), vectorised over the leading axes
+    idx = np.where(~lost, np.arange(F_), -1)
+    last = np.maximum.accumulate(idx, axis=-1)
+    src = np.concatenate([np.broadcast_to(np.asarray(T_initial, dtype=float)[..., None, :, :],
+                                          T.shape[:-3] + (1, 4, 4)), T], axis=-3)
+    held = np.take_along_axis(src, (last + 1)[..., None, None], axis=-3)
+    return held, lost
+
+
 def convergence_time_s(trans_mm: np.ndarray, rot_deg: np.ndarray, times_s: np.ndarray, converged_mm: float,
                        converged_deg: float) -> float:
     """First time after which both errors stay within the bounds (NaN frames count as not converged)."""
@@ -44,17 +66,27 @@ def convergence_time_s(trans_mm: np.ndarray, rot_deg: np.ndarray, times_s: np.nd
 
 
 def run_summary(trans_mm: np.ndarray, rot_deg: np.ndarray, times_s: np.ndarray, settle_frames: int,
-                converged_mm: float, converged_deg: float) -> dict[str, float]:
-    """Numbers of one run (module docstring): rms/p95/max of both errors after ``settle_frames``, lost frames,
-    convergence time (s)."""
+                converged_mm: float, converged_deg: float, lost: np.ndarray | None = None) -> dict[str, float]:
+    """Numbers of one run (module docstring): rms/p95/max of both errors after ``settle_frames``, lost frames
+    (``frames_lost`` over the whole run, ``lost_frac`` the fraction of the frames after ``settle_frames``),
+    convergence time (s).
+
+    ``lost`` (F,) marks the lost frames when the errors are those of the held estimates (``hold_last``; the
+    lost frames then count at that error). Without it, non-finite errors are the lost frames and, having no
+    fallback, are left out of the statistics (use ``hold_last`` to count them).
+    """
+    lost = ~(np.isfinite(trans_mm) & np.isfinite(rot_deg)) if lost is None else np.asarray(lost, dtype=bool)
     t, r = trans_mm[settle_frames:], rot_deg[settle_frames:]
     ok = np.isfinite(t) & np.isfinite(r)
-    out: dict[str, float] = {"frames_lost": float(np.sum(~np.isfinite(trans_mm)))}
+    tail = lost[settle_frames:]
+    out: dict[str, float] = {"frames_lost": float(np.sum(lost)),
+                             "lost_frac": float(np.mean(tail)) if tail.size else float("nan")}
     for name, e in (("trans_mm", t[ok]), ("rot_deg", r[ok])):
         out[f"{name}_rms"] = float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
         out[f"{name}_p95"] = float(np.percentile(e, 95)) if e.size else float("nan")
         out[f"{name}_max"] = float(np.max(e)) if e.size else float("nan")
-    out["convergence_s"] = convergence_time_s(trans_mm, rot_deg, times_s, converged_mm, converged_deg)
+    out["convergence_s"] = convergence_time_s(np.where(lost, np.inf, trans_mm), rot_deg, times_s, converged_mm,
+                                              converged_deg)
     return out
 
 

@@ -439,7 +439,7 @@ def test_verdict_rules_on_modified_results(case, tmp_path):
     unverified["requirements_used"] = [{"name": "ligament", "holes": ["A", "C"], "margin": 0.0}]
     assert decide(unverified).decision == "do not adopt"
     tracked = copy.deepcopy(base)
-    tracked["tracking"] = {"verdicts": {"ekf": {"verdict": "better"}, "iekf": {"verdict": "worse"}}}
+    tracked["tracking"] = {"verdicts": {"ekf": {"verdict": "better"}, "iekf": {"verdict": "mixed"}}}
     assert decide(tracked).decision == "adopt with care"
     tracked["tracking"] = {"verdicts": {"ekf": {"verdict": "better"}, "iekf": {"verdict": "no significant difference"}}}
     assert decide(tracked).decision == "adopt"
@@ -448,6 +448,27 @@ def test_verdict_rules_on_modified_results(case, tmp_path):
     changes = {(r.cells[0].text, r.cells[1].text): r for r in page.tables["hole-changes"]}
     row = changes[("A", "focus margin")]
     assert _value(row.cells[3]) == 0.2 and _value(row.cells[4]) == -0.1 and row.cells[6].text == "newly failing"
+
+
+def test_verdict_tracking_worse_is_decisive(case):
+    """Issue 17: a design that tracks significantly worse in the closed loop is "do not adopt", even when every
+    proxy objective improved and every other rule says adopt; "mixed" stays "adopt with care"."""
+    from cadfeat.report.verdict import decide
+
+    _, results, _ = case
+    base = _lean(results)
+    for c in base["constraints"]:
+        c.update(margin=max(c["margin"], 1.0), ok=True)
+    base["objectives"].update(combined_before=0.019, combined_after=0.949, before={"g": 0.019},
+                              after={"g": 0.949}, names=["g"])
+    base["measures"]["after"] = copy.deepcopy(base["measures"]["before"])
+    assert decide(base).decision == "adopt"
+    base["tracking"] = {"verdicts": {"pnp": {"verdict": "worse"}, "iekf": {"verdict": "better"}}}
+    v = decide(base)
+    assert v.decision == "do not adopt"
+    assert {f.rule: f.outcome for f in v.findings}["tracking"] == "do not adopt"
+    base["tracking"] = {"verdicts": {"pnp": {"verdict": "mixed"}, "iekf": {"verdict": "better"}}}
+    assert decide(base).decision == "adopt with care"
 
 
 def test_hole_table_matches_results(report):

@@ -123,3 +123,52 @@ def test_a_sudden_roll_of_the_trajectory_is_reported():
     warnings = _motion_warnings(T, np.arange(5) * 0.1)
     assert len(warnings) == 1 and "turns 149° between tracked frames 2 and 3" in warnings[0]
     assert _motion_warnings(T[:3], np.arange(3) * 0.1) == []
+
+
+FLIPPED = PART.replace("PARAMETERS = {", "VIEW_DIRECTION = (0, 0, -1)  # mounted upside down: the camera sees -Z\n"
+                                          "PARAMETERS = {", 1)
+
+
+def test_track_uses_the_holes_run_tracked(tmp_path, monkeypatch):
+    """One closed loop (issue 17): `cadfeat track` tracks the very holes `cadfeat run` tracked — same names,
+    entrance centres and axes. The plate is mounted upside down (part script VIEW_DIRECTION = -Z, part pose
+    rotated 180° about x): re-extracting the exported STEP without the view direction would put every through
+    hole's entrance on the +Z face, which the camera never sees."""
+    import numpy as np
+
+    from cadfeat.study.run import run_study
+    from cadfeat.vision import closed_loop
+
+    seen: dict[str, dict] = {}
+
+    def fake_track_designs(camera, T, times, screws, designs, config, **kw):  # records, tracks nothing
+        seen[kind] = designs
+        return closed_loop.BeforeAfter({}, {}, {}, config, np.arange(len(T)), {})
+
+    monkeypatch.setattr(closed_loop, "track_designs", fake_track_designs)
+    (tmp_path / "spread_plate.py").write_text(FLIPPED)
+    data = json.loads(json.dumps(STUDY))
+    data["part_pose"] = {"position_mm": [0, 0, 0], "rotvec_deg": [180.0, 0.0, 0.0]}
+    data["optimizer"] = {"method": "multistart", "starts": 1}
+    data["tracking"]["runs"] = 1
+    study = write_toml(tmp_path / "flipped.toml", data)
+    out = tmp_path / "out"
+    kind = "run"
+    run_study(study, out, quiet=True, progress=False)
+    kind = "track"
+    assert main(["track", str(study), "--out", str(out)]) == 0
+    assert set(seen) == {"run", "track"}
+    for design in ("before", "after"):
+        ran, tracked = seen["run"][design][1], seen["track"][design][1]
+        assert [h.name for h in tracked] == [h.name for h in ran] == [f"H{i + 1}" for i in range(4)]
+        np.testing.assert_allclose([h.centre for h in tracked], [h.centre for h in ran], atol=1e-9)
+        np.testing.assert_allclose([h.axis for h in tracked], [h.axis for h in ran], atol=1e-12)
+        np.testing.assert_allclose([h.radius_mm for h in tracked], [h.radius_mm for h in ran], atol=1e-12)
+        assert all(h.axis[2] < -0.99 for h in tracked)          # entrances on the side the camera sees
+    # without results.json holes: extracted with the study's view direction, the same entrances
+    results = json.loads((out / "results.json").read_text())
+    results.pop("holes")
+    (out / "results.json").write_text(json.dumps(results))
+    assert main(["track", str(study), "--out", str(out)]) == 0
+    np.testing.assert_allclose(sorted(map(tuple, [h.centre for h in seen["track"]["before"][1]])),
+                               sorted(map(tuple, [h.centre for h in seen["run"]["before"][1]])), atol=1e-6)
