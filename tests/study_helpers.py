@@ -24,6 +24,20 @@ BASE = {
 }
 
 
+def plate_study(name: str) -> dict:
+    """A small study on ``study_plate.py`` (two movable holes, 12 poses of a straight approach, the four thesis
+    measures, max-min), as a fresh dict: the scene of the design-layer tests (robustness, memory budget)."""
+    return {
+        "study": {"name": name, "part": str(PLATE), "seed": 7},
+        "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 200.0},
+        "trajectory": {"kind": "straight_approach", "start": [-60.0, -80.0, 260.0], "end": [40.0, -40.0, 180.0],
+                       "target": [0.0, 0.0, 6.0], "n": 12, "duration_s": 2.0},
+        "design": {"parameters": {"x0": {"lower": -18.0, "upper": -4.0}, "y0": {"lower": -8.0, "upper": 12.0}}},
+        "objective": {"measures": ["fov", "focus", "resolution", "resolvability"], "aggregate": "sum",
+                      "combine": "maxmin", "rotation_length_mm": 50.0},
+    }
+
+
 def toml_value(v: object) -> str:
     if isinstance(v, dict):
         return "{" + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + "}"

@@ -48,7 +48,7 @@ import numpy as np
 
 from cadfeat.errors import CadfeatError
 
-__all__ = ["BOUNDS_COMMENT", "cqgi_parameters", "getparams", "is_cqgi_script", "load_cqgi_part"]
+__all__ = ["BOUNDS_COMMENT", "cad_shapes", "cqgi_parameters", "getparams", "is_cqgi_script", "load_cqgi_part"]
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 #: The bounds comment on a constant's line: ``# [lower, upper] unit  description``.
@@ -151,6 +151,21 @@ def _text_constants(model: Any, path: Path) -> dict[str, Any]:
     return out
 
 
+def cad_shapes(obj: Any) -> list[Any] | None:
+    """The ``cadquery.Shape`` objects of a build result: a Workplane's shapes, a Shape, or an OCP shape cast to
+    one; None for anything else. (``parts.load_part``'s scripts and CQGI's shown objects both go through it.)"""
+    import cadquery as cq
+    from OCP.TopoDS import TopoDS_Shape
+
+    if isinstance(obj, cq.Workplane):
+        return [v for v in obj.vals() if isinstance(v, cq.Shape)]
+    if isinstance(obj, cq.Shape):
+        return [obj]
+    if isinstance(obj, TopoDS_Shape):
+        return [cq.Shape.cast(obj)]
+    return None
+
+
 def _shown_shape(results: list[Any], where: str) -> Any:
     """The one solid among the objects the script passed to ``show_object`` (a ``cadquery.Solid``)."""
     import cadquery as cq
@@ -161,15 +176,7 @@ def _shown_shape(results: list[Any], where: str) -> Any:
         obj = r.shape
         if isinstance(getattr(obj, "wrapped", None), TopoDS_Shape) and not isinstance(obj, cq.Shape):
             obj = cq.Shape.cast(obj.wrapped)  # build123d Part / Solid / Compound
-        if isinstance(obj, cq.Workplane):
-            shapes = [v for v in obj.vals() if isinstance(v, cq.Shape)]
-        elif isinstance(obj, cq.Shape):
-            shapes = [obj]
-        elif isinstance(obj, TopoDS_Shape):
-            shapes = [cq.Shape.cast(obj)]
-        else:
-            shapes = []
-        solids += [s for shape in shapes for s in shape.Solids()]
+        solids += [s for shape in cad_shapes(obj) or [] for s in shape.Solids()]
     if len(solids) != 1:
         raise CadfeatError(f"{where} showed {len(results)} object(s) with {len(solids)} solid(s); a part must show "
                            "exactly one solid (show_object(result) once, result a Workplane / Shape / build123d Part)")

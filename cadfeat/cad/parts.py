@@ -312,18 +312,12 @@ def _fmt(params: Mapping[str, Any]) -> str:
 
 def _one_solid(result: Any, what: str) -> cq.Solid:
     """The single solid of a build result (Workplane, Shape or OCP shape)."""
-    import cadquery as cq
-    from OCP.TopoDS import TopoDS_Shape
+    from cadfeat.cad.cqgi_parts import cad_shapes
 
     if result is None:
         raise PartBuildError(f"{what} returned None; it must return a cadquery Workplane or Shape with one solid")
-    if isinstance(result, cq.Workplane):
-        shapes = [v for v in result.vals() if isinstance(v, cq.Shape)]
-    elif isinstance(result, cq.Shape):
-        shapes = [result]
-    elif isinstance(result, TopoDS_Shape):
-        shapes = [cq.Shape.cast(result)]
-    else:
+    shapes = cad_shapes(result)
+    if shapes is None:
         raise PartBuildError(f"{what} returned {type(result).__name__}; it must return a cadquery Workplane or "
                              "Shape with one solid")
     solids = [s for shape in shapes for s in shape.Solids()]

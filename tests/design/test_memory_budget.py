@@ -10,7 +10,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from study_helpers import PLATE
+from study_helpers import plate_study
 
 from cadfeat.design import memory
 from cadfeat.design.memory import MemoryBudgetError, check_fits, chunked, design_bytes
@@ -19,15 +19,7 @@ from cadfeat.design.robustness import camera_objectives, robustness
 from cadfeat.study.schema import LIMITS, load_study
 from cadfeat.study.setup import setup_study
 
-STUDY = {
-    "study": {"name": "memory_plate", "part": str(PLATE), "seed": 7},
-    "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 200.0},
-    "trajectory": {"kind": "straight_approach", "start": [-60.0, -80.0, 260.0], "end": [40.0, -40.0, 180.0],
-                   "target": [0.0, 0.0, 6.0], "n": 12, "duration_s": 2.0},
-    "design": {"parameters": {"x0": {"lower": -18.0, "upper": -4.0}, "y0": {"lower": -8.0, "upper": 12.0}}},
-    "objective": {"measures": ["fov", "focus", "resolution", "resolvability"], "aggregate": "sum",
-                  "combine": "maxmin", "rotation_length_mm": 50.0},
-}
+STUDY = plate_study("memory_plate")
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ import copy
 
 import numpy as np
 import pytest
-from study_helpers import PLATE
+from study_helpers import plate_study
 
 from cadfeat.design.problem import Problem
 from cadfeat.design.robustness import _rotvec_to_R, camera_objectives, robustness
@@ -20,15 +20,7 @@ from cadfeat.trajectory import Trajectory
 
 pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
 
-STUDY = {
-    "study": {"name": "robust_plate", "part": str(PLATE), "seed": 7},
-    "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 200.0},
-    "trajectory": {"kind": "straight_approach", "start": [-60.0, -80.0, 260.0], "end": [40.0, -40.0, 180.0],
-                   "target": [0.0, 0.0, 6.0], "n": 12, "duration_s": 2.0},
-    "design": {"parameters": {"x0": {"lower": -18.0, "upper": -4.0}, "y0": {"lower": -8.0, "upper": 12.0}}},
-    "objective": {"measures": ["fov", "focus", "resolution", "resolvability"], "aggregate": "sum",
-                  "combine": "maxmin", "rotation_length_mm": 50.0},
-}
+STUDY = plate_study("robust_plate")
 
 
 @pytest.fixture(scope="module")
