@@ -17,6 +17,16 @@ def _run_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, metavar="N", help="random seed (overrides study.seed and optimizer.seed)")
     parser.add_argument("--quiet", action="store_true", help="no progress display, only the summary")
     _force_arg(parser)
+    _track_arg(parser)
+
+
+def _track_arg(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--track", choices=("fast", "full", "off"), default=None,
+                       help="closed-loop check of the recommended design (default: the study's [tracking] check; "
+                            "fast: PnP + IEKF, 8 runs, <= 20 frames)")
+    group.add_argument("--no-track", dest="track", action="store_const", const="off",
+                       help="no closed-loop check (same as --track off)")
 
 
 def _force_arg(parser: argparse.ArgumentParser) -> None:
@@ -40,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     from cadfeat.study.run import run_study
 
     result = run_study(args.study, args.out, seed=args.seed, quiet=args.quiet, progress=not args.quiet,
-                       force=args.force)
+                       force=args.force, track=args.track)
     print(result.summary())
     return 0
 

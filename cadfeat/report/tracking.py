@@ -91,6 +91,20 @@ def _interval(entry: dict[str, Any]) -> str:
     return f"{fmt(entry['mean'], 3)} [{fmt(entry['ci_low'], 3)}, {fmt(entry['ci_high'], 3)}]"
 
 
+def report_note(tracking: dict[str, Any]) -> str:
+    """One sentence for the section: which check of cadfeat run produced it and what it cost (results.json
+    ``tracking.check``, ``study.closed_loop_check``; '' for ``cadfeat track``'s)."""
+    check = tracking.get("check") or {}
+    if not check:
+        return ""
+    if check.get("mode") == "fast":
+        return (f"This is cadfeat run's fast closed-loop check ({', '.join(m.upper() for m in check['estimators'])}; "
+                f"{check['runs']} runs on {check['frames']} frames; {check['seconds']} s); `cadfeat track` runs the "
+                "full check. Its verdict is decisive: an estimator significantly worse after the redesign means "
+                "'do not adopt'.")
+    return f"This is cadfeat run's full closed-loop check ({check['runs']} runs, {check['seconds']} s)."
+
+
 def tracking_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path], str]) -> str:
     """The section's HTML ('' when there is no tracking section)."""
     tracking = results.get("tracking")
@@ -106,6 +120,7 @@ def tracking_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path
              f"(same noise seeds and initial errors). Errors are counted after the first {s['settle_frames']} "
              "frames; intervals are 95 % bootstrap intervals of the mean over runs.</p>"]
     parts += [note(w, "warning") for w in tracking.get("warnings", [])]
+    parts += [f"<p>{esc(t)}</p>" for t in [report_note(tracking)] if t]  # cadfeat run's check (issue 17)
     lines = []
     for m, v in tracking.get("verdicts", {}).items():
         t = v["translation"]

@@ -36,6 +36,7 @@ from cadfeat.cad.features.identity import hole_names
 from cadfeat.cad.sandbox import build_time_limit
 from cadfeat.errors import CadfeatError
 from cadfeat.report.verdict import verdict_json
+from cadfeat.study import closed_loop_check
 from cadfeat.study.output_folder import staged_output
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
@@ -105,6 +106,7 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
         lines.append(f"  WARNING: {w}")
     for a in (results.get("preflight") or {}).get("assumptions", []):
         lines.append(f"  ASSUMED: {a}")
+    lines += closed_loop_check.summary_lines(results)
     failed = [c for c in results["constraints"] if not c["ok"]]
     verdict = results.get("verdict")
     lines.append(f"  kept requirements: {len(results['constraints']) - len(failed)} of {len(results['constraints'])} "
@@ -140,7 +142,8 @@ def default_out_dir(config: StudyConfig) -> Path:
 
 
 def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int | None = None,
-              quiet: bool = False, progress: bool = True, force: bool = False) -> StudyResult:
+              quiet: bool = False, progress: bool = True, force: bool = False, track: str | None = None
+              ) -> StudyResult:
     """Run a study (a TOML path, a dict or a ``StudyConfig``) and write its outputs to ``out_dir``
     (default ``exports/<study name>/``): original.step, optimised.step, optimised.stl, results.json and the
     report. ``seed`` overrides the study's seeds. Raises ``CadfeatError`` (nothing written) on bad input or a
@@ -148,10 +151,11 @@ def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int
 
     The output folder is checked before any work (``cadfeat.study.output_folder``): a non-empty folder cadfeat
     did not create is refused unless ``force`` (then cadfeat's files are added, other files untouched).
+    ``track``: the closed-loop check's mode, fast | full | off (default: the study's; ``study.closed_loop_check``).
     Every part-script import and CAD build runs in a worker process within ``[study] build_timeout_s``.
     """
 
-    config = _resolve(path_or_dict, seed)
+    config = closed_loop_check.with_mode(_resolve(path_or_dict, seed), track)
     out = out_dir if out_dir is not None else default_out_dir(config)
     with staged_output(out, force) as stage, build_time_limit(config.study.build_timeout_s), \
             StudyProgress(config.study.name, enabled=progress and not quiet) as prog:
@@ -194,12 +198,7 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
                                                                  "holes.csv")]
     results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
     results["versions"] = versions()
-    if config.tracking is not None:  # [tracking]: the closed loop on both designs (cadfeat.vision)
-        from cadfeat.study.tracking import run_tracking
-
-        with prog.phase("tracking"):
-            results["tracking"] = run_tracking(config, {"before": (shapes["shape0"], shapes["holes0"]),
-                                                        "after": (shapes["shape1"], shapes["holes1"])}, stage)
+    closed_loop_check.attach(config, results, shapes, stage, prog)  # the closed loop confirms (issue 17)
     results["verdict"] = verdict_json(plain(results))
     write_json(stage / "results.json", results)
     _report(stage, results, shapes, prog)

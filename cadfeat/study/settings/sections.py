@@ -16,11 +16,13 @@ from cadfeat.vision.closed_loop import TrackingConfig
 from cadfeat.vision.estimate import FilterTuning
 from cadfeat.vision.images import SensorModel
 
-__all__ = ["SYMMETRIES", "TRACKING_ESTIMATORS", "ConstraintSettings", "RobustnessSettings", "ShopSettings",
-           "TrackingSettings"]
+__all__ = ["CHECK_MODES", "SYMMETRIES", "TRACKING_ESTIMATORS", "ConstraintSettings", "RobustnessSettings",
+           "ShopSettings", "TrackingSettings"]
 
 SYMMETRIES = ("none", "x", "y", "xy")
 TRACKING_ESTIMATORS = ("ekf", "iekf", "pnp")
+CHECK_MODES = ("fast", "full", "off")
+"""``[tracking] check``: the closed loop inside ``cadfeat run`` (``cadfeat.study.closed_loop_check``)."""
 
 
 class ConstraintSettings(Settings):
@@ -80,6 +82,9 @@ class TrackingSettings(Settings):
     iterations n and threshold τ; every ``frame_step``-th trajectory sample; statistics after ``settle_frames``;
     convergence bounds; association gate (px); rim ellipse-centre model; significance ``alpha`` of the paired
     test, and the smallest change of the median RMS error (percent of the error before) that a verdict counts.
+    ``check``: the closed loop inside ``cadfeat run`` — "fast" (PnP and IEKF, few runs and frames), "full" (these
+    settings) or "off"; unset: full when the study has a ``[tracking]`` table, else fast
+    (``cadfeat.study.closed_loop_check``).
     """
 
     estimators: Tuple[Literal["ekf", "iekf", "pnp"]] = choice(
@@ -104,6 +109,9 @@ class TrackingSettings(Settings):
     rim_model: bool = boolean(_CL.rim_model)
     alpha: float = number(_CL.alpha, 0.0, 0.5, lo_open=True)
     min_change_percent: float = number(100.0 * _CL.min_change, 0.0, 100.0)
+    check: Literal["fast", "full", "off"] | None = choice(
+        None, f"one of {', '.join(CHECK_MODES)}", description="the closed loop inside cadfeat run (unset: full "
+        "with a [tracking] table, else fast)")
 
     @model_validator(mode="before")
     @classmethod

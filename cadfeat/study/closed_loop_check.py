@@ -1,0 +1,167 @@
+"""The closed-loop confirmation inside ``cadfeat run`` (issue 17): does the recommended design track better?
+
+After the export, ``cadfeat run`` renders the original and the recommended design along the study's trajectory,
+detects the holes and tracks the part pose (``study.tracking.run_tracking``, ``cadfeat.vision.closed_loop``),
+and writes the results.json ``tracking`` section. The verdict's tracking rule is decisive
+(``report.verdict``): an estimator that tracks significantly worse after the redesign makes the decision
+"do not adopt", whatever the proxy objectives say.
+
+Modes (``[tracking] check``, ``cadfeat run --track MODE`` / ``--no-track``):
+
+- ``fast`` (the default for a study without a ``[tracking]`` table): PnP and the IEKF, ``FAST_RUNS`` paired
+  Monte-Carlo runs on at most ``FAST_FRAMES`` frames of the trajectory (every k-th sample), statistics after
+  ``FAST_SETTLE`` frames; the sensor, initial error and filter tuning are the study's ``[tracking]`` values
+  (or the vision defaults). 8 runs is the fewest for which a two-sided Wilcoxon test can reach p < 0.01
+  (2/2⁸ = 0.0078). On the flagship it costs ~10 s (README, ``benchmarks/bench_study.py``).
+- ``full``: the study's ``[tracking]`` settings as they are (the default when the study has that table; what
+  ``cadfeat track`` runs).
+- ``off``: no closed loop (the verdict then rests on the proxies).
+
+Precedence: the command line, then the study's ``check``, then the environment variable ``CADFEAT_TRACKING_CHECK``
+(fast | full | off; read for studies without a ``[tracking]`` table only — the test suite sets it to ``off`` so
+its many small studies stay fast), then the default above.
+
+"Whenever the part can be rendered": the fast check is skipped — with a warning in results.json and the
+printout, never an error after the optimisation — when fewer than ``MIN_HOLES`` holes exist (a pose needs at
+least 3 points) or the renderer / detector fails (e.g. no off-screen OpenGL). A requested ``full`` check fails
+loudly, as ``cadfeat track`` does.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from cadfeat.errors import CadfeatError
+from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
+from cadfeat.study.settings.sections import CHECK_MODES
+
+ENV = "CADFEAT_TRACKING_CHECK"
+FAST_ESTIMATORS = ("pnp", "iekf")
+FAST_RUNS = 8
+FAST_FRAMES = 20
+FAST_SETTLE = 3
+MIN_HOLES = 3
+SKIPPED = "closed-loop check skipped"
+
+
+def with_mode(config: StudyConfig, mode: str | None) -> StudyConfig:
+    """``config`` with ``[tracking] check = mode`` (the command line's ``--track``/``--no-track``); None keeps it."""
+    import dataclasses
+
+    if mode is None:
+        return config
+    if mode not in CHECK_MODES:
+        raise StudyError(f"{config.label}: --track {mode!r} is not allowed; allowed: {', '.join(CHECK_MODES)}")
+    spec = config.tracking or TrackingSpec(seed=config.study.seed)
+    return dataclasses.replace(config, tracking=spec.replace(check=mode))
+
+
+def check_mode(config: StudyConfig) -> str:
+    """The mode this run uses (module docstring: precedence)."""
+    spec = config.tracking
+    if spec is not None and spec.check is not None:
+        return spec.check
+    if spec is not None:
+        return "full"
+    env = os.environ.get(ENV, "").strip().lower()
+    if env and env not in CHECK_MODES:
+        raise StudyError(f"environment variable {ENV}={env!r} is not allowed; allowed: {', '.join(CHECK_MODES)}")
+    return env or "fast"
+
+
+def fast_spec(config: StudyConfig, n_samples: int) -> TrackingSpec:
+    """The fast check's settings: the study's sensor/tuning with PnP + IEKF, ``FAST_RUNS`` runs, at most
+    ``FAST_FRAMES`` frames and ``FAST_SETTLE`` settling frames (fewer when the trajectory is short)."""
+    base = config.tracking or TrackingSpec(seed=config.study.seed)
+    step = max(base.frame_step, math.ceil(n_samples / FAST_FRAMES))
+    frames = len(range(0, n_samples, step))
+    return base.replace(estimators=FAST_ESTIMATORS, runs=FAST_RUNS, frame_step=step,
+                        settle_frames=max(0, min(base.settle_frames, FAST_SETTLE, frames - 3)))
+
+
+def attach(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, Any], stage: Path | None,
+           progress: Any = None) -> None:
+    """Run this study's closed-loop check and put it into ``results``: the ``tracking`` section (with a ``check``
+    block: mode, runs, frames, estimators, seconds), nothing when the mode is ``off``, or a ``warnings`` line
+    saying why it was skipped. ``shapes``: ``pipeline.compute``'s (shape0/holes0 the original, shape1/holes1 the
+    recommended design, setup); ``stage``: the output folder (the frames' PNGs)."""
+    section, skipped = closed_loop_check(config, shapes, stage, progress)
+    if section is not None:
+        results["tracking"] = section
+    if skipped:
+        results.setdefault("warnings", []).append(skipped)
+
+
+def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Path | None,
+                      progress: Any = None) -> tuple[dict[str, Any] | None, str | None]:
+    """(the results.json ``tracking`` section or None, why it was skipped or None) — ``attach``."""
+    from cadfeat.study.tracking import run_tracking
+
+    mode = check_mode(config)
+    if mode == "off":
+        return None, None
+    designs = {"before": (shapes["shape0"], shapes["holes0"]), "after": (shapes["shape1"], shapes["holes1"])}
+    if mode == "full":
+        spec = config.tracking or TrackingSpec(seed=config.study.seed)
+    else:
+        spec = fast_spec(config, len(shapes["setup"].trajectory.times_s))
+    few = min(len(shapes["holes0"]), len(shapes["holes1"]))
+    if mode == "fast" and few < MIN_HOLES:
+        return None, f"{SKIPPED}: the part has {few} hole(s); a pose needs at least {MIN_HOLES}"
+    t0 = time.perf_counter()
+    try:
+        with _phase(progress):
+            section = run_tracking(config, designs, stage, spec)
+    except (CadfeatError, ImportError, RuntimeError, OSError, ValueError) as exc:
+        if mode == "full":
+            raise
+        return None, f"{SKIPPED}: the part could not be rendered and tracked ({type(exc).__name__}: {exc})"
+    section["check"] = {"mode": mode, "runs": spec.runs, "frames": section["settings"]["frames"],
+                        "estimators": list(spec.estimators), "seconds": round(time.perf_counter() - t0, 2)}
+    return section, None
+
+
+def _phase(progress: Any) -> Any:
+    import contextlib
+
+    return progress.phase("tracking") if progress is not None else contextlib.nullcontext()
+
+
+def summary_lines(results: Mapping[str, Any]) -> list[str]:
+    """The printout's lines about the closed loop (``run.summarise``): mode, cost and each estimator's paired
+    verdict with its p-values, or why it was skipped / that it was off."""
+    tr = results.get("tracking")
+    if not isinstance(tr, dict):
+        if any(str(w).startswith(SKIPPED) for w in results.get("warnings", [])):
+            return []  # the warning line says why
+        return ["  closed loop: off (the verdict rests on the predicted objectives; `cadfeat run --track fast` "
+                "or `cadfeat track` confirms it)"]
+    check = tr.get("check") or {}
+    head = (f"  closed loop ({check.get('mode', 'full')}: {check.get('runs', '?')} paired runs, "
+            f"{check.get('frames', '?')} frames, {check.get('seconds', '?')} s), after vs before:")
+    lines = [head]
+    for m, v in (tr.get("verdicts") or {}).items():
+        t, r = v.get("translation", {}), v.get("rotation", {})
+        rms = _rms(tr, m)
+        lines.append(f"    {m.upper():<5} {v.get('verdict')} (translation p = {_p(t)}, rotation p = {_p(r)}){rms}")
+    return lines
+
+
+def _p(v: Mapping[str, Any]) -> str:
+    p = v.get("p_value")
+    return "n/a" if p is None else f"{p:.2g}"
+
+
+def _rms(tr: Mapping[str, Any], m: str) -> str:
+    """'; RMS 0.039 → 0.034 mm, 0.027° → 0.027°' from the designs' Monte-Carlo means."""
+    try:
+        b, a = (tr["designs"][k]["estimators"][m] for k in ("before", "after"))
+        return (f"; RMS {b['trans_mm_rms']['mean']:.4f} → {a['trans_mm_rms']['mean']:.4f} mm, "
+                f"{b['rot_deg_rms']['mean']:.4f}° → {a['rot_deg_rms']['mean']:.4f}°")
+    except (KeyError, TypeError):
+        return ""

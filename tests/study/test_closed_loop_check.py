@@ -1,0 +1,120 @@
+"""cadfeat run's closed-loop check (``study.closed_loop_check``, issue 17): on by default, fast, and decisive.
+
+The decisive case is built from the physics, not patched in: a plate whose four target holes grow *and* huddle
+together as one parameter rises (``size_mm``). The study optimises the image resolution alone (g_RES: larger
+holes are better), so the optimiser picks the largest, most clustered holes; four points 8 mm apart constrain the
+pose far less than the original's 24 mm spread (the closed loop's own rendered images and detector say so), and
+the verdict must then be "do not adopt" although every proxy objective improved.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+cq = pytest.importorskip("cadquery")
+
+from cadfeat.study import closed_loop_check as clc  # noqa: E402
+from cadfeat.study.schema import StudyError, load_study  # noqa: E402
+from tests.study_helpers import write_toml  # noqa: E402
+
+PART = '''PARAMETERS = {"size_mm": {"default": 1.5, "bounds": (1.5, 2.5), "unit": "mm",
+                           "description": "target hole radius; the holes huddle together as they grow"}}
+
+
+def build(size_mm=1.5):
+    import cadquery as cq
+
+    s = 48.0 - 16.0 * size_mm          # half spread: 24 mm at r 1.5, 8 mm at r 2.5
+    pts = [(-s, -0.75 * s), (s, -0.75 * s), (s, 0.75 * s), (-s, 0.75 * s)]
+    return cq.Workplane("XY").box(100, 80, 5).faces(">Z").workplane().pushPoints(pts).hole(3 * size_mm + 1)
+'''
+
+STUDY = {
+    "study": {"name": "huddle", "part": "huddle_plate.py", "seed": 3},
+    "camera": {"fx": 420.0, "fy": 420.0, "cx": 160.0, "cy": 120.0, "width": 320, "height": 240,
+               "focus_distance_mm": 300.0},
+    "trajectory": {"kind": "orbit_arc", "centre": [0, 0, 2.5], "radius_mm": 300.0, "elevation_deg": 70.0,
+                   "azimuth_start_deg": -110.0, "azimuth_end_deg": -70.0, "n": 10, "duration_s": 1.0},
+    "design": {"parameters": ["size_mm"]},
+    "objective": {"measures": ["resolution"]},
+    "optimizer": {"method": "multistart", "starts": 1, "maxiter": 10},
+    "shop": {"hole_sizes": [5.5, 6.0, 7.0, 8.0, 8.5]},
+    "tracking": {"check": "fast", "noise_grey": 4.0, "initial_error_mm": 5.0, "initial_error_deg": 1.0,
+                 "r_px2": 0.05, "q_rate_mm2_s2": 10.0, "q_omega_rad2_s2": 1e-4},
+}
+
+
+def _study(tmp_path, **tracking):
+    (tmp_path / "huddle_plate.py").write_text(PART)
+    data = json.loads(json.dumps(STUDY))
+    data["tracking"].update(tracking)
+    return write_toml(tmp_path / "huddle.toml", data)
+
+
+def test_run_confirms_by_the_closed_loop_and_the_verdict_rejects(tmp_path, capsys):
+    from cadfeat.cli import main
+
+    out = tmp_path / "out"
+    assert main(["run", str(_study(tmp_path)), "--out", str(out), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    results = json.loads((out / "results.json").read_text())
+    variables = {v["name"]: v for v in results["variables"]}
+    assert variables["size_mm"]["after"] > 2.2  # the proxy (resolution) drove the holes together
+    assert results["objectives"]["after"]["g_RES"] > results["objectives"]["before"]["g_RES"]
+    tr = results["tracking"]
+    assert tr["check"]["mode"] == "fast" and tr["check"]["runs"] == clc.FAST_RUNS
+    assert tr["settings"]["estimators"] == ["pnp", "iekf"] and tr["settings"]["frames"] <= clc.FAST_FRAMES
+    for design in tr["designs"].values():  # the Monte-Carlo runs differ (a paired test on real variability)
+        assert design["detection_rate"] and min(design["detection_rate"].values()) > 0.5  # seen, only clustered
+        e = design["estimators"]["pnp"]["trans_mm_rms"]
+        assert e["ci_high"] - e["ci_low"] > 1e-3 * e["mean"]
+    worse = [m for m, v in tr["verdicts"].items() if v["verdict"] == "worse"]
+    assert worse, tr["verdicts"]
+    for m in worse:  # the clustered holes track worse: after's RMS error above before's
+        b, a = (tr["designs"][k]["estimators"][m] for k in ("before", "after"))
+        assert a["trans_mm_rms"]["mean"] + a["rot_deg_rms"]["mean"] > b["trans_mm_rms"]["mean"] + \
+            b["rot_deg_rms"]["mean"]
+    verdict = results["verdict"]
+    assert verdict["decision"] == "do not adopt"
+    assert any(f["rule"] == "tracking" and f["outcome"] == "do not adopt" for f in verdict["findings"])
+    assert "closed loop (fast: 8 paired runs" in text and "worse (translation p = " in text
+    assert "verdict: do not adopt" in text
+    html = (out / "report.html").read_text()
+    assert "fast closed-loop check" in html
+
+
+def test_mode_precedence_and_fast_settings(tmp_path, monkeypatch):
+    """The command line, then [tracking] check, then a [tracking] table (full), then the environment, then fast."""
+    with_table = load_study(_study(tmp_path, check="off"))
+    assert clc.check_mode(with_table) == "off"
+    assert clc.check_mode(clc.with_mode(with_table, "full")) == "full"
+    data = json.loads(json.dumps(STUDY))
+    data["tracking"].pop("check")
+    (tmp_path / "huddle_plate.py").write_text(PART)
+    assert clc.check_mode(load_study(write_toml(tmp_path / "t.toml", data))) == "full"
+    del data["tracking"]
+    bare = load_study(write_toml(tmp_path / "b.toml", data))
+    monkeypatch.delenv(clc.ENV, raising=False)
+    assert clc.check_mode(bare) == "fast"
+    monkeypatch.setenv(clc.ENV, "off")
+    assert clc.check_mode(bare) == "off" and clc.check_mode(clc.with_mode(bare, "fast")) == "fast"
+    monkeypatch.setenv(clc.ENV, "sometimes")
+    with pytest.raises(StudyError, match="CADFEAT_TRACKING_CHECK.*allowed: fast, full, off"):
+        clc.check_mode(bare)
+    with pytest.raises(StudyError, match=r"tracking\.check.*allowed: one of fast, full, off"):
+        load_study(_study(tmp_path, check="quick"))
+    spec = clc.fast_spec(bare, 40)  # every 2nd of 40 samples: 20 frames
+    assert spec.frame_step == 2 and len(range(0, 40, spec.frame_step)) <= clc.FAST_FRAMES
+    assert spec.runs == clc.FAST_RUNS and spec.estimators == ("pnp", "iekf") and spec.seed == 3
+    assert clc.fast_spec(bare, 5).settle_frames == 2  # a short trajectory keeps 3 frames to score
+
+
+def test_no_track_turns_the_check_off(tmp_path, monkeypatch):
+    from cadfeat.cli import build_parser
+
+    args = build_parser().parse_args(["run", "s.toml", "--no-track"])
+    assert args.track == "off"
+    assert build_parser().parse_args(["run", "s.toml", "--track", "full"]).track == "full"
+    assert clc.summary_lines({"warnings": []})[0].startswith("  closed loop: off")
