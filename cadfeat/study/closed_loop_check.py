@@ -47,6 +47,7 @@ FAST_FRAMES = 20
 FAST_SETTLE = 3
 MIN_HOLES = 3
 SKIPPED = "closed-loop check skipped"
+TRACKED_MIN = 0.5
 
 
 def with_mode(config: StudyConfig, mode: str | None) -> StudyConfig:
@@ -123,7 +124,25 @@ def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Pat
         return None, f"{SKIPPED}: the part could not be rendered and tracked ({type(exc).__name__}: {exc})"
     section["check"] = {"mode": mode, "runs": spec.runs, "frames": section["settings"]["frames"],
                         "estimators": list(spec.estimators), "seconds": round(time.perf_counter() - t0, 2)}
+    _inconclusive(section)
     return section, None
+
+
+def _inconclusive(section: dict[str, Any]) -> None:
+    """When neither design is tracked — at least 3 holes detected in fewer than ``TRACKED_MIN`` of the frames of
+    both (e.g. holes a few pixels wide in a small sensor's image) — the paired test compares two failures: its
+    verdicts are kept under ``check.verdicts_not_used`` and the verdict's tracking rule stays silent (a warning
+    says why). One design tracked and the other not is a real difference and stays decisive."""
+    frames = max(int(section["settings"]["frames"]), 1)
+    tracked = {k: 1.0 - float(d.get("frames_under_3_holes") or 0.0) / frames for k, d in section["designs"].items()}
+    if tracked and max(tracked.values()) < TRACKED_MIN and section.get("verdicts"):
+        section["check"]["verdicts_not_used"] = section["verdicts"]
+        section["verdicts"] = {}
+        share = ", ".join(f"{k} {100 * v:.0f} %" for k, v in tracked.items())
+        section.setdefault("warnings", []).append(
+            f"the closed loop detects 3 or more holes in too few frames of either design (frames tracked: {share}; "
+            f"needed: {100 * TRACKED_MIN:.0f} %): no tracking verdict (the holes are too small or hidden in this "
+            "camera's images)")
 
 
 def _phase(progress: Any) -> Any:
@@ -144,7 +163,7 @@ def summary_lines(results: Mapping[str, Any]) -> list[str]:
     check = tr.get("check") or {}
     head = (f"  closed loop ({check.get('mode', 'full')}: {check.get('runs', '?')} paired runs, "
             f"{check.get('frames', '?')} frames, {check.get('seconds', '?')} s), after vs before:")
-    lines = [head]
+    lines = [head] + [f"    WARNING: {w}" for w in tr.get("warnings", []) if "no tracking verdict" in str(w)]
     for m, v in (tr.get("verdicts") or {}).items():
         t, r = v.get("translation", {}), v.get("rotation", {})
         rms = _rms(tr, m)

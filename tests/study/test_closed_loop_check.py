@@ -118,3 +118,20 @@ def test_no_track_turns_the_check_off(tmp_path, monkeypatch):
     assert args.track == "off"
     assert build_parser().parse_args(["run", "s.toml", "--track", "full"]).track == "full"
     assert clc.summary_lines({"warnings": []})[0].startswith("  closed loop: off")
+
+
+def test_two_untracked_designs_give_no_verdict():
+    """Holes never seen in either design (a small sensor): the paired test would compare two failures — no
+    tracking verdict, a warning; one design tracked and the other not stays decisive."""
+    def section(under_before, under_after):
+        return {"settings": {"frames": 20}, "verdicts": {"iekf": {"verdict": "worse"}}, "check": {}, "warnings": [],
+                "designs": {"before": {"frames_under_3_holes": under_before},
+                            "after": {"frames_under_3_holes": under_after}}}
+
+    s = section(20.0, 18.0)
+    clc._inconclusive(s)
+    assert s["verdicts"] == {} and s["check"]["verdicts_not_used"]["iekf"]["verdict"] == "worse"
+    assert "no tracking verdict" in s["warnings"][0] and "after 10 %" in s["warnings"][0]
+    s = section(0.0, 20.0)  # the redesign hides the holes: a real "worse"
+    clc._inconclusive(s)
+    assert s["verdicts"]["iekf"]["verdict"] == "worse" and not s["warnings"]

@@ -23,7 +23,11 @@ from cadfeat.design.objectives import (
 from cadfeat.design.optimize import LOCAL_SOLVERS, METHODS, OptimizerConfig
 from cadfeat.study.settings._base import Settings, Tuple, boolean, choice, integer, number, reject, seed_from_context
 
-__all__ = ["FOV_MEASURES", "LIMITS", "SCORES", "ObjectiveSettings", "OptimizerSettings"]
+__all__ = ["FOV_MEASURES", "LIMITS", "SCORES", "STUDY_MEASURES", "ObjectiveSettings", "OptimizerSettings"]
+
+STUDY_MEASURES = ("pose",)
+"""``[objective] measures`` of a study that lists none (issue 17): g_POSE, the predicted pose error. The design
+layer's ``ObjectiveConfig.measures`` keeps the four thesis measures; the thesis studies list theirs."""
 
 FOV_MEASURES = ("cone", "image")
 SCORES = ("movable", "all")
@@ -54,7 +58,8 @@ _OC, _OPT = ObjectiveConfig, OptimizerConfig  # their defaults are the sections'
 class ObjectiveSettings(Settings):
     """``[objective]``: how the measures become objectives (``cadfeat.design.objectives.ObjectiveConfig``)."""
 
-    measures: Tuple[str] = choice(_OC.measures, f"a non-empty list of distinct names from {', '.join(MEASURES)}")
+    measures: Tuple[str] = choice(STUDY_MEASURES, f"a non-empty list of distinct names from {', '.join(MEASURES)}",
+                                  description='default ["pose"] (g_POSE); the thesis studies list the thesis measures')
     aggregate: str = choice(_OC.aggregate, AGGREGATES)
     combine: str = choice(_OC.combine, COMBINES)
     weights: dict[str, float] = choice({}, "a table measure = number ≥ 0, measures from objective.measures")
