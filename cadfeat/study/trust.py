@@ -21,6 +21,10 @@ OBJECTIVE_UNITS = {"g_FOV": "cone margin 1 − cos (dimensionless)", "g_FOC": "f
 
 def objective_unit(name: str, objective_config: Any) -> str:
     """The unit of an aggregated objective, e.g. "px, summed over the poses"."""
+    if name == "g_POSE":  # minus the predicted pose error, by pose_aggregate (not by aggregate)
+        how = getattr(objective_config, "pose_aggregate", "rms")
+        return {"rms": "mm (minus the predicted pose error), rms over the poses",
+                "worst": "mm (minus the predicted pose error), worst pose"}.get(how, "log det of the pose information")
     unit = OBJECTIVE_UNITS.get(name, "")
     if name == "g_FOV" and getattr(objective_config, "fov_measure", "cone") == "image":
         unit = "px"

@@ -72,3 +72,13 @@ def test_pose_measure_and_its_aggregate(tmp_path):
         load_study(study(tmp_path, objective={"measures": ["pose"], "pose_aggregate": "median"}))
     assert str(err.value).count("\n") == 0
     assert "objective.pose_aggregate: 'median' is not allowed; allowed: rms, worst, logdet" in str(err.value)
+
+
+def test_new_studies_default_to_g_pose(tmp_path):
+    """Issue 17: a study that lists no measures optimises g_POSE; the thesis studies list the thesis measures
+    (and so reproduce the thesis), the flagship lists g_POSE."""
+    cfg = load_study(study(tmp_path, objective={"measures": None}))
+    assert list(cfg.objective.measures) == ["pose"] and cfg.objective.names == ["g_POSE"]
+    for f in sorted((ROOT / "studies").glob("*.toml")):
+        measures = tomllib.loads(f.read_text())["objective"]["measures"]
+        assert ("pose" in measures) == (f.stem == "nema17_mount"), f.name
