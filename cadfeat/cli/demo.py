@@ -1,5 +1,6 @@
-"""``make demo`` / ``python -m cadfeat.cli.demo``: run the flagship study (the NEMA 17 motor mount) and say where
-the revised STEP/STL files and the report are, with a short before/after summary."""
+"""``make demo`` / ``python -m cadfeat.cli.demo``: run the flagship study (the NEMA 17 motor mount, designed for
+pose accuracy with g_POSE and confirmed in the closed loop by ``cadfeat run``'s fast check) and say where the
+revised STEP/STL files and the report are, with a short before/after summary."""
 
 from __future__ import annotations
 

@@ -114,7 +114,7 @@ def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Pat
     few = min(len(shapes["holes0"]), len(shapes["holes1"]))
     if mode == "fast" and few < MIN_HOLES:
         return None, f"{SKIPPED}: the part has {few} hole(s); a pose needs at least {MIN_HOLES}"
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         with _phase(progress):
             section = run_tracking(config, designs, stage, spec)
@@ -123,7 +123,8 @@ def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Pat
             raise
         return None, f"{SKIPPED}: the part could not be rendered and tracked ({type(exc).__name__}: {exc})"
     section["check"] = {"mode": mode, "runs": spec.runs, "frames": section["settings"]["frames"],
-                        "estimators": list(spec.estimators), "seconds": round(time.perf_counter() - t0, 2)}
+                        "estimators": list(spec.estimators), "seconds": round(time.perf_counter() - t0, 2),
+                        "cpu_seconds": round(time.process_time() - c0, 2)}
     _inconclusive(section)
     return section, None
 
