@@ -173,8 +173,12 @@ def summary_lines(results: Mapping[str, Any]) -> list[str]:
 
 
 def _p(v: Mapping[str, Any]) -> str:
+    """'0.0078', with ' (change under 5 %)' when significant but too small to count (``metrics.paired_verdict``)."""
     p = v.get("p_value")
-    return "n/a" if p is None else f"{p:.2g}"
+    if p is None:
+        return "n/a"
+    small = p < v.get("alpha", 0.05) and v.get("verdict") == "no significant difference"
+    return f"{p:.2g}" + (f" (change under {100 * v.get('min_change', 0.0):.0f} %)" if small else "")
 
 
 def _rms(tr: Mapping[str, Any], m: str) -> str:
