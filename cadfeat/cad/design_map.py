@@ -10,6 +10,10 @@ Linearity: the finite-difference map is checked against a second build at a larg
 × ``step_mm``): the map is *linear* in a parameter when the extracted centres, radii and axes at that step
 equal the linear prediction within ``LINEAR_TOL_MM`` (1e-6 mm; axes 1e-9 rad).
 
+Hole depth and bore: the map also carries ∂depth/∂P and ∂bore radius/∂P (``dD``, ``dB``), read from the same
+builds (issue 17: a part script's hole depth and rim chamfer are design variables: a chamfer widens the rim, the
+radius the camera sees, and leaves the bore, the drill). Their linearity is checked with the rest.
+
 Costs: 1 + 3P builds + extractions for P parameters.
 """
 
@@ -35,7 +39,8 @@ LINEAR_TOL_MM = 1e-6
 LINEAR_TOL_RAD = 1e-9
 """Largest axis deviation (rad) from the linear prediction at the check step."""
 MOVE_TOL = 1e-7
-"""A parameter moves a hole when |∂centre|, |∂radius| (mm per unit) or |∂axis| (per unit) exceeds this."""
+"""A parameter moves a hole when |∂centre|, |∂radius|, a blind hole's |∂depth| (mm per unit) or |∂axis| (per unit)
+exceeds this."""
 
 
 @dataclass(frozen=True)
@@ -48,7 +53,8 @@ class DesignMap:
     ``linear_by``: parameter → whether the map is linear in it (checked at ``check_steps``), ``linear``:
     all of them; ``deviation_mm``: parameter → the largest deviation from the linear prediction at the
     check step; ``n_builds``: CAD builds spent; ``outline_rates``: per hole, how its host face's outline moves
-    with the parameters (``cadfeat.design.outline_motion.OutlineRates``, None where it cannot be paired).
+    with the parameters (``cadfeat.design.outline_motion.OutlineRates``, None where it cannot be paired);
+    ``dD`` (N, P) ∂depth/∂parameter and ``dB`` (N, P) ∂bore radius/∂parameter (mm per unit; None: not read).
     """
 
     part_name: str
@@ -66,6 +72,8 @@ class DesignMap:
     n_builds: int
     unused: list[str] = field(default_factory=list)
     outline_rates: list[Any] | None = None
+    dD: np.ndarray | None = None
+    dB: np.ndarray | None = None
 
     @property
     def linear(self) -> bool:
@@ -112,6 +120,11 @@ def _arrays(holes: Sequence[Hole]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     from cadfeat.cad.features import holes_to_arrays
 
     return holes_to_arrays(holes)
+
+
+def _form(holes: Sequence[Hole]) -> tuple[np.ndarray, np.ndarray]:
+    """(depth (N,) mm, bore radius (N,) mm) of ``holes``."""
+    return (np.array([float(h.depth_mm) for h in holes]), np.array([float(h.bore_radius_mm) for h in holes]))
 
 
 def _matched(part: Part, params: dict[str, Any], reference: Sequence[Hole], what: str,
@@ -163,6 +176,9 @@ def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = 
     c0, a0, r0 = _arrays(holes0)
     n, p = len(holes0), len(names)
     dC, dA, dR = np.zeros((n, 3, p)), np.zeros((n, 3, p)), np.zeros((n, p))
+    dD, dB = np.zeros((n, p)), np.zeros((n, p))
+    form0 = _form(holes0)
+    through0 = np.array([bool(h.through) for h in holes0], dtype=bool)  # a through hole's depth is its wall's
     steps, checks = np.zeros(p), np.zeros(p)
     moved_by: dict[str, list[int]] = {}
     linear_by: dict[str, bool] = {}
@@ -184,37 +200,42 @@ def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = 
         span = lo + hi
         spans[j] = span
         dC[..., j], dA[..., j], dR[:, j] = ((u - v) / span for u, v in zip(plus, minus, strict=True))
+        dD[:, j], dB[:, j] = ((u - v) / span for u, v in zip(_form(holes_plus) if holes_plus else form0,
+                                                             _form(holes_minus) if holes_minus else form0,
+                                                             strict=True))
         steps[j] = span / 2 if lo and hi else span
         moved = (np.abs(dC[..., j]).max(axis=-1) > MOVE_TOL) | (np.abs(dA[..., j]).max(axis=-1) > MOVE_TOL) \
-            | (np.abs(dR[:, j]) > MOVE_TOL)
+            | (np.abs(dR[:, j]) > MOVE_TOL) | ((np.abs(dD[:, j]) > MOVE_TOL) & ~through0)
         moved_by[name] = np.flatnonzero(moved).tolist()
         linear_by[name], deviation[name], checks[j] = _check_linear(
-            part, x, name, holes0, (dC[..., j], dA[..., j], dR[:, j]), check_factor * step_mm, match_tol_mm,
-            timeout_s)
+            part, x, name, holes0, (dC[..., j], dA[..., j], dR[:, j], dD[:, j], dB[:, j]), check_factor * step_mm,
+            match_tol_mm, timeout_s)
         builds += 1
     unused = [nm for nm in names if not moved_by[nm]]
     from cadfeat.design.outline_motion import outline_rates
 
     return DesignMap(part.name, names, {nm: float(x[nm]) for nm in names}, holes0, dC, dA, dR, steps, checks,
                      moved_by, linear_by, deviation, builds, unused,
-                     outline_rates(holes0, sides[0], sides[1], spans))
+                     outline_rates(holes0, sides[0], sides[1], spans), dD, dB)
 
 
 def _check_linear(part: Part, x: dict[str, Any], name: str, holes0: Sequence[Hole],
-                  grads: tuple[np.ndarray, np.ndarray, np.ndarray], big_step: float,
+                  grads: tuple[np.ndarray, ...], big_step: float,
                   match_tol_mm: float, timeout_s: float | None) -> tuple[bool, float, float]:
-    """Build at a larger step; (linear?, max deviation mm, the signed step used)."""
+    """Build at a larger step; (linear?, max deviation mm of centres, radii, depths and bores, the signed step)."""
     lo, hi = _steps(part, name, x[name], big_step)
     h = hi if hi >= lo else -lo
-    gc, ga, gr = grads
+    gc, ga, gr, gd, gb = grads
     c0, a0, r0 = _arrays(holes0)
     pc, pa, pr = c0 + gc * h, a0 + ga * h, r0 + gr * h
     pa = pa / np.linalg.norm(pa, axis=-1, keepdims=True)
     predicted = [dataclasses.replace(hole, centre=pc[i], axis=pa[i], radius_mm=float(pr[i]))
                  for i, hole in enumerate(holes0)]
-    c, a, r, _ = _matched(part, {**x, name: x[name] + h}, predicted, f"{name} {h:+g} (linearity check)", match_tol_mm,
-                       timeout_s)
-    dev_mm = max(float(np.linalg.norm(c - pc, axis=-1).max(initial=0.0)), float(np.abs(r - pr).max(initial=0.0)))
+    c, a, r, holes = _matched(part, {**x, name: x[name] + h}, predicted, f"{name} {h:+g} (linearity check)",
+                              match_tol_mm, timeout_s)
+    (d0, b0), (d, b) = _form(holes0), _form(holes)
+    dev_mm = max(float(np.linalg.norm(c - pc, axis=-1).max(initial=0.0)), float(np.abs(r - pr).max(initial=0.0)),
+                 float(np.abs(d - (d0 + gd * h)).max(initial=0.0)), float(np.abs(b - (b0 + gb * h)).max(initial=0.0)))
     dev_rad = float(np.linalg.norm(a - pa, axis=-1).max(initial=0.0))  # chord = angle to first order
     return dev_mm <= LINEAR_TOL_MM and dev_rad <= LINEAR_TOL_RAD, dev_mm, h
 
@@ -271,4 +292,5 @@ def _reordered(dm: DesignMap, idx: Sequence[int]) -> DesignMap:
     moved_by = {n: sorted(new_of_old[i] for i in rows) for n, rows in dm.moved_by.items()}
     rates = None if dm.outline_rates is None else [dm.outline_rates[i] for i in idx]
     return dataclasses.replace(dm, holes0=[dm.holes0[i] for i in idx], dC=dm.dC[idx], dA=dm.dA[idx],
-                               dR=dm.dR[idx], moved_by=moved_by, outline_rates=rates)
+                               dR=dm.dR[idx], moved_by=moved_by, outline_rates=rates,
+                               dD=None if dm.dD is None else dm.dD[idx], dB=None if dm.dB is None else dm.dB[idx])

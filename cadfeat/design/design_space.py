@@ -182,7 +182,9 @@ class LinearFeatureModel:
     ``c(x) = centres0 + dC @ (x - x0)`` with ``dC`` (N,3,P) mm per unit, ``r(x) = radii0 + dR @ (x - x0)``
     (N,P); axes ``a0 + dA @ (x - x0)`` normalised (``dA`` (N,3,P), default zero: constant axes).
     ``holes`` are the reference holes at ``x0`` (outlines for the constraints); ``outline_rates``: per hole, how
-    its host face's outline moves with x (``cadfeat.design.outline_motion.OutlineRates`` or None: fixed).
+    its host face's outline moves with x (``cadfeat.design.outline_motion.OutlineRates`` or None: fixed);
+    ``dD``, ``dB`` (N,P): ∂depth/∂x and ∂bore radius/∂x (mm per unit; None: the holes' own depth and bore at
+    every x) — ``depths_batch`` and ``bores_batch`` (issue 17: depth and rim chamfer as design variables).
     """
 
     holes: list[Hole]
@@ -192,6 +194,8 @@ class LinearFeatureModel:
     names: list[str] = field(default_factory=list)
     dA: np.ndarray | None = None
     outline_rates: list[Any] | None = None
+    dD: np.ndarray | None = None
+    dB: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.holes = list(self.holes)
@@ -201,6 +205,10 @@ class LinearFeatureModel:
         self.dR = np.asarray(self.dR, dtype=float).reshape(n, p)
         self.dA = np.zeros((n, 3, p)) if self.dA is None else np.asarray(self.dA, dtype=float).reshape(n, 3, p)
         self.centres0, self.axes0, self.radii0 = holes_to_arrays(self.holes)
+        self.dD = np.zeros((n, p)) if self.dD is None else np.asarray(self.dD, dtype=float).reshape(n, p)
+        self.dB = self.dR.copy() if self.dB is None else np.asarray(self.dB, dtype=float).reshape(n, p)
+        self.depths0 = np.array([float(h.depth_mm) for h in self.holes])
+        self.bores0 = np.array([float(h.bore_radius_mm) for h in self.holes])
 
     @classmethod
     def from_design_map(cls, dm: Any, names: Sequence[str], x0: Sequence[float]) -> LinearFeatureModel:
@@ -212,7 +220,7 @@ class LinearFeatureModel:
             raise CadfeatError(f"design map has {dC.shape[-1]} parameter columns, expected {len(names)} ({names})")
         dA = getattr(dm, "dA", None)
         return cls(list(dm.holes0), x0, dC, dR, list(names), None if dA is None else np.asarray(dA, dtype=float),
-                   getattr(dm, "outline_rates", None))
+                   getattr(dm, "outline_rates", None), getattr(dm, "dD", None), getattr(dm, "dB", None))
 
     @classmethod
     def from_rebuild(cls, rebuild: Callable[[np.ndarray], list[Hole]], x0: np.ndarray, steps: np.ndarray,
@@ -253,14 +261,23 @@ class LinearFeatureModel:
             axes = np.broadcast_to(self.axes0, centres.shape)
         return centres, axes, radii
 
+    def depths_batch(self, X: np.ndarray) -> np.ndarray:
+        """(B, N) hole depths (mm) at designs ``X`` (B, P): ``depth0 + dD (x − x0)``."""
+        return self.depths0 + (np.atleast_2d(np.asarray(X, dtype=float)) - self.x0) @ self.dD.T
+
+    def bores_batch(self, X: np.ndarray) -> np.ndarray:
+        """(B, N) bore radii (mm; the drill's, under a chamfered or counterbored rim) at designs ``X`` (B, P)."""
+        return self.bores0 + (np.atleast_2d(np.asarray(X, dtype=float)) - self.x0) @ self.dB.T
+
     def holes_at(self, x: np.ndarray) -> list[Hole]:
-        """The reference holes with the features at ``x`` and their host-face outlines moved to ``x``
-        (``outline_rates``; outlines without rates as at ``x0``)."""
+        """The reference holes with the features (and depth, bore) at ``x`` and their host-face outlines moved to
+        ``x`` (``outline_rates``; outlines without rates as at ``x0``)."""
         import dataclasses
 
         from cadfeat.cad.features import FaceOutline
 
         c, a, r = self.features(x)
+        depth, bore = self.depths_batch(x)[0], self.bores_batch(x)[0]
         dx = np.asarray(x, dtype=float) - self.x0
         out = []
         for i, h in enumerate(self.holes):
@@ -270,7 +287,8 @@ class LinearFeatureModel:
                 kos = tuple(k + kr @ dx if kr is not None else k for k, kr in zip(o.keepouts, rates.keepouts,
                                                                                       strict=True))
                 o = FaceOutline(o.origin, o.u, o.v, outer, kos)
-            out.append(dataclasses.replace(h, centre=c[i], axis=a[i], radius_mm=float(r[i]), outline=o))
+            out.append(dataclasses.replace(h, centre=c[i], axis=a[i], radius_mm=float(r[i]), outline=o,
+                                           depth_mm=float(depth[i]), bore_radius_mm=float(bore[i])))
         return out
 
     def moved_mask(self) -> np.ndarray:

@@ -26,24 +26,29 @@ __all__ = ["hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_
 RIM_SAMPLES = 16
 
 
-def hole_attributes(problem: Any, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(through (N,) bool, depth (N,) mm, depth/diameter (N,)) of the problem's reference holes at ``radii``."""
+def hole_attributes(problem: Any, radii: np.ndarray,
+                    depth_mm: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(through (N,) bool, depth (N,) or like ``radii`` mm, depth/diameter like ``radii``) of the problem's
+    reference holes at ``radii``; ``depth_mm`` (the design's depths, ``design.hole_form``) replaces theirs."""
     holes = list(problem.model.holes)
     through = np.array([bool(getattr(h, "through", False)) for h in holes])
-    depth = np.array([float(getattr(h, "depth_mm", 0.0)) for h in holes])
+    depth = np.array([float(getattr(h, "depth_mm", 0.0)) for h in holes]) if depth_mm is None else \
+        np.asarray(depth_mm, float)
     return through, depth, depth / (2.0 * np.maximum(np.asarray(radii, float), 1e-9))
 
 
 def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                     exact_occlusion: bool = False, occlusion: np.ndarray | None = None) -> Any:
+                     exact_occlusion: bool = False, occlusion: np.ndarray | None = None,
+                     depth_mm: np.ndarray | None = None) -> Any:
     """``measures.pose_information`` (L poses × N holes) of one design's features (module docstring).
 
-    ``occlusion`` (L, N) overrides the rim test (e.g. held fixed for finite differences)."""
+    ``occlusion`` (L, N) overrides the rim test (e.g. held fixed for finite differences); ``depth_mm`` (N,) the
+    design's hole depths (default: the reference holes')."""
     from cadfeat.measures import pose_information
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
     cfg = problem.objective_config
-    through, depth, ratio = hole_attributes(problem, radii)
+    through, depth, ratio = hole_attributes(problem, radii, depth_mm)
     T = problem.T_cam_part
     if occlusion is None:
         mesh = problem.occlusion_mesh if exact_occlusion else problem.occlusion
@@ -72,8 +77,9 @@ def pose_aggregate_batch(errors_mm: np.ndarray, information: np.ndarray, how: st
 
 
 def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                exact_occlusion: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """(g_POSE (B,), per-pose value −e (B, L)) of B designs' features (B, N, 3), (B, N, 3), (B, N).
+                exact_occlusion: bool = False, depth_mm: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(g_POSE (B,), per-pose value −e (B, L)) of B designs' features (B, N, 3), (B, N, 3), (B, N); ``depth_mm``
+    (B, N) their hole depths (``design.hole_form.design_depths``; None: the reference holes').
 
     The optimiser's path (depth-map occlusion or none) is ONE ``pose_information`` call on the B·L stacked poses,
     each with its own design's holes; the exact ray test (reported values) takes one design at a time."""
@@ -82,11 +88,14 @@ def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     B, N = np.shape(radii)
     L = len(problem.T_cam_part)
     if exact_occlusion and problem.occlusion_mesh is not None:
-        infos = [pose_of_features(problem, c, a, r, True) for c, a, r in zip(centres, axes, radii, strict=True)]
+        depths = [None] * B if depth_mm is None else np.asarray(depth_mm, float)
+        infos = [pose_of_features(problem, c, a, r, True, depth_mm=d)
+                 for c, a, r, d in zip(centres, axes, radii, depths, strict=True)]
         errors = np.stack([p.error_mm(ell) for p in infos])
         information = np.stack([p.information for p in infos])
     else:
-        info = _stacked(problem, np.asarray(centres, float), np.asarray(axes, float), np.asarray(radii, float))
+        info = _stacked(problem, np.asarray(centres, float), np.asarray(axes, float), np.asarray(radii, float),
+                        depth_mm)
         errors = info.error_mm(ell).reshape(B, L)
         information = info.information.reshape(B, L, 6, 6)
     g = pose_aggregate_batch(errors, information, cfg.pose_aggregate, ell)
@@ -94,7 +103,8 @@ def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     return g, per_pose
 
 
-def _stacked(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
+def _stacked(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+             depth_mm: np.ndarray | None = None) -> Any:
     """``pose_information`` of B designs as B·L poses (design-major), holes per pose; occlusion by the problem's
     depth maps (every design's rims at each of the L poses in one ``rim_occlusion`` call)."""
     from cadfeat.measures import pose_information
@@ -108,7 +118,8 @@ def _stacked(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndar
     def per_pose(a: np.ndarray) -> np.ndarray:  # (B, N, ...) → (B·L, N, ...)
         return np.repeat(a, L, axis=0)
     c, a, r = per_pose(centres), per_pose(axes), per_pose(radii)
-    through, depth, ratio = hole_attributes(problem, r)
+    through, depth, ratio = hole_attributes(problem, r, None if depth_mm is None else per_pose(np.asarray(depth_mm,
+                                                                                                        float)))
     maps = problem.occlusion
     occlusion = None
     if maps is not None:  # the B·N holes side by side at the L poses (one depth map per pose), then design-major

@@ -132,7 +132,8 @@ class Problem:
             if cfg.normalisation == "payoff":
                 self._normaliser = self.payoff_normaliser(self._unit_by_name)
             else:
-                g0 = self.features_objectives(*self.model.features(self.space.x0))
+                g0 = self.features_objectives(*self.model.features(self.space.x0),
+                                              depth_mm=self._depths(self.space.x0[None]))
                 method = "natural" if cfg.normalisation == "payoff" else cfg.normalisation
                 self._normaliser = Normaliser.build(method, dict(zip(self.names, g0, strict=True)),
                                                     self._unit_by_name)
@@ -179,17 +180,23 @@ class Problem:
                                                 snap_standard_sizes=False), x_start=centre)
             table.append(res.x_best)
         X = np.vstack(table)
-        G = self.batch_objectives(*self._features_batch(X))
+        G = self.batch_objectives(*self._features_batch(X), depth_mm=self._depths(X))
         U = sobol_starts(space.size, samples, 12345)
         XS = space.lower + U * (space.upper - space.lower)
         c, a, r = self._features_batch(XS)
-        S = self.batch_objectives(c, a, r)
+        S = self.batch_objectives(c, a, r, depth_mm=self._depths(XS))
         feasible = self.cset.stacked(c, r, XS).min(axis=-1, initial=0.0) >= -1e-6  # the kept requirements hold
         S = np.vstack([S[feasible], G])
         rng = np.ptp(S, axis=0)
         normaliser = Normaliser.from_payoff(self.names, G, natural.reference, rng, S.min(axis=0))
         normaliser.payoff["designs"] = X.tolist()
         return normaliser
+
+    def _depths(self, X: np.ndarray) -> np.ndarray | None:
+        """(B, N) hole depths (mm) of designs X by the feature model (``design.hole_form``), None without rates."""
+        from cadfeat.design.hole_form import design_depths
+
+        return design_depths(self.model, X)
 
     def _features_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         centres, axes, radii = self.model.features_batch(np.atleast_2d(X))
@@ -255,32 +262,38 @@ class Problem:
         return self.measures_from_features(*self.model.features(np.asarray(x, dtype=float)))
 
     def features_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                            exact_occlusion: bool = False) -> np.ndarray:
+                            exact_occlusion: bool = False, depth_mm: np.ndarray | None = None) -> np.ndarray:
         """Raw aggregated objectives (K,) in ``names`` order from hole features (``exact_occlusion``: as
-        ``measures_from_features``; the reported before/after values use it)."""
+        ``measures_from_features``; the reported before/after values use it); ``depth_mm`` (N,) the holes'
+        depths for g_POSE (None: the reference holes')."""
         m = self.measures_from_features(centres, axes, radii, exact_occlusion)
         cfg = self.objective_config
         pose = None
         if "pose" in cfg.measures:  # g_POSE: pose information + pose_objective (``design.pose_terms``)
             from cadfeat.design.pose_terms import pose_values
 
-            g_pose, e = pose_values(self, centres[None], axes[None], radii[None], exact_occlusion)
+            g_pose, e = pose_values(self, centres[None], axes[None], radii[None], exact_occlusion,
+                                    None if depth_mm is None else np.asarray(depth_mm, float).reshape(1, -1))
             pose = _BatchPose(-e[0], g_pose[0])
         values = per_pose_values(_WithPose(m, pose), cfg, self.feature_mask)
         return np.array([pose.g if k == "pose" else aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta,
                                                                 self.units[k]) for k in cfg.measures])
 
-    def batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N): ``_batch_objectives``
-        on chunks of designs within the memory budget (``cadfeat.design.memory``; one pass when they fit)."""
+    def batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                         depth_mm: np.ndarray | None = None) -> np.ndarray:
+        """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N) and hole depths (B,N)
+        mm (None: the reference holes'): ``_batch_objectives`` on chunks of designs within the memory budget
+        (``cadfeat.design.memory``; one pass when they fit)."""
         from cadfeat.design.memory import chunked, design_bytes
 
         B, N = np.shape(radii)
         axes = np.broadcast_to(axes, np.shape(centres))
-        return chunked(lambda sl: self._batch_objectives(centres[sl], axes[sl], radii[sl]), B,
+        return chunked(lambda sl: self._batch_objectives(centres[sl], axes[sl], radii[sl],
+                                                         None if depth_mm is None else depth_mm[sl]), B,
                        design_bytes(len(self.screws), N), "the optimiser's batched evaluation")
 
-    def _batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    def _batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                          depth_mm: np.ndarray | None = None) -> np.ndarray:
         """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N) in one pass.
 
         The per-feature measures come from ONE ``measures.evaluate`` call on the B·N features side by side
@@ -305,7 +318,7 @@ class Problem:
         if "pose" in cfg.measures:  # g_POSE: one pose_information per design (``design.pose_terms``)
             from cadfeat.design.pose_terms import pose_values
 
-            g_pose, e = pose_values(self, centres, axes, radii)
+            g_pose, e = pose_values(self, centres, axes, radii, depth_mm=depth_mm)
             arrays["pose"] = _BatchPose(-e, g_pose)
         if "resolvability" in cfg.measures and B == 1:  # evaluate's own Λ is the design's
             arrays["resolvability"] = np.asarray(m.resolvability)[None]
@@ -337,7 +350,7 @@ class Problem:
         (``batch_objectives``) and the 2-D constraints from one vectorised call."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         centres, axes, radii = self.model.features_batch(X)
-        G = self.batch_objectives(centres, np.broadcast_to(axes, centres.shape), radii)
+        G = self.batch_objectives(centres, np.broadcast_to(axes, centres.shape), radii, depth_mm=self._depths(X))
         self.n_evals += len(X)
         return G, self.features_constraints(centres, radii, G, X)
 

@@ -4,10 +4,13 @@ An optimum comes out at Ø2.906 mm and positions to 0.0001 mm: not a drill size,
 ``shop_design`` turns the optimiser's design ``x`` into one the shop can make:
 
 1. position variables (``Variable.kind == "position"``) rounded to the grid (a row ``x0 + i·pitch`` then stays
-   evenly spaced and on the grid);
+   evenly spaced and on the grid), and so are a hole's depth and rim chamfer (``kind == "other"``, mm: the
+   grid is the shop's step, 0.1 mm by default; ``design.hole_form``);
 2. target features: each MOVABLE hole's centre (one a design variable moves) rounded to the grid (components
-   across its axis; along the axis the hole stays on its face), each RESIZABLE hole's diameter snapped to the
-   nearest size of the table (ISO 273 clearance holes by default); other holes keep their features;
+   across its axis; along the axis the hole stays on its face), each RESIZABLE hole's drilled diameter snapped
+   to the nearest size of the table (ISO 273 clearance holes by default) — the bore of a plain hole, so a
+   chamfered rim keeps its chamfer and is never snapped as if it were a drill (``hole_form.drill_mask``); the
+   entrance of a counterbore or countersink; other holes keep their features;
 3. a least-squares step of the design variables towards those targets (finite-difference Jacobian of the
    feature model, batched), clipped to the bounds; variables with their own standard sizes snapped to them.
 
@@ -104,13 +107,19 @@ class ShopDesign:
     target_diameters: np.ndarray
     residual_mm: float
     notes: list[str] = field(default_factory=list)
+    drill_bore: np.ndarray | None = None
+    """(N,) bool: the target diameter is the hole's bore (``hole_form.drill_mask``), else its entrance rim."""
 
 
 def model_jacobian(model: Any, x: np.ndarray, h: float = 1e-3) -> np.ndarray:
-    """(4N, P) d(centres, radii)/dx by central differences, one batched feature evaluation."""
+    """(4N, P) d(centres, drilled radii)/dx by central differences, one batched feature evaluation (drilled
+    radius: ``hole_form.drill_radii_batch``, the bore of a plain hole, the entrance of the others)."""
+    from cadfeat.design.hole_form import drill_radii_batch
+
     P = x.size
     X = np.concatenate([x + h * np.eye(P), x - h * np.eye(P)])
-    c, _, r = model.features_batch(X)
+    c = model.features_batch(X)[0]
+    r = drill_radii_batch(model, X)
     F = np.concatenate([c.reshape(2 * P, -1), r.reshape(2 * P, -1)], axis=1)
     return ((F[:P] - F[P:]) / (2 * h)).T
 
@@ -124,10 +133,10 @@ MAX_ROUNDINGS = 4096
 
 
 def rounding_candidates(space: Any, x: np.ndarray, grid_mm: float) -> np.ndarray:
-    """(C, P) designs with the position variables (mm, no standard sizes) on the grid: nearest first, then every
-    floor/ceil combination (at most ``MAX_ROUNDINGS``; beyond that, nearest only), clipped to the bounds."""
+    """(C, P) designs with the position and hole-form variables (mm, no standard sizes) on the grid: nearest first,
+    then every floor/ceil combination (at most ``MAX_ROUNDINGS``; beyond that, nearest only), clipped to the bounds."""
     x = np.asarray(x, float).reshape(-1)
-    pos = np.flatnonzero([v.kind == "position" and v.unit == "mm" and v.standard_sizes is None
+    pos = np.flatnonzero([v.kind in ("position", "other") and v.unit == "mm" and v.standard_sizes is None
                           for v in space.variables])
     nearest = x.copy()
     if grid_mm <= 0 or not pos.size:
@@ -186,7 +195,10 @@ def _feasible(problem: Any, x: np.ndarray) -> bool:
 def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: float, sizes: Sequence[float],
                tol_mm: float) -> ShopDesign:
     """Targets from the rounded variables ``xr`` and the least-squares step towards them."""
-    cr, ar, rr = (np.asarray(v, float) for v in model.features(xr))
+    from cadfeat.design.hole_form import drill_mask, drill_radii_batch
+
+    cr, ar = (np.asarray(v, float) for v in model.features(xr)[:2])
+    rr = drill_radii_batch(model, xr)[0]
     J = model_jacobian(model, xr)
     n = len(rr)
     # the holes the design variables move / resize (not "the holes that moved from the start": which holes are
@@ -205,21 +217,30 @@ def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: f
     target = _flat(tc, td / 2)
     step = np.linalg.lstsq(J, target - _flat(cr, rr), rcond=None)[0]
     xs = space.snap(space.clip(xr + step))
-    cs, _, rs = model.features(xs)
+    cs, rs = model.features(xs)[0], drill_radii_batch(model, xs)[0]
     residual = float(np.max(np.abs(_flat(cs, rs) - target), initial=0.0))
     notes = []
     if residual > 1e-6:
         notes.append(f"the design variables cannot put every moved hole on the {grid_mm:g} mm grid and every resized "
                      f"hole on a table size at once (largest remaining difference {residual:.3g} mm, feature model)")
-    return ShopDesign(xs, x, float(grid_mm), tuple(sizes), moved, resized, tc, td, residual, notes)
+    return ShopDesign(xs, x, float(grid_mm), tuple(sizes), moved, resized, tc, td, residual, notes,
+                      drill_mask(model))
 
 
 # ------------------------------------------------------------------------------ refinement on the CAD rebuild
-def off_target(holes: Sequence[Hole], design: ShopDesign) -> float:
-    """Largest distance (mm) of ``holes``' centres and diameters from the shop design's targets."""
+def _drilled(holes: Sequence[Hole], design: ShopDesign) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (N, 3) and drilled radii (N,) mm of CAD holes: the bore where ``design.drill_bore``, else the rim."""
     from cadfeat.cad.features import holes_to_arrays
 
     c, _, r = holes_to_arrays(list(holes))
+    if design.drill_bore is not None and len(design.drill_bore) == len(r):
+        r = np.where(design.drill_bore, [float(h.bore_radius_mm) for h in holes], r)
+    return c, r
+
+
+def off_target(holes: Sequence[Hole], design: ShopDesign) -> float:
+    """Largest distance (mm) of ``holes``' centres and drilled diameters from the shop design's targets."""
+    c, r = _drilled(holes, design)
     return float(max(np.abs(c - design.target_centres).max(initial=0.0),
                      np.abs(2 * r - design.target_diameters).max(initial=0.0)))
 
@@ -234,14 +255,12 @@ def refine_on_rebuild(space: Any, model: FeatureModel, problem: Any, x: np.ndarr
 
     ``rebuilt`` = (shape, holes, prediction error) at ``x``; ``rebuild(x, predicted_holes)`` rebuilds at ``x``
     (raising ``CadfeatError`` when it cannot). Returns (x, rebuilt, remaining off-target distance in mm)."""
-    from cadfeat.cad.features import holes_to_arrays
-
     shape, holes, err = rebuilt
     off = off_target(holes, design)
     for _ in range(rounds):
         if off <= 1e-6:
             break
-        c, _, r = holes_to_arrays(holes)
+        c, r = _drilled(holes, design)
         resid = np.concatenate([(design.target_centres - c).reshape(-1), (design.target_diameters / 2 - r)])
         step = np.linalg.lstsq(model_jacobian(model, x), resid, rcond=None)[0]
         x_new = space.snap(space.clip(x + step))

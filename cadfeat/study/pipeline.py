@@ -68,7 +68,8 @@ def score(setup: StudySetup, holes: Sequence[Hole]) -> tuple[dict[str, float], f
     from cadfeat.cad.features import holes_to_arrays
 
     problem = setup.problem
-    G = problem.features_objectives(*holes_to_arrays(list(holes)), exact_occlusion=True)
+    G = problem.features_objectives(*holes_to_arrays(list(holes)), exact_occlusion=True,
+                                    depth_mm=[float(h.depth_mm) for h in holes])
     values = dict(zip(problem.names, map(float, G), strict=True))
     if setup.config.objective.combine == "pareto":
         return values, None

@@ -203,6 +203,7 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     from cadfeat.cad.design_map import design_map, reference_design_map
     from cadfeat.cad.parts import load_part
     from cadfeat.design.design_space import DesignSpace, LinearFeatureModel, Variable
+    from cadfeat.design.hole_form import variable_kind
 
     camera, trajectory, T_task_part = scene or load_scene(config)
     part = load_part(config.study.part_path)
@@ -233,9 +234,9 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     model = LinearFeatureModel.from_design_map(dm, names, [float(dm.at[n]) for n in names])
     variables = []
     for p in specs:
-        resizes = np.abs(np.asarray(dm.dR)[:, names.index(p.name)]).max(initial=0.0) > 0
-        variables.append(Variable(p.name, float(p.lower), float(p.upper), p.unit or "mm",
-                                  "diameter" if resizes else "position", p.standard_sizes))
+        j = names.index(p.name)
+        kind = variable_kind(*(None if m is None else np.asarray(m)[:, j] for m in (dm.dR, dm.dB, dm.dD)))
+        variables.append(Variable(p.name, float(p.lower), float(p.upper), p.unit or "mm", kind, p.standard_sizes))
     space = DesignSpace(variables, np.clip(x0, [v.lower for v in variables], [v.upper for v in variables]))
     moved = np.zeros(len(holes0), bool)
     for name in names:

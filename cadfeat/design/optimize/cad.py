@@ -59,7 +59,7 @@ def _anchor_candidate(problem: Any, x: np.ndarray) -> dict | None:
     if not holes or not np.allclose(problem.model.features(x)[0], holes_to_arrays(holes)[0], atol=1e-9):
         return None
     c, a, r = holes_to_arrays(holes)
-    g = problem.features_objectives(c, a, r)
+    g = problem.features_objectives(c, a, r, depth_mm=[float(h.depth_mm) for h in holes])
     cons = problem.features_constraints(c[None], r[None], g[None], np.asarray(x, float)[None])[0]
     violation = float(max(0.0, -cons.min(initial=0.0)))
     return {"x": np.asarray(x, float).copy(), "combined": float(problem.combined_from(g)),
@@ -154,7 +154,7 @@ def solve_with_cad(problem: Any, rebuild: Callable[[np.ndarray], list[Hole]], co
             continue
         rebuilt = True
         c, a, r = holes_to_arrays(holes)
-        g = prob.features_objectives(c, a, r)
+        g = prob.features_objectives(c, a, r, depth_mm=[float(h.depth_mm) for h in holes])
         cons = prob.features_constraints(c[None], r[None], g[None], x_new[None])[0]
         violation = float(max(0.0, -cons.min(initial=0.0)))
         combined = float(prob.combined_from(g))
