@@ -63,15 +63,21 @@ def hole_depths(holes: Sequence[Any]) -> np.ndarray:
     return np.array([float(h.depth_mm) for h in holes])
 
 
-def variable_kind(dR: np.ndarray, dB: np.ndarray | None, dD: np.ndarray | None) -> str:
+def variable_kind(dR: np.ndarray, dB: np.ndarray | None, dD: np.ndarray | None,
+                  through: np.ndarray | None = None, plain: np.ndarray | None = None) -> str:
     """The ``Variable.kind`` of a parameter with per-hole rates (N,) of rim radius ``dR``, bore radius ``dB`` and
     depth ``dD`` (mm per unit; None: not known): "diameter" when it changes a bore (or, bore unknown, a rim);
-    "other" when it changes only depths or rims over unchanged bores (a chamfer); else "position"."""
-    bore = np.asarray(dR if dB is None else dB, dtype=float)
+    "other" when it changes only blind holes' depths or rims over unchanged bores (a chamfer); else "position".
+    ``through`` (N,) bool: holes whose depth is their wall's (a wall thickness is no hole depth); ``plain`` (N,)
+    bool: holes drilled at their bore (``drill_mask``; the others — counterbores, countersinks — are sized at the
+    entrance, so a rim rate counts as a diameter there)."""
+    drilled = np.asarray(dR if dB is None else dB, dtype=float)
+    bore = drilled if plain is None else np.where(np.asarray(plain, bool), drilled, np.asarray(dR, dtype=float))
     if np.abs(bore).max(initial=0.0) > FORM_TOL:
         return "diameter"
     rim = np.abs(np.asarray(dR, dtype=float)).max(initial=0.0) > FORM_TOL
-    depth = dD is not None and np.abs(np.asarray(dD, dtype=float)).max(initial=0.0) > FORM_TOL
+    blind = np.ones(np.shape(dR), bool) if through is None else ~np.asarray(through, bool)
+    depth = dD is not None and np.abs(np.asarray(dD, dtype=float)[blind]).max(initial=0.0) > FORM_TOL
     return "other" if rim or depth else "position"
 
 
