@@ -145,6 +145,7 @@ class ExploreSession:
     def evaluate(self, values: Mapping[str, Any] | None = None, pose: int = 0) -> dict[str, Any]:
         """Every number the page shows at design ``values`` (see the module docstring), with the synthetic
         camera view's predicted ellipses at trajectory sample ``pose``."""
+        from cadfeat.design.hole_form import design_depths
         from cadfeat.design.objectives import objective_values
         from cadfeat.study.run import measure_holes
 
@@ -156,8 +157,10 @@ class ExploreSession:
         t0 = time.perf_counter()
         with self.lock:
             c, a, r = s.model.features(x)
+            depths = design_depths(s.model, x)  # the design's hole depths (design.hole_form), else the holes' own
+            depths = [h.depth_mm for h in s.model.holes] if depths is None else depths[0]
             holes = [SimpleNamespace(centre=c[j], axis=a[j], radius_mm=float(r[j]), through=h.through,
-                                     depth_mm=h.depth_mm) for j, h in enumerate(s.model.holes)]
+                                     depth_mm=float(depths[j])) for j, h in enumerate(s.model.holes)]
             m = measure_holes(s, holes, mesh=self.occlusion)
             if "pose" in self.config.objective.measures:  # g_POSE: the pose information of these holes
                 from cadfeat.study.pose_accuracy import with_pose
