@@ -281,13 +281,21 @@ class Problem:
                        design_bytes(len(self.screws), N), "the optimiser's batched evaluation")
 
     def _batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N) in one pass.
+        """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N) in one pass:
+        ``pose_arrays`` aggregated over the poses (``aggregate_arrays``). Equal to ``features_objectives``
+        design by design (tested)."""
+        return self.aggregate_arrays(self.pose_arrays(centres, axes, radii))
+
+    def pose_arrays(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                    noise_grey: Any = None) -> dict[str, Any]:
+        """Per-pose arrays of B designs at the problem's L poses: each chosen measure's (B, L, N) feature values
+        (``visible`` for Λ), Λ as (B, L), and for g_POSE ``("pose", (errors (B, L) mm, information (B, L, 6, 6)))``.
 
         The per-feature measures come from ONE ``measures.evaluate`` call on the B·N features side by side
         (they are independent per feature); its per-pose Jacobian values mix designs and are not used.
         Instead Λ is computed per (design, pose) with ``measures.stacked_jacobian`` (rows of features that are
         not ``visible`` weighted 0, as ``evaluate`` does) and ``measures.resolvability`` on B·L stacked
-        Jacobians. Equal to ``features_objectives`` design by design (tested)."""
+        Jacobians. ``noise_grey`` (L, 1) or None: the sensor noise per pose of g_POSE's σ model."""
         from cadfeat import measures
 
         cfg = self.objective_config
@@ -302,11 +310,11 @@ class Problem:
         attrs = {"fov": "fov" if cfg.fov_measure == "cone" else "fov_px", "focus": "focus",
                  "resolution": "resolution_px", "resolvability": "visible"}
         arrays: dict[str, Any] = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
-        if "pose" in cfg.measures:  # g_POSE: one pose_information per design (``design.pose_terms``)
-            from cadfeat.design.pose_terms import pose_values
+        if "pose" in cfg.measures:  # g_POSE: one pose_information on the B·L stacked poses (``design.pose_terms``)
+            from cadfeat.design.pose_terms import stacked_information
 
-            g_pose, e = pose_values(self, centres, axes, radii)
-            arrays["pose"] = _BatchPose(-e, g_pose)
+            info = stacked_information(self, centres, axes, radii, noise_grey)
+            arrays["pose"] = (info.error_mm(cfg.rotation_length_mm).reshape(B, L), info.information.reshape(B, L, 6, 6))
         if "resolvability" in cfg.measures and B == 1:  # evaluate's own Λ is the design's
             arrays["resolvability"] = np.asarray(m.resolvability)[None]
         elif "resolvability" in cfg.measures:
@@ -316,6 +324,20 @@ class Problem:
                                           arrays["visible"].reshape(B * L, N).astype(float))
             arrays["resolvability"] = _resolvability(J, np.tile(self.screws, (B, 1)),
                                                      cfg.rotation_length_mm).reshape(B, L)
+        return arrays
+
+    def aggregate_arrays(self, arrays: dict[str, Any]) -> np.ndarray:
+        """Raw aggregated objectives (B, K) of ``pose_arrays`` (any leading batch shape B of the (B, L, …) arrays)."""
+        from cadfeat.design.objectives import POSE_UNOBSERVABLE_MM
+        from cadfeat.design.pose_terms import pose_aggregate_batch
+
+        cfg = self.objective_config
+        arrays = dict(arrays)
+        if "pose" in arrays:
+            e, info = arrays["pose"]
+            g = pose_aggregate_batch(e, info, cfg.pose_aggregate, cfg.rotation_length_mm)
+            per_pose = -np.where(np.isfinite(e), np.minimum(e, POSE_UNOBSERVABLE_MM), POSE_UNOBSERVABLE_MM)
+            arrays["pose"] = _BatchPose(-per_pose, g)
         values = per_pose_values(_Arrays(arrays), cfg, self.feature_mask)
         return np.stack([arrays["pose"].g if k == "pose" else
                          aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k])

@@ -61,17 +61,24 @@ class DepthMaps:
         """The depth maps of a slice of the poses (``evaluate`` works in slabs of poses)."""
         other = object.__new__(DepthMaps)
         other.__dict__.update(self.__dict__)
-        other.maps = self.maps[poses]
-        other.n_poses = len(other.maps)
+        rows = np.arange(self.n_poses)[poses]
+        other.rows = self._rows()[rows]
+        other.n_poses = len(rows)
         return other
 
     def tile(self, copies: int) -> DepthMaps:
-        """The maps repeated ``copies`` times along the poses (S stacked copies of the trajectory)."""
+        """The maps repeated ``copies`` times along the poses (S stacked copies of the trajectory): a view that
+        indexes the same maps (pose k uses map k mod L), no copy of the (L, grid²) array."""
         other = object.__new__(DepthMaps)
         other.__dict__.update(self.__dict__)
-        other.maps = np.tile(self.maps, (copies, 1))
-        other.n_poses = len(other.maps)
+        other.rows = np.tile(self._rows(), copies)
+        other.n_poses = len(other.rows)
         return other
+
+    def _rows(self) -> np.ndarray:
+        """The map row of each pose (identity unless tiled or selected)."""
+        rows = getattr(self, "rows", None)
+        return np.arange(len(self.maps)) if rows is None else rows
 
     def _index(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         i = np.floor((x - self.lo) / self.cell).astype(np.int64)
@@ -86,7 +93,11 @@ class DepthMaps:
         front = Z > 1e-6
         z = np.where(front, Z, 1.0)
         idx, ok = self._index(X / z, Y / z)
-        surface = np.take_along_axis(self.maps, idx, axis=1)
+        rows = getattr(self, "rows", None)
+        if rows is None:
+            surface = np.take_along_axis(self.maps, idx, axis=1)
+        else:  # a tiled or selected view: gather from the shared maps
+            surface = self.maps.reshape(-1)[rows[:, None] * self.maps.shape[1] + idx]
         return front & ok & (surface < Z - (3.0 * Z * self.cell + 0.5))
 
 
