@@ -159,11 +159,12 @@ def shop_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: 
 
 def robustness(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray, *,
                position_tol_mm: float = 0.1, size_steps: int = 1, sizes: Sequence[float] = (),
-               camera_position_mm: float = 2.0, camera_angle_deg: float = 1.0, samples: int = 200,
+               camera_position_mm: Any = 2.0, camera_angle_deg: Any = 1.0, samples: int = 200,
                combined_before: float | None = None, seed: int = 0) -> dict[str, Any]:
     """The robustness block of results.json for the design with features (N,3), (N,3), (N,) (part frame, mm);
     ``changed`` (N,) bool: the holes the shop makes anew (moved or resized)."""
     rng = np.random.default_rng(seed)
+    cam_mm, cam_deg = np.asarray(camera_position_mm, float), np.asarray(camera_angle_deg, float)  # one or per axis
     c, a, r = (np.asarray(v, float) for v in (centres, axes, radii))
     changed = np.asarray(changed, bool)
     names = list(problem.names)
@@ -171,7 +172,7 @@ def robustness(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.nd
     pareto = problem.objective_config.combine == "pareto"
     comb = (lambda G: problem.combined_from(G)) if not pareto else None  # noqa: E731
     out: dict[str, Any] = {"position_tol_mm": position_tol_mm, "size_steps": size_steps,
-                           "camera_position_mm": camera_position_mm, "camera_angle_deg": camera_angle_deg,
+                           "camera_position_mm": cam_mm.tolist(), "camera_angle_deg": cam_deg.tolist(),
                            "samples": samples, "names": names, "razor_edge": []}
     if samples <= 0:
         return out
@@ -188,8 +189,8 @@ def robustness(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.nd
     G_man = problem.batch_objectives(C, np.broadcast_to(a, C.shape), Rr)
     # camera mount
     dT = np.tile(np.eye(4), (samples, 1, 1))
-    dT[:, :3, :3] = _rotvec_to_R(np.radians(rng.uniform(-camera_angle_deg, camera_angle_deg, (samples, 3))))
-    dT[:, :3, 3] = rng.uniform(-camera_position_mm, camera_position_mm, (samples, 3))
+    dT[:, :3, :3] = _rotvec_to_R(np.radians(rng.uniform(-cam_deg, cam_deg, (samples, 3))))
+    dT[:, :3, 3] = rng.uniform(-cam_mm, cam_mm, (samples, 3))
     G_cam = camera_objectives(problem, c, a, r, dT)
     for key, G in (("manufacturing", G_man), ("camera", G_cam)):
         st = _stats(G, nominal)

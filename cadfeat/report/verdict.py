@@ -35,9 +35,11 @@ RULES = (
                  "that tracks the new design significantly worse (translation and rotation), whatever the "
                  "objectives say: do not adopt. Mixed (better in one of translation/rotation, worse in the "
                  "other): adopt with care."),
-    ("robustness", "When the robustness study ran: if the combined objective's 5th percentile under the shop "
-                   "tolerance or the camera mounting error keeps less than half of the gain (razor-edge optimum): "
-                   "adopt with care."),
+    ("robustness", "When the robustness study ran: a delivered design whose combined objective's 5th percentile "
+                   "under the whole cell, the camera mounting error or the shop's tolerances is below the "
+                   "original's (held-out draws): do not adopt, keep the original. Without the robust comparison: if "
+                   "the 5th percentile under the shop tolerance or the camera mounting error keeps less than half "
+                   "of the gain (razor-edge optimum): adopt with care."),
     ("patterns", "A hole pattern of the original (bolt circle, grid, mirror pair) broken by the design: adopt "
                  "with care."),
     ("interrupted", "An interrupted optimisation (best design so far, not converged): adopt with care."),
@@ -206,6 +208,16 @@ def _tracking(results: dict) -> list[Finding]:
 
 def _robustness(results: dict) -> list[Finding]:
     rb = results.get("robustness")
+    if isinstance(rb, dict) and rb.get("recommended"):  # the robust comparison (issue 18) decides
+        rec, delivered = str(rb["recommended"]), str(rb.get("delivered"))
+        flagged = [f for f in rb.get("flagged") or [] if f != rec]
+        detail = f"recommended: {rec} ({rb.get('reason', '')})"
+        if flagged:
+            detail += "; flagged as more fragile than the original: " + ", ".join(map(str, flagged))
+        outcome = REJECT if rec == "original" else ADOPT if rec == delivered else CARE
+        if rec not in ("original", delivered):
+            detail += f"; the exported files hold the {delivered} optimum"
+        return [Finding("robustness", outcome, detail)]
     if not isinstance(rb, dict) or "razor_edge" not in rb:
         return []
     edges = rb.get("razor_edge") or []
