@@ -119,6 +119,10 @@ def _cell_chunk(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     B = len(radii)
     stacked = copy.copy(problem)
     stacked.T_cam_part, stacked.screws = cell_poses(problem, draws)
+    maps = problem.occlusion
+    if maps is not None:  # the nominal depth maps, looked up where each pose's nominal camera sees a point
+        to_nominal = np.tile(problem.T_cam_part, (S, 1, 1)) @ _inverse(stacked.T_cam_part)
+        stacked._depth_maps = maps.tile(S, to_nominal)
     noise = None
     if "pose" in problem.objective_config.measures and draws.noise_grey is not None:
         noise = np.repeat(draws.noise_grey, L)[:, None]
@@ -130,6 +134,15 @@ def _cell_chunk(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     arrays = {k: tuple(map(per_draw, v)) if isinstance(v, tuple) else per_draw(np.asarray(v))
               for k, v in arrays.items()}
     return problem.aggregate_arrays(arrays).reshape(B, S, -1)
+
+
+def _inverse(T: np.ndarray) -> np.ndarray:
+    """Inverses (…, 4, 4) of rigid transforms."""
+    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
+    out = np.zeros_like(T)
+    out[..., :3, :3], out[..., 3, 3] = Rt, 1.0
+    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3])
+    return out
 
 
 def shop_features(centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray,

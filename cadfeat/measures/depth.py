@@ -64,15 +64,21 @@ class DepthMaps:
         rows = np.arange(self.n_poses)[poses]
         other.rows = self._rows()[rows]
         other.n_poses = len(rows)
+        if getattr(self, "to_nominal", None) is not None:
+            other.to_nominal = self.to_nominal[rows]
         return other
 
-    def tile(self, copies: int) -> DepthMaps:
+    def tile(self, copies: int, to_nominal: np.ndarray | None = None) -> DepthMaps:
         """The maps repeated ``copies`` times along the poses (S stacked copies of the trajectory): a view that
-        indexes the same maps (pose k uses map k mod L), no copy of the (L, grid²) array."""
+        indexes the same maps (pose k uses map k mod L), no copy of the (L, grid²) array. ``to_nominal``
+        (S·L, 4, 4): for a displaced camera (the robustness draws), the map from its frame to the nominal
+        camera frame of its pose: a point is looked up where the nominal camera sees it (a static part hides
+        the same points; what the small shift of the camera's centre changes is neglected)."""
         other = object.__new__(DepthMaps)
         other.__dict__.update(self.__dict__)
         other.rows = np.tile(self._rows(), copies)
         other.n_poses = len(other.rows)
+        other.to_nominal = None if to_nominal is None else np.asarray(to_nominal, float)
         return other
 
     def _rows(self) -> np.ndarray:
@@ -90,6 +96,10 @@ class DepthMaps:
         """(L, M) bool: points at camera-frame (X, Y, Z) (L, M) mm behind the part's surface at their cell."""
         if X.shape[0] != self.n_poses:
             raise ValueError(f"DepthMaps: built for {self.n_poses} poses, asked about {X.shape[0]}")
+        M = getattr(self, "to_nominal", None)
+        if M is not None:  # displaced cameras: the points in the nominal camera frames
+            R, t = M[:, None, :3, :3], M[:, None, :3, 3]
+            X, Y, Z = (R[..., i, 0] * X + R[..., i, 1] * Y + R[..., i, 2] * Z + t[..., i] for i in range(3))
         front = Z > 1e-6
         z = np.where(front, Z, 1.0)
         idx, ok = self._index(X / z, Y / z)
