@@ -127,7 +127,7 @@ def _choose(setup: Any, rp: RobustProblem, nominal: Any, robust: Any, held: Any)
     draws while the nominal optimum's does not (then "nominal")."""
     model = setup.model
     feats = [model.features(x) for x in (setup.space.x0, robust.x_best, nominal.x_best)]
-    stats = design_statistics(rp, feats, held)
+    stats = design_statistics(rp, feats, held, sources=BLOCKS)
     below = [_below(stats[k], stats[0]) for k in (1, 2)]
     if below[0] and not below[1]:
         return "nominal", (f"the robust optimum's 5th percentile is below the original's under {', '.join(below[0])}; "
@@ -159,7 +159,7 @@ def _block(G: np.ndarray, G0: np.ndarray, names: list[str], combined: np.ndarray
 
 
 def design_statistics(rp: RobustProblem, features: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-                      D: Any, values: bool = False) -> list[dict[str, Any]]:
+                      D: Any, values: bool = False, sources: tuple[str, ...] = SOURCES) -> list[dict[str, Any]]:
     """Per design (features (N, 3), (N, 3), (N,) each), per source of ``SOURCES``: ``_block`` of the draws ``D``
     with only that source (the cell sources together for "cell"); the designs evaluated as one batch per source.
     ``values``: also each source's combined value per draw (``"_values"``, for the report's plots)."""
@@ -172,9 +172,14 @@ def design_statistics(rp: RobustProblem, features: list[tuple[np.ndarray, np.nda
     pareto = p.objective_config.combine == "pareto"
     c0 = None if pareto else np.asarray(p.combined_from(G0), float)
     out: list[dict[str, Any]] = [{} for _ in features]
-    for src in SOURCES:
+    for src in sources:
         d = D.only(src)
-        G = shop_objectives(p, c, a, r, rp.changed, d) if src == "manufacturing" else cell_objectives(p, c, a, r, d)
+        if src == "pixel_noise" and "pose" not in p.objective_config.measures:  # only g_POSE's σ model sees it
+            G = np.repeat(G0[:, None], d.size, axis=1)
+        elif src == "manufacturing":
+            G = shop_objectives(p, c, a, r, rp.changed, d)
+        else:
+            G = cell_objectives(p, c, a, r, d)
         comb = None if pareto else np.asarray(p.combined_from(G), float)
         for b in range(len(features)):
             out[b][src] = _block(G[b], G0[b], list(p.names), None if comb is None else comb[b],
