@@ -23,7 +23,7 @@ MIN_GAIN_FRAC = 0.01
 #: The rules, as printed in the report (the order of ``decide``'s checks).
 RULES = (
     ("combined", f"The combined objective must improve by at least {100 * MIN_GAIN_FRAC:g} % of its original "
-                 "value; otherwise: do not adopt."),
+                 "value (a robust study: its robust statistic on held-out draws); otherwise: do not adopt."),
     ("requirements", "Every kept requirement must hold on the rebuilt B-rep and the re-imported STEP; a violated "
                      "or unverified one: do not adopt. An active one (margin below "
                      f"{ACTIVE_MARGIN_MM:g} mm, the position tolerance): adopt with care."),
@@ -124,7 +124,16 @@ def decide(results: dict) -> Verdict:
     findings: list[Finding] = []
     obj = results.get("objectives") or {}
     cb, ca = obj.get("combined_before"), obj.get("combined_after")
-    if _is_num(cb) and _is_num(ca):
+    robust = _robust_combined(results)
+    if robust is not None:  # a robust study: its statistic out of sample (issue 18), not the nominal value
+        cb, ca, what = robust
+        gain = ca - cb
+        rel = gain / abs(cb) if cb else float("inf") if gain > 0 else 0.0
+        findings.append(Finding("combined", ADOPT if rel >= MIN_GAIN_FRAC else REJECT,
+                                f"{what} of the combined objective {fmt(cb)} → {fmt(ca)} "
+                                f"({'+' if gain >= 0 else '−'}{fmt(abs(100 * rel), 3)} %; nominal "
+                                f"{fmt(obj.get('combined_before'))} → {fmt(obj.get('combined_after'))})"))
+    elif _is_num(cb) and _is_num(ca):
         gain = ca - cb
         rel = gain / abs(cb) if cb else float("inf") if gain > 0 else 0.0
         ok = rel >= MIN_GAIN_FRAC
@@ -204,6 +213,20 @@ def _tracking(results: dict) -> list[Finding]:
     text = "pose tracking, after vs before: " + ", ".join(f"{m.upper()} {v}" for m, v in per.items())
     outcome = REJECT if "worse" in per.values() else CARE if "mixed" in per.values() else ADOPT
     return [Finding("tracking", outcome, text)]
+
+
+def _robust_combined(results: dict) -> tuple[float, float, str] | None:
+    """(original, delivered, label) of the robust statistic out of sample when the delivered design is the robust
+    optimum of a robust study (results.json ``robustness.out_of_sample``), else None."""
+    rb = results.get("robustness")
+    if not isinstance(rb, dict) or rb.get("delivered") != "robust":
+        return None
+    oos = rb.get("out_of_sample") or {}
+    per = oos.get("designs") or {}
+    a, b = (per.get(k, {}).get("out_of_sample") for k in ("original", "robust"))
+    if not (_is_num(a) and _is_num(b)):
+        return None
+    return float(a), float(b), f"robust {oos.get('statistic')} (held-out draws)"
 
 
 def _robustness(results: dict) -> list[Finding]:
