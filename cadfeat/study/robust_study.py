@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from cadfeat.design.robust import BLOCKS, RobustObjective, RobustProblem, robust_optimise
+from cadfeat.design.robust import BLOCKS, RobustObjective, RobustProblem, robust_optimise, statistic
 from cadfeat.design.uncertainty import CELL_KINDS, KINDS, Uncertainty, draws
 
 __all__ = ["HELD_OUT_SEED_OFFSET", "SOURCES", "RobustDesigns", "RobustRun", "attach_robust", "check_robust",
@@ -264,7 +264,9 @@ def robust_designs(setup: Any, run: RobustRun | None, holes0: Any, holes1: Any) 
             designs[k] = stats[k]
     flagged = [k for k in order[1:] if below[k]]
     in_vals = _robust_value(rp, [feats[k] for k in order])
-    out_vals = _robust_value(RobustProblem(rp.inner, rp.objective, held, rp.changed), [feats[k] for k in order])
+    stat = rp.objective if rp.objective.statistic != "chance" else RobustObjective()
+    out_vals = [float(min(statistic(np.asarray(dists[k]["combined"][b]), stat) for b in BLOCKS))
+                for k in order]  # the held-out draws' combined values, already evaluated per source
     label = rp.objective.label if rp.objective.statistic != "chance" else "p10"
     oos = {"statistic": label, "draws_in_sample": rp.draws.size, "seed_in_sample": config.study.seed,
            "draws_out_of_sample": samples, "seed_out_of_sample": seed_out,
