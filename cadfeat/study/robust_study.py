@@ -101,7 +101,11 @@ def robust_phase(config: Any, opt: Any, progress: Any) -> RobustRun | None:
 
     spec = config.robustness
     setup = opt.setup
-    if not spec.robust or opt.interrupted or config.objective.combine == "pareto" or not setup.linear:
+    if not spec.robust or opt.interrupted:
+        return None
+    if config.objective.combine == "pareto" or not setup.linear:
+        progress.log("robust optimisation skipped: it needs one combined objective (not pareto) and a linear "
+                     "feature map (not the CAD trust-region loop); the nominal optimum is delivered")
         return None
     unc, objective = _uncertainty(config)
     problem = setup.problem

@@ -100,7 +100,7 @@ class RobustnessSettings(Settings):
     chance_measure: str | None = choice(None, "a measure of objective.measures (with statistic = \"chance\")")
     chance_min: float | None = number(None, description="the chance constraint's bound (raw units)")
     chance_probability: float = number(0.95, 0.5, 1.0, lo_open=True)
-    draws: int = integer(128, 2, 4096, description="draws the robust objective is evaluated on")
+    draws: int = integer(64, 2, 4096, description="draws the robust objective is evaluated on")
     sampling: Literal["sobol", "lhs"] = choice("sobol", ("sobol", "lhs"))
     distribution: Literal["uniform", "normal"] = choice("uniform", ("uniform", "normal"))
     camera_position_mm: float | Tuple[float] = choice(2.0, PER_AXIS)
