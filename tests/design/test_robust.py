@@ -93,6 +93,33 @@ def test_robust_statistic_equals_brute_force(plate):
         assert value[b, 0] == pytest.approx(min(per_block.values()), abs=5e-3)
 
 
+def test_pose_objective_in_the_drawn_cells_equals_rebuilt_problems():
+    """g_POSE (with FOV) through the stacked cell draws equals each drawn cell's own Problem (pixel noise at the
+    model's nominal level, which a rebuilt Problem uses)."""
+    study = plate_study("robust_pose")
+    study["objective"] = {"measures": ["fov", "pose"], "aggregate": "sum", "combine": "maxmin",
+                          "normalisation": "natural", "rotation_length_mm": 50.0}
+    setup = setup_study(load_study(study))
+    p = setup.problem
+    D = draws(Uncertainty(pixel_noise_grey=0.0), 3, len(p.model.holes), seed=4)
+    c, a, r = (np.asarray(v, float) for v in p.model.features(setup.space.x0))
+    got = RobustProblem(p, RobustObjective(), D).block_objectives(c[None], a[None], r[None])["cell"][0]
+    traj = setup.trajectory
+    for s in range(3):
+        T = _translation(D.offset_mm[s]) @ np.asarray(traj.T_task_cam) @ D.dC[s]
+        ref = Problem(p.space, p.model, p.camera, Trajectory(T, np.asarray(traj.times_s) / D.time_scale[s]),
+                      p.T_task_part @ D.dP[s], p.objective_config, p.constraint_config, p.fixed_mask,
+                      occlusion_mesh=p.occlusion_mesh, normaliser=p.normaliser, feature_mask=p.feature_mask)
+        np.testing.assert_allclose(got[s], ref.features_objectives(c, a, r), rtol=3e-3)
+    # pixel noise alone: a noisier cell predicts a larger pose error (g_POSE = −error falls as the noise grows)
+    from cadfeat.design.robustness import cell_objectives
+
+    noisy = draws(Uncertainty(pixel_noise_grey=2.0), 8, len(p.model.holes), seed=4).only("pixel_noise")
+    g_pose = cell_objectives(p, c[None], a[None], r[None], noisy)[0][:, list(p.names).index("g_POSE")]
+    order = np.argsort(noisy.noise_grey)
+    assert np.all(np.diff(g_pose[order]) <= 1e-12) and g_pose[order[0]] > g_pose[order[-1]]
+
+
 def test_razor_edge_robust_optimum_is_not_the_nominal_one(razor):
     p = razor.problem
     N = len(p.model.holes)
