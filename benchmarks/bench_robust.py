@@ -44,7 +44,7 @@ def _phase(config, draws: int | None):
     t0, c0 = time.perf_counter(), time.process_time()
     opt = P._optimise_all(config, start, prog)
     t1, c1 = time.perf_counter(), time.process_time()
-    run = robust_phase(config, opt, prog)
+    run = robust_phase(config, opt, prog, P._history)
     t2, c2 = time.perf_counter(), time.process_time()
     return (t1 - t0, c1 - c0), (t2 - t1, c2 - c1), run
 

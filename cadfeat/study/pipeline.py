@@ -283,7 +283,7 @@ def compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], d
         start = _set_up(config)
     with prog.phase("optimise"):
         opt = _optimise_all(config, start, prog)
-        robust_run = robust_phase(config, opt, prog)  # issue 18: the robust optimum (opt.res when delivered)
+        robust_run = robust_phase(config, opt, prog, _history)  # issue 18: the robust optimum (opt.res if delivered)
     setup = opt.setup
     x1 = np.asarray(opt.res.x_best, float)
     if not opt.interrupted and getattr(opt.res, "feasible", True) is False:

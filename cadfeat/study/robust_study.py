@@ -2,7 +2,7 @@
 
 Two steps, each attached to the pipeline (``cadfeat.study.pipeline.compute``) by one line:
 
-- ``robust_phase(config, opt, progress)`` (optimise phase, after the nominal optimisation): with
+- ``robust_phase(config, opt, progress, history)`` (optimise phase, after the nominal optimisation): with
   ``[robustness] robust = true`` (the default), local solves of the robust problem (``cadfeat.design.robust``)
   from the nominal optimum, the best end-points of the nominal multi-start and the initial design, on
   ``draws`` fixed draws (seed: the study's); the robust optimum replaces the optimiser's result (it is the
@@ -94,11 +94,10 @@ def _starts(opt: Any, space: Any, most: int = 2) -> list[np.ndarray]:
     return distinct
 
 
-def robust_phase(config: Any, opt: Any, progress: Any) -> RobustRun | None:
+def robust_phase(config: Any, opt: Any, progress: Any, history: Any) -> RobustRun | None:
     """The robust optimum of the best set-up (module docstring); ``opt.res`` becomes the delivered design's
-    optimiser result and ``opt.history`` gains the robust solves (phase "robust")."""
-    from cadfeat.study.pipeline import _history
-
+    optimiser result and ``opt.history`` gains the robust solves (phase "robust") as ``history(result, label)``
+    formats them (the pipeline's ``_history``)."""
     spec = config.robustness
     setup = opt.setup
     if not spec.robust or opt.interrupted:
@@ -116,7 +115,7 @@ def robust_phase(config: Any, opt: Any, progress: Any) -> RobustRun | None:
         res = robust_optimise(rp, config.optimizer, _starts(opt, setup.space), progress=progress.iteration)
     except KeyboardInterrupt:
         return None
-    opt.history += _history(res, "robust")
+    opt.history += history(res, "robust")
     held = draws(unc, spec.samples or 64, len(problem.model.holes), config.study.seed + HELD_OUT_SEED_OFFSET,
                  spec.sampling)
     delivered, note = _choose(setup, rp, nominal, res, held)
