@@ -21,6 +21,7 @@ BASE = {
     "constraints": {"edge_distance_mm": 2.0},
     "objective": {"measures": ["fov", "resolvability"], "aggregate": "sum", "combine": "maxmin"},
     "optimizer": {"method": "multistart", "starts": 2},
+    "robustness": {"robust": False},  # the nominal optimum: robust studies are tested in test_robust*.py
 }
 
 

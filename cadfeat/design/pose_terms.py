@@ -20,7 +20,7 @@ import numpy as np
 
 from cadfeat.design.objectives import POSE_AGGREGATES, POSE_UNOBSERVABLE_MM, _choice
 
-__all__ = ["hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_values"]
+__all__ = ["hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_values", "stacked_information"]
 
 #: rim samples of the occlusion test (``rim_occlusion``)
 RIM_SAMPLES = 16
@@ -94,8 +94,8 @@ def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
         errors = np.stack([p.error_mm(ell) for p in infos])
         information = np.stack([p.information for p in infos])
     else:
-        info = _stacked(problem, np.asarray(centres, float), np.asarray(axes, float), np.asarray(radii, float),
-                        depth_mm)
+        info = stacked_information(problem, np.asarray(centres, float), np.asarray(axes, float),
+                                   np.asarray(radii, float), depth_mm=depth_mm)
         errors = info.error_mm(ell).reshape(B, L)
         information = info.information.reshape(B, L, 6, 6)
     g = pose_aggregate_batch(errors, information, cfg.pose_aggregate, ell)
@@ -103,10 +103,12 @@ def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     return g, per_pose
 
 
-def _stacked(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-             depth_mm: np.ndarray | None = None) -> Any:
+def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                        noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> Any:
     """``pose_information`` of B designs as B·L poses (design-major), holes per pose; occlusion by the problem's
-    depth maps (every design's rims at each of the L poses in one ``rim_occlusion`` call)."""
+    depth maps (every design's rims at each of the L poses in one ``rim_occlusion`` call). ``noise_grey``: the
+    sensor's grey-level noise, a number or (L, 1) per pose (a robustness draw's pixel noise); None: the model's
+    default."""
     from cadfeat.measures import pose_information
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
@@ -126,5 +128,9 @@ def _stacked(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndar
         hidden = rim_occlusion(maps, T, centres.reshape(B * N, 3), axes.reshape(B * N, 3), radii.reshape(B * N),
                                samples=RIM_SAMPLES)
         occlusion = np.moveaxis(hidden.reshape(L, B, N), 1, 0).reshape(B * L, N)
+    noise: dict[str, Any] = {}
+    if noise_grey is not None:
+        n = np.asarray(noise_grey, float)
+        noise["noise_grey"] = float(n) if n.ndim == 0 else np.tile(n.reshape(L, 1), (B, 1))
     return pose_information(problem.camera, TT, c, a, r, occlusion=occlusion, depth_ratio=ratio, through=through,
-                            rotation_length_mm=problem.objective_config.rotation_length_mm)
+                            rotation_length_mm=problem.objective_config.rotation_length_mm, **noise)

@@ -133,7 +133,7 @@ class Problem:
                 self._normaliser = self.payoff_normaliser(self._unit_by_name)
             else:
                 g0 = self.features_objectives(*self.model.features(self.space.x0),
-                                              depth_mm=self._depths(self.space.x0[None]))
+                                              depth_mm=self.hole_depths(self.space.x0[None]))
                 method = "natural" if cfg.normalisation == "payoff" else cfg.normalisation
                 self._normaliser = Normaliser.build(method, dict(zip(self.names, g0, strict=True)),
                                                     self._unit_by_name)
@@ -180,11 +180,11 @@ class Problem:
                                                 snap_standard_sizes=False), x_start=centre)
             table.append(res.x_best)
         X = np.vstack(table)
-        G = self.batch_objectives(*self._features_batch(X), depth_mm=self._depths(X))
+        G = self.batch_objectives(*self._features_batch(X), depth_mm=self.hole_depths(X))
         U = sobol_starts(space.size, samples, 12345)
         XS = space.lower + U * (space.upper - space.lower)
         c, a, r = self._features_batch(XS)
-        S = self.batch_objectives(c, a, r, depth_mm=self._depths(XS))
+        S = self.batch_objectives(c, a, r, depth_mm=self.hole_depths(XS))
         feasible = self.cset.stacked(c, r, XS).min(axis=-1, initial=0.0) >= -1e-6  # the kept requirements hold
         S = np.vstack([S[feasible], G])
         rng = np.ptp(S, axis=0)
@@ -192,7 +192,7 @@ class Problem:
         normaliser.payoff["designs"] = X.tolist()
         return normaliser
 
-    def _depths(self, X: np.ndarray) -> np.ndarray | None:
+    def hole_depths(self, X: np.ndarray) -> np.ndarray | None:
         """(B, N) hole depths (mm) of designs X by the feature model (``design.hole_form``), None without rates."""
         from cadfeat.design.hole_form import design_depths
 
@@ -294,13 +294,21 @@ class Problem:
 
     def _batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                           depth_mm: np.ndarray | None = None) -> np.ndarray:
-        """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N) in one pass.
+        """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N) in one pass:
+        ``pose_arrays`` aggregated over the poses (``aggregate_arrays``); ``depth_mm`` (B, N) the holes' depths
+        (None: the reference holes'). Equal to ``features_objectives`` design by design (tested)."""
+        return self.aggregate_arrays(self.pose_arrays(centres, axes, radii, depth_mm=depth_mm))
+
+    def pose_arrays(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                    noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> dict[str, Any]:
+        """Per-pose arrays of B designs at the problem's L poses: each chosen measure's (B, L, N) feature values
+        (``visible`` for Λ), Λ as (B, L), and for g_POSE ``("pose", (errors (B, L) mm, information (B, L, 6, 6)))``.
 
         The per-feature measures come from ONE ``measures.evaluate`` call on the B·N features side by side
         (they are independent per feature); its per-pose Jacobian values mix designs and are not used.
         Instead Λ is computed per (design, pose) with ``measures.stacked_jacobian`` (rows of features that are
         not ``visible`` weighted 0, as ``evaluate`` does) and ``measures.resolvability`` on B·L stacked
-        Jacobians. Equal to ``features_objectives`` design by design (tested)."""
+        Jacobians. ``noise_grey`` (L, 1) or None: the sensor noise per pose of g_POSE's σ model."""
         from cadfeat import measures
 
         cfg = self.objective_config
@@ -315,11 +323,11 @@ class Problem:
         attrs = {"fov": "fov" if cfg.fov_measure == "cone" else "fov_px", "focus": "focus",
                  "resolution": "resolution_px", "resolvability": "visible"}
         arrays: dict[str, Any] = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
-        if "pose" in cfg.measures:  # g_POSE: one pose_information per design (``design.pose_terms``)
-            from cadfeat.design.pose_terms import pose_values
+        if "pose" in cfg.measures:  # g_POSE: one pose_information on the B·L stacked poses (``design.pose_terms``)
+            from cadfeat.design.pose_terms import stacked_information
 
-            g_pose, e = pose_values(self, centres, axes, radii, depth_mm=depth_mm)
-            arrays["pose"] = _BatchPose(-e, g_pose)
+            info = stacked_information(self, centres, axes, radii, noise_grey, depth_mm)
+            arrays["pose"] = (info.error_mm(cfg.rotation_length_mm).reshape(B, L), info.information.reshape(B, L, 6, 6))
         if "resolvability" in cfg.measures and B == 1:  # evaluate's own Λ is the design's
             arrays["resolvability"] = np.asarray(m.resolvability)[None]
         elif "resolvability" in cfg.measures:
@@ -329,6 +337,20 @@ class Problem:
                                           arrays["visible"].reshape(B * L, N).astype(float))
             arrays["resolvability"] = _resolvability(J, np.tile(self.screws, (B, 1)),
                                                      cfg.rotation_length_mm).reshape(B, L)
+        return arrays
+
+    def aggregate_arrays(self, arrays: dict[str, Any]) -> np.ndarray:
+        """Raw aggregated objectives (B, K) of ``pose_arrays`` (any leading batch shape B of the (B, L, …) arrays)."""
+        from cadfeat.design.objectives import POSE_UNOBSERVABLE_MM
+        from cadfeat.design.pose_terms import pose_aggregate_batch
+
+        cfg = self.objective_config
+        arrays = dict(arrays)
+        if "pose" in arrays:
+            e, info = arrays["pose"]
+            g = pose_aggregate_batch(e, info, cfg.pose_aggregate, cfg.rotation_length_mm)
+            per_pose = -np.where(np.isfinite(e), np.minimum(e, POSE_UNOBSERVABLE_MM), POSE_UNOBSERVABLE_MM)
+            arrays["pose"] = _BatchPose(-per_pose, g)
         values = per_pose_values(_Arrays(arrays), cfg, self.feature_mask)
         return np.stack([arrays["pose"].g if k == "pose" else
                          aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k])
@@ -350,7 +372,7 @@ class Problem:
         (``batch_objectives``) and the 2-D constraints from one vectorised call."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         centres, axes, radii = self.model.features_batch(X)
-        G = self.batch_objectives(centres, np.broadcast_to(axes, centres.shape), radii, depth_mm=self._depths(X))
+        G = self.batch_objectives(centres, np.broadcast_to(axes, centres.shape), radii, depth_mm=self.hole_depths(X))
         self.n_evals += len(X)
         return G, self.features_constraints(centres, radii, G, X)
 

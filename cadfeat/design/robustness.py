@@ -22,13 +22,16 @@ Units: mm, degrees; objectives in their own units, larger = better.
 from __future__ import annotations
 
 import copy
-import types
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-__all__ = ["RAZOR_KEEP", "robustness"]
+from cadfeat.design.uncertainty import Draws
+
+__all__ = ["RAZOR_KEEP", "camera_objectives", "cell_objectives", "cell_poses", "robustness", "shop_features",
+           "shop_objectives"]
 
 RAZOR_KEEP = 0.5
 """Share of the combined objective's gain the 5th percentile must keep under a perturbation."""
@@ -59,64 +62,126 @@ def _stats(G: np.ndarray, nominal: np.ndarray) -> dict[str, np.ndarray]:
 
 def camera_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                       dT: np.ndarray) -> np.ndarray:
-    """Raw objectives (S, K) of one design seen by S displaced cameras ``dT`` (S, 4, 4) (camera frame), the draws
-    evaluated in chunks within the memory budget (``cadfeat.design.memory``: each draw stacks L poses and, with
-    occlusion, its own copy of the L depth maps)."""
+    """Raw objectives (S, K) of one design seen by S displaced cameras ``dT`` (S, 4, 4) (camera frame):
+    ``cell_objectives`` with only a camera mounting error."""
+    S = len(dT)
+    draws = Draws.nominal(S, len(radii))
+    draws = dataclasses.replace(draws, dC=np.asarray(dT, float))
+    return cell_objectives(problem, np.asarray(centres, float)[None], np.asarray(axes, float)[None],
+                           np.asarray(radii, float)[None], draws)[0]
+
+
+def cell_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                    draws: Draws, depth_mm: np.ndarray | None = None) -> np.ndarray:
+    """Raw objectives (B, S, K) of B designs' features (B, N, 3), (B, N, 3), (B, N) in S cells that differ from
+    the nominal one by ``draws`` (camera mount, part placement, path offset, time scaling, pixel noise; the
+    shop's hole errors are ``shop_objectives``'). The draws are evaluated in chunks within the memory budget
+    (``cadfeat.design.memory``), each chunk as ONE stack of S·L poses (``Problem.pose_arrays``) aggregated per
+    (design, draw) — no loop over designs, poses, holes or draws beyond the chunks. ``depth_mm`` (B, N): the
+    designs' hole depths for g_POSE (None: the reference holes')."""
     from cadfeat.design.memory import chunked, design_bytes
 
-    per_draw = design_bytes(len(problem.screws), len(radii), depth_maps=problem.occlusion_mesh is not None)
-    _ = problem.occlusion  # the nominal poses' depth maps, built once and shared by every chunk's stacked copy
-    return chunked(lambda sl: _camera_objectives(problem, centres, axes, radii, dT[sl]), len(dT), per_draw,
-                   "robustness analysis (camera-mount draws)")
+    B, N = np.shape(radii)
+    per_draw = B * design_bytes(len(problem.screws), N)
+    _ = problem.occlusion  # the nominal poses' depth maps, built once and shared (a view) by every chunk's stack
+    out = chunked(lambda sl: np.moveaxis(_cell_chunk(problem, centres, axes, radii, draws.take(sl), depth_mm),
+                                              1, 0),
+                  draws.size, per_draw, "robustness (cell draws)")
+    return np.moveaxis(out, 0, 1)
 
 
-def _camera_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                       dT: np.ndarray) -> np.ndarray:
-    """``camera_objectives`` of one chunk of draws, as one stack of S·L poses."""
-    from cadfeat.design.objectives import aggregate, per_pose_values
+def cell_poses(problem: Any, draws: Draws) -> tuple[np.ndarray, np.ndarray]:
+    """The S·L poses ``T_cam_part`` (S·L, 4, 4) and camera screws (S·L, 6) of the S drawn cells (draw-major).
 
-    S = len(dT)
-    L = len(problem.screws)
-    R, p = dT[:, :3, :3], dT[:, :3, 3]
+    Camera mount ``ΔC`` (camera frame, the same at every pose): ``T' = ΔC⁻¹ T`` and ``v' = Rᵀ (v − p × ω)``,
+    ``ω' = Rᵀ ω``; part placement ``ΔP`` (part frame) and path offset δ (task frame; ``T_task_cam' = Tr(δ)
+    T_task_cam``, the same as the part displaced by −δ): ``T' = … T Tr(−R_tpᵀ δ) ΔP`` — a static part does not
+    change the camera's screw; time scaling k: the screws × k (the same path k times faster)."""
+    S, L = draws.size, len(problem.screws)
+    dC = draws.dC
+    R, p = dC[:, :3, :3], dC[:, :3, 3]
     Rt = np.swapaxes(R, 1, 2)
-    inv = np.zeros_like(dT)
+    inv = np.zeros_like(dC)
     inv[:, :3, :3], inv[:, :3, 3], inv[:, 3, 3] = Rt, -np.einsum("sij,sj->si", Rt, p), 1.0
-    T = (inv[:, None] @ problem.T_cam_part[None]).reshape(S * L, 4, 4)
+    R_tp = problem.T_task_part[:3, :3]
+    right = draws.dP.copy()
+    right[:, :3, 3] -= draws.offset_mm @ R_tp  # Tr(−R_tpᵀ δ) ΔP: the offset applied before ΔP (left of it)
+    T = (inv[:, None] @ problem.T_cam_part[None] @ right[:, None]).reshape(S * L, 4, 4)
     v, w = problem.screws[None, :, :3], problem.screws[None, :, 3:]
     v2 = np.einsum("sij,slj->sli", Rt, v - np.cross(p[:, None, :], w))
     w2 = np.einsum("sij,slj->sli", Rt, np.broadcast_to(w, (S, L, 3)))
+    screws = np.concatenate([v2, w2], axis=-1) * draws.time_scale[:, None, None]
+    return T, screws.reshape(S * L, 6)
+
+
+def _cell_chunk(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                draws: Draws, depth_mm: np.ndarray | None = None) -> np.ndarray:
+    """``cell_objectives`` (B, S, K) of one chunk of draws, as one stack of S·L poses."""
+    S, L = draws.size, len(problem.screws)
+    B = len(radii)
     stacked = copy.copy(problem)
-    stacked.T_cam_part, stacked.screws = T, np.concatenate([v2, w2], axis=-1).reshape(S * L, 6)
-    m = stacked.measures_from_features(centres, axes, radii)
-    cfg = problem.objective_config
+    stacked.T_cam_part, stacked.screws = cell_poses(problem, draws)
+    maps = problem.occlusion
+    if maps is not None:  # the nominal depth maps, looked up where each pose's nominal camera sees a point
+        to_nominal = np.tile(problem.T_cam_part, (S, 1, 1)) @ _inverse(stacked.T_cam_part)
+        stacked._depth_maps = maps.tile(S, to_nominal)
+    noise = None
+    if "pose" in problem.objective_config.measures and draws.noise_grey is not None:
+        noise = np.repeat(draws.noise_grey, L)[:, None]
+    arrays = stacked.pose_arrays(np.asarray(centres, float), np.asarray(axes, float), np.asarray(radii, float),
+                                 noise, depth_mm)
 
-    class _PerDraw:  # the (S·L, …) arrays seen as S designs of L poses
-        def __getattr__(self, name: str) -> np.ndarray:
-            a = np.asarray(getattr(m, name))
-            return a.reshape((S, L) + a.shape[1:])
+    def per_draw(a: np.ndarray) -> np.ndarray:  # (B, S·L, …) → (B·S, L, …)
+        return a.reshape((B * S, L) + a.shape[2:])
+    arrays = {k: tuple(map(per_draw, v)) if isinstance(v, tuple) else per_draw(np.asarray(v))
+              for k, v in arrays.items()}
+    return problem.aggregate_arrays(arrays).reshape(B, S, -1)
 
-    g_pose = None
-    if "pose" in cfg.measures:  # g_POSE: one pose_information on the S·L stacked poses (``design.pose_terms``)
-        from cadfeat.design.pose_terms import pose_aggregate_batch, pose_of_features
 
-        info = pose_of_features(stacked, centres, axes, radii)
-        e = info.error_mm(cfg.rotation_length_mm).reshape(S, L)
-        g_pose = pose_aggregate_batch(e, info.information.reshape(S, L, 6, 6), cfg.pose_aggregate,
-                                      cfg.rotation_length_mm)
-        _PerDraw.pose = types.SimpleNamespace(error_mm=lambda _ell=None: e)  # type: ignore[attr-defined]
-    values = per_pose_values(_PerDraw(), cfg, problem.feature_mask)
-    return np.stack([g_pose if k == "pose" else aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta,
-                                                          problem.units[k])
-                     for k in cfg.measures], axis=-1)
+def _inverse(T: np.ndarray) -> np.ndarray:
+    """Inverses (…, 4, 4) of rigid transforms."""
+    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
+    out = np.zeros_like(T)
+    out[..., :3, :3], out[..., 3, 3] = Rt, 1.0
+    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3])
+    return out
+
+
+def shop_features(centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray,
+                  draws: Draws) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Features (B, S, N, 3), (B, S, N, 3), (B, S, N) of B designs (B, N, 3), (B, N, 3), (B, N) as the shop makes
+    them in S draws: each ``changed`` hole (N,) displaced by ``draws.hole_shift_mm`` (S, N, 2) across its axis and
+    its diameter changed by ``draws.diameter_mm`` (S, N) (radius by half of it, at least 0.05 mm)."""
+    c, a, r = (np.asarray(v, float) for v in (centres, axes, radii))
+    u, v = _across(a.reshape(-1, 3))
+    u, v = u.reshape(a.shape), v.reshape(a.shape)
+    m = np.asarray(changed, float)[None, :, None]
+    d = draws.hole_shift_mm * m  # (S, N, 2)
+    C = c[:, None] + d[None, ..., :1] * u[:, None] + d[None, ..., 1:] * v[:, None]
+    R = np.maximum(r[:, None] + 0.5 * draws.diameter_mm[None] * m[..., 0], 0.05)
+    return C, np.broadcast_to(a[:, None], C.shape), R
+
+
+def shop_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray,
+                    draws: Draws, depth_mm: np.ndarray | None = None) -> np.ndarray:
+    """Raw objectives (B, S, K) of B designs made by the shop in S draws (``shop_features``), as B·S designs of
+    ONE batched evaluation (``Problem.batch_objectives``, chunked to the memory budget)."""
+    C, A, R = shop_features(centres, axes, radii, changed, draws)
+    B, S, N = R.shape
+    depth = None if depth_mm is None else np.repeat(np.asarray(depth_mm, float), S, axis=0)  # (B·S, N)
+    G = problem.batch_objectives(C.reshape(B * S, N, 3), A.reshape(B * S, N, 3), R.reshape(B * S, N),
+                                 depth_mm=depth)
+    return G.reshape(B, S, -1)
 
 
 def robustness(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray, *,
                position_tol_mm: float = 0.1, size_steps: int = 1, sizes: Sequence[float] = (),
-               camera_position_mm: float = 2.0, camera_angle_deg: float = 1.0, samples: int = 200,
+               camera_position_mm: Any = 2.0, camera_angle_deg: Any = 1.0, samples: int = 200,
                combined_before: float | None = None, seed: int = 0) -> dict[str, Any]:
     """The robustness block of results.json for the design with features (N,3), (N,3), (N,) (part frame, mm);
     ``changed`` (N,) bool: the holes the shop makes anew (moved or resized)."""
     rng = np.random.default_rng(seed)
+    cam_mm, cam_deg = np.asarray(camera_position_mm, float), np.asarray(camera_angle_deg, float)  # one or per axis
     c, a, r = (np.asarray(v, float) for v in (centres, axes, radii))
     changed = np.asarray(changed, bool)
     names = list(problem.names)
@@ -124,7 +189,7 @@ def robustness(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.nd
     pareto = problem.objective_config.combine == "pareto"
     comb = (lambda G: problem.combined_from(G)) if not pareto else None  # noqa: E731
     out: dict[str, Any] = {"position_tol_mm": position_tol_mm, "size_steps": size_steps,
-                           "camera_position_mm": camera_position_mm, "camera_angle_deg": camera_angle_deg,
+                           "camera_position_mm": cam_mm.tolist(), "camera_angle_deg": cam_deg.tolist(),
                            "samples": samples, "names": names, "razor_edge": []}
     if samples <= 0:
         return out
@@ -141,8 +206,8 @@ def robustness(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.nd
     G_man = problem.batch_objectives(C, np.broadcast_to(a, C.shape), Rr)
     # camera mount
     dT = np.tile(np.eye(4), (samples, 1, 1))
-    dT[:, :3, :3] = _rotvec_to_R(np.radians(rng.uniform(-camera_angle_deg, camera_angle_deg, (samples, 3))))
-    dT[:, :3, 3] = rng.uniform(-camera_position_mm, camera_position_mm, (samples, 3))
+    dT[:, :3, :3] = _rotvec_to_R(np.radians(rng.uniform(-cam_deg, cam_deg, (samples, 3))))
+    dT[:, :3, 3] = rng.uniform(-cam_mm, cam_mm, (samples, 3))
     G_cam = camera_objectives(problem, c, a, r, dT)
     for key, G in (("manufacturing", G_man), ("camera", G_cam)):
         st = _stats(G, nominal)

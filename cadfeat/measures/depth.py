@@ -61,17 +61,30 @@ class DepthMaps:
         """The depth maps of a slice of the poses (``evaluate`` works in slabs of poses)."""
         other = object.__new__(DepthMaps)
         other.__dict__.update(self.__dict__)
-        other.maps = self.maps[poses]
-        other.n_poses = len(other.maps)
+        rows = np.arange(self.n_poses)[poses]
+        other.rows = self._rows()[rows]
+        other.n_poses = len(rows)
+        if getattr(self, "to_nominal", None) is not None:
+            other.to_nominal = self.to_nominal[rows]
         return other
 
-    def tile(self, copies: int) -> DepthMaps:
-        """The maps repeated ``copies`` times along the poses (S stacked copies of the trajectory)."""
+    def tile(self, copies: int, to_nominal: np.ndarray | None = None) -> DepthMaps:
+        """The maps repeated ``copies`` times along the poses (S stacked copies of the trajectory): a view that
+        indexes the same maps (pose k uses map k mod L), no copy of the (L, grid²) array. ``to_nominal``
+        (S·L, 4, 4): for a displaced camera (the robustness draws), the map from its frame to the nominal
+        camera frame of its pose: a point is looked up where the nominal camera sees it (a static part hides
+        the same points; what the small shift of the camera's centre changes is neglected)."""
         other = object.__new__(DepthMaps)
         other.__dict__.update(self.__dict__)
-        other.maps = np.tile(self.maps, (copies, 1))
-        other.n_poses = len(other.maps)
+        other.rows = np.tile(self._rows(), copies)
+        other.n_poses = len(other.rows)
+        other.to_nominal = None if to_nominal is None else np.asarray(to_nominal, float)
         return other
+
+    def _rows(self) -> np.ndarray:
+        """The map row of each pose (identity unless tiled or selected)."""
+        rows = getattr(self, "rows", None)
+        return np.arange(len(self.maps)) if rows is None else rows
 
     def _index(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         i = np.floor((x - self.lo) / self.cell).astype(np.int64)
@@ -83,10 +96,18 @@ class DepthMaps:
         """(L, M) bool: points at camera-frame (X, Y, Z) (L, M) mm behind the part's surface at their cell."""
         if X.shape[0] != self.n_poses:
             raise ValueError(f"DepthMaps: built for {self.n_poses} poses, asked about {X.shape[0]}")
+        M = getattr(self, "to_nominal", None)
+        if M is not None:  # displaced cameras: the points in the nominal camera frames
+            R, t = M[:, None, :3, :3], M[:, None, :3, 3]
+            X, Y, Z = (R[..., i, 0] * X + R[..., i, 1] * Y + R[..., i, 2] * Z + t[..., i] for i in range(3))
         front = Z > 1e-6
         z = np.where(front, Z, 1.0)
         idx, ok = self._index(X / z, Y / z)
-        surface = np.take_along_axis(self.maps, idx, axis=1)
+        rows = getattr(self, "rows", None)
+        if rows is None:
+            surface = np.take_along_axis(self.maps, idx, axis=1)
+        else:  # a tiled or selected view: gather from the shared maps
+            surface = self.maps.reshape(-1)[rows[:, None] * self.maps.shape[1] + idx]
         return front & ok & (surface < Z - (3.0 * Z * self.cell + 0.5))
 
 

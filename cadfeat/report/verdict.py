@@ -23,7 +23,7 @@ MIN_GAIN_FRAC = 0.01
 #: The rules, as printed in the report (the order of ``decide``'s checks).
 RULES = (
     ("combined", f"The combined objective must improve by at least {100 * MIN_GAIN_FRAC:g} % of its original "
-                 "value; otherwise: do not adopt."),
+                 "value (a robust study: its robust statistic on held-out draws); otherwise: do not adopt."),
     ("requirements", "Every kept requirement must hold on the rebuilt B-rep and the re-imported STEP; a violated "
                      "or unverified one: do not adopt. An active one (margin below "
                      f"{ACTIVE_MARGIN_MM:g} mm, the position tolerance): adopt with care."),
@@ -35,9 +35,11 @@ RULES = (
                  "that tracks the new design significantly worse (translation and rotation), whatever the "
                  "objectives say: do not adopt. Mixed (better in one of translation/rotation, worse in the "
                  "other): adopt with care."),
-    ("robustness", "When the robustness study ran: if the combined objective's 5th percentile under the shop "
-                   "tolerance or the camera mounting error keeps less than half of the gain (razor-edge optimum): "
-                   "adopt with care."),
+    ("robustness", "When the robustness study ran: a delivered design whose combined objective's 5th percentile "
+                   "under the whole cell, the camera mounting error or the shop's tolerances is below the "
+                   "original's (held-out draws): do not adopt, keep the original. Without the robust comparison: if "
+                   "the 5th percentile under the shop tolerance or the camera mounting error keeps less than half "
+                   "of the gain (razor-edge optimum): adopt with care."),
     ("patterns", "A hole pattern of the original (bolt circle, grid, mirror pair) broken by the design: adopt "
                  "with care."),
     ("interrupted", "An interrupted optimisation (best design so far, not converged): adopt with care."),
@@ -122,7 +124,16 @@ def decide(results: dict) -> Verdict:
     findings: list[Finding] = []
     obj = results.get("objectives") or {}
     cb, ca = obj.get("combined_before"), obj.get("combined_after")
-    if _is_num(cb) and _is_num(ca):
+    robust = _robust_combined(results)
+    if robust is not None:  # a robust study: its statistic out of sample (issue 18), not the nominal value
+        cb, ca, what = robust
+        gain = ca - cb
+        rel = gain / abs(cb) if cb else float("inf") if gain > 0 else 0.0
+        findings.append(Finding("combined", ADOPT if rel >= MIN_GAIN_FRAC else REJECT,
+                                f"{what} of the combined objective {fmt(cb)} → {fmt(ca)} "
+                                f"({'+' if gain >= 0 else '−'}{fmt(abs(100 * rel), 3)} %; nominal "
+                                f"{fmt(obj.get('combined_before'))} → {fmt(obj.get('combined_after'))})"))
+    elif _is_num(cb) and _is_num(ca):
         gain = ca - cb
         rel = gain / abs(cb) if cb else float("inf") if gain > 0 else 0.0
         ok = rel >= MIN_GAIN_FRAC
@@ -204,8 +215,32 @@ def _tracking(results: dict) -> list[Finding]:
     return [Finding("tracking", outcome, text)]
 
 
+def _robust_combined(results: dict) -> tuple[float, float, str] | None:
+    """(original, delivered, label) of the robust statistic out of sample when the delivered design is the robust
+    optimum of a robust study (results.json ``robustness.out_of_sample``), else None."""
+    rb = results.get("robustness")
+    if not isinstance(rb, dict) or rb.get("delivered") != "robust":
+        return None
+    oos = rb.get("out_of_sample") or {}
+    per = oos.get("designs") or {}
+    a, b = (per.get(k, {}).get("out_of_sample") for k in ("original", "robust"))
+    if not (_is_num(a) and _is_num(b)):
+        return None
+    return float(a), float(b), f"robust {oos.get('statistic')} (held-out draws)"
+
+
 def _robustness(results: dict) -> list[Finding]:
     rb = results.get("robustness")
+    if isinstance(rb, dict) and rb.get("recommended"):  # the robust comparison (issue 18) decides
+        rec, delivered = str(rb["recommended"]), str(rb.get("delivered"))
+        flagged = [f for f in rb.get("flagged") or [] if f != rec]
+        detail = f"recommended: {rec} ({rb.get('reason', '')})"
+        if flagged:
+            detail += "; flagged as more fragile than the original: " + ", ".join(map(str, flagged))
+        outcome = REJECT if rec == "original" else ADOPT if rec == delivered else CARE
+        if rec not in ("original", delivered):
+            detail += f"; the exported files hold the {delivered} optimum"
+        return [Finding("robustness", outcome, detail)]
     if not isinstance(rb, dict) or "razor_edge" not in rb:
         return []
     edges = rb.get("razor_edge") or []

@@ -32,6 +32,7 @@ from cadfeat.report.plots import Plot, make_plots
 from cadfeat.report.pose import pose_section
 from cadfeat.report.renders import Renders, make_renders
 from cadfeat.report.requirements import requirements_table
+from cadfeat.report.robust_designs import robust_designs_section
 from cadfeat.report.robustness import robustness_section
 from cadfeat.report.tracking import tracking_section
 from cadfeat.report.verdict import verdict_section
@@ -226,7 +227,8 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
          lambda: requirements_table(results)),
         ("holes", "Hole table (shop-ready)", lambda: "" if tables.is_evaluation(results) else hole_table(results)),
         ("patterns", "Hole patterns", lambda: patterns_section(results)),
-        ("robustness", "Robustness of the optimum", lambda: robustness_section(results)),
+        ("robustness", "Robustness of the optimum",
+         lambda: robustness_section(results) + robust_designs_section(results, out_dir, rel)),  # issue 18
         ("view3d", "Interactive 3-D view, before and after", lambda: view3d),
         ("renders", "The part before and after", lambda: _renders_section(renders, rel)),
         ("views", "What the camera sees", lambda: _views_section(renders, rel)),

@@ -25,6 +25,7 @@ from cadfeat.study.outputs import (
     now_iso,
 )
 from cadfeat.study.progress import StudyProgress
+from cadfeat.study.robust_study import attach_robust, check_robust, robust_designs, robust_phase
 from cadfeat.study.schema import StudyConfig, StudyError
 from cadfeat.study.trust import objective_changes
 from cadfeat.study.verify import (
@@ -278,10 +279,12 @@ class _Delivered:
 def compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], dict[str, Any]]:
     """The study's phases in order: set up, optimise, deliver (shop rounding, CAD rebuild, scores and
     requirement checks on the B-rep), analyse; returns (results, shapes) for the export and the report."""
+    check_robust(config)  # issue 18: a chance constraint names a measure of the study, before any work
     with prog.phase("setup"):
         start = _set_up(config)
     with prog.phase("optimise"):
         opt = _optimise_all(config, start, prog)
+        robust_run = robust_phase(config, opt, prog, _history)  # issue 18: the robust optimum (opt.res if delivered)
     setup = opt.setup
     x1 = np.asarray(opt.res.x_best, float)
     if not opt.interrupted and getattr(opt.res, "feasible", True) is False:
@@ -305,6 +308,7 @@ def compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], d
         pose = _pose_accuracy(config, start, setup, done)
     results = _results(config, start, opt, done, (m1, obj1, comb1, checks), (sweep, dmat, robust))
     results["pose_accuracy"] = pose
+    attach_robust(results, robust_designs(setup, robust_run, start.base.holes0, done.holes1))  # issue 18
     shapes = {"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,
               "holes1": done.holes1, "setup": setup, "base": start.base}
     return results, shapes

@@ -32,13 +32,13 @@ def _design(setup):
 
 
 def test_chunked_robustness_equals_one_batch(setup, monkeypatch):
-    """Camera draws (each with its own copy of the depth maps) and manufacturing draws in chunks of 3: the same
-    numbers as all draws in one batch."""
+    """Camera draws (sharing the nominal depth maps through a view) and manufacturing draws in chunks of 3: the
+    same numbers as all draws in one batch."""
     p = setup.problem
     c, a, r = _design(setup)
     changed = np.ones(len(r), bool)
     whole = robustness(p, c, a, r, changed, samples=10, seed=3)
-    per_draw = design_bytes(len(p.screws), len(r), depth_maps=True)
+    per_draw = design_bytes(len(p.screws), len(r))
     calls = []
     real = memory.chunked
 

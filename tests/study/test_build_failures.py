@@ -28,7 +28,7 @@ STUDY = {
     "objective": {"measures": ["fov", "resolution", "resolvability"], "aggregate": "sum", "combine": "maxmin",
                   "rotation_length_mm": 50.0},
     "optimizer": {"method": "multistart", "starts": 2, "maxiter": 25},
-    "robustness": {"samples": 0},
+    "robustness": {"samples": 0, "robust": False},
 }
 
 

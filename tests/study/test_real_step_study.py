@@ -38,6 +38,7 @@ STUDY = {
     "objective": {"measures": ["fov", "resolution", "resolvability"], "aggregate": "sum", "combine": "maxmin",
                   "rotation_length_mm": 50.0},
     "optimizer": {"method": "multistart", "starts": 1, "maxiter": 10},
+    "robustness": {"robust": False},
 }
 
 

@@ -40,6 +40,7 @@ SMALL = {
     "objective": {"measures": ["fov", "resolution", "resolvability"], "aggregate": "sum", "combine": "maxmin",
                   "rotation_length_mm": 50.0},
     "optimizer": {"method": "multistart", "starts": 2, "maxiter": 25},
+    "robustness": {"robust": False},  # the nominal optimum: robust studies are tested in test_robust*.py
 }
 
 
@@ -510,7 +511,7 @@ def test_shop_rounding_on_a_nonlinear_part(tmp_path, monkeypatch):
            # coordinates of each target can reach the grid; at an angle bound only one can, and the shop note says so)
            "objective": {"measures": ["fov", "resolution", "resolvability"], "aggregate": "sum", "combine": "maxmin",
                          "normalisation": "initial"},
-           "optimizer": {"method": "multistart", "starts": 2, "maxiter": 25}}
+           "optimizer": {"method": "multistart", "starts": 2, "maxiter": 25}, "robustness": {"robust": False}}
     result = run_study(cfg, tmp_path / "out", quiet=True)
     shop = result.results["shop"]
     assert shop["applied"] and shop["rebuilt_off_target_mm"] < 1e-3
@@ -537,7 +538,7 @@ def test_flagship_requirements_are_checked_under_the_holes_own_names(tmp_path, m
     cfg["study"]["part"] = str(root / "parts" / "nema17_mount.py")
     cfg["trajectory"]["n"] = 12
     cfg["optimizer"].update(starts=2, maxiter=20)
-    cfg["robustness"] = {"samples": 0}
+    cfg["robustness"] = {"samples": 0, "robust": False}
     data = run_study(cfg, tmp_path / "out", quiet=True).results
     names = [h["name"] for h in data["holes"]["after"]]
     fixed = {h["name"] for h in data["holes"]["after"] if h["fixed"]}

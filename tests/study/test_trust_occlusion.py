@@ -25,7 +25,7 @@ def _study(tmp_path: Path, occlusion: bool | None = None, part: Path = DATA / "w
                         "target": [22, 0, 5], "n": 12},
          "design": {"parameters": {"hole_x": {}}},
          "objective": {"measures": ["fov"], "aggregate": "sum", "combine": "maxmin"},
-         "optimizer": {"starts": 4}}
+         "optimizer": {"starts": 4}, "robustness": {"robust": False}}
     if occlusion is not None:
         d["objective"]["occlusion"] = occlusion
     return write_toml(tmp_path / f"walled_{occlusion}.toml", d)

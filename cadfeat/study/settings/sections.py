@@ -11,13 +11,22 @@ from typing import Any, Literal
 from pydantic import ValidationInfo, field_validator, model_validator
 
 from cadfeat.design.shop import HOLE_SIZE_TABLES, hole_sizes
-from cadfeat.study.settings._base import Settings, Tuple, boolean, choice, integer, number, seed_from_context
+from cadfeat.study.settings._base import (
+    Settings,
+    Tuple,
+    boolean,
+    choice,
+    integer,
+    number,
+    reject,
+    seed_from_context,
+)
 from cadfeat.vision.closed_loop import TrackingConfig
 from cadfeat.vision.estimate import FilterTuning
 from cadfeat.vision.images import SensorModel
 
-__all__ = ["CHECK_MODES", "SYMMETRIES", "TRACKING_ESTIMATORS", "ConstraintSettings", "RobustnessSettings",
-           "ShopSettings", "TrackingSettings"]
+__all__ = ["CHECK_MODES", "ROBUST_STATISTICS", "SYMMETRIES", "TRACKING_ESTIMATORS", "ConstraintSettings",
+           "RobustnessSettings", "ShopSettings", "TrackingSettings"]
 
 SYMMETRIES = ("none", "x", "y", "xy")
 TRACKING_ESTIMATORS = ("ekf", "iekf", "pnp")
@@ -57,16 +66,73 @@ class ShopSettings(Settings):
         return hole_sizes(value)
 
 
-class RobustnessSettings(Settings):
-    """``[robustness]``: tolerances of the robustness study (``cadfeat.design.robustness``): hole positions
-    ±``position_tol_mm``, diameters ±``size_steps`` table steps, camera mount ±``camera_position_mm`` and
-    ±``camera_angle_deg``; ``samples`` random draws each (0: off)."""
+PER_AXIS = "a number ≥ 0 or a list of three numbers ≥ 0 (per axis x, y, z)"
+ROBUST_STATISTICS = ("percentile", "mean", "chance")
 
+
+def _per_axis(value: Any, hi: float) -> float | tuple[float, ...]:
+    """A tolerance per axis: one number ≥ 0 for every axis, or three (x, y, z)."""
+    items = value if isinstance(value, tuple) else (value,)
+    if len(items) not in (1, 3) or not all(isinstance(v, int | float) and not isinstance(v, bool)
+                                           and 0.0 <= v <= hi for v in items):
+        raise ValueError("not a tolerance per axis")
+    return float(items[0]) if not isinstance(value, tuple) else tuple(float(v) for v in items)
+
+
+class RobustnessSettings(Settings):
+    """``[robustness]``: the uncertainty of the cell that will be built and how the design answers to it
+    (``cadfeat.design.uncertainty``, ``cadfeat.design.robust``, ``cadfeat.design.robustness``) — one table for
+    the tolerances, the robust objective and the analysis.
+
+    Tolerances (each ±t; ``distribution`` uniform in [−t, t] or a normal of σ = t/2 truncated at ±t): camera mount
+    ``camera_position_mm`` / ``camera_angle_deg`` and part placement ``placement_position_mm`` /
+    ``placement_angle_deg`` (a number, or one per axis), path offset ``path_offset_mm`` (per task axis), speed
+    ``time_scale_percent``, sensor noise ``pixel_noise_grey`` (grey levels around the σ model's 2), the shop's
+    hole position ``position_tol_mm`` (across the axis) and diameter ``diameter_tol_mm``; ``size_steps``: the
+    analysis also tries a drill ±that many sizes off the table.
+    Robust objective (``robust = true``, the default): maximise the ``percentile`` (default 10th) of the combined
+    objective over ``draws`` fixed draws (``sampling``: Sobol or Latin hypercube, seeded by the study), or its
+    ``mean``, or (``chance``) the nominal value subject to ``chance_measure`` ≥ ``chance_min`` (raw units; g_POSE
+    is minus the error in mm) in ``chance_probability`` of the cells. ``robust = false``: the nominal optimum.
+    Analysis: ``samples`` draws per source (0: off), and as many on a held-out seed (out of sample)."""
+
+    robust: bool = boolean(True, description="optimise a statistic over the draws (false: the nominal optimum)")
+    statistic: Literal["percentile", "mean", "chance"] = choice("percentile", ROBUST_STATISTICS)
+    percentile: float = number(10.0, 0.0, 50.0, lo_open=True, description="the percentile maximised")
+    chance_measure: str | None = choice(None, "a measure of objective.measures (with statistic = \"chance\")")
+    chance_min: float | None = number(None, description="the chance constraint's bound (raw units)")
+    chance_probability: float = number(0.95, 0.5, 1.0, lo_open=True)
+    draws: int = integer(64, 2, 4096, description="draws the robust objective is evaluated on")
+    sampling: Literal["sobol", "lhs"] = choice("sobol", ("sobol", "lhs"))
+    distribution: Literal["uniform", "normal"] = choice("uniform", ("uniform", "normal"))
+    camera_position_mm: float | Tuple[float] = choice(2.0, PER_AXIS)
+    camera_angle_deg: float | Tuple[float] = choice(1.0, PER_AXIS)
+    placement_position_mm: float | Tuple[float] = choice(0.5, PER_AXIS)
+    placement_angle_deg: float | Tuple[float] = choice(0.5, PER_AXIS)
+    path_offset_mm: float | Tuple[float] = choice(0.5, PER_AXIS)
+    time_scale_percent: float = number(10.0, 0.0, 90.0)
+    pixel_noise_grey: float = number(1.0, 0.0, 2.0)
     position_tol_mm: float = number(0.1, 0.0, 10.0)
+    diameter_tol_mm: float = number(0.1, 0.0, 10.0)
     size_steps: int = integer(1, 0, 5)
-    camera_position_mm: float = number(2.0, 0.0, 100.0)
-    camera_angle_deg: float = number(1.0, 0.0, 30.0)
     samples: int = integer(200, 0, 10000)
+
+    @field_validator("camera_position_mm", "placement_position_mm", "path_offset_mm")
+    @classmethod
+    def _mm(cls, value: Any) -> float | tuple[float, ...]:
+        return _per_axis(value, 100.0)
+
+    @field_validator("camera_angle_deg", "placement_angle_deg")
+    @classmethod
+    def _deg(cls, value: Any) -> float | tuple[float, ...]:
+        return _per_axis(value, 30.0)
+
+    @model_validator(mode="after")
+    def _chance(self) -> RobustnessSettings:
+        if self.statistic == "chance" and (self.chance_measure is None or self.chance_min is None):
+            raise reject("chance_measure", "statistic = \"chance\" needs chance_measure and chance_min",
+                         "a measure of objective.measures and its bound chance_min (raw units)")
+        return self
 
 
 _CL, _FT, _SM = TrackingConfig, FilterTuning, SensorModel  # the vision defaults are the section's defaults

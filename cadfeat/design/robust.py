@@ -1,0 +1,271 @@
+"""Robust objectives: optimise a statistic of the combined objective over a fixed set of draws of the cell.
+
+``RobustProblem(problem, objective, draws)`` is the same design problem seen through the uncertainty of
+``cadfeat.design.uncertainty``: its ``evaluate_batch(X)`` evaluates the B designs
+
+- nominally (``Problem.batch_objectives``: the kept requirements and thresholds use the nominal values),
+- in the S drawn cells (``robustness.cell_objectives``: camera mount, part placement, path offset, time scaling
+  and pixel noise together; one stack of S·L poses per memory chunk),
+- as the shop makes them in S draws (``robustness.shop_objectives``: the holes the study designs displaced and
+  resized within the shop's tolerances; B·S designs in one batch),
+
+(and the camera mounting error alone: ``BLOCKS``), and returns ONE objective, the statistic of the combined value
+(``Problem.combined_from``, the nominal normalisation) — the smallest over the sources, so a design must hold up
+under each:
+
+- ``"percentile"`` (default): the q-th percentile (q = 10; linear interpolation between the order statistics);
+- ``"mean"``: the mean;
+- ``"chance"``: the nominal combined value, with the chance constraint "measure g_k ≥ bound in a share p of the
+  cells" as one more margin: (the (1 − p) quantile of g_k − bound) / scale_k ≥ 0.
+
+With ``floor_x`` (the original design), each source's combined 5th percentile may not fall below the original's
+(one margin per source): the rule "a design more fragile than the original is never recommended", in sample.
+The draws are fixed (common random numbers), so the optimisers see a deterministic function of the design and
+the same seed gives the same robust optimum bit for bit. Works with every measure, g_POSE included (its pixel
+noise draws enter through the σ model). ``robust_optimise`` runs local solves of the robust problem from given
+starts (the nominal optimum, the best end-points of the nominal multi-start, the initial design).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cadfeat.design.objectives import ObjectiveConfig
+from cadfeat.design.uncertainty import Draws
+from cadfeat.errors import CadfeatError
+
+__all__ = ["BLOCKS", "FLOOR_PERCENTILE", "STATISTICS", "RobustObjective", "RobustProblem", "robust_optimise",
+           "statistic"]
+
+STATISTICS = ("percentile", "mean", "chance")
+
+
+@dataclass(frozen=True)
+class RobustObjective:
+    """What the robust optimiser maximises (module docstring); ``chance_min`` in the measure's raw units."""
+
+    statistic: str = "percentile"
+    percentile: float = 10.0
+    chance_measure: str | None = None
+    chance_min: float | None = None
+    chance_probability: float = 0.95
+
+    @staticmethod
+    def from_settings(spec: Any) -> RobustObjective:
+        return RobustObjective(spec.statistic, float(spec.percentile), spec.chance_measure,
+                               None if spec.chance_min is None else float(spec.chance_min),
+                               float(spec.chance_probability))
+
+    @property
+    def label(self) -> str:
+        if self.statistic == "percentile":
+            return f"p{self.percentile:g}"
+        if self.statistic == "mean":
+            return "mean"
+        return f"nominal, P({self.chance_measure} ≥ {self.chance_min:g}) ≥ {self.chance_probability:g}"
+
+
+def statistic(values: np.ndarray, objective: RobustObjective, axis: int = -1) -> np.ndarray:
+    """The objective's statistic of ``values`` over the draws (``axis``): the percentile or the mean (for
+    "chance": the percentile, as a report of the spread)."""
+    v = np.asarray(values, float)
+    if objective.statistic == "mean":
+        return v.mean(axis=axis)
+    return np.percentile(v, objective.percentile, axis=axis)
+
+
+class _ScalarConfig:
+    """The objective configuration the solvers see: one objective, maximised as it is."""
+
+    combine = "weighted"
+    measures = ("robust",)
+    weights: dict[str, float] = {}
+    thresholds: dict[str, float] = {}
+
+
+BLOCKS = ("cell", "camera", "manufacturing")
+"""The sources the robust problem evaluates, each on the same draws: the cell with all its errors together (the
+cell that will be built), the camera mounting error alone (the largest by default, and the one a design must not
+be more fragile to than the original), the shop's hole tolerances."""
+FLOOR_PERCENTILE = 5.0
+"""The "never worse than the original" rule's percentile of the combined value (per source)."""
+
+
+class RobustProblem:
+    """``problem`` seen through a statistic over fixed ``draws`` (module docstring). ``changed`` (N,) bool: the
+    holes the shop makes (default: the movable ones, all when none moves). ``floor_x`` (P,): a design (the
+    original) whose combined 5th percentile under each source of ``BLOCKS`` is a constraint (margin ≥ 0): the
+    robust optimum is never more fragile than it, in sample."""
+
+    def __init__(self, problem: Any, objective: RobustObjective, draws: Draws, changed: Any = None,
+                 floor_x: Any = None):
+        if problem.objective_config.combine == "pareto":
+            raise CadfeatError("robustness.robust: a robust objective needs one combined value; allowed: "
+                               "objective.combine = maxmin, weighted or constraint, or robustness.robust = false")
+        if objective.statistic not in STATISTICS:
+            raise CadfeatError(f"robustness.statistic: {objective.statistic!r}; allowed: {', '.join(STATISTICS)}")
+        self.inner, self.objective, self.draws = problem, objective, draws
+        self.space, self.model = problem.space, problem.model
+        fixed = np.asarray(problem.fixed_mask, bool)
+        self.changed = (~fixed if (~fixed).any() else np.ones_like(fixed)) if changed is None else \
+            np.asarray(changed, bool)
+        self.names = [f"robust {objective.label} of the combined objective"]
+        self.objective_config = _ScalarConfig()
+        self.scales, self.offsets, self.combined_idx = np.ones(1), np.zeros(1), np.array([0])
+        self.n_evals = 0
+        self._chance = None
+        if objective.statistic == "chance":
+            names = list(problem.names)
+            key = ObjectiveConfig.key
+            idx = [i for i, n in enumerate(names) if key(n) == objective.chance_measure]
+            if not idx or objective.chance_min is None:
+                raise CadfeatError(f"robustness.chance_measure: {objective.chance_measure!r} is not a measure of the "
+                                   f"study; allowed: {', '.join(key(n) for n in names)} (and a chance_min)")
+            self._chance = idx[0]
+        self.floor: np.ndarray | None = None
+        if floor_x is not None:
+            comb = self.block_combined(np.asarray(floor_x, float)[None])
+            self.floor = np.array([np.percentile(comb[b][0], FLOOR_PERCENTILE) for b in BLOCKS])
+
+    # the solvers' view of one objective, maximised as it is
+    def normalised(self, G: np.ndarray) -> np.ndarray:
+        return np.asarray(G, float)
+
+    def combined_from(self, G: np.ndarray) -> np.ndarray:
+        return np.asarray(G, float)[..., 0]
+
+    def constraint_labels(self) -> list[tuple[str, list[str]]]:
+        extra = [(f"chance:{self.objective.chance_measure}", [])] if self._chance is not None else []
+        if self.floor is not None:
+            extra += [(f"p05 not below the original's: {b}", []) for b in BLOCKS]
+        return self.inner.constraint_labels() + extra
+
+    def constraints(self, x: np.ndarray) -> np.ndarray:
+        return self.evaluate_batch(np.asarray(x, float)[None])[1][0]
+
+    def block_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                         depth_mm: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Raw objectives of B designs' features (B, N, 3), (B, N, 3), (B, N): ``"nominal"`` (B, K) and per source
+        of ``BLOCKS`` (B, S, K) on the draws with only that source (all cell sources for "cell")."""
+        from cadfeat.design.robustness import cell_objectives, shop_objectives
+
+        p = self.inner
+        a = np.broadcast_to(axes, np.shape(centres))
+        out = {"nominal": p.batch_objectives(centres, a, radii, depth_mm=depth_mm)}
+        for b in BLOCKS:
+            d = self.draws.only(b)
+            if b == "manufacturing":
+                shop = np.any(d.hole_shift_mm) or np.any(d.diameter_mm)
+                out[b] = shop_objectives(p, centres, a, radii, self.changed, d, depth_mm) if shop else \
+                    np.repeat(out["nominal"][:, None], d.size, axis=1)
+            else:
+                out[b] = cell_objectives(p, centres, a, radii, d, depth_mm)
+        return out
+
+    def block_combined(self, X: np.ndarray) -> dict[str, np.ndarray]:
+        """The combined value of designs X (B, P): "nominal" (B,) and per source (B, S)."""
+        c, a, r = self.inner.model.features_batch(np.atleast_2d(np.asarray(X, float)))
+        G = self.block_objectives(c, a, r, self.inner.hole_depths(X))
+        return {k: np.asarray(self.inner.combined_from(v), float) for k, v in G.items()}
+
+    def value_and_margins(self, G: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """The robust objective (B,) and the extra margins (B, M') (chance constraint, the original's floors) of
+        ``block_objectives``."""
+        p = self.inner
+        comb = {k: np.asarray(p.combined_from(v), float) for k, v in G.items()}
+        margins = []
+        if self.objective.statistic == "chance":
+            value = comb["nominal"]
+            k, q = self._chance, 100.0 * (1.0 - self.objective.chance_probability)
+            low = np.min([np.percentile(G[b][..., k], q, axis=1) for b in BLOCKS], axis=0)
+            margins.append((low - float(self.objective.chance_min)) / float(p.scales[k]))
+        else:
+            value = np.min([statistic(comb[b], self.objective) for b in BLOCKS], axis=0)
+        if self.floor is not None:
+            margins += [np.percentile(comb[b], FLOOR_PERCENTILE, axis=1) - f for b, f in zip(BLOCKS, self.floor,
+                                                                                              strict=True)]
+        return value, np.stack(margins, axis=1) if margins else np.zeros((len(value), 0))
+
+    def evaluate_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The robust objective (B, 1) and the margins (B, M) (the nominal kept requirements, then the chance
+        constraint's and the original's floors) of designs X (B, P)."""
+        X = np.atleast_2d(np.asarray(X, float))
+        p = self.inner
+        c, a, r = p.model.features_batch(X)
+        G = self.block_objectives(c, a, r, self.inner.hole_depths(X))
+        value, extra = self.value_and_margins(G)
+        C = np.concatenate([p.features_constraints(c, r, G["nominal"], X), extra], axis=1)
+        self.n_evals += len(X)
+        return value[:, None], C
+
+
+ROBUST_EVALS_PER_VARIABLE = 30
+"""Evaluations of each robust local solve per free design variable (COBYLA's ``maxiter``)."""
+ROBUST_STEP = 0.05
+"""COBYLA's initial step, as a fraction of each variable's range."""
+
+
+def _local(ev: Any, u0: np.ndarray, maxiter: int) -> None:
+    """One derivative-free local solve (COBYLA) of the evaluator's robust objective from u0 under its margins:
+    the statistic over the draws is piecewise smooth with steps (a hole leaving the view in one draw), where
+    finite-difference gradients mislead a gradient solver. The evaluator keeps the best feasible design."""
+    import warnings
+
+    from scipy.optimize import minimize
+
+    iteration = [0]
+
+    def fun(u: np.ndarray) -> float:
+        return -float(ev.combined(u[None])[0])
+
+    def callback(*args: Any) -> None:
+        iteration[0] += 1
+        if iteration[0] % 10 == 0:  # one history entry every ten iterations
+            G, C = ev.batch(np.clip(np.asarray(args[0] if not hasattr(args[0], "x") else args[0].x), 0, 1)[None])
+            ev.record(iteration[0], G[0], C[0])
+
+    n_cons = ev.batch(u0[None])[1].shape[1]
+    cons = [{"type": "ineq", "fun": lambda u: ev.batch(np.clip(u, 0.0, 1.0)[None])[1][0]}] if n_cons else []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        minimize(fun, u0, method="COBYLA", constraints=cons, bounds=[(0.0, 1.0)] * u0.size, callback=callback,
+                 options={"maxiter": maxiter, "rhobeg": ROBUST_STEP})
+
+
+def robust_optimise(problem: RobustProblem, config: Any, starts: Sequence[np.ndarray],
+                    progress: Any = None) -> Any:
+    """Local solves of ``problem`` (COBYLA, ``ROBUST_EVALS_PER_VARIABLE`` evaluations per free variable) from
+    each of ``starts`` in turn, one evaluator keeping the best feasible design (ties: the earlier); standard-size
+    variables (``snap_standard_sizes``) stay at each start's (snapped) sizes. An ``optimize.OptimResult``."""
+    import time
+
+    from cadfeat.design.optimize import _result
+    from cadfeat.design.optimize.evaluator import Evaluator
+
+    if not len(starts):
+        raise CadfeatError("robust optimisation: no start given")
+    space = problem.space
+    discrete = np.asarray(space.discrete, bool) if config.snap_standard_sizes else np.zeros(space.size, bool)
+    free = np.flatnonzero(~discrete)
+    t0, n0 = time.perf_counter(), problem.n_evals
+    ev = Evaluator(problem, np.asarray(starts[0], float), free, progress=progress, t0=t0)
+    ev.phase = "robust"
+    interrupted, summaries = False, []
+    try:
+        for k, x in enumerate(starts):
+            sub = ev.sub(np.asarray(x, float), free)
+            sub.best, sub.phase, sub.start = ev.best, "robust", k
+            if free.size:
+                _local(sub, sub.to_u(np.asarray(x, float)), ROBUST_EVALS_PER_VARIABLE * free.size)
+            else:
+                sub.batch(np.zeros((1, 0)))
+            ev.best = sub.best
+            summaries.append({"start": k, "x_start": np.asarray(x, float).tolist(),
+                              "combined": None if sub.best is None else float(sub.best["combined"])})
+    except KeyboardInterrupt:
+        interrupted = True
+    return _result(ev, problem, t0, interrupted, n0, starts=summaries)
