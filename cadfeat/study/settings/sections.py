@@ -80,6 +80,9 @@ class TrackingSettings(Settings):
     iterations n and threshold τ; every ``frame_step``-th trajectory sample; statistics after ``settle_frames``;
     convergence bounds; association gate (px); rim ellipse-centre model; significance ``alpha`` of the paired
     test, and the smallest change of the median RMS error (percent of the error before) that a verdict counts.
+    Run-to-run variability of a real cell: the part's placement error per run (σ per axis, mm and deg; the
+    images are rendered again per run) and the illumination gain's relative σ; pixel noise and the initial
+    error's direction are drawn per run too.
     """
 
     estimators: Tuple[Literal["ekf", "iekf", "pnp"]] = choice(
@@ -104,6 +107,9 @@ class TrackingSettings(Settings):
     rim_model: bool = boolean(_CL.rim_model)
     alpha: float = number(_CL.alpha, 0.0, 0.5, lo_open=True)
     min_change_percent: float = number(100.0 * _CL.min_change, 0.0, 100.0)
+    placement_mm: float = number(_CL.placement_mm, 0.0, 100.0)
+    placement_deg: float = number(_CL.placement_deg, 0.0, 30.0)
+    gain_sigma: float = number(_CL.gain_sigma, 0.0, 1.0)
 
     @model_validator(mode="before")
     @classmethod
