@@ -100,9 +100,9 @@ def _camera_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radi
         from cadfeat.design.pose_terms import pose_aggregate_batch, pose_of_features
 
         info = pose_of_features(stacked, centres, axes, radii)
-        e = info.error_mm(cfg.rotation_length_mm).reshape(S, L)
+        e = info.error_mm(cfg.pose_rotation_length_mm).reshape(S, L)
         g_pose = pose_aggregate_batch(e, info.information.reshape(S, L, 6, 6), cfg.pose_aggregate,
-                                      cfg.rotation_length_mm)
+                                      cfg.pose_rotation_length_mm)
         _PerDraw.pose = types.SimpleNamespace(error_mm=lambda _ell=None: e)  # type: ignore[attr-defined]
     values = per_pose_values(_PerDraw(), cfg, problem.feature_mask)
     return np.stack([g_pose if k == "pose" else aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta,

@@ -187,7 +187,7 @@ def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, set
     from cadfeat.cad.features.identity import hole_names
 
     tuning = _tuning(config)
-    ell = float(config.objective.rotation_length_mm)
+    ell = float(config.objective.pose_rotation_length_mm)
     movable = [n for n, fixed in zip(base.hole_names, base.problem.fixed_mask, strict=True) if not fixed]
     out: dict[str, Any] = {
         "model": "measures.pose_information (calibrated detection and measurement models, exact rim occlusion); "
@@ -231,5 +231,5 @@ def with_pose(setup: Any, holes: Sequence[Any], trajectory: Any, measures: Any, 
     ``Problem.features_objectives(exact_occlusion=True)``)."""
     T = np.linalg.inv(np.asarray(trajectory.T_task_cam)) @ setup.T_task_part
     mesh = mesh if mesh is not None else getattr(setup.problem, "occlusion_mesh", None)
-    info, _ = predict(setup.camera, T, holes, mesh, float(setup.config.objective.rotation_length_mm))
+    info, _ = predict(setup.camera, T, holes, mesh, float(setup.config.objective.pose_rotation_length_mm))
     return _MeasuresWithPose(measures, info)

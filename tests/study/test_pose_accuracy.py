@@ -102,7 +102,7 @@ def test_g_pose_of_a_study_equals_a_direct_assembly(tmp_path):
     from cadfeat.study.setup import setup_study
 
     config = load_study(study(tmp_path, objective={"measures": ["fov", "pose"], "pose_aggregate": "worst",
-                                                   "rotation_length_mm": 20.0}))
+                                                   "pose_rotation_length_mm": 20.0}))
     setup = setup_study(config)
     values, _ = score(setup, setup.holes0)
     holes = setup.holes0
