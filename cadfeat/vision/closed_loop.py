@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cadfeat.camera import Camera
+from cadfeat.measures.pose_models import RIM_GAP_MIN_PX as _RIM_GAP_MIN_PX
 from cadfeat.vision.detection import Detections, associate, detect_holes
 from cadfeat.vision.estimate import FilterTuning, estimate_poses
 from cadfeat.vision.images import SensorModel, apply_optics, optics_kernels, render_sequence, sensor_images
@@ -45,6 +46,9 @@ ROI_MARGIN_PX = 12
 PART_LEVEL = 20.0
 #: A hole whose rim the part hides by more than this fraction at the predicted pose is not associated.
 RIM_HIDDEN_MAX = 0.03
+#: A hole whose predicted rim comes closer than this (px) to another hole's rim is not associated
+#: (``measures.pose_models.RIM_GAP_MIN_PX``: a neighbouring edge inside the surround ring shifts the centre).
+RIM_GAP_MIN_PX = _RIM_GAP_MIN_PX
 
 
 @dataclass(frozen=True)
@@ -103,6 +107,7 @@ class Observation:
     names: list[str]
     rim_hidden: np.ndarray | None = None
     scene: tuple[Any, Sequence[Hole], SensorModel, np.ndarray | None] | None = None  # (shape, holes, sensor, screws)
+    rim_gap: np.ndarray | None = None  # (F, N) px to the nearest other rim at the nominal pose (None: not computed)
 
 
 @dataclass
@@ -146,8 +151,11 @@ def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.nd
     predicted = [_E(ell.centre_px[k], ell.axes_px[k], ell.angle_rad[k], ell.valid[k]) for k in range(len(T))]
     names = [h.name or f"hole{j}" for j, h in enumerate(holes)]
     hidden = _rim_hidden(shape, holes, T, centres, normals, radii) if predict_occlusion else None
+    from cadfeat.measures.pose_models import hole_geometry
+
+    gap = hole_geometry(camera, T, centres, normals, radii).rim_gap_px
     return Observation(optical, offsets, predicted, centres, normals, radii, names, hidden,
-                       (shape, list(holes), sensor, screws))
+                       (shape, list(holes), sensor, screws), gap)
 
 
 def _regions(camera: Camera, clean: np.ndarray, blurred: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
@@ -228,6 +236,8 @@ def _expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.nda
         out[k] = np.asarray(e.valid) & inside & facing[k] & (np.asarray(e.axes_px)[:, 1] >= 3.0)
     if obs.rim_hidden is not None:
         out &= obs.rim_hidden <= RIM_HIDDEN_MAX
+    if obs.rim_gap is not None:
+        out &= obs.rim_gap >= RIM_GAP_MIN_PX
     return out
 
 
@@ -284,6 +294,8 @@ def detect_sequence(obs: Observation, noise_grey: float, seed: int, gate_px: flo
         pixels[k] = associate(obs.predicted[k], d, gate_px)
         if obs.rim_hidden is not None:
             pixels[k, obs.rim_hidden[k] > RIM_HIDDEN_MAX] = np.nan
+        if obs.rim_gap is not None:
+            pixels[k, obs.rim_gap[k] < RIM_GAP_MIN_PX] = np.nan
     return pixels, dets
 
 
