@@ -165,6 +165,35 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     return out
 
 
+def repredict(panel: dict, args: argparse.Namespace) -> None:
+    """Recompute a stored panel's predicted columns with the current detection/measurement models (the
+    simulated columns stay: the closed loop does not depend on the models)."""
+    from cadfeat.poses import invert_T
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.setup import setup_study
+    from cadfeat.vision import FilterTuning
+
+    setup = setup_study(load_study(Path(panel["study"])))
+    traj = setup.trajectory
+    idx = np.arange(0, len(traj.T_task_cam), args.frame_step)
+    T = (invert_T(np.asarray(traj.T_task_cam)) @ setup.T_task_part)[idx]
+    times = np.asarray(traj.times_s)[idx]
+    model = None
+    if args.model is not None:
+        from cadfeat.measures.pose_models import PoseModels
+
+        model = PoseModels(**json.loads(args.model.read_text()))
+    for row in panel["rows"]:
+        s = score(setup, np.array(row["x"]), T, times, FilterTuning(), model)
+        for k in ("pnp_t", "pnp_r", "iekf_t", "iekf_r", "bias_t", "noise_t", "holes_seen"):
+            row[k] = s[k]
+        for j, name in enumerate(row["holes"]):
+            seen = row["holes"][name][0] is not None
+            row["holes"][name][1] = round(float(np.sqrt(np.mean(s["model_px"][:, j] ** 2))), 4) if seen else None
+            row["holes"][name][3] = round(float(s["model_detected"][:, j].mean()), 3)
+        print(json.dumps({k: row[k] for k in ("design", "pnp_t", "sim_pnp_t", "pnp_r", "sim_pnp_r")}), flush=True)
+
+
 KEYS = ("pnp_t", "pnp_r", "iekf_t", "iekf_r")
 
 
@@ -248,11 +277,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--markdown", type=Path, default=None)
     ap.add_argument("--from-json", type=Path, action="append", default=None,
                     help="only write --markdown from earlier --json outputs")
+    ap.add_argument("--repredict", action="store_true",
+                    help="with --from-json: recompute the predictions with the current models (no closed loop)")
     ap.add_argument("--model", type=Path, default=None,
                     help="a detection_model.json (calibrate_detection.py --study); default: the committed one")
     args = ap.parse_args(argv)
     if args.from_json:
         panels = [p for f in args.from_json for p in json.loads(f.read_text())["panels"]]
+        if args.repredict:
+            for p in panels:
+                repredict(p, args)
+            if args.json:
+                args.json.write_text(json.dumps({"panels": panels}, indent=1))
     else:
         studies = args.study or [ROOT / "studies" / "nema17_mount.toml"]
         optima = args.optimum or [None] * len(studies)

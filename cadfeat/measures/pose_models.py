@@ -70,7 +70,17 @@ class HoleGeometry(NamedTuple):
     axis_dir_px: np.ndarray
     valid: np.ndarray
     in_front: np.ndarray
-    rim_gap_px: np.ndarray | None = None
+    rims: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None  # centre, axes, angle px, edge
+
+    def rim_gap_px(self, occlusion: Any = None) -> np.ndarray | None:
+        """(L, N) image gap to the nearest other rim that shows as an edge (``rim_gap_px``): in front, facing
+        the camera and, given the rims' hidden fractions ``occlusion`` (L, N), less than half hidden."""
+        if self.rims is None:
+            return None
+        centre, axes, angle, edge = self.rims
+        if occlusion is not None:
+            edge = edge & (np.broadcast_to(np.asarray(occlusion, dtype=float), edge.shape) < EDGE_HIDDEN_MAX)
+        return rim_gap_px(centre, axes, angle, edge)
 
 
 def _sigmoid(x: np.ndarray | float) -> np.ndarray:
@@ -114,15 +124,18 @@ def hole_geometry(camera: Camera, T_cam_part: np.ndarray, centres: np.ndarray, n
     point_margin = np.minimum(np.minimum(pp[..., 0], camera.width - pp[..., 0]),
                               np.minimum(pp[..., 1], camera.height - pp[..., 1]))
     margin = np.where(point, point_margin, image_margin_from_ellipse(camera, e))
-    gap = rim_gap_px(e.centre_px, e.axes_px, e.angle_rad, valid & in_front & (facing > 0) & ~point)
+    rims = (np.asarray(e.centre_px), np.asarray(e.axes_px), np.asarray(e.angle_rad),
+            valid & in_front & (facing > 0) & ~point)
     return HoleGeometry(minor, major, margin, facing,
-                        defocus_diameter_px(camera, np.maximum(Z, 1.0)), rim, axis_dir, valid, in_front, gap)
+                        defocus_diameter_px(camera, np.maximum(Z, 1.0)), rim, axis_dir, valid, in_front, rims)
 
 
 #: A rim that comes closer than this (px) to another hole's rim in the image is not detected: the detector's
 #: surround ring (``vision.detection``, 2.5 px outside the fitted rim) cannot tell a neighbouring edge from the
 #: rim's own, and the closed loop drops such holes at association (``vision.closed_loop.RIM_GAP_MIN_PX``).
 RIM_GAP_MIN_PX = 3.0
+#: A neighbouring rim counts as an edge in the image while less than this fraction of it is hidden by the part.
+EDGE_HIDDEN_MAX = 0.5
 
 
 def _radius_along(axes_px: np.ndarray, angle_rad: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -188,8 +201,8 @@ class PoseModels:
         fov = _sigmoid(np.maximum(geo.margin_px, -50.0 * self.w_f_px) / self.w_f_px)
         facing = _sigmoid((geo.facing - self.c0) / self.w_c)
         occl = _sigmoid((self.o0 - occ) / self.w_o) / _sigmoid(self.o0 / self.w_o)
-        near = 1.0 if geo.rim_gap_px is None else _sigmoid(
-            (np.minimum(geo.rim_gap_px, 1e6) - self.gap0_px) / self.w_g_px)
+        gap = geo.rim_gap_px(occ)
+        near = 1.0 if gap is None else _sigmoid((np.minimum(gap, 1e6) - self.gap0_px) / self.w_g_px)
         return np.where(geo.valid & geo.in_front & (geo.facing > 0), size * fov * facing * occl * near, 0.0)
 
     def measurement_model(self, geo: HoleGeometry, *, depth_ratio: Any = None, kinds: Any = None,

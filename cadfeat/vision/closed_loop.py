@@ -153,7 +153,7 @@ def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.nd
     hidden = _rim_hidden(shape, holes, T, centres, normals, radii) if predict_occlusion else None
     from cadfeat.measures.pose_models import hole_geometry
 
-    gap = hole_geometry(camera, T, centres, normals, radii).rim_gap_px
+    gap = hole_geometry(camera, T, centres, normals, radii).rim_gap_px(hidden)
     return Observation(optical, offsets, predicted, centres, normals, radii, names, hidden,
                        (shape, list(holes), sensor, screws), gap)
 

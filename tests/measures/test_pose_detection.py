@@ -136,7 +136,7 @@ def test_a_neighbouring_rim_is_dropped_and_predicted_so(spacing_mm, close):
     geo = hole_geometry(C.CAMERA, T[None], c, n, r)
     Z = (c @ T[:3, :3].T + T[:3, 3])[0, 2]
     gap = C.CAMERA.fx * (spacing_mm - 2 * r_mm) / Z
-    np.testing.assert_allclose(geo.rim_gap_px[0], gap, rtol=1e-6)
+    np.testing.assert_allclose(geo.rim_gap_px()[0], gap, rtol=1e-6)
     assert (gap < RIM_GAP_MIN_PX) == close
     p = default_models().detection_probability(geo, np.zeros((1, 2)))[0]
     obs = observe(wp.val(), holes, C.CAMERA, T[None], SensorModel(noise_grey=C.NOISE_GREY, defocus=False))
