@@ -258,15 +258,19 @@ def fit(rows: list[dict]) -> PoseModels:
     (k_b, k_d), *_ = np.linalg.lstsq(A, a["offset_axis_px"][ok], rcond=None)
     # the pixel-grid error: per-axis RMS √(a² + k_a²/ρ) of the offsets over placements (``alias_px``); a table
     # without placements (older) falls back to what the systematic offset leaves of the one placement's offset
-    if "alias_px" in a and np.isfinite(a["alias_px"][ok]).sum() >= 10:
-        fin = np.isfinite(a["alias_px"][ok])
-        resid2, rho_a = a["alias_px"][ok][fin] ** 2, rho[fin]
+    if "alias_px" in a and (np.isfinite(a["alias_px"][ok]) & (a["alias_px"][ok] > 0)).sum() >= 10:
+        # in log space, like σ (each value is an RMS over 6 placements, ±25 %: relative errors): the fit gives
+        # a = 0 — the 1/√ρ law of a least-squares ellipse through ρ points with independent staircase errors
+        fin = np.isfinite(a["alias_px"][ok]) & (a["alias_px"][ok] > 0)
+        al, rho_a = a["alias_px"][ok][fin], rho[fin]
+        ra = least_squares(lambda x: 0.5 * np.log(x[0] ** 2 + x[1] ** 2 / rho_a) - np.log(al), [0.02, 0.3],
+                           bounds=([0.0, 0.01], [0.2, 3.0]))
+        alias_floor, k_alias = (float(v) for v in ra.x)
     else:
         resid2 = 0.5 * np.maximum(a["offset_u_px"][ok] ** 2 + a["offset_v_px"][ok] ** 2
                                   - (A @ np.array([k_b, k_d])) ** 2, 0.0)    # per-axis squared residual
-        rho_a = rho
-    (floor2, ka2), _ = nnls(np.column_stack([np.ones(len(rho_a)), 1.0 / rho_a]), resid2)
-    k_alias, alias_floor = float(np.sqrt(ka2)), float(np.sqrt(floor2))
+        (floor2, ka2), _ = nnls(np.column_stack([np.ones(len(rho)), 1.0 / rho]), resid2)
+        k_alias, alias_floor = float(np.sqrt(ka2)), float(np.sqrt(floor2))
     # occlusion: the raw detector accepts rims cut by an edge of the same grey (a wall's top face over the
     # plate) up to ~30 % hidden, with centre offsets up to ~1 px (the table's hidden > 0 rows); the closed
     # loop therefore drops every hole whose predicted rim is more than RIM_HIDDEN_MAX hidden, and the model

@@ -103,7 +103,7 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
         model = PoseModels(**json.loads(args.model.read_text()))
     config = TrackingConfig(estimators=("pnp", "iekf"), runs=args.runs, sensor=SensorModel(noise_grey=2.0),
                             tuning=tuning, placement_mm=args.placement_mm, placement_deg=args.placement_deg,
-                            gain_sigma=args.gain_sigma)
+                            gain_sigma=args.gain_sigma, seed=args.seed)
     T_runs = T[None] @ placement_errors(config, config.runs)[:, None]
     xs = designs(setup.space, args.designs)
     names = ["original"] + [f"sobol {i}" for i in range(1, len(xs))]
@@ -153,7 +153,7 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
                "sim_iekf_t": sim["iekf"][0], "sim_iekf_r": sim["iekf"][1], "seconds": time.perf_counter() - start}
         rows.append(row)
         print(json.dumps({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()}), flush=True)
-    out = {"study": str(study), "rows": rows, "runs": config.runs, "frames": len(T),
+    out = {"study": str(study), "rows": rows, "runs": config.runs, "frames": len(T), "seeds": [args.seed],
            "variability": {"placement_mm": config.placement_mm, "placement_deg": config.placement_deg,
                            "gain_sigma": config.gain_sigma, "noise_grey": config.sensor.noise_grey}}
     if optimum is not None:
@@ -162,6 +162,39 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
                              **{f"{k}_{q}": d[k][q] for k in ("translation", "rotation")
                                 for q in ("p_value", "median_change") if q in d[k]}}
                          for m, d in v.items()}
+    return out
+
+
+SIM = ("sim_pnp_t", "sim_pnp_r", "sim_iekf_t", "sim_iekf_r", "propagated_t", "propagated_r")
+
+
+def merge(panels: list[dict]) -> list[dict]:
+    """Panels of the same study and designs from independent seeds → one panel: the simulated RMS over all runs
+    (√ of the run-weighted mean square), and the split-half reliability (Spearman ρ between the seeds' simulated
+    errors: how far Monte-Carlo noise alone lets a perfect prediction rank the designs)."""
+    from scipy.stats import spearmanr
+
+    by: dict[str, list[dict]] = {}
+    for p in panels:
+        by.setdefault(p["study"], []).append(p)
+    out = []
+    for group in by.values():
+        first = group[0]
+        if len(group) == 1:
+            out.append(first)
+            continue
+        runs = np.array([g["runs"] for g in group], float)
+        split = {k: float(spearmanr([r[k] for r in group[0]["rows"]], [r[k] for r in group[1]["rows"]]).statistic)
+                 for k in SIM[:4]}
+        for i, row in enumerate(first["rows"]):
+            for k in SIM:
+                vals = np.array([g["rows"][i][k] for g in group])
+                row[k] = float(np.sqrt(np.sum(runs * vals ** 2) / runs.sum()))
+            row["seconds"] = float(sum(g["rows"][i]["seconds"] for g in group))
+        first["split_half"] = split
+        first["runs"] = int(runs.sum())
+        first["seeds"] = [s for g in group for s in g.get("seeds", [0])]
+        out.append(first)
     return out
 
 
@@ -239,6 +272,12 @@ def markdown(panels: list[dict]) -> str:
                          f"| {r['iekf_r']:.4f} | {r['sim_iekf_r']:.4f} | {r['propagated_t']:.4f} / "
                          f"{r['propagated_r']:.4f} | {r['seconds']:.0f} |")
         lines += [""] + _stat_lines(pnl["rows"])
+        if "split_half" in pnl:
+            sh = pnl["split_half"]
+            lines += ["", "Monte-Carlo reliability: Spearman ρ between the simulated errors of two independent halves "
+                      f"of the runs (seeds {pnl['seeds']}): PnP t {sh['sim_pnp_t']:.2f}, PnP r {sh['sim_pnp_r']:.2f}, "
+                      f"IEKF t {sh['sim_iekf_t']:.2f}, IEKF r {sh['sim_iekf_r']:.2f} — the ceiling that Monte-Carlo "
+                      "noise puts on any prediction's ρ with one half."]
         if "paired" in pnl:
             lines += ["", "Paired closed-loop test, g_POSE optimum vs original (same runs; Wilcoxon):", ""]
             lines += [f"- {m}: {d['verdict']} " + ", ".join(f"{k} {val:.3g}" for k, val in d.items() if k != "verdict")
@@ -273,6 +312,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--placement-mm", type=float, default=0.2)
     ap.add_argument("--placement-deg", type=float, default=0.2)
     ap.add_argument("--gain-sigma", type=float, default=0.05)
+    ap.add_argument("--seed", type=int, default=0, help="the closed loop's base seed (independent Monte-Carlo runs)")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--markdown", type=Path, default=None)
     ap.add_argument("--from-json", type=Path, action="append", default=None,
@@ -284,6 +324,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.from_json:
         panels = [p for f in args.from_json for p in json.loads(f.read_text())["panels"]]
+        panels = merge(panels)
         if args.repredict:
             for p in panels:
                 repredict(p, args)

@@ -25,11 +25,13 @@ the grey-level noise and to the edge width √(w₀² + β²), has a centre nois
 
 The last term is the **pixel-grid (aliasing) error**: the rendered rim is a staircase on the pixel grid, so the
 fitted centre is off by a few hundredths of a pixel in a direction that depends on the rim's sub-pixel
-placement. It does not average out over noise draws (the calibration table shows it as a per-condition
-offset), but it changes from frame to frame as the part moves: for the pose it acts as noise (zero mean over
-placements, per-axis RMS √(a² + k_a²/ρ), fitted to the table's offsets that the systematic model leaves: a part
-that averages over the rim (k_a) and a floor a that does not — on the flagship the closed loop's measured
-offsets, 0.050 px per axis at ρ ≈ 60–90 px, match it; a 1/√ρ law alone gave 0.032).
+placement. It does not average out over noise draws, but it changes with the placement: over a cell's
+placement tolerance (and from frame to frame as the part moves) it acts as zero-mean noise of per-axis RMS
+√(a² + k_a²/ρ). ``tools/calibrate_detection.py`` measures it as the spread of the mean offset over 6 placements
+per condition and fits it in log space: a = 0, k_a ≈ 0.39 px — the 1/√ρ law of a least-squares ellipse through
+ρ boundary points with independent staircase errors (each ≈ the ±½ px quantisation, RMS 0.29 px: √2 · 0.29 ≈
+0.41). On the flagship the closed loop's measured offsets (0.037–0.067 px per axis for rims of 1–3 mm radius)
+follow the same law.
 
 **Systematic offset** (px, along d̂): the detector fits the rim's edge; what remains is the asymmetric blur of
 an oblique rim and, for holes whose far wall shows inside the rim, the wall's share of the dark region:
