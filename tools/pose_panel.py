@@ -174,9 +174,9 @@ def merge(panels: list[dict]) -> list[dict]:
     errors: how far Monte-Carlo noise alone lets a perfect prediction rank the designs)."""
     from scipy.stats import spearmanr
 
-    by: dict[str, list[dict]] = {}
-    for p in panels:
-        by.setdefault(p["study"], []).append(p)
+    by: dict[tuple, list[dict]] = {}
+    for p in panels:  # the same study and the same designs
+        by.setdefault((p["study"], tuple(tuple(r["x"]) for r in p["rows"])), []).append(p)
     out = []
     for group in by.values():
         first = group[0]
@@ -192,6 +192,7 @@ def merge(panels: list[dict]) -> list[dict]:
                 row[k] = float(np.sqrt(np.sum(runs * vals ** 2) / runs.sum()))
             row["seconds"] = float(sum(g["rows"][i]["seconds"] for g in group))
         first["split_half"] = split
+        first["paired_by_seed"] = [(g.get("seeds", [0])[0], g.get("runs"), g["paired"]) for g in group if "paired" in g]
         first["runs"] = int(runs.sum())
         first["seeds"] = [s for g in group for s in g.get("seeds", [0])]
         out.append(first)
@@ -258,7 +259,9 @@ def markdown(panels: list[dict]) -> str:
              "of each run's RMS after the settle frames, lost frames at the held last estimate).", ""]
     for pnl in panels:
         v = pnl["variability"]
-        lines += [f"## {pnl['study']}", "",
+        name = Path(pnl["study"])
+        name = name.relative_to(ROOT) if name.is_absolute() and name.is_relative_to(ROOT) else name
+        lines += [f"## {name}", "",
                   f"{len(pnl['rows'])} designs, {pnl['runs']} runs × {pnl['frames']} frames; run-to-run variability: "
                   f"placement σ {v['placement_mm']} mm / {v['placement_deg']}° per axis, illumination gain σ "
                   f"{v['gain_sigma']}, pixel noise σ {v['noise_grey']} grey levels.", "",
@@ -271,20 +274,26 @@ def markdown(panels: list[dict]) -> str:
                          f"| {r['pnp_r']:.4f} | {r['sim_pnp_r']:.4f} | {r['iekf_t']:.4f} | {r['sim_iekf_t']:.4f} "
                          f"| {r['iekf_r']:.4f} | {r['sim_iekf_r']:.4f} | {r['propagated_t']:.4f} / "
                          f"{r['propagated_r']:.4f} | {r['seconds']:.0f} |")
-        lines += [""] + _stat_lines(pnl["rows"])
+        if len(pnl["rows"]) >= 4:
+            lines += [""] + _stat_lines(pnl["rows"])
         if "split_half" in pnl:
             sh = pnl["split_half"]
             lines += ["", "Monte-Carlo reliability: Spearman ρ between the simulated errors of two independent halves "
                       f"of the runs (seeds {pnl['seeds']}): PnP t {sh['sim_pnp_t']:.2f}, PnP r {sh['sim_pnp_r']:.2f}, "
                       f"IEKF t {sh['sim_iekf_t']:.2f}, IEKF r {sh['sim_iekf_r']:.2f} — the ceiling that Monte-Carlo "
                       "noise puts on any prediction's ρ with one half."]
-        if "paired" in pnl:
-            lines += ["", "Paired closed-loop test, g_POSE optimum vs original (same runs; Wilcoxon):", ""]
+        for seed, runs, paired in pnl.get("paired_by_seed") or [(pnl.get("seeds", [0])[0], pnl["runs"],
+                                                                  pnl.get("paired"))]:
+            if not paired:
+                continue
+            lines += ["", f"Paired closed-loop test, g_POSE optimum vs original (seed {seed}, {runs} runs paired by "
+                      "run; Wilcoxon, two-sided):", ""]
             lines += [f"- {m}: {d['verdict']} " + ", ".join(f"{k} {val:.3g}" for k, val in d.items() if k != "verdict")
-                      for m, d in pnl["paired"].items()]
+                      for m, d in paired.items()]
         lines.append("")
-    if len(panels) > 1:
-        lines += ["## Pooled over the parts", ""] + _stat_lines([r for p in panels for r in p["rows"]]) + [""]
+    ranked = [p for p in panels if len(p["rows"]) >= 4]
+    if len({p["study"] for p in ranked}) > 1:
+        lines += ["## Pooled over the parts", ""] + _stat_lines([r for p in ranked for r in p["rows"]]) + [""]
     return "\n".join(lines)
 
 
