@@ -140,12 +140,13 @@ RIM_GAP_MIN_PX = 3.0
 EDGE_HIDDEN_MAX = 0.5
 
 
-def _radius_along(axes_px: np.ndarray, angle_rad: np.ndarray, direction: np.ndarray) -> np.ndarray:
-    """Distance (px) from an ellipse's centre to its boundary along the image angle ``direction`` (rad):
-    ab / √((b cos ψ)² + (a sin ψ)²), ψ = direction − the major axis angle; a, b the semi-axes."""
+def _radius_along(axes_px: np.ndarray, major_dir: np.ndarray, unit: np.ndarray) -> np.ndarray:
+    """Distance (px) from an ellipse's centre to its boundary along the image direction ``unit`` (..., 2):
+    ab / √((b cos ψ)² + (a sin ψ)²), ψ the angle from the major axis ``major_dir`` (..., 2); a, b the semi-axes."""
     a, b = 0.5 * axes_px[..., 0], 0.5 * axes_px[..., 1]
-    psi = direction - angle_rad
-    return a * b / np.maximum(np.hypot(b * np.cos(psi), a * np.sin(psi)), 1e-12)
+    cos_p = unit[..., 0] * major_dir[..., 0] + unit[..., 1] * major_dir[..., 1]
+    sin_p = unit[..., 0] * major_dir[..., 1] - unit[..., 1] * major_dir[..., 0]
+    return a * b / np.maximum(np.sqrt((b * cos_p) ** 2 + (a * sin_p) ** 2), 1e-12)
 
 
 def rim_gap_px(centre_px: np.ndarray, axes_px: np.ndarray, angle_rad: np.ndarray, seen: np.ndarray) -> np.ndarray:
@@ -160,12 +161,13 @@ def rim_gap_px(centre_px: np.ndarray, axes_px: np.ndarray, angle_rad: np.ndarray
     if N < 2:
         return np.full((L, N), np.inf)
     d_vec = cp[:, None, :, :] - cp[:, :, None, :]                                  # (L, i, j, 2): i → j
-    d = np.linalg.norm(d_vec, axis=-1)
-    theta = np.arctan2(d_vec[..., 1], d_vec[..., 0])
+    d = np.sqrt(np.einsum("lijk,lijk->lij", d_vec, d_vec))
+    unit = d_vec / np.maximum(d, 1e-12)[..., None]
     ax = np.asarray(axes_px, dtype=float)
     ang = np.asarray(angle_rad, dtype=float)
-    rho_i = _radius_along(ax[:, :, None], ang[:, :, None], theta)
-    rho_j = _radius_along(ax[:, None, :], ang[:, None, :], theta)
+    major = np.stack([np.cos(ang), np.sin(ang)], axis=-1)                       # (L, N, 2)
+    rho_i = _radius_along(ax[:, :, None], major[:, :, None], unit)
+    rho_j = _radius_along(ax[:, None, :], major[:, None, :], unit)
     apart = d - rho_i - rho_j
     nested = np.maximum(rho_i, rho_j) - d - np.minimum(rho_i, rho_j)
     gap = np.where(d >= np.maximum(rho_i, rho_j), apart, np.maximum(apart, nested))
