@@ -191,7 +191,8 @@ def merge(panels: list[dict]) -> list[dict]:
                 vals = np.array([g["rows"][i][k] for g in group])
                 row[k] = float(np.sqrt(np.sum(runs * vals ** 2) / runs.sum()))
             row["seconds"] = float(sum(g["rows"][i]["seconds"] for g in group))
-        first["split_half"] = split
+        first["split_half"] = {**split, "seeds": [g.get("seeds", [0])[0] for g in group[:2]],
+                               "runs": [g["runs"] for g in group[:2]]}
         first["paired_by_seed"] = [(g.get("seeds", [0])[0], g.get("runs"), g["paired"]) for g in group if "paired" in g]
         first["runs"] = int(runs.sum())
         first["seeds"] = [s for g in group for s in g.get("seeds", [0])]
@@ -278,10 +279,11 @@ def markdown(panels: list[dict]) -> str:
             lines += [""] + _stat_lines(pnl["rows"])
         if "split_half" in pnl:
             sh = pnl["split_half"]
-            lines += ["", "Monte-Carlo reliability: Spearman ρ between the simulated errors of two independent halves "
-                      f"of the runs (seeds {pnl['seeds']}): PnP t {sh['sim_pnp_t']:.2f}, PnP r {sh['sim_pnp_r']:.2f}, "
+            lines += ["", "Monte-Carlo reliability: Spearman ρ between the simulated errors of two independent sets "
+                      f"of runs (seeds {sh['seeds']}, {sh['runs']} runs): PnP t {sh['sim_pnp_t']:.2f}, "
+                      f"PnP r {sh['sim_pnp_r']:.2f}, "
                       f"IEKF t {sh['sim_iekf_t']:.2f}, IEKF r {sh['sim_iekf_r']:.2f} — the ceiling that Monte-Carlo "
-                      "noise puts on any prediction's ρ with one half."]
+                      "noise puts on any prediction's ρ with one such set."]
         for seed, runs, paired in pnl.get("paired_by_seed") or [(pnl.get("seeds", [0])[0], pnl["runs"],
                                                                   pnl.get("paired"))]:
             if not paired:
