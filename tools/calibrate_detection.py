@@ -11,9 +11,13 @@ log σ and on the offset) and both are written as package data:
     cadfeat/measures/data/detection_calibration.csv   the measured table
     cadfeat/measures/data/detection_model.json        the fitted ``PoseModels``
 
-Grid (coarse, ~2 min on one core): 3 radii × 3 hole kinds (blind shallow, blind deep, through) × 5 view
-angles × 2 distances = 90 renders, each with 3 blurs × 12 noise seeds; plus 5 partial-occlusion renders (a
-wall whose edge covers part of the rim). Run: ``python tools/calibrate_detection.py`` (``--quick`` for a
+Grid (coarse, a few minutes on one core): 3 radii × 3 hole kinds (blind shallow, blind deep, through) × 5 view
+angles × 2 distances = 90 conditions, each rendered at ``PLACEMENTS`` = 6 placements of the plate (shifted and
+turned within a cell's placement tolerance, so each rim falls on different sub-pixel phases) with 3 blurs × 3
+noise seeds per placement: the mean offset over placements is the systematic part, the spread of the
+per-placement offsets the pixel-grid ("aliasing") part ``alias_px`` — the closed loop's run-to-run placement
+jitter (``vision.closed_loop``) draws the same; plus 5 partial-occlusion renders (a wall whose edge covers part
+of the rim; one placement, 12 seeds). Run: ``python tools/calibrate_detection.py`` (``--quick`` for a
 smaller grid, no files written).
 """
 
@@ -44,9 +48,14 @@ ANGLES_DEG = (0.0, 25.0, 45.0, 60.0, 72.0)
 DISTANCES = (300.0, 520.0)
 BLURS_PX = (0.0, 2.0, 4.0)
 SEEDS = 12
+#: Placements per condition: the plate shifted in its plane by U(±0.6 mm) and turned by U(±3°) about its normal
+#: (the cell's placement tolerance moves each rim over sub-pixel phases): the mean offset over placements is the
+#: systematic part, their spread the pixel-grid ("aliasing") part; ``SEEDS_PER_PLACEMENT`` noise draws each.
+PLACEMENTS = 6
+SEEDS_PER_PLACEMENT = 3
 FIELDS = ("radius_mm", "kind", "depth_ratio", "through", "angle_deg", "distance_mm", "blur_px", "hidden",
           "minor_px", "rim_px", "facing", "margin_px", "rate", "offset_u_px", "offset_v_px", "offset_axis_px",
-          "sigma_px", "draws")
+          "sigma_px", "draws", "alias_px", "placements")
 
 
 def plate(radius: float, kind: str, depth_ratio: float, wall: float | None = None):
@@ -104,14 +113,58 @@ def measure_condition(images: np.ndarray, hole, T: np.ndarray, blur: float, seed
     return row
 
 
+def placements(T: np.ndarray, count: int = PLACEMENTS, seed: int = 0) -> np.ndarray:
+    """(count, 4, 4) T · δ_k: the plate shifted in its plane and turned about its normal (``PLACEMENTS``)."""
+    from cadfeat.vision.motion import so3_exp
+
+    rng = np.random.default_rng([seed, 17])
+    out = np.tile(np.eye(4), (count, 1, 1))
+    out[:, :2, 3] = rng.uniform(-0.6, 0.6, (count, 2))
+    out[:, :3, :3] = [so3_exp(np.array([0.0, 0.0, np.radians(a)])) for a in rng.uniform(-3.0, 3.0, count)]
+    return T[None] @ out
+
+
+def measure_placements(images: np.ndarray, hole, Ts: np.ndarray, blur: float,
+                       seeds: int = SEEDS_PER_PLACEMENT) -> dict[str, float]:
+    """Detection statistics of one condition over placements (``placements``): rate over all draws, the mean
+    offset over placements (systematic), the noise σ (pooled within placements, per axis) and the pixel-grid
+    RMS per axis (the spread of the per-placement mean offsets, less their noise share σ²/seeds)."""
+    rows = [measure_condition(images[k:k + 1], hole, Ts[k], blur, seeds) for k in range(len(Ts))]
+    means = np.array([[r["offset_u_px"], r["offset_v_px"]] for r in rows])
+    ok = np.all(np.isfinite(means), axis=1)
+    geo = rows[0]
+    out = {"rate": float(np.mean([r["rate"] for r in rows])), "draws": seeds * len(Ts),
+           "minor_px": geo["minor_px"], "rim_px": geo["rim_px"], "facing": geo["facing"],
+           "margin_px": geo["margin_px"], "placements": int(ok.sum())}
+    if ok.sum() >= 3:
+        from cadfeat.cad.features import holes_to_arrays
+
+        c, n, r = holes_to_arrays([hole])
+        axis = hole_geometry(CAMERA, Ts[:1], c, n, r).axis_dir_px[0, 0]
+        mean = means[ok].mean(axis=0)
+        sig = float(np.sqrt(np.mean([r["sigma_px"] ** 2 for r, g in zip(rows, ok, strict=True) if g])))
+        spread = 0.5 * np.sum(means[ok].var(axis=0, ddof=1))
+        out.update(offset_u_px=float(mean[0]), offset_v_px=float(mean[1]), offset_axis_px=float(mean @ axis),
+                   sigma_px=sig, alias_px=float(np.sqrt(max(spread - sig ** 2 / seeds, 0.0))))
+    else:
+        out.update(offset_u_px=np.nan, offset_v_px=np.nan, offset_axis_px=np.nan, sigma_px=np.nan, alias_px=np.nan)
+    return out
+
+
 def render(shape, holes, T: np.ndarray) -> np.ndarray:
     from cadfeat.vision.images import render_sequence
 
     return render_sequence(shape, holes, CAMERA, T[None])
 
 
-def run_grid(radii=RADII, kinds=KINDS, angles=ANGLES_DEG, distances=DISTANCES, blurs=BLURS_PX, seeds=SEEDS,
-             occlusion=True) -> list[dict]:
+def render_many(shape, holes, Ts: np.ndarray) -> np.ndarray:
+    from cadfeat.vision.images import render_sequence
+
+    return render_sequence(shape, holes, CAMERA, Ts)
+
+
+def run_grid(radii=RADII, kinds=KINDS, angles=ANGLES_DEG, distances=DISTANCES, blurs=BLURS_PX,
+             seeds=SEEDS_PER_PLACEMENT, occlusion=True) -> list[dict]:
     from cadfeat.cad.features import extract_holes
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
@@ -122,12 +175,12 @@ def run_grid(radii=RADII, kinds=KINDS, angles=ANGLES_DEG, distances=DISTANCES, b
             holes = [h for h in extract_holes(wp) if np.linalg.norm(h.centre[:2]) < 1e-6]
             for angle in angles:
                 for dist in distances:
-                    T = pose(angle, dist)
-                    images = render(wp.val(), holes, T)
+                    Ts = placements(pose(angle, dist), seed=len(rows))
+                    images = render_many(wp.val(), holes, Ts)
                     for blur in blurs:
                         row = {"radius_mm": radius, "kind": kind, "depth_ratio": ratio, "through": kind == "through",
                                "angle_deg": angle, "distance_mm": dist, "blur_px": blur, "hidden": 0.0}
-                        row.update(measure_condition(images, holes[0], T, blur, seeds))
+                        row.update(measure_placements(images, holes[0], Ts, blur, seeds))
                         rows.append(row)
     if occlusion:
         from cadfeat.cad.export import mesh_from_shape
@@ -143,7 +196,7 @@ def run_grid(radii=RADII, kinds=KINDS, angles=ANGLES_DEG, distances=DISTANCES, b
             images = render(wp.val(), holes, T)
             row = {"radius_mm": 3.0, "kind": "blind", "depth_ratio": 0.3, "through": False, "angle_deg": 50.0,
                    "distance_mm": 300.0, "blur_px": 0.0, "hidden": hidden}
-            row.update(measure_condition(images, holes[0], T, 0.0, seeds))
+            row.update(measure_condition(images, holes[0], T, 0.0, 12), alias_px=np.nan, placements=1)
             rows.append(row)
     return rows
 
@@ -162,14 +215,16 @@ def study_grid(path: Path) -> list[dict]:
     c, _, r = holes_to_arrays(setup.holes0)
     depth = float(np.median((c @ T[:, :3, :3].transpose(0, 2, 1) + T[:, None, :3, 3])[..., 2]))
     radii = tuple(float(v) for v in np.quantile(np.unique(np.round(r, 1)), [0.0, 0.5, 1.0]))
-    return run_grid(radii=tuple(sorted(set(radii))), distances=(0.85 * depth, 1.15 * depth), seeds=8)
+    return run_grid(radii=tuple(sorted(set(radii))), distances=(0.85 * depth, 1.15 * depth))
 
 
 # ------------------------------------------------------------------------------------------------ fitting
 def _arrays(rows: list[dict]) -> dict[str, np.ndarray]:
     def num(v: object) -> float:
+        if v is None or v == "":
+            return float("nan")
         return float(v in (True, "True")) if v in (True, False, "True", "False") else float(v)
-    return {k: np.array([num(r[k]) for r in rows]) for k in FIELDS if k != "kind"}
+    return {k: np.array([num(r.get(k)) for r in rows]) for k in FIELDS if k != "kind"}
 
 
 def fit(rows: list[dict]) -> PoseModels:
@@ -201,11 +256,21 @@ def fit(rows: list[dict]) -> PoseModels:
     D = np.where(a["through"][ok] > 0, 1.0, 0.5)
     A = np.column_stack([blur * sin_t, D * sin_t * np.minimum(a["depth_ratio"][ok], 2.0)])
     (k_b, k_d), *_ = np.linalg.lstsq(A, a["offset_axis_px"][ok], rcond=None)
-    # what the systematic offset leaves: the pixel-grid error (per-axis RMS k_a / √ρ, pose_models docstring)
-    resid2 = 0.5 * np.maximum(a["offset_u_px"][ok] ** 2 + a["offset_v_px"][ok] ** 2
-                              - (A @ np.array([k_b, k_d])) ** 2, 0.0)        # per-axis squared residual
-    (floor2, ka2), _ = nnls(np.column_stack([np.ones(len(rho)), 1.0 / rho]), resid2)
-    k_alias, alias_floor = float(np.sqrt(ka2)), float(np.sqrt(floor2))
+    # the pixel-grid error: per-axis RMS √(a² + k_a²/ρ) of the offsets over placements (``alias_px``); a table
+    # without placements (older) falls back to what the systematic offset leaves of the one placement's offset
+    if "alias_px" in a and (np.isfinite(a["alias_px"][ok]) & (a["alias_px"][ok] > 0)).sum() >= 10:
+        # in log space, like σ (each value is an RMS over 6 placements, ±25 %: relative errors): the fit gives
+        # a = 0 — the 1/√ρ law of a least-squares ellipse through ρ points with independent staircase errors
+        fin = np.isfinite(a["alias_px"][ok]) & (a["alias_px"][ok] > 0)
+        al, rho_a = a["alias_px"][ok][fin], rho[fin]
+        ra = least_squares(lambda x: 0.5 * np.log(x[0] ** 2 + x[1] ** 2 / rho_a) - np.log(al), [0.02, 0.3],
+                           bounds=([0.0, 0.01], [0.2, 3.0]))
+        alias_floor, k_alias = (float(v) for v in ra.x)
+    else:
+        resid2 = 0.5 * np.maximum(a["offset_u_px"][ok] ** 2 + a["offset_v_px"][ok] ** 2
+                                  - (A @ np.array([k_b, k_d])) ** 2, 0.0)    # per-axis squared residual
+        (floor2, ka2), _ = nnls(np.column_stack([np.ones(len(rho)), 1.0 / rho]), resid2)
+        k_alias, alias_floor = float(np.sqrt(ka2)), float(np.sqrt(floor2))
     # occlusion: the raw detector accepts rims cut by an edge of the same grey (a wall's top face over the
     # plate) up to ~30 % hidden, with centre offsets up to ~1 px (the table's hidden > 0 rows); the closed
     # loop therefore drops every hole whose predicted rim is more than RIM_HIDDEN_MAX hidden, and the model

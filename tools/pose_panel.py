@@ -9,11 +9,15 @@ by the exact ray test, and
   (``posterior_crlb`` with the closed loop's filter tuning) combined with the same bias;
 - simulated: the closed loop (``vision.closed_loop``: render, blur, noise, detection, association with the
   predicted occlusion, PnP and IEKF; ``--runs`` Monte-Carlo runs), the RMS error after the settle frames, lost
-  frames counted separately.
+  frames at the held last estimate's error; each run with its own placement error, illumination gain and noise
+  (``TrackingConfig``), so the simulated error is an expectation over the cell's variability.
 
-Prints a table and Spearman ρ (predicted vs simulated) per estimator and per error kind; ``--json`` writes the
-numbers. Cost: about 20–30 s per design on one core (the renders). Run:
-``python tools/pose_panel.py --designs 12 --runs 3``.
+Prints Spearman ρ (predicted vs simulated) per estimator and error kind and the predicted/simulated ratios;
+``--json`` writes the numbers, ``--markdown`` the committed table (``benchmarks/results/pose_panel.md``);
+``--optimum results.json`` adds a study's optimum to the panel with a paired test vs the original. Cost: the
+renders, once per run and design (placement jitter). Run, e.g.:
+``python tools/pose_panel.py --study studies/nema17_mount.toml --optimum OUT/results.json --study
+studies/industrial_plate.toml --designs 12 --runs 8 --json panel.json --markdown benchmarks/results/pose_panel.md``.
 """
 
 from __future__ import annotations
@@ -63,29 +67,30 @@ def score(setup, x, T, times, tuning, model=None) -> dict:
             "iekf_t": rms(np.hypot(pi.bias_translation_mm, sig[:, 0])),
             "iekf_r": rms(np.hypot(pi.bias_rotation_deg, sig[:, 1])),
             "bias_t": rms(pi.bias_translation_mm), "noise_t": rms(pi.sigma_translation_mm),
-            "holes_seen": float(pi.detected.sum(axis=1).mean())}
+            "holes_seen": float(pi.detected.sum(axis=1).mean()),
+            "model_px": np.sqrt(pi.sigma_px ** 2 + np.sum(pi.offset_px ** 2, axis=-1) / 2),   # (L, N) per axis
+            "model_detected": pi.detected}
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--study", type=Path, default=ROOT / "studies" / "nema17_mount.toml",
-                    help="a part-script study (default: the flagship)")
-    ap.add_argument("--designs", type=int, default=12)
-    ap.add_argument("--runs", type=int, default=3)
-    ap.add_argument("--frame-step", type=int, default=2)
-    ap.add_argument("--json", type=Path, default=None)
-    ap.add_argument("--model", type=Path, default=None,
-                    help="a detection_model.json (calibrate_detection.py --study); default: the committed one")
-    args = ap.parse_args(argv)
-    from scipy.stats import spearmanr
+def _optimum(path: Path, space) -> np.ndarray:
+    """The design vector of a ``cadfeat run`` output's results.json (``variables[*].after`` by name)."""
+    after = {v["name"]: v["after"] for v in json.loads(path.read_text())["variables"]}
+    return np.array([float(after[v.name]) for v in space.variables])
 
+
+def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> dict:
+    """Panel rows of one study (module docstring) and, with ``optimum``, the paired closed-loop test of the
+    optimum vs the original on the same runs (common random numbers)."""
+    from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.measures.pose_information import pose_information
+    from cadfeat.measures.rim_centre import measure
     from cadfeat.poses import invert_T
     from cadfeat.study.schema import load_study
     from cadfeat.study.setup import setup_study
     from cadfeat.vision import FilterTuning, SensorModel
-    from cadfeat.vision.closed_loop import TrackingConfig, observe, track_design
+    from cadfeat.vision.closed_loop import TrackingConfig, compare, observe, placement_errors, track_design
 
-    setup = setup_study(load_study(args.study))
+    setup = setup_study(load_study(study))
     traj = setup.trajectory
     idx = np.arange(0, len(traj.T_task_cam), args.frame_step)
     T = (invert_T(np.asarray(traj.T_task_cam)) @ setup.T_task_part)[idx]
@@ -97,49 +102,255 @@ def main(argv: list[str] | None = None) -> int:
 
         model = PoseModels(**json.loads(args.model.read_text()))
     config = TrackingConfig(estimators=("pnp", "iekf"), runs=args.runs, sensor=SensorModel(noise_grey=2.0),
-                            tuning=tuning)
-    rows = []
-    for i, x in enumerate(designs(setup.space, args.designs)):
+                            tuning=tuning, placement_mm=args.placement_mm, placement_deg=args.placement_deg,
+                            gain_sigma=args.gain_sigma, seed=args.seed)
+    T_runs = T[None] @ placement_errors(config, config.runs)[:, None]
+    xs = designs(setup.space, args.designs)
+    names = ["original"] + [f"sobol {i}" for i in range(1, len(xs))]
+    if optimum is not None:
+        xs.append(_optimum(optimum, setup.space))
+        names.append("g_POSE optimum")
+    rows, tracks = [], {}
+    for i, (name, x) in enumerate(zip(names, xs, strict=True)):
         start = time.perf_counter()
         s = score(setup, x, T, times, tuning, model)
         obs = observe(s["shape"], s["holes"], setup.camera, T, config.sensor)
         res = track_design(setup.camera, obs, T, times, config)
-        sim = {m: (np.nanmean([q["trans_mm_rms"] for q in res.summaries[m]]),
-                   np.nanmean([q["rot_deg_rms"] for q in res.summaries[m]]),
-                   np.mean([q["frames_lost"] for q in res.summaries[m]])) for m in config.estimators}
-        # diagnostic: the closed loop's measured offsets (mean detection − the exact rim-ellipse centre at the
-        # true pose) propagated through the pose Jacobians (δ = (JᵀWJ)⁻¹JᵀW b, the holes it detected)
-        from cadfeat.cad.features import holes_to_arrays
-        from cadfeat.measures.pose_information import pose_information
-        from cadfeat.measures.rim_centre import measure
-
+        tracks[name] = res
+        ms = lambda v: float(np.sqrt(np.nanmean(np.square(v))))  # noqa: E731  RMS over runs of per-run RMS
+        sim = {m: (ms([q["trans_mm_rms"] for q in res.summaries[m]]), ms([q["rot_deg_rms"] for q in res.summaries[m]]),
+                   float(np.mean([q["frames_lost"] for q in res.summaries[m]]))) for m in config.estimators}
+        # diagnostic: each run's measured offsets (detection − the exact rim-ellipse centre at that run's true pose)
+        # propagated through the pose Jacobians (δ = (JᵀWJ)⁻¹JᵀW b over the holes it detected), RMS over runs
         c, n, r = holes_to_arrays(s["holes"])
-        z_true, _ = measure(setup.camera, T, c, n, r, jacobian=False)
-        found = np.all(np.isfinite(res.pixels), axis=-1).all(axis=0)                 # (F, N) in every run
-        b = np.where(found[..., None], np.nanmean(res.pixels, axis=0) - z_true, 0.0)
-        prop = pose_information(setup.camera, T, c, n, r, sigma_px=0.1, detection=False, offset_px=b,
-                                occlusion=~found)
-        s["measured_offset_px_median"] = float(np.median(np.linalg.norm(b[found], axis=-1))) if found.any() else 0.0
-        s["propagated_t"] = float(np.sqrt(np.mean(prop.bias_translation_mm ** 2)))
-        s["propagated_r"] = float(np.sqrt(np.mean(prop.bias_rotation_deg ** 2)))
-        row = {"design": i, "x": [round(float(v), 3) for v in x],
-               **{k: v for k, v in s.items() if k not in ("shape", "holes")},
+        pt, pr, med, sq = [], [], [], []
+        for run in range(config.runs):
+            z_true, _ = measure(setup.camera, T_runs[run], c, n, r, jacobian=False)
+            found = np.all(np.isfinite(res.pixels[run]), axis=-1)
+            b = np.where(found[..., None], res.pixels[run] - z_true, 0.0)
+            prop = pose_information(setup.camera, T_runs[run], c, n, r, sigma_px=0.1, detection=False, offset_px=b,
+                                    occlusion=~found)
+            pt.append(np.mean(prop.bias_translation_mm ** 2))
+            pr.append(np.mean(prop.bias_rotation_deg ** 2))
+            med.extend(np.linalg.norm(b[found], axis=-1))
+            sq.append(np.where(found, np.sum(b ** 2, axis=-1) / 2, np.nan))                  # (F, N) per axis
+        sq = np.array(sq)
+        seen = np.isfinite(sq).any(axis=0)                                                     # (F, N)
+        mdl = s.pop("model_px")
+        det = s.pop("model_detected")
+        s["holes"] = {h.name or f"hole{j}": [round(float(np.sqrt(np.nanmean(sq[:, :, j]))), 4) if seen[:, j].any()
+                                             else None,
+                                             round(float(np.sqrt(np.mean(mdl[seen[:, j], j] ** 2))), 4)
+                                             if seen[:, j].any() else None,
+                                             round(float(np.isfinite(sq[:, :, j]).mean()), 3),
+                                             round(float(det[:, j].mean()), 3)]
+                      for j, h in enumerate(s["holes"])}
+        s["measured_offset_px_median"] = float(np.median(med)) if med else 0.0
+        s["propagated_t"], s["propagated_r"] = float(np.sqrt(np.mean(pt))), float(np.sqrt(np.mean(pr)))
+        row = {"part": study.stem, "design": i, "name": name, "x": [round(float(v), 3) for v in x],
+               **{k: v for k, v in s.items() if k not in ("shape",)},
                "sim_pnp_t": sim["pnp"][0], "sim_pnp_r": sim["pnp"][1], "sim_pnp_lost": sim["pnp"][2],
                "sim_iekf_t": sim["iekf"][0], "sim_iekf_r": sim["iekf"][1], "seconds": time.perf_counter() - start}
         rows.append(row)
         print(json.dumps({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()}), flush=True)
-    out = {"rows": rows, "spearman": {}, "ratio_median": {}}
-    for est in ("pnp", "iekf"):
-        for kind in ("t", "r"):
-            p = np.array([r[f"{est}_{kind}"] for r in rows])
-            q = np.array([r[f"sim_{est}_{kind}"] for r in rows])
-            ok = np.isfinite(p) & np.isfinite(q)
-            rho = float(spearmanr(p[ok], q[ok]).statistic) if ok.sum() >= 3 else float("nan")
-            out["spearman"][f"{est}_{kind}"] = rho
-            out["ratio_median"][f"{est}_{kind}"] = float(np.median(p[ok] / q[ok])) if ok.any() else float("nan")
-    print(json.dumps({"spearman": out["spearman"], "predicted/simulated (median)": out["ratio_median"]}, indent=1))
-    if args.json:
-        args.json.write_text(json.dumps(out, indent=1))
+    out = {"study": str(study), "rows": rows, "runs": config.runs, "frames": len(T), "seeds": [args.seed],
+           "variability": {"placement_mm": config.placement_mm, "placement_deg": config.placement_deg,
+                           "gain_sigma": config.gain_sigma, "noise_grey": config.sensor.noise_grey}}
+    if optimum is not None:
+        v = compare(tracks["original"], tracks["g_POSE optimum"], config.alpha, config.min_change)
+        out["paired"] = {m: {"verdict": d["verdict"],
+                             **{f"{k}_{q}": d[k][q] for k in ("translation", "rotation")
+                                for q in ("p_value", "median_change") if q in d[k]}}
+                         for m, d in v.items()}
+    return out
+
+
+SIM = ("sim_pnp_t", "sim_pnp_r", "sim_iekf_t", "sim_iekf_r", "propagated_t", "propagated_r")
+
+
+def merge(panels: list[dict]) -> list[dict]:
+    """Panels of the same study and designs from independent seeds → one panel: the simulated RMS over all runs
+    (√ of the run-weighted mean square), and the split-half reliability (Spearman ρ between the seeds' simulated
+    errors: how far Monte-Carlo noise alone lets a perfect prediction rank the designs)."""
+    from scipy.stats import spearmanr
+
+    by: dict[tuple, list[dict]] = {}
+    for p in panels:  # the same study and the same designs
+        by.setdefault((p["study"], tuple(tuple(r["x"]) for r in p["rows"])), []).append(p)
+    out = []
+    for group in by.values():
+        first = group[0]
+        if len(group) == 1:
+            out.append(first)
+            continue
+        runs = np.array([g["runs"] for g in group], float)
+        split = {k: float(spearmanr([r[k] for r in group[0]["rows"]], [r[k] for r in group[1]["rows"]]).statistic)
+                 for k in SIM[:4]}
+        for i, row in enumerate(first["rows"]):
+            for k in SIM:
+                vals = np.array([g["rows"][i][k] for g in group])
+                row[k] = float(np.sqrt(np.sum(runs * vals ** 2) / runs.sum()))
+            row["seconds"] = float(sum(g["rows"][i]["seconds"] for g in group))
+        first["split_half"] = {**split, "seeds": [g.get("seeds", [0])[0] for g in group[:2]],
+                               "runs": [g["runs"] for g in group[:2]]}
+        first["paired_by_seed"] = [(g.get("seeds", [0])[0], g.get("runs"), g["paired"]) for g in group if "paired" in g]
+        first["runs"] = int(runs.sum())
+        first["seeds"] = [s for g in group for s in g.get("seeds", [0])]
+        out.append(first)
+    return out
+
+
+def repredict(panel: dict, args: argparse.Namespace) -> None:
+    """Recompute a stored panel's predicted columns with the current detection/measurement models (the
+    simulated columns stay: the closed loop does not depend on the models)."""
+    from cadfeat.poses import invert_T
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.setup import setup_study
+    from cadfeat.vision import FilterTuning
+
+    setup = setup_study(load_study(Path(panel["study"])))
+    traj = setup.trajectory
+    idx = np.arange(0, len(traj.T_task_cam), args.frame_step)
+    T = (invert_T(np.asarray(traj.T_task_cam)) @ setup.T_task_part)[idx]
+    times = np.asarray(traj.times_s)[idx]
+    model = None
+    if args.model is not None:
+        from cadfeat.measures.pose_models import PoseModels
+
+        model = PoseModels(**json.loads(args.model.read_text()))
+    for row in panel["rows"]:
+        s = score(setup, np.array(row["x"]), T, times, FilterTuning(), model)
+        for k in ("pnp_t", "pnp_r", "iekf_t", "iekf_r", "bias_t", "noise_t", "holes_seen"):
+            row[k] = s[k]
+        for j, name in enumerate(row["holes"]):
+            seen = row["holes"][name][0] is not None
+            row["holes"][name][1] = round(float(np.sqrt(np.mean(s["model_px"][:, j] ** 2))), 4) if seen else None
+            row["holes"][name][3] = round(float(s["model_detected"][:, j].mean()), 3)
+        print(json.dumps({k: row[k] for k in ("design", "pnp_t", "sim_pnp_t", "pnp_r", "sim_pnp_r")}), flush=True)
+
+
+KEYS = ("pnp_t", "pnp_r", "iekf_t", "iekf_r")
+
+
+def statistics(rows: list[dict]) -> dict:
+    """Spearman ρ (predicted vs simulated) and the median predicted/simulated ratio per estimator and kind."""
+    from scipy.stats import spearmanr
+
+    rho, ratio = {}, {}
+    for key in KEYS:
+        p = np.array([r[key] for r in rows])
+        q = np.array([r[f"sim_{key}"] for r in rows])
+        ok = np.isfinite(p) & np.isfinite(q)
+        rho[key] = float(spearmanr(p[ok], q[ok]).statistic) if ok.sum() >= 3 else float("nan")
+        ratio[key] = float(np.median(p[ok] / q[ok])) if ok.any() else float("nan")
+    for kind in ("t", "r"):
+        p = np.array([r[f"propagated_{kind}"] for r in rows])
+        q = np.array([r[f"sim_pnp_{kind}"] for r in rows])
+        rho[f"propagated_vs_pnp_{kind}"] = float(spearmanr(p, q).statistic) if len(p) >= 3 else float("nan")
+    return {"spearman": rho, "ratio_median": ratio,
+            "ratio_range": {k: [float(np.min([r[k] / r[f"sim_{k}"] for r in rows])),
+                                float(np.max([r[k] / r[f"sim_{k}"] for r in rows]))] for k in KEYS}}
+
+
+def markdown(panels: list[dict]) -> str:
+    """The committed table: per design predicted vs simulated, then ρ and ratios per part and pooled."""
+    lines = ["# Pose panel: predicted pose error (g_POSE's model) vs the closed loop", "",
+             "Generated by `tools/pose_panel.py` (translation mm, rotation deg; PnP compared with the single-frame "
+             "prediction, the IEKF with the posterior CRLB plus the bias; simulated = RMS over the Monte-Carlo runs "
+             "of each run's RMS after the settle frames, lost frames at the held last estimate).", ""]
+    for pnl in panels:
+        v = pnl["variability"]
+        name = Path(pnl["study"])
+        name = name.relative_to(ROOT) if name.is_absolute() and name.is_relative_to(ROOT) else name
+        lines += [f"## {name}", "",
+                  f"{len(pnl['rows'])} designs, {pnl['runs']} runs × {pnl['frames']} frames; run-to-run variability: "
+                  f"placement σ {v['placement_mm']} mm / {v['placement_deg']}° per axis, illumination gain σ "
+                  f"{v['gain_sigma']}, pixel noise σ {v['noise_grey']} grey levels.", "",
+                  "| design | holes seen | pred PnP t | sim PnP t | pred PnP r | sim PnP r | pred IEKF t | sim IEKF t "
+                  "| pred IEKF r | sim IEKF r | measured offsets propagated t / r | s |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in pnl["rows"]:
+            lines.append(f"| {r['design']} {r['name']} | {r['holes_seen']:.2f} | {r['pnp_t']:.4f} "
+                         f"| {r['sim_pnp_t']:.4f} "
+                         f"| {r['pnp_r']:.4f} | {r['sim_pnp_r']:.4f} | {r['iekf_t']:.4f} | {r['sim_iekf_t']:.4f} "
+                         f"| {r['iekf_r']:.4f} | {r['sim_iekf_r']:.4f} | {r['propagated_t']:.4f} / "
+                         f"{r['propagated_r']:.4f} | {r['seconds']:.0f} |")
+        if len(pnl["rows"]) >= 4:
+            lines += [""] + _stat_lines(pnl["rows"])
+        if "split_half" in pnl:
+            sh = pnl["split_half"]
+            lines += ["", "Monte-Carlo reliability: Spearman ρ between the simulated errors of two independent sets "
+                      f"of runs (seeds {sh['seeds']}, {sh['runs']} runs): PnP t {sh['sim_pnp_t']:.2f}, "
+                      f"PnP r {sh['sim_pnp_r']:.2f}, "
+                      f"IEKF t {sh['sim_iekf_t']:.2f}, IEKF r {sh['sim_iekf_r']:.2f} — the ceiling that Monte-Carlo "
+                      "noise puts on any prediction's ρ with one such set."]
+        for seed, runs, paired in pnl.get("paired_by_seed") or [(pnl.get("seeds", [0])[0], pnl["runs"],
+                                                                  pnl.get("paired"))]:
+            if not paired:
+                continue
+            lines += ["", f"Paired closed-loop test, g_POSE optimum vs original (seed {seed}, {runs} runs paired by "
+                      "run; Wilcoxon, two-sided):", ""]
+            lines += [f"- {m}: {d['verdict']} " + ", ".join(f"{k} {val:.3g}" for k, val in d.items() if k != "verdict")
+                      for m, d in paired.items()]
+        lines.append("")
+    ranked = [p for p in panels if len(p["rows"]) >= 4]
+    if len({p["study"] for p in ranked}) > 1:
+        lines += ["## Pooled over the parts", ""] + _stat_lines([r for p in ranked for r in p["rows"]]) + [""]
+    return "\n".join(lines)
+
+
+def _stat_lines(rows: list[dict]) -> list[str]:
+    st = statistics(rows)
+    out = ["| | PnP t | PnP r | IEKF t | IEKF r |", "|---|---|---|---|---|",
+           "| Spearman ρ predicted vs simulated | " + " | ".join(f"{st['spearman'][k]:.2f}" for k in KEYS) + " |",
+           "| predicted/simulated, median | " + " | ".join(f"{st['ratio_median'][k]:.2f}" for k in KEYS) + " |",
+           "| predicted/simulated, range | " + " | ".join("{:.2f}–{:.2f}".format(*st["ratio_range"][k]) for k in KEYS)
+           + " |",
+           "", f"Spearman ρ of the measured offsets propagated vs simulated PnP: "
+           f"{st['spearman']['propagated_vs_pnp_t']:.2f} (t), {st['spearman']['propagated_vs_pnp_r']:.2f} (r)."]
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--study", type=Path, action="append", default=None,
+                    help="a part-script study (repeatable; default: the flagship)")
+    ap.add_argument("--optimum", type=Path, action="append", default=None,
+                    help="a results.json per --study whose optimum joins the panel and is paired-tested")
+    ap.add_argument("--designs", type=int, default=12)
+    ap.add_argument("--runs", type=int, default=8)
+    ap.add_argument("--frame-step", type=int, default=2)
+    ap.add_argument("--placement-mm", type=float, default=0.2)
+    ap.add_argument("--placement-deg", type=float, default=0.2)
+    ap.add_argument("--gain-sigma", type=float, default=0.05)
+    ap.add_argument("--seed", type=int, default=0, help="the closed loop's base seed (independent Monte-Carlo runs)")
+    ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--markdown", type=Path, default=None)
+    ap.add_argument("--from-json", type=Path, action="append", default=None,
+                    help="only write --markdown from earlier --json outputs")
+    ap.add_argument("--repredict", action="store_true",
+                    help="with --from-json: recompute the predictions with the current models (no closed loop)")
+    ap.add_argument("--model", type=Path, default=None,
+                    help="a detection_model.json (calibrate_detection.py --study); default: the committed one")
+    args = ap.parse_args(argv)
+    if args.from_json:
+        panels = [p for f in args.from_json for p in json.loads(f.read_text())["panels"]]
+        panels = merge(panels)
+        if args.repredict:
+            for p in panels:
+                repredict(p, args)
+            if args.json:
+                args.json.write_text(json.dumps({"panels": panels}, indent=1))
+    else:
+        studies = args.study or [ROOT / "studies" / "nema17_mount.toml"]
+        optima = args.optimum or [None] * len(studies)
+        panels = [run_panel(args, st, op) for st, op in zip(studies, optima, strict=True)]
+        if args.json:
+            args.json.write_text(json.dumps({"panels": panels}, indent=1))
+    for p in panels:
+        print(p["study"], json.dumps(statistics(p["rows"])), json.dumps(p.get("paired", {})))
+    if args.markdown:
+        args.markdown.write_text(markdown(panels))
     return 0
 
 

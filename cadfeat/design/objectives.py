@@ -82,12 +82,20 @@ def _choice(key: str, value: Any, allowed: Sequence[str]) -> None:
         raise CadfeatError(f"objective.{key}: {value!r} is not one of {', '.join(map(repr, allowed))}")
 
 
+#: g_POSE's default rotation-to-length scale ℓ (mm per rad): a rotation error δθ counts as ℓ·δθ mm of error —
+#: the displacement it causes at ℓ from the part's origin; 50 mm is about the half-size of the parts cadfeat targets.
+POSE_ROTATION_LENGTH_MM = 50.0
+
+
 @dataclass(frozen=True)
 class ObjectiveConfig:
     """How the measures become objectives (see the module docstring). ``weights``/``thresholds`` are keyed
     by measure ("fov", ...) or objective name ("g_FOV", ...). ``occlusion``: holes hidden by the part count
     as unseen (a ray test against the part's mesh, default on); ``score``: which holes' FOV/focus/resolution
-    count — "movable" (the holes the design moves; all when none moves), "all", or hole names."""
+    count — "movable" (the holes the design moves; all when none moves), "all", or hole names.
+    ``rotation_length_mm`` ℓ scales rotation in the resolvability g_DIR (thesis: 1); ``pose_rotation_length_mm``
+    is g_POSE's own ℓ (a rotation error of 1 rad counts as ℓ mm; default ``POSE_ROTATION_LENGTH_MM`` = 50 mm, about
+    a small part's half-size, so that rotation counts: with ℓ = 1 mm g_POSE would ignore it)."""
 
     measures: tuple[str, ...] = ("fov", "focus", "resolution", "resolvability")
     aggregate: str = "sum"
@@ -103,6 +111,7 @@ class ObjectiveConfig:
     occlusion: bool = True
     score: str | tuple[str, ...] = "movable"
     pose_aggregate: str = "rms"
+    pose_rotation_length_mm: float = POSE_ROTATION_LENGTH_MM
 
     def __post_init__(self) -> None:
         measures = tuple(self.measures)
@@ -167,7 +176,7 @@ def per_pose_values(measures: Any, config: ObjectiveConfig,
     mask = None if feature_mask is None or not np.any(feature_mask) else np.asarray(feature_mask, dtype=bool)
     for m in config.measures:
         if m == "pose":
-            out[m] = -_pose_errors(_pose_of(measures), config.rotation_length_mm)
+            out[m] = -_pose_errors(_pose_of(measures), config.pose_rotation_length_mm)
             continue
         if m == "resolvability":
             out[m] = np.asarray(measures.resolvability, dtype=float)
@@ -204,7 +213,8 @@ def objective_values(measures: Any, config: ObjectiveConfig, units: Mapping[str,
     out = {}
     for m, v in per_pose_values(measures, config, feature_mask).items():
         if m == "pose":
-            out[MEASURES[m]] = pose_objective(_pose_of(measures), config.pose_aggregate, config.rotation_length_mm)
+            out[MEASURES[m]] = pose_objective(_pose_of(measures), config.pose_aggregate,
+                                               config.pose_rotation_length_mm)
             continue
         out[MEASURES[m]] = float(aggregate(v, config.aggregate, config.smoothmin_beta, units.get(m, 1.0)))
     return out

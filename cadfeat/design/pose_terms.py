@@ -56,7 +56,7 @@ def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii:
             occlusion = rim_occlusion(mesh, T, centres, axes, radii, samples=RIM_SAMPLES, through=through,
                                       depth_mm=depth)
     return pose_information(problem.camera, T, centres, axes, radii, occlusion=occlusion, depth_ratio=ratio,
-                            through=through, rotation_length_mm=cfg.rotation_length_mm)
+                            through=through, rotation_length_mm=cfg.pose_rotation_length_mm)
 
 
 def pose_aggregate_batch(errors_mm: np.ndarray, information: np.ndarray, how: str,
@@ -84,7 +84,7 @@ def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     The optimiser's path (depth-map occlusion or none) is ONE ``pose_information`` call on the B·L stacked poses,
     each with its own design's holes; the exact ray test (reported values) takes one design at a time."""
     cfg = problem.objective_config
-    ell = cfg.rotation_length_mm
+    ell = cfg.pose_rotation_length_mm
     B, N = np.shape(radii)
     L = len(problem.T_cam_part)
     if exact_occlusion and problem.occlusion_mesh is not None:
@@ -133,4 +133,4 @@ def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, rad
         n = np.asarray(noise_grey, float)
         noise["noise_grey"] = float(n) if n.ndim == 0 else np.tile(n.reshape(L, 1), (B, 1))
     return pose_information(problem.camera, TT, c, a, r, occlusion=occlusion, depth_ratio=ratio, through=through,
-                            rotation_length_mm=problem.objective_config.rotation_length_mm, **noise)
+                            rotation_length_mm=problem.objective_config.pose_rotation_length_mm, **noise)

@@ -327,7 +327,8 @@ class Problem:
             from cadfeat.design.pose_terms import stacked_information
 
             info = stacked_information(self, centres, axes, radii, noise_grey, depth_mm)
-            arrays["pose"] = (info.error_mm(cfg.rotation_length_mm).reshape(B, L), info.information.reshape(B, L, 6, 6))
+            arrays["pose"] = (info.error_mm(cfg.pose_rotation_length_mm).reshape(B, L),
+                              info.information.reshape(B, L, 6, 6))
         if "resolvability" in cfg.measures and B == 1:  # evaluate's own Λ is the design's
             arrays["resolvability"] = np.asarray(m.resolvability)[None]
         elif "resolvability" in cfg.measures:
@@ -348,7 +349,7 @@ class Problem:
         arrays = dict(arrays)
         if "pose" in arrays:
             e, info = arrays["pose"]
-            g = pose_aggregate_batch(e, info, cfg.pose_aggregate, cfg.rotation_length_mm)
+            g = pose_aggregate_batch(e, info, cfg.pose_aggregate, cfg.pose_rotation_length_mm)
             per_pose = -np.where(np.isfinite(e), np.minimum(e, POSE_UNOBSERVABLE_MM), POSE_UNOBSERVABLE_MM)
             arrays["pose"] = _BatchPose(-per_pose, g)
         values = per_pose_values(_Arrays(arrays), cfg, self.feature_mask)

@@ -13,7 +13,10 @@ logistic terms s(x) = 1 / (1 + e⁻ˣ):
 
 with o(occ) = s((o₀ − occ)/w_o) / s(o₀/w_o) for the hidden fraction occ of the rim (1 at occ = 0, → 0 once a
 few per cent are hidden: the detector rejects a rim that is cut or crossed by an edge — never accepts it as
-whole).
+whole), times s((g − g₀)/w_g) for the image gap g px between the rim and the nearest other hole's rim
+(``rim_gap_px``; g₀ = ``RIM_GAP_MIN_PX``, the closed loop's association rule, not a fit): a neighbouring edge
+inside the detector's surround ring either shifts the fitted centre or fails the ring test, so such a hole is
+dropped, never measured as if alone.
 
 **Centre noise** (px): a least-squares ellipse through ρ boundary points, each with edge noise proportional to
 the grey-level noise and to the edge width √(w₀² + β²), has a centre noise ∝ 1/√ρ:
@@ -22,11 +25,13 @@ the grey-level noise and to the edge width √(w₀² + β²), has a centre nois
 
 The last term is the **pixel-grid (aliasing) error**: the rendered rim is a staircase on the pixel grid, so the
 fitted centre is off by a few hundredths of a pixel in a direction that depends on the rim's sub-pixel
-placement. It does not average out over noise draws (the calibration table shows it as a per-condition
-offset), but it changes from frame to frame as the part moves: for the pose it acts as noise (zero mean over
-placements, per-axis RMS √(a² + k_a²/ρ), fitted to the table's offsets that the systematic model leaves: a part
-that averages over the rim (k_a) and a floor a that does not — on the flagship the closed loop's measured
-offsets, 0.050 px per axis at ρ ≈ 60–90 px, match it; a 1/√ρ law alone gave 0.032).
+placement. It does not average out over noise draws, but it changes with the placement: over a cell's
+placement tolerance (and from frame to frame as the part moves) it acts as zero-mean noise of per-axis RMS
+√(a² + k_a²/ρ). ``tools/calibrate_detection.py`` measures it as the spread of the mean offset over 6 placements
+per condition and fits it in log space: a = 0, k_a ≈ 0.39 px — the 1/√ρ law of a least-squares ellipse through
+ρ boundary points with independent staircase errors (each ≈ the ±½ px quantisation, RMS 0.29 px: √2 · 0.29 ≈
+0.41). On the flagship the closed loop's measured offsets (0.037–0.067 px per axis for rims of 1–3 mm radius)
+follow the same law.
 
 **Systematic offset** (px, along d̂): the detector fits the rim's edge; what remains is the asymmetric blur of
 an oblique rim and, for holes whose far wall shows inside the rim, the wall's share of the dark region:
@@ -67,6 +72,17 @@ class HoleGeometry(NamedTuple):
     axis_dir_px: np.ndarray
     valid: np.ndarray
     in_front: np.ndarray
+    rims: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None  # centre, axes, angle px, edge
+
+    def rim_gap_px(self, occlusion: Any = None) -> np.ndarray | None:
+        """(L, N) image gap to the nearest other rim that shows as an edge (``rim_gap_px``): in front, facing
+        the camera and, given the rims' hidden fractions ``occlusion`` (L, N), less than half hidden."""
+        if self.rims is None:
+            return None
+        centre, axes, angle, edge = self.rims
+        if occlusion is not None:
+            edge = edge & (np.broadcast_to(np.asarray(occlusion, dtype=float), edge.shape) < EDGE_HIDDEN_MAX)
+        return rim_gap_px(centre, axes, angle, edge)
 
 
 def _sigmoid(x: np.ndarray | float) -> np.ndarray:
@@ -110,8 +126,53 @@ def hole_geometry(camera: Camera, T_cam_part: np.ndarray, centres: np.ndarray, n
     point_margin = np.minimum(np.minimum(pp[..., 0], camera.width - pp[..., 0]),
                               np.minimum(pp[..., 1], camera.height - pp[..., 1]))
     margin = np.where(point, point_margin, image_margin_from_ellipse(camera, e))
+    rims = (np.asarray(e.centre_px), np.asarray(e.axes_px), np.asarray(e.angle_rad),
+            valid & in_front & (facing > 0) & ~point)
     return HoleGeometry(minor, major, margin, facing,
-                        defocus_diameter_px(camera, np.maximum(Z, 1.0)), rim, axis_dir, valid, in_front)
+                        defocus_diameter_px(camera, np.maximum(Z, 1.0)), rim, axis_dir, valid, in_front, rims)
+
+
+#: A rim that comes closer than this (px) to another hole's rim in the image is not detected: the detector's
+#: surround ring (``vision.detection``, 2.5 px outside the fitted rim) cannot tell a neighbouring edge from the
+#: rim's own, and the closed loop drops such holes at association (``vision.closed_loop.RIM_GAP_MIN_PX``).
+RIM_GAP_MIN_PX = 3.0
+#: A neighbouring rim counts as an edge in the image while less than this fraction of it is hidden by the part.
+EDGE_HIDDEN_MAX = 0.5
+
+
+def _radius_along(axes_px: np.ndarray, major_dir: np.ndarray, unit: np.ndarray) -> np.ndarray:
+    """Distance (px) from an ellipse's centre to its boundary along the image direction ``unit`` (..., 2):
+    ab / √((b cos ψ)² + (a sin ψ)²), ψ the angle from the major axis ``major_dir`` (..., 2); a, b the semi-axes."""
+    a, b = 0.5 * axes_px[..., 0], 0.5 * axes_px[..., 1]
+    cos_p = unit[..., 0] * major_dir[..., 0] + unit[..., 1] * major_dir[..., 1]
+    sin_p = unit[..., 0] * major_dir[..., 1] - unit[..., 1] * major_dir[..., 0]
+    return a * b / np.maximum(np.sqrt((b * cos_p) ** 2 + (a * sin_p) ** 2), 1e-12)
+
+
+def rim_gap_px(centre_px: np.ndarray, axes_px: np.ndarray, angle_rad: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """(L, N) image gap (px) between each hole's rim ellipse and the nearest other seen hole's rim (inf when
+    there is none), along the line joining their centres: d − ρ_i − ρ_j for disjoint rims, ρ_out − d − ρ_in for a
+    rim nested in another (a counterbore's), with ρ the ellipse's radius towards the other centre
+    (``_radius_along``). Exact for circles seen fronto-parallel; for oblique, nearby rims it is the gap on the
+    centre line (≥ the true smallest gap by at most the ellipses' curvature there). O(L N²), no rim sampling.
+    ``centre_px`` (L, N, 2), ``axes_px`` (L, N, 2) full (major, minor), ``angle_rad`` (L, N), ``seen`` (L, N)."""
+    cp = np.asarray(centre_px, dtype=float)
+    L, N = cp.shape[:2]
+    if N < 2:
+        return np.full((L, N), np.inf)
+    d_vec = cp[:, None, :, :] - cp[:, :, None, :]                                  # (L, i, j, 2): i → j
+    d = np.sqrt(np.einsum("lijk,lijk->lij", d_vec, d_vec))
+    unit = d_vec / np.maximum(d, 1e-12)[..., None]
+    ax = np.asarray(axes_px, dtype=float)
+    ang = np.asarray(angle_rad, dtype=float)
+    major = np.stack([np.cos(ang), np.sin(ang)], axis=-1)                       # (L, N, 2)
+    rho_i = _radius_along(ax[:, :, None], major[:, :, None], unit)
+    rho_j = _radius_along(ax[:, None, :], major[:, None, :], unit)
+    apart = d - rho_i - rho_j
+    nested = np.maximum(rho_i, rho_j) - d - np.minimum(rho_i, rho_j)
+    gap = np.where(d >= np.maximum(rho_i, rho_j), apart, np.maximum(apart, nested))
+    ok = seen[:, :, None] & seen[:, None, :] & ~np.eye(N, dtype=bool)[None] & np.isfinite(gap)
+    return np.where(ok, gap, np.inf).min(axis=-1)
 
 
 @dataclass(frozen=True)
@@ -133,6 +194,8 @@ class PoseModels:
     k_d: float = 0.0
     k_alias_px: float = 0.0
     alias_floor_px: float = 0.0
+    gap0_px: float = RIM_GAP_MIN_PX
+    w_g_px: float = 0.3
     source: str = "defaults (not calibrated)"
 
     def detection_probability(self, geo: HoleGeometry, occlusion: np.ndarray) -> np.ndarray:
@@ -142,7 +205,9 @@ class PoseModels:
         fov = _sigmoid(np.maximum(geo.margin_px, -50.0 * self.w_f_px) / self.w_f_px)
         facing = _sigmoid((geo.facing - self.c0) / self.w_c)
         occl = _sigmoid((self.o0 - occ) / self.w_o) / _sigmoid(self.o0 / self.w_o)
-        return np.where(geo.valid & geo.in_front & (geo.facing > 0), size * fov * facing * occl, 0.0)
+        gap = geo.rim_gap_px(occ)
+        near = 1.0 if gap is None else _sigmoid((np.minimum(gap, 1e6) - self.gap0_px) / self.w_g_px)
+        return np.where(geo.valid & geo.in_front & (geo.facing > 0), size * fov * facing * occl * near, 0.0)
 
     def measurement_model(self, geo: HoleGeometry, *, depth_ratio: Any = None, kinds: Any = None,
                           through: Any = None, noise_grey: float = 2.0) -> tuple[np.ndarray, np.ndarray]:

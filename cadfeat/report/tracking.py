@@ -117,7 +117,10 @@ def tracking_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path
              f"(ellipse fits), associated to the model by prediction, and tracked by the EKF, IEKF (thesis §6.3) and "
              f"solvePnP from an initial error of {fmt(s['initial_error_mm'], 3)} mm / "
              f"{fmt(s['initial_error_deg'], 3)}°, over {s['runs']} Monte-Carlo runs paired between the designs "
-             f"(same noise seeds and initial errors). Errors are counted after the first {s['settle_frames']} "
+             f"(same noise seeds, initial errors, part placements and illumination; per run the part is placed "
+             f"with σ {fmt(s.get('placement_mm', 0.0), 3)} mm / {fmt(s.get('placement_deg', 0.0), 3)}° per axis and "
+             f"lit with a gain of σ {fmt(100 * s.get('gain_sigma', 0.0), 2)} %). Errors are counted after the first "
+             f"{s['settle_frames']} "
              "frames; intervals are 95 % bootstrap intervals of the mean over runs.</p>"]
     parts += [note(w, "warning") for w in tracking.get("warnings", [])]
     parts += [f"<p>{esc(t)}</p>" for t in [report_note(tracking)] if t]  # cadfeat run's check (issue 17)

@@ -16,8 +16,10 @@ design, along the study's trajectory:
 - "what would help most": for each movable hole, central finite differences of the predicted RMS translation
   error (mm) on the hole's features — its centre moved in its face's plane (the steepest-descent direction of
   the two in-plane axes, mm of error per mm of move) and its radius (mm per mm) — with each rim's hidden
-  fraction held at the design's exact value (the step is 0.25 mm; occlusion changes are not differentiated).
-  The hole and change that lower the error most are named.
+  fraction held at the design's exact value (the step is 0.25 mm; occlusion changes are not differentiated),
+  the same for the RMS rotation error (deg); a movable hole hidden at most poses is probed by real moves
+  (``PROBE_MM`` along ± its face's in-plane axes, rim occlusion recomputed), so the answer can be "move it out of
+  hiding". The hole and change that lower the translation error most (per mm) are named.
 """
 
 from __future__ import annotations
@@ -81,18 +83,20 @@ def _in_plane(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def help_most(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], names: Sequence[str],
-              movable: Sequence[str], occlusion: np.ndarray, rotation_length_mm: float) -> dict[str, Any]:
+              movable: Sequence[str], occlusion: np.ndarray, rotation_length_mm: float,
+              mesh: Any = None) -> dict[str, Any]:
     """Per movable hole: d(RMS translation error)/d(move) along the steepest in-plane direction and
-    d/d(radius) (mm per mm, central differences, ``STEP_MM``; module docstring), and the best single change."""
-    base = _arrays(holes)
-    c0, a0, r0, through, depth = base
+    d/d(radius) (mm per mm, central differences, ``STEP_MM``), the same for the RMS rotation error (deg per mm),
+    and the best single change (module docstring). With the part ``mesh``, a hole hidden at most poses (mean
+    detection probability < ½: its gradient is zero, since the hidden fraction is held) is also probed by real
+    moves of ``PROBE_MM`` in its face's plane with its rim occlusion recomputed: "move it out of hiding"."""
+    c0, a0, r0, through, depth = _arrays(holes)
 
-    def rms(c: np.ndarray, r: np.ndarray) -> float:
-        info, _ = predict(camera, T_cam_part, holes, None, rotation_length_mm, occlusion,
-                          (c, a0, r, through, depth))
-        return _rms(info.error_translation_mm)
+    def errs(c: np.ndarray, r: np.ndarray, occ: np.ndarray = occlusion) -> tuple[float, float, Any]:
+        info, _ = predict(camera, T_cam_part, holes, None, rotation_length_mm, occ, (c, a0, r, through, depth))
+        return _rms(info.error_translation_mm), _rms(info.error_rotation_deg), info
 
-    e0 = rms(c0, r0)
+    e0, rot0, info0 = errs(c0, r0)
     out: dict[str, Any] = {}
     for j, name in enumerate(names):
         if name not in movable:
@@ -103,38 +107,86 @@ def help_most(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], names: 
             cp, cm = c0.copy(), c0.copy()
             cp[j] += STEP_MM * d
             cm[j] -= STEP_MM * d
-            grad.append((rms(cp, r0) - rms(cm, r0)) / (2 * STEP_MM))
-        g = np.asarray(grad)
-        norm = float(np.linalg.norm(g))
-        direction = -(g[0] * u + g[1] * v) / norm if norm > 0 else np.zeros(3)
+            ep, em = errs(cp, r0), errs(cm, r0)
+            grad.append(((ep[0] - em[0]) / (2 * STEP_MM), (ep[1] - em[1]) / (2 * STEP_MM)))
+        g = np.asarray(grad)                                                   # (2 directions, (t, r))
+        norm = float(np.linalg.norm(g[:, 0]))
+        direction = -(g[0, 0] * u + g[1, 0] * v) / norm if norm > 0 else np.zeros(3)
+        rot_norm = float(np.linalg.norm(g[:, 1]))
         rp, rm = r0.copy(), r0.copy()
         rp[j] += STEP_MM
         rm[j] = max(r0[j] - STEP_MM, 1e-3)
-        d_radius = (rms(c0, rp) - rms(c0, rm)) / (rp[j] - rm[j])
+        ep, em = errs(c0, rp), errs(c0, rm)
         out[name] = {"d_error_per_mm_move": 0.0 - norm, "move_direction": direction.tolist(),
-                     "d_error_per_mm_radius": float(d_radius)}
+                     "d_error_per_mm_radius": float((ep[0] - em[0]) / (rp[j] - rm[j])),
+                     "d_rotation_deg_per_mm_move": 0.0 - rot_norm,
+                     "d_rotation_deg_per_mm_radius": float((ep[1] - em[1]) / (rp[j] - rm[j]))}
+        if mesh is not None and float(np.mean(info0.probability[:, j])) < 0.5:
+            out[name]["out_of_hiding"] = _out_of_hiding(j, (c0, a0, r0, through, depth), mesh, T_cam_part, occlusion,
+                                                        errs, e0, rot0)
     best = None
     for name, d in out.items():
-        for what, value in (("move", d["d_error_per_mm_move"]), ("radius", d["d_error_per_mm_radius"])):
-            gain = value if what == "move" else -abs(value)
+        options = [("move", d["d_error_per_mm_move"]), ("radius", d["d_error_per_mm_radius"])]
+        if d.get("out_of_hiding"):
+            options.append(("reveal", d["out_of_hiding"]["d_error_per_mm"]))
+        for what, value in options:
+            gain = -abs(value) if what == "radius" else value
             if best is None or gain < best[2]:
                 best = (name, what, gain, value)
-    return {"rms_translation_mm": e0, "step_mm": STEP_MM, "holes": out,
+    return {"rms_translation_mm": e0, "rms_rotation_deg": rot0, "step_mm": STEP_MM, "holes": out,
             "best": None if best is None else {"hole": best[0], "change": best[1], "d_error_per_mm": best[3],
                                                "sentence": _sentence(best, out)}}
+
+
+#: Probe moves (mm) in a hidden hole's face plane, along ± its two in-plane axes ("move it out of hiding").
+PROBE_MM = (3.0, 8.0)
+
+
+def _out_of_hiding(j: int, arrays: tuple[np.ndarray, ...], mesh: Any, T: np.ndarray, occlusion: np.ndarray,
+                   errs: Any, e0: float, rot0: float) -> dict[str, Any] | None:
+    """The probe move of hole j that lowers the predicted RMS translation error most, with its rim occlusion
+    recomputed on ``mesh`` (exact ray test, 8 rim samples); None when no probe helps."""
+    from cadfeat.measures.rim_occlusion import rim_occlusion
+
+    c0, a0, r0, through, depth = arrays
+    u, v = _in_plane(a0[j])
+    best = None
+    for dist in PROBE_MM:
+        for d in (u, -u, v, -v):
+            c = c0.copy()
+            c[j] = c0[j] + dist * d
+            occ = occlusion.copy()
+            occ[:, j] = rim_occlusion(mesh, T, c[j:j + 1], a0[j:j + 1], r0[j:j + 1], samples=8,
+                                      through=through[j:j + 1], depth_mm=depth[j:j + 1])[:, 0]
+            e, rot, info = errs(c, r0, occ)
+            if e < e0 and (best is None or (e - e0) / dist < best["d_error_per_mm"]):
+                best = {"distance_mm": dist, "direction": d.tolist(), "d_error_mm": e - e0,
+                        "d_rotation_deg": rot - rot0, "d_error_per_mm": (e - e0) / dist,
+                        "detected_fraction": float(np.mean(info.detected[:, j]))}
+    return best
 
 
 def _sentence(best: tuple[Any, ...], holes: dict[str, Any]) -> str:
     name, what, gain, value = best
     if gain >= 0 or not np.isfinite(gain):
         return "No small move or resize of a movable hole lowers the predicted error."
+    if what == "reveal":
+        r = holes[name]["out_of_hiding"]
+        d = np.round(r["direction"], 2).tolist()
+        return (f"Moving {name} out of hiding helps most: {r['distance_mm']:g} mm along {d} (part frame) it is "
+                f"detected at {100 * r['detected_fraction']:.0f} % of the poses and the predicted RMS error falls by "
+                f"{abs(r['d_error_mm']) * 1000:.2f} µm in translation and changes by "
+                f"{r['d_rotation_deg'] * 1000:+.2f} mdeg in rotation.")
     if what == "move":
         d = np.round(holes[name]["move_direction"], 2).tolist()
         return (f"Moving {name} (direction {d} in the part frame) helps most: the predicted RMS translation "
-                f"error falls by {abs(value) * 1000:.2f} µm per mm of move.")
+                f"error falls by {abs(value) * 1000:.2f} µm per mm of move (rotation "
+                f"{holes[name]['d_rotation_deg_per_mm_move'] * 1000:+.2f} mdeg per mm along its own steepest "
+                f"direction).")
     verb = "Enlarging" if value < 0 else "Shrinking"
     return (f"{verb} {name} helps most: the predicted RMS translation error falls by {abs(value) * 1000:.2f} µm "
-            f"per mm of radius.")
+            f"per mm of radius (rotation {holes[name]['d_rotation_deg_per_mm_radius'] * 1000:+.2f} mdeg per mm of "
+            f"radius).")
 
 
 def _phases(info: Any) -> list[dict[str, Any]]:
@@ -175,7 +227,7 @@ def design_pose_accuracy(camera: Any, T_cam_part: np.ndarray, times_s: np.ndarra
         "holes_detected_mean": float(np.asarray(info.detected, float).sum(axis=1).mean()),
         "share": dict(zip(names, map(float, share), strict=True)),
         "weakest": _phases(info),
-        "help_most": help_most(camera, T_cam_part, holes, names, movable, occ, rotation_length_mm),
+        "help_most": help_most(camera, T_cam_part, holes, names, movable, occ, rotation_length_mm, mesh),
     }
 
 
@@ -187,7 +239,7 @@ def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, set
     from cadfeat.cad.features.identity import hole_names
 
     tuning = _tuning(config)
-    ell = float(config.objective.rotation_length_mm)
+    ell = float(config.objective.pose_rotation_length_mm)
     movable = [n for n, fixed in zip(base.hole_names, base.problem.fixed_mask, strict=True) if not fixed]
     out: dict[str, Any] = {
         "model": "measures.pose_information (calibrated detection and measurement models, exact rim occlusion); "
@@ -231,5 +283,5 @@ def with_pose(setup: Any, holes: Sequence[Any], trajectory: Any, measures: Any, 
     ``Problem.features_objectives(exact_occlusion=True)``)."""
     T = np.linalg.inv(np.asarray(trajectory.T_task_cam)) @ setup.T_task_part
     mesh = mesh if mesh is not None else getattr(setup.problem, "occlusion_mesh", None)
-    info, _ = predict(setup.camera, T, holes, mesh, float(setup.config.objective.rotation_length_mm))
+    info, _ = predict(setup.camera, T, holes, mesh, float(setup.config.objective.pose_rotation_length_mm))
     return _MeasuresWithPose(measures, info)

@@ -48,7 +48,8 @@ def tracking_config(spec: TrackingSpec) -> Any:
                           tuning=tuning, frame_step=spec.frame_step, settle_frames=spec.settle_frames,
                           converged_mm=spec.converged_mm, converged_deg=spec.converged_deg, gate_px=spec.gate_px,
                           rim_model=spec.rim_model, seed=spec.seed, alpha=spec.alpha,
-                          min_change=spec.min_change_percent / 100.0)
+                          min_change=spec.min_change_percent / 100.0, placement_mm=spec.placement_mm,
+                          placement_deg=spec.placement_deg, gain_sigma=spec.gain_sigma)
 
 
 def _scene(config: StudyConfig) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray]:

@@ -8,7 +8,16 @@ nominal pose (``detection``; the robot knows its commanded trajectory and the no
 every estimator from the same perturbed initial pose (``estimate.estimate_poses``). ``compare`` gives the
 paired verdict per estimator (``metrics.paired_verdict``) on the same per-run RMS errors, where a frame without
 an estimate counts at the error of the last estimate before it (``metrics.hold_last``). Run r uses the same
-noise seed and initial error for both designs, which is what makes the test paired.
+noise seed, initial error, placement and illumination for both designs, which is what makes the test paired.
+
+**What varies from run to run** (as in a real cell; ``TrackingConfig``): the pixel noise (a new draw per run and
+frame), the initial pose error (a random direction per run), the illumination (a gain 1 + N(0, ``gain_sigma``²) on
+the optical image per run) and the part's placement in the cell (a rigid error per run, N(0, ``placement_mm``²)
+per axis in translation and N(0, ``placement_deg``²) per axis in rotation, in the part frame; the truth of run r
+is T_cam_part · δ_r and the images are rendered again at it). The placement draw moves each rim by a fraction of
+a pixel to a few pixels, so the rendered rim's pixel-grid ("aliasing") offset is a fresh random draw per run
+instead of one fixed offset per design: the Monte-Carlo mean is then the expectation the measurement model's
+σ term predicts (``measures.pose_models``). Placement jitter re-renders every run (cost ∝ runs); 0 turns it off.
 """
 
 from __future__ import annotations
@@ -20,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cadfeat.camera import Camera
+from cadfeat.measures.pose_models import RIM_GAP_MIN_PX as _RIM_GAP_MIN_PX
 from cadfeat.vision.detection import Detections, associate, detect_holes
 from cadfeat.vision.estimate import FilterTuning, estimate_poses
 from cadfeat.vision.images import SensorModel, apply_optics, optics_kernels, render_sequence, sensor_images
@@ -36,6 +46,9 @@ ROI_MARGIN_PX = 12
 PART_LEVEL = 20.0
 #: A hole whose rim the part hides by more than this fraction at the predicted pose is not associated.
 RIM_HIDDEN_MAX = 0.03
+#: A hole whose predicted rim comes closer than this (px) to another hole's rim is not associated
+#: (``measures.pose_models.RIM_GAP_MIN_PX``: a neighbouring edge inside the surround ring shifts the centre).
+RIM_GAP_MIN_PX = _RIM_GAP_MIN_PX
 
 
 @dataclass(frozen=True)
@@ -48,7 +61,10 @@ class TrackingConfig:
     ``settle_frames`` frames skipped before the error statistics; ``converged_mm`` / ``converged_deg``
     convergence bounds; ``gate_px`` association gate; ``rim_model`` measure ellipse centres (True) or
     treat holes as points (False); ``seed`` base seed; ``alpha`` significance of the paired test;
-    ``min_change`` smallest relative change of the median RMS error that counts (``metrics.paired_verdict``).
+    ``min_change`` smallest relative change of the median RMS error that counts (``metrics.paired_verdict``);
+    run-to-run variability (module docstring): ``placement_mm`` / ``placement_deg`` σ per axis of the part's
+    placement error (0 = every run at the nominal placement, rendered once), ``gain_sigma`` relative σ of the
+    illumination gain per run.
     """
 
     estimators: tuple[str, ...] = ("ekf", "iekf", "pnp")
@@ -66,6 +82,9 @@ class TrackingConfig:
     seed: int = 0
     alpha: float = 0.05
     min_change: float = 0.05
+    placement_mm: float = 0.2
+    placement_deg: float = 0.2
+    gain_sigma: float = 0.05
 
     def with_changes(self, **changes: Any) -> TrackingConfig:
         return replace(self, **changes)
@@ -87,6 +106,8 @@ class Observation:
     radii: np.ndarray
     names: list[str]
     rim_hidden: np.ndarray | None = None
+    scene: tuple[Any, Sequence[Hole], SensorModel, np.ndarray | None] | None = None  # (shape, holes, sensor, screws)
+    rim_gap: np.ndarray | None = None  # (F, N) px to the nearest other rim at the nominal pose (None: not computed)
 
 
 @dataclass
@@ -121,9 +142,26 @@ def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.nd
     centres, normals, radii = holes_to_arrays(holes)
     T = np.asarray(T_cam_part, dtype=float)
     clean = render_sequence(shape, holes, camera, T)
-    blurred = apply_optics(clean, optics_kernels(camera, T, centres, sensor, screws))
-    optical, offsets = [], np.zeros((len(T), 2), dtype=int)
-    for k in range(len(T)):
+    optical, offsets = _regions(camera, clean, apply_optics(clean, optics_kernels(camera, T, centres, sensor, screws)))
+    c_cam = np.einsum("fij,nj->fni", T[:, :3, :3], centres) + T[:, None, :3, 3]
+    n_cam = np.einsum("fij,nj->fni", T[:, :3, :3], normals)
+    ell = hole_ellipse(camera, c_cam, n_cam, radii)
+    from cadfeat.measures.ellipse import Ellipse as _E
+
+    predicted = [_E(ell.centre_px[k], ell.axes_px[k], ell.angle_rad[k], ell.valid[k]) for k in range(len(T))]
+    names = [h.name or f"hole{j}" for j, h in enumerate(holes)]
+    hidden = _rim_hidden(shape, holes, T, centres, normals, radii) if predict_occlusion else None
+    from cadfeat.measures.pose_models import hole_geometry
+
+    gap = hole_geometry(camera, T, centres, normals, radii).rim_gap_px(hidden)
+    return Observation(optical, offsets, predicted, centres, normals, radii, names, hidden,
+                       (shape, list(holes), sensor, screws), gap)
+
+
+def _regions(camera: Camera, clean: np.ndarray, blurred: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """Per frame the blurred region around the lit part (ROI_MARGIN_PX of background) and its (u0, v0) px."""
+    optical, offsets = [], np.zeros((len(clean), 2), dtype=int)
+    for k in range(len(clean)):
         rows = np.flatnonzero((clean[k] > PART_LEVEL).any(axis=1))
         cols = np.flatnonzero((clean[k] > PART_LEVEL).any(axis=0))
         if rows.size == 0:
@@ -133,15 +171,44 @@ def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.nd
         u0, u1 = max(cols[0] - ROI_MARGIN_PX, 0), min(cols[-1] + ROI_MARGIN_PX + 1, camera.width)
         optical.append(np.ascontiguousarray(blurred[k, v0:v1, u0:u1]))
         offsets[k] = (u0, v0)
-    c_cam = np.einsum("fij,nj->fni", T[:, :3, :3], centres) + T[:, None, :3, 3]
-    n_cam = np.einsum("fij,nj->fni", T[:, :3, :3], normals)
-    ell = hole_ellipse(camera, c_cam, n_cam, radii)
-    from cadfeat.measures.ellipse import Ellipse as _E
+    return optical, offsets
 
-    predicted = [_E(ell.centre_px[k], ell.axes_px[k], ell.angle_rad[k], ell.valid[k]) for k in range(len(T))]
-    names = [h.name or f"hole{j}" for j, h in enumerate(holes)]
-    hidden = _rim_hidden(shape, holes, T, centres, normals, radii) if predict_occlusion else None
-    return Observation(optical, offsets, predicted, centres, normals, radii, names, hidden)
+
+def placement_errors(config: TrackingConfig, runs: int) -> np.ndarray:
+    """(R, 4, 4) the part's placement error δ_r per run (part frame, mm): translation N(0, placement_mm²) and
+    rotation N(0, placement_deg²) per axis, from ``default_rng([run seed, 11])`` — the same for every design
+    (common random numbers keep the paired test paired)."""
+    out = np.tile(np.eye(4), (runs, 1, 1))
+    for run in range(runs):
+        rng = np.random.default_rng([config.seed * 1000 + run, 11])
+        out[run, :3, 3] = rng.normal(0.0, config.placement_mm, 3)
+        out[run, :3, :3] = so3_exp(np.radians(rng.normal(0.0, config.placement_deg, 3)))
+    return out
+
+
+def illumination_gains(config: TrackingConfig, runs: int) -> np.ndarray:
+    """(R,) the illumination gain per run, 1 + N(0, gain_sigma²) from ``default_rng([run seed, 13])``, ≥ 0.2."""
+    return np.array([max(1.0 + np.random.default_rng([config.seed * 1000 + r, 13]).normal(0.0, config.gain_sigma),
+                         0.2) for r in range(runs)])
+
+
+def placed_observations(camera: Camera, obs: Observation, T_runs: np.ndarray) -> list[Observation]:
+    """``obs`` rendered again at each run's true poses T_runs (R, F, 4, 4) (one renderer for all runs). The
+    predicted ellipses and rim occlusion stay those of the nominal placement: the robot does not know δ_r."""
+    from cadfeat.render import CameraViewRenderer
+    from cadfeat.vision.images import grey
+
+    if obs.scene is None:
+        raise ValueError("placement jitter needs an Observation made by observe() (it keeps the part to render)")
+    shape, holes, sensor, screws = obs.scene
+    out = []
+    with CameraViewRenderer(shape, holes, camera) as renderer:
+        for T in np.asarray(T_runs, dtype=float):
+            clean = np.stack([grey(renderer.render(pose)) for pose in T])
+            blurred = apply_optics(clean, optics_kernels(camera, T, obs.centres, sensor, screws))
+            optical, offsets = _regions(camera, clean, blurred)
+            out.append(replace(obs, optical=optical, offsets=offsets))
+    return out
 
 
 def _rim_hidden(shape: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
@@ -169,6 +236,8 @@ def _expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.nda
         out[k] = np.asarray(e.valid) & inside & facing[k] & (np.asarray(e.axes_px)[:, 1] >= 3.0)
     if obs.rim_hidden is not None:
         out &= obs.rim_hidden <= RIM_HIDDEN_MAX
+    if obs.rim_gap is not None:
+        out &= obs.rim_gap >= RIM_GAP_MIN_PX
     return out
 
 
@@ -210,19 +279,23 @@ def draw_frame(image: np.ndarray, predicted: Ellipse, detections: Detections, pi
     return out
 
 
-def detect_sequence(obs: Observation, noise_grey: float, seed: int, gate_px: float) -> tuple[np.ndarray, list]:
-    """Pixels (F, N, 2) of one Monte-Carlo run (NaN = missing) and the raw detections per frame."""
+def detect_sequence(obs: Observation, noise_grey: float, seed: int, gate_px: float,
+                    gain: float = 1.0) -> tuple[np.ndarray, list]:
+    """Pixels (F, N, 2) of one Monte-Carlo run (NaN = missing) and the raw detections per frame; ``gain``
+    scales the optical image (the run's illumination) before the noise."""
     F_, N = len(obs.optical), len(obs.centres)
     pixels = np.full((F_, N, 2), np.nan)
     dets = []
     for k, img in enumerate(obs.optical):
-        frame = sensor_images(img[None], noise_grey, frame_seed(seed, k))[0]
+        frame = sensor_images(img[None] * np.float32(gain), noise_grey, frame_seed(seed, k))[0]
         d = detect_holes(frame)
         d = Detections(d.centre_px + obs.offsets[k], d.axes_px, d.angle_rad, d.residual_px)
         dets.append(d)
         pixels[k] = associate(obs.predicted[k], d, gate_px)
         if obs.rim_hidden is not None:
             pixels[k, obs.rim_hidden[k] > RIM_HIDDEN_MAX] = np.nan
+        if obs.rim_gap is not None:
+            pixels[k, obs.rim_gap[k] < RIM_GAP_MIN_PX] = np.nan
     return pixels, dets
 
 
@@ -251,17 +324,24 @@ def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: 
     normals = obs.normals if config.rim_model else None
     radii = obs.radii if config.rim_model else None
     first: list[Detections] = []
+    T_runs = np.broadcast_to(T_true, (R_,) + T_true.shape)                        # (R, F, 4, 4) each run's truth
+    runs_obs = [obs] * R_
+    if (config.placement_mm > 0 or config.placement_deg > 0) and obs.scene is not None:
+        T_runs = T_true[None] @ placement_errors(config, R_)[:, None]
+        runs_obs = placed_observations(camera, obs, T_runs)
+    gains = illumination_gains(config, R_)
     for run in range(R_):
-        pixels[run], dets = detect_sequence(obs, config.sensor.noise_grey, config.seed * 1000 + run, config.gate_px)
+        pixels[run], dets = detect_sequence(runs_obs[run], config.sensor.noise_grey, config.seed * 1000 + run,
+                                            config.gate_px, float(gains[run]))
         if run == 0:
             first = dets
-    T0 = np.stack([initial_pose(T_true[0], config.initial_error_mm, config.initial_error_deg, config.seed * 1000 + run)
-                   for run in range(R_)])
+    T0 = np.stack([initial_pose(T_runs[run, 0], config.initial_error_mm, config.initial_error_deg,
+                                config.seed * 1000 + run) for run in range(R_)])
     for m in config.estimators:  # all runs at once (the filters are batched over runs)
         track = estimate_poses(estimator_camera or camera, obs.centres, pixels, times_s, m, T0,
                                normals_part=normals, radii_mm=radii, tuning=config.tuning)
         held, lost = hold_last(track.T_cam_part, T0)  # a lost frame counts at the last estimate's error
-        et, er = pose_errors(held, T_true[None])
+        et, er = pose_errors(held, T_runs)
         errors[m] = (et, er)
         summaries[m] = [run_summary(et[run], er[run], times_s, config.settle_frames, config.converged_mm,
                                     config.converged_deg, lost[run]) for run in range(R_)]
@@ -335,7 +415,8 @@ class BeforeAfter:
                          "q_omega_rad2_s2": c.tuning.q_omega_rad2_s2, "iterations": c.tuning.iterations,
                          "tau": c.tuning.tau, "settle_frames": c.settle_frames, "frames": len(self.frame_indices),
                          "frame_step": c.frame_step, "rim_model": c.rim_model, "seed": c.seed,
-                         "alpha": c.alpha, "min_change": c.min_change},
+                         "alpha": c.alpha, "min_change": c.min_change, "placement_mm": c.placement_mm,
+                         "placement_deg": c.placement_deg, "gain_sigma": c.gain_sigma},
             "designs": {name: design_json(d) for name, d in self.designs.items()},
             "verdicts": self.verdicts,
             "timings_s": {k: round(v, 3) for k, v in self.timings_s.items()},

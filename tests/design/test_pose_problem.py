@@ -18,7 +18,7 @@ def _direct(problem, x, how):
     """Independent assembly: the camera poses from the trajectory, the holes from the model, no occlusion mesh."""
     c, a, r = problem.model.features(x)
     T = invert_T(np.asarray(problem.trajectory.T_task_cam)) @ np.eye(4)
-    ell = problem.objective_config.rotation_length_mm
+    ell = problem.objective_config.pose_rotation_length_mm
     holes = problem.model.holes
     info = pose_information(problem.camera, T, c, a, r, rotation_length_mm=ell,
                             through=[h.through for h in holes],
@@ -28,7 +28,7 @@ def _direct(problem, x, how):
 
 @pytest.mark.parametrize("how", ["rms", "worst", "logdet"])
 def test_g_pose_equals_pose_information_and_pose_objective(how):
-    problem = two_hole_problem(measures=("pose",), rotation_length_mm=50.0, pose_aggregate=how,
+    problem = two_hole_problem(measures=("pose",), pose_rotation_length_mm=20.0, pose_aggregate=how,
                                normalisation="natural")
     x = problem.space.x0
     g = problem.features_objectives(*problem.model.features(x))
@@ -87,5 +87,5 @@ def test_stacked_designs_with_depth_map_occlusion_equal_one_design_at_a_time(tmp
     G, _ = problem.evaluate_batch(X)
     for b, x in enumerate(X):
         info = pose_of_features(problem, *problem.model.features(x))
-        assert G[b, 0] == pytest.approx(pose_objective(info, "rms", problem.objective_config.rotation_length_mm),
+        assert G[b, 0] == pytest.approx(pose_objective(info, "rms", problem.objective_config.pose_rotation_length_mm),
                                         rel=1e-9)

@@ -102,7 +102,7 @@ def test_g_pose_of_a_study_equals_a_direct_assembly(tmp_path):
     from cadfeat.study.setup import setup_study
 
     config = load_study(study(tmp_path, objective={"measures": ["fov", "pose"], "pose_aggregate": "worst",
-                                                   "rotation_length_mm": 20.0}))
+                                                   "pose_rotation_length_mm": 20.0}))
     setup = setup_study(config)
     values, _ = score(setup, setup.holes0)
     holes = setup.holes0
@@ -116,3 +116,77 @@ def test_g_pose_of_a_study_equals_a_direct_assembly(tmp_path):
     info = pose_information(setup.camera, T, c, a, r, occlusion=occ, through=through, depth_ratio=depth / (2 * r),
                             rotation_length_mm=20.0)
     assert values["g_POSE"] == pytest.approx(pose_objective(info, "worst", 20.0), rel=1e-9)
+
+
+# A plate with a low wall (x ∈ [−12, −6] mm, 5 mm high) and a camera looking along +x from above: the wall's
+# shadow ends near x = +2.5 mm, so hole H (x = −3) is hidden at every pose and 8 mm along +x it is in view.
+WALL_LO, WALL_HI = np.array([-12.0, -40.0, 0.0]), np.array([-6.0, 40.0, 5.0])
+
+
+def _wall_scene():
+    trimesh = pytest.importorskip("trimesh")
+    from cadfeat.poses import look_at
+
+    plate = trimesh.creation.box(extents=(120, 100, 5))
+    plate.apply_translation((0, 0, -2.5))
+    mesh = trimesh.util.concatenate([plate, trimesh.creation.box(bounds=np.stack([WALL_LO, WALL_HI]))])
+    eyes = [(-250.0 + 10 * k, 10.0 * k - 30.0, 150.0) for k in range(6)]
+    T = np.stack([invert_T(look_at(np.array(e), np.array([10.0, 0.0, 0.0]), up=(0, 0, 1))) for e in eyes])
+    spec = {"P": (30.0, -20.0, 3.0), "Q": (35.0, 25.0, 3.0), "R": (55.0, 0.0, 2.5), "S": (10.0, 30.0, 2.0),
+            "H": (-3.0, 5.0, 1.5)}
+    holes = [Hole(np.array([x, y, 0.0]), np.array([0.0, 0.0, 1.0]), r, r, 3.0, False, "plain", 0, None, name)
+             for name, (x, y, r) in spec.items()]
+    return mesh, T, holes
+
+
+def _rim_hidden_by_slab(centre, radius, T, samples=16):
+    """Independent: fraction of rim points whose segment to the camera crosses the wall box (slab test)."""
+    eyes = invert_T(T)[:, :3, 3]
+    ang = np.linspace(0, 2 * np.pi, samples, endpoint=False)
+    rim = centre + radius * np.stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)], axis=1)
+    d = eyes[:, None, :] - rim[None]                                          # (L, S, 3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (WALL_LO - rim[None]) / d, (WALL_HI - rim[None]) / d
+    enter, leave = np.minimum(t1, t2).max(axis=-1), np.maximum(t1, t2).min(axis=-1)
+    return ((enter < leave) & (leave > 1e-6) & (enter < 1 - 1e-6)).mean(axis=1)
+
+
+def test_help_most_says_move_a_hidden_hole_out_of_hiding():
+    """The hidden hole's gradient is zero (its hidden fraction is held), so only the probe can help; it must name
+    the hole, a move that the independent slab test confirms brings the rim into view, and an error drop that a
+    direct pose_information with the slab test's occlusion confirms."""
+    from cadfeat.measures.rim_occlusion import rim_occlusion
+    from cadfeat.study.pose_accuracy import help_most
+
+    mesh, T, holes = _wall_scene()
+    names = [h.name for h in holes]
+    c = np.array([h.centre for h in holes])
+    a = np.array([h.axis for h in holes])
+    r = np.array([h.radius_mm for h in holes])
+    assert np.all(_rim_hidden_by_slab(c[-1], r[-1], T) > 0.5)                   # H hidden at every pose
+    occ = rim_occlusion(mesh, T, c, a, r, samples=16)
+    held = help_most(CAMERA_PRESET, T, holes, names, ["H"], occ, 50.0)        # no mesh: the old answer
+    assert held["holes"]["H"]["d_error_per_mm_move"] == 0.0 and "out_of_hiding" not in held["holes"]["H"]
+    hm = help_most(CAMERA_PRESET, T, holes, names, ["H"], occ, 50.0, mesh)
+    assert hm["best"]["hole"] == "H" and hm["best"]["change"] == "reveal"
+    assert "out of hiding" in hm["best"]["sentence"] and "rotation" in hm["best"]["sentence"]
+    probe = hm["holes"]["H"]["out_of_hiding"]
+    moved = c[-1] + probe["distance_mm"] * np.array(probe["direction"])
+    slab = _rim_hidden_by_slab(moved, r[-1], T)
+    assert np.mean(slab <= 0.03) >= probe["detected_fraction"] - 1e-9 and probe["detected_fraction"] > 0.5
+    occ2 = occ.copy()
+    occ2[:, -1] = slab
+    c2 = c.copy()
+    c2[-1] = moved
+    ratio = 3.0 / (2 * r)                                                     # depth / diameter
+    before = pose_information(CAMERA_PRESET, T, c, a, r, occlusion=occ, through=[False] * 5, depth_ratio=ratio,
+                              rotation_length_mm=50.0)
+    after = pose_information(CAMERA_PRESET, T, c2, a, r, occlusion=occ2, through=[False] * 5, depth_ratio=ratio,
+                             rotation_length_mm=50.0)
+    drop = _rms(after.error_translation_mm) - _rms(before.error_translation_mm)
+    assert drop < 0 and drop == pytest.approx(probe["d_error_mm"], rel=0.2)
+    assert probe["d_rotation_deg"] == pytest.approx(_rms(after.error_rotation_deg) - _rms(before.error_rotation_deg),
+                                                    rel=0.2, abs=1e-6)
+
+
+CAMERA_PRESET = Camera.preset("basler-aca1300-200um-8mm")

@@ -191,6 +191,7 @@ def test_wrong_type(tmp_path, section, key, value, allowed):
     ("study", "seed", -3, "an integer in [0"),
     ("objective", "min_axis_px", 0.0, "a number > 0"),
     ("objective", "rotation_length_mm", -1.0, "a number > 0"),
+    ("objective", "pose_rotation_length_mm", 0.0, "a number > 0"),
     ("constraints", "edge_distance_mm", -0.5, "a number ≥ 0"),
     ("constraints", "volume_change_max_percent", 150.0, "a number in (0, 100]"),
 ])

@@ -151,6 +151,9 @@ class TrackingSettings(Settings):
     ``check``: the closed loop inside ``cadfeat run`` — "fast" (PnP and IEKF, few runs and frames), "full" (these
     settings) or "off"; unset: full when the study has a ``[tracking]`` table, else fast
     (``cadfeat.study.closed_loop_check``).
+    Run-to-run variability of a real cell: the part's placement error per run (σ per axis, mm and deg; the
+    images are rendered again per run) and the illumination gain's relative σ; pixel noise and the initial
+    error's direction are drawn per run too.
     """
 
     estimators: Tuple[Literal["ekf", "iekf", "pnp"]] = choice(
@@ -178,6 +181,9 @@ class TrackingSettings(Settings):
     check: Literal["fast", "full", "off"] | None = choice(
         None, f"one of {', '.join(CHECK_MODES)}", description="the closed loop inside cadfeat run (unset: full "
         "with a [tracking] table, else fast)")
+    placement_mm: float = number(_CL.placement_mm, 0.0, 100.0)
+    placement_deg: float = number(_CL.placement_deg, 0.0, 30.0)
+    gain_sigma: float = number(_CL.gain_sigma, 0.0, 1.0)
 
     @model_validator(mode="before")
     @classmethod

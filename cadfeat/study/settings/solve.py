@@ -74,6 +74,7 @@ class ObjectiveSettings(Settings):
         _OC.score, '"movable", "all" or a non-empty list of distinct hole names (e.g. ["H1", "H3"])')
     pose_aggregate: str = choice(_OC.pose_aggregate, POSE_AGGREGATES,
                                  description='g_POSE over the trajectory ("pose" in measures): rms, worst or logdet')
+    pose_rotation_length_mm: float = number(_OC.pose_rotation_length_mm, 0.0, lo_open=True)
 
     @field_validator("measures")
     @classmethod
