@@ -99,10 +99,10 @@ def hole_geometry(camera: Camera, T_cam_part: np.ndarray, centres: np.ndarray, n
 
     T = np.asarray(T_cam_part, dtype=float)
     Rm, t = T[:, :3, :3], T[:, :3, 3]
-    sub = "lij,lnj->lni" if np.ndim(centres) == 3 else "lij,nj->lni"  # holes (N, 3) or one set per pose (L, N, 3)
-    c = np.einsum(sub, Rm, centres) + t[:, None, :]
+    Rt = np.swapaxes(Rm, 1, 2)  # holes (N, 3) or one set per pose (L, N, 3): R x as x Rᵀ, broadcast over L
+    c = np.asarray(centres, dtype=float) @ Rt + t[:, None, :]
     nrm = np.linalg.norm(normals, axis=-1, keepdims=True)
-    n = np.einsum(sub, Rm, normals / np.where(nrm > 0, nrm, 1.0))
+    n = (normals / np.where(nrm > 0, nrm, 1.0)) @ Rt
     r = np.broadcast_to(np.asarray(radii_mm, dtype=float), c.shape[:-1])
     e = hole_ellipse(camera, c, n, r)
     valid = np.asarray(e.valid, dtype=bool)

@@ -169,8 +169,9 @@ def measure(camera: Camera, T_cam_part: np.ndarray, points_part: np.ndarray, nor
     """
     T = np.asarray(T_cam_part, dtype=float)
     Rm, p = T[..., :3, :3], T[..., :3, 3]
-    c = np.einsum("...ij,...nj->...ni", Rm, points_part) + p[..., None, :]  # holes (N, 3) or one set per pose
-    n = np.einsum("...ij,...nj->...ni", Rm, normals_part)
+    Rt = np.swapaxes(Rm, -1, -2)  # R x as x Rᵀ (one GEMM per pose, broadcast): holes (N, 3) or one set per pose
+    c = np.asarray(points_part, dtype=float) @ Rt + p[..., None, :]
+    n = np.asarray(normals_part, dtype=float) @ Rt
     R = np.broadcast_to(np.asarray(radii_mm, dtype=float), c.shape[:-1])
     if not jacobian:
         return rim_centre_px(camera, c, n, R), None

@@ -57,7 +57,7 @@ def rim_occlusion(mesh: Any, T_cam_part: ArrayLike, centres: ArrayLike, normals:
     pts = rim_points(c, n, radii_mm, samples).reshape(-1, 3)
     axes = np.repeat(n, samples, axis=0)
     if hasattr(mesh, "hidden"):  # depth maps at these poses
-        P = np.einsum("lij,mj->lmi", T[:, :3, :3], pts) + T[:, None, :3, 3]
+        P = pts @ np.swapaxes(T[:, :3, :3], 1, 2) + T[:, None, :3, 3]  # R p + t (L, M, 3), one GEMM
         hidden = mesh.hidden(P[..., 0], P[..., 1], P[..., 2])
     else:
         cams = invert_T(T)[:, :3, 3]
