@@ -45,7 +45,9 @@ _DESCRIPTION = {
 
 def _model_schema(model: type[Settings]) -> dict[str, Any]:
     out = model.model_json_schema()
-    for prop in out.get("properties", {}).values():
+    keys = set(model.study_keys())
+    out["properties"] = {k: v for k, v in out.get("properties", {}).items() if k in keys}
+    for prop in out["properties"].values():
         prop.pop("x-allowed", None)
     return out
 

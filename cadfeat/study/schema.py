@@ -90,8 +90,8 @@ MEASURES = tuple(_OBJECTIVE_MEASURES)
 """The measure names of ``[objective] measures`` (the design layer's ``MEASURES``; enumerations are not copied)."""
 #: The keys of ``[objective]`` and ``[optimizer]``: the fields of ``ObjectiveConfig`` / ``OptimizerConfig``
 #: a study file may set (the others keep their defaults).
-OBJECTIVE_KEYS = tuple(ObjectiveSettings.model_fields)
-OPTIMIZER_KEYS = tuple(OptimizerSettings.model_fields)
+OBJECTIVE_KEYS = ObjectiveSettings.study_keys()
+OPTIMIZER_KEYS = OptimizerSettings.study_keys()
 STUDY_KEYS = ("name", "part", "seed", "description", "build_timeout_s")
 PART_POSE_KEYS = ("position_mm", "rotvec_deg", "quaternion")
 DESIGN_KEYS = ("parameters", "holes", "standard_diameters_mm", "fixed", "patterns", "view_direction")
@@ -259,7 +259,7 @@ class StudyConfig:
         data["study"]["seed"] = int(seed)
         data["optimizer"]["seed"] = int(seed)
         return dataclasses.replace(self, study=dataclasses.replace(self.study, seed=int(seed)),
-                                   optimizer=dataclasses.replace(self.optimizer, seed=int(seed)), data=data)
+                                   optimizer=self.optimizer.replace(seed=int(seed)), data=data)
 
 
 # ------------------------------------------------------------------------------------------- sections
@@ -600,9 +600,9 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     design, params, design_echo = _design_section(
         Table(top.raw("design"), "design", label, DESIGN_KEYS), info, label)
     constraints = validate_section(ConstraintSettings, top.raw("constraints", {}), "constraints", label)
-    objective = validate_section(ObjectiveSettings, top.raw("objective", {}), "objective", label).config()
+    objective = validate_section(ObjectiveSettings, top.raw("objective", {}), "objective", label)
     optimizer = validate_section(OptimizerSettings, top.raw("optimizer", {}), "optimizer", label,
-                                 {"seed": info.seed}).config()
+                                 {"seed": info.seed, "limits": LIMITS})
     shop = validate_section(ShopSettings, top.raw("shop", {}), "shop", label)
     robustness = validate_section(RobustnessSettings, top.raw("robustness", {}), "robustness", label)
     if objective.combine == "pareto" and optimizer.method != "pareto":
@@ -622,9 +622,8 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
         "trajectory": copy.deepcopy(dict(trajectory.table)),
         "design": design_echo,
         "constraints": constraints.model_dump(mode="json"),
-        "objective": {**_asdict(objective, OBJECTIVE_KEYS), "measures": list(objective.measures),
-                      "weights": dict(objective.weights), "thresholds": dict(objective.thresholds)},
-        "optimizer": _asdict(optimizer, OPTIMIZER_KEYS),
+        "objective": objective.study_dump(),
+        "optimizer": optimizer.study_dump(),
         "shop": shop.model_dump(mode="json"),
         "robustness": robustness.model_dump(mode="json"),
     }
@@ -641,9 +640,3 @@ def _drop_none(value: Any) -> Any:
     if isinstance(value, list | tuple):
         return [_drop_none(v) for v in value]
     return value
-
-
-def _asdict(obj: Any, keys: Sequence[str] | None = None) -> dict[str, Any]:
-    """The fields of a dataclass (only ``keys``, the ones a study file can set, when given)."""
-    names = [f.name for f in dataclasses.fields(obj)] if keys is None else keys
-    return {k: getattr(obj, k) for k in names}

@@ -6,7 +6,7 @@ Units are in the key names (mm, percent, deg, s, px², grey levels on the 0..255
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import ValidationInfo, field_validator, model_validator
 
@@ -26,6 +26,8 @@ TRACKING_ESTIMATORS = ("ekf", "iekf", "pnp")
 class ConstraintSettings(Settings):
     """``[constraints]``: the kept mechanical requirements (mm; percent of the original volume)."""
 
+    section: ClassVar[str] = "constraints"
+
     edge_distance_mm: float = number(1.0, 0.0, description="smallest distance of a hole's rim to its face's edge")
     ligament_mm: float = number(1.0, 0.0, description="smallest wall between two holes")
     volume_change_max_percent: float | None = number(None, 0.0, 100.0, lo_open=True,
@@ -37,6 +39,8 @@ class ShopSettings(Settings):
     """``[shop]``: shop-ready output (``cadfeat.design.shop``). ``hole_sizes``: a table name of
     ``shop.HOLE_SIZE_TABLES`` or diameters (mm); ``grid_mm``: drawing grid of moved hole positions (0: off);
     ``keep_patterns``: holes forming a pattern in the original move as a pattern (false lets them break)."""
+
+    section: ClassVar[str] = "shop"
 
     hole_sizes: str | Tuple[float] = choice(
         "iso273-medium", f"one of {', '.join(HOLE_SIZE_TABLES)} or a list of diameters > 0 (mm)")
@@ -60,6 +64,8 @@ class RobustnessSettings(Settings):
     ±``position_tol_mm``, diameters ±``size_steps`` table steps, camera mount ±``camera_position_mm`` and
     ±``camera_angle_deg``; ``samples`` random draws each (0: off)."""
 
+    section: ClassVar[str] = "robustness"
+
     position_tol_mm: float = number(0.1, 0.0, 10.0)
     size_steps: int = integer(1, 0, 5)
     camera_position_mm: float = number(2.0, 0.0, 100.0)
@@ -81,6 +87,8 @@ class TrackingSettings(Settings):
     convergence bounds; association gate (px); rim ellipse-centre model; significance ``alpha`` of the paired
     test, and the smallest change of the median RMS error (percent of the error before) that a verdict counts.
     """
+
+    section: ClassVar[str] = "tracking"
 
     estimators: Tuple[Literal["ekf", "iekf", "pnp"]] = choice(
         _CL.estimators, f"a non-empty list of distinct names from {', '.join(TRACKING_ESTIMATORS)}")
