@@ -105,7 +105,9 @@ def track(args: argparse.Namespace) -> int:
             from cadfeat.report.verdict import verdict_json
 
             results["verdict"] = verdict_json(results)
-        _write_json(results_path, results)
+        from cadfeat.results import StudyResults  # (cli: imported when used)
+
+        _write_json(results_path, StudyResults.from_data(results).to_data())  # checked against the model
     print(f"tracking {config.study.name}: {spec.runs} Monte-Carlo runs, {section['settings']['frames']} frames")
     print("\n".join(summary_lines(section)))
     for w in section.get("warnings", []):

@@ -45,7 +45,7 @@ from cadfeat.study.outputs import (
     now_iso,
     plain,
     versions,
-    write_json,
+    write_results,
 )
 from cadfeat.study.pipeline import (
     compute,
@@ -201,7 +201,7 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
             results["tracking"] = run_tracking(config, {"before": (shapes["shape0"], shapes["holes0"]),
                                                         "after": (shapes["shape1"], shapes["holes1"])}, stage)
     results["verdict"] = verdict_json(plain(results))
-    write_json(stage / "results.json", results)
+    write_results(stage / "results.json", results)
     _report(stage, results, shapes, prog)
 
 
@@ -294,7 +294,7 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
     if echo:
         print(format_table(results, pose))
     if stage is not None:
-        write_json(stage / "results.json", results)
+        write_results(stage / "results.json", results)
         same = {**results,
                 "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
                 "measures": {"before": summary, "after": summary},
