@@ -28,7 +28,7 @@ from pydantic_core import ErrorDetails, PydanticCustomError
 from cadfeat.errors import CadfeatError
 
 __all__ = ["Settings", "StudyError", "Tuple", "boolean", "choice", "context_of", "integer", "number", "range_text",
-           "reject", "seed_from_context", "validate_section"]
+           "reject", "seed_from_context", "validate_nested", "validate_section"]
 
 
 class StudyError(CadfeatError):
@@ -185,19 +185,41 @@ def validate_section(model: type[M], data: Any, section: str, label: str,
         raise StudyError(f"{label}: {_message(model, exc.errors()[0], table, section)}") from None
 
 
-def _message(model: type[Settings], err: ErrorDetails, data: Mapping[str, Any], section: str) -> str:
+def _parts(model: type[Settings], err: ErrorDetails, data: Mapping[str, Any], section: str) -> tuple[str, str, str]:
+    """(key relative to the section, problem, allowed) of a pydantic error."""
     loc = [str(x) for x in err["loc"]]
     ctx: dict[str, Any] = dict(err.get("ctx") or {})
     if err["type"] == "cadfeat":
-        return f"{section}.{ctx['key']}: {ctx['problem']}; allowed: {ctx['allowed']}" if section else \
-            f"{ctx['key']}: {ctx['problem']}; allowed: {ctx['allowed']}"
+        return str(ctx["key"]), str(ctx["problem"]), str(ctx["allowed"])
     name = loc[0] if loc else ""
-    key = f"{section}.{name}" if name and section else name or section
     if err["type"] == "extra_forbidden":
-        return f"{key}: unknown key; allowed: keys of [{section}]: {', '.join(model.model_fields)}"
+        return name, "unknown key", f"keys of [{section}]: {', '.join(model.study_keys())}"
     field = model.model_fields.get(name)
-    extra = cast("dict[str, Any] | None", field.json_schema_extra if field is not None else None)
-    allowed = str(extra.get("x-allowed", err["msg"])) if isinstance(extra, dict) else err["msg"]
+    allowed = str(_extra_of(field.json_schema_extra if field is not None else None).get("x-allowed", err["msg"]))
     if err["type"] == "missing":
-        return f"{key}: missing; allowed: {allowed}"
-    return f"{key}: {_fmt(data.get(name, err.get('input')))} is not allowed; allowed: {allowed}"
+        return name, "missing", allowed
+    return name, f"{_fmt(data.get(name, err.get('input')))} is not allowed", allowed
+
+
+def _message(model: type[Settings], err: ErrorDetails, data: Mapping[str, Any], section: str) -> str:
+    name, problem, allowed = _parts(model, err, data, section)
+    key = ".".join(k for k in (section, name) if k)
+    return f"{key}: {problem}; allowed: {allowed}"
+
+
+def validate_nested(model: type[M], data: object, key: str, section: str, context: Mapping[str, Any]) -> M:
+    """A sub-table (``data`` at ``key``, relative to the enclosing section) validated as ``model`` inside a
+    validator of the enclosing model: an error becomes that model's error with the full dotted key
+    (``holes[0].select``); unknown keys are named with the sub-table's allowed keys (``[section.key]``)."""
+    where = f"{section}.{key}"
+    if not isinstance(data, Mapping):
+        raise reject(key, f"expected a table, got {_fmt(data)}", f"a table with keys {', '.join(model.study_keys())}")
+    table = dict(cast("Mapping[str, Any]", data))
+    for k in table:
+        if k not in model.study_keys():
+            raise reject(f"{key}.{k}", "unknown key", f"keys of [{where}]: {', '.join(model.study_keys())}")
+    try:
+        return model.model_validate(table, context=dict(context))
+    except ValidationError as exc:
+        name, problem, allowed = _parts(model, exc.errors()[0], table, where)
+        raise reject(f"{key}.{name}" if name else key, problem, allowed) from None
