@@ -27,6 +27,7 @@ CadQuery is imported inside the functions (``import cadfeat`` stays light).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import importlib.util
 import io
@@ -171,9 +172,13 @@ class Part:
     fixed_holes: str = ""
     view_direction: np.ndarray | None = None
     module: ModuleType | None = field(default=None, repr=False, compare=False)
+    time_limit_s: float | None = field(default=None, compare=False)
+    """The time limit (s) of each ``build``, in a worker process; None: in this process, no limit. Given to
+    ``load_part`` (its default: the enclosing ``build_time_limit``), so a part carries its own limit."""
 
     def __reduce__(self) -> tuple[Any, tuple[str]]:
-        """Pickled as its path (re-loaded on unpickling), so parts can be sent to worker processes."""
+        """Pickled as its path (re-loaded on unpickling, in a worker: no limit of its own), so parts can be sent
+        to worker processes."""
         return load_part, (str(self.path),)
 
     def defaults(self) -> dict[str, float | int]:
@@ -192,10 +197,10 @@ class Part:
         return values
 
     def build(self, **overrides: Any) -> cq.Solid:
-        """Build the part: one ``cadquery.Solid`` (mm), in this process, or within ``build_time_limit`` in a
-        worker process (``build_shape``). Raises ``PartBuildError``."""
-        if current_time_limit() is not None:
-            return build_shape(self, overrides, current_time_limit())
+        """Build the part: one ``cadquery.Solid`` (mm), in this process, or within the part's ``time_limit_s``
+        in a worker process (``build_shape``). Raises ``PartBuildError``."""
+        if self.time_limit_s is not None:
+            return build_shape(self, overrides, self.time_limit_s)
         params = self.resolve(**overrides)
         try:
             with contained(self.path, f"build({_fmt(params)})"):
@@ -358,8 +363,15 @@ def _import_script(path: Path) -> ModuleType:
     return module
 
 
-def load_part(path: str | os.PathLike[str]) -> Part:
+_FROM_CONTEXT: Any = object()
+
+
+def load_part(path: str | os.PathLike[str], time_limit_s: float | None = _FROM_CONTEXT) -> Part:
     """Load and validate a part script: a path, or the bare name of a library part (``"thesis_hub"``).
+
+    ``time_limit_s``: the import and every ``Part.build`` run in a worker process killed after that many
+    seconds (``PartBuildError``); None: in this process, no limit; not given: the enclosing
+    ``build_time_limit`` block's (the ``cadfeat`` commands set one), else None.
 
     Raises ``CadfeatError`` naming the file (and line / key) for a missing file, a syntax error, a script
     raising on import, no ``build``, bad ``PARAMETERS``, or a ``build`` signature not matching them.
@@ -375,10 +387,14 @@ def load_part(path: str | os.PathLike[str]) -> Part:
         raise CadfeatError(f"{path}: {what} (library parts: {names})")
     from cadfeat.cad import cqgi_parts
 
+    limit = current_time_limit() if time_limit_s is _FROM_CONTEXT else time_limit_s
+    if limit is not None and not (math.isfinite(limit) and limit > 0):
+        raise CadfeatError(f"build time limit: {limit!r} s is not allowed; allowed: a number of seconds > 0")
     if cqgi_parts.is_cqgi_script(path):  # a cq-editor / CQGI script: parsed by CQGI, run only to build
-        return cqgi_parts.load_cqgi_part(path, Part, Parameter)
-    if current_time_limit() is not None:
-        _import_in_worker(path, current_time_limit())  # a loop or a crash at import time stays in the worker
+        return dataclasses.replace(cqgi_parts.load_cqgi_part(path, Part, Parameter), time_limit_s=limit)
+    if limit is not None:
+        start_workers()
+        _import_in_worker(path, limit)  # a loop or a crash at import time stays in the worker
     module = _import_script(path)
     where = str(path)
     if not callable(getattr(module, "build", None)):
@@ -402,7 +418,8 @@ def load_part(path: str | os.PathLike[str]) -> Part:
     for key, value in text.items():
         if not isinstance(value, str):
             raise CadfeatError(f"{where}: {key} must be a string, got {type(value).__name__}")
-    return Part(path.stem, path, parameters, text["DESCRIPTION"].strip(), text["FIXED_HOLES"].strip(), view, module)
+    return Part(path.stem, path, parameters, text["DESCRIPTION"].strip(), text["FIXED_HOLES"].strip(), view, module,
+                limit)
 
 
 def _check_signature(build: Any, parameters: Mapping[str, Parameter], where: str) -> None:

@@ -330,7 +330,7 @@ def _current_design(config: StudyConfig) -> tuple[Any, list[Any], np.ndarray, li
         return step.shape, holes, fixed, [h.name for h in holes]
     from cadfeat.cad.parts import load_part
 
-    part = load_part(config.study.part_path)
+    part = load_part(config.study.part_path, config.study.build_timeout_s)
     shape = part.build()
     holes = part.holes()
     fixed = np.asarray(part.fixed_mask(holes), bool)

@@ -38,7 +38,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cadfeat.cad.sandbox import build_time_limit
 from cadfeat.design.objectives import AGGREGATES, COMBINES, ObjectiveConfig
 from cadfeat.design.objectives import MEASURES as _OBJECTIVE_MEASURES
 from cadfeat.design.optimize import METHODS, OptimizerConfig
@@ -287,8 +286,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     trajectory = _trajectory_section(top.raw("trajectory"), label, base)
     params: dict[str, PartParameter] = {}
     if info.part_kind == "script":
-        with build_time_limit(info.build_timeout_s, start=False):  # (the script runs only for a computed table)
-            params = part_parameters(info.part_path)
+        params = part_parameters(info.part_path, info.build_timeout_s)  # (runs the script only for a computed table)
     design = validate_section(DesignSpec, top.raw("design"), "design", label, {
         "part_kind": info.part_kind, "part_params": params, "part": info.part, "limits": LIMITS})
     constraints = validate_section(ConstraintSettings, top.raw("constraints", {}), "constraints", label)

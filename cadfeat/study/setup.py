@@ -205,7 +205,7 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     from cadfeat.design.design_space import DesignSpace, LinearFeatureModel, Variable
 
     camera, trajectory, T_task_part = scene or load_scene(config)
-    part = load_part(config.study.part_path)
+    part = load_part(config.study.part_path, config.study.build_timeout_s)
     specs = [p for p in config.design.parameters if not p.is_int]
     ints = {p.name: int(p.default if p.start is None else p.start) for p in config.design.parameters if p.is_int}
     ints.update({k: int(v) for k, v in (int_values or {}).items()})
@@ -330,7 +330,8 @@ def _timed_redrill(config: StudyConfig, step: Any, moves: Sequence[Any]) -> Any:
     from cadfeat.cad.step_parts import redrill
 
     return call_with_time_limit(redrill, (step.shape, list(moves), step.tolerance, step.path),
-                                f"{config.study.part_path}: re-drilling {len(moves)} hole(s)")
+                                f"{config.study.part_path}: re-drilling {len(moves)} hole(s)",
+                                config.study.build_timeout_s)
 
 
 def camera_direction(part_path: Any, trajectory: Any, T_task_part: np.ndarray) -> np.ndarray | None:
