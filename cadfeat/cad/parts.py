@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cadfeat.cad.features.identity import hole_name
+from cadfeat.cad.features.identity import hole_name, pair_holes
 from cadfeat.cad.sandbox import (
     DEFAULT_BUILD_TIMEOUT_S,
     PartBuildError,
@@ -236,11 +236,11 @@ class Part:
 
         - a script with ``expected_holes``: the hole whose centre is within ``tol_mm`` of entry k gets the
           entry's ``name``, or ``H<k+1>`` (the script's own order, the same for every parameter value);
-        - otherwise: each hole is matched to the holes of the DEFAULT build (extraction order there gives
-          H1 … HN) by geometry — centre distance + radius change + axis change, one to one (Hungarian) —
-          and takes that hole's name, so changing a parameter never swaps two names.
+        - otherwise: each hole is paired with a hole of the DEFAULT build (extraction order there gives
+          H1 … HN) by ``identity.pair_holes(..., bounded=False)`` (centre distance + radius change + axis
+          change, one to one, Hungarian) and takes that hole's name, so changing a parameter never swaps two
+          names.
         Holes left over (a parameter added holes) get ``H<N+1>`` … in extraction order."""
-        import dataclasses
 
         holes = list(holes)
         if not holes:
@@ -258,21 +258,12 @@ class Part:
                     taken.add(k)
                     names[i] = str(expected[k].get("name") or f"H{k + 1}")
             n_ref = len(expected)
-        else:
-            from scipy.optimize import linear_sum_assignment
-
+        else:  # the default build's holes, paired by identity.pair_holes (unbounded: its cost is stated there)
             reference = self._default_holes()
             n_ref = len(reference)
-            rc = np.array([h.centre for h in reference], float).reshape(-1, 3)
-            ra = np.array([h.axis for h in reference], float).reshape(-1, 3)
-            rr = np.array([h.radius_mm for h in reference], float)
-            axes = np.array([h.axis for h in holes], float)
-            radii = np.array([h.radius_mm for h in holes], float)
-            cost = (np.linalg.norm(centres[:, None] - rc[None], axis=-1) + np.abs(radii[:, None] - rr[None])
-                    + 100.0 * (1.0 - np.abs(axes @ ra.T)))
-            rows, cols = linear_sum_assignment(cost)
-            for i, k in zip(rows, cols, strict=True):
-                names[int(i)] = hole_name(reference[int(k)], int(k))
+            for i, k in enumerate(pair_holes(holes, reference, bounded=False)):
+                if k >= 0:
+                    names[i] = hole_name(reference[int(k)], int(k))
         extra = n_ref
         out = []
         for h, name in zip(holes, names, strict=True):
