@@ -20,9 +20,18 @@ configuration with it.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Annotated, Any, ClassVar, TypeVar, cast
+from typing import Annotated, Any, ClassVar, Self, TypeVar, cast
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, ValidationInfo, model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    JsonValue,
+    ValidationError,
+    ValidationInfo,
+    model_validator,
+)
 from pydantic_core import ErrorDetails, PydanticCustomError
 
 from cadfeat.errors import CadfeatError
@@ -75,7 +84,7 @@ class Settings(BaseModel):
         return self.model_dump(mode="json", include=set(self.study_keys()))
 
     @model_validator(mode="after")
-    def _enumerations(self) -> Any:
+    def _enumerations(self) -> Self:
         """A field declared with ``choice(default, names)`` holds one of ``names`` (its schema ``enum``)."""
         for name, field in type(self).model_fields.items():
             extra = cast("dict[str, Any] | None", field.json_schema_extra)
@@ -83,7 +92,7 @@ class Settings(BaseModel):
                 raise reject(name, f"{_fmt(getattr(self, name))} is not allowed", str(extra["x-allowed"]))
         return self
 
-    def replace(self, **changes: Any) -> Any:
+    def replace(self, **changes: object) -> Self:
         """A validated copy with ``changes`` (``dataclasses.replace`` for a settings model)."""
         return type(self)(**{**self.model_dump(), **changes})
 
@@ -118,7 +127,7 @@ def range_text(lo: float | None, hi: float | None, lo_open: bool = False) -> str
     return f"a number in {'(' if lo_open else '['}{lo:g}, {hi:g}]"
 
 
-def _extra(allowed: str, internal: bool, **more: Any) -> dict[str, Any]:
+def _extra(allowed: str, internal: bool, **more: JsonValue) -> dict[str, JsonValue]:
     return {"x-allowed": allowed, **({"x-internal": True} if internal else {}), **more}
 
 
@@ -160,14 +169,14 @@ def reject(key: str, problem: str, allowed: str) -> PydanticCustomError:
     return PydanticCustomError("cadfeat", "{problem}", {"key": key, "problem": problem, "allowed": allowed})
 
 
-def _fmt(value: Any) -> str:
+def _fmt(value: object) -> str:
     return repr(value) if isinstance(value, str) else str(value)
 
 
 M = TypeVar("M", bound=Settings)
 
 
-def validate_section(model: type[M], data: Any, section: str, label: str,
+def validate_section(model: type[M], data: object, section: str, label: str,
                      context: Mapping[str, Any] | None = None) -> M:
     """``data`` (the TOML table of ``[section]``) validated as ``model`` with the study's rules (validation
     context ``study=True`` plus ``context``); one ``StudyError`` line otherwise."""
@@ -185,7 +194,7 @@ def validate_section(model: type[M], data: Any, section: str, label: str,
         raise StudyError(f"{label}: {_message(model, exc.errors()[0], table, section)}") from None
 
 
-def _parts(model: type[Settings], err: ErrorDetails, data: Mapping[str, Any], section: str) -> tuple[str, str, str]:
+def _parts(model: type[Settings], err: ErrorDetails, data: Mapping[str, object], section: str) -> tuple[str, str, str]:
     """(key relative to the section, problem, allowed) of a pydantic error."""
     loc = [str(x) for x in err["loc"]]
     ctx: dict[str, Any] = dict(err.get("ctx") or {})
@@ -201,7 +210,7 @@ def _parts(model: type[Settings], err: ErrorDetails, data: Mapping[str, Any], se
     return name, f"{_fmt(data.get(name, err.get('input')))} is not allowed", allowed
 
 
-def _message(model: type[Settings], err: ErrorDetails, data: Mapping[str, Any], section: str) -> str:
+def _message(model: type[Settings], err: ErrorDetails, data: Mapping[str, object], section: str) -> str:
     name, problem, allowed = _parts(model, err, data, section)
     key = ".".join(k for k in (section, name) if k)
     return f"{key}: {problem}; allowed: {allowed}"

@@ -41,6 +41,7 @@ from cadfeat.design.objectives import objective_values
 from cadfeat.errors import CadfeatError
 from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
+from cadfeat.results import StudyResults
 from cadfeat.study.output_folder import staged_output
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
@@ -91,6 +92,11 @@ class StudyResult:
 
     out_dir: Path | None
     results: dict[str, Any]
+
+    @property
+    def typed(self) -> StudyResults:
+        """The results as the typed model (``cadfeat.results.StudyResults``), as results.json holds them."""
+        return StudyResults.from_data(plain(self.results))
 
     def summary(self) -> str:
         """A short human-readable before/after summary."""

@@ -159,6 +159,7 @@ def test_same_seed_same_results(tmp_path, monkeypatch):
 
     jsonschema.Draft202012Validator(results_json_schema()).validate(ja)  # a run's results meet the schema
     assert StudyResults.read(tmp_path / "a").to_data() == ja and StudyResults.read(tmp_path / "a").is_run
+    assert compare_results_tool().compare(a.typed.to_data(), ja) == []  # run_study's return is what it wrote
     assert a.results["study"]["seed"] == 3 and ja["inputs"]["optimizer"]["seed"] == 3
     for name in ("original.step", "optimised.step", "optimised.stl"):
         assert sha(tmp_path / "a" / name) == sha(tmp_path / "b" / name)

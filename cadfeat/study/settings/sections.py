@@ -6,7 +6,7 @@ Units are in the key names (mm, percent, deg, s, px², grey levels on the 0..255
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Literal
+from typing import ClassVar, Literal
 
 from pydantic import ValidationInfo, field_validator, model_validator
 
@@ -49,7 +49,7 @@ class ShopSettings(Settings):
 
     @field_validator("hole_sizes")
     @classmethod
-    def _sizes(cls, value: Any) -> str | tuple[float, ...]:
+    def _sizes(cls, value: str | tuple[float, ...]) -> str | tuple[float, ...]:
         if isinstance(value, str):
             if value not in HOLE_SIZE_TABLES:
                 raise ValueError("not a table")
