@@ -105,10 +105,7 @@ def track(args: argparse.Namespace) -> int:
             from cadfeat.report.verdict import verdict_json
 
             results["verdict"] = verdict_json(results)
-        from cadfeat.results import StudyResults  # (cli: imported when used)
-        from cadfeat.study.outputs import plain
-
-        _write_json(results_path, StudyResults.from_data(plain(results)).to_data())  # checked against the model
+        _write_json(results_path, results)
     print(f"tracking {config.study.name}: {spec.runs} Monte-Carlo runs, {section['settings']['frames']} frames")
     print("\n".join(summary_lines(section)))
     for w in section.get("warnings", []):
