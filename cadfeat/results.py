@@ -22,9 +22,10 @@ from typing import Any, ClassVar, TypeAlias, TypeVar
 
 from pydantic import BaseModel, ConfigDict, JsonValue
 
-__all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "DesignMatrix", "FileEntry", "Finding", "HoleRecord", "Holes", "Json",
-           "Objectives", "OptimizerRecord", "Record", "Robustness", "StudyRecord", "StudyResults",
-           "TrajectoryRecord", "Verdict", "Verification", "results_json_schema", "section"]
+__all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "DesignMatrix", "FeatureSummary", "FileEntry", "Finding", "HoleRecord",
+           "Holes", "Json", "MeasureSummary", "Measures", "Objectives", "OptimizerRecord", "Record", "RequirementCheck",
+           "RequirementUsed", "Robustness", "StudyRecord", "StudyResults", "TrajectoryRecord", "Variable", "Verdict",
+           "Verification", "results_json_schema", "section"]
 
 SCHEMA_VERSION = 3
 """results.json layout version (``schema_version``): 1 first layout; 2 ``shop``, ``patterns`` and
@@ -92,6 +93,72 @@ class Holes(Record):
 
     before: list[HoleRecord]
     after: list[HoleRecord] | None = None
+
+
+class Variable(Record):
+    """One design variable (``variables``): its bounds, value before and after, unit and kind."""
+
+    name: str
+    unit: str = ""
+    kind: str = ""
+    lower: Number | None = None
+    upper: Number | None = None
+    before: Number | None = None
+    after: Number | None = None
+    standard_sizes: list[Number] | None = None
+
+
+class FeatureSummary(Record):
+    """One hole's worst values over the trajectory (``measures.<design>.per_feature``): margins (FOV cone, FOV
+    image px, focus × half depth of field, resolution px), visible/hidden/folded fractions, the worst pose."""
+
+    index: int
+    name: str
+    fov_min: Number | None = None
+    fov_px_min: Number | None = None
+    focus_min: Number | None = None
+    resolution_px_min: Number | None = None
+    visible_frac: Number | None = None
+    hidden_frac: Number | None = None
+    hidden_worst_pose: int | None = None
+    folded_frac: Number | None = None
+    worst_pose: int | None = None
+
+
+class MeasureSummary(Record):
+    """The measures of one design (``measures.before`` / ``measures.after``): per hole, and per pose (plain)."""
+
+    per_feature: list[FeatureSummary] = []
+    per_pose: Json = None
+
+
+class Measures(Record):
+    """``measures``: the design before and (a run) after."""
+
+    before: MeasureSummary
+    after: MeasureSummary | None = None
+
+
+class RequirementCheck(Record):
+    """One kept requirement checked on the delivered design (``constraints``): value, required, margin (≥ 0:
+    holds), unit, the holes, where it was checked (``brep``, ``step``)."""
+
+    name: str
+    holes: list[str] = []
+    value: Number | None = None
+    required: Number | None = None
+    margin: Number | None = None
+    unit: str = ""
+    ok: bool | None = None
+    checked_on: str | None = None
+
+
+class RequirementUsed(Record):
+    """A requirement of the optimisation (``requirements_used``): its 2-D margin at the optimum."""
+
+    name: str
+    holes: list[str] = []
+    margin: Number | None = None
 
 
 class Objectives(Record):
@@ -198,12 +265,12 @@ class StudyResults(Record):
     camera: dict[str, Json]
     trajectory: TrajectoryRecord
     part_pose: dict[str, Json] | None = None
-    variables: list[dict[str, Json]] | None = None
+    variables: list[Variable] | None = None
     holes: Holes
     objectives: Objectives
-    measures: dict[str, Json]
-    constraints: list[dict[str, Json]] | None = None
-    requirements_used: list[dict[str, Json]] | None = None
+    measures: Measures
+    constraints: list[RequirementCheck] | None = None
+    requirements_used: list[RequirementUsed] | None = None
     shop: dict[str, Json] | None = None
     patterns: list[Json] | None = None
     robustness: Robustness | None = None

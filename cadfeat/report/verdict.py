@@ -15,7 +15,7 @@ from typing import Any
 from cadfeat.report.html import esc, fmt, num, table, text
 from cadfeat.report.requirements import ACTIVE_MARGIN_MM, requirement_rows
 from cadfeat.results import Finding as FindingRecord
-from cadfeat.results import Objectives, StudyResults, section
+from cadfeat.results import Measures, Objectives, StudyResults, section
 from cadfeat.results import Verdict as VerdictRecord
 
 ADOPT, CARE, REJECT = "adopt", "adopt with care", "do not adopt"
@@ -93,20 +93,21 @@ def _is_num(x: Any) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool)
 
 
-def hole_changes(results: dict) -> list[HoleChange]:
+def hole_changes(results: StudyResults | Mapping[str, Any]) -> list[HoleChange]:
     """Per hole and measure: worst value over the trajectory before and after (own units), changed ones only."""
-    m = results.get("measures") or {}
-    before = {f.get("index", i): f for i, f in enumerate((m.get("before") or {}).get("per_feature") or [])}
-    after = {f.get("index", i): f for i, f in enumerate((m.get("after") or {}).get("per_feature") or [])}
+    m = section(results, "measures", Measures)
+    if m is None or m.after is None:
+        return []
+    before = {f.index: f for f in m.before.per_feature}
     out = []
-    for idx, fa in after.items():
-        fb = before.get(idx)
+    for fa in {f.index: f for f in m.after.per_feature}.values():
+        fb = before.get(fa.index)
         if fb is None:
             continue
         for key, label, unit in HOLE_MEASURES:
-            b, a = fb.get(key), fa.get(key)
-            if _is_num(b) and _is_num(a) and abs(a - b) > CHANGE_TOL:
-                out.append(HoleChange(str(fa.get("name") or f"#{idx}"), label, unit, float(b), float(a)))
+            b, a = getattr(fb, key), getattr(fa, key)
+            if b is not None and a is not None and abs(a - b) > CHANGE_TOL:
+                out.append(HoleChange(fa.name or f"#{fa.index}", label, unit, float(b), float(a)))
     return out
 
 
@@ -184,12 +185,13 @@ def verdict_json(results: StudyResults | Mapping[str, Any]) -> dict[str, Any]:
         FindingRecord(rule=f.rule, outcome=f.outcome, detail=f.detail) for f in v.findings]).to_data()
 
 
-def _failing_after(results: dict) -> list[tuple[str, int, int]]:
+def _failing_after(results: StudyResults | Mapping[str, Any]) -> list[tuple[str, int, int]]:
     """(measure, holes with a negative worst margin, holes) of the design after, for each margin measure."""
-    feats = ((results.get("measures") or {}).get("after") or {}).get("per_feature") or []
+    m = section(results, "measures", Measures)
+    feats = m.after.per_feature if m is not None and m.after is not None else []
     out = []
     for key, label, _ in HOLE_MEASURES[:4]:
-        vals = [f.get(key) for f in feats if _is_num(f.get(key))]
+        vals = [v for f in feats if (v := getattr(f, key)) is not None]
         k = sum(v < 0 for v in vals)
         if k:
             out.append((label, k, len(vals)))
