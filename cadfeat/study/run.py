@@ -335,7 +335,7 @@ def _current_design(config: StudyConfig) -> tuple[Any, list[Hole], np.ndarray, l
             with contextlib.suppress(CadfeatError):
                 fixed[holes.index(step.select(list(h.select) if isinstance(h.select, tuple) else h.select))] = False
         return step.shape, holes, fixed, [h.name for h in holes]
-    part = load_part(config.study.part_path, config.study.build_timeout_s)
+    part = load_part(config.study.part_path)
     shape = part.build()
     holes = part.holes()
     fixed = np.asarray(part.fixed_mask(holes), bool)

@@ -206,7 +206,7 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     ``normaliser``: the objective scales of another setup (so that integer combinations compare); ``at``:
     linearise at these continuous parameter values instead of the part's defaults."""
     camera, trajectory, T_task_part = scene or load_scene(config)
-    part = load_part(config.study.part_path, config.study.build_timeout_s)
+    part = load_part(config.study.part_path)
     specs = [p for p in config.design.parameters if not p.is_int]
     ints = {p.name: int(p.default if p.start is None else p.start) for p in config.design.parameters if p.is_int}
     ints.update({k: int(v) for k, v in (int_values or {}).items()})
@@ -323,8 +323,7 @@ def setup_step(config: StudyConfig, scene: tuple[Camera, Trajectory, np.ndarray]
 def _timed_redrill(config: StudyConfig, step: Any, moves: Sequence[Any]) -> Any:
     """``step_parts.redrill`` within the study's ``build_timeout_s`` (a worker process, as part-script builds)."""
     return call_with_time_limit(redrill, (step.shape, list(moves), step.tolerance, step.path),
-                                f"{config.study.part_path}: re-drilling {len(moves)} hole(s)",
-                                config.study.build_timeout_s)
+                                f"{config.study.part_path}: re-drilling {len(moves)} hole(s)")
 
 
 def camera_direction(part_path: Path, trajectory: Trajectory, T_task_part: np.ndarray) -> np.ndarray | None:
