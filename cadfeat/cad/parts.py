@@ -27,6 +27,7 @@ CadQuery is imported inside the functions (``import cadfeat`` stays light).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import importlib.util
 import io
@@ -42,7 +43,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cadfeat.cad.features.identity import hole_name
+from cadfeat.cad.features.identity import hole_name, pair_holes
 from cadfeat.cad.sandbox import (
     DEFAULT_BUILD_TIMEOUT_S,
     PartBuildError,
@@ -171,9 +172,13 @@ class Part:
     fixed_holes: str = ""
     view_direction: np.ndarray | None = None
     module: ModuleType | None = field(default=None, repr=False, compare=False)
+    time_limit_s: float | None = field(default=None, compare=False)
+    """The time limit (s) of each ``build``, in a worker process; None: in this process, no limit. Given to
+    ``load_part`` (its default: the enclosing ``build_time_limit``), so a part carries its own limit."""
 
     def __reduce__(self) -> tuple[Any, tuple[str]]:
-        """Pickled as its path (re-loaded on unpickling), so parts can be sent to worker processes."""
+        """Pickled as its path (re-loaded on unpickling, in a worker: no limit of its own), so parts can be sent
+        to worker processes."""
         return load_part, (str(self.path),)
 
     def defaults(self) -> dict[str, float | int]:
@@ -192,10 +197,10 @@ class Part:
         return values
 
     def build(self, **overrides: Any) -> cq.Solid:
-        """Build the part: one ``cadquery.Solid`` (mm), in this process, or within ``build_time_limit`` in a
-        worker process (``build_shape``). Raises ``PartBuildError``."""
-        if current_time_limit() is not None:
-            return build_shape(self, overrides, current_time_limit())
+        """Build the part: one ``cadquery.Solid`` (mm), in this process, or within the part's ``time_limit_s``
+        in a worker process (``build_shape``). Raises ``PartBuildError``."""
+        if self.time_limit_s is not None:
+            return build_shape(self, overrides, self.time_limit_s)
         params = self.resolve(**overrides)
         try:
             with contained(self.path, f"build({_fmt(params)})"):
@@ -231,11 +236,11 @@ class Part:
 
         - a script with ``expected_holes``: the hole whose centre is within ``tol_mm`` of entry k gets the
           entry's ``name``, or ``H<k+1>`` (the script's own order, the same for every parameter value);
-        - otherwise: each hole is matched to the holes of the DEFAULT build (extraction order there gives
-          H1 … HN) by geometry — centre distance + radius change + axis change, one to one (Hungarian) —
-          and takes that hole's name, so changing a parameter never swaps two names.
+        - otherwise: each hole is paired with a hole of the DEFAULT build (extraction order there gives
+          H1 … HN) by ``identity.pair_holes(..., bounded=False)`` (centre distance + radius change + axis
+          change, one to one, Hungarian) and takes that hole's name, so changing a parameter never swaps two
+          names.
         Holes left over (a parameter added holes) get ``H<N+1>`` … in extraction order."""
-        import dataclasses
 
         holes = list(holes)
         if not holes:
@@ -253,21 +258,12 @@ class Part:
                     taken.add(k)
                     names[i] = str(expected[k].get("name") or f"H{k + 1}")
             n_ref = len(expected)
-        else:
-            from scipy.optimize import linear_sum_assignment
-
+        else:  # the default build's holes, paired by identity.pair_holes (unbounded: its cost is stated there)
             reference = self._default_holes()
             n_ref = len(reference)
-            rc = np.array([h.centre for h in reference], float).reshape(-1, 3)
-            ra = np.array([h.axis for h in reference], float).reshape(-1, 3)
-            rr = np.array([h.radius_mm for h in reference], float)
-            axes = np.array([h.axis for h in holes], float)
-            radii = np.array([h.radius_mm for h in holes], float)
-            cost = (np.linalg.norm(centres[:, None] - rc[None], axis=-1) + np.abs(radii[:, None] - rr[None])
-                    + 100.0 * (1.0 - np.abs(axes @ ra.T)))
-            rows, cols = linear_sum_assignment(cost)
-            for i, k in zip(rows, cols, strict=True):
-                names[int(i)] = hole_name(reference[int(k)], int(k))
+            for i, k in enumerate(pair_holes(holes, reference, bounded=False)):
+                if k >= 0:
+                    names[i] = hole_name(reference[int(k)], int(k))
         extra = n_ref
         out = []
         for h, name in zip(holes, names, strict=True):
@@ -358,8 +354,15 @@ def _import_script(path: Path) -> ModuleType:
     return module
 
 
-def load_part(path: str | os.PathLike[str]) -> Part:
+_FROM_CONTEXT: Any = object()
+
+
+def load_part(path: str | os.PathLike[str], time_limit_s: float | None = _FROM_CONTEXT) -> Part:
     """Load and validate a part script: a path, or the bare name of a library part (``"thesis_hub"``).
+
+    ``time_limit_s``: the import and every ``Part.build`` run in a worker process killed after that many
+    seconds (``PartBuildError``); None: in this process, no limit; not given: the enclosing
+    ``build_time_limit`` block's (the ``cadfeat`` commands set one), else None.
 
     Raises ``CadfeatError`` naming the file (and line / key) for a missing file, a syntax error, a script
     raising on import, no ``build``, bad ``PARAMETERS``, or a ``build`` signature not matching them.
@@ -375,10 +378,14 @@ def load_part(path: str | os.PathLike[str]) -> Part:
         raise CadfeatError(f"{path}: {what} (library parts: {names})")
     from cadfeat.cad import cqgi_parts
 
+    limit = current_time_limit() if time_limit_s is _FROM_CONTEXT else time_limit_s
+    if limit is not None and not (math.isfinite(limit) and limit > 0):
+        raise CadfeatError(f"build time limit: {limit!r} s is not allowed; allowed: a number of seconds > 0")
     if cqgi_parts.is_cqgi_script(path):  # a cq-editor / CQGI script: parsed by CQGI, run only to build
-        return cqgi_parts.load_cqgi_part(path, Part, Parameter)
-    if current_time_limit() is not None:
-        _import_in_worker(path, current_time_limit())  # a loop or a crash at import time stays in the worker
+        return dataclasses.replace(cqgi_parts.load_cqgi_part(path, Part, Parameter), time_limit_s=limit)
+    if limit is not None:
+        start_workers()
+        _import_in_worker(path, limit)  # a loop or a crash at import time stays in the worker
     module = _import_script(path)
     where = str(path)
     if not callable(getattr(module, "build", None)):
@@ -402,7 +409,8 @@ def load_part(path: str | os.PathLike[str]) -> Part:
     for key, value in text.items():
         if not isinstance(value, str):
             raise CadfeatError(f"{where}: {key} must be a string, got {type(value).__name__}")
-    return Part(path.stem, path, parameters, text["DESCRIPTION"].strip(), text["FIXED_HOLES"].strip(), view, module)
+    return Part(path.stem, path, parameters, text["DESCRIPTION"].strip(), text["FIXED_HOLES"].strip(), view, module,
+                limit)
 
 
 def _check_signature(build: Any, parameters: Mapping[str, Parameter], where: str) -> None:

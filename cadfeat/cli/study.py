@@ -124,16 +124,22 @@ def _check_part(config: object) -> None:
 
 def _schema_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="FILE", help="write the schema to FILE (default: print it)")
+    parser.add_argument("--results", action="store_true",
+                        help="the schema of results.json (versioned by schema_version) instead of a study file's")
 
 
 def schema(args: argparse.Namespace) -> int:
-    """Write the JSON Schema of a study file (editor completion and checking: README, "Study files")."""
+    """Write the JSON Schema of a study file (editor completion and checking: README, "Study files"), or with
+    ``--results`` of results.json (``cadfeat.results.StudyResults``)."""
     import json
     from pathlib import Path
 
-    from cadfeat.study.json_schema import study_json_schema
+    if args.results:
+        from cadfeat.results import results_json_schema as make
+    else:
+        from cadfeat.study.json_schema import study_json_schema as make
 
-    text = json.dumps(study_json_schema(), indent=2, ensure_ascii=False) + "\n"
+    text = json.dumps(make(), indent=2, ensure_ascii=False) + "\n"
     if args.out:
         Path(args.out).write_text(text, encoding="utf-8")
     else:

@@ -37,22 +37,29 @@ over the design space — independent of the starting design):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar, cast
 
 import numpy as np
+from pydantic import ValidationInfo, field_validator, model_validator
 
 from cadfeat.errors import CadfeatError
+from cadfeat.settings import Settings, Tuple, boolean, choice, context_of, number, reject
 
 __all__ = [
     "AGGREGATES",
     "COMBINES",
     "FEATURE_REDUCTIONS",
+    "FOV_MEASURES",
     "MEASURES",
     "NORMALISATIONS",
     "Normaliser",
     "ObjectiveConfig",
+    "POSE_ROTATION_LENGTH_MM",
+    "SCORES",
+    "STUDY_MEASURES",
     "aggregate",
     "combine",
     "combined_indices",
@@ -77,76 +84,140 @@ NORMALISATIONS = ("payoff", "initial", "natural", "none")
 TINY_REL = 1e-3  # |g(x0)| below TINY_REL × natural unit → the natural unit is the scale
 
 
+FOV_MEASURES = ("cone", "image")
+SCORES = ("movable", "all")
+_KEY = {v: k for k, v in MEASURES.items()}
+
+
 def _choice(key: str, value: Any, allowed: Sequence[str]) -> None:
+    """A function argument's enumeration check (the config's fields are checked by the model)."""
     if value not in allowed:
         raise CadfeatError(f"objective.{key}: {value!r} is not one of {', '.join(map(repr, allowed))}")
+
+
+def _one_of(value: str, names: Sequence[str]) -> str:
+    if value not in names:
+        raise ValueError("not one of the names")
+    return value
 
 
 #: g_POSE's default rotation-to-length scale ℓ (mm per rad): a rotation error δθ counts as ℓ·δθ mm of error —
 #: the displacement it causes at ℓ from the part's origin; 50 mm is about the half-size of the parts cadfeat targets.
 POSE_ROTATION_LENGTH_MM = 50.0
 
+#: the measures of a study file that lists none (issue 17: new studies optimise the predicted pose error; the
+#: thesis studies list the thesis measures). A configuration built in code keeps the thesis measures.
+STUDY_MEASURES = ("pose",)
 
-@dataclass(frozen=True)
-class ObjectiveConfig:
-    """How the measures become objectives (see the module docstring). ``weights``/``thresholds`` are keyed
-    by measure ("fov", ...) or objective name ("g_FOV", ...). ``occlusion``: holes hidden by the part count
-    as unseen (a ray test against the part's mesh, default on); ``score``: which holes' FOV/focus/resolution
-    count — "movable" (the holes the design moves; all when none moves), "all", or hole names.
+
+class ObjectiveConfig(Settings):
+    """How the measures become objectives (see the module docstring) — and the study file's ``[objective]``
+    (one declaration: ``cadfeat.study.settings.ObjectiveSettings`` is this class). ``weights``/``thresholds``
+    are keyed by measure ("fov", ...) or objective name ("g_FOV", ...; stored by measure). ``occlusion``: holes
+    hidden by the part count as unseen (a ray test against the part's mesh, default on); ``score``: which
+    holes' FOV/focus/resolution count — "movable" (the holes the design moves; all when none moves), "all", or
+    hole names. ``feature_reduce`` (per pose, over the features) is not a study key.
     ``rotation_length_mm`` ℓ scales rotation in the resolvability g_DIR (thesis: 1); ``pose_rotation_length_mm``
     is g_POSE's own ℓ (a rotation error of 1 rad counts as ℓ mm; default ``POSE_ROTATION_LENGTH_MM`` = 50 mm, about
-    a small part's half-size, so that rotation counts: with ℓ = 1 mm g_POSE would ignore it)."""
+    a small part's half-size, so that rotation counts: with ℓ = 1 mm g_POSE would ignore it). A study file that
+    lists no ``measures`` optimises ``STUDY_MEASURES`` (g_POSE)."""
 
-    measures: tuple[str, ...] = ("fov", "focus", "resolution", "resolvability")
-    aggregate: str = "sum"
-    combine: str = "maxmin"
-    weights: Mapping[str, float] = field(default_factory=dict)
-    thresholds: Mapping[str, float] = field(default_factory=dict)
-    smoothmin_beta: float = 20.0
-    min_axis_px: float = 5.0
-    rotation_length_mm: float = 1.0
-    feature_reduce: str = "min"
-    fov_measure: str = "cone"
-    normalisation: str = "payoff"
-    occlusion: bool = True
-    score: str | tuple[str, ...] = "movable"
-    pose_aggregate: str = "rms"
-    pose_rotation_length_mm: float = POSE_ROTATION_LENGTH_MM
+    section: ClassVar[str] = "objective"
 
-    def __post_init__(self) -> None:
-        measures = tuple(self.measures)
-        if not measures:
-            raise CadfeatError(f"objective.measures: give at least one of {', '.join(MEASURES)}")
-        for m in measures:
-            _choice("measures", m, tuple(MEASURES))
-        if len(set(measures)) != len(measures):
-            raise CadfeatError(f"objective.measures: duplicates in {list(measures)}")
-        object.__setattr__(self, "measures", measures)
-        _choice("aggregate", self.aggregate, AGGREGATES)
-        _choice("combine", self.combine, COMBINES)
-        _choice("feature_reduce", self.feature_reduce, FEATURE_REDUCTIONS)
-        _choice("fov_measure", self.fov_measure, ("cone", "image"))
-        _choice("normalisation", self.normalisation, NORMALISATIONS)
-        _choice("pose_aggregate", self.pose_aggregate, POSE_AGGREGATES)
-        if not (self.smoothmin_beta > 0):
-            raise CadfeatError(f"objective.smoothmin_beta: must be > 0, got {self.smoothmin_beta!r}")
-        object.__setattr__(self, "weights", {self.key(k): float(v) for k, v in dict(self.weights).items()})
-        object.__setattr__(self, "thresholds", {self.key(k): float(v) for k, v in dict(self.thresholds).items()})
-        for k, w in self.weights.items():
-            if k not in measures or not (w >= 0):
-                raise CadfeatError(f"objective.weights: {k!r} must be one of the chosen measures "
-                                   f"{list(measures)} with a weight ≥ 0, got {w!r}")
-        for k in self.thresholds:
-            if k not in measures:
-                raise CadfeatError(f"objective.thresholds: {k!r} is not one of the chosen measures {list(measures)}")
+    measures: Tuple[str] = choice(("fov", "focus", "resolution", "resolvability"),
+                                  f"a non-empty list of distinct names from {', '.join(MEASURES)}",
+                                  description='a study file without it: ["pose"] (g_POSE); the thesis studies list '
+                                  'the thesis measures')
+    aggregate: str = choice("sum", AGGREGATES)
+    combine: str = choice("maxmin", COMBINES)
+    weights: dict[str, float] = choice(dict, "a table measure = number ≥ 0, measures from objective.measures",
+                                       factory=True)
+    thresholds: dict[str, float] = choice(dict, "a table measure = minimum value, measures from objective.measures",
+                                          factory=True)
+    min_axis_px: float = number(5.0, 0.0, lo_open=True)
+    rotation_length_mm: float = number(1.0, 0.0, lo_open=True)
+    smoothmin_beta: float = number(20.0, 0.0, lo_open=True)
+    normalisation: str = choice("payoff", NORMALISATIONS)
+    fov_measure: str = choice("cone", FOV_MEASURES)
+    occlusion: bool = boolean(True)
+    score: str | Tuple[str] = choice(
+        "movable", '"movable", "all" or a non-empty list of distinct hole names (e.g. ["H1", "H3"])')
+    pose_aggregate: str = choice("rms", POSE_AGGREGATES,
+                                 description='g_POSE over the trajectory ("pose" in measures): rms, worst or logdet')
+    pose_rotation_length_mm: float = number(POSE_ROTATION_LENGTH_MM, 0.0, lo_open=True)
+    feature_reduce: str = choice("min", FEATURE_REDUCTIONS, internal=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _study_measures(cls, data: object, info: ValidationInfo) -> object:
+        """A study file (validation context ``study``) without ``measures`` optimises ``STUDY_MEASURES``."""
+        if context_of(info).get("study") and isinstance(data, Mapping) and "measures" not in data:
+            return {**cast("Mapping[str, object]", data), "measures": list(STUDY_MEASURES)}
+        return data
+
+    @field_validator("measures")
+    @classmethod
+    def _measures(cls, value: tuple[str, ...]) -> tuple[str, ...]:
+        if not value or len(set(value)) != len(value):
+            raise ValueError("not a non-empty list of distinct names")
+        return tuple(_one_of(v, list(MEASURES)) for v in value)
+
+    @field_validator("weights", "thresholds", mode="before")
+    @classmethod
+    def _by_measure(cls, value: object) -> object:
+        """Objective names ("g_FOV") as measure keys ("fov")."""
+        if isinstance(value, Mapping):
+            table = cast("Mapping[object, object]", value)
+            return {_KEY.get(k, k) if isinstance(k, str) else k: v for k, v in table.items()}
+        return value
+
+    @field_validator("weights", "thresholds")
+    @classmethod
+    def _finite(cls, value: dict[str, float]) -> dict[str, float]:
+        if not all(math.isfinite(v) for v in value.values()):
+            raise ValueError("not finite")
+        return dict(sorted(value.items()))
+
+    @field_validator("score")
+    @classmethod
+    def _score(cls, value: str | tuple[str, ...]) -> str | tuple[str, ...]:
+        if isinstance(value, str):
+            return _one_of(value, SCORES)
+        if not value or not all(value) or len(set(value)) != len(value):
+            raise ValueError("not a non-empty list of distinct names")
+        return value
+
+    @model_validator(mode="after")
+    def _rules(self, info: ValidationInfo) -> ObjectiveConfig:
+        """Weights and thresholds name chosen measures; combine = "constraint" needs thresholds. A study file
+        (validation context ``study``) also gives thresholds only with "constraint", and not for every measure."""
+        allowed = ", ".join(self.measures)
+        for name in ("weights", "thresholds"):
+            table = cast("dict[str, float]", getattr(self, name))
+            for m, v in table.items():
+                if m not in self.measures:
+                    raise reject(f"{name}.{m}", "not one of objective.measures", allowed)
+                if name == "weights" and v < 0:
+                    raise reject(f"weights.{m}", f"{v} is not allowed", "a number ≥ 0")
+        if self.combine == "weighted" and self.weights and not any(w > 0 for w in self.weights.values()):
+            raise reject("weights", "all weights are zero", "non-negative weights, at least one positive")
         if self.combine == "constraint" and not self.thresholds:
-            raise CadfeatError("objective.thresholds: combine = 'constraint' needs at least one threshold")
+            raise reject("thresholds", "missing (combine = \"constraint\" makes these measures hard constraints)",
+                         f"a table measure = minimum value, measures from {allowed}")
+        if not context_of(info).get("study"):
+            return self
+        if self.combine == "constraint" and set(self.thresholds) == set(self.measures):
+            raise reject("thresholds", "every measure is a constraint, none is left to optimise",
+                         "thresholds for some of the measures, not all")
+        if self.combine != "constraint" and self.thresholds:
+            raise reject("thresholds", f"only used with combine = \"constraint\" (combine is {self.combine!r})",
+                         "remove it, or combine = \"constraint\"")
+        return self
 
     @staticmethod
     def key(name: str) -> str:
         """Measure key of a measure or objective name ("g_FOV" → "fov")."""
-        inverse = {v: k for k, v in MEASURES.items()}
-        return inverse.get(name, name)
+        return _KEY.get(name, name)
 
     @property
     def names(self) -> list[str]:

@@ -169,7 +169,7 @@ class Problem:
         centre = 0.5 * (space.lower + space.upper)
         table = []
         for m in cfg.measures:
-            sub_cfg = replace(cfg, measures=(m,), combine="weighted", weights={}, thresholds={},
+            sub_cfg = cfg.replace(measures=(m,), combine="weighted", weights={}, thresholds={},
                               normalisation="natural")
             sub_norm = Normaliser.build("natural", {MEASURES[m]: 1.0}, unit_by_name)
             sub = Problem(replace(space, x0=centre), self.model, self.camera, self.trajectory, self.T_task_part,

@@ -9,13 +9,14 @@ normal vector. Positions are written to ``POSITION_DECIMALS`` decimals (0.001 mm
 from __future__ import annotations
 
 import csv
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from cadfeat.report.html import esc, fmt, num, table, text
+from cadfeat.results import Holes, StudyResults, section
 
 HOLE_COLUMNS = ("name", "face", "x_mm", "y_mm", "z_mm", "diameter_mm", "depth_mm", "kind", "moved")
 POSITION_DECIMALS = 3
@@ -30,22 +31,22 @@ def face_label(axis: Sequence[float]) -> str:
     return "(" + ", ".join(f"{v:.3f}" for v in a) + ")"
 
 
-def hole_rows(results: dict) -> list[dict[str, Any]]:
+def hole_rows(results: StudyResults | Mapping[str, Any]) -> list[dict[str, Any]]:
     """One row per hole of the delivered design (``holes.after``, else ``holes.before``)."""
-    holes = results.get("holes") or {}
-    after = holes.get("after") or holes.get("before") or []
-    before = {h.get("index", i): h for i, h in enumerate(holes.get("before") or [])}
+    holes = section(results, "holes", Holes)
+    if holes is None:
+        return []
+    before = {h.index: h for h in holes.before}
     rows = []
-    for i, h in enumerate(after):
-        c = np.asarray(h.get("centre_mm", [np.nan] * 3), float)
-        hb = before.get(h.get("index", i)) or h
-        moved = bool(np.linalg.norm(c - np.asarray(hb.get("centre_mm", c), float)) > 1e-6
-                     or abs(float(h.get("radius_mm", 0)) - float(hb.get("radius_mm", 0))) > 1e-6)
-        kind = str(h.get("kind", "")) + (" through" if h.get("through") else " blind")
-        rows.append({"name": str(h.get("name") or f"H{i + 1}"), "face": face_label(h.get("axis", (0, 0, 1))),
+    for h in holes.after or holes.before:
+        c = np.asarray(h.centre_mm, float)
+        hb = before.get(h.index, h)
+        moved = bool(np.linalg.norm(c - np.asarray(hb.centre_mm, float)) > 1e-6
+                     or abs(float(h.radius_mm) - float(hb.radius_mm)) > 1e-6)
+        kind = f"{h.kind} {'through' if h.through else 'blind'}"
+        rows.append({"name": h.name, "face": face_label(h.axis),
                      "x_mm": float(c[0]), "y_mm": float(c[1]), "z_mm": float(c[2]),
-                     "diameter_mm": 2.0 * float(h.get("radius_mm", np.nan)),
-                     "depth_mm": float(h.get("depth_mm", np.nan)),
+                     "diameter_mm": 2.0 * float(h.radius_mm), "depth_mm": float(h.depth_mm),
                      "kind": kind.strip(), "moved": moved})
     return rows
 

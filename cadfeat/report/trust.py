@@ -4,28 +4,42 @@ assumptions and warnings (results.json ``objectives``, ``measures``, ``preflight
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 from cadfeat.report.html import esc, note, num, table, text
+from cadfeat.results import Objectives, StudyResults
+from cadfeat.results import section as typed_section
 
 __all__ = ["section"]
 
 
-def section(results: dict) -> str:
-    """HTML of the section, or "" when the results carry none of it."""
-    obj = results.get("objectives") or {}
+def _objective_parts(obj: Objectives) -> list[str]:
     parts = []
-    if obj.get("limiting") or obj.get("limiting_before"):
-        after = f" → after: <b>{esc(obj['limiting'])}</b>" if obj.get("limiting") else ""
+    if obj.limiting or obj.limiting_before:
+        after = f" → after: <b>{esc(obj.limiting)}</b>" if obj.limiting else ""
         parts.append(f"<p>Limiting objective (smallest normalised value in the max-min): before: "
-                     f"<b>{esc(obj.get('limiting_before'))}</b>{after}.</p>")
+                     f"<b>{esc(obj.limiting_before)}</b>{after}.</p>")
+    changes = [c for c in obj.changes if isinstance(c, dict)]
     rows = ["".join([text(c["name"]), text(c.get("unit", "")), num(c.get("before")), num(c.get("after")),
                      num(c.get("change")), num(c.get("normalised_after", c.get("normalised_before"))),
-                     text("yes" if c.get("in_combination") else "no")]) for c in obj.get("changes") or []]
+                     text("yes" if c.get("in_combination") else "no")]) for c in changes]
     if rows:
         parts.append(table(["objective", "unit", "before", "after", "change", "normalised", "in combination"],
                            rows, "objective-changes"))
-    if obj.get("score"):
-        parts.append(f"<p>Scored holes: {esc(obj['score'])}; occlusion by the part "
-                     f"{'counted' if obj.get('occlusion', True) else 'NOT counted'}.</p>")
+    if obj.score:
+        parts.append(f"<p>Scored holes: {esc(obj.score)}; occlusion by the part "
+                     f"{'counted' if obj.occlusion else 'NOT counted'}.</p>")
+    return parts
+
+
+def section(results: StudyResults | Mapping[str, Any]) -> str:
+    """HTML of the section, or "" when the results carry none of it."""
+    typed = typed_section(results, "objectives", Objectives)
+    parts = _objective_parts(typed) if typed is not None else []
+    if isinstance(results, StudyResults):
+        results = results.to_data()
+    obj = results.get("objectives") or {}
     measures = results.get("measures") or {}
     hidden_rows = []
     after = {f.get("name"): f for f in (measures.get("after") or {}).get("per_feature") or []}

@@ -8,11 +8,15 @@ measure: it reads what the study computed and verified.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from cadfeat.report.html import esc, fmt, num, table, text
 from cadfeat.report.requirements import ACTIVE_MARGIN_MM, requirement_rows
+from cadfeat.results import Finding as FindingRecord
+from cadfeat.results import Measures, Objectives, StudyResults, section
+from cadfeat.results import Verdict as VerdictRecord
 
 ADOPT, CARE, REJECT = "adopt", "adopt with care", "do not adopt"
 _SEVERITY = {ADOPT: 0, CARE: 1, REJECT: 2}
@@ -91,49 +95,54 @@ def _is_num(x: Any) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool)
 
 
-def hole_changes(results: dict) -> list[HoleChange]:
+def hole_changes(results: StudyResults | Mapping[str, Any]) -> list[HoleChange]:
     """Per hole and measure: worst value over the trajectory before and after (own units), changed ones only."""
-    m = results.get("measures") or {}
-    before = {f.get("index", i): f for i, f in enumerate((m.get("before") or {}).get("per_feature") or [])}
-    after = {f.get("index", i): f for i, f in enumerate((m.get("after") or {}).get("per_feature") or [])}
+    m = section(results, "measures", Measures)
+    if m is None or m.after is None:
+        return []
+    before = {f.index: f for f in m.before.per_feature}
     out = []
-    for idx, fa in after.items():
-        fb = before.get(idx)
+    for fa in {f.index: f for f in m.after.per_feature}.values():
+        fb = before.get(fa.index)
         if fb is None:
             continue
         for key, label, unit in HOLE_MEASURES:
-            b, a = fb.get(key), fa.get(key)
-            if _is_num(b) and _is_num(a) and abs(a - b) > CHANGE_TOL:
-                out.append(HoleChange(str(fa.get("name") or f"#{idx}"), label, unit, float(b), float(a)))
+            b, a = getattr(fb, key), getattr(fa, key)
+            if b is not None and a is not None and abs(a - b) > CHANGE_TOL:
+                out.append(HoleChange(fa.name or f"#{fa.index}", label, unit, float(b), float(a)))
     return out
 
 
-def limiting_objective(obj: dict) -> str | None:
+def limiting_objective(obj: Objectives | None) -> str | None:
     """The objective with the smallest normalised value after (``objectives.limiting`` when the study gives it)."""
-    if obj.get("limiting"):
-        return str(obj["limiting"])
-    after = obj.get("after") or {}
-    ref = ((obj.get("normalisation") or {}).get("reference")) or {}
-    vals = {k: v / (abs(ref.get(k)) if _is_num(ref.get(k)) and ref.get(k) else 1.0)
-            for k, v in after.items() if _is_num(v)}
-    return min(vals, key=vals.get) if vals else None
+    if obj is None:
+        return None
+    if obj.limiting:
+        return obj.limiting
+    after = obj.after or {}
+    norm = obj.normalisation if isinstance(obj.normalisation, dict) else {}
+    ref = norm.get("reference") if isinstance(norm.get("reference"), dict) else {}
+    assert isinstance(ref, dict)
+    vals = {k: v / (abs(r) if _is_num(r := ref.get(k)) and r else 1.0) for k, v in after.items() if _is_num(v)}
+    return min(vals, key=lambda k: vals[k]) if vals else None
 
 
-def decide(results: dict) -> Verdict:
-    """Apply ``RULES`` to the results; the decision is the most severe outcome."""
+def decide(results: StudyResults | Mapping[str, Any]) -> Verdict:
+    """Apply ``RULES`` to the results (typed, or plain data as read); the decision is the most severe outcome."""
     findings: list[Finding] = []
-    obj = results.get("objectives") or {}
-    cb, ca = obj.get("combined_before"), obj.get("combined_after")
+    obj = section(results, "objectives", Objectives)
+    cb, ca = (obj.combined_before, obj.combined_after) if obj is not None else (None, None)
     robust = _robust_combined(results)
     if robust is not None:  # a robust study: its statistic out of sample (issue 18), not the nominal value
+        nb, na = cb, ca
         cb, ca, what = robust
         gain = ca - cb
         rel = gain / abs(cb) if cb else float("inf") if gain > 0 else 0.0
         findings.append(Finding("combined", ADOPT if rel >= MIN_GAIN_FRAC else REJECT,
                                 f"{what} of the combined objective {fmt(cb)} → {fmt(ca)} "
                                 f"({'+' if gain >= 0 else '−'}{fmt(abs(100 * rel), 3)} %; nominal "
-                                f"{fmt(obj.get('combined_before'))} → {fmt(obj.get('combined_after'))})"))
-    elif _is_num(cb) and _is_num(ca):
+                                f"{fmt(nb)} → {fmt(na)})"))
+    elif cb is not None and ca is not None:
         gain = ca - cb
         rel = gain / abs(cb) if cb else float("inf") if gain > 0 else 0.0
         ok = rel >= MIN_GAIN_FRAC
@@ -152,8 +161,8 @@ def decide(results: dict) -> Verdict:
     elif reqs:
         findings.append(Finding("requirements", ADOPT, f"all {len(reqs)} hold with margin ≥ {fmt(ACTIVE_MARGIN_MM)}"))
     limiting = limiting_objective(obj)
-    before, after = obj.get("before") or {}, obj.get("after") or {}
-    worse = [k for k in after if _is_num(after.get(k)) and _is_num(before.get(k)) and after[k] < before[k]]
+    before, after = (obj.before, obj.after or {}) if obj is not None else ({}, {})
+    worse = [k for k, a in after.items() if a is not None and (b := before.get(k)) is not None and a < b]
     if limiting is not None:
         lb, la = before.get(limiting), after.get(limiting)
         detail = f"limiting objective {limiting}: {fmt(lb)} → {fmt(la)}"
@@ -173,26 +182,28 @@ def decide(results: dict) -> Verdict:
                                                                         for label, k, n in still)
         findings.append(Finding("holes", CARE if failing else ADOPT, detail))
     findings += _tracking(results) + _robustness(results) + _patterns(results)
-    if results.get("interrupted"):
+    if (results.interrupted if isinstance(results, StudyResults) else results.get("interrupted")):
         findings.append(Finding("interrupted", CARE, "the optimisation was interrupted"))
     decision = max((f.outcome for f in findings), key=_SEVERITY.get, default=CARE)
     return Verdict(decision, findings, changes, limiting)
 
 
-def verdict_json(results: dict) -> dict[str, Any]:
-    """results.json ``verdict``: the decision (one of ``adopt``, ``adopt with care``, ``do not adopt``), the
-    limiting objective and each applied rule's outcome, so that a pipeline can gate on the run's outcome."""
+def verdict_json(results: StudyResults | Mapping[str, Any]) -> dict[str, Any]:
+    """results.json ``verdict`` (``cadfeat.results.Verdict``): the decision (one of ``adopt``, ``adopt with
+    care``, ``do not adopt``), the limiting objective and each applied rule's outcome, so that a pipeline can
+    gate on the run's outcome."""
     v = decide(results)
-    return {"decision": v.decision, "limiting": v.limiting,
-            "findings": [{"rule": f.rule, "outcome": f.outcome, "detail": f.detail} for f in v.findings]}
+    return VerdictRecord(decision=v.decision, limiting=v.limiting, findings=[
+        FindingRecord(rule=f.rule, outcome=f.outcome, detail=f.detail) for f in v.findings]).to_data()
 
 
-def _failing_after(results: dict) -> list[tuple[str, int, int]]:
+def _failing_after(results: StudyResults | Mapping[str, Any]) -> list[tuple[str, int, int]]:
     """(measure, holes with a negative worst margin, holes) of the design after, for each margin measure."""
-    feats = ((results.get("measures") or {}).get("after") or {}).get("per_feature") or []
+    m = section(results, "measures", Measures)
+    feats = m.after.per_feature if m is not None and m.after is not None else []
     out = []
     for key, label, _ in HOLE_MEASURES[:4]:
-        vals = [f.get(key) for f in feats if _is_num(f.get(key))]
+        vals = [v for f in feats if (v := getattr(f, key)) is not None]
         k = sum(v < 0 for v in vals)
         if k:
             out.append((label, k, len(vals)))

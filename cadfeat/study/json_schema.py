@@ -1,26 +1,31 @@
 """The JSON Schema of a study file (``cadfeat schema``), for completion and checking in an editor.
 
-The sections declared as pydantic models (``cadfeat.study.settings``) give their own schema (types, bounds,
-enumerations, defaults, descriptions); the others (``[study]``, ``[camera]``, ``[part_pose]``,
-``[trajectory]``, ``[design]``) are listed with their keys (the key tuples ``load_study`` checks), and
-``load_study`` remains the full check (files, part parameters and their bounds). Use it with taplo / Even
-Better TOML by a first line ``#:schema ./study.schema.json`` in the study file (README, "Study files").
+Every section comes from its one declaration: the ``Settings`` models (``cadfeat.study.settings``: ``[study]``,
+``[part_pose]``, ``[design]``, ``[constraints]``, ``[objective]``, ``[optimizer]``, ``[shop]``,
+``[robustness]``, ``[tracking]``) give their own schema (types, bounds, enumerations, defaults, descriptions);
+``[camera]`` is the ``Camera`` dataclass's fields (all optional, over a ``preset`` or a ``calibration`` file) and
+``[trajectory]`` one form per library kind (its arguments, ``kind_arguments``) or a ``csv`` file. ``load_study``
+remains the full check (files, the part's parameters and their bounds, what depends on the part's kind). Use it
+with taplo / Even Better TOML by a first line ``#:schema ./study.schema.json`` in the study file (README, "Study
+files").
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+from cadfeat.settings import Settings
 from cadfeat.study import schema as study_schema
 from cadfeat.study.settings import (
     ConstraintSettings,
     ObjectiveSettings,
     OptimizerSettings,
     RobustnessSettings,
-    Settings,
     ShopSettings,
     TrackingSettings,
 )
+from cadfeat.study.settings.design import DesignSpec
+from cadfeat.study.settings.scene import PartPose, StudyInfo
 
 __all__ = ["SCHEMA_ID", "study_json_schema"]
 
@@ -28,26 +33,56 @@ SCHEMA_ID = "https://cadfeat.invalid/schema/study.json"
 """The schema's ``$id`` (a name, not a place to fetch it from)."""
 
 _MODELS: dict[str, type[Settings]] = {
+    "study": StudyInfo, "part_pose": PartPose, "design": DesignSpec,
     "constraints": ConstraintSettings, "objective": ObjectiveSettings, "optimizer": OptimizerSettings,
     "shop": ShopSettings, "robustness": RobustnessSettings, "tracking": TrackingSettings,
-}
-_OPEN = {
-    "study": ("which part is redesigned", study_schema.STUDY_KEYS),
-    "part_pose": ("the part frame in the task frame (mm, deg)", study_schema.PART_POSE_KEYS),
-    "design": ("what may change: parameters (script parts) or holes (STEP parts)", study_schema.DESIGN_KEYS),
-}
-_DESCRIPTION = {
-    "camera": "preset = name (cadfeat cameras), explicit fx fy cx cy width height dist + optics, or "
-              "calibration = OpenCV file",
-    "trajectory": "kind = library kind + its arguments (cadfeat trajectories), or csv = file of poses",
 }
 
 
 def _model_schema(model: type[Settings]) -> dict[str, Any]:
     out = model.model_json_schema()
-    for prop in out.get("properties", {}).values():
+    keys = set(model.study_keys())
+    out["properties"] = {k: v for k, v in out.get("properties", {}).items() if k in keys}
+    out["required"] = [k for k in out.get("required", []) if k in keys]
+    if not out["required"]:
+        del out["required"]
+    for prop in out["properties"].values():
         prop.pop("x-allowed", None)
     return out
+
+
+def _camera_schema() -> dict[str, Any]:
+    """``[camera]``: ``preset`` (a name of ``cadfeat.camera.PRESETS``) or ``calibration`` (an OpenCV file), and
+    any ``Camera`` field as an override (or all of fx, fy, cx, cy, width, height without either)."""
+    from pydantic import TypeAdapter
+
+    from cadfeat.camera import PRESETS, Camera
+
+    fields = TypeAdapter(Camera).json_schema()["properties"]
+    return {"type": "object", "additionalProperties": False,
+            "description": "preset = name (cadfeat cameras), explicit fx fy cx cy width height dist + optics, or "
+                           "calibration = OpenCV file; any field overrides",
+            "properties": {"preset": {"enum": sorted(PRESETS)},
+                           "calibration": {"type": "string", "description": "OpenCV FileStorage file (.yaml, .xml)"},
+                           **fields}}
+
+
+def _trajectory_schema() -> dict[str, Any]:
+    """``[trajectory]``: one object form per library kind (its arguments; required ones required), or a CSV."""
+    from cadfeat.trajectory import TRAJECTORY_KINDS, kind_arguments
+
+    forms: list[dict[str, Any]] = [{
+        "type": "object", "additionalProperties": False, "required": ["csv"],
+        "properties": {"csv": {"type": "string", "description": "CSV of poses, relative to the study file"},
+                       "name": {"type": "string"}}}]
+    for kind in TRAJECTORY_KINDS:
+        args = kind_arguments(kind)
+        forms.append({"type": "object", "additionalProperties": False,
+                      "required": ["kind", *(a.name for a in args if a.required)],
+                      "properties": {"kind": {"const": kind}, "name": {"type": "string"},
+                                     **{a.name: {"description": a.arg_type.description} for a in args}}})
+    return {"description": "kind = library kind + its arguments (cadfeat trajectories), or csv = file of poses",
+            "oneOf": forms}
 
 
 def study_json_schema() -> dict[str, Any]:
@@ -59,12 +94,10 @@ def study_json_schema() -> dict[str, Any]:
             sub = _model_schema(_MODELS[name])
             defs.update(sub.pop("$defs", {}))
             props[name] = sub
-        elif name in _OPEN:
-            text, keys = _OPEN[name]
-            props[name] = {"type": "object", "description": text, "additionalProperties": False,
-                           "properties": {k: {} for k in keys}}
+        elif name == "camera":
+            props[name] = _camera_schema()
         else:
-            props[name] = {"type": "object", "description": _DESCRIPTION[name]}
+            props[name] = _trajectory_schema()
     out: dict[str, Any] = {
         "$schema": "https://json-schema.org/draft/2020-12/schema", "$id": SCHEMA_ID, "title": "cadfeat study file",
         "type": "object", "additionalProperties": False, "required": list(study_schema.REQUIRED_SECTIONS),

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from cadfeat.cad.features.identity import hole_name
+from cadfeat.results import SCHEMA_VERSION, StudyResults
 
 __all__ = [
     "DIGITS",
@@ -33,11 +34,9 @@ __all__ = [
     "plain",
     "versions",
     "write_json",
+    "write_results",
 ]
 
-SCHEMA_VERSION = 3
-"""Version of the layout of results.json (2: schema_version, requirements_used, camera_poses, shop, patterns,
-robustness added by issue 13; 3: ``verdict``, tracking holes named H1…); readers compare it before relying on a key."""
 DIGITS = 10
 """Significant digits of floats in results.json (1e-10 relative: far below any tolerance used)."""
 STEP_TIMESTAMP = "1970-01-01T00:00:00"
@@ -75,6 +74,15 @@ def write_json(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path:
     path.write_text(json.dumps(plain(data), indent=2, sort_keys=True, ensure_ascii=False, allow_nan=False) + "\n",
                     encoding="utf-8")
     return path
+
+
+def write_results(path: str | os.PathLike[str], data: Mapping[str, Any]) -> StudyResults:
+    """Write results.json through the typed model: ``data`` made JSON-ready (``plain``), validated as
+    ``StudyResults`` (a missing or mistyped section fails here, before the file exists) and written as the
+    model gives it back (the same data). Returns the typed results."""
+    results = StudyResults.from_data(plain(data))
+    write_json(path, results.to_data())
+    return results
 
 
 def hole_dict(hole: Any, index: int, fixed: bool, movable: bool) -> dict[str, Any]:

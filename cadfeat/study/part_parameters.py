@@ -31,9 +31,10 @@ class PartParameter:
     is_int: bool
 
 
-def part_parameters(path: str | Path) -> dict[str, PartParameter]:
+def part_parameters(path: str | Path, time_limit_s: float | None = None) -> dict[str, PartParameter]:
     """A part script's ``PARAMETERS`` (name → ``PartParameter``), read without running the script when the
-    table is a literal (``ast.literal_eval``), else via ``cadfeat.cad.parts.load_part``.
+    table is a literal (``ast.literal_eval``), else via ``cadfeat.cad.parts.load_part`` (its import in a worker
+    process within ``time_limit_s`` seconds; None: in this process).
 
     Raises ``StudyError`` naming the script for a syntax error, a missing or malformed table.
     """
@@ -46,16 +47,16 @@ def part_parameters(path: str | Path) -> dict[str, PartParameter]:
                  and any(isinstance(t, ast.Name) and t.id == "PARAMETERS"
                          for t in (n.targets if isinstance(n, ast.Assign) else [n.target]))), None)
     if node is None and _is_cqgi(path):
-        return _parameters_by_loading(path)  # a cq-editor / CQGI script: its constants (cadfeat.cad.cqgi_parts)
+        return _parameters_by_loading(path, time_limit_s)  # a cq-editor / CQGI script: its constants (cqgi_parts)
     if node is None:
         raise StudyError(f"{path}: PARAMETERS: missing; allowed: a module-level dict "
                          "{name: {default, bounds, unit, description}}")
     if _mutated(tree):
-        return _parameters_by_loading(path)
+        return _parameters_by_loading(path, time_limit_s)
     try:
         table = ast.literal_eval(node)
     except ValueError:
-        return _parameters_by_loading(path)
+        return _parameters_by_loading(path, time_limit_s)
     return _parse_parameters(table, path)
 
 
@@ -87,10 +88,10 @@ def _mutated(tree: ast.Module) -> bool:
     return assigned > 1
 
 
-def _parameters_by_loading(path: Path) -> dict[str, PartParameter]:
+def _parameters_by_loading(path: Path, time_limit_s: float | None) -> dict[str, PartParameter]:
     from cadfeat.cad.parts import load_part  # runs the script (imports cadquery): only for non-literal tables
 
-    part = load_part(path)
+    part = load_part(path, time_limit_s)
     return {name: PartParameter(name, p.default, p.lower, p.upper, getattr(p, "unit", ""),
                                 getattr(p, "description", ""), bool(getattr(p, "is_int", False)))
             for name, p in part.parameters.items()}

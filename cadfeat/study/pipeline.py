@@ -15,18 +15,29 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat import measures
 from cadfeat._version import __version__
+from cadfeat.cad.features import holes_to_arrays
 from cadfeat.cad.features.identity import hole_names
+from cadfeat.design import optimize  # (called through the module: tests replace its functions)
+from cadfeat.design.memory import check_fits
+from cadfeat.design.patterns import check_patterns, find_patterns
+from cadfeat.design.robustness import robustness
+from cadfeat.design.shop import hole_sizes, refine_on_rebuild, shop_design
 from cadfeat.errors import CadfeatError
+from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
     hole_dict,
     measures_summary,
     now_iso,
 )
+from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy
+from cadfeat.study.preflight import preflight
 from cadfeat.study.progress import StudyProgress
 from cadfeat.study.robust_study import attach_robust, check_robust, robust_designs, robust_phase
 from cadfeat.study.schema import StudyConfig, StudyError
+from cadfeat.study.setup import int_grid, load_scene, occlusion_mesh, score_rule
 from cadfeat.study.trust import objective_changes
 from cadfeat.study.verify import (
     AnchoredModel,
@@ -37,7 +48,12 @@ from cadfeat.study.verify import (
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
+    from cadfeat.camera import Camera
+    from cadfeat.design.optimize import OptimResult
+    from cadfeat.measures.evaluate import Measures
+    from cadfeat.study.preflight import Preflight
     from cadfeat.study.setup import StudySetup
+    from cadfeat.trajectory import Trajectory
 
 
 OUTLINE_ROUNDS = 4
@@ -46,12 +62,10 @@ OUTLINE_ROUNDS = 4
 SWEEP_SAMPLES = 41
 
 
-def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Any = None, *, mesh: Any = None) -> Any:
+def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Trajectory | None = None, *,
+                  mesh: Any = None) -> Measures:
     """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
     the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off)."""
-    from cadfeat import measures
-    from cadfeat.cad.features import holes_to_arrays
-
     traj = trajectory if trajectory is not None else setup.trajectory
     o = setup.config.objective
     if mesh is None:
@@ -66,8 +80,6 @@ def score(setup: StudySetup, holes: Sequence[Hole]) -> tuple[dict[str, float], f
     """The aggregated objectives of real holes and their combined value (larger is better), computed exactly
     as the optimiser does (``Problem.features_objectives`` / ``combined_from``: same normalisation), with the
     exact occlusion ray test (the optimiser uses the part's depth maps, ``measures.depth``)."""
-    from cadfeat.cad.features import holes_to_arrays
-
     problem = setup.problem
     G = problem.features_objectives(*holes_to_arrays(list(holes)), exact_occlusion=True,
                                     depth_mm=[float(h.depth_mm) for h in holes])
@@ -77,16 +89,14 @@ def score(setup: StudySetup, holes: Sequence[Hole]) -> tuple[dict[str, float], f
     return values, float(problem.combined_from(G))
 
 
-def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tuple[Any, bool]:
+def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tuple[OptimResult, bool]:
     """Optimise one setup; returns (OptimResult-like, interrupted)."""
-    from cadfeat.design.optimize import optimise, solve_with_cad
-
     oc = setup.config.optimizer
     try:
         if setup.linear:
-            res = optimise(setup.problem, oc, progress=progress.iteration)
+            res = optimize.optimise(setup.problem, oc, progress=progress.iteration)
         else:
-            res = solve_with_cad(setup.problem, lambda x: setup.rebuild_holes(setup.rebuild_shape(x)), oc,
+            res = optimize.solve_with_cad(setup.problem, lambda x: setup.rebuild_holes(setup.rebuild_shape(x)), oc,
                                  progress=progress.iteration)
     except KeyboardInterrupt:
         if progress.best_x is None:
@@ -97,12 +107,10 @@ def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tu
     return res, bool(getattr(res, "interrupted", False))
 
 
-def _with_cad(setup: StudySetup, progress: StudyProgress) -> Any:
+def _with_cad(setup: StudySetup, progress: StudyProgress) -> OptimResult:
     """``solve_with_cad`` on ``setup`` (a rebuild that raises or times out is an infeasible point)."""
-    from cadfeat.design.optimize import solve_with_cad
-
-    return solve_with_cad(setup.problem, lambda x: setup.rebuild_holes(setup.rebuild_shape(x)), setup.config.optimizer,
-                          progress=progress.iteration)
+    return optimize.solve_with_cad(setup.problem, lambda x: setup.rebuild_holes(setup.rebuild_shape(x)),
+                                   setup.config.optimizer, progress=progress.iteration)
 
 
 @dataclass
@@ -132,8 +140,6 @@ def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, 
     parameter also changes the faces (e.g. a block that grows with the hole spacing), rebuild at the
     optimum, linearise again there (new outlines) and re-optimise from it, until the outlines agree (at
     most ``OUTLINE_ROUNDS`` rounds; a round is kept only if it improves the objective)."""
-    from cadfeat.study.setup import setup_script
-
     history: list[dict[str, Any]] = []
     stopped = False
     for k in range(OUTLINE_ROUNDS):
@@ -144,7 +150,7 @@ def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, 
                                    holes):  # the outlines the model predicts at x (they may move with x)
                 break
             names = setup.space.names
-            new = setup_script(setup.config, setup.int_values, scene, normaliser,
+            new = study_setup.setup_script(setup.config, setup.int_values, scene, normaliser,
                                at=dict(zip(names, x, strict=True)))
             res2, stopped = _optimise(new, prog, label)
         except CadfeatError:
@@ -159,7 +165,7 @@ def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, 
     return setup, res, history, stopped
 
 
-def _history(res: Any, label: str) -> list[dict[str, Any]]:
+def _history(res: OptimResult, label: str) -> list[dict[str, Any]]:
     out = []
     for i, h in enumerate(getattr(res, "history", None) or []):
         h = dict(h) if isinstance(h, Mapping) else {"f": h}
@@ -201,7 +207,8 @@ def _variables(setup: StudySetup, x0: np.ndarray, x1: np.ndarray, ints0: Mapping
     return out
 
 
-def _holes_block(setup0: Any, holes0: Sequence[Hole], setup1: Any, holes1: Sequence[Hole]) -> dict[str, Any]:
+def _holes_block(setup0: StudySetup, holes0: Sequence[Hole], setup1: StudySetup,
+                 holes1: Sequence[Hole]) -> dict[str, Any]:
     return {"before": [hole_dict(h, i, setup0.fixed_mask[i], setup0.movable_mask[i]) for i, h in enumerate(holes0)],
             "after": [hole_dict(h, i, setup1.fixed_mask[i], setup1.movable_mask[i]) for i, h in enumerate(holes1)]}
 
@@ -227,14 +234,14 @@ def _normalisation(setup: StudySetup) -> dict[str, Any]:
             **({"sources": d["sources"]} if "sources" in d else {})}
 
 
-def trajectory_info(traj: Any) -> dict[str, Any]:
+def trajectory_info(traj: Trajectory) -> dict[str, Any]:
     """Kind, sample count, duration and the sampled camera poses (``T_task_cam`` (L, 4, 4), mm; ``time_s``)."""
     table_kind = getattr(traj, "name", "") or ""
     return {"kind": table_kind, "n_samples": len(traj), "duration_s": float(traj.duration_s),
             "time_s": np.asarray(traj.times_s, float), "T_task_cam": np.asarray(traj.T_task_cam, float)}
 
 
-def half_image(camera: Any) -> float:
+def half_image(camera: Camera) -> float:
     return 0.5 * min(camera.width, camera.height)
 
 
@@ -246,8 +253,8 @@ class _Start:
     scene: Any
     base: StudySetup
     setups: list[StudySetup]
-    m0: Any
-    pre: Any
+    m0: Measures
+    pre: Preflight
     obj0: dict[str, float]
     comb0: float | None
 
@@ -256,8 +263,8 @@ class _Start:
 class _Optimum:
     """What the optimise phase gives: the best set-up and its optimiser result, the history, interrupted?"""
 
-    setup: Any
-    res: Any
+    setup: StudySetup
+    res: OptimResult
     history: list[dict[str, Any]]
     interrupted: bool
 
@@ -272,7 +279,7 @@ class _Delivered:
     holes1: list[Hole]
     pred_err: float
     shop: dict[str, Any]
-    res: Any
+    res: OptimResult
     rebuild_failure: str | None
 
 
@@ -314,10 +321,8 @@ def compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], d
     return results, shapes
 
 
-def _pose_accuracy(config: StudyConfig, start: _Start, setup: Any, done: _Delivered) -> dict[str, Any]:
+def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: _Delivered) -> dict[str, Any]:
     """results.json ``pose_accuracy`` (``study.pose_accuracy``): predicted pose error before and after."""
-    from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy
-
     base = start.base
     return pose_accuracy(config, base, base.holes0, part_mesh(config, base.shape0, base.problem.occlusion_mesh),
                          setup, done.holes1, part_mesh(config, done.shape1))
@@ -326,24 +331,21 @@ def _pose_accuracy(config: StudyConfig, start: _Start, setup: Any, done: _Delive
 def _set_up(config: StudyConfig) -> _Start:
     """The part as it is and every set-up to optimise; the pre-flight refuses a study that cannot mean
     anything before any optimisation."""
-    from cadfeat.design.memory import check_fits
-    from cadfeat.study.setup import int_grid, load_scene, setup_script, setup_study
-
     scene = load_scene(config)
     check_fits(len(scene[1]), occlusion=config.objective.occlusion, robustness_samples=config.robustness.samples,
                what=config.label)  # issue 16: refuse what cannot fit in memory, before any CAD work
     combos = int_grid(config) if config.study.part_kind == "script" else [{}]
     if config.study.part_kind == "step":
-        base = setup_study(config)
+        base = study_setup.setup_study(config)
         setups = [base]
         m0 = measure_holes(base, base.holes0)
         pre = preflight_setup(config, base, m0)  # refuses a study that cannot mean anything, before any work
     else:  # "before" = the part's own integer values; the others share its objective scales
         defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
-        base = setup_script(config, defaults, scene)
+        base = study_setup.setup_script(config, defaults, scene)
         m0 = measure_holes(base, base.holes0)
         pre = preflight_setup(config, base, m0)  # before the other combinations (and before any optimisation)
-        setups = [base] + [setup_script(config, c, scene, base.problem.normaliser) for c in combos
+        setups = [base] + [study_setup.setup_script(config, c, scene, base.problem.normaliser) for c in combos
                            if c != defaults]
         if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
             setups = setups[1:]
@@ -398,7 +400,7 @@ def _rebuild_delivered(setup: StudySetup, x1: np.ndarray, x_opt: np.ndarray, ver
     return x_opt, None, rebuild(setup, x_opt, verified)
 
 
-def _deliver(setup: Any, opt: _Optimum, prog: StudyProgress, shopped: tuple[Any, ...]) -> _Delivered:
+def _deliver(setup: StudySetup, opt: _Optimum, prog: StudyProgress, shopped: tuple[Any, ...]) -> _Delivered:
     """The CAD rebuild of the shop-rounded optimum; when the linear feature model's optimum does not build,
     an infeasible point: search again with CAD in the loop, round that optimum for the shop, rebuild."""
     x_opt, x1, shop, targets, model, verified = shopped
@@ -428,8 +430,6 @@ def _deliver(setup: Any, opt: _Optimum, prog: StudyProgress, shopped: tuple[Any,
 def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered, after: tuple[Any, ...],
              analysis: tuple[Any, ...]) -> dict[str, Any]:
     """The results.json content of a run (before export: files, verification, timings and verdict follow)."""
-    from cadfeat.study.setup import score_rule
-
     m1, obj1, comb1, checks = after
     sweep, dmat, robust = analysis
     base, setup, res = start.base, opt.setup, done.res
@@ -489,22 +489,18 @@ def part_points(shape: Any, mesh: Any = None, most: int = 4000) -> np.ndarray:
     return v[:: max(1, len(v) // most)]
 
 
-def preflight_setup(config: StudyConfig, setup: Any, m: Any) -> Any:
+def preflight_setup(config: StudyConfig, setup: StudySetup, m: Measures) -> Preflight:
     """``preflight.preflight`` of a set-up study with the measures ``m`` of its holes along the trajectory."""
-    from cadfeat.study.preflight import preflight
-
     pts = part_points(setup.shape0, getattr(setup.problem, "occlusion_mesh", None))
     return preflight(config, setup.camera, setup.trajectory, setup.T_task_part, pts, m, scored_mask(setup),
                      setup.hole_names)
 
 
 def _mesh_of(config: StudyConfig, shape: Any) -> Any:
-    from cadfeat.study.setup import occlusion_mesh
-
     return occlusion_mesh(config, shape)
 
 
-def scored_mask(setup: Any) -> np.ndarray:
+def scored_mask(setup: StudySetup) -> np.ndarray:
     mask = getattr(setup.problem, "feature_mask", None)
     return np.ones(len(setup.holes0), bool) if mask is None else np.asarray(mask, bool)
 
@@ -512,8 +508,6 @@ def scored_mask(setup: Any) -> np.ndarray:
 def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Any, list[Hole], float], targets: Any,
                  info: dict[str, Any], model: Any) -> tuple[np.ndarray, Any, list[Hole], float]:
     """``shop.refine_on_rebuild`` on the study's CAD rebuild; ``info["rebuilt_off_target_mm"]``: what remains."""
-    from cadfeat.design.shop import refine_on_rebuild
-
     x, (shape, holes, err), off = refine_on_rebuild(setup.space, model, setup.problem, x, rebuilt, targets,
                                                     lambda x_new, guess: rebuild(setup, x_new, guess))
     info["rebuilt_off_target_mm"] = off
@@ -525,8 +519,6 @@ def _shop(setup: StudySetup, x: np.ndarray, model: Any = None) -> tuple[np.ndarr
     """The shop-ready design near the optimum ``x`` (``cadfeat.design.shop``, study ``[shop]``) and its
     results.json block; the optimum itself when rounding would break a kept requirement of the model (the
     rebuilt design is verified on the B-rep and the STEP either way)."""
-    from cadfeat.design.shop import hole_sizes, shop_design
-
     spec = setup.config.shop
     sizes = hole_sizes(spec.hole_sizes)
     info: dict[str, Any] = {"grid_mm": spec.grid_mm, "hole_sizes": spec.hole_sizes if isinstance(spec.hole_sizes, str)
@@ -560,10 +552,6 @@ def _robustness(setup: StudySetup, holes0: Sequence[Hole], holes1: Sequence[Hole
                 combined_before: float | None) -> dict[str, Any] | None:
     """Objective drops of the delivered design under the study's ``[robustness]`` tolerances (sampled on
     features, ``cadfeat.design.robustness``); the holes the shop makes anew are the moved or resized ones."""
-    from cadfeat.cad.features import holes_to_arrays
-    from cadfeat.design.robustness import robustness
-    from cadfeat.design.shop import hole_sizes
-
     spec = setup.config.robustness
     if spec.samples <= 0 or len(holes0) != len(holes1):
         return None
@@ -578,8 +566,6 @@ def _robustness(setup: StudySetup, holes0: Sequence[Hole], holes1: Sequence[Hole
 
 def _patterns(base: StudySetup, holes1: Sequence[Hole]) -> list[dict[str, Any]]:
     """The original's hole patterns with a movable hole (``cadfeat.design.patterns``), each with ``broken``."""
-    from cadfeat.design.patterns import check_patterns, find_patterns
-
     movable = np.asarray(base.movable_mask, bool)
     found = [p for p in find_patterns(base.holes0) if movable[list(p.holes)].any()]
     return check_patterns(found, list(holes1), base.hole_names) if len(holes1) == len(base.holes0) else []
@@ -595,6 +581,6 @@ def _requirements_used(setup: StudySetup, x: np.ndarray) -> list[dict[str, Any]]
     return [{"name": k, "holes": list(h), "margin": float(m)} for (k, h), m in zip(labels, margins, strict=True)]
 
 
-def _x0_like(setup: StudySetup, base: Any) -> np.ndarray:
+def _x0_like(setup: StudySetup, base: StudySetup) -> np.ndarray:
     """The before-values of ``setup``'s continuous variables (the part defaults, as in ``base``)."""
     return np.asarray(base.space.x0, float) if base.space.names == setup.space.names else setup.space.x0

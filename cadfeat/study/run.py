@@ -31,11 +31,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat import measures, report
 from cadfeat._version import __version__
+from cadfeat.cad.features import holes_to_arrays
 from cadfeat.cad.features.identity import hole_names
+from cadfeat.cad.parts import load_part
 from cadfeat.cad.sandbox import build_time_limit
+from cadfeat.design.objectives import objective_values
 from cadfeat.errors import CadfeatError
+from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
+from cadfeat.results import StudyResults
 from cadfeat.study import closed_loop_check
 from cadfeat.study.output_folder import staged_output
 from cadfeat.study.outputs import (
@@ -46,7 +52,7 @@ from cadfeat.study.outputs import (
     now_iso,
     plain,
     versions,
-    write_json,
+    write_results,
 )
 from cadfeat.study.pipeline import (
     compute,
@@ -57,15 +63,22 @@ from cadfeat.study.pipeline import (
     scored_mask,
     trajectory_info,
 )
+from cadfeat.study.preflight import preflight
 from cadfeat.study.progress import StudyProgress
 from cadfeat.study.schema import StudyConfig, StudyError, load_study
+from cadfeat.study.setup import load_scene, occlusion_mesh, score_rule, setup_study
 from cadfeat.study.trust import objective_changes
 from cadfeat.study.verify import (
     export_and_verify,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
-    pass
+    from cadfeat.cad.features import Hole
+    from cadfeat.camera import Camera
+    from cadfeat.design.problem import Problem
+    from cadfeat.measures.evaluate import Measures
+    from cadfeat.study.preflight import Preflight
+    from cadfeat.trajectory import Trajectory
 
 __all__ = ["EXPORTS_DIR", "StudyResult", "evaluate_study", "run_study"]
 
@@ -80,6 +93,11 @@ class StudyResult:
 
     out_dir: Path | None
     results: dict[str, Any]
+
+    @property
+    def typed(self) -> StudyResults:
+        """The results as the typed model (``cadfeat.results.StudyResults``), as results.json holds them."""
+        return StudyResults.from_data(plain(self.results))
 
     def summary(self) -> str:
         """A short human-readable before/after summary."""
@@ -165,14 +183,9 @@ def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int
     return StudyResult(Path(out), results)
 
 
-def preflight_study(path_or_dict: Any) -> Any:
+def preflight_study(path_or_dict: Any) -> Preflight:
     """The pre-flight of a study on its part as it is (``cadfeat validate``): every hole counts as scored
     (which holes the design moves needs the design map, which ``run`` builds)."""
-    from cadfeat import measures
-    from cadfeat.cad.features import holes_to_arrays
-    from cadfeat.study.preflight import preflight
-    from cadfeat.study.setup import load_scene, occlusion_mesh
-
     config = _resolve(path_or_dict, None)
     camera, traj, T_task_part = load_scene(config)
     shape, holes, _, names = _current_design(config)
@@ -191,8 +204,6 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
     t0 = time.perf_counter()
     results["constraints"], results["verification"] = export_and_verify(config, stage, shapes,
                                                                         results["constraints"])
-    from cadfeat.report.holes import write_holes_csv
-
     write_holes_csv(stage / "holes.csv", plain(results))
     results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl",
                                                                  "holes.csv")]
@@ -200,7 +211,7 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
     results["versions"] = versions()
     closed_loop_check.attach(config, results, shapes, stage, prog)  # the closed loop confirms (issue 17)
     results["verdict"] = verdict_json(plain(results))
-    write_json(stage / "results.json", results)
+    write_results(stage / "results.json", results)
     _report(stage, results, shapes, prog)
 
 
@@ -208,8 +219,6 @@ def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], pro
     """``cadfeat.report.write_report`` if that module exists (the report helper's)."""
     if importlib.util.find_spec("cadfeat.report") is None:
         return
-    from cadfeat import report
-
     setup = shapes["setup"]
     fixed = getattr(setup, "fixed_mask", None)
     context = report.ReportContext(  # camera views at each hole's worst pose (the report's default)
@@ -239,8 +248,6 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
 
 
 def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: bool, echo: bool) -> dict[str, Any]:
-    from cadfeat.study.setup import load_scene, score_rule, setup_study
-
     with StudyProgress(config.study.name, enabled=not quiet) as prog:
         with prog.phase("setup"):
             camera, traj, T_task_part = load_scene(config)
@@ -293,7 +300,7 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
     if echo:
         print(format_table(results, pose))
     if stage is not None:
-        write_json(stage / "results.json", results)
+        write_results(stage / "results.json", results)
         same = {**results,
                 "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
                 "measures": {"before": summary, "after": summary},
@@ -307,14 +314,14 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
 @dataclass
 class _EvalSetup:
     config: StudyConfig
-    camera: Any
-    trajectory: Any
+    camera: Camera
+    trajectory: Trajectory
     T_task_part: np.ndarray
-    holes0: list[Any]
+    holes0: list[Hole]
     fixed_mask: np.ndarray
 
 
-def _current_design(config: StudyConfig) -> tuple[Any, list[Any], np.ndarray, list[str]]:
+def _current_design(config: StudyConfig) -> tuple[Any, list[Hole], np.ndarray, list[str]]:
     """The part as it is (defaults / the STEP file): solid, holes, fixed mask (STEP: holes not in the design;
     scripts: the holes the script declares functional)."""
     if config.study.part_kind == "step":
@@ -327,8 +334,6 @@ def _current_design(config: StudyConfig) -> tuple[Any, list[Any], np.ndarray, li
             with contextlib.suppress(CadfeatError):
                 fixed[holes.index(step.select(list(h.select) if isinstance(h.select, tuple) else h.select))] = False
         return step.shape, holes, fixed, [h.name for h in holes]
-    from cadfeat.cad.parts import load_part
-
     part = load_part(config.study.part_path)
     shape = part.build()
     holes = part.holes()
@@ -336,7 +341,7 @@ def _current_design(config: StudyConfig) -> tuple[Any, list[Any], np.ndarray, li
     return shape, holes, fixed, hole_names(holes)
 
 
-def _single_pose(traj: Any, k: int) -> Any:
+def _single_pose(traj: Trajectory, k: int) -> _OnePose:
     """A one-sample view of a trajectory at sample ``k`` (with the full trajectory's velocity screw there)."""
     return _OnePose(traj, k)
 
@@ -344,7 +349,7 @@ def _single_pose(traj: Any, k: int) -> Any:
 class _OnePose:
     """A trajectory view with exactly one sample (``len == 1``), for single-pose evaluation."""
 
-    def __init__(self, traj: Any, k: int) -> None:
+    def __init__(self, traj: Trajectory, k: int) -> None:
         self.T_task_cam = np.asarray(traj.T_task_cam)[k:k + 1]
         self.times_s = np.asarray(traj.times_s)[k:k + 1]
         self._screws = np.asarray(traj.velocity_screws())[k:k + 1]
@@ -358,11 +363,9 @@ class _OnePose:
         return self._screws
 
 
-def _plain_objectives(config: StudyConfig, m: Any, problem: Any) -> dict[str, float]:
+def _plain_objectives(config: StudyConfig, m: Measures, problem: Problem) -> dict[str, float]:
     """The aggregated objectives of measures ``m`` exactly as the optimiser scores them (the problem's scored
     holes ``feature_mask`` and natural units for the smooth min)."""
-    from cadfeat.design.objectives import objective_values
-
     return objective_values(m, config.objective, problem.units, problem.feature_mask)
 
 

@@ -21,11 +21,23 @@ import dataclasses
 import itertools
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.design_map import design_map, reference_design_map
+from cadfeat.cad.export import import_step, mesh_from_shape, shape_volume_mm3
+from cadfeat.cad.features import extract_holes
 from cadfeat.cad.features.identity import hole_name, hole_names
+from cadfeat.cad.parts import load_part
+from cadfeat.cad.sandbox import call_with_time_limit
+from cadfeat.cad.step_parts import dry_run, load_step, redrill
+from cadfeat.design.constraints import ConstraintConfig, SymmetryPair
+from cadfeat.design.design_space import DesignSpace, HoleMoveModel, LinearFeatureModel, Variable
+from cadfeat.design.hole_form import variable_kind
+from cadfeat.design.patterns import find_patterns
+from cadfeat.design.problem import Problem
 from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError
 
@@ -35,6 +47,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.constraints import ConstraintConfig
     from cadfeat.design.design_space import DesignSpace, FeatureModel
     from cadfeat.design.problem import Problem
+    from cadfeat.study.settings.design import DesignSpec, Selector
     from cadfeat.trajectory import Trajectory
 
 __all__ = ["MAX_INT_COMBINATIONS", "StudySetup", "int_grid", "setup_study"]
@@ -82,12 +95,10 @@ def load_scene(config: StudyConfig) -> tuple[Camera, Trajectory, np.ndarray]:
     return config.camera.build(), config.trajectory.build(), config.part_pose.T_task_part
 
 
-def constraint_config(config: StudyConfig, holes: Sequence[Any] = (), movable: Sequence[int] = (),
-                      volume_mm3: float | None = None, mirror_tol_mm: float = 1e-6) -> Any:
+def constraint_config(config: StudyConfig, holes: Sequence[Hole] = (), movable: Sequence[int] = (),
+                      volume_mm3: float | None = None, mirror_tol_mm: float = 1e-6) -> ConstraintConfig:
     """``constraints.ConstraintConfig`` of a study; ``symmetry`` becomes the mirror pairs among the movable
     ``holes`` (about the part's x = 0 / y = 0 planes); ``volume_mm3`` is the original part volume."""
-    from cadfeat.design.constraints import ConstraintConfig, SymmetryPair
-
     c = config.constraints
     frac = None if c.volume_change_max_percent is None else c.volume_change_max_percent / 100.0
     pairs = tuple(SymmetryPair(i, j, (0.0, 0.0, 0.0), normal)
@@ -101,9 +112,6 @@ def constraint_config(config: StudyConfig, holes: Sequence[Any] = (), movable: S
 
 def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Any = None) -> tuple[Any, Any]:
     """The ``Problem`` and its ``ConstraintConfig`` (``normaliser``: share another problem's scales)."""
-    from cadfeat.cad.export import shape_volume_mm3
-    from cadfeat.design.problem import Problem
-
     movable = np.flatnonzero(~np.asarray(args["fixed_mask"], bool))
     part = args.get("part")
     tol = max(1e-6, 10 * part.tolerance.linear_mm) if hasattr(part, "tolerance") else 1e-6
@@ -121,12 +129,10 @@ def occlusion_mesh(config: StudyConfig, shape: Any) -> Any:
     it) is tested against it, so a hole moved behind an upright is hidden, one moved out from behind it seen."""
     if not getattr(config.objective, "occlusion", True):
         return None
-    from cadfeat.cad.export import mesh_from_shape
-
     return mesh_from_shape(shape, tolerance=0.05)
 
 
-def score_mask(config: StudyConfig, holes: Sequence[Any], movable: np.ndarray) -> np.ndarray:
+def score_mask(config: StudyConfig, holes: Sequence[Hole], movable: np.ndarray) -> np.ndarray:
     """(N,) bool: the holes whose FOV/focus/resolution are scored (``objective.score``): "movable" (default;
     every hole when none moves), "all", or a list of hole names (``H<i>`` or the part's own names) — the same
     rule in ``evaluate`` and ``run``."""
@@ -148,7 +154,7 @@ def score_mask(config: StudyConfig, holes: Sequence[Any], movable: np.ndarray) -
     return mask
 
 
-def score_rule(config: StudyConfig, holes: Sequence[Any], mask: np.ndarray) -> str:
+def score_rule(config: StudyConfig, holes: Sequence[Hole], mask: np.ndarray) -> str:
     """One line naming the scored holes and the rule that chose them (output and report)."""
     rule = getattr(config.objective, "score", "movable")
     names = hole_names(holes)
@@ -156,7 +162,7 @@ def score_rule(config: StudyConfig, holes: Sequence[Any], mask: np.ndarray) -> s
     return f"objective.score = {label}: " + ", ".join(n for n, m in zip(names, mask, strict=True) if m)
 
 
-def _select(config: StudyConfig, holes: Sequence[Any], spec: Any, key: str, tol_mm: float = 0.01) -> int:
+def _select(config: StudyConfig, holes: Sequence[Hole], spec: Selector, key: str, tol_mm: float = 0.01) -> int:
     """Index of the hole a selector names: 1-based index, name ("H2" or the hole's name), or position."""
     listing = ", ".join(f"{h.name or f'H{i + 1}'} ({', '.join(f'{x:.6g}' for x in h.centre)})"
                         for i, h in enumerate(holes)) or "none"
@@ -195,16 +201,11 @@ def int_grid(config: StudyConfig) -> list[dict[str, int]]:
 
 
 def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = None,
-                 scene: tuple[Any, Any, np.ndarray] | None = None, normaliser: Any = None,
+                 scene: tuple[Camera, Trajectory, np.ndarray] | None = None, normaliser: Any = None,
                  at: Mapping[str, Any] | None = None) -> StudySetup:
     """Setup of a part-script study with the integer parameters at ``int_values`` (default: their defaults);
     ``normaliser``: the objective scales of another setup (so that integer combinations compare); ``at``:
     linearise at these continuous parameter values instead of the part's defaults."""
-    from cadfeat.cad.design_map import design_map, reference_design_map
-    from cadfeat.cad.parts import load_part
-    from cadfeat.design.design_space import DesignSpace, LinearFeatureModel, Variable
-    from cadfeat.design.hole_form import variable_kind
-
     camera, trajectory, T_task_part = scene or load_scene(config)
     part = load_part(config.study.part_path)
     specs = [p for p in config.design.parameters if not p.is_int]
@@ -266,18 +267,13 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
                       linear=bool(getattr(dm, "linear", True)), int_values=ints, part=part)
 
 
-def _extract(shape: Any, prefer_direction: Any = None, tol: Any = None) -> list[Any]:
-    from cadfeat.cad.features import extract_holes
-
+def _extract(shape: Any, prefer_direction: Any = None, tol: Any = None) -> list[Hole]:
     return extract_holes(shape, prefer_direction=prefer_direction, tol=tol)
 
 
 # ----------------------------------------------------------------------------------------- STEP
-def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = None) -> StudySetup:
+def setup_step(config: StudyConfig, scene: tuple[Camera, Trajectory, np.ndarray] | None = None) -> StudySetup:
     """Setup of a STEP study: the selected holes move in their host face planes (``HoleMoveModel``)."""
-    from cadfeat.cad.step_parts import load_step
-    from cadfeat.design.design_space import HoleMoveModel
-
     camera, trajectory, T_task_part = scene or load_scene(config)
     view = config.design.view_direction or camera_direction(config.study.part_path, trajectory, T_task_part)
     step = load_step(config.study.part_path, prefer_direction=view)
@@ -315,7 +311,7 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
                 fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
     problem, cc = _problem(args, config)
 
-    def rebuild_holes(shape: Any) -> list[Any]:  # as the part was read: the same entrance side and tolerances
+    def rebuild_holes(shape: Any) -> list[Hole]:  # as the part was read: the same entrance side and tolerances
         holes = _extract(shape, view, step.tolerance)
         return [dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(holes)]
 
@@ -328,18 +324,13 @@ def setup_step(config: StudyConfig, scene: tuple[Any, Any, np.ndarray] | None = 
 
 def _timed_redrill(config: StudyConfig, step: Any, moves: Sequence[Any]) -> Any:
     """``step_parts.redrill`` within the study's ``build_timeout_s`` (a worker process, as part-script builds)."""
-    from cadfeat.cad.sandbox import call_with_time_limit
-    from cadfeat.cad.step_parts import redrill
-
     return call_with_time_limit(redrill, (step.shape, list(moves), step.tolerance, step.path),
                                 f"{config.study.part_path}: re-drilling {len(moves)} hole(s)")
 
 
-def camera_direction(part_path: Any, trajectory: Any, T_task_part: np.ndarray) -> np.ndarray | None:
+def camera_direction(part_path: Path, trajectory: Trajectory, T_task_part: np.ndarray) -> np.ndarray | None:
     """Unit direction (part frame) from the part towards the camera: the mean of the directions from the
     part's bounding-box centre to the trajectory's camera positions (None if they cancel out)."""
-    from cadfeat.cad.export import import_step
-
     box = import_step(part_path).BoundingBox()
     centre = np.array([box.center.x, box.center.y, box.center.z])
     T_part_task = np.linalg.inv(np.asarray(T_task_part, float))
@@ -369,8 +360,6 @@ def check_step_study(config: StudyConfig) -> str:
     """What ``cadfeat validate`` adds for a STEP study: load the part (holes, entrances from the camera side),
     resolve the hole selectors, the offset limits, and dry-run every movable hole (``step_dry_run``).
     Returns a one-line summary; raises ``StudyError`` naming the study, key, hole and why."""
-    from cadfeat.cad.step_parts import load_step
-
     _, trajectory, T_task_part = load_scene(config)
     view = config.design.view_direction or camera_direction(config.study.part_path, trajectory, T_task_part)
     step = load_step(config.study.part_path, prefer_direction=view)
@@ -389,8 +378,6 @@ def check_step_study(config: StudyConfig) -> str:
 def step_dry_run(config: StudyConfig, step: Any, movable: Sequence[int]) -> None:
     """Re-drill every movable hole once, slightly moved (and resized where asked), before any optimisation:
     ``StudyError`` naming the study, the key, the hole and why, if one cannot be re-drilled."""
-    from cadfeat.cad.step_parts import dry_run
-
     for i, (spec, j) in enumerate(zip(config.design.holes, movable, strict=True)):
         try:
             dry_run(step, [step.holes[j]], [spec.resize])
@@ -398,15 +385,13 @@ def step_dry_run(config: StudyConfig, step: Any, movable: Sequence[int]) -> None
             raise StudyError(f"{config.label}: design.holes[{i}]: {exc}") from None
 
 
-def _keep_patterns(holes: Sequence[Any], movable: Sequence[int], patterns: list[list[int]],
+def _keep_patterns(holes: Sequence[Hole], movable: Sequence[int], patterns: list[list[int]],
                    mirrors: list[tuple[int, int, tuple[float, float, float]]]
                    ) -> tuple[list[list[int]], list, list[int]]:
     """``[shop] keep_patterns``: the bolt circles and grids of the original (``cadfeat.design.patterns``) whose
     holes are all movable move together (one shared offset: the pattern is translated); mirror pairs of movable
     holes move as mirror images; a movable hole of a pattern whose other holes are fixed is pinned (a single
     bolt moved off its circle breaks the circle). Explicit ``design.patterns`` and symmetry pairs come first."""
-    from cadfeat.design.patterns import find_patterns
-
     mov = set(movable)
     taken = {i for p in patterns for i in p} | {i for m in mirrors for i in m[:2]}
     patterns, mirrors, pinned = list(patterns), list(mirrors), []
@@ -424,12 +409,10 @@ def _keep_patterns(holes: Sequence[Any], movable: Sequence[int], patterns: list[
     return patterns, mirrors, pinned
 
 
-def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Sequence[int],
-                   pinned: Sequence[int] = ()) -> Any:
+def _limit_offsets(space: DesignSpace, holes: Sequence[Hole], design: DesignSpec, movable: Sequence[int],
+                   pinned: Sequence[int] = ()) -> DesignSpace:
     """Per-hole ``max_offset_mm`` (and ``move = false`` or ``pinned`` to keep a pattern: position pinned to
     ±1 µm) applied to the (s, t) bounds of ``HoleMoveModel.design_space``."""
-    from cadfeat.design.design_space import DesignSpace
-
     limits = {}
     for spec, j in zip(design.holes, movable, strict=True):
         label = hole_name(holes[j], j)
@@ -445,7 +428,7 @@ def _limit_offsets(space: Any, holes: Sequence[Any], design: Any, movable: Seque
     return DesignSpace(variables, space.x0)
 
 
-def _mirror_pairs(holes: Sequence[Any], movable: Sequence[int], patterns: Sequence[Sequence[int]],
+def _mirror_pairs(holes: Sequence[Hole], movable: Sequence[int], patterns: Sequence[Sequence[int]],
                   symmetry: str, tol_mm: float = 1e-6) -> list[tuple[int, int, tuple[float, float, float]]]:
     """(leader, follower, plane normal) for movable holes that mirror each other about x = 0 / y = 0 (centres
     reflected onto each other, equal radii)."""

@@ -66,3 +66,18 @@ def test_holes_at_a_design():
     out = holes_at(Model, np.array([1.0, 4.0]))
     np.testing.assert_allclose(out[1].centre, [11.0, 1.0, 6.0])
     assert [h.radius_mm for h in out] == [4.0] * 4 and [h.name for h in out] == ["A", "", "", "D"]
+
+
+def test_unbounded_pairing_follows_holes_moved_far_and_leaves_extras_unpaired():
+    """``bounded=False`` (Part.name_holes: the default build vs a build at other parameters): holes moved by a
+    parameter well past any tolerance (a uniform 3 mm shift, planted permutation) keep their pairing; a hole
+    flipped end for end still pairs (sign-free axis term); the hole with no counterpart is left unpaired."""
+    perm = [3, 1, 0, 2]
+    moved = [_hole(*(REFERENCE[k].centre[:2] + 3.0), r=REFERENCE[k].radius_mm,
+                   axis=(0.0, 0.0, -1.0) if k == 1 else (0.0, 0.0, 1.0)) for k in perm]
+    with pytest.raises(CadfeatError):
+        pair_holes(REFERENCE, moved)  # 4.2 mm away: not the same holes for the bounded pairing
+    assert [perm[i] for i in pair_holes(REFERENCE, moved, bounded=False)] == [0, 1, 2, 3]
+    three = [moved[i] for i in (0, 1, 3)]  # REFERENCE[0] has no counterpart
+    idx = pair_holes(REFERENCE, three, bounded=False)
+    assert idx[0] == -1 and [perm[(0, 1, 3)[i]] for i in idx[1:]] == [1, 2, 3]

@@ -6,7 +6,6 @@ numbers must be equal); the refusal at set-up is checked on the largest trajecto
 from __future__ import annotations
 
 import copy
-import dataclasses
 
 import numpy as np
 import pytest
@@ -110,7 +109,7 @@ def test_the_largest_trajectory_without_occlusion_is_evaluated_in_chunks(setup, 
     traj = load_study(study).trajectory.build()
     p0 = setup.problem
     p = Problem(p0.space, p0.model, p0.camera, traj, p0.T_task_part,
-                dataclasses.replace(p0.objective_config, occlusion=False) if hasattr(p0.objective_config, "occlusion")
+                p0.objective_config.replace(occlusion=False) if hasattr(p0.objective_config, "occlusion")
                 else p0.objective_config, p0.constraint_config, p0.fixed_mask, normaliser=p0.normaliser,
                 feature_mask=p0.feature_mask)
     c, a, r = _design(setup)

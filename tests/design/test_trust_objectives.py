@@ -52,7 +52,7 @@ def test_thesis_combined_optimum_does_not_depend_on_the_start(combined_setup):
 
 def test_initial_normalisation_stays_start_dependent(combined_setup):
     """The documented option: with 'initial' the optimum moves with the start (why it is not the default)."""
-    cfg = dataclasses.replace(combined_setup.problem.objective_config, normalisation="initial")
+    cfg = combined_setup.problem.objective_config.replace(normalisation="initial")
     xs = []
     for d in (3.0, 6.0):  # the issue: 3.0 → 3.0, 6.0 → 2.738
         p = combined_setup.problem

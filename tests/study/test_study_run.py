@@ -14,6 +14,7 @@ import json
 import re
 from pathlib import Path
 
+import jsonschema
 import numpy as np
 import pytest
 from study_helpers import DATA, PLATE, STEP, compare_results_tool
@@ -155,6 +156,11 @@ def test_same_seed_same_results(tmp_path, monkeypatch):
     b = run_study(copy.deepcopy(SMALL), tmp_path / "b", quiet=True, seed=3)
     assert compare_results_tool().compare_files(tmp_path / "a", tmp_path / "b") == []  # tools/compare_results.py
     ja = json.loads((tmp_path / "a" / "results.json").read_text())
+    from cadfeat.results import StudyResults, results_json_schema
+
+    jsonschema.Draft202012Validator(results_json_schema()).validate(ja)  # a run's results meet the schema
+    assert StudyResults.read(tmp_path / "a").to_data() == ja and StudyResults.read(tmp_path / "a").is_run
+    assert compare_results_tool().compare(a.typed.to_data(), ja) == []  # run_study's return is what it wrote
     assert a.results["study"]["seed"] == 3 and ja["inputs"]["optimizer"]["seed"] == 3
     for name in ("original.step", "optimised.step", "optimised.stl"):
         assert sha(tmp_path / "a" / name) == sha(tmp_path / "b" / name)

@@ -78,7 +78,7 @@ def test_part_parameters_built_by_code_are_loaded(tmp_path, monkeypatch):
     script = tmp_path / "p.py"
     script.write_text("PARAMETERS = {}\nfor k in ('a', 'b'):\n    PARAMETERS[k] = {'default': 1.0, 'bounds': (0, 2)}\n")
     seen = []
-    monkeypatch.setattr(part_parameters_module, "_parameters_by_loading", lambda path: seen.append(path) or {})
+    monkeypatch.setattr(part_parameters_module, "_parameters_by_loading", lambda path, limit: seen.append(path) or {})
     part_parameters(script)
     assert seen == [script]
 

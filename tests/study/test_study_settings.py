@@ -44,7 +44,9 @@ def test_every_study_file_meets_the_schema(validator):
 @pytest.mark.parametrize("section,key,value", [("objective", "agregate", "sum"), ("objective", "combine", "product"),
                                                ("tracking", "r_px2", -1.0), ("optimizer", "maxiter", 1.5),
                                                ("shop", "grid_mm", 20.0), ("study", "nmae", "x"),
-                                               ("objective", "pose_aggregate", "mean")])
+                                               ("objective", "pose_aggregate", "mean"),
+                                               ("part_pose", "position_mm", [0, 0]), ("camera", "focal_mm", 3.0),
+                                               ("design", "fixed", "H1"), ("study", "seed", -1)])
 def test_schema_refuses_what_load_study_refuses(validator, tmp_path, section, key, value):
     data = copy.deepcopy(BASE)
     data.setdefault(section, {})[key] = value

@@ -248,7 +248,8 @@ def extract_holes(shape: Any, prefer_direction: Sequence[float] | None = None, t
     do not flip the choice; relative tolerance 1e-6), (4) the outward axis that is larger in (z, y, x)
     lexicographic order (e.g. +z for a vertical hole through a plate).
 
-    Holes are sorted by (axis, centre) rounded to 1e-9; values keep full precision.
+    Holes are sorted by (axis, centre) rounded to 1e-9 and named ``H1``, ``H2``, … in that order (never
+    unnamed: ``Part.holes`` / STEP parts rename them to keep a physical hole's name); values keep full precision.
 
     Tolerances (coaxial faces, equal radii, parallel normals) are ``tol`` (a ``cadfeat.cad.tolerance.
     ModelTolerance``), by default scaled to the model (its size and B-rep tolerances), so that real exports

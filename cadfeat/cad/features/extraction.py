@@ -42,6 +42,7 @@ from OCP.TopoDS import TopoDS
 from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape, TopTools_IndexedMapOfShape
 
 from cadfeat.cad.features import OUTLINE_CHORD_ERROR_MM, FaceOutline, Hole
+from cadfeat.cad.features.identity import named
 
 ANGLE_TOL_RAD = 1e-7  # defaults only: the extractor uses the model's ModelTolerance (cadfeat.cad.tolerance)
 LINEAR_TOL_MM = 1e-6
@@ -681,8 +682,8 @@ def extract_holes(shape, prefer_direction: Sequence[float] | None = None, tol=No
 
 def extract_holes_and_skipped(shape, prefer_direction: Sequence[float] | None = None,
                               tol=None) -> tuple[list[Hole], list[SkippedHole]]:
-    """The holes (as ``extract_holes``) and the skipped near-round openings, with tolerances ``tol``
-    (``ModelTolerance``; default: scaled to ``shape``)."""
+    """The holes (as ``extract_holes``, named ``H1`` … in their order) and the skipped near-round openings, with
+    tolerances ``tol`` (``ModelTolerance``; default: scaled to ``shape``)."""
     ex = _Extractor(shape, prefer_direction, tol)
     found = [h for g in ex.groups() if (h := ex.hole(g)) is not None]
     rim_edges = set().union(*(edges for _, edges in found)) if found else set()
@@ -693,6 +694,7 @@ def extract_holes_and_skipped(shape, prefer_direction: Sequence[float] | None = 
             outlines[hole.host_face] = ex.outline(hole.host_face, rim_edges)
         holes.append(_with_outline(hole, outlines[hole.host_face]))
     holes.sort(key=lambda h: (tuple(np.round(h.axis, _ORDER)), tuple(np.round(h.centre, _ORDER))))
+    holes = named(holes)  # a hole is named from extraction on: H1 … in this order (identity.DEFAULT_NAME)
     skipped: list[SkippedHole] = []
     for h in sorted(ex.skipped, key=lambda h: -h.radius_mm):  # one entry per axis line (stepped teardrops)
         if not any(np.linalg.norm(np.cross(h.axis, k.axis)) < ex.ang

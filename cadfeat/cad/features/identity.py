@@ -13,6 +13,12 @@ One home for "which hole is which" across rebuilds, re-extractions and STEP roun
   re-extracted without a preferred direction (a through hole may be reported from its other end): the axes
   may point either way, the centre-offset term is the distance of c_j from the reference's axis line
   (admissible within ``tol_mm``), and ‖c_i − c_j‖ breaks ties (nearest on the line first);
+  ``bounded=False`` pairs holes of two designs of a part (a parameter may move a hole any distance; this is
+  how ``Part.name_holes`` ties names to the default build): every pair is admissible, the axis term is
+  sign-free, and holes left over on either side stay unpaired::
+
+      cost_ij = ‖c_i − c_j‖ + |r_i − r_j| + 100 mm · (1 − |a_i · a_j|)
+
 - ``take_names``: paired holes take their reference's names (a hole keeps one name in every output);
 - ``holes_at``: the holes of a feature model at design ``x`` (centre, axis, radius predicted; the rest of each
   hole as the model's own).
@@ -79,13 +85,17 @@ def _costs(reference: Sequence[Hole], candidates: Sequence[Hole], tol_mm: float,
 
 
 def pair_holes(reference: Sequence[Hole], candidates: Sequence[Hole], tol_mm: float = 0.5,
-               axis_tol_rad: float = 1e-3, *, along_axis: bool = False, what: str = "match_holes") -> np.ndarray:
+               axis_tol_rad: float = 1e-3, *, along_axis: bool = False, bounded: bool = True,
+               what: str = "match_holes") -> np.ndarray:
     """``idx`` with ``candidates[idx[i]]`` the hole paired with ``reference[i]`` (module docstring: the cost).
 
     Raises ``CadfeatError`` starting with ``what`` when a reference hole has no admissible candidate or there
-    are fewer candidates than reference holes; extra candidates are left unpaired."""
+    are fewer candidates than reference holes; extra candidates are left unpaired. ``bounded=False``: no
+    tolerances, never raises; ``idx[i] = -1`` for a reference hole left unpaired (fewer candidates)."""
     if len(reference) == 0:
         return np.zeros(0, dtype=int)
+    if not bounded:
+        return _pair_unbounded(reference, candidates)
     if len(candidates) < len(reference):
         raise CadfeatError(f"{what}: {len(reference)} reference holes but only {len(candidates)} candidates")
     cost, admissible = _costs(reference, candidates, tol_mm, axis_tol_rad, along_axis)
@@ -101,6 +111,19 @@ def pair_holes(reference: Sequence[Hole], candidates: Sequence[Hole], tol_mm: fl
             f"tol_mm={tol_mm} mm and axis_tol_rad={axis_tol_rad}"
         raise CadfeatError(f"{what}: reference hole {label} at {np.round(reference[i].centre, 6).tolist()} "
                            f"has no candidate within {within}")
+    return idx
+
+
+def _pair_unbounded(reference: Sequence[Hole], candidates: Sequence[Hole]) -> np.ndarray:
+    idx = np.full(len(reference), -1, dtype=int)
+    if len(candidates) == 0:
+        return idx
+    c_ref, a_ref, r_ref = (np.asarray(v, float) for v in holes_to_arrays(reference))
+    c_can, a_can, r_can = (np.asarray(v, float) for v in holes_to_arrays(candidates))
+    cost = (np.linalg.norm(c_ref[:, None] - c_can[None], axis=-1) + np.abs(r_ref[:, None] - r_can[None])
+            + 100.0 * (1.0 - np.abs(a_ref @ a_can.T)))
+    rows, cols = linear_sum_assignment(cost)
+    idx[rows] = cols
     return idx
 
 

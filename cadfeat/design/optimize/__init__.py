@@ -26,9 +26,10 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar, cast
 
 import numpy as np
+from pydantic import Field, ValidationInfo, model_validator
 
 from cadfeat.design.optimize.evaluator import FEAS_TOL, Evaluator
 from cadfeat.design.optimize.solvers import (
@@ -39,7 +40,7 @@ from cadfeat.design.optimize.solvers import (
     pareto_solve,
     snap_candidates,
 )
-from cadfeat.errors import CadfeatError
+from cadfeat.settings import Settings, boolean, choice, context_of, integer, number, reject, seed_from_context
 
 __all__ = ["FEAS_TOL", "METHODS", "OptimResult", "OptimizerConfig", "optimise", "solve_with_cad"]
 
@@ -47,40 +48,49 @@ METHODS = ("multistart", "local", "global", "pareto")
 LOCAL_SOLVERS = ("SLSQP", "trust-constr")
 
 
-@dataclass(frozen=True)
-class OptimizerConfig:
-    """Solver settings. ``fd_step``: finite-difference step as a fraction of each variable's range;
+class OptimizerConfig(Settings):
+    """Solver settings — and the study file's ``[optimizer]`` (one declaration:
+    ``cadfeat.study.settings.OptimizerSettings`` is this class); ``seed`` defaults to the study's (validation
+    context ``seed``), ``starts``/``maxiter`` are bounded by the study's size limits (context ``limits``).
+    Solver tuning, not study keys: ``fd_step``: finite-difference step as a fraction of each variable's range;
     ``eager_gradients``: evaluate the finite-difference stencil in the same batch as every value request
     (fewer, larger batches: faster on feature models, more evaluations);
     ``ftol``: local solver tolerance; ``de_*``: differential evolution; ``pop_size``/``n_gen``: NSGA-II."""
 
-    method: str = "multistart"
-    starts: int = 8
-    maxiter: int = 100
-    seed: int = 0
-    local_solver: str = "SLSQP"
-    snap_standard_sizes: bool = True
-    fd_step: float = 1e-5
-    eager_gradients: bool = False
-    ftol: float = 1e-9
-    de_maxiter: int = 60
-    de_popsize: int = 12
-    pop_size: int = 40
-    n_gen: int = 40
+    section: ClassVar[str] = "optimizer"
 
-    def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise CadfeatError(f"optimizer.method: {self.method!r} is not one of {', '.join(METHODS)}")
-        if self.local_solver not in LOCAL_SOLVERS:
-            raise CadfeatError(f"optimizer.local_solver: {self.local_solver!r} is not one of "
-                               f"{', '.join(LOCAL_SOLVERS)}")
-        for key in ("starts", "maxiter", "de_maxiter", "de_popsize", "pop_size", "n_gen"):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-                raise CadfeatError(f"optimizer.{key}: must be an integer ≥ 1, got {value!r}")
-        if not (0 < self.fd_step < 0.1):
-            raise CadfeatError(f"optimizer.fd_step: must be in (0, 0.1) (fraction of a variable's range), "
-                               f"got {self.fd_step!r}")
+    method: str = choice("multistart", METHODS)
+    starts: int = Field(8, description="multistart: number of local starts",
+                        json_schema_extra={"minimum": 1, "x-allowed": "an integer ≥ 1 (≤ the study's size limit)"})
+    maxiter: int = Field(100, description="iterations of each local solve",
+                         json_schema_extra={"minimum": 1, "x-allowed": "an integer ≥ 1 (≤ the study's size limit)"})
+    seed: int = integer(0, 0, 2**32 - 1)
+    local_solver: str = choice("SLSQP", LOCAL_SOLVERS)
+    snap_standard_sizes: bool = boolean(True)
+    fd_step: float = number(1e-5, 0.0, 0.1, lo_open=True, hi_open=True, internal=True)
+    eager_gradients: bool = boolean(False, internal=True)
+    ftol: float = number(1e-9, 0.0, lo_open=True, internal=True)
+    de_maxiter: int = integer(60, 1, internal=True)
+    de_popsize: int = integer(12, 1, internal=True)
+    pop_size: int = integer(40, 1, internal=True)
+    n_gen: int = integer(40, 1, internal=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _study_seed(cls, data: object, info: ValidationInfo) -> object:
+        return seed_from_context(data, info)
+
+    @model_validator(mode="after")
+    def _limits(self, info: ValidationInfo) -> OptimizerConfig:
+        """``starts``, ``maxiter`` ≥ 1 and within the study's size limits (context ``limits``), when given."""
+        limits = cast("dict[str, int]", context_of(info).get("limits", {}))
+        for key, limit in (("starts", "optimizer_starts"), ("maxiter", "optimizer_maxiter")):
+            value = cast(int, getattr(self, key))
+            hi = limits.get(limit)
+            if value < 1 or (hi is not None and value > hi):
+                allowed = "an integer ≥ 1" if hi is None else f"an integer in [1, {hi}]"
+                raise reject(key, f"{value} is not allowed", allowed)
+        return self
 
 
 @dataclass

@@ -1,9 +1,10 @@
 """Study-file sections declared once, as pydantic v2 models (strict, unknown keys refused, frozen).
 
-``_base``: the ``Settings`` base, field helpers and ``validate_section`` (a ``ValidationError`` → one
-``StudyError`` line: file, dotted key, what is allowed); ``sections``: ``[constraints]``, ``[shop]``,
-``[robustness]``, ``[tracking]``; ``solve``: ``[objective]``, ``[optimizer]``. The section models are
-the configurations the run uses; objective and optimizer give the design layer's configs (``.config()``).
+The ``Settings`` base, field helpers and ``validate_section`` (a ``ValidationError`` → one ``StudyError`` line:
+file, dotted key, what is allowed) are ``cadfeat.settings`` (``_base`` re-exports them); ``scene``: ``[study]``,
+``[part_pose]``; ``design``: ``[design]``; ``sections``: ``[constraints]``, ``[shop]``, ``[robustness]``,
+``[tracking]``; ``solve``: ``[objective]``, ``[optimizer]``, which ARE the design layer's ``ObjectiveConfig`` and
+``OptimizerConfig``. The section models are the configurations the run uses.
 """
 
 from __future__ import annotations

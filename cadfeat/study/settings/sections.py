@@ -6,7 +6,7 @@ Units are in the key names (mm, percent, deg, s, px², grey levels on the 0..255
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import ValidationInfo, field_validator, model_validator
 
@@ -37,6 +37,8 @@ CHECK_MODES = ("fast", "full", "off")
 class ConstraintSettings(Settings):
     """``[constraints]``: the kept mechanical requirements (mm; percent of the original volume)."""
 
+    section: ClassVar[str] = "constraints"
+
     edge_distance_mm: float = number(1.0, 0.0, description="smallest distance of a hole's rim to its face's edge")
     ligament_mm: float = number(1.0, 0.0, description="smallest wall between two holes")
     volume_change_max_percent: float | None = number(None, 0.0, 100.0, lo_open=True,
@@ -49,6 +51,8 @@ class ShopSettings(Settings):
     ``shop.HOLE_SIZE_TABLES`` or diameters (mm); ``grid_mm``: drawing grid of moved hole positions (0: off);
     ``keep_patterns``: holes forming a pattern in the original move as a pattern (false lets them break)."""
 
+    section: ClassVar[str] = "shop"
+
     hole_sizes: str | Tuple[float] = choice(
         "iso273-medium", f"one of {', '.join(HOLE_SIZE_TABLES)} or a list of diameters > 0 (mm)")
     grid_mm: float = number(0.1, 0.0, 10.0)
@@ -56,7 +60,7 @@ class ShopSettings(Settings):
 
     @field_validator("hole_sizes")
     @classmethod
-    def _sizes(cls, value: Any) -> str | tuple[float, ...]:
+    def _sizes(cls, value: str | tuple[float, ...]) -> str | tuple[float, ...]:
         if isinstance(value, str):
             if value not in HOLE_SIZE_TABLES:
                 raise ValueError("not a table")
@@ -112,6 +116,8 @@ class RobustnessSettings(Settings):
     path_offset_mm: float | Tuple[float] = choice(0.5, PER_AXIS)
     time_scale_percent: float = number(10.0, 0.0, 90.0)
     pixel_noise_grey: float = number(1.0, 0.0, 2.0)
+
+    section: ClassVar[str] = "robustness"
     position_tol_mm: float = number(0.1, 0.0, 10.0)
     diameter_tol_mm: float = number(0.1, 0.0, 10.0)
     size_steps: int = integer(1, 0, 5)
@@ -155,6 +161,8 @@ class TrackingSettings(Settings):
     images are rendered again per run) and the illumination gain's relative σ; pixel noise and the initial
     error's direction are drawn per run too.
     """
+
+    section: ClassVar[str] = "tracking"
 
     estimators: Tuple[Literal["ekf", "iekf", "pnp"]] = choice(
         _CL.estimators, f"a non-empty list of distinct names from {', '.join(TRACKING_ESTIMATORS)}")

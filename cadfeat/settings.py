@@ -1,0 +1,234 @@
+"""The base of every configuration model: pydantic v2, strict, unknown keys refused, frozen.
+
+A setting is declared once, as a field of a ``Settings`` subclass carrying its type, default, bounds and the
+"allowed" text of the error message (``number``, ``integer``, ``boolean``, ``choice``). The same model is the
+configuration the code uses (``cadfeat.design.objectives.ObjectiveConfig`` is ``[objective]``) and the study
+file's section: ``validate_section`` turns a pydantic ``ValidationError`` into one ``StudyError`` line naming
+the file, the dotted key and what is allowed (``s.toml: tracking.r_px2: -1.0 is not allowed; allowed: a number
+> 0``); built directly in Python (``ObjectiveConfig(aggregate="median")``) the same line, without the file, is
+a ``CadfeatError``. Fields declared ``internal=True`` are solver tuning the study file does not set (they are
+left out of its keys, its echo and its JSON Schema).
+
+Context-dependent checks read the validation context (``info.context``) that ``validate_section`` gives:
+``study`` (True: a study file's rules), ``seed`` (the study's seed, a default), ``limits`` (size limits),
+``part`` / ``base_dir`` (bounds inside the part's own, files relative to the study).
+
+This module sits at the package root (no cadfeat imports but ``errors``) so every layer can declare its
+configuration with it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Annotated, Any, ClassVar, Self, TypeVar, cast
+
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    JsonValue,
+    ValidationError,
+    ValidationInfo,
+    model_validator,
+)
+from pydantic_core import ErrorDetails, PydanticCustomError
+
+from cadfeat.errors import CadfeatError
+
+__all__ = ["Settings", "StudyError", "Tuple", "boolean", "choice", "context_of", "integer", "number", "range_text",
+           "reject", "seed_from_context", "validate_nested", "validate_section"]
+
+
+class StudyError(CadfeatError):
+    """A study file is invalid: the message names the file, the dotted key and what is allowed."""
+
+
+def _as_tuple(value: object) -> object:
+    """TOML arrays are lists: a tuple field takes a list as its items (strict validation of each item)."""
+    return tuple(cast("list[object]", value)) if isinstance(value, list) else value
+
+
+T = TypeVar("T")
+Tuple = Annotated[tuple[T, ...], BeforeValidator(_as_tuple)]
+"""A tuple field that accepts a TOML array (list)."""
+
+
+class Settings(BaseModel):
+    """A study-file section: strict types (no "5" for 5, no 1.0 for an integer, no 1 for true), unknown keys
+    refused, immutable. Each field's ``x-allowed`` (JSON Schema extra) is the "allowed:" part of its errors."""
+
+    model_config = ConfigDict(strict=True, extra="forbid", frozen=True, validate_default=False)
+    section: ClassVar[str] = ""
+    """The study-file table this model is (``"objective"``): the first part of each error's dotted key."""
+
+    def __init__(self, /, **data: Any) -> None:
+        """Built in Python: a bad value is one ``CadfeatError`` line (``objective.aggregate: 'median' is not
+        allowed; allowed: sum, mean, min, smoothmin``), as from a study file."""
+        try:
+            super().__init__(**data)
+        except ValidationError as exc:
+            raise CadfeatError(_message(type(self), exc.errors()[0], data, self.section)) from None
+
+    # pydantic calls a custom __init__ from model_validate too (dropping the validation context); marked as the
+    # base's, it is only called for direct construction
+    __init__.__pydantic_base_init__ = True  # type: ignore[attr-defined]
+
+    @classmethod
+    def study_keys(cls) -> tuple[str, ...]:
+        """The keys a study file may set (the fields not declared ``internal``)."""
+        return tuple(n for n, f in cls.model_fields.items() if not _extra_of(f.json_schema_extra).get("x-internal"))
+
+    def study_dump(self) -> dict[str, Any]:
+        """The study-file keys as plain JSON data (tuples as lists): the echo in results.json."""
+        return self.model_dump(mode="json", include=set(self.study_keys()))
+
+    @model_validator(mode="after")
+    def _enumerations(self) -> Self:
+        """A field declared with ``choice(default, names)`` holds one of ``names`` (its schema ``enum``)."""
+        for name, field in type(self).model_fields.items():
+            extra = cast("dict[str, Any] | None", field.json_schema_extra)
+            if isinstance(extra, dict) and "enum" in extra and getattr(self, name) not in extra["enum"]:
+                raise reject(name, f"{_fmt(getattr(self, name))} is not allowed", str(extra["x-allowed"]))
+        return self
+
+    def replace(self, **changes: object) -> Self:
+        """A validated copy with ``changes`` (``dataclasses.replace`` for a settings model)."""
+        return type(self)(**{**self.model_dump(), **changes})
+
+
+def _extra_of(extra: object) -> dict[str, Any]:
+    """A field's JSON Schema extra as a dict (empty when it has none)."""
+    return dict(cast("dict[str, Any]", extra)) if isinstance(extra, dict) else {}
+
+
+def context_of(info: ValidationInfo) -> dict[str, Any]:
+    """The validation context (empty when the model is built in Python)."""
+    return dict(cast("dict[str, Any] | None", info.context) or {})
+
+
+def seed_from_context(data: object, info: ValidationInfo) -> object:
+    """A section's table with ``seed`` defaulting to the study's (validation context ``seed``)."""
+    context = cast("dict[str, Any] | None", info.context)
+    if not isinstance(data, dict) or not context or "seed" not in context:
+        return cast(object, data)
+    table = cast("dict[str, Any]", data)
+    return table if "seed" in table else {**table, "seed": context["seed"]}
+
+
+def range_text(lo: float | None, hi: float | None, lo_open: bool = False) -> str:
+    """"a number ≥ 0", "a number in (0, 100]", … — the allowed text of a bounded number."""
+    if lo is None and hi is None:
+        return "a finite number"
+    if hi is None:
+        return f"a number {'>' if lo_open else '≥'} {lo:g}"
+    if lo is None:
+        return f"a number ≤ {hi:g}"
+    return f"a number in {'(' if lo_open else '['}{lo:g}, {hi:g}]"
+
+
+def _extra(allowed: str, internal: bool, **more: JsonValue) -> dict[str, JsonValue]:
+    return {"x-allowed": allowed, **({"x-internal": True} if internal else {}), **more}
+
+
+def number(default: Any, lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
+           hi_open: bool = False, description: str = "", internal: bool = False) -> Any:
+    """A finite float field in [lo, hi] (lo/hi excluded when ``lo_open``/``hi_open``); integers are accepted."""
+    text = range_text(lo, hi, lo_open)
+    if hi_open and lo is not None and hi is not None:
+        text = text[:-1] + ")"
+    return Field(default, ge=None if lo_open else lo, gt=lo if lo_open else None, le=None if hi_open else hi,
+                 lt=hi if hi_open else None, allow_inf_nan=False, description=description,
+                 json_schema_extra=_extra(text, internal))
+
+
+def integer(default: Any, lo: int, hi: int | None = None, *, description: str = "", internal: bool = False) -> Any:
+    """An integer field in [lo, hi] (a float or a boolean is refused)."""
+    text = f"an integer ≥ {lo}" if hi is None else f"an integer in [{lo}, {hi}]"
+    return Field(default, ge=lo, le=hi, description=description, json_schema_extra=_extra(text, internal))
+
+
+def boolean(default: bool, *, description: str = "", internal: bool = False) -> Any:
+    return Field(default, description=description, json_schema_extra=_extra("true or false", internal))
+
+
+def choice(default: Any, allowed: Sequence[str] | str, *, description: str = "", internal: bool = False,
+           factory: bool = False) -> Any:
+    """A field of an enumeration (``allowed``: its names) or any field with a hand-written allowed text
+    (``allowed``: the text); ``factory``: ``default`` is a zero-argument callable (a mutable default)."""
+    first: dict[str, Any] = {"default_factory": default} if factory else {"default": default}
+    if isinstance(allowed, str):
+        return Field(**first, description=description, json_schema_extra=_extra(allowed, internal))
+    return Field(**first, description=description,
+                 json_schema_extra=_extra(", ".join(allowed), internal, enum=list(allowed)))
+
+
+def reject(key: str, problem: str, allowed: str) -> PydanticCustomError:
+    """An error of a model-level check: ``raise reject("objective.thresholds", "missing", "…")``; ``key`` is
+    relative to the section."""
+    return PydanticCustomError("cadfeat", "{problem}", {"key": key, "problem": problem, "allowed": allowed})
+
+
+def _fmt(value: object) -> str:
+    return repr(value) if isinstance(value, str) else str(value)
+
+
+M = TypeVar("M", bound=Settings)
+
+
+def validate_section(model: type[M], data: object, section: str, label: str,
+                     context: Mapping[str, Any] | None = None) -> M:
+    """``data`` (the TOML table of ``[section]``) validated as ``model`` with the study's rules (validation
+    context ``study=True`` plus ``context``); one ``StudyError`` line otherwise."""
+    keys = model.study_keys()
+    if not isinstance(data, Mapping):
+        raise StudyError(f"{label}: {section}: expected a table, got {_fmt(data)}; allowed: a table with keys "
+                         f"{', '.join(keys)}")
+    table = dict(cast("Mapping[str, Any]", data))
+    for key in table:
+        if key not in keys:
+            raise StudyError(f"{label}: {section}.{key}: unknown key; allowed: keys of [{section}]: {', '.join(keys)}")
+    try:
+        return model.model_validate(table, context={"study": True, **dict(context or {})})
+    except ValidationError as exc:
+        raise StudyError(f"{label}: {_message(model, exc.errors()[0], table, section)}") from None
+
+
+def _parts(model: type[Settings], err: ErrorDetails, data: Mapping[str, object], section: str) -> tuple[str, str, str]:
+    """(key relative to the section, problem, allowed) of a pydantic error."""
+    loc = [str(x) for x in err["loc"]]
+    ctx: dict[str, Any] = dict(err.get("ctx") or {})
+    if err["type"] == "cadfeat":
+        return str(ctx["key"]), str(ctx["problem"]), str(ctx["allowed"])
+    name = loc[0] if loc else ""
+    if err["type"] == "extra_forbidden":
+        return name, "unknown key", f"keys of [{section}]: {', '.join(model.study_keys())}"
+    field = model.model_fields.get(name)
+    allowed = str(_extra_of(field.json_schema_extra if field is not None else None).get("x-allowed", err["msg"]))
+    if err["type"] == "missing":
+        return name, "missing", allowed
+    return name, f"{_fmt(data.get(name, err.get('input')))} is not allowed", allowed
+
+
+def _message(model: type[Settings], err: ErrorDetails, data: Mapping[str, object], section: str) -> str:
+    name, problem, allowed = _parts(model, err, data, section)
+    key = ".".join(k for k in (section, name) if k)
+    return f"{key}: {problem}; allowed: {allowed}"
+
+
+def validate_nested(model: type[M], data: object, key: str, section: str, context: Mapping[str, Any]) -> M:
+    """A sub-table (``data`` at ``key``, relative to the enclosing section) validated as ``model`` inside a
+    validator of the enclosing model: an error becomes that model's error with the full dotted key
+    (``holes[0].select``); unknown keys are named with the sub-table's allowed keys (``[section.key]``)."""
+    where = f"{section}.{key}"
+    if not isinstance(data, Mapping):
+        raise reject(key, f"expected a table, got {_fmt(data)}", f"a table with keys {', '.join(model.study_keys())}")
+    table = dict(cast("Mapping[str, Any]", data))
+    for k in table:
+        if k not in model.study_keys():
+            raise reject(f"{key}.{k}", "unknown key", f"keys of [{where}]: {', '.join(model.study_keys())}")
+    try:
+        return model.model_validate(table, context=dict(context))
+    except ValidationError as exc:
+        name, problem, allowed = _parts(model, exc.errors()[0], table, where)
+        raise reject(f"{key}.{name}" if name else key, problem, allowed) from None
