@@ -33,6 +33,9 @@ class DepthMaps:
     """Depth maps (L, GRID, GRID) of ``mesh`` (trimesh, part frame, mm) from poses ``T_cam_part`` (L, 4, 4) of
     ``camera`` (module docstring). ``hidden(X, Y, Z)`` → (L, M) bool for camera-frame coordinates (L, M)."""
 
+    rows: np.ndarray | None = None        # the map row of each pose (``tile``/``select``; None: identity)
+    to_nominal: np.ndarray | None = None  # (L, 4, 4) a displaced camera's frame → its pose's nominal one (``tile``)
+
     def __init__(self, mesh: Any, camera: Any, T_cam_part: np.ndarray, grid: int = GRID):
         T = np.asarray(T_cam_part, dtype=float)
         self.n_poses = len(T)
@@ -64,7 +67,7 @@ class DepthMaps:
         rows = np.arange(self.n_poses)[poses]
         other.rows = self._rows()[rows]
         other.n_poses = len(rows)
-        if getattr(self, "to_nominal", None) is not None:
+        if self.to_nominal is not None:
             other.to_nominal = self.to_nominal[rows]
         return other
 

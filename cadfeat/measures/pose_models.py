@@ -161,7 +161,7 @@ def rim_gap_px(centre_px: np.ndarray, axes_px: np.ndarray, angle_rad: np.ndarray
     if N < 2:
         return np.full((L, N), np.inf)
     d_vec = cp[:, None, :, :] - cp[:, :, None, :]                                  # (L, i, j, 2): i → j
-    d = np.sqrt(np.einsum("lijk,lijk->lij", d_vec, d_vec))
+    d: np.ndarray = np.sqrt(np.einsum("lijk,lijk->lij", d_vec, d_vec))
     unit = d_vec / np.maximum(d, 1e-12)[..., None]
     ax = np.asarray(axes_px, dtype=float)
     ang = np.asarray(angle_rad, dtype=float)
@@ -170,7 +170,7 @@ def rim_gap_px(centre_px: np.ndarray, axes_px: np.ndarray, angle_rad: np.ndarray
     rho_j = _radius_along(ax[:, None, :], major[:, None, :], unit)
     apart = d - rho_i - rho_j
     nested = np.maximum(rho_i, rho_j) - d - np.minimum(rho_i, rho_j)
-    gap = np.where(d >= np.maximum(rho_i, rho_j), apart, np.maximum(apart, nested))
+    gap: np.ndarray = np.where(d >= np.maximum(rho_i, rho_j), apart, np.maximum(apart, nested))
     ok = seen[:, :, None] & seen[:, None, :] & ~np.eye(N, dtype=bool)[None] & np.isfinite(gap)
     return np.where(ok, gap, np.inf).min(axis=-1)
 

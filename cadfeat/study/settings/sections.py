@@ -6,7 +6,7 @@ Units are in the key names (mm, percent, deg, s, px², grey levels on the 0..255
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, cast
 
 from pydantic import ValidationInfo, field_validator, model_validator
 
@@ -74,13 +74,13 @@ PER_AXIS = "a number ≥ 0 or a list of three numbers ≥ 0 (per axis x, y, z)"
 ROBUST_STATISTICS = ("percentile", "mean", "chance")
 
 
-def _per_axis(value: Any, hi: float) -> float | tuple[float, ...]:
+def _per_axis(value: object, hi: float) -> float | tuple[float, ...]:
     """A tolerance per axis: one number ≥ 0 for every axis, or three (x, y, z)."""
-    items = value if isinstance(value, tuple) else (value,)
-    if len(items) not in (1, 3) or not all(isinstance(v, int | float) and not isinstance(v, bool)
-                                           and 0.0 <= v <= hi for v in items):
+    items: tuple[object, ...] = cast("tuple[object, ...]", value) if isinstance(value, tuple) else (value,)
+    nums = [float(v) for v in items if isinstance(v, int | float) and not isinstance(v, bool)]
+    if len(items) not in (1, 3) or len(nums) != len(items) or not all(0.0 <= v <= hi for v in nums):
         raise ValueError("not a tolerance per axis")
-    return float(items[0]) if not isinstance(value, tuple) else tuple(float(v) for v in items)
+    return nums[0] if not isinstance(value, tuple) else tuple(nums)
 
 
 class RobustnessSettings(Settings):
