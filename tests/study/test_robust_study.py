@@ -27,7 +27,11 @@ def test_flagship_robust_optimum_is_no_more_fragile_than_the_original():
     data = tomllib.loads((ROOT / "studies" / "nema17_mount.toml").read_text())
     data["study"]["part"] = str(ROOT / "parts" / "nema17_mount.py")
     data["optimizer"].update(starts=2, maxiter=30)
-    data["robustness"] = {"draws": 64, "samples": 100}
+    # the flagship's five placement/size variables (depth and chamfer fixed) and 32 draws: the same question at
+    # a third of the cost (the robust solve's evaluations grow with the variables and the draws)
+    data["design"]["parameters"] = [p for p in data["design"]["parameters"] if p not in ("target_depth_mm",
+                                                                                        "target_chamfer_mm")]
+    data["robustness"] = {"draws": 32, "samples": 100}
     results, _ = compute(load_study(data), StudyProgress("flagship", enabled=False))
     rb = results["robustness"]
     assert rb["delivered"] == "robust" and rb["recommended"] == "robust", rb["reason"]
@@ -45,7 +49,7 @@ def test_flagship_robust_optimum_is_no_more_fragile_than_the_original():
     print("flagship nominal combined: original", orig["camera"]["combined"]["nominal"], "robust",
           rec["camera"]["combined"]["nominal"], "nominal optimum", designs["nominal"]["camera"]["combined"]["nominal"])
     oos = rb["out_of_sample"]
-    assert oos["seed_out_of_sample"] != oos["seed_in_sample"] and oos["draws_in_sample"] == 64
+    assert oos["seed_out_of_sample"] != oos["seed_in_sample"] and oos["draws_in_sample"] == 32
     assert set(oos["designs"]) == {"original", "robust", "nominal"}
     assert oos["designs"]["robust"]["out_of_sample"] > oos["designs"]["original"]["out_of_sample"]
     assert rb["sensitivity"]["words"].startswith("most sensitive to")
