@@ -126,8 +126,9 @@ def robust_phase(config: Any, opt: Any, progress: Any, history: Any) -> RobustRu
 
 
 def _choose(setup: Any, rp: RobustProblem, nominal: Any, robust: Any, held: Any) -> tuple[str, str]:
-    """"robust" unless the robust optimum's 5th percentile falls below the original's under a source on held-out
-    draws while the nominal optimum's does not (then "nominal")."""
+    """"robust" unless, on held-out draws, the robust optimum's 5th percentile falls below the original's under a
+    source while the nominal optimum's does not, or the nominal optimum (its 5th percentiles not below the
+    original's) has the higher robust statistic — the robust solve did not improve on it (then "nominal")."""
     model = setup.model
     feats = [model.features(x) for x in (setup.space.x0, robust.x_best, nominal.x_best)]
     stats = design_statistics(rp, feats, held, sources=BLOCKS)
@@ -135,7 +136,22 @@ def _choose(setup: Any, rp: RobustProblem, nominal: Any, robust: Any, held: Any)
     if below[0] and not below[1]:
         return "nominal", (f"the robust optimum's 5th percentile is below the original's under {', '.join(below[0])}; "
                            "the nominal optimum's is not: the nominal optimum is delivered")
+    if not below[1] and rp.objective.statistic != "chance":
+        v_robust, v_nominal = _held_out_value(rp, held, [robust.x_best, nominal.x_best])
+        if v_nominal > v_robust:
+            return "nominal", (f"the nominal optimum's {rp.objective.label} on held-out draws ({v_nominal:.4g}) is "
+                               f"above the robust optimum's ({v_robust:.4g}): the robust solve did not improve on "
+                               "it, the nominal optimum is delivered")
     return "robust", ""
+
+
+def _held_out_value(rp: RobustProblem, held: Any, xs: list[Any]) -> list[float]:
+    """The robust statistic of designs ``xs`` (design vectors) on the held-out draws ``held``."""
+    X = np.stack([np.asarray(x, float) for x in xs])
+    other = RobustProblem(rp.inner, rp.objective, held, rp.changed)
+    c, a, r = rp.inner.model.features_batch(X)
+    value, _ = other.value_and_margins(other.block_objectives(c, a, r, rp.inner.hole_depths(X)))
+    return [float(v) for v in value]
 
 
 def _below(stats: dict[str, Any], original: dict[str, Any]) -> list[str]:
