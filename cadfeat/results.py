@@ -15,22 +15,28 @@ Values are rounded and made JSON-ready by ``cadfeat.study.outputs.plain`` before
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, ClassVar, TypeAlias, TypeVar
+from typing import Any, ClassVar, Optional, TypeAlias, TypeVar
 
-from pydantic import BaseModel, ConfigDict, JsonValue
+from pydantic import BaseModel, ConfigDict, JsonValue, create_model
 
-__all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "DesignMatrix", "FeatureSummary", "FileEntry", "Finding", "HoleRecord",
-           "Holes", "Json", "MeasureSummary", "Measures", "Objectives", "OptimizerRecord", "Record", "RequirementCheck",
-           "RequirementUsed", "Robustness", "StudyRecord", "StudyResults", "TrajectoryRecord", "Variable", "Verdict",
-           "Verification", "results_json_schema", "section"]
+__all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "DesignDraws", "DesignMatrix", "EstimatorErrors", "FeatureSummary",
+           "FileEntry", "Finding", "HelpMost", "HelpMostBest", "HoleRecord", "Holes", "Interval", "Json",
+           "MeasureSummary", "Measures", "Objectives", "OptimizerRecord", "OutOfSample", "PairedTest",
+           "PoseAccuracy", "PoseDesign", "PoseErrors", "Record", "RequirementCheck", "RequirementUsed", "Results",
+           "RobustObjective", "Robustness", "SampleShift", "Sensitivity", "Spread", "StudyRecord", "StudyResults",
+           "Tracking", "TrackingCheck", "TrackingDesign", "TrackingFrame", "TrackingSettings", "TrackingVerdict",
+           "TrajectoryRecord", "Variable", "Verdict", "Verification", "WeakestPhase", "partial_model", "present",
+           "results_json_schema", "section", "value"]
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 """results.json layout version (``schema_version``): 1 first layout; 2 ``shop``, ``patterns`` and
-``robustness`` added by issue 13; 3: ``verdict``, tracking holes named H1…); readers compare it before relying
-on a key."""
+``robustness`` added by issue 13; 3: ``verdict``, tracking holes named H1…; 4: ``pose_accuracy``, ``tracking`` and
+``robustness``'s robust-redesign keys (designs, out_of_sample …) typed in the schema, the layout unchanged (a
+version-3 file reads the same); readers compare it before relying on a key."""
 SCHEMA_ID = f"https://cadfeat.invalid/schema/results-v{SCHEMA_VERSION}.json"
 """The results schema's ``$id`` (a name, not a place to fetch it from), versioned."""
 
@@ -144,7 +150,8 @@ class RequirementCheck(Record):
     holds), unit, the holes, where it was checked (``brep``, ``step``)."""
 
     name: str
-    holes: list[str] = []
+    holes: list[str | int] = []
+    """Hole names (older layouts: hole indices)."""
     value: Number | None = None
     required: Number | None = None
     margin: Number | None = None
@@ -238,9 +245,64 @@ class Verdict(Record):
     findings: list[Finding] = []
 
 
+class Spread(Record):
+    """One value's nominal and its spread over random draws (``robustness``): mean, 5th/10th percentile, minimum."""
+
+    nominal: Number | None = None
+    mean: Number | None = None
+    p05: Number | None = None
+    p10: Number | None = None
+    min: Number | None = None
+
+
+class RobustObjective(Record):
+    """``robustness.objective``: the robust statistic the optimiser maximised and its draws (issue 18)."""
+
+    robust: bool | None = None
+    statistic: str | None = None
+    label: str | None = None
+    draws: int | None = None
+    sampling: str | None = None
+    seed: int | None = None
+
+
+class DesignDraws(Record):
+    """``robustness.distributions.<design>``: the held-out draws of the combined value per source of uncertainty,
+    and of each objective under the whole cell."""
+
+    combined: dict[str, list[Number | None]] = {}
+    objectives_cell: dict[str, list[Number | None]] = {}
+
+
+class SampleShift(Record):
+    """One design's robust statistic in sample (the optimiser's draws) and out of sample (fresh draws)."""
+
+    in_sample: Number | None = None
+    out_of_sample: Number | None = None
+
+
+class OutOfSample(Record):
+    """``robustness.out_of_sample``: the robust statistic of each design on the optimiser's and on fresh draws."""
+
+    statistic: str | None = None
+    draws_in_sample: int | None = None
+    seed_in_sample: int | None = None
+    draws_out_of_sample: int | None = None
+    seed_out_of_sample: int | None = None
+    designs: dict[str, SampleShift] = {}
+
+
+class Sensitivity(Record):
+    """``robustness.sensitivity``: where the robustness comes from, in words."""
+
+    words: str | None = None
+
+
 class Robustness(Record):
-    """``robustness``: the tolerance study (``design.robustness``); further keys (designs, out of sample) pass
-    through until typed here."""
+    """``robustness``: the tolerance study (``design.robustness``: per objective its spread under the shop
+    tolerance and the camera mount) and, for a robust redesign (issue 18), the designs side by side: per design
+    (original, recommended, nominal, robust) and source of uncertainty, per objective and "combined", a
+    ``Spread``."""
 
     names: list[str] = []
     samples: int = 0
@@ -249,8 +311,194 @@ class Robustness(Record):
     camera_position_mm: Number | None = None
     camera_angle_deg: Number | None = None
     razor_edge: list[str] = []
-    manufacturing: Json = None
-    camera: Json = None
+    manufacturing: dict[str, Spread] | None = None
+    camera: dict[str, Spread] | None = None
+    objective: RobustObjective | None = None
+    uncertainty: dict[str, Json] | None = None
+    designs: dict[str, dict[str, dict[str, Spread]]] | None = None
+    recommended: str | None = None
+    delivered: str | None = None
+    reason: str = ""
+    flagged: list[str] = []
+    out_of_sample: OutOfSample | None = None
+    sensitivity: Sensitivity | None = None
+    distributions: dict[str, DesignDraws] | None = None
+
+
+class PoseErrors(Record):
+    """Predicted pose errors (RMS or worst over the trajectory; ``pose_accuracy.<design>.rms``/``worst``):
+    single frame (error, its bias and noise parts) and the IEKF posterior bound, translation mm, rotation deg."""
+
+    error_translation_mm: Number | None = None
+    bias_translation_mm: Number | None = None
+    noise_translation_mm: Number | None = None
+    iekf_translation_mm: Number | None = None
+    error_rotation_deg: Number | None = None
+    bias_rotation_deg: Number | None = None
+    noise_rotation_deg: Number | None = None
+    iekf_rotation_deg: Number | None = None
+
+
+class WeakestPhase(Record):
+    """The weakest direction of the pose estimate in one phase of the path (σ in mm)."""
+
+    phase: str
+    weakest: str
+    sigma_mm: Number | None = None
+    fraction: Number | None = None
+    poses: list[int] = []
+
+
+class HelpMostBest(Record):
+    """The one change that would help the pose estimate most, in words."""
+
+    sentence: str
+    hole: str | None = None
+    change: str | None = None
+    d_error_per_mm: Number | None = None
+
+
+class HelpMost(Record):
+    """``pose_accuracy.<design>.help_most``: what would help most (per movable hole, and the best)."""
+
+    best: HelpMostBest | None = None
+    holes: Json = None
+    rms_translation_mm: Number | None = None
+    step_mm: Number | None = None
+
+
+class PoseDesign(Record):
+    """``pose_accuracy.before`` / ``after``: one design's predicted pose error (issue 17)."""
+
+    rms: PoseErrors | None = None
+    worst: PoseErrors | None = None
+    per_pose: dict[str, list[Number | None]] = {}
+    """Per trajectory sample, the ``PoseErrors`` keys."""
+    share: dict[str, Number | None] = {}
+    """Each hole's share of the pose information (fraction, mean over the trajectory)."""
+    weakest: list[WeakestPhase] = []
+    help_most: HelpMost | None = None
+    holes_detected_mean: Number | None = None
+
+
+class PoseAccuracy(Record):
+    """``pose_accuracy``: the predicted pose error along the trajectory, before and after
+    (``cadfeat.study.pose_accuracy``)."""
+
+    times_s: list[Number] = []
+    phases: list[str] = []
+    before: PoseDesign | None = None
+    after: PoseDesign | None = None
+    model: str | None = None
+    movable: list[str] = []
+    rotation_length_mm: Number | None = None
+    tuning: dict[str, Number] | None = None
+
+
+class Interval(Record):
+    """A statistic over the Monte-Carlo runs: mean and median with its 95 % bootstrap interval."""
+
+    mean: Number | None = None
+    median: Number | None = None
+    ci_low: Number | None = None
+    ci_high: Number | None = None
+    runs_not_finite: int | None = None
+
+
+class EstimatorErrors(Record):
+    """One estimator's tracking errors over the runs (``tracking.designs.<design>.estimators.<m>``): RMS, p95
+    and max translation (mm) and rotation (deg), frames lost (and their fraction), convergence time (s)."""
+
+    trans_mm_rms: Interval | None = None
+    trans_mm_p95: Interval | None = None
+    trans_mm_max: Interval | None = None
+    rot_deg_rms: Interval | None = None
+    rot_deg_p95: Interval | None = None
+    rot_deg_max: Interval | None = None
+    frames_lost: Interval | None = None
+    lost_frac: Interval | None = None
+    convergence_s: Interval | None = None
+
+
+class TrackingDesign(Record):
+    """``tracking.designs.<design>``: per estimator the errors, per hole the detection rate (None: never in view)."""
+
+    estimators: dict[str, EstimatorErrors] = {}
+    detection_rate: dict[str, Number | None] = {}
+    frames: int | None = None
+    runs: int | None = None
+    frames_under_3_holes: Number | None = None
+
+
+class PairedTest(Record):
+    """The paired test of one error (translation or rotation) before against after."""
+
+    test: str = ""
+    p_value: Number | None = None
+    median_change: Number | None = None
+    alpha: Number | None = None
+    min_change: Number = 0.0
+    runs: int | None = None
+    verdict: str | None = None
+
+
+class TrackingVerdict(Record):
+    """``tracking.verdicts.<estimator>``: better / worse / no significant difference / mixed, and its tests."""
+
+    verdict: str
+    translation: PairedTest | None = None
+    rotation: PairedTest | None = None
+
+
+class TrackingCheck(Record):
+    """``tracking.check``: which closed-loop check of ``cadfeat run`` produced the section (fast or full)."""
+
+    mode: str | None = None
+    estimators: list[str] = []
+    runs: int | None = None
+    frames: int | None = None
+    seconds: Number | None = None
+
+
+class TrackingFrame(Record):
+    """A camera frame written beside the results (path relative to the output folder)."""
+
+    path: str
+    design: str
+    frame: int
+    time_s: Number
+    detected: int
+    holes: int
+
+
+class TrackingSettings(Record):
+    """``tracking.settings``: the simulation's settings (``[tracking]``; noise in grey levels, times in s)."""
+
+    estimators: list[str] = []
+    frames: int | None = None
+    runs: int | None = None
+    noise_grey: Number | None = None
+    defocus: bool | None = None
+    exposure_s: Number | None = None
+    initial_error_mm: Number | None = None
+    initial_error_deg: Number | None = None
+    placement_mm: Number = 0.0
+    placement_deg: Number = 0.0
+    gain_sigma: Number = 0.0
+    settle_frames: int | None = None
+
+
+class Tracking(Record):
+    """``tracking``: the closed-loop tracking simulation before and after (``cadfeat.vision``, ``cadfeat track``
+    or ``cadfeat run``'s check)."""
+
+    settings: TrackingSettings | None = None
+    designs: dict[str, TrackingDesign] = {}
+    verdicts: dict[str, TrackingVerdict] = {}
+    curves: dict[str, Json] = {}
+    frames: list[TrackingFrame] = []
+    warnings: list[str] = []
+    check: TrackingCheck | None = None
 
 
 class StudyResults(Record):
@@ -282,12 +530,12 @@ class StudyResults(Record):
     interrupted: bool | None = None
     preflight: dict[str, Json] | None = None
     warnings: list[str] = []
-    pose_accuracy: dict[str, Json] | None = None
+    pose_accuracy: PoseAccuracy | None = None
     verification: Verification | None = None
     files: list[FileEntry] | None = None
     timings_s: dict[str, Number] | None = None
     versions: dict[str, str] | None = None
-    tracking: dict[str, Json] | None = None
+    tracking: Tracking | None = None
     verdict: Verdict | None = None
 
     file_name: ClassVar[str] = "results.json"
@@ -312,14 +560,43 @@ class StudyResults(Record):
 
 R = TypeVar("R", bound=Record)
 
+Results: TypeAlias = StudyResults | Mapping[str, Any]
+"""What ``cadfeat.report`` reads: the typed results, or plain data (as read from results.json, or partial data
+built by hand)."""
 
-def section(results: StudyResults | Mapping[str, Any], name: str, model: type[R]) -> R | None:
+
+def value(results: Results, name: str) -> Any:
+    """A top-level value of ``results`` that is not a typed section (a flag such as ``interrupted``, or a section
+    still ``Json``), or None when absent."""
+    return getattr(results, name, None) if isinstance(results, StudyResults) else results.get(name)
+
+
+def present(record: Record | None) -> bool:
+    """True for a section (or sub-record) that holds something: given and not ``{}`` (as ``bool`` of the dict)."""
+    return record is not None and bool(record.to_data())
+
+
+def section(results: Results, name: str, model: type[R], *, partial: bool = False) -> R | None:
     """The typed section ``name`` of ``results`` (a ``StudyResults``, or plain data as read from results.json or
-    built by hand, possibly partial), or None when it is absent. How ``cadfeat.report`` reads a section."""
-    value = getattr(results, name, None) if isinstance(results, StudyResults) else results.get(name)
-    if value is None or isinstance(value, model):
-        return value
-    return model.model_validate(value.to_data() if isinstance(value, Record) else value)
+    built by hand, possibly partial), or None when it is absent. How ``cadfeat.report`` reads a section.
+
+    ``partial``: the section may lack keys the model requires (``cadfeat track`` writes ``study`` with its name
+    only into a results.json it starts); those read as None, every key given is still checked."""
+    data = getattr(results, name, None) if isinstance(results, StudyResults) else results.get(name)
+    if data is None or isinstance(data, model):
+        return data
+    return (partial_model(model) if partial else model).model_validate(
+        data.to_data() if isinstance(data, Record) else data)
+
+
+@functools.cache
+def partial_model(model: type[R]) -> type[R]:
+    """``model`` with its required keys optional (None when absent): a subclass, so it is still a ``model``."""
+    loose: dict[str, Any] = {n: (Optional[f.annotation], None)  # noqa: UP045 (a runtime type, not an annotation)
+                             for n, f in model.model_fields.items() if f.is_required()}
+    if not loose:
+        return model
+    return create_model(f"Partial{model.__name__}", __base__=model, __doc__=model.__doc__, **loose)
 
 
 def results_json_schema() -> dict[str, Any]:
