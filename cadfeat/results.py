@@ -161,11 +161,14 @@ class RequirementCheck(Record):
 
 
 class RequirementUsed(Record):
-    """A requirement of the optimisation (``requirements_used``): its 2-D margin at the optimum."""
+    """A requirement of the optimisation (``requirements_used``): its 2-D margin at the optimum (the unit mm
+    unless given)."""
 
     name: str
     holes: list[str] = []
     margin: Number | None = None
+    required: Number | None = None
+    unit: str = "mm"
 
 
 class Objectives(Record):
