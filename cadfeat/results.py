@@ -25,12 +25,12 @@ from pydantic import BaseModel, ConfigDict, JsonValue, create_model
 
 __all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "DesignDraws", "DesignMatrix", "EstimatorErrors", "FeatureSummary",
            "FileEntry", "Finding", "HelpMost", "HelpMostBest", "HoleRecord", "Holes", "Interval", "Json",
-           "MeasureSummary", "Measures", "Objectives", "OptimizerRecord", "OutOfSample", "PairedTest",
+           "MeasureSummary", "Measures", "Objectives", "OptimizerRecord", "OutOfSample", "PairedTest", "Pattern",
            "PoseAccuracy", "PoseDesign", "PoseErrors", "Record", "RequirementCheck", "RequirementUsed", "Results",
-           "RobustObjective", "Robustness", "SampleShift", "Sensitivity", "Spread", "StudyRecord", "StudyResults",
-           "Tracking", "TrackingCheck", "TrackingDesign", "TrackingFrame", "TrackingSettings", "TrackingVerdict",
-           "TrajectoryRecord", "Variable", "Verdict", "Verification", "WeakestPhase", "partial_model", "present",
-           "results_json_schema", "section", "value"]
+           "RobustObjective", "Robustness", "SampleShift", "Sensitivity", "Shop", "Spread", "StudyRecord",
+           "StudyResults", "Tracking", "TrackingCheck", "TrackingDesign", "TrackingFrame", "TrackingSettings",
+           "TrackingVerdict", "TrajectoryRecord", "Variable", "Verdict", "Verification", "WeakestPhase",
+           "partial_model", "present", "results_json_schema", "section", "value"]
 
 SCHEMA_VERSION = 4
 """results.json layout version (``schema_version``): 1 first layout; 2 ``shop``, ``patterns`` and
@@ -246,6 +246,42 @@ class Verdict(Record):
     decision: str
     limiting: str | None = None
     findings: list[Finding] = []
+
+
+class Pattern(Record):
+    """A hole pattern of the original (``patterns``, ``cadfeat.design.patterns``) and whether the design keeps it:
+    a bolt circle (centre, radius mm, count), a grid (shape, pitch mm), an opposite or a mirror pair (normal)."""
+
+    kind: str
+    holes: list[str] = []
+    indices: list[int] = []
+    broken: bool = False
+    why: str = ""
+    centre: list[Number] | None = None
+    radius_mm: Number | None = None
+    count: int | None = None
+    shape: list[int] | None = None
+    pitch_mm: list[Number] | None = None
+    normal: list[Number] | None = None
+    point: list[Number] | None = None
+
+
+class Shop(Record):
+    """``shop``: the shop-ready rounding (``cadfeat.design.shop``): moved holes on a grid (mm), resized holes on
+    the hole table, the model's combined objective at the optimum and rounded, notes."""
+
+    applied: bool | None = None
+    grid_mm: Number | None = None
+    hole_sizes: Json = None
+    moved: list[str] = []
+    resized: list[str] = []
+    notes: list[str] = []
+    combined_optimum: Number | None = None
+    combined_shop: Number | None = None
+    residual_mm: Number | None = None
+    rebuilt_off_target_mm: Number | None = None
+    x_optimum: dict[str, Number] | None = None
+    x_shop: dict[str, Number] | None = None
 
 
 class Spread(Record):
@@ -522,8 +558,8 @@ class StudyResults(Record):
     measures: Measures
     constraints: list[RequirementCheck] | None = None
     requirements_used: list[RequirementUsed] | None = None
-    shop: dict[str, Json] | None = None
-    patterns: list[Json] | None = None
+    shop: Shop | None = None
+    patterns: list[Pattern] | None = None
     robustness: Robustness | None = None
     design_matrix: DesignMatrix | None = None
     history: list[dict[str, Json]] | None = None

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from cadfeat.report.html import esc, fmt, num, table, text
+from cadfeat.report.patterns import patterns
 from cadfeat.report.requirements import ACTIVE_MARGIN_MM, requirement_rows
 from cadfeat.results import Finding as FindingRecord
 from cadfeat.results import Measures, Objectives, Robustness, StudyResults, Tracking, section, value
@@ -260,12 +261,12 @@ def _robustness(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
 
 
 def _patterns(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
-    pats = value(results, "patterns")
-    if not isinstance(pats, list) or not pats:
+    pats = patterns(results)
+    if not pats:
         return []
-    broken = [p for p in pats if isinstance(p, dict) and p.get("broken")]
+    broken = [p for p in pats if p.broken]
     return [Finding("patterns", CARE if broken else ADOPT,
-                    ("broken: " + ", ".join(f"{p.get('kind')} {'/'.join(map(str, p.get('holes') or []))}"
+                    ("broken: " + ", ".join(f"{p.kind} {'/'.join(map(str, p.holes))}"
                                             for p in broken)) if broken
                     else f"all {len(pats)} patterns of the original kept")]
 
