@@ -25,12 +25,13 @@ from pydantic import BaseModel, ConfigDict, JsonValue, create_model
 
 __all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "DesignDraws", "DesignMatrix", "EstimatorErrors", "FeatureSummary",
            "FileEntry", "Finding", "HelpMost", "HelpMostBest", "HoleRecord", "Holes", "Interval", "Json",
-           "MeasureSummary", "Measures", "Objectives", "OptimizerRecord", "OutOfSample", "PairedTest", "Pattern",
-           "PoseAccuracy", "PoseDesign", "PoseErrors", "Record", "RequirementCheck", "RequirementUsed", "Results",
-           "RobustObjective", "Robustness", "SampleShift", "Sensitivity", "Shop", "Spread", "StudyRecord",
-           "StudyResults", "Tracking", "TrackingCheck", "TrackingDesign", "TrackingFrame", "TrackingSettings",
-           "TrackingVerdict", "TrajectoryRecord", "Variable", "Verdict", "Verification", "WeakestPhase",
-           "partial_model", "present", "results_json_schema", "section", "value"]
+           "MeasureSummary", "Normalisation", "Measures", "ObjectiveChange", "Objectives", "OptimizerRecord",
+           "OutOfSample", "PairedTest", "Pattern", "PoseAccuracy", "PoseDesign", "PoseErrors", "Record",
+           "RequirementCheck", "RequirementUsed", "Results", "RobustObjective", "Robustness", "SampleShift",
+           "Sensitivity", "Shop", "Spread", "StudyRecord", "StudyResults", "Tracking", "TrackingCheck",
+           "TrackingDesign", "TrackingFrame", "TrackingSettings", "TrackingVerdict", "TrajectoryRecord", "Variable",
+           "Verdict", "Verification", "WeakestPhase", "partial_model", "present", "results_json_schema", "section",
+           "value"]
 
 SCHEMA_VERSION = 4
 """results.json layout version (``schema_version``): 1 first layout; 2 ``shop``, ``patterns`` and
@@ -171,6 +172,30 @@ class RequirementUsed(Record):
     unit: str = "mm"
 
 
+class ObjectiveChange(Record):
+    """One objective before → after in its own unit (``objectives.changes``, ``cadfeat.study.trust``), its
+    normalised values and whether it enters the combination."""
+
+    name: str
+    unit: str = ""
+    before: Number | None = None
+    after: Number | None = None
+    change: Number | None = None
+    normalised_before: Number | None = None
+    normalised_after: Number | None = None
+    in_combination: bool | None = None
+
+
+class Normalisation(Record):
+    """``objectives.normalisation``: how the objectives were made comparable (method, reference value per
+    objective, where each came from, a note)."""
+
+    method: str | None = None
+    reference: dict[str, Number | None] | None = None
+    sources: dict[str, Json] | None = None
+    note: str | None = None
+
+
 class Objectives(Record):
     """``objectives``: raw objective values by name (g_FOV …, larger is better) before/after, the combined
     objective, and the trust analysis (``changes``, ``limiting``; ``study.trust``)."""
@@ -183,8 +208,8 @@ class Objectives(Record):
     combined_before: Number | None = None
     combined_after: Number | None = None
     larger_is_better: bool = True
-    normalisation: Json = None
-    changes: list[Json] = []
+    normalisation: Normalisation | None = None
+    changes: list[ObjectiveChange] = []
     constant: list[str] = []
     limiting: str | None = None
     limiting_before: str | None = None

@@ -309,14 +309,13 @@ def normalisation_note(results: Results) -> str:
     """How the objectives were made comparable (method, reference values, note)."""
     obj = section(results, "objectives", Objectives)
     norm = obj.normalisation if obj else None
-    if not isinstance(norm, dict) or not norm:
+    if norm is None or not present(norm):
         return ""
-    out = f"<p>Method: <b>{esc(norm.get('method', '?'))}</b>.</p>"
-    ref = norm.get("reference")
-    if isinstance(ref, dict) and ref:
-        out += key_value_table(ref, "normalisation-reference", ("objective", "reference value"))
-    if norm.get("note"):
-        out += note(str(norm["note"]))
+    out = f"<p>Method: <b>{esc(_given(norm, 'method', '?'))}</b>.</p>"
+    if norm.reference:
+        out += key_value_table(norm.reference, "normalisation-reference", ("objective", "reference value"))
+    if norm.note:
+        out += note(str(norm.note))
     return out
 
 

@@ -20,10 +20,9 @@ def _objective_parts(obj: Objectives) -> list[str]:
         after = f" → after: <b>{esc(obj.limiting)}</b>" if obj.limiting else ""
         parts.append(f"<p>Limiting objective (smallest normalised value in the max-min): before: "
                      f"<b>{esc(obj.limiting_before)}</b>{after}.</p>")
-    changes = [c for c in obj.changes if isinstance(c, dict)]
-    rows = ["".join([text(c["name"]), text(c.get("unit", "")), num(c.get("before")), num(c.get("after")),
-                     num(c.get("change")), num(c.get("normalised_after", c.get("normalised_before"))),
-                     text("yes" if c.get("in_combination") else "no")]) for c in changes]
+    rows = ["".join([text(c.name), text(c.unit), num(c.before), num(c.after), num(c.change),
+                     num(c.normalised_after if "normalised_after" in c.model_fields_set else c.normalised_before),
+                     text("yes" if c.in_combination else "no")]) for c in obj.changes]
     if rows:
         parts.append(table(["objective", "unit", "before", "after", "change", "normalised", "in combination"],
                            rows, "objective-changes"))

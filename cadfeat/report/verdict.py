@@ -121,9 +121,7 @@ def limiting_objective(obj: Objectives | None) -> str | None:
     if obj.limiting:
         return obj.limiting
     after = obj.after or {}
-    norm = obj.normalisation if isinstance(obj.normalisation, dict) else {}
-    ref = norm.get("reference") if isinstance(norm.get("reference"), dict) else {}
-    assert isinstance(ref, dict)
+    ref = (obj.normalisation.reference if obj.normalisation is not None else None) or {}
     vals = {k: v / (abs(r) if _is_num(r := ref.get(k)) and r else 1.0) for k, v in after.items() if _is_num(v)}
     return min(vals, key=lambda k: vals[k]) if vals else None
 
