@@ -8,6 +8,10 @@ MySection(Record)`` (or ``Json``), and bump ``SCHEMA_VERSION`` when an existing 
 Every ``Record`` keeps keys it does not declare (``extra="allow"``): a key a newer writer adds inside a section
 passes through unchanged and is written back, so the model never drops data.
 
+A sub-package: the base ``Record`` in ``_record``, the robustness section in ``_robustness``, the pose-accuracy
+and tracking sections in ``_closed_loop``, all re-exported here; the report reads every section through
+``section(results, "x", Model)``.
+
 Writing is the identity on the data: ``StudyResults.from_data(d).to_data() == d`` for every results.json
 cadfeat writes (keys never given stay absent: ``exclude_unset``; strict types: an integer stays an integer).
 Values are rounded and made JSON-ready by ``cadfeat.study.outputs.plain`` before the model sees them.
@@ -21,7 +25,35 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar, Optional, TypeAlias, TypeVar
 
-from pydantic import BaseModel, ConfigDict, JsonValue, create_model
+from pydantic import create_model
+
+from cadfeat.results._closed_loop import (
+    EstimatorErrors,
+    HelpMost,
+    HelpMostBest,
+    Interval,
+    PairedTest,
+    PoseAccuracy,
+    PoseDesign,
+    PoseErrors,
+    Tracking,
+    TrackingCheck,
+    TrackingDesign,
+    TrackingFrame,
+    TrackingSettings,
+    TrackingVerdict,
+    WeakestPhase,
+)
+from cadfeat.results._record import Json, Number, Record
+from cadfeat.results._robustness import (
+    DesignDraws,
+    OutOfSample,
+    Robustness,
+    RobustObjective,
+    SampleShift,
+    Sensitivity,
+    Spread,
+)
 
 __all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "DesignDraws", "DesignMatrix", "EstimatorErrors", "FeatureSummary",
            "FileEntry", "Finding", "HelpMost", "HelpMostBest", "HoleRecord", "Holes", "Interval", "Json",
@@ -40,22 +72,6 @@ SCHEMA_VERSION = 4
 version-3 file reads the same); readers compare it before relying on a key."""
 SCHEMA_ID = f"https://cadfeat.invalid/schema/results-v{SCHEMA_VERSION}.json"
 """The results schema's ``$id`` (a name, not a place to fetch it from), versioned."""
-
-Json: TypeAlias = JsonValue
-"""A section (or value) kept as plain JSON: not typed here yet."""
-Number: TypeAlias = int | float
-"""A JSON number as written (an integer stays an integer, a float a float: strict, no coercion)."""
-
-
-class Record(BaseModel):
-    """A results.json object: strict (no coercion, so the data round-trips), keys not declared are kept."""
-
-    model_config = ConfigDict(strict=True, extra="allow", frozen=False, ser_json_inf_nan="null")
-
-    def to_data(self) -> dict[str, Any]:
-        """The object as plain JSON data: the keys that were given (or set), nothing added."""
-        return self.model_dump(exclude_unset=True)
-
 
 class StudyRecord(Record):
     """``study``: which study ran (``file`` None for a study given as a dict)."""
@@ -307,262 +323,6 @@ class Shop(Record):
     rebuilt_off_target_mm: Number | None = None
     x_optimum: dict[str, Number] | None = None
     x_shop: dict[str, Number] | None = None
-
-
-class Spread(Record):
-    """One value's nominal and its spread over random draws (``robustness``): mean, 5th/10th percentile, minimum."""
-
-    nominal: Number | None = None
-    mean: Number | None = None
-    p05: Number | None = None
-    p10: Number | None = None
-    min: Number | None = None
-
-
-class RobustObjective(Record):
-    """``robustness.objective``: the robust statistic the optimiser maximised and its draws (issue 18)."""
-
-    robust: bool | None = None
-    statistic: str | None = None
-    label: str | None = None
-    draws: int | None = None
-    sampling: str | None = None
-    seed: int | None = None
-
-
-class DesignDraws(Record):
-    """``robustness.distributions.<design>``: the held-out draws of the combined value per source of uncertainty,
-    and of each objective under the whole cell."""
-
-    combined: dict[str, list[Number | None]] = {}
-    objectives_cell: dict[str, list[Number | None]] = {}
-
-
-class SampleShift(Record):
-    """One design's robust statistic in sample (the optimiser's draws) and out of sample (fresh draws)."""
-
-    in_sample: Number | None = None
-    out_of_sample: Number | None = None
-
-
-class OutOfSample(Record):
-    """``robustness.out_of_sample``: the robust statistic of each design on the optimiser's and on fresh draws."""
-
-    statistic: str | None = None
-    draws_in_sample: int | None = None
-    seed_in_sample: int | None = None
-    draws_out_of_sample: int | None = None
-    seed_out_of_sample: int | None = None
-    designs: dict[str, SampleShift] = {}
-
-
-class Sensitivity(Record):
-    """``robustness.sensitivity``: where the robustness comes from, in words."""
-
-    words: str | None = None
-
-
-class Robustness(Record):
-    """``robustness``: the tolerance study (``design.robustness``: per objective its spread under the shop
-    tolerance and the camera mount) and, for a robust redesign (issue 18), the designs side by side: per design
-    (original, recommended, nominal, robust) and source of uncertainty, per objective and "combined", a
-    ``Spread``."""
-
-    names: list[str] = []
-    samples: int = 0
-    position_tol_mm: Number | None = None
-    size_steps: int | None = None
-    camera_position_mm: Number | None = None
-    camera_angle_deg: Number | None = None
-    razor_edge: list[str] = []
-    manufacturing: dict[str, Spread] | None = None
-    camera: dict[str, Spread] | None = None
-    objective: RobustObjective | None = None
-    uncertainty: dict[str, Json] | None = None
-    designs: dict[str, dict[str, dict[str, Spread]]] | None = None
-    recommended: str | None = None
-    delivered: str | None = None
-    reason: str = ""
-    flagged: list[str] = []
-    out_of_sample: OutOfSample | None = None
-    sensitivity: Sensitivity | None = None
-    distributions: dict[str, DesignDraws] | None = None
-
-
-class PoseErrors(Record):
-    """Predicted pose errors (RMS or worst over the trajectory; ``pose_accuracy.<design>.rms``/``worst``):
-    single frame (error, its bias and noise parts) and the IEKF posterior bound, translation mm, rotation deg."""
-
-    error_translation_mm: Number | None = None
-    bias_translation_mm: Number | None = None
-    noise_translation_mm: Number | None = None
-    iekf_translation_mm: Number | None = None
-    error_rotation_deg: Number | None = None
-    bias_rotation_deg: Number | None = None
-    noise_rotation_deg: Number | None = None
-    iekf_rotation_deg: Number | None = None
-
-
-class WeakestPhase(Record):
-    """The weakest direction of the pose estimate in one phase of the path (σ in mm)."""
-
-    phase: str
-    weakest: str
-    sigma_mm: Number | None = None
-    fraction: Number | None = None
-    poses: list[int] = []
-
-
-class HelpMostBest(Record):
-    """The one change that would help the pose estimate most, in words."""
-
-    sentence: str
-    hole: str | None = None
-    change: str | None = None
-    d_error_per_mm: Number | None = None
-
-
-class HelpMost(Record):
-    """``pose_accuracy.<design>.help_most``: what would help most (per movable hole, and the best)."""
-
-    best: HelpMostBest | None = None
-    holes: Json = None
-    rms_translation_mm: Number | None = None
-    step_mm: Number | None = None
-
-
-class PoseDesign(Record):
-    """``pose_accuracy.before`` / ``after``: one design's predicted pose error (issue 17)."""
-
-    rms: PoseErrors | None = None
-    worst: PoseErrors | None = None
-    per_pose: dict[str, list[Number | None]] = {}
-    """Per trajectory sample, the ``PoseErrors`` keys."""
-    share: dict[str, Number | None] = {}
-    """Each hole's share of the pose information (fraction, mean over the trajectory)."""
-    weakest: list[WeakestPhase] = []
-    help_most: HelpMost | None = None
-    holes_detected_mean: Number | None = None
-
-
-class PoseAccuracy(Record):
-    """``pose_accuracy``: the predicted pose error along the trajectory, before and after
-    (``cadfeat.study.pose_accuracy``)."""
-
-    times_s: list[Number] = []
-    phases: list[str] = []
-    before: PoseDesign | None = None
-    after: PoseDesign | None = None
-    model: str | None = None
-    movable: list[str] = []
-    rotation_length_mm: Number | None = None
-    tuning: dict[str, Number] | None = None
-
-
-class Interval(Record):
-    """A statistic over the Monte-Carlo runs: mean and median with its 95 % bootstrap interval."""
-
-    mean: Number | None = None
-    median: Number | None = None
-    ci_low: Number | None = None
-    ci_high: Number | None = None
-    runs_not_finite: int | None = None
-
-
-class EstimatorErrors(Record):
-    """One estimator's tracking errors over the runs (``tracking.designs.<design>.estimators.<m>``): RMS, p95
-    and max translation (mm) and rotation (deg), frames lost (and their fraction), convergence time (s)."""
-
-    trans_mm_rms: Interval | None = None
-    trans_mm_p95: Interval | None = None
-    trans_mm_max: Interval | None = None
-    rot_deg_rms: Interval | None = None
-    rot_deg_p95: Interval | None = None
-    rot_deg_max: Interval | None = None
-    frames_lost: Interval | None = None
-    lost_frac: Interval | None = None
-    convergence_s: Interval | None = None
-
-
-class TrackingDesign(Record):
-    """``tracking.designs.<design>``: per estimator the errors, per hole the detection rate (None: never in view)."""
-
-    estimators: dict[str, EstimatorErrors] = {}
-    detection_rate: dict[str, Number | None] = {}
-    frames: int | None = None
-    runs: int | None = None
-    frames_under_3_holes: Number | None = None
-
-
-class PairedTest(Record):
-    """The paired test of one error (translation or rotation) before against after."""
-
-    test: str = ""
-    p_value: Number | None = None
-    median_change: Number | None = None
-    alpha: Number | None = None
-    min_change: Number = 0.0
-    runs: int | None = None
-    verdict: str | None = None
-
-
-class TrackingVerdict(Record):
-    """``tracking.verdicts.<estimator>``: better / worse / no significant difference / mixed, and its tests."""
-
-    verdict: str
-    translation: PairedTest | None = None
-    rotation: PairedTest | None = None
-
-
-class TrackingCheck(Record):
-    """``tracking.check``: which closed-loop check of ``cadfeat run`` produced the section (fast or full)."""
-
-    mode: str | None = None
-    estimators: list[str] = []
-    runs: int | None = None
-    frames: int | None = None
-    seconds: Number | None = None
-
-
-class TrackingFrame(Record):
-    """A camera frame written beside the results (path relative to the output folder)."""
-
-    path: str
-    design: str
-    frame: int
-    time_s: Number
-    detected: int
-    holes: int
-
-
-class TrackingSettings(Record):
-    """``tracking.settings``: the simulation's settings (``[tracking]``; noise in grey levels, times in s)."""
-
-    estimators: list[str] = []
-    frames: int | None = None
-    runs: int | None = None
-    noise_grey: Number | None = None
-    defocus: bool | None = None
-    exposure_s: Number | None = None
-    initial_error_mm: Number | None = None
-    initial_error_deg: Number | None = None
-    placement_mm: Number = 0.0
-    placement_deg: Number = 0.0
-    gain_sigma: Number = 0.0
-    settle_frames: int | None = None
-
-
-class Tracking(Record):
-    """``tracking``: the closed-loop tracking simulation before and after (``cadfeat.vision``, ``cadfeat track``
-    or ``cadfeat run``'s check)."""
-
-    settings: TrackingSettings | None = None
-    designs: dict[str, TrackingDesign] = {}
-    verdicts: dict[str, TrackingVerdict] = {}
-    curves: dict[str, Json] = {}
-    frames: list[TrackingFrame] = []
-    warnings: list[str] = []
-    check: TrackingCheck | None = None
 
 
 class StudyResults(Record):
