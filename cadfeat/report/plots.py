@@ -18,11 +18,14 @@ from typing import Any
 import numpy as np
 
 from cadfeat.results import (
+    HistoryPoint,
     Measures,
     MeasureSummary,
     Objectives,
+    Pareto,
     Results,
     StudyResults,
+    Sweep,
     Variable,
     present,
     section,
@@ -179,13 +182,15 @@ def plot_convergence(results: Results, img_dir: Path) -> Plot | None:
     """Combined objective per optimiser iteration, larger is better like everything else in the report
     (``combined`` of the history, else −f of the minimiser); feasible points filled, infeasible hollow; the
     original design's value as a dashed line."""
-    history = [h for h in value(results, "history") or [] if isinstance(h, dict)
-               and (h.get("combined") is not None or h.get("f") is not None)]
+    points = [h if isinstance(h, HistoryPoint) else HistoryPoint.model_validate(h)
+              for h in value(results, "history") or []]
+    history = [h for h in points if h.combined is not None or h.f is not None]
     if len(history) < 1:
         return None
-    it = np.array([h.get("iteration", i) for i, h in enumerate(history)], dtype=float)
-    f = np.array([h["combined"] if h.get("combined") is not None else -h["f"] for h in history], dtype=float)
-    feasible = np.array([bool(h.get("feasible", True)) for h in history])
+    it = np.array([h.iteration if "iteration" in h.model_fields_set else i for i, h in enumerate(history)],
+                  dtype=float)
+    f = np.array([h.combined if h.combined is not None else -(h.f or 0.0) for h in history], dtype=float)
+    feasible = np.array([bool(h.feasible) for h in history])
     fig, axes = _figure(1, 1, (7.0, 3.6))
     ax = axes[0, 0]
     ax.plot(it, f, "-", color="#1f77b4", lw=1.0, alpha=0.6)
@@ -209,14 +214,14 @@ def plot_convergence(results: Results, img_dir: Path) -> Plot | None:
 
 def plot_sweep(results: Results, img_dir: Path) -> Plot | None:
     """Objectives vs the one design variable of a one-variable study (thesis Figs. 5.10, 5.11)."""
-    sweep = value(results, "sweep")
-    if not isinstance(sweep, dict) or not sweep.get("values") or not sweep.get("objectives"):
+    sweep = section(results, "sweep", Sweep)
+    if sweep is None or not sweep.values or not sweep.objectives:
         return None
-    x = np.asarray(sweep["values"], dtype=float)
-    curves = {str(k): np.asarray(v, dtype=float) for k, v in sweep["objectives"].items() if len(v) == len(x)}
+    x = np.asarray(sweep.values, dtype=float)
+    curves = {str(k): np.asarray(v, dtype=float) for k, v in sweep.objectives.items() if len(v) == len(x)}
     if not curves:
         return None
-    name = str(sweep.get("variable", "parameter"))
+    name = str(sweep.variable)
     variables = [v if isinstance(v, Variable) else Variable.model_validate(v)
                  for v in value(results, "variables") or []]
     var = next((v for v in variables if v.name == name), None)
@@ -239,13 +244,13 @@ def plot_sweep(results: Results, img_dir: Path) -> Plot | None:
 
 def plot_pareto(results: Results, img_dir: Path) -> Plot | None:
     """The Pareto front (first two objectives on the axes, a third as colour) with the chosen point."""
-    pareto = value(results, "pareto")
-    if not isinstance(pareto, dict) or not pareto.get("points"):
+    pareto = section(results, "pareto", Pareto)
+    if pareto is None or not pareto.points:
         return None
-    pts = np.asarray(pareto["points"], dtype=float)
+    pts = np.asarray(pareto.points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] < 2:
         return None
-    names = [str(n) for n in pareto.get("names") or []] or [f"f{i}" for i in range(pts.shape[1])]
+    names = [str(n) for n in pareto.names] or [f"f{i}" for i in range(pts.shape[1])]
     fig, axes = _figure(1, 1, (6.0, 4.6))
     ax = axes[0, 0]
     if pts.shape[1] > 2:
@@ -253,7 +258,7 @@ def plot_pareto(results: Results, img_dir: Path) -> Plot | None:
         fig.colorbar(sc, ax=ax, label=names[2])
     else:
         ax.scatter(pts[:, 0], pts[:, 1], color="#1f77b4", s=18)
-    chosen = pareto.get("chosen")
+    chosen = pareto.chosen
     if isinstance(chosen, int) and 0 <= chosen < len(pts):
         ax.plot(pts[chosen, 0], pts[chosen, 1], "*", color=AFTER, ms=16, mec="k", label="chosen")
         ax.legend(fontsize=8)

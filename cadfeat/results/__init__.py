@@ -56,14 +56,14 @@ from cadfeat.results._robustness import (
 )
 
 __all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "DesignDraws", "DesignMatrix", "EstimatorErrors", "FeatureSummary",
-           "FileEntry", "Finding", "HelpMost", "HelpMostBest", "HoleRecord", "Holes", "Interval", "Json",
-           "MeasureSummary", "Normalisation", "Measures", "ObjectiveChange", "Objectives", "OptimizerRecord",
-           "OutOfSample", "PairedTest", "Pattern", "PoseAccuracy", "PoseDesign", "PoseErrors", "Record",
-           "RequirementCheck", "RequirementUsed", "Results", "RobustObjective", "Robustness", "SampleShift",
-           "Sensitivity", "Shop", "Spread", "StudyRecord", "StudyResults", "Tracking", "TrackingCheck",
-           "TrackingDesign", "TrackingFrame", "TrackingSettings", "TrackingVerdict", "TrajectoryRecord", "Variable",
-           "Verdict", "Verification", "WeakestPhase", "partial_model", "present", "results_json_schema", "section",
-           "value"]
+           "FileEntry", "Finding", "HelpMost", "HelpMostBest", "HistoryPoint", "HoleRecord", "Holes", "Interval",
+           "Json", "MeasureSummary", "Measures", "Normalisation", "ObjectiveChange", "Objectives",
+           "OptimizerRecord", "OutOfSample", "PairedTest", "Pareto", "Pattern", "PoseAccuracy", "PoseDesign",
+           "PoseErrors", "Record", "RequirementCheck", "RequirementUsed", "Results", "RobustObjective",
+           "Robustness", "SampleShift", "Sensitivity", "Shop", "Spread", "StudyRecord", "StudyResults", "Sweep",
+           "Tracking", "TrackingCheck", "TrackingDesign", "TrackingFrame", "TrackingSettings", "TrackingVerdict",
+           "TrajectoryRecord", "Variable", "Verdict", "Verification", "WeakestPhase", "partial_model", "present",
+           "results_json_schema", "section", "value"]
 
 SCHEMA_VERSION = 4
 """results.json layout version (``schema_version``): 1 first layout; 2 ``shop``, ``patterns`` and
@@ -245,6 +245,40 @@ class OptimizerRecord(Record):
     rebuild_failed_at_model_optimum: str | None = None
 
 
+class HistoryPoint(Record):
+    """One evaluation of the optimiser (``history``): the minimised f, the combined objective (larger is better),
+    feasibility, the phase."""
+
+    iteration: int | None = None
+    f: Number | None = None
+    combined: Number | None = None
+    feasible: bool = True
+    phase: str | None = None
+    time_s: Number | None = None
+
+
+class Sweep(Record):
+    """``sweep``: each objective over the range of the one design variable of a one-variable study."""
+
+    variable: str = "parameter"
+    unit: str | None = None
+    values: list[Number | None] = []
+    objectives: dict[str, list[Number | None]] = {}
+    combined: list[Number | None] | None = None
+
+
+class Pareto(Record):
+    """``pareto``: the non-dominated designs (objective values per point), the chosen one and why."""
+
+    names: list[str] = []
+    points: list[list[Number | None]] = []
+    chosen: int | None = None
+    chosen_by: str | None = None
+    feasible: list[bool] | None = None
+    normalised: list[list[Number | None]] | None = None
+    x: Json = None
+
+
 class DesignMatrix(Record):
     """``design_matrix``: ∂(requirements)/∂(parameters) at the optimum and its axiomatic verdict (eq. 2.2)."""
 
@@ -347,9 +381,9 @@ class StudyResults(Record):
     patterns: list[Pattern] | None = None
     robustness: Robustness | None = None
     design_matrix: DesignMatrix | None = None
-    history: list[dict[str, Json]] | None = None
-    sweep: Json = None
-    pareto: Json = None
+    history: list[HistoryPoint] | None = None
+    sweep: Sweep | None = None
+    pareto: Pareto | None = None
     optimizer: OptimizerRecord | None = None
     interrupted: bool | None = None
     preflight: dict[str, Json] | None = None
