@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.results import Measures, Results, present, section
+
 
 @dataclass
 class ReportContext:
@@ -57,14 +59,14 @@ class ReportContext:
 MAX_VIEWS = 6
 
 
-def worst_poses(results: dict) -> dict[int, list[str]]:
+def worst_poses(results: Results) -> dict[int, list[str]]:
     """{trajectory sample: names of the holes whose worst pose it is} over the after (else before) design's
-    per-feature ``worst_pose``, at most ``MAX_VIEWS`` samples."""
-    m = results.get("measures") or {}
-    feats = (m.get("after") or m.get("before") or {}).get("per_feature") or []
+    per-feature ``worst_pose`` (``results.FeatureSummary``), at most ``MAX_VIEWS`` samples."""
+    m = section(results, "measures", Measures)
+    design = (m.after if present(m.after) else m.before) if m is not None else None
     out: dict[int, list[str]] = {}
-    for i, f in enumerate(feats):
-        k = f.get("worst_pose") if isinstance(f, dict) else None
-        if isinstance(k, int) and not isinstance(k, bool) and (k in out or len(out) < MAX_VIEWS):
-            out.setdefault(k, []).append(str(f.get("name") or f"#{i}"))
+    for i, f in enumerate(design.per_feature if design is not None else []):
+        k = f.worst_pose
+        if k is not None and (k in out or len(out) < MAX_VIEWS):
+            out.setdefault(k, []).append(str(f.name or f"#{i}"))
     return out

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from cadfeat.report.html import esc, fmt, num, table, text
-from cadfeat.results import Holes, StudyResults, section
+from cadfeat.results import Holes, Shop, StudyResults, present, section
 
 HOLE_COLUMNS = ("name", "face", "x_mm", "y_mm", "z_mm", "diameter_mm", "depth_mm", "kind", "moved")
 POSITION_DECIMALS = 3
@@ -64,7 +64,7 @@ def write_holes_csv(path: str | Path, results: dict) -> Path:
     return path
 
 
-def hole_table(results: dict) -> str:
+def hole_table(results: StudyResults | Mapping[str, Any]) -> str:
     """The hole table as HTML (id ``hole-table``) with a note on the rounding that produced it."""
     rows = hole_rows(results)
     if not rows:
@@ -72,18 +72,18 @@ def hole_table(results: dict) -> str:
     cells = ["".join([text(r["name"]), text(r["face"]), num(r["x_mm"], digits=7), num(r["y_mm"], digits=7),
                       num(r["z_mm"], digits=7), num(r["diameter_mm"], digits=6), num(r["depth_mm"], digits=6),
                       text(r["kind"]), text("yes" if r["moved"] else "")]) for r in rows]
-    shop = results.get("shop") or {}
+    shop = section(results, "shop", Shop)
     head = ""
-    if shop:
-        sizes = shop.get("hole_sizes")
-        head = (f"<p>Moved holes on a {esc(fmt(shop.get('grid_mm')))} mm grid, resized holes on "
+    if shop is not None and present(shop):
+        sizes = shop.hole_sizes
+        head = (f"<p>Moved holes on a {esc(fmt(shop.grid_mm))} mm grid, resized holes on "
                 f"{esc(sizes if isinstance(sizes, str) else 'the study table')} sizes"
-                + ("" if shop.get("applied") else " — <b>not applied</b>") + "; every requirement re-verified on "
+                + ("" if shop.applied else " — <b>not applied</b>") + "; every requirement re-verified on "
                 "the rebuilt B-rep and the re-imported STEP after rounding.</p>")
-        for n in shop.get("notes") or []:
+        for n in shop.notes:
             head += f'<div class="note">{esc(n)}</div>'
-        if shop.get("combined_optimum") is not None and shop.get("combined_shop") is not None:
-            head += (f"<p>Combined objective (model): optimum {esc(fmt(shop['combined_optimum']))}, shop-ready "
-                     f"{esc(fmt(shop['combined_shop']))}.</p>")
+        if shop.combined_optimum is not None and shop.combined_shop is not None:
+            head += (f"<p>Combined objective (model): optimum {esc(fmt(shop.combined_optimum))}, shop-ready "
+                     f"{esc(fmt(shop.combined_shop))}.</p>")
     return head + table(["hole", "face", "x (mm)", "y (mm)", "z (mm)", "Ø (mm)", "depth (mm)", "kind", "changed"],
                         cells, "hole-table") + "<p>Also written as <code>holes.csv</code>.</p>"

@@ -1,6 +1,7 @@
 """Matplotlib plots of a study's results (PNG, Agg, deterministic file names in ``img/``).
 
-Each ``plot_*`` function reads only the results dict (the keys of results.json, see contracts.md), writes
+Each ``plot_*`` function reads only the results (results.json's typed sections, ``cadfeat.results``; the
+per-pose series ``measures.*.per_pose``, ``history``, ``sweep`` and ``pareto`` are still plain JSON), writes
 one PNG and returns a ``Plot``, or returns None when its data is absent (a study without a sweep has no
 sweep plot). ``make_plots`` runs them all; a plot that fails on malformed data is skipped with a logged
 warning, it never stops the report.
@@ -15,6 +16,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from cadfeat.results import (
+    HistoryPoint,
+    Measures,
+    MeasureSummary,
+    Objectives,
+    Pareto,
+    Results,
+    StudyResults,
+    Sweep,
+    Variable,
+    present,
+    section,
+    value,
+)
 
 log = logging.getLogger(__name__)
 
@@ -54,45 +70,46 @@ def _save(fig: Any, img_dir: Path, key: str) -> Path:
     return path
 
 
-def _measures(results: dict, which: str) -> dict | None:
-    m = (results.get("measures") or {}).get(which)
-    return m if isinstance(m, dict) else None
+def _measures(results: Results, which: str) -> MeasureSummary | None:
+    m = section(results, "measures", Measures)
+    return None if m is None else m.before if which == "before" else m.after
 
 
-def _per_pose(results: dict, which: str, key: str) -> np.ndarray | None:
+def _per_pose(results: Results, which: str, key: str) -> np.ndarray | None:
     m = _measures(results, which)
-    values = ((m or {}).get("per_pose") or {}).get(key)
+    per_pose = m.per_pose if m is not None else None
+    values = per_pose.get(key) if isinstance(per_pose, dict) else None
     if values is None:
         return None
     a = np.asarray(values, dtype=float)
     return a if a.size else None
 
 
-def _times(results: dict, which: str, n: int) -> np.ndarray:
+def _times(results: Results, which: str, n: int) -> np.ndarray:
     t = _per_pose(results, which, "time_s")
     return t if t is not None and t.shape == (n,) else np.arange(n, dtype=float)
 
 
-def _design_label(results: dict, which: str) -> str:
+def _design_label(results: Results, which: str) -> str:
     """ "current" for an evaluation-only result (one design), else before/after."""
-    return "current" if which == "before" and not (results.get("measures") or {}).get("after") else which
+    return "current" if which == "before" and not present(_measures(results, "after")) else which
 
 
-def _feature_names(results: dict, which: str, n: int) -> list[str]:
-    feats = (_measures(results, which) or {}).get("per_feature") or []
-    names = [str(f.get("name") or f"H{f.get('index', i) + 1}") for i, f in enumerate(feats)]
+def _feature_names(results: Results, which: str, n: int) -> list[str]:
+    m = _measures(results, which)
+    names = [str(f.name or f"H{f.index + 1}") for f in (m.per_feature if m is not None else [])]
     return names if len(names) == n else [f"H{i + 1}" for i in range(n)]
 
 
 # ------------------------------------------------------------------------------------------------ the plots
-def plot_feature_tracks(results: dict, img_dir: Path) -> Plot | None:
+def plot_feature_tracks(results: Results, img_dir: Path) -> Plot | None:
     """Image-plane tracks of the hole centres along the trajectory, before | after, with the image border
     (thesis Fig. 5.7). From ``measures.{before,after}.per_pose.centre_px`` (L, N, 2) and ``camera``."""
     tracks = {w: _per_pose(results, w, "centre_px") for w in ("before", "after")}
     tracks = {w: a for w, a in tracks.items() if a is not None and a.ndim == 3 and a.shape[-1] == 2}
     if not tracks:
         return None
-    cam = results.get("camera") or {}
+    cam = value(results, "camera") or {}
     width, height = cam.get("width"), cam.get("height")
     fig, axes = _figure(len(tracks), 1, (5.2 * len(tracks), 4.6))
     cmap = _colours(max(a.shape[1] for a in tracks.values()))
@@ -123,7 +140,7 @@ def plot_feature_tracks(results: dict, img_dir: Path) -> Plot | None:
                 _save(fig, img_dir, "tracks"))
 
 
-def plot_pose_measures(results: dict, img_dir: Path) -> Plot | None:
+def plot_pose_measures(results: Results, img_dir: Path) -> Plot | None:
     """Worst-feature FOV, focus and resolution margins per pose (and the number of visible holes when the
     results have it), before vs after."""
     rows = [("fov_min", "FOV cone margin"), ("focus_min", "focus margin"), ("resolution_px_min", "resolution (px)"),
@@ -144,7 +161,7 @@ def plot_pose_measures(results: dict, img_dir: Path) -> Plot | None:
                 _save(fig, img_dir, "pose_measures"))
 
 
-def plot_motion(results: dict, img_dir: Path) -> Plot | None:
+def plot_motion(results: Results, img_dir: Path) -> Plot | None:
     """Directional motion resolvability Λ (eq. 4.32) and σ_min of the stacked Jacobian per pose."""
     present = [(k, label) for k, label in (("resolvability", "Λ (px per unit motion)"), ("sigma_min", "σ_min (px)"))
                if any(_per_pose(results, w, k) is not None for w in ("before", "after"))]
@@ -161,17 +178,19 @@ def plot_motion(results: dict, img_dir: Path) -> Plot | None:
                 "(eq. 4.20), before vs after.", _save(fig, img_dir, "motion"))
 
 
-def plot_convergence(results: dict, img_dir: Path) -> Plot | None:
+def plot_convergence(results: Results, img_dir: Path) -> Plot | None:
     """Combined objective per optimiser iteration, larger is better like everything else in the report
     (``combined`` of the history, else −f of the minimiser); feasible points filled, infeasible hollow; the
     original design's value as a dashed line."""
-    history = [h for h in results.get("history") or [] if isinstance(h, dict)
-               and (h.get("combined") is not None or h.get("f") is not None)]
+    points = [h if isinstance(h, HistoryPoint) else HistoryPoint.model_validate(h)
+              for h in value(results, "history") or []]
+    history = [h for h in points if h.combined is not None or h.f is not None]
     if len(history) < 1:
         return None
-    it = np.array([h.get("iteration", i) for i, h in enumerate(history)], dtype=float)
-    f = np.array([h["combined"] if h.get("combined") is not None else -h["f"] for h in history], dtype=float)
-    feasible = np.array([bool(h.get("feasible", True)) for h in history])
+    it = np.array([h.iteration if "iteration" in h.model_fields_set else i for i, h in enumerate(history)],
+                  dtype=float)
+    f = np.array([h.combined if h.combined is not None else -(h.f or 0.0) for h in history], dtype=float)
+    feasible = np.array([bool(h.feasible) for h in history])
     fig, axes = _figure(1, 1, (7.0, 3.6))
     ax = axes[0, 0]
     ax.plot(it, f, "-", color="#1f77b4", lw=1.0, alpha=0.6)
@@ -181,7 +200,8 @@ def plot_convergence(results: dict, img_dir: Path) -> Plot | None:
     best = np.maximum.accumulate(np.where(feasible, f, -np.inf))
     if np.isfinite(best).any():
         ax.step(it, best, where="post", color=AFTER, lw=1.5, label="best feasible so far")
-    before = (results.get("objectives") or {}).get("combined_before")
+    objectives = section(results, "objectives", Objectives)
+    before = objectives.combined_before if objectives is not None else None
     if isinstance(before, int | float) and not isinstance(before, bool):
         ax.axhline(before, color=BEFORE, ls="--", lw=1.2, label="original design")
     ax.set_xlabel("iteration")
@@ -192,42 +212,45 @@ def plot_convergence(results: dict, img_dir: Path) -> Plot | None:
                 _save(fig, img_dir, "convergence"))
 
 
-def plot_sweep(results: dict, img_dir: Path) -> Plot | None:
+def plot_sweep(results: Results, img_dir: Path) -> Plot | None:
     """Objectives vs the one design variable of a one-variable study (thesis Figs. 5.10, 5.11)."""
-    sweep = results.get("sweep")
-    if not isinstance(sweep, dict) or not sweep.get("values") or not sweep.get("objectives"):
+    sweep = section(results, "sweep", Sweep)
+    if sweep is None or not sweep.values or not sweep.objectives:
         return None
-    x = np.asarray(sweep["values"], dtype=float)
-    curves = {str(k): np.asarray(v, dtype=float) for k, v in sweep["objectives"].items() if len(v) == len(x)}
+    x = np.asarray(sweep.values, dtype=float)
+    curves = {str(k): np.asarray(v, dtype=float) for k, v in sweep.objectives.items() if len(v) == len(x)}
     if not curves:
         return None
-    name = str(sweep.get("variable", "parameter"))
-    var = next((v for v in results.get("variables") or [] if v.get("name") == name), {})
+    name = str(sweep.variable)
+    variables = [v if isinstance(v, Variable) else Variable.model_validate(v)
+                 for v in value(results, "variables") or []]
+    var = next((v for v in variables if v.name == name), None)
     fig, axes = _figure(1, len(curves), (7.0, 2.0 * len(curves) + 0.8))
     for ax, (obj, y) in zip(axes[:, 0], curves.items(), strict=True):
         ax.plot(x, y, "-", color="#1f77b4", lw=1.5)
-        for key, colour in (("before", BEFORE), ("after", AFTER)):
-            if isinstance(var.get(key), int | float):
-                ax.axvline(var[key], color=colour, ls="--", lw=1.2, label=key)
+        for key, colour, at in (("before", BEFORE, var.before if var else None),
+                                ("after", AFTER, var.after if var else None)):
+            if at is not None:
+                ax.axvline(at, color=colour, ls="--", lw=1.2, label=key)
         ax.set_ylabel(obj)
-    unit = f" ({var['unit']})" if var.get("unit") else ""
+    unit = f" ({var.unit})" if var is not None and var.unit else ""
     axes[-1, 0].set_xlabel(f"{name}{unit}")
-    if var:
+    if var is not None and present(var):
         axes[0, 0].legend(fontsize=8)
     return Plot("sweep", f"Objectives vs {name}", "Each objective over the range of the design variable "
                 "(cf. thesis Figs. 5.10, 5.11); dashed lines: the original and the chosen value.",
                 _save(fig, img_dir, "sweep"))
 
 
-def plot_pareto(results: dict, img_dir: Path) -> Plot | None:
+def plot_pareto(results: Results, img_dir: Path) -> Plot | None:
     """The Pareto front (first two objectives on the axes, a third as colour) with the chosen point."""
-    pareto = results.get("pareto")
-    if not isinstance(pareto, dict) or not pareto.get("points"):
+    pareto = section(results, "pareto", Pareto)
+    if pareto is None or not pareto.points:
         return None
-    pts = np.asarray(pareto["points"], dtype=float)
+    pts = np.asarray(pareto.points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] < 2:
         return None
-    names = [str(n) for n in pareto.get("names") or []] or [f"f{i}" for i in range(pts.shape[1])]
+    names = [str(n) for n in pareto.names] or [f"f{i}" for i in range(pts.shape[1])]
     fig, axes = _figure(1, 1, (6.0, 4.6))
     ax = axes[0, 0]
     if pts.shape[1] > 2:
@@ -235,7 +258,7 @@ def plot_pareto(results: dict, img_dir: Path) -> Plot | None:
         fig.colorbar(sc, ax=ax, label=names[2])
     else:
         ax.scatter(pts[:, 0], pts[:, 1], color="#1f77b4", s=18)
-    chosen = pareto.get("chosen")
+    chosen = pareto.chosen
     if isinstance(chosen, int) and 0 <= chosen < len(pts):
         ax.plot(pts[chosen, 0], pts[chosen, 1], "*", color=AFTER, ms=16, mec="k", label="chosen")
         ax.legend(fontsize=8)
@@ -245,12 +268,17 @@ def plot_pareto(results: dict, img_dir: Path) -> Plot | None:
                 "chosen design.", _save(fig, img_dir, "pareto"))
 
 
-PLOTTERS: tuple[Callable[[dict, Path], Plot | None], ...] = (
+PLOTTERS: tuple[Callable[[Results, Path], Plot | None], ...] = (
     plot_feature_tracks, plot_pose_measures, plot_motion, plot_convergence, plot_sweep, plot_pareto)
 
 
-def make_plots(results: dict, img_dir: str | Path) -> tuple[list[Plot], list[str]]:
+def make_plots(results: Results, img_dir: str | Path) -> tuple[list[Plot], list[str]]:
     """Write every plot whose data is present; returns the plots and notes about plots that failed."""
+    if not isinstance(results, StudyResults):
+        try:  # the per-pose series checked once, not by every plot
+            results = {**results, "measures": section(results, "measures", Measures)}
+        except ValueError:
+            pass  # each plot that reads them says so
     img_dir = Path(img_dir)
     img_dir.mkdir(parents=True, exist_ok=True)
     plots, notes = [], []
@@ -267,7 +295,7 @@ def make_plots(results: dict, img_dir: str | Path) -> tuple[list[Plot], list[str
 
 
 # ------------------------------------------------------------------------------------------------ helpers
-def _before_after(ax: Any, results: dict, key: str) -> None:
+def _before_after(ax: Any, results: Results, key: str) -> None:
     for which, colour, style in (("before", BEFORE, "--"), ("after", AFTER, "-")):
         y = _per_pose(results, which, key)
         if y is not None and y.ndim == 1:

@@ -6,7 +6,7 @@ prediction with its bias part, and the IEKF's posterior bound), the table of its
 the information, the weakest direction per phase of the path in words, the "what would help most" sentence,
 and — when the results have a ``tracking`` section — the closed-loop measurements beside the prediction with
 their ratio (PnP against the single-frame prediction, the filters against the posterior bound). Empty when the
-results have no ``pose_accuracy``.
+results have no ``pose_accuracy``. Reads the typed sections ``results.PoseAccuracy`` and ``results.Tracking``.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from cadfeat.report.html import esc, figure, fmt, note, num, table, text
+from cadfeat.results import PoseAccuracy, PoseDesign, Results, Tracking, present, section
 
 COLOURS = {"before": "#d95f02", "after": "#1b9e77"}
 DESIGNS = ("before", "after")
@@ -25,17 +26,23 @@ def _nan(values: list[Any]) -> list[float]:
     return [float("nan") if v is None else float(v) for v in values]
 
 
-def error_plot(pose: dict[str, Any], path: Path) -> Path:
+def _design(pose: PoseAccuracy, name: str) -> PoseDesign | None:
+    """``pose.before`` / ``pose.after`` by name (DESIGNS)."""
+    return pose.before if name == "before" else pose.after
+
+
+def error_plot(pose: PoseAccuracy, path: Path) -> Path:
     """Predicted translation (mm) and rotation (deg) error against time, before and after: the single-frame
     prediction (solid), its bias part (dotted) and the IEKF posterior bound (dashed)."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(9.0, 3.6), dpi=110)
     axes = fig.subplots(1, 2, squeeze=False)[0]
-    t = pose["times_s"]
+    t = pose.times_s
     for ax, (kind, unit) in zip(axes, (("translation", "mm"), ("rotation", "deg")), strict=True):
         for name in DESIGNS:
-            pp = pose.get(name, {}).get("per_pose")
+            d = _design(pose, name)
+            pp = d.per_pose if d is not None else None
             if not pp:
                 continue
             c = COLOURS[name]
@@ -52,56 +59,65 @@ def error_plot(pose: dict[str, Any], path: Path) -> Path:
     return path
 
 
-def _summary_table(pose: dict[str, Any]) -> str:
-    rows = []
+def _summary_table(pose: PoseAccuracy) -> str:
+    rows: list[str] = []
     for name in DESIGNS:
-        d = pose.get(name)
-        if not d:
+        d = _design(pose, name)
+        if d is None or not present(d):
             continue
-        r, w = d["rms"], d["worst"]
+        r, w = d.rms, d.worst
+        if r is None or w is None:
+            raise KeyError(f"pose_accuracy.{name}: no rms/worst")
         rows.append(text(name) + "".join(num(v) for v in (
-            r["error_translation_mm"], w["error_translation_mm"], r["bias_translation_mm"], r["noise_translation_mm"],
-            r["error_rotation_deg"], w["error_rotation_deg"], r["bias_rotation_deg"], r["noise_rotation_deg"],
-            r["iekf_translation_mm"], r["iekf_rotation_deg"], d["holes_detected_mean"])))
+            r.error_translation_mm, w.error_translation_mm, r.bias_translation_mm, r.noise_translation_mm,
+            r.error_rotation_deg, w.error_rotation_deg, r.bias_rotation_deg, r.noise_rotation_deg,
+            r.iekf_translation_mm, r.iekf_rotation_deg, d.holes_detected_mean)))
     return table([("", 1), ("single frame, translation (mm)", 4), ("single frame, rotation (deg)", 4),
                   ("IEKF bound", 2), ("", 1)], rows, "pose-accuracy",
                  header2=["design", "RMS", "worst", "bias", "noise", "RMS", "worst", "bias", "noise",
                           "RMS (mm)", "RMS (deg)", "holes detected"])
 
 
-def _share_table(pose: dict[str, Any]) -> str:
-    names = list(dict.fromkeys([*pose.get("before", {}).get("share", {}), *pose.get("after", {}).get("share", {})]))
-    rows = []
+def _shares(pose: PoseAccuracy, name: str) -> dict[str, Any]:
+    d = _design(pose, name)
+    return d.share if d is not None else {}
+
+
+def _share_table(pose: PoseAccuracy) -> str:
+    names = list(dict.fromkeys([*_shares(pose, "before"), *_shares(pose, "after")]))
+    rows: list[str] = []
     for h in names:
-        cells = [pose.get(d, {}).get("share", {}).get(h) for d in DESIGNS]
+        cells = [_shares(pose, d).get(h) for d in DESIGNS]
         rows.append(text(h) + "".join(num(100.0 * c if c is not None else None, digits=3) for c in cells))
     return table(["hole", "share before (%)", "share after (%)"], rows, "pose-shares")
 
 
-def _weakest(pose: dict[str, Any]) -> str:
-    items = []
+def _weakest(pose: PoseAccuracy) -> str:
+    items: list[str] = []
     for name in DESIGNS:
-        phases = pose.get(name, {}).get("weakest") or []
-        words = "; ".join(f"{esc(p['phase'])}: {esc(p['weakest'])} (σ ≈ {fmt(p['sigma_mm'], 3)} mm)" for p in phases)
+        d = _design(pose, name)
+        phases = d.weakest if d is not None else []
+        words = "; ".join(f"{esc(p.phase)}: {esc(p.weakest)} (σ ≈ {fmt(p.sigma_mm, 3)} mm)" for p in phases)
         if words:
             items.append(f"<li>{esc(name)} — {words}</li>")
     return f"<p>Weakest direction per phase of the path:</p><ul>{''.join(items)}</ul>" if items else ""
 
 
-def _closed_loop(pose: dict[str, Any], tracking: dict[str, Any] | None) -> str:
+def _closed_loop(pose: PoseAccuracy, tracking: Tracking | None) -> str:
     """Simulated RMS errors beside the predictions, with the ratio simulated / predicted."""
-    if not tracking or not tracking.get("designs"):
+    if tracking is None or not tracking.designs:
         return ""
-    rows = []
-    for name, d in tracking["designs"].items():
-        pred = pose.get(name, {}).get("rms")
-        if not pred:
+    rows: list[str] = []
+    for name, d in tracking.designs.items():
+        design = _design(pose, name) if name in DESIGNS else None
+        pred = design.rms if design is not None else None
+        if pred is None or not present(pred):
             continue
-        for m, e in d.get("estimators", {}).items():
+        for m, e in d.estimators.items():
             ref = "error" if m == "pnp" else "iekf"
-            for kind, key, unit in (("translation", "trans_mm_rms", "mm"), ("rotation", "rot_deg_rms", "deg")):
-                sim = (e.get(key) or {}).get("mean")
-                p = pred.get(f"{ref}_{kind}_{unit}")
+            for kind, stat, unit in (("translation", e.trans_mm_rms, "mm"), ("rotation", e.rot_deg_rms, "deg")):
+                sim = stat.mean if stat is not None else None
+                p = getattr(pred, f"{ref}_{kind}_{unit}")
                 ratio = sim / p if sim is not None and p else None
                 rows.append(text(name) + text(m.upper()) + text(f"{kind} ({unit})") + num(p) + num(sim)
                             + num(ratio, digits=3))
@@ -113,10 +129,10 @@ def _closed_loop(pose: dict[str, Any], tracking: dict[str, Any] | None) -> str:
                     rows, "pose-closed-loop"))
 
 
-def pose_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path], Any]) -> str:
+def pose_section(results: Results, out_dir: Path, rel: Callable[[Path], Any]) -> str:
     """The section's HTML ('' when the results have no ``pose_accuracy``)."""
-    pose = results.get("pose_accuracy")
-    if not pose:
+    pose = section(results, "pose_accuracy", PoseAccuracy)
+    if pose is None or not present(pose):
         return ""
     parts = ["<p>Predicted error of the robot's estimate of the part pose along the trajectory, from the Fisher "
              "information of the holes' rim-ellipse centres (calibrated detection and measurement models; a hole "
@@ -132,10 +148,11 @@ def pose_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path], A
         parts.append(note(f"no pose-error plot: {exc}"))
     parts.append("<p>Share of the pose information per hole (mean over the trajectory):</p>" + _share_table(pose))
     parts.append(_weakest(pose))
-    which = "after" if pose.get("after") else "before"
-    best = (pose.get(which, {}).get("help_most") or {}).get("best")
-    if best:
+    which = "after" if present(pose.after) else "before"
+    design = _design(pose, which)
+    best = design.help_most.best if design is not None and design.help_most is not None else None
+    if best is not None and present(best):
         label = "delivered design" if which == "after" else "this design"
-        parts.append(f'<p class="help-most">What would help most ({label}): {esc(best["sentence"])}</p>')
-    parts.append(_closed_loop(pose, results.get("tracking")))
+        parts.append(f'<p class="help-most">What would help most ({label}): {esc(best.sentence)}</p>')
+    parts.append(_closed_loop(pose, section(results, "tracking", Tracking)))
     return "".join(parts)

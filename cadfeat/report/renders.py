@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from cadfeat.report.context import ReportContext, worst_poses
+from cadfeat.results import Results, value
 
 log = logging.getLogger(__name__)
 
@@ -31,13 +32,14 @@ class Renders:
     worst: dict[int, list[str]] = field(default_factory=dict)  # sample -> holes whose worst pose it is
 
 
-def _camera(context: ReportContext, results: dict):
+def _camera(context: ReportContext, results: Results):
     if context.camera is not None:
         return context.camera
-    if results.get("camera"):
+    camera = value(results, "camera")
+    if camera:
         from cadfeat.camera import camera_from_dict
 
-        data = {k: v for k, v in results["camera"].items() if k != "source"}
+        data = {k: v for k, v in camera.items() if k != "source"}
         return camera_from_dict(data, "results.json camera")
     return None
 
@@ -61,7 +63,7 @@ def _fail(renders: Renders, what: str, exc: BaseException) -> None:
     renders.notes.append(message)
 
 
-def make_renders(context: ReportContext | None, results: dict, img_dir: str | Path) -> Renders:
+def make_renders(context: ReportContext | None, results: Results, img_dir: str | Path) -> Renders:
     """Render the before/after comparison and the camera views at ``context.samples()`` into ``img_dir``.
 
     With only ``shape_before`` (an evaluation, nothing optimised) the part and its views are rendered once,

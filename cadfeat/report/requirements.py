@@ -1,11 +1,11 @@
 """Kept requirements, one row each with the B-rep and re-imported STEP checks side by side; active ones first.
 
-``results["constraints"]`` holds one entry per requirement and per check (``checked_on`` "brep" or "step");
-``requirement_rows`` merges them by (name, holes). A requirement is *active* when its smallest margin is
-below ``ACTIVE_MARGIN_MM`` (mm; "fraction" requirements: ``ACTIVE_MARGIN_FRAC`` of the required value):
-the optimum sits on it and a shop tolerance of that size could break it. Every requirement the optimiser
-used (``results["requirements_used"]``, the 2-D model's rows) must appear among the verified rows; any that
-does not is listed as "not verified" (a verification gap, shown on top).
+results.json ``constraints`` (``results.RequirementCheck``) holds one entry per requirement and per check
+(``checked_on`` "brep" or "step"); ``requirement_rows`` merges them by (name, holes). A requirement is *active*
+when its smallest margin is below ``ACTIVE_MARGIN_MM`` (mm; "fraction" requirements: ``ACTIVE_MARGIN_FRAC`` of
+the required value): the optimum sits on it and a shop tolerance of that size could break it. Every requirement
+the optimiser used (``requirements_used``, ``results.RequirementUsed``: the 2-D model's rows) must appear among
+the verified rows; any that does not is listed as "not verified" (a verification gap, shown on top).
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from cadfeat.report.html import esc, fmt, note, num, table, text
+from cadfeat.results import Holes, RequirementCheck, RequirementUsed, Results, section, value
 
 #: Margin (mm) below which a kept requirement counts as active (= the default position tolerance).
 ACTIVE_MARGIN_MM = 0.1
@@ -32,17 +33,18 @@ class Requirement:
     holes: tuple[str, ...]
     required: float | None
     unit: str
-    checks: dict[str, dict] = field(default_factory=dict)
+    checks: dict[str, RequirementCheck] = field(default_factory=dict[str, RequirementCheck])
 
     @property
     def margin(self) -> float:
         """Smallest margin over the checks (mm or the requirement's unit); +inf without checks."""
-        ms = [c.get("margin") for c in self.checks.values() if isinstance(c.get("margin"), int | float)]
+        ms = [c.margin for c in self.checks.values() if c.margin is not None]
         return min(ms) if ms else float("inf")
 
     @property
     def ok(self) -> bool:
-        return all(bool(c.get("ok", True)) for c in self.checks.values())
+        """No check failed (a check that does not say counts as passed)."""
+        return all("ok" not in c.model_fields_set or bool(c.ok) for c in self.checks.values())
 
     @property
     def verified(self) -> bool:
@@ -68,43 +70,46 @@ def _key(name: Any, holes: Any) -> tuple[str, tuple[str, ...]]:
     return str(name), tuple(sorted(str(h) for h in hs))
 
 
-def requirement_rows(results: dict) -> list[Requirement]:
+def _records(results: Results, name: str, model: type[Any]) -> list[Any]:
+    return [it if isinstance(it, model) else model.model_validate(it) for it in value(results, name) or []]
+
+
+def requirement_rows(results: Results) -> list[Requirement]:
     """Requirements merged by (name, holes), sorted: violated, unverified, active (smallest margin first),
     then the rest by margin."""
     reqs: dict[tuple[str, tuple[str, ...]], Requirement] = {}
     names = _hole_names(results)
-    for c in results.get("constraints") or []:
-        if not isinstance(c, dict):
+    checks: list[RequirementCheck] = _records(results, "constraints", RequirementCheck)
+    for c in checks:
+        holes = [names.get(h, h) if isinstance(h, int) else h for h in c.holes]
+        key = _key(c.name, holes)
+        req = reqs.setdefault(key, Requirement(key[0], key[1], c.required, c.unit))
+        req.checks[str(c.checked_on or "brep")] = c
+    used: list[RequirementUsed] = _records(results, "requirements_used", RequirementUsed)
+    for u in used:
+        if u.name.startswith("threshold:"):
             continue
-        holes = [names.get(h, h) if isinstance(h, int) else h for h in c.get("holes") or []]
-        key = _key(c.get("name"), holes)
-        req = reqs.setdefault(key, Requirement(key[0], key[1], c.get("required"), str(c.get("unit", ""))))
-        req.checks[str(c.get("checked_on") or "brep")] = c
-    for u in results.get("requirements_used") or []:
-        if not isinstance(u, dict) or str(u.get("name", "")).startswith("threshold:"):
-            continue
-        key = _key(u.get("name"), u.get("holes"))
-        req = reqs.setdefault(key, Requirement(key[0], key[1], u.get("required"), str(u.get("unit", "mm"))))
-        req.checks.setdefault("model", {"margin": u.get("margin"), "ok": True, "value": None})
+        key = _key(u.name, u.holes)
+        req = reqs.setdefault(key, Requirement(key[0], key[1], u.required, u.unit))
+        req.checks.setdefault("model", RequirementCheck(name=u.name, margin=u.margin, ok=True, value=None))
     rank = {"VIOLATED": 0, "not verified": 1, "active": 2, "ok": 3}
     return sorted(reqs.values(), key=lambda r: (rank[r.status], r.margin))
 
 
-def _hole_names(results: dict) -> dict[int, str]:
-    holes = results.get("holes") or {}
-    return {h.get("index", i): str(h.get("name")) for i, h in enumerate(holes.get("after") or holes.get("before")
-                                                                         or []) if h.get("name")}
+def _hole_names(results: Results) -> dict[int, str]:
+    holes = section(results, "holes", Holes)
+    return {h.index: h.name for h in (holes.after or holes.before if holes else []) if h.name}
 
 
 def _row(r: Requirement, places: list[str]) -> str:
     cells = [text(r.name), text(", ".join(r.holes)), num(r.required), text(r.unit)]
     for p in places:
-        c = r.checks.get(p) or {}
-        cells += [num(c.get("value")), num(c.get("margin"))]
+        c = r.checks.get(p)
+        cells += [num(c.value if c else None), num(c.margin if c else None)]
     return "".join(cells) + text(r.status, "text status")
 
 
-def requirements_table(results: dict) -> str:
+def requirements_table(results: Results) -> str:
     """The requirement table (id ``constraints``: active/violated/unverified rows; id ``constraints-trivial``:
     the others inside a closed ``<details>``), with a one-line summary on top."""
     reqs = requirement_rows(results)

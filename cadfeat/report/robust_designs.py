@@ -3,7 +3,8 @@
 Reads results.json ``robustness`` (``cadfeat.study.robust_study.RobustDesigns``): per design and source of
 uncertainty the nominal value and the distribution over the held-out draws (a box plot per objective and of the
 combined value, matplotlib PNG), which design the rule recommends and why, the in-sample vs out-of-sample robust
-statistic, and where the robustness comes from (one-at-a-time 5th-percentile drops) in words.
+statistic, and where the robustness comes from (one-at-a-time 5th-percentile drops) in words. Reads the typed
+section ``results.Robustness``.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from cadfeat.report.html import esc, figure, note, num, table, text
+from cadfeat.results import Results, Robustness, Spread, section
 
 __all__ = ["box_plot", "robust_designs_section"]
 
@@ -21,44 +23,37 @@ SOURCE_LABELS = {"cell": "whole cell", "camera": "camera mount", "placement": "p
                  "pixel_noise": "pixel noise", "manufacturing": "shop"}
 
 
-def _kinds(rb: dict[str, Any]) -> dict[str, str]:
-    """Design label → what it is ("original", "nominal" or "robust") for the designs the results hold."""
-    rec = rb.get("recommended")
-    out = {"original": "original"}
-    if rec in ("robust", "nominal"):
-        out["recommended"] = rec
-    for k in ("robust", "nominal"):
-        if k in (rb.get("designs") or {}):
-            out[k] = k
-    return out
+Stats = dict[str, dict[str, Spread]]
+"""One design's statistics: source of uncertainty → objective (or "combined") → ``Spread``."""
 
 
-def _order(rb: dict[str, Any]) -> list[str]:
+def _order(rb: Robustness) -> list[str]:
     """The three designs in a fixed order: original, nominal optimum, robust optimum (those present)."""
-    dists = rb.get("distributions") or {}
+    dists = rb.distributions or {}
     return [k for k in ("original", "nominal", "robust") if k in dists]
 
 
-def box_plot(rb: dict[str, Any], path: Path) -> Path:
+def box_plot(rb: Robustness, path: Path) -> Path:
     """Box plots over the held-out draws of the whole cell: one panel per objective and one of the combined value,
     a box per design (original, nominal optimum, robust optimum); the nominal value as a dot."""
     from matplotlib.figure import Figure
 
-    dists = rb.get("distributions") or {}
+    dists = rb.distributions or {}
     designs = _order(rb)
-    names = list((dists.get(designs[0]) or {}).get("objectives_cell") or {}) + ["combined"]
+    names = list(dists[designs[0]].objectives_cell) + ["combined"]
     fig = Figure(figsize=(2.3 * len(names) + 0.6, 3.2), dpi=110)
     axes = fig.subplots(1, len(names), squeeze=False)[0]
     stats = {k: _stats_of(rb, k) for k in designs}
     for ax, name in zip(axes, names, strict=True):
-        data = [(dists[k]["combined"].get("cell") if name == "combined" else dists[k]["objectives_cell"].get(name))
+        data = [(dists[k].combined.get("cell") if name == "combined" else dists[k].objectives_cell.get(name))
                 or [] for k in designs]
         bp = ax.boxplot(data, whis=(5, 95), showfliers=False, patch_artist=True, widths=0.6)
         for patch, k in zip(bp["boxes"], designs, strict=True):
             patch.set_facecolor(COLOURS[k])
             patch.set_alpha(0.55)
         for i, k in enumerate(designs):
-            nominal = ((stats[k] or {}).get("cell") or {}).get(name, {}).get("nominal")
+            spread = ((stats[k] or {}).get("cell") or {}).get(name)
+            nominal = spread.nominal if spread is not None else None
             if nominal is not None:
                 ax.plot(i + 1, nominal, "o", color="black", ms=3)
         ax.set_xticks(range(1, len(designs) + 1), designs, fontsize=7)
@@ -71,63 +66,62 @@ def box_plot(rb: dict[str, Any], path: Path) -> Path:
     return path
 
 
-def _stats_of(rb: dict[str, Any], kind: str) -> dict[str, Any] | None:
+def _stats_of(rb: Robustness, kind: str) -> Stats | None:
     """The per-source statistics of the design that is ``kind`` ("original", "nominal", "robust")."""
-    designs = rb.get("designs") or {}
+    designs = rb.designs or {}
     if kind in designs:
         return designs[kind]
-    if kind == rb.get("recommended") or (kind == rb.get("delivered") and rb.get("recommended") == kind):
+    if kind == rb.recommended or (kind == rb.delivered and rb.recommended == kind):
         return designs.get("recommended")
     return None
 
 
-def _side_by_side(rb: dict[str, Any]) -> str:
+def _side_by_side(rb: Robustness) -> str:
     """Combined value per design: nominal, then mean / 5th percentile / minimum under each source."""
     designs = _order(rb)
     sources = [s for s in SOURCE_LABELS if any(s in (_stats_of(rb, k) or {}) for k in designs)]
-    rows = []
-    rec = rb.get("recommended")
+    rows: list[str] = []
+    rec = rb.recommended
     for k in designs:
         st = _stats_of(rb, k) or {}
-        comb = {s: (st.get(s) or {}).get("combined") or {} for s in sources}
-        label = k + (" (recommended)" if k == rec else "") + (" (flagged)" if k in (rb.get("flagged") or []) else "")
-        cells = [text(label), num(comb[sources[0]].get("nominal") if sources else None)]
+        comb = {s: (st.get(s) or {}).get("combined") or Spread() for s in sources}
+        label = k + (" (recommended)" if k == rec else "") + (" (flagged)" if k in rb.flagged else "")
+        cells = [text(label), num(comb[sources[0]].nominal if sources else None)]
         for s in sources:
-            cells += [num(comb[s].get("mean")), num(comb[s].get("p05"), "worse" if k in (rb.get("flagged") or [])
-                                                    and s in ("cell", "camera", "manufacturing") else "")]
+            cells += [num(comb[s].mean), num(comb[s].p05, "worse" if k in rb.flagged
+                                             and s in ("cell", "camera", "manufacturing") else "")]
         rows.append("".join(cells))
     head: list[str | tuple[str, int]] = ["design", "nominal", *[(SOURCE_LABELS[s], 2) for s in sources]]
     return table(head, rows, "robust-designs", header2=["", "", *["mean", "p05"] * len(sources)])
 
 
-def _out_of_sample(rb: dict[str, Any]) -> str:
-    oos = rb.get("out_of_sample") or {}
-    per = oos.get("designs") or {}
-    if not per:
+def _out_of_sample(rb: Robustness) -> str:
+    oos = rb.out_of_sample
+    if oos is None or not oos.designs:
         return ""
-    rows = ["".join([text(k), num(v.get("in_sample")), num(v.get("out_of_sample")),
-                     num(None if v.get("in_sample") is None or v.get("out_of_sample") is None
-                         else v["out_of_sample"] - v["in_sample"])]) for k, v in per.items()]
-    return (f"<p>The robust statistic ({esc(oos.get('statistic'))} of the combined objective, the smallest over "
-            f"the whole cell, the camera mount and the shop) in sample — the {esc(oos.get('draws_in_sample'))} "
-            f"draws the optimiser saw (seed {esc(oos.get('seed_in_sample'))}) — and out of sample — "
-            f"{esc(oos.get('draws_out_of_sample'))} fresh draws (seed {esc(oos.get('seed_out_of_sample'))}). A robust "
+    rows = ["".join([text(k), num(v.in_sample), num(v.out_of_sample),
+                     num(None if v.in_sample is None or v.out_of_sample is None
+                         else v.out_of_sample - v.in_sample)]) for k, v in oos.designs.items()]
+    return (f"<p>The robust statistic ({esc(oos.statistic)} of the combined objective, the smallest over "
+            f"the whole cell, the camera mount and the shop) in sample — the {esc(oos.draws_in_sample)} "
+            f"draws the optimiser saw (seed {esc(oos.seed_in_sample)}) — and out of sample — "
+            f"{esc(oos.draws_out_of_sample)} fresh draws (seed {esc(oos.seed_out_of_sample)}). A robust "
             "optimum that lost much more than the others out of sample overfitted the draws.</p>"
             + table(["design", "in sample", "out of sample", "change"], rows, "robust-out-of-sample"))
 
 
-def robust_designs_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path], Any]) -> str:
+def robust_designs_section(results: Results, out_dir: Path, rel: Callable[[Path], Any]) -> str:
     """The sub-section's HTML ('' when results.json has no ``robustness.designs``)."""
-    rb = results.get("robustness")
-    if not isinstance(rb, dict) or not rb.get("designs"):
+    rb = section(results, "robustness", Robustness)
+    if rb is None or not rb.designs:
         return ""
-    obj, unc = rb.get("objective") or {}, rb.get("uncertainty") or {}
-    rec = str(rb.get("recommended"))
+    obj, unc = rb.objective, rb.uncertainty or {}
+    rec = str(rb.recommended)
     words = {"robust": "the robust optimum", "nominal": "the nominal optimum", "original": "the original design"}
     parts = ["<h3>Original, nominal optimum and robust optimum</h3>",
-             f"<p>The robust optimiser maximised the {esc(obj.get('label'))} of the combined objective over "
-             f"{esc(obj.get('draws'))} fixed {esc(obj.get('sampling'))} draws of the cell (seed "
-             f"{esc(obj.get('seed'))}): camera mount ±{esc(unc.get('camera_position_mm'))} mm and "
+             f"<p>The robust optimiser maximised the {esc(obj.label if obj else None)} of the combined objective "
+             f"over {esc(obj.draws if obj else None)} fixed {esc(obj.sampling if obj else None)} draws of the cell "
+             f"(seed {esc(obj.seed if obj else None)}): camera mount ±{esc(unc.get('camera_position_mm'))} mm and "
              f"±{esc(unc.get('camera_angle_deg'))}°, part placement ±{esc(unc.get('placement_position_mm'))} mm "
              f"and ±{esc(unc.get('placement_angle_deg'))}°, path offset ±{esc(unc.get('path_offset_mm'))} mm, speed "
              f"±{esc(unc.get('time_scale_percent'))} %, pixel noise ±{esc(unc.get('pixel_noise_grey'))} grey "
@@ -135,8 +129,8 @@ def robust_designs_section(results: dict[str, Any], out_dir: Path, rel: Callable
              f"±{esc(unc.get('diameter_tol_mm'))} mm ({esc(unc.get('distribution'))}). The statistics below are on "
              "held-out draws. Rule: a design whose combined 5th percentile under the whole cell, the camera mount "
              "or the shop is below the original's is never recommended.</p>"]
-    flagged = [f for f in rb.get("flagged") or [] if f != rec]
-    parts.append(note(f"Recommended: {words.get(rec, rec)} — {rb.get('reason', '')}.",
+    flagged = [f for f in rb.flagged if f != rec]
+    parts.append(note(f"Recommended: {words.get(rec, rec)} — {rb.reason}.",
                       "warning" if rec == "original" else "note"))
     if flagged:
         parts.append(note("Flagged (more fragile than the original): " + ", ".join(words.get(f, f) for f in flagged)
@@ -150,7 +144,7 @@ def robust_designs_section(results: dict[str, Any], out_dir: Path, rel: Callable
     except (ImportError, KeyError, IndexError, TypeError) as exc:  # matplotlib missing or no distributions
         parts.append(note(f"no distribution plot: {exc}"))
     parts.append(_out_of_sample(rb))
-    sens = (rb.get("sensitivity") or {}).get("words")
+    sens = rb.sensitivity.words if rb.sensitivity is not None else None
     if sens:
         parts.append(f"<p id=\"robust-sensitivity\">Where the robustness comes from ({esc(words.get(rec, rec))}): "
                      f"{esc(sens)}.</p>")

@@ -3,7 +3,8 @@
 Error against time before and after per estimator (median over the Monte-Carlo runs with a 10–90 % band,
 thesis Fig. 6.7 style), a few camera frames with the detected ellipses over the predicted ones, the table of
 errors with bootstrap intervals, and one verdict line per estimator with the paired test used. Also the plot of
-a ``cadfeat track --sweep`` (thesis Figs. 6.3–6.11). Empty when the results have no tracking section.
+a ``cadfeat track --sweep`` (thesis Figs. 6.3–6.11). Empty when the results have no tracking section. Reads the
+typed section ``results.Tracking``.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from cadfeat.report.html import esc, figure, fmt, note, table
+from cadfeat.results import Interval, Results, Tracking, present, section
 
 COLOURS = {"before": "#d95f02", "after": "#1b9e77"}
 VERDICT_TEXT = {"better": "tracks better after the redesign", "worse": "tracks WORSE after the redesign",
@@ -28,10 +30,12 @@ def _figure(ncols: int, nrows: int, size: tuple[float, float]) -> tuple[Any, Any
     return fig, axes
 
 
-def error_plot(tracking: dict[str, Any], path: Path) -> Path:
+def error_plot(tracking: Tracking, path: Path) -> Path:
     """Translation (mm) and rotation (deg) error against time, one column per estimator, both designs."""
-    curves = tracking["curves"]
-    estimators = list(tracking["settings"]["estimators"])
+    curves: dict[str, Any] = tracking.curves
+    if tracking.settings is None:
+        raise KeyError("tracking.settings")
+    estimators = list(tracking.settings.estimators)
     fig, axes = _figure(len(estimators), 2, (3.6 * len(estimators), 5.4))
     for col, m in enumerate(estimators):
         rows = (("trans_mm", "translation error (mm)"), ("rot_deg", "rotation error (deg)"))
@@ -87,87 +91,100 @@ def sweep_plot(result: dict[str, Any], path: Path) -> Path:
     return path
 
 
-def _interval(entry: dict[str, Any]) -> str:
-    return f"{fmt(entry['mean'], 3)} [{fmt(entry['ci_low'], 3)}, {fmt(entry['ci_high'], 3)}]"
+def _stat(entry: Interval | None, name: str) -> Interval:
+    """A statistic the table needs (KeyError naming it when absent: the section becomes a note)."""
+    if entry is None:
+        raise KeyError(name)
+    return entry
 
 
-def report_note(tracking: dict[str, Any]) -> str:
+def _interval(entry: Interval | None, name: str) -> str:
+    e = _stat(entry, name)
+    return f"{fmt(e.mean, 3)} [{fmt(e.ci_low, 3)}, {fmt(e.ci_high, 3)}]"
+
+
+def report_note(tracking: Tracking) -> str:
     """One sentence for the section: which check of cadfeat run produced it and what it cost (results.json
     ``tracking.check``, ``study.closed_loop_check``; '' for ``cadfeat track``'s)."""
-    check = tracking.get("check") or {}
-    if not check:
+    check = tracking.check
+    if check is None or not present(check):
         return ""
-    if check.get("mode") == "fast":
-        return (f"This is cadfeat run's fast closed-loop check ({', '.join(m.upper() for m in check['estimators'])}; "
-                f"{check['runs']} runs on {check['frames']} frames; {check['seconds']} s); `cadfeat track` runs the "
+    if check.mode == "fast":
+        return (f"This is cadfeat run's fast closed-loop check ({', '.join(m.upper() for m in check.estimators)}; "
+                f"{check.runs} runs on {check.frames} frames; {check.seconds} s); `cadfeat track` runs the "
                 "full check. Its verdict is decisive: an estimator significantly worse after the redesign means "
                 "'do not adopt'.")
-    return f"This is cadfeat run's full closed-loop check ({check['runs']} runs, {check['seconds']} s)."
+    return f"This is cadfeat run's full closed-loop check ({check.runs} runs, {check.seconds} s)."
 
 
-def tracking_section(results: dict[str, Any], out_dir: Path, rel: Callable[[Path], str]) -> str:
+def tracking_section(results: Results, out_dir: Path, rel: Callable[[Path], str]) -> str:
     """The section's HTML ('' when there is no tracking section)."""
-    tracking = results.get("tracking")
-    if not tracking:
+    tracking = section(results, "tracking", Tracking)
+    if tracking is None or not present(tracking):
         return ""
-    s = tracking["settings"]
+    s = tracking.settings
+    if s is None:
+        raise KeyError("settings")
     parts = [f"<p>The part's pose is estimated from synthetic camera images along the trajectory "
-             f"({s['frames']} frames, grey-level noise σ = {fmt(s['noise_grey'], 3)}, thin-lens defocus "
-             f"{'on' if s['defocus'] else 'off'}, exposure {fmt(s['exposure_s'], 3)} s): holes detected with OpenCV "
+             f"({s.frames} frames, grey-level noise σ = {fmt(s.noise_grey, 3)}, thin-lens defocus "
+             f"{'on' if s.defocus else 'off'}, exposure {fmt(s.exposure_s, 3)} s): holes detected with OpenCV "
              f"(ellipse fits), associated to the model by prediction, and tracked by the EKF, IEKF (thesis §6.3) and "
-             f"solvePnP from an initial error of {fmt(s['initial_error_mm'], 3)} mm / "
-             f"{fmt(s['initial_error_deg'], 3)}°, over {s['runs']} Monte-Carlo runs paired between the designs "
+             f"solvePnP from an initial error of {fmt(s.initial_error_mm, 3)} mm / "
+             f"{fmt(s.initial_error_deg, 3)}°, over {s.runs} Monte-Carlo runs paired between the designs "
              f"(same noise seeds, initial errors, part placements and illumination; per run the part is placed "
-             f"with σ {fmt(s.get('placement_mm', 0.0), 3)} mm / {fmt(s.get('placement_deg', 0.0), 3)}° per axis and "
-             f"lit with a gain of σ {fmt(100 * s.get('gain_sigma', 0.0), 2)} %). Errors are counted after the first "
-             f"{s['settle_frames']} "
+             f"with σ {fmt(s.placement_mm, 3)} mm / {fmt(s.placement_deg, 3)}° per axis and "
+             f"lit with a gain of σ {fmt(100 * s.gain_sigma, 2)} %). Errors are counted after the first "
+             f"{s.settle_frames} "
              "frames; intervals are 95 % bootstrap intervals of the mean over runs.</p>"]
-    parts += [note(w, "warning") for w in tracking.get("warnings", [])]
+    parts += [note(w, "warning") for w in tracking.warnings]
     parts += [f"<p>{esc(t)}</p>" for t in [report_note(tracking)] if t]  # cadfeat run's check (issue 17)
-    lines = []
-    for m, v in tracking.get("verdicts", {}).items():
-        t = v["translation"]
-        lines.append(f"<li><b>{esc(m.upper())}</b>: the new design {esc(VERDICT_TEXT.get(v['verdict'], v['verdict']))}"
-                     f" (median change of RMS translation error {fmt(t['median_change'], 3)} mm, p = "
-                     f"{fmt(t['p_value'], 2)}; rotation p = {fmt(v['rotation']['p_value'], 2)}; {esc(t['test'])}, "
-                     f"α = {fmt(t['alpha'], 2)}; changes under {fmt(100 * t.get('min_change', 0.0), 2)} % of the error "
+    lines: list[str] = []
+    for m, v in tracking.verdicts.items():
+        t, r = v.translation, v.rotation
+        if t is None or r is None:
+            raise KeyError("translation" if t is None else "rotation")
+        lines.append(f"<li><b>{esc(m.upper())}</b>: the new design {esc(VERDICT_TEXT.get(v.verdict, v.verdict))}"
+                     f" (median change of RMS translation error {fmt(t.median_change, 3)} mm, p = "
+                     f"{fmt(t.p_value, 2)}; rotation p = {fmt(r.p_value, 2)}; {esc(t.test)}, "
+                     f"α = {fmt(t.alpha, 2)}; changes under {fmt(100 * t.min_change, 2)} % of the error "
                      "do not count).</li>")
     if lines:
         parts.append(f'<ul class="verdict">{"".join(lines)}</ul>')
-    rows = []
-    for name, d in tracking["designs"].items():
-        for m, e in d["estimators"].items():
-            conv = e["convergence_s"]
+    rows: list[str] = []
+    for name, d in tracking.designs.items():
+        for m, e in d.estimators.items():
+            conv, lost = _stat(e.convergence_s, "convergence_s"), e.lost_frac
             rows.append("<tr>" + "".join(f"<td>{x}</td>" for x in (
-                esc(name), esc(m.upper()), _interval(e["trans_mm_rms"]), fmt(e["trans_mm_p95"]["mean"], 3),
-                fmt(e["trans_mm_max"]["mean"], 3), _interval(e["rot_deg_rms"]), fmt(e["rot_deg_p95"]["mean"], 3),
-                fmt(e["frames_lost"]["mean"], 3) + (f' ({fmt(100 * e["lost_frac"]["mean"], 2)} %)'
-                                                     if (e.get("lost_frac") or {}).get("mean") else ""),
-                fmt(conv["mean"], 3) + (f" ({conv['runs_not_finite']} never)" if conv.get("runs_not_finite") else "")))
+                esc(name), esc(m.upper()), _interval(e.trans_mm_rms, "trans_mm_rms"),
+                fmt(_stat(e.trans_mm_p95, "trans_mm_p95").mean, 3), fmt(_stat(e.trans_mm_max, "trans_mm_max").mean, 3),
+                _interval(e.rot_deg_rms, "rot_deg_rms"), fmt(_stat(e.rot_deg_p95, "rot_deg_p95").mean, 3),
+                fmt(_stat(e.frames_lost, "frames_lost").mean, 3)
+                + (f" ({fmt(100 * lost.mean, 2)} %)" if lost is not None and lost.mean else ""),
+                fmt(conv.mean, 3) + (f" ({conv.runs_not_finite} never)" if conv.runs_not_finite else "")))
                 + "</tr>")
     parts.append(table(["design", "estimator", "RMS translation (mm)", "p95 (mm)", "max (mm)", "RMS rotation (deg)",
                         "p95 (deg)", "lost frames", "convergence (s)"], rows, "tracking-errors"))
-    rates = []
-    for name, d in tracking["designs"].items():
-        text = ", ".join(f"{esc(h)} {'—' if r is None else f'{100 * r:.0f} %'}" for h, r in d["detection_rate"].items())
+    rates: list[str] = []
+    for name, d in tracking.designs.items():
+        text = ", ".join(f"{esc(h)} {'—' if r is None else f'{100 * r:.0f} %'}" for h, r in d.detection_rate.items())
         rates.append(f"<li>{esc(name)}: {text}</li>")
     parts.append(f"<p>Detection rate per hole (detected / frames where the hole is in view and facing the camera):"
                  f"</p><ul>{''.join(rates)}</ul>")
-    if tracking.get("curves"):
+    if tracking.curves:
         try:
             path = error_plot(tracking, Path(out_dir) / "img" / "tracking_errors.png")
             parts.append(figure(rel(path), "Pose error against time, median over the Monte-Carlo runs with the "
                                            "10–90 % band (thesis Fig. 6.7 style); log scale.", "tracking errors"))
         except ImportError as exc:  # matplotlib missing
             parts.append(note(f"no error plot: {exc}"))
-    frames = [f for f in tracking.get("frames", []) if (Path(out_dir) / f["path"]).is_file()]
+    frames = [f for f in tracking.frames if (Path(out_dir) / f.path).is_file()]
     if frames:
-        figs = "".join(figure(f["path"], f"{f['design']}, frame {f['frame']} (t = {fmt(f['time_s'], 3)} s): "
-                                         f"{f['detected']} of {f['holes']} holes detected", f"{f['design']} frame")
+        figs = "".join(figure(f.path, f"{f.design}, frame {f.frame} (t = {fmt(f.time_s, 3)} s): "
+                                      f"{f.detected} of {f.holes} holes detected", f"{f.design} frame")
                        for f in frames)
         parts.append("<h3>Camera frames: detected ellipses (green) over the predicted rims (red), associated "
                      f"centres (yellow)</h3><div class=\"pair\">{figs}</div>")
-    elif tracking.get("frames"):
+    elif tracking.frames:
         parts.append(note("The tracking frames are in the study's output folder (tracking/), not beside this "
                           "report."))
     return "".join(parts)

@@ -8,7 +8,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from cadfeat.report.html import esc, note, num, table, text
-from cadfeat.results import Objectives, StudyResults
+from cadfeat.results import Measures, Objectives, StudyResults, value
 from cadfeat.results import section as typed_section
 
 __all__ = ["section"]
@@ -20,10 +20,9 @@ def _objective_parts(obj: Objectives) -> list[str]:
         after = f" → after: <b>{esc(obj.limiting)}</b>" if obj.limiting else ""
         parts.append(f"<p>Limiting objective (smallest normalised value in the max-min): before: "
                      f"<b>{esc(obj.limiting_before)}</b>{after}.</p>")
-    changes = [c for c in obj.changes if isinstance(c, dict)]
-    rows = ["".join([text(c["name"]), text(c.get("unit", "")), num(c.get("before")), num(c.get("after")),
-                     num(c.get("change")), num(c.get("normalised_after", c.get("normalised_before"))),
-                     text("yes" if c.get("in_combination") else "no")]) for c in changes]
+    rows = ["".join([text(c.name), text(c.unit), num(c.before), num(c.after), num(c.change),
+                     num(c.normalised_after if "normalised_after" in c.model_fields_set else c.normalised_before),
+                     text("yes" if c.in_combination else "no")]) for c in obj.changes]
     if rows:
         parts.append(table(["objective", "unit", "before", "after", "change", "normalised", "in combination"],
                            rows, "objective-changes"))
@@ -35,25 +34,22 @@ def _objective_parts(obj: Objectives) -> list[str]:
 
 def section(results: StudyResults | Mapping[str, Any]) -> str:
     """HTML of the section, or "" when the results carry none of it."""
-    typed = typed_section(results, "objectives", Objectives)
-    parts = _objective_parts(typed) if typed is not None else []
-    if isinstance(results, StudyResults):
-        results = results.to_data()
-    obj = results.get("objectives") or {}
-    measures = results.get("measures") or {}
-    hidden_rows = []
-    after = {f.get("name"): f for f in (measures.get("after") or {}).get("per_feature") or []}
-    for f in (measures.get("before") or {}).get("per_feature") or []:
-        g = after.get(f.get("name"), {})
-        hidden_rows.append("".join([text(f.get("name")), num(f.get("hidden_frac")), num(g.get("hidden_frac")),
-                                    text(f.get("hidden_worst_pose") if f.get("hidden_worst_pose") is not None
-                                         else "-"), num(f.get("folded_frac"))]))
+    obj = typed_section(results, "objectives", Objectives)
+    parts = _objective_parts(obj) if obj is not None else []
+    measures = typed_section(results, "measures", Measures)
+    hidden_rows: list[str] = []
+    after = {f.name: f for f in (measures.after.per_feature if measures and measures.after else [])}
+    for f in measures.before.per_feature if measures else []:
+        g = after.get(f.name)
+        hidden_rows.append("".join([text(f.name), num(f.hidden_frac), num(g.hidden_frac if g else None),
+                                    text(f.hidden_worst_pose if f.hidden_worst_pose is not None else "-"),
+                                    num(f.folded_frac)]))
     if hidden_rows:
         parts.append(table(["hole", "hidden fraction before", "hidden fraction after", "first hidden pose",
                             "past lens fold (fraction)"], hidden_rows, "hidden-holes"))
-    pre = results.get("preflight") or {}
+    pre = value(results, "preflight") or {}
     for a in pre.get("assumptions") or []:
         parts.append(note(f"Assumed: {a}", "warning"))
-    for w in list(obj.get("warnings") or []) + list(results.get("warnings") or []):
+    for w in list(obj.warnings if obj else []) + list(value(results, "warnings") or []):
         parts.append(note(f"Warning: {w}", "warning"))
     return "".join(parts)

@@ -13,9 +13,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from cadfeat.report.html import esc, fmt, num, table, text
+from cadfeat.report.patterns import patterns
 from cadfeat.report.requirements import ACTIVE_MARGIN_MM, requirement_rows
 from cadfeat.results import Finding as FindingRecord
-from cadfeat.results import Measures, Objectives, StudyResults, section
+from cadfeat.results import Measures, Objectives, Robustness, StudyResults, Tracking, section, value
 from cadfeat.results import Verdict as VerdictRecord
 
 ADOPT, CARE, REJECT = "adopt", "adopt with care", "do not adopt"
@@ -120,9 +121,7 @@ def limiting_objective(obj: Objectives | None) -> str | None:
     if obj.limiting:
         return obj.limiting
     after = obj.after or {}
-    norm = obj.normalisation if isinstance(obj.normalisation, dict) else {}
-    ref = norm.get("reference") if isinstance(norm.get("reference"), dict) else {}
-    assert isinstance(ref, dict)
+    ref = (obj.normalisation.reference if obj.normalisation is not None else None) or {}
     vals = {k: v / (abs(r) if _is_num(r := ref.get(k)) and r else 1.0) for k, v in after.items() if _is_num(v)}
     return min(vals, key=lambda k: vals[k]) if vals else None
 
@@ -182,7 +181,7 @@ def decide(results: StudyResults | Mapping[str, Any]) -> Verdict:
                                                                         for label, k, n in still)
         findings.append(Finding("holes", CARE if failing else ADOPT, detail))
     findings += _tracking(results) + _robustness(results) + _patterns(results)
-    if (results.interrupted if isinstance(results, StudyResults) else results.get("interrupted")):
+    if value(results, "interrupted"):
         findings.append(Finding("interrupted", CARE, "the optimisation was interrupted"))
     decision = max((f.outcome for f in findings), key=_SEVERITY.get, default=CARE)
     return Verdict(decision, findings, changes, limiting)
@@ -210,63 +209,62 @@ def _failing_after(results: StudyResults | Mapping[str, Any]) -> list[tuple[str,
     return out
 
 
-def _tracking(results: dict) -> list[Finding]:
+def _tracking(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
     """The closed-loop pose-tracking verdicts (results.json ``tracking.verdicts``: per estimator "better",
     "worse", "mixed" or "no significant difference", ``cadfeat.vision.closed_loop.compare``).
 
     The closed loop measures what the objectives only predict, so its rule is decisive: one estimator "worse"
     makes the decision "do not adopt" whatever the other rules say; "mixed" asks for care (issue 17)."""
-    tr = results.get("tracking")
-    verdicts = tr.get("verdicts") if isinstance(tr, dict) else None
-    if not isinstance(verdicts, dict) or not verdicts:
+    tr = section(results, "tracking", Tracking)
+    if tr is None or not tr.verdicts:
         return []
-    per = {str(m): str(v.get("verdict", "")) if isinstance(v, dict) else str(v) for m, v in verdicts.items()}
+    per = {str(m): v.verdict for m, v in tr.verdicts.items()}
     text = "pose tracking, after vs before: " + ", ".join(f"{m.upper()} {v}" for m, v in per.items())
     outcome = REJECT if "worse" in per.values() else CARE if "mixed" in per.values() else ADOPT
     return [Finding("tracking", outcome, text)]
 
 
-def _robust_combined(results: dict) -> tuple[float, float, str] | None:
+def _robust_combined(results: StudyResults | Mapping[str, Any]) -> tuple[float, float, str] | None:
     """(original, delivered, label) of the robust statistic out of sample when the delivered design is the robust
     optimum of a robust study (results.json ``robustness.out_of_sample``), else None."""
-    rb = results.get("robustness")
-    if not isinstance(rb, dict) or rb.get("delivered") != "robust":
+    rb = section(results, "robustness", Robustness)
+    if rb is None or rb.delivered != "robust":
         return None
-    oos = rb.get("out_of_sample") or {}
-    per = oos.get("designs") or {}
-    a, b = (per.get(k, {}).get("out_of_sample") for k in ("original", "robust"))
-    if not (_is_num(a) and _is_num(b)):
+    oos = rb.out_of_sample
+    per = oos.designs if oos is not None else {}
+    a, b = (per[k].out_of_sample if k in per else None for k in ("original", "robust"))
+    if a is None or b is None or oos is None:
         return None
-    return float(a), float(b), f"robust {oos.get('statistic')} (held-out draws)"
+    return float(a), float(b), f"robust {oos.statistic} (held-out draws)"
 
 
-def _robustness(results: dict) -> list[Finding]:
-    rb = results.get("robustness")
-    if isinstance(rb, dict) and rb.get("recommended"):  # the robust comparison (issue 18) decides
-        rec, delivered = str(rb["recommended"]), str(rb.get("delivered"))
-        flagged = [f for f in rb.get("flagged") or [] if f != rec]
-        detail = f"recommended: {rec} ({rb.get('reason', '')})"
+def _robustness(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
+    rb = section(results, "robustness", Robustness)
+    if rb is not None and rb.recommended:  # the robust comparison (issue 18) decides
+        rec, delivered = rb.recommended, str(rb.delivered)
+        flagged = [f for f in rb.flagged if f != rec]
+        detail = f"recommended: {rec} ({rb.reason})"
         if flagged:
             detail += "; flagged as more fragile than the original: " + ", ".join(map(str, flagged))
         outcome = REJECT if rec == "original" else ADOPT if rec == delivered else CARE
         if rec not in ("original", delivered):
             detail += f"; the exported files hold the {delivered} optimum"
         return [Finding("robustness", outcome, detail)]
-    if not isinstance(rb, dict) or "razor_edge" not in rb:
+    if rb is None or "razor_edge" not in rb.model_fields_set:
         return []
-    edges = rb.get("razor_edge") or []
+    edges = rb.razor_edge
     return [Finding("robustness", CARE if edges else ADOPT,
                     ("razor-edge: " + ", ".join(map(str, edges))) if edges
                     else "the combined objective keeps at least half of its gain under the tolerances")]
 
 
-def _patterns(results: dict) -> list[Finding]:
-    pats = results.get("patterns")
-    if not isinstance(pats, list) or not pats:
+def _patterns(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
+    pats = patterns(results)
+    if not pats:
         return []
-    broken = [p for p in pats if isinstance(p, dict) and p.get("broken")]
+    broken = [p for p in pats if p.broken]
     return [Finding("patterns", CARE if broken else ADOPT,
-                    ("broken: " + ", ".join(f"{p.get('kind')} {'/'.join(map(str, p.get('holes') or []))}"
+                    ("broken: " + ", ".join(f"{p.kind} {'/'.join(map(str, p.holes))}"
                                             for p in broken)) if broken
                     else f"all {len(pats)} patterns of the original kept")]
 

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from cadfeat.report.context import ReportContext
+from cadfeat.results import FeatureSummary, Measures, Results, section, value
 
 VENDOR = Path(__file__).parent / "vendor" / "three-0.147.0"
 #: Number of camera frusta drawn along the path.
@@ -43,21 +44,27 @@ def mesh_arrays(shape: Any) -> tuple[np.ndarray, np.ndarray]:
     return v, np.asarray(tris, np.int64).reshape(-1, 3)
 
 
-def _holes(holes: Any, per_feature: list[dict], fixed: Any) -> list[dict[str, Any]]:
-    out = []
-    feats = {f.get("index", i): f for i, f in enumerate(per_feature or [])}
+def _holes(holes: Any, per_feature: list[FeatureSummary], fixed: Any) -> list[dict[str, Any]]:
+    out: list[dict[str, Any]] = []
+    feats = {f.index: f for f in per_feature}
     for i, h in enumerate(holes or []):
-        f = feats.get(i, {})
-        measures = {k: f.get(k) for k in ("fov_min", "fov_px_min", "focus_min", "resolution_px_min", "visible_frac",
-                                          "worst_pose") if f.get(k) is not None}
-        out.append({"name": h.name or f.get("name") or f"H{i + 1}", "centre": np.asarray(h.centre, float).tolist(),
+        f = feats.get(i)
+        measures = {k: v for k in ("fov_min", "fov_px_min", "focus_min", "resolution_px_min", "visible_frac",
+                                   "worst_pose") if (v := getattr(f, k, None)) is not None}
+        out.append({"name": h.name or (f.name if f else None) or f"H{i + 1}",
+                    "centre": np.asarray(h.centre, float).tolist(),
                     "axis": np.asarray(h.axis, float).tolist(), "radius": float(h.radius_mm),
                     "fixed": bool(fixed[i]) if fixed is not None and i < len(fixed) else False,
                     "measures": measures})
     return out
 
 
-def _camera_path(context: ReportContext, results: dict, scale: float) -> dict[str, Any]:
+def _per_feature(m: Measures | None, which: str) -> list[FeatureSummary]:
+    design = None if m is None else m.before if which == "before" else m.after
+    return design.per_feature if design is not None else []
+
+
+def _camera_path(context: ReportContext, results: Results, scale: float) -> dict[str, Any]:
     """Camera centres (L, 3) and N_FRUSTA frusta (4 far corners each) in the part frame (mm)."""
     if context.trajectory is None:
         return {}
@@ -66,7 +73,7 @@ def _camera_path(context: ReportContext, results: dict, scale: float) -> dict[st
     T_task_part = np.eye(4) if context.T_task_part is None else np.asarray(context.T_task_part, float)
     T_part_cam = invert_T(T_task_part) @ np.asarray(context.trajectory.T_task_cam, float)
     path = T_part_cam[:, :3, 3]
-    cam = results.get("camera") or {}
+    cam = value(results, "camera") or {}
     if context.camera is not None:
         cam = {k: getattr(context.camera, k) for k in ("fx", "fy", "cx", "cy", "width", "height")}
     frusta = []
@@ -81,9 +88,9 @@ def _camera_path(context: ReportContext, results: dict, scale: float) -> dict[st
     return {"path": path.tolist(), "frusta": frusta}
 
 
-def scene_data(context: ReportContext, results: dict) -> dict[str, Any]:
+def scene_data(context: ReportContext, results: Results) -> dict[str, Any]:
     """The scene as plain data (meshes base64 float32 / uint32)."""
-    m = results.get("measures") or {}
+    m = section(results, "measures", Measures)
     designs = {}
     pairs = [("before", context.shape_before, context.holes_before), ("after", context.shape_after,
                                                                         context.holes_after)]
@@ -95,7 +102,7 @@ def scene_data(context: ReportContext, results: dict) -> dict[str, Any]:
         scale = max(scale, float(np.ptp(v, axis=0).max()) if len(v) else 1.0)
         designs[which] = {"vertices": _b64(v, "<f4"), "triangles": _b64(t, "<u4"), "n_vertices": len(v),
                           "n_triangles": len(t),
-                          "holes": _holes(holes, (m.get(which) or {}).get("per_feature") or [], context.fixed_mask)}
+                          "holes": _holes(holes, _per_feature(m, which), context.fixed_mask)}
     if "before" in designs and "after" in designs:  # which holes the design changes (index correspondence)
         hb, ha = designs["before"]["holes"], designs["after"]["holes"]
         for b, a in zip(hb, ha, strict=False):
@@ -119,7 +126,7 @@ padding:6px 10px;font-size:.85em;min-width:190px;z-index:2}
 _JS = Path(__file__).with_name("view3d.js")
 
 
-def view3d_section(context: ReportContext | None, results: dict) -> str:
+def view3d_section(context: ReportContext | None, results: Results) -> str:
     """The interactive view (empty string without shapes in the context)."""
     if context is None or context.shape_before is None:
         return ""

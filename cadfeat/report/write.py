@@ -37,6 +37,8 @@ from cadfeat.report.robustness import robustness_section
 from cadfeat.report.tracking import tracking_section
 from cadfeat.report.verdict import verdict_section
 from cadfeat.report.view3d import view3d_section
+from cadfeat.results import StudyRecord, value
+from cadfeat.results import section as typed_section
 
 log = logging.getLogger(__name__)
 
@@ -147,7 +149,7 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
 def _single_design(results: dict, context: ReportContext | None) -> tuple[dict, ReportContext | None]:
     """For ``evaluation_only`` results: drop any "after" copy of the current design (the report then shows one
     design, "current", and renders it once)."""
-    if not results.get("evaluation_only"):
+    if not value(results, "evaluation_only"):
         return results, context
     results = dict(results)
     for key in ("holes", "measures", "objectives"):
@@ -214,10 +216,11 @@ def _package_root() -> str:
 # ------------------------------------------------------------------------------------------------ sections
 def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot], notes: list[str],
               timings: dict[str, float], embed: bool = True, view3d: str = "") -> str:
-    study = results.get("study") or {}
+    study = typed_section(results, "study", StudyRecord, partial=True)
     kind = "evaluation" if tables.is_evaluation(results) else "report"
-    title = f"cadfeat {kind} — {study.get('name') or 'study'}"
-    subtitle = f"Part {study.get('part') or '?'}" + (f": {study['description']}" if study.get("description") else "")
+    name, part = (study.name, study.part) if study else (None, None)
+    title = f"cadfeat {kind} — {name or 'study'}"
+    subtitle = f"Part {part or '?'}" + (f": {study.description}" if study and study.description else "")
     rel = _relative(out_dir, embed)
     builders: list[tuple[str, str, Callable[[], str]]] = [
         ("decision", "Decision", lambda: "" if tables.is_evaluation(results) else verdict_section(results)),
@@ -322,8 +325,8 @@ def _features_section(results: dict) -> str:
 
 def _provenance(results: dict, timings: dict[str, float]) -> str:
     report_t = {f"report: {k}": v for k, v in timings.items()}
-    return (tables.key_value_table(results.get("versions"), "versions", ("library", "version"))
-            + tables.key_value_table({**(results.get("timings_s") or {}), **report_t}, "timings",
+    return (tables.key_value_table(value(results, "versions"), "versions", ("library", "version"))
+            + tables.key_value_table({**(value(results, "timings_s") or {}), **report_t}, "timings",
                                      ("phase", "seconds")))
 
 

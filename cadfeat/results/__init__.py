@@ -8,6 +8,10 @@ MySection(Record)`` (or ``Json``), and bump ``SCHEMA_VERSION`` when an existing 
 Every ``Record`` keeps keys it does not declare (``extra="allow"``): a key a newer writer adds inside a section
 passes through unchanged and is written back, so the model never drops data.
 
+A sub-package: the base ``Record`` in ``_record``, the robustness section in ``_robustness``, the pose-accuracy
+and tracking sections in ``_closed_loop``, all re-exported here; the report reads every section through
+``section(results, "x", Model)``.
+
 Writing is the identity on the data: ``StudyResults.from_data(d).to_data() == d`` for every results.json
 cadfeat writes (keys never given stay absent: ``exclude_unset``; strict types: an integer stays an integer).
 Values are rounded and made JSON-ready by ``cadfeat.study.outputs.plain`` before the model sees them.
@@ -15,40 +19,59 @@ Values are rounded and made JSON-ready by ``cadfeat.study.outputs.plain`` before
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, ClassVar, TypeAlias, TypeVar
+from typing import Any, ClassVar, Optional, TypeAlias, TypeVar
 
-from pydantic import BaseModel, ConfigDict, JsonValue
+from pydantic import create_model
 
-__all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "DesignMatrix", "FeatureSummary", "FileEntry", "Finding", "HoleRecord",
-           "Holes", "Json", "MeasureSummary", "Measures", "Objectives", "OptimizerRecord", "Record", "RequirementCheck",
-           "RequirementUsed", "Robustness", "StudyRecord", "StudyResults", "TrajectoryRecord", "Variable", "Verdict",
-           "Verification", "results_json_schema", "section"]
+from cadfeat.results._closed_loop import (
+    EstimatorErrors,
+    HelpMost,
+    HelpMostBest,
+    Interval,
+    PairedTest,
+    PoseAccuracy,
+    PoseDesign,
+    PoseErrors,
+    Tracking,
+    TrackingCheck,
+    TrackingDesign,
+    TrackingFrame,
+    TrackingSettings,
+    TrackingVerdict,
+    WeakestPhase,
+)
+from cadfeat.results._record import Json, Number, Record
+from cadfeat.results._robustness import (
+    DesignDraws,
+    OutOfSample,
+    Robustness,
+    RobustObjective,
+    SampleShift,
+    Sensitivity,
+    Spread,
+)
 
-SCHEMA_VERSION = 3
+__all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "DesignDraws", "DesignMatrix", "EstimatorErrors", "FeatureSummary",
+           "FileEntry", "Finding", "HelpMost", "HelpMostBest", "HistoryPoint", "HoleRecord", "Holes", "Interval",
+           "Json", "MeasureSummary", "Measures", "Normalisation", "ObjectiveChange", "Objectives",
+           "OptimizerRecord", "OutOfSample", "PairedTest", "Pareto", "Pattern", "PoseAccuracy", "PoseDesign",
+           "PoseErrors", "Record", "RequirementCheck", "RequirementUsed", "Results", "RobustObjective",
+           "Robustness", "SampleShift", "Sensitivity", "Shop", "Spread", "StudyRecord", "StudyResults", "Sweep",
+           "Tracking", "TrackingCheck", "TrackingDesign", "TrackingFrame", "TrackingSettings", "TrackingVerdict",
+           "TrajectoryRecord", "Variable", "Verdict", "Verification", "WeakestPhase", "partial_model", "present",
+           "results_json_schema", "section", "value"]
+
+SCHEMA_VERSION = 4
 """results.json layout version (``schema_version``): 1 first layout; 2 ``shop``, ``patterns`` and
-``robustness`` added by issue 13; 3: ``verdict``, tracking holes named H1…); readers compare it before relying
-on a key."""
+``robustness`` added by issue 13; 3: ``verdict``, tracking holes named H1…; 4: ``pose_accuracy``, ``tracking`` and
+``robustness``'s robust-redesign keys (designs, out_of_sample …) typed in the schema, the layout unchanged (a
+version-3 file reads the same); readers compare it before relying on a key."""
 SCHEMA_ID = f"https://cadfeat.invalid/schema/results-v{SCHEMA_VERSION}.json"
 """The results schema's ``$id`` (a name, not a place to fetch it from), versioned."""
-
-Json: TypeAlias = JsonValue
-"""A section (or value) kept as plain JSON: not typed here yet."""
-Number: TypeAlias = int | float
-"""A JSON number as written (an integer stays an integer, a float a float: strict, no coercion)."""
-
-
-class Record(BaseModel):
-    """A results.json object: strict (no coercion, so the data round-trips), keys not declared are kept."""
-
-    model_config = ConfigDict(strict=True, extra="allow", frozen=False, ser_json_inf_nan="null")
-
-    def to_data(self) -> dict[str, Any]:
-        """The object as plain JSON data: the keys that were given (or set), nothing added."""
-        return self.model_dump(exclude_unset=True)
-
 
 class StudyRecord(Record):
     """``study``: which study ran (``file`` None for a study given as a dict)."""
@@ -144,7 +167,8 @@ class RequirementCheck(Record):
     holds), unit, the holes, where it was checked (``brep``, ``step``)."""
 
     name: str
-    holes: list[str] = []
+    holes: list[str | int] = []
+    """Hole names (older layouts: hole indices)."""
     value: Number | None = None
     required: Number | None = None
     margin: Number | None = None
@@ -154,11 +178,38 @@ class RequirementCheck(Record):
 
 
 class RequirementUsed(Record):
-    """A requirement of the optimisation (``requirements_used``): its 2-D margin at the optimum."""
+    """A requirement of the optimisation (``requirements_used``): its 2-D margin at the optimum (the unit mm
+    unless given)."""
 
     name: str
     holes: list[str] = []
     margin: Number | None = None
+    required: Number | None = None
+    unit: str = "mm"
+
+
+class ObjectiveChange(Record):
+    """One objective before → after in its own unit (``objectives.changes``, ``cadfeat.study.trust``), its
+    normalised values and whether it enters the combination."""
+
+    name: str
+    unit: str = ""
+    before: Number | None = None
+    after: Number | None = None
+    change: Number | None = None
+    normalised_before: Number | None = None
+    normalised_after: Number | None = None
+    in_combination: bool | None = None
+
+
+class Normalisation(Record):
+    """``objectives.normalisation``: how the objectives were made comparable (method, reference value per
+    objective, where each came from, a note)."""
+
+    method: str | None = None
+    reference: dict[str, Number | None] | None = None
+    sources: dict[str, Json] | None = None
+    note: str | None = None
 
 
 class Objectives(Record):
@@ -173,8 +224,8 @@ class Objectives(Record):
     combined_before: Number | None = None
     combined_after: Number | None = None
     larger_is_better: bool = True
-    normalisation: Json = None
-    changes: list[Json] = []
+    normalisation: Normalisation | None = None
+    changes: list[ObjectiveChange] = []
     constant: list[str] = []
     limiting: str | None = None
     limiting_before: str | None = None
@@ -192,6 +243,40 @@ class OptimizerRecord(Record):
     prediction_error_mm: Number | None = None
     integer_combinations: int = 1
     rebuild_failed_at_model_optimum: str | None = None
+
+
+class HistoryPoint(Record):
+    """One evaluation of the optimiser (``history``): the minimised f, the combined objective (larger is better),
+    feasibility, the phase."""
+
+    iteration: int | None = None
+    f: Number | None = None
+    combined: Number | None = None
+    feasible: bool = True
+    phase: str | None = None
+    time_s: Number | None = None
+
+
+class Sweep(Record):
+    """``sweep``: each objective over the range of the one design variable of a one-variable study."""
+
+    variable: str = "parameter"
+    unit: str | None = None
+    values: list[Number | None] = []
+    objectives: dict[str, list[Number | None]] = {}
+    combined: list[Number | None] | None = None
+
+
+class Pareto(Record):
+    """``pareto``: the non-dominated designs (objective values per point), the chosen one and why."""
+
+    names: list[str] = []
+    points: list[list[Number | None]] = []
+    chosen: int | None = None
+    chosen_by: str | None = None
+    feasible: list[bool] | None = None
+    normalised: list[list[Number | None]] | None = None
+    x: Json = None
 
 
 class DesignMatrix(Record):
@@ -238,19 +323,40 @@ class Verdict(Record):
     findings: list[Finding] = []
 
 
-class Robustness(Record):
-    """``robustness``: the tolerance study (``design.robustness``); further keys (designs, out of sample) pass
-    through until typed here."""
+class Pattern(Record):
+    """A hole pattern of the original (``patterns``, ``cadfeat.design.patterns``) and whether the design keeps it:
+    a bolt circle (centre, radius mm, count), a grid (shape, pitch mm), an opposite or a mirror pair (normal)."""
 
-    names: list[str] = []
-    samples: int = 0
-    position_tol_mm: Number | None = None
-    size_steps: int | None = None
-    camera_position_mm: Number | None = None
-    camera_angle_deg: Number | None = None
-    razor_edge: list[str] = []
-    manufacturing: Json = None
-    camera: Json = None
+    kind: str
+    holes: list[str] = []
+    indices: list[int] = []
+    broken: bool = False
+    why: str = ""
+    centre: list[Number] | None = None
+    radius_mm: Number | None = None
+    count: int | None = None
+    shape: list[int] | None = None
+    pitch_mm: list[Number] | None = None
+    normal: list[Number] | None = None
+    point: list[Number] | None = None
+
+
+class Shop(Record):
+    """``shop``: the shop-ready rounding (``cadfeat.design.shop``): moved holes on a grid (mm), resized holes on
+    the hole table, the model's combined objective at the optimum and rounded, notes."""
+
+    applied: bool | None = None
+    grid_mm: Number | None = None
+    hole_sizes: Json = None
+    moved: list[str] = []
+    resized: list[str] = []
+    notes: list[str] = []
+    combined_optimum: Number | None = None
+    combined_shop: Number | None = None
+    residual_mm: Number | None = None
+    rebuilt_off_target_mm: Number | None = None
+    x_optimum: dict[str, Number] | None = None
+    x_shop: dict[str, Number] | None = None
 
 
 class StudyResults(Record):
@@ -271,23 +377,23 @@ class StudyResults(Record):
     measures: Measures
     constraints: list[RequirementCheck] | None = None
     requirements_used: list[RequirementUsed] | None = None
-    shop: dict[str, Json] | None = None
-    patterns: list[Json] | None = None
+    shop: Shop | None = None
+    patterns: list[Pattern] | None = None
     robustness: Robustness | None = None
     design_matrix: DesignMatrix | None = None
-    history: list[dict[str, Json]] | None = None
-    sweep: Json = None
-    pareto: Json = None
+    history: list[HistoryPoint] | None = None
+    sweep: Sweep | None = None
+    pareto: Pareto | None = None
     optimizer: OptimizerRecord | None = None
     interrupted: bool | None = None
     preflight: dict[str, Json] | None = None
     warnings: list[str] = []
-    pose_accuracy: dict[str, Json] | None = None
+    pose_accuracy: PoseAccuracy | None = None
     verification: Verification | None = None
     files: list[FileEntry] | None = None
     timings_s: dict[str, Number] | None = None
     versions: dict[str, str] | None = None
-    tracking: dict[str, Json] | None = None
+    tracking: Tracking | None = None
     verdict: Verdict | None = None
 
     file_name: ClassVar[str] = "results.json"
@@ -312,14 +418,43 @@ class StudyResults(Record):
 
 R = TypeVar("R", bound=Record)
 
+Results: TypeAlias = StudyResults | Mapping[str, Any]
+"""What ``cadfeat.report`` reads: the typed results, or plain data (as read from results.json, or partial data
+built by hand)."""
 
-def section(results: StudyResults | Mapping[str, Any], name: str, model: type[R]) -> R | None:
+
+def value(results: Results, name: str) -> Any:
+    """A top-level value of ``results`` that is not a typed section (a flag such as ``interrupted``, or a section
+    still ``Json``), or None when absent."""
+    return getattr(results, name, None) if isinstance(results, StudyResults) else results.get(name)
+
+
+def present(record: Record | None) -> bool:
+    """True for a section (or sub-record) that holds something: given and not ``{}`` (as ``bool`` of the dict)."""
+    return record is not None and bool(record.to_data())
+
+
+def section(results: Results, name: str, model: type[R], *, partial: bool = False) -> R | None:
     """The typed section ``name`` of ``results`` (a ``StudyResults``, or plain data as read from results.json or
-    built by hand, possibly partial), or None when it is absent. How ``cadfeat.report`` reads a section."""
-    value = getattr(results, name, None) if isinstance(results, StudyResults) else results.get(name)
-    if value is None or isinstance(value, model):
-        return value
-    return model.model_validate(value.to_data() if isinstance(value, Record) else value)
+    built by hand, possibly partial), or None when it is absent. How ``cadfeat.report`` reads a section.
+
+    ``partial``: the section may lack keys the model requires (``cadfeat track`` writes ``study`` with its name
+    only into a results.json it starts); those read as None, every key given is still checked."""
+    data = getattr(results, name, None) if isinstance(results, StudyResults) else results.get(name)
+    if data is None or isinstance(data, model):
+        return data
+    return (partial_model(model) if partial else model).model_validate(
+        data.to_data() if isinstance(data, Record) else data)
+
+
+@functools.cache
+def partial_model(model: type[R]) -> type[R]:
+    """``model`` with its required keys optional (None when absent): a subclass, so it is still a ``model``."""
+    loose: dict[str, Any] = {n: (Optional[f.annotation], None)  # noqa: UP045 (a runtime type, not an annotation)
+                             for n, f in model.model_fields.items() if f.is_required()}
+    if not loose:
+        return model
+    return create_model(f"Partial{model.__name__}", __base__=model, __doc__=model.__doc__, **loose)
 
 
 def results_json_schema() -> dict[str, Any]:
