@@ -254,8 +254,11 @@ def robust_designs(setup: Any, run: RobustRun | None, holes0: Any, holes1: Any) 
     rp = run.problem
     other = "nominal" if run.delivered == "robust" else "robust"
     x_other = (run.nominal if other == "nominal" else run.robust).x_best
-    feats = {"original": holes_to_arrays(list(holes0)), run.delivered: holes_to_arrays(list(holes1)),
-             other: setup.model.features(np.asarray(x_other, float))}
+    same = bool(np.allclose(run.robust.x_best, run.nominal.x_best, rtol=0.0, atol=1e-9))
+    delivered_feats = holes_to_arrays(list(holes1))
+    feats = {"original": holes_to_arrays(list(holes0)), run.delivered: delivered_feats,
+             # the same optimum: the same (shop-rounded, rebuilt) design; else the other optimum as solved
+             other: delivered_feats if same else setup.model.features(np.asarray(x_other, float))}
     order = ["original", run.delivered, other]
     samples = spec.samples or 64
     seed_out = config.study.seed + HELD_OUT_SEED_OFFSET
@@ -275,6 +278,8 @@ def robust_designs(setup: Any, run: RobustRun | None, holes0: Any, holes1: Any) 
         recommended, reason = "original", (
             f"both optima's 5th percentile is below the original's (the {run.delivered} one under "
             f"{', '.join(below[run.delivered])}): keep the original")
+    if same:
+        reason = "the robust solve kept the nominal optimum (no design beats it on the draws); " + reason
     if run.note:
         reason = run.note + "; " + reason
     designs = {"original": stats["original"], "recommended": stats[recommended]}
