@@ -136,9 +136,10 @@ def _choose(setup: Any, rp: RobustProblem, nominal: Any, robust: Any, held: Any)
     if below[0] and not below[1]:
         return "nominal", (f"the robust optimum's 5th percentile is below the original's under {', '.join(below[0])}; "
                            "the nominal optimum's is not: the nominal optimum is delivered")
-    if not below[1] and rp.objective.statistic != "chance":
+    same = np.allclose(robust.x_best, nominal.x_best, rtol=0.0, atol=1e-9)  # the robust solve kept its start
+    if not below[1] and not same and rp.objective.statistic != "chance":
         v_robust, v_nominal = _held_out_value(rp, held, [robust.x_best, nominal.x_best])
-        if v_nominal > v_robust:
+        if v_nominal > v_robust + 1e-9 * max(1.0, abs(v_robust)):
             return "nominal", (f"the nominal optimum's {rp.objective.label} on held-out draws ({v_nominal:.4g}) is "
                                f"above the robust optimum's ({v_robust:.4g}): the robust solve did not improve on "
                                "it, the nominal optimum is delivered")
