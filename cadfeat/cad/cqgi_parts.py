@@ -48,7 +48,8 @@ import numpy as np
 
 from cadfeat.errors import CadfeatError
 
-__all__ = ["BOUNDS_COMMENT", "cad_shapes", "cqgi_parameters", "getparams", "is_cqgi_script", "load_cqgi_part"]
+__all__ = ["BOUNDS_COMMENT", "cad_shapes", "cqgi_parameters", "getparams", "is_cqgi_script", "load_cqgi_part",
+           "unit_view_direction"]
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 #: The bounds comment on a constant's line: ``# [lower, upper] unit  description``.
@@ -140,15 +141,23 @@ def _text_constants(model: Any, path: Path) -> dict[str, Any]:
             raise CadfeatError(f"{path}: {key} must be a string, got {type(value).__name__}")
         out[key] = value.strip()
     view = params["VIEW_DIRECTION"].default_value if "VIEW_DIRECTION" in params else None
-    if view is not None:
-        arr = np.asarray(view, dtype=float)
-        if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.linalg.norm(arr) == 0:
-            raise CadfeatError(f"{path}: VIEW_DIRECTION = {view!r} must be a non-zero 3-vector")
-        arr = arr / np.linalg.norm(arr)
-        arr.flags.writeable = False
-        view = arr
-    out["VIEW_DIRECTION"] = view
+    out["VIEW_DIRECTION"] = unit_view_direction(view, str(path))
     return out
+
+
+
+def unit_view_direction(view: Any, where: str) -> np.ndarray | None:
+    """A part script's ``VIEW_DIRECTION`` (any 3-sequence, or None) as a read-only unit vector (part frame), or
+    None; ``CadfeatError`` naming ``where`` if it is not a finite non-zero 3-vector. Shared by Python part
+    scripts (``parts.load_part``) and CQGI scripts."""
+    if view is None:
+        return None
+    arr = np.asarray(view, dtype=float)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.linalg.norm(arr) == 0:
+        raise CadfeatError(f"{where}: VIEW_DIRECTION = {view!r} must be a non-zero 3-vector")
+    arr = arr / np.linalg.norm(arr)
+    arr.flags.writeable = False
+    return arr
 
 
 def cad_shapes(obj: Any) -> list[Any] | None:

@@ -398,13 +398,7 @@ def load_part(path: str | os.PathLike[str], time_limit_s: float | None = _FROM_C
                            f"got {type(module.PARAMETERS).__name__}")
     parameters = {str(n): _parse_parameter(n, s, where) for n, s in module.PARAMETERS.items()}
     _check_signature(module.build, parameters, where)
-    view = getattr(module, "VIEW_DIRECTION", None)
-    if view is not None:
-        view = np.asarray(view, dtype=float)
-        if view.shape != (3,) or not np.all(np.isfinite(view)) or np.linalg.norm(view) == 0:
-            raise CadfeatError(f"{where}: VIEW_DIRECTION = {module.VIEW_DIRECTION!r} must be a non-zero 3-vector")
-        view = view / np.linalg.norm(view)
-        view.flags.writeable = False
+    view = cqgi_parts.unit_view_direction(getattr(module, "VIEW_DIRECTION", None), where)
     text = {k: getattr(module, k, "") for k in ("DESCRIPTION", "FIXED_HOLES")}
     for key, value in text.items():
         if not isinstance(value, str):
