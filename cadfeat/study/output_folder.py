@@ -174,7 +174,8 @@ def _owner_alive(pid: int, host: str) -> bool:
 def remove_stale_staging(parent: str | os.PathLike[str]) -> list[Path]:
     """Delete the staging / set-aside folders in ``parent`` left by cadfeat runs that were killed: named
     ``.<name>.staging-<pid>-<hex>`` or ``.<name>.old-<pid>-<hex>``, holding cadfeat's manifest with that pid
-    and this host, whose process no longer exists. Returns the folders removed."""
+    and this host, whose process no longer exists; or so named, empty, with that pid dead (a run killed
+    between creating the folder and writing its manifest). Returns the folders removed."""
     removed = []
     try:
         entries = list(Path(parent).iterdir())
@@ -185,6 +186,9 @@ def remove_stale_staging(parent: str | os.PathLike[str]) -> list[Path]:
         if not m or path.is_symlink() or not path.is_dir():
             continue
         data = _manifest(path)
+        if data is None and not pid_alive(int(m.group(2))) and _remove_if_empty(path):
+            removed.append(path)  # killed between creating the folder and writing its manifest
+            continue
         if data is None or int(data.get("pid", -1)) != int(m.group(2)):
             continue
         if _owner_alive(int(m.group(2)), str(data.get("host", ""))):
@@ -192,6 +196,15 @@ def remove_stale_staging(parent: str | os.PathLike[str]) -> list[Path]:
         shutil.rmtree(path, ignore_errors=True)
         removed.append(path)
     return removed
+
+
+def _remove_if_empty(path: Path) -> bool:
+    """``rmdir`` (an empty folder only: nothing anyone wrote can be lost); True if it was removed."""
+    try:
+        path.rmdir()
+    except OSError:
+        return False
+    return True
 
 
 def _sibling(final_dir: Path, role: str) -> Path:

@@ -41,7 +41,24 @@ def cadfeat(*args: str, cwd: Path = ROOT, timeout: float = 180, memory_limit: bo
 
 def popen(*args: str, cwd: Path = ROOT) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "cadfeat", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=cwd, env=ENV)
+                            stderr=subprocess.PIPE, text=True, cwd=cwd, env={**ENV, "PYTHONFAULTHANDLER": "1"})
+
+
+def finish(proc: subprocess.Popen, timeout_s: float = 60.0) -> str:
+    """Wait for cadfeat to exit after a signal; its stderr. If it does not: the process tree and every thread's
+    stack (SIGABRT, dumped by faulthandler) in the failure message, to show what it was waiting on."""
+    try:
+        return proc.communicate(timeout=timeout_s)[1]
+    except subprocess.TimeoutExpired:
+        tree = subprocess.run(["ps", "-o", "pid,ppid,stat,etime,args", "--ppid", str(proc.pid), "-p", str(proc.pid)],
+                              capture_output=True, text=True).stdout
+        proc.send_signal(signal.SIGABRT)
+        try:
+            err = proc.communicate(timeout=30)[1]
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            err = proc.communicate()[1]
+        pytest.fail(f"cadfeat did not exit within {timeout_s:g} s; processes:\n{tree}\nstderr:\n{err[-6000:]}")
 
 
 def one_error_line(res: subprocess.CompletedProcess, *needles: str) -> str:
@@ -172,7 +189,7 @@ def test_killed_run_leftovers_removed_by_next_run_and_sigterm_cleans_up(tmp_path
              "the export writing original.step")
     assert not stale.exists()
     proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=60)
+    err = finish(proc)
     assert proc.returncode == 143, err[-2000:]
     assert "terminated" in err and "Traceback" not in err
     assert sorted(p.name for p in parent.iterdir()) == [".plate.staging-1-0123abcd"]
@@ -186,7 +203,8 @@ import time
 if multiprocessing.parent_process() is None:  # in cadfeat itself (not in the worker that tries the import first)
     pathlib.Path(__file__).with_name("importing").write_text("now")
     try:
-        time.sleep(120)  # a slow import (e.g. CadQuery's first import)
+        for _ in range(1200):  # a slow import (e.g. CadQuery's first import: busy in Python, not one long sleep)
+            time.sleep(0.1)
     except KeyboardInterrupt:
         raise ImportError("initialisation of an extension module failed") from None  # what such modules do
 '''
@@ -198,7 +216,7 @@ def test_ctrl_c_while_the_part_script_imports_is_an_interrupt(tmp_path):
     proc = popen("validate", str(s))
     wait_for(lambda: (tmp_path / "importing").exists(), proc, "the part script importing")
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
+    err = finish(proc)
     assert proc.returncode == 130, err[-2000:]
     assert "interrupted" in err and "ImportError" not in err and "Traceback" not in err
 
@@ -370,8 +388,12 @@ def test_only_cadfeats_own_staging_of_dead_runs_is_removed(tmp_path):
     other_pid = _fake_staging(tmp_path, f".out.staging-{dead}-11111111", dead + 1)  # manifest names another pid
     user = tmp_path / ".out.staging-notes"
     user.mkdir()
-    assert sorted(remove_stale_staging(tmp_path)) == sorted([gone, old])
-    assert all(p.is_dir() for p in (alive, foreign, other_host, other_pid, user))
+    empty = tmp_path / f".out.staging-{dead}-22222222"  # killed before its manifest was written
+    empty.mkdir()
+    empty_alive = tmp_path / f".out.staging-{os.getpid()}-33333333"
+    empty_alive.mkdir()
+    assert sorted(remove_stale_staging(tmp_path)) == sorted([gone, old, empty])
+    assert all(p.is_dir() for p in (alive, foreign, other_host, other_pid, user, empty_alive))
 
 
 def test_concurrent_runs_into_one_folder_end_in_one_complete_result(tmp_path):
