@@ -36,8 +36,8 @@ from pydantic_core import ErrorDetails, PydanticCustomError
 
 from cadfeat.errors import CadfeatError
 
-__all__ = ["Settings", "StudyError", "Tuple", "boolean", "choice", "context_of", "integer", "number", "range_text",
-           "reject", "seed_from_context", "validate_nested", "validate_section"]
+__all__ = ["Settings", "StudyError", "Tuple", "boolean", "check_limit", "choice", "context_of", "integer", "number",
+           "range_text", "reject", "seed_from_context", "validate_nested", "validate_section"]
 
 
 class StudyError(CadfeatError):
@@ -88,8 +88,9 @@ class Settings(BaseModel):
         """A field declared with ``choice(default, names)`` holds one of ``names`` (its schema ``enum``)."""
         for name, field in type(self).model_fields.items():
             extra = cast("dict[str, Any] | None", field.json_schema_extra)
-            if isinstance(extra, dict) and "enum" in extra and getattr(self, name) not in extra["enum"]:
-                raise reject(name, f"{_fmt(getattr(self, name))} is not allowed", str(extra["x-allowed"]))
+            value = getattr(self, name)
+            if isinstance(extra, dict) and "enum" in extra and value is not None and value not in extra["enum"]:
+                raise reject(name, f"{_fmt(value)} is not allowed", str(extra["x-allowed"]))
         return self
 
     def replace(self, **changes: object) -> Self:
@@ -167,6 +168,14 @@ def reject(key: str, problem: str, allowed: str) -> PydanticCustomError:
     """An error of a model-level check: ``raise reject("objective.thresholds", "missing", "…")``; ``key`` is
     relative to the section."""
     return PydanticCustomError("cadfeat", "{problem}", {"key": key, "problem": problem, "allowed": allowed})
+
+
+def check_limit(key: str, value: object, limits: Mapping[str, int], limit: str, what: str) -> None:
+    """An integer ``value`` (of ``key``, relative to the section) must not exceed ``limits[limit]`` (the study's
+    size limits, validation context ``limits``): checked before anything is allocated."""
+    if isinstance(value, int) and not isinstance(value, bool) and value > limits[limit]:
+        raise reject(key, f"{value} {what} is more than the limit of {limits[limit]:,}",
+                     f"at most {limits[limit]:,} (cadfeat.study.schema.LIMITS[{limit!r}])")
 
 
 def _fmt(value: object) -> str:

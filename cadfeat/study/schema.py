@@ -56,12 +56,13 @@ from cadfeat.study.settings import (
     TrackingSettings,
     validate_section,
 )
+from cadfeat.study.settings.camera import CameraSettings
 from cadfeat.study.settings.design import DesignSpec, HoleSpec, ParameterSpec, Selector
 from cadfeat.study.settings.scene import (
     PartPose,
     StudyInfo,
 )
-from cadfeat.study.table import Table, check_seed, fmt
+from cadfeat.study.table import Table, check_seed
 
 __all__ = [
     "AGGREGATES",
@@ -106,19 +107,6 @@ REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
 
 # ----------------------------------------------------------------------------------------- dataclasses
 @dataclass(frozen=True)
-class CameraSpec:
-    """``[camera]``: the validated table (calibration path resolved); ``build()`` gives the ``Camera``."""
-
-    table: Mapping[str, Any]
-    origin: str
-
-    def build(self) -> Any:
-        from cadfeat.camera import camera_from_dict
-
-        return camera_from_dict(dict(copy.deepcopy(dict(self.table))), self.origin)
-
-
-@dataclass(frozen=True)
 class TrajectorySpec:
     """``[trajectory]``: the validated table; ``build()`` gives the ``Trajectory`` (T_task_cam)."""
 
@@ -132,6 +120,8 @@ class TrajectorySpec:
         return trajectory_from_dict(copy.deepcopy(dict(self.table)), self.origin, self.base_dir)
 
 
+CameraSpec = CameraSettings
+"""``[camera]`` (``cadfeat.study.settings.camera``): ``build()`` gives the ``Camera``."""
 ConstraintSpec = ConstraintSettings
 """``[constraints]`` (``cadfeat.study.settings``)."""
 
@@ -189,37 +179,6 @@ def _check_size(t: Table, key: str, value: Any, limit: str, what: str) -> None:
     if isinstance(value, int) and not isinstance(value, bool) and value > LIMITS[limit]:
         t.fail(key, f"{value} {what} is more than the limit of {LIMITS[limit]:,}",
                f"at most {LIMITS[limit]:,} (cadfeat.study.schema.LIMITS[{limit!r}])")
-
-
-def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, dict[str, Any]]:
-    from cadfeat.camera import Camera, camera_from_dict
-
-    fields = [f.name for f in dataclasses.fields(Camera)]
-    t = Table(data, "camera", label, ["preset", "calibration", *fields])
-    table = dict(t.data)
-    for side in ("width", "height"):
-        _check_size(t, f"camera.{side}", table.get(side), "image_side_px", "pixels")
-    if all(isinstance(table.get(k), int) for k in ("width", "height")):
-        _check_size(t, "camera.width * camera.height", table["width"] * table["height"], "image_pixels", "pixels")
-    if t.has("preset") and t.has("calibration"):
-        t.fail("camera.calibration", "given together with camera.preset", "one of preset or calibration")
-    if t.has("calibration"):
-        cal = table["calibration"]
-        if not isinstance(cal, str):
-            t.fail("camera.calibration", f"{fmt(cal)} is not allowed", "a path to an OpenCV calibration file")
-        path = (base_dir / cal).resolve()
-        if not path.is_file():
-            t.fail("camera.calibration", f"file {path} does not exist", "an existing OpenCV calibration file")
-        table["calibration"] = str(path)
-    origin = f"{label}: camera"
-    try:
-        camera_from_dict(copy.deepcopy(table), origin)
-    except CadfeatError as exc:
-        raise StudyError(str(exc)) from exc
-    except Exception as exc:  # noqa: BLE001 — a bad calibration file may raise anything from OpenCV
-        raise StudyError(f"{origin}: {exc}") from exc
-    echo = dict(t.data)
-    return CameraSpec(table, origin), echo
 
 
 def _trajectory_section(data: Any, label: str, base_dir: Path) -> TrajectorySpec:
@@ -281,7 +240,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
                              f"{', '.join(REQUIRED_SECTIONS)}; optional: "
                              f"{', '.join(s for s in SECTIONS if s not in REQUIRED_SECTIONS)}")
     info = validate_section(StudyInfo, top.raw("study"), "study", label, {"base_dir": base})
-    camera, camera_echo = _camera_section(top.raw("camera"), label, base)
+    camera = validate_section(CameraSettings, top.raw("camera"), "camera", label, {"base_dir": base, "limits": LIMITS})
     pose = validate_section(PartPose, top.raw("part_pose", {}), "part_pose", label)
     trajectory = _trajectory_section(top.raw("trajectory"), label, base)
     params: dict[str, PartParameter] = {}
@@ -306,7 +265,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
         tracking = validate_section(TrackingSettings, top.raw("tracking"), "tracking", label, {"seed": info.seed})
     echo = {
         "study": info.study_dump(),
-        "camera": camera_echo,
+        "camera": dict(top.raw("camera")),
         "part_pose": pose.study_dump(),
         "trajectory": copy.deepcopy(dict(trajectory.table)),
         "design": design.echo(),
