@@ -36,8 +36,8 @@ from pydantic_core import ErrorDetails, PydanticCustomError
 
 from cadfeat.errors import CadfeatError
 
-__all__ = ["Settings", "StudyError", "Tuple", "boolean", "check_limit", "choice", "context_of", "integer", "number",
-           "range_text", "reject", "seed_from_context", "validate_nested", "validate_section"]
+__all__ = ["Finite", "Settings", "StudyError", "Tuple", "boolean", "check_limit", "choice", "context_of", "integer",
+           "number", "range_text", "reject", "seed_from_context", "validate_nested", "validate_section"]
 
 
 class StudyError(CadfeatError):
@@ -48,6 +48,9 @@ def _as_tuple(value: object) -> object:
     """TOML arrays are lists: a tuple field takes a list as its items (strict validation of each item)."""
     return tuple(cast("list[object]", value)) if isinstance(value, list) else value
 
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+"""A finite float (an integer is accepted and becomes a float)."""
 
 T = TypeVar("T")
 Tuple = Annotated[tuple[T, ...], BeforeValidator(_as_tuple)]

@@ -54,19 +54,10 @@ def _model_schema(model: type[Settings]) -> dict[str, Any]:
 
 
 def _trajectory_schema() -> dict[str, Any]:
-    """``[trajectory]``: one object form per library kind (its arguments; required ones required), or a CSV."""
-    from cadfeat.trajectory import TRAJECTORY_KINDS, kind_arguments
+    """``[trajectory]``: one form per library kind (its generated model) or a CSV file (``CsvTrajectory``)."""
+    from cadfeat.trajectory import TRAJECTORY_KINDS, trajectory_model
 
-    forms: list[dict[str, Any]] = [{
-        "type": "object", "additionalProperties": False, "required": ["csv"],
-        "properties": {"csv": {"type": "string", "description": "CSV of poses, relative to the study file"},
-                       "name": {"type": "string"}}}]
-    for kind in TRAJECTORY_KINDS:
-        args = kind_arguments(kind)
-        forms.append({"type": "object", "additionalProperties": False,
-                      "required": ["kind", *(a.name for a in args if a.required)],
-                      "properties": {"kind": {"const": kind}, "name": {"type": "string"},
-                                     **{a.name: {"description": a.arg_type.description} for a in args}}})
+    forms = [_model_schema(trajectory_model(kind)) for kind in (None, *TRAJECTORY_KINDS)]
     return {"description": "kind = library kind + its arguments (cadfeat trajectories), or csv = file of poses",
             "oneOf": forms}
 

@@ -41,7 +41,6 @@ from typing import Any
 from cadfeat.design.objectives import AGGREGATES, COMBINES, ObjectiveConfig
 from cadfeat.design.objectives import MEASURES as _OBJECTIVE_MEASURES
 from cadfeat.design.optimize import METHODS, OptimizerConfig
-from cadfeat.errors import CadfeatError
 from cadfeat.study.part_parameters import PartParameter, part_parameters
 from cadfeat.study.settings import (
     LIMITS,
@@ -63,6 +62,7 @@ from cadfeat.study.settings.scene import (
     StudyInfo,
 )
 from cadfeat.study.table import Table, check_seed
+from cadfeat.trajectory import TrajectorySettings, validate_trajectory
 
 __all__ = [
     "AGGREGATES",
@@ -106,22 +106,10 @@ ROBUSTNESS_KEYS = tuple(RobustnessSettings.model_fields)
 REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
 
 # ----------------------------------------------------------------------------------------- dataclasses
-@dataclass(frozen=True)
-class TrajectorySpec:
-    """``[trajectory]``: the validated table; ``build()`` gives the ``Trajectory`` (T_task_cam)."""
-
-    table: Mapping[str, Any]
-    origin: str
-    base_dir: Path
-
-    def build(self) -> Any:
-        from cadfeat.trajectory import trajectory_from_dict
-
-        return trajectory_from_dict(copy.deepcopy(dict(self.table)), self.origin, self.base_dir)
-
-
 CameraSpec = CameraSettings
-"""``[camera]`` (``cadfeat.study.settings.camera``): ``build()`` gives the ``Camera``."""
+TrajectorySpec = TrajectorySettings
+"""``[camera]`` (``cadfeat.study.settings.camera``) and ``[trajectory]`` (``cadfeat.trajectory``): ``build()`` gives
+the ``Camera`` / the ``Trajectory``."""
 ConstraintSpec = ConstraintSettings
 """``[constraints]`` (``cadfeat.study.settings``)."""
 
@@ -173,37 +161,6 @@ class StudyConfig:
                                    optimizer=self.optimizer.replace(seed=int(seed)), data=data)
 
 
-# ------------------------------------------------------------------------------------------- sections
-def _check_size(t: Table, key: str, value: Any, limit: str, what: str) -> None:
-    """``value`` (an int) must not exceed ``LIMITS[limit]`` (checked before anything is allocated)."""
-    if isinstance(value, int) and not isinstance(value, bool) and value > LIMITS[limit]:
-        t.fail(key, f"{value} {what} is more than the limit of {LIMITS[limit]:,}",
-               f"at most {LIMITS[limit]:,} (cadfeat.study.schema.LIMITS[{limit!r}])")
-
-
-def _trajectory_section(data: Any, label: str, base_dir: Path) -> TrajectorySpec:
-    if not isinstance(data, Mapping):
-        raise StudyError(f"{label}: trajectory: expected a table; allowed: kind = <library kind> + arguments, "
-                         "or csv = <file>")
-    t = Table(data, "trajectory", label, list(data))
-    _check_size(t, "trajectory.n", data.get("n"), "trajectory_samples", "samples")
-    _check_size(t, "trajectory.lines", data.get("lines"), "trajectory_lines", "lines")
-    if isinstance(data.get("csv"), str):
-        csv = base_dir / data["csv"]
-        if csv.is_file() and csv.stat().st_size > LIMITS["trajectory_csv_bytes"]:
-            t.fail("trajectory.csv", f"{csv} has {csv.stat().st_size:,} bytes, more than the limit of "
-                   f"{LIMITS['trajectory_csv_bytes']:,}", "a smaller CSV (cadfeat.study.schema.LIMITS"
-                   "['trajectory_csv_bytes'])")
-        if csv.exists() and not csv.is_file():
-            t.fail("trajectory.csv", f"{csv} is not a regular file (a device, folder or pipe)", "a CSV file of poses")
-    spec = TrajectorySpec(dict(data), f"{label}: trajectory", base_dir)
-    try:
-        spec.build()
-    except CadfeatError as exc:
-        raise StudyError(str(exc)) from exc
-    return spec
-
-
 # ------------------------------------------------------------------------------------------- entry point
 def _read(path_or_dict: Any, base_dir: str | Path | None) -> tuple[dict[str, Any], Path | None, Path, str]:
     if isinstance(path_or_dict, Mapping):
@@ -242,7 +199,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
     info = validate_section(StudyInfo, top.raw("study"), "study", label, {"base_dir": base})
     camera = validate_section(CameraSettings, top.raw("camera"), "camera", label, {"base_dir": base, "limits": LIMITS})
     pose = validate_section(PartPose, top.raw("part_pose", {}), "part_pose", label)
-    trajectory = _trajectory_section(top.raw("trajectory"), label, base)
+    trajectory = validate_trajectory(top.raw("trajectory"), label, {"base_dir": base, "limits": LIMITS})
     params: dict[str, PartParameter] = {}
     if info.part_kind == "script":
         params = part_parameters(info.part_path, info.build_timeout_s)  # (runs the script only for a computed table)
@@ -267,7 +224,7 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
         "study": info.study_dump(),
         "camera": dict(top.raw("camera")),
         "part_pose": pose.study_dump(),
-        "trajectory": copy.deepcopy(dict(trajectory.table)),
+        "trajectory": copy.deepcopy(dict(top.raw("trajectory"))),
         "design": design.echo(),
         "constraints": constraints.model_dump(mode="json"),
         "objective": objective.study_dump(),

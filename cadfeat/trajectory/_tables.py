@@ -1,86 +1,147 @@
-"""A study file's ``[trajectory]`` table → ``Trajectory`` (a library kind + its arguments, or a CSV file)."""
+"""A study file's ``[trajectory]`` table → ``Trajectory``, declared once as ``Settings`` models.
+
+A library kind's model is generated from the kind's function (``kind_arguments``: its signature and argument
+types), so the arguments are declared only there; a CSV file is ``CsvTrajectory``. ``trajectory_model`` picks
+the model of a table (by ``kind`` or ``csv``), ``validate_trajectory`` validates it (one ``StudyError`` line:
+file, dotted key, what is allowed) and the model's after-validator builds the ``Trajectory``: size limits first
+(validation context ``limits``: ``n``, ``lines``, the CSV's bytes), then the library function or the CSV reader,
+whose own checks keep their wording. A CSV path is relative to the study file (context ``base_dir``).
+"""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, Self, cast
+
+import numpy as np
+from pydantic import Field, PrivateAttr, ValidationInfo, create_model, model_validator
 
 from cadfeat.errors import CadfeatError
-from cadfeat.trajectory._core import (
-    Trajectory,
-    TrajectoryError,
-)
+from cadfeat.settings import Settings, StudyError, check_limit, choice, context_of, reject, validate_section
+from cadfeat.trajectory._core import Trajectory, TrajectoryError
 from cadfeat.trajectory._csv import read_csv
-from cadfeat.trajectory._library import (
-    TRAJECTORY_KINDS,
-    kind_arguments,
-)
+from cadfeat.trajectory._library import TRAJECTORY_KINDS, kind_arguments
+
+__all__ = ["CsvTrajectory", "TrajectorySettings", "trajectory_from_dict", "trajectory_model", "validate_trajectory"]
+
+_FORMS = f"kind = one of {', '.join(TRAJECTORY_KINDS)} (+ its arguments: cadfeat trajectories), or csv = a CSV file"
 
 
-# ---------------------------------------------------------------------- study-file tables
+class TrajectorySettings(Settings):
+    """``[trajectory]``: a library kind with its arguments (``trajectory_model(kind)``) or ``CsvTrajectory``;
+    ``name`` renames the trajectory. ``build()`` gives the ``Trajectory`` (T_task_cam), made once."""
+
+    section: ClassVar[str] = "trajectory"
+
+    name: str | None = choice(None, "a string", description="the trajectory's name (default: its kind or file)")
+    _trajectory: Trajectory | None = PrivateAttr(None)
+
+    @model_validator(mode="after")
+    def _build(self, info: ValidationInfo) -> Self:
+        """Limits before anything is allocated, then the trajectory (its own checks as one error)."""
+        context = context_of(info)
+        limits = context.get("limits")
+        if limits is not None:
+            check_limit("n", getattr(self, "n", None), limits, "trajectory_samples", "samples")
+            check_limit("lines", getattr(self, "lines", None), limits, "trajectory_lines", "lines")
+        traj = self._make(context)
+        self._trajectory = traj if self.name is None else Trajectory(traj.T_task_cam, traj.times_s, self.name,
+                                                                      traj.screws)
+        return self
+
+    def _make(self, context: Mapping[str, Any]) -> Trajectory:
+        raise NotImplementedError
+
+    @property
+    def table(self) -> dict[str, Any]:
+        """The keys the study file gave, as validated."""
+        return {k: getattr(self, k) for k in type(self).model_fields if k in self.model_fields_set}
+
+    def build(self) -> Trajectory:
+        assert self._trajectory is not None
+        return self._trajectory
+
+
+class CsvTrajectory(TrajectorySettings):
+    """``[trajectory] csv = "poses.csv"``: poses from a CSV file (``cadfeat.trajectory.read_csv``)."""
+
+    csv: str = Field(description="CSV of poses, relative to the study file",
+                     json_schema_extra={"x-allowed": "a CSV file of poses, relative to the study file"})
+
+    def _make(self, context: Mapping[str, Any]) -> Trajectory:
+        base_dir = context.get("base_dir")
+        path = Path(base_dir) / self.csv if base_dir is not None and not Path(self.csv).is_absolute() else \
+            Path(self.csv)
+        limits = context.get("limits")
+        if limits is not None and path.is_file() and path.stat().st_size > limits["trajectory_csv_bytes"]:
+            raise reject("csv", f"{path} has {path.stat().st_size:,} bytes, more than the limit of "
+                         f"{limits['trajectory_csv_bytes']:,}",
+                         "a smaller CSV (cadfeat.study.schema.LIMITS['trajectory_csv_bytes'])")
+        if path.exists() and not path.is_file():
+            raise reject("csv", f"{path} is not a regular file (a device, folder or pipe)", "a CSV file of poses")
+        try:
+            return read_csv(path)
+        except TrajectoryError as exc:
+            raise reject("csv", str(exc), "a CSV file of poses (cadfeat.trajectory: CSV format)") from None
+
+
+class _KindTrajectory(TrajectorySettings):
+    """A library kind: ``kind`` and the kind's arguments (fields generated by ``trajectory_model``)."""
+
+    kind: str = choice(..., tuple(TRAJECTORY_KINDS))
+
+    def _make(self, context: Mapping[str, Any]) -> Trajectory:
+        values: dict[str, Any] = {}
+        for a in kind_arguments(self.kind):
+            if a.name in self.model_fields_set:
+                value = getattr(self, a.name)
+                values[a.name] = np.asarray(value, dtype=float) if a.arg_type.array else value
+        try:
+            return TRAJECTORY_KINDS[self.kind](**values)
+        except CadfeatError as exc:
+            raise reject("", str(exc), f"arguments for which {self.kind} is defined (cadfeat trajectories)") \
+                from None
+
+
+@cache
+def trajectory_model(kind: str | None) -> type[TrajectorySettings]:
+    """The model of ``[trajectory]`` for a library ``kind`` (None: ``CsvTrajectory``): one field per argument
+    of the kind's function, with its type (``ArgType.annotation``), required when the function requires it."""
+    if kind is None:
+        return CsvTrajectory
+    fields: dict[str, Any] = {"kind": (str, choice(kind, (kind,), description="library kind"))}
+    for a in kind_arguments(kind):
+        default = ... if a.required else None
+        annotation = a.arg_type.annotation if a.required else a.arg_type.annotation | None
+        fields[a.name] = (annotation, choice(default, a.arg_type.description, description=a.arg_type.description))
+    model = create_model(f"{kind.title().replace('_', '')}Trajectory", __base__=_KindTrajectory,
+                         __module__=__name__, __doc__=f"``[trajectory] kind = \"{kind}\"`` and its arguments.",
+                         **fields)
+    return cast("type[TrajectorySettings]", model)
+
+
+def validate_trajectory(data: object, label: str, context: Mapping[str, Any] | None = None) -> TrajectorySettings:
+    """``[trajectory]`` (a TOML table) validated by its model (``trajectory_model``); one ``StudyError`` line."""
+    if not isinstance(data, Mapping):
+        raise StudyError(f"{label}: trajectory: expected a table, got {data!r}; allowed: {_FORMS}")
+    table = cast("Mapping[str, Any]", data)
+    if ("kind" in table) == ("csv" in table):
+        problem = "kind and csv given together" if "kind" in table else "neither kind nor csv given"
+        raise StudyError(f"{label}: trajectory: {problem}; allowed: {_FORMS}")
+    kind = table.get("kind")
+    if kind is not None and kind not in TRAJECTORY_KINDS:
+        raise StudyError(f"{label}: trajectory.kind: {kind!r} is not allowed; allowed: {', '.join(TRAJECTORY_KINDS)}")
+    return validate_section(trajectory_model(cast("str | None", kind)), dict(table), "trajectory", label, context)
+
+
 def trajectory_from_dict(spec: Mapping[str, Any], origin: str = "trajectory",
                          base_dir: str | Path | None = None) -> Trajectory:
-    """Build a trajectory from plain data: ``{"kind": name, **arguments}`` or ``{"csv": path}``.
-
-    Either form may add ``name``. ``origin`` names the source (e.g. ``"study.toml [trajectory]"``) in
-    error messages; a relative CSV path is resolved against ``base_dir`` (the study file's folder).
-    Raises one ``TrajectoryError`` naming origin, key and the allowed values.
-    """
-    if not isinstance(spec, Mapping):
-        raise TrajectoryError(f"{origin}: expected a table with 'kind' or 'csv', got {type(spec).__name__}")
-    spec = dict(spec)
-    name = spec.pop("name", None)
-    if name is not None and not isinstance(name, str):
-        raise TrajectoryError(f"{origin}: name: expected a string, got {name!r}")
-    if ("kind" in spec) == ("csv" in spec):
-        raise TrajectoryError(f"{origin}: give exactly one of 'kind' (one of {', '.join(TRAJECTORY_KINDS)}) "
-                              f"or 'csv' (a CSV file of poses)")
-    if "csv" in spec:
-        traj = _from_csv_spec(spec, origin, base_dir)
-    else:
-        traj = _from_kind_spec(spec, origin)
-    return traj if name is None else Trajectory(traj.T_task_cam, traj.times_s, name, traj.screws)
-
-
-def _from_csv_spec(spec: dict[str, Any], origin: str, base_dir: str | Path | None) -> Trajectory:
-    extra = sorted(set(spec) - {"csv"})
-    if extra:
-        raise TrajectoryError(f"{origin}: unknown key(s) {', '.join(extra)} with 'csv'; allowed: csv, name")
-    if not isinstance(spec["csv"], str | Path):
-        raise TrajectoryError(f"{origin}: csv: expected a file path, got {spec['csv']!r}")
-    path = Path(spec["csv"])
-    if base_dir is not None and not path.is_absolute():
-        path = Path(base_dir) / path
+    """Build a trajectory from plain data: ``{"kind": name, **arguments}`` or ``{"csv": path}`` (either may add
+    ``name``), validated as a study's ``[trajectory]``. ``origin`` names the source (``"study.toml"``) in error
+    messages; a relative CSV path is resolved against ``base_dir``. Raises one ``TrajectoryError`` line."""
     try:
-        return read_csv(path)
-    except TrajectoryError as exc:
-        raise TrajectoryError(f"{origin}: csv: {exc}") from exc
-
-
-def _from_kind_spec(spec: dict[str, Any], origin: str) -> Trajectory:
-    kind = spec.pop("kind")
-    if not isinstance(kind, str) or kind not in TRAJECTORY_KINDS:
-        raise TrajectoryError(f"{origin}: kind: unknown trajectory kind {kind!r}; "
-                              f"allowed: {', '.join(TRAJECTORY_KINDS)}")
-    args = kind_arguments(kind)
-    allowed = ", ".join(a.name for a in args)
-    unknown = sorted(set(spec) - {a.name for a in args})
-    if unknown:
-        raise TrajectoryError(f"{origin}: unknown key(s) {', '.join(unknown)} for kind '{kind}'; "
-                              f"allowed: kind, name, {allowed}")
-    missing = [a.name for a in args if a.required and a.name not in spec]
-    if missing:
-        raise TrajectoryError(f"{origin}: kind '{kind}' needs {', '.join(missing)}; arguments: {allowed}")
-    values = {}
-    for a in args:
-        if a.name in spec:
-            try:
-                values[a.name] = a.arg_type.convert(spec[a.name])
-            except TypeError as exc:
-                raise TrajectoryError(f"{origin}: {a.name}: {exc}, got {spec[a.name]!r}; "
-                                      f"allowed: {a.arg_type.description}") from exc
-    try:
-        return TRAJECTORY_KINDS[kind](**values)
-    except CadfeatError as exc:
-        raise TrajectoryError(f"{origin}: {exc}") from exc
+        return validate_trajectory(spec, origin, {} if base_dir is None else {"base_dir": Path(base_dir)}).build()
+    except StudyError as exc:
+        raise TrajectoryError(str(exc)) from None
