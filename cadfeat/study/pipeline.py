@@ -151,7 +151,7 @@ def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, 
                 break
             names = setup.space.names
             new = study_setup.setup_script(setup.config, setup.int_values, scene, normaliser,
-                               at=dict(zip(names, x, strict=True)))
+                                           at=dict(zip(names, x, strict=True)), time_limit_s=setup.time_limit_s)
             res2, stopped = _optimise(new, prog, label)
         except CadfeatError:
             break
@@ -283,12 +283,15 @@ class _Delivered:
     rebuild_failure: str | None
 
 
-def compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], dict[str, Any]]:
+def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None = None
+            ) -> tuple[dict[str, Any], dict[str, Any]]:
     """The study's phases in order: set up, optimise, deliver (shop rounding, CAD rebuild, scores and
-    requirement checks on the B-rep), analyse; returns (results, shapes) for the export and the report."""
+    requirement checks on the B-rep), analyse; returns (results, shapes) for the export and the report.
+    ``time_limit_s``: every part-script import and CAD build in a worker process within it (``run_study``:
+    ``[study] build_timeout_s``); None: in this process."""
     check_robust(config)  # issue 18: a chance constraint names a measure of the study, before any work
     with prog.phase("setup"):
-        start = _set_up(config)
+        start = _set_up(config, time_limit_s)
     with prog.phase("optimise"):
         opt = _optimise_all(config, start, prog)
         robust_run = robust_phase(config, opt, prog, _history)  # issue 18: the robust optimum (opt.res if delivered)
@@ -328,7 +331,7 @@ def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: 
                          setup, done.holes1, part_mesh(config, done.shape1))
 
 
-def _set_up(config: StudyConfig) -> _Start:
+def _set_up(config: StudyConfig, time_limit_s: float | None) -> _Start:
     """The part as it is and every set-up to optimise; the pre-flight refuses a study that cannot mean
     anything before any optimisation."""
     scene = load_scene(config)
@@ -336,17 +339,17 @@ def _set_up(config: StudyConfig) -> _Start:
                what=config.label)  # issue 16: refuse what cannot fit in memory, before any CAD work
     combos = int_grid(config) if config.study.part_kind == "script" else [{}]
     if config.study.part_kind == "step":
-        base = study_setup.setup_study(config)
+        base = study_setup.setup_study(config, time_limit_s=time_limit_s)
         setups = [base]
         m0 = measure_holes(base, base.holes0)
         pre = preflight_setup(config, base, m0)  # refuses a study that cannot mean anything, before any work
     else:  # "before" = the part's own integer values; the others share its objective scales
         defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
-        base = study_setup.setup_script(config, defaults, scene)
+        base = study_setup.setup_script(config, defaults, scene, time_limit_s=time_limit_s)
         m0 = measure_holes(base, base.holes0)
         pre = preflight_setup(config, base, m0)  # before the other combinations (and before any optimisation)
-        setups = [base] + [study_setup.setup_script(config, c, scene, base.problem.normaliser) for c in combos
-                           if c != defaults]
+        setups = [base] + [study_setup.setup_script(config, c, scene, base.problem.normaliser,
+                                                    time_limit_s=time_limit_s) for c in combos if c != defaults]
         if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
             setups = setups[1:]
     obj0, comb0 = score(base, base.holes0)

@@ -83,6 +83,8 @@ class StudySetup:
     linear: bool = True
     int_values: dict[str, int] = field(default_factory=dict)
     part: Any = None
+    time_limit_s: float | None = None
+    """The time limit of each CAD rebuild (s, a worker process); None: in this process (``setup_study``)."""
 
     @property
     def hole_names(self) -> list[str]:
@@ -202,12 +204,13 @@ def int_grid(config: StudyConfig) -> list[dict[str, int]]:
 
 def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = None,
                  scene: tuple[Camera, Trajectory, np.ndarray] | None = None, normaliser: Any = None,
-                 at: Mapping[str, Any] | None = None) -> StudySetup:
+                 at: Mapping[str, Any] | None = None, time_limit_s: float | None = None) -> StudySetup:
     """Setup of a part-script study with the integer parameters at ``int_values`` (default: their defaults);
     ``normaliser``: the objective scales of another setup (so that integer combinations compare); ``at``:
-    linearise at these continuous parameter values instead of the part's defaults."""
+    linearise at these continuous parameter values instead of the part's defaults; ``time_limit_s``: as
+    ``setup_study``'s."""
     camera, trajectory, T_task_part = scene or load_scene(config)
-    part = load_part(config.study.part_path)
+    part = load_part(config.study.part_path, time_limit_s)
     specs = [p for p in config.design.parameters if not p.is_int]
     ints = {p.name: int(p.default if p.start is None else p.start) for p in config.design.parameters if p.is_int}
     ints.update({k: int(v) for k, v in (int_values or {}).items()})
@@ -264,7 +267,8 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
                       holes0=holes0, fixed_mask=fixed, movable_mask=moved, space=space, model=model,
                       problem=problem, constraints=cc, rebuild_shape=lambda x: part.build(**values(x)),
                       rebuild_holes=lambda shape: _extract(shape, part.view_direction), values=values,
-                      linear=bool(getattr(dm, "linear", True)), int_values=ints, part=part)
+                      linear=bool(getattr(dm, "linear", True)), int_values=ints, part=part,
+                      time_limit_s=time_limit_s)
 
 
 def _extract(shape: Any, prefer_direction: Any = None, tol: Any = None) -> list[Hole]:
@@ -272,7 +276,8 @@ def _extract(shape: Any, prefer_direction: Any = None, tol: Any = None) -> list[
 
 
 # ----------------------------------------------------------------------------------------- STEP
-def setup_step(config: StudyConfig, scene: tuple[Camera, Trajectory, np.ndarray] | None = None) -> StudySetup:
+def setup_step(config: StudyConfig, scene: tuple[Camera, Trajectory, np.ndarray] | None = None,
+               time_limit_s: float | None = None) -> StudySetup:
     """Setup of a STEP study: the selected holes move in their host face planes (``HoleMoveModel``)."""
     camera, trajectory, T_task_part = scene or load_scene(config)
     view = config.design.view_direction or camera_direction(config.study.part_path, trajectory, T_task_part)
@@ -318,14 +323,15 @@ def setup_step(config: StudyConfig, scene: tuple[Camera, Trajectory, np.ndarray]
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                       shape0=step.shape, holes0=holes0, fixed_mask=fixed, movable_mask=movable_mask, space=space,
                       model=model, problem=problem, constraints=cc,
-                      rebuild_shape=lambda x: _timed_redrill(config, step, model.hole_moves(x)),
-                      rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step)
+                      rebuild_shape=lambda x: _timed_redrill(config, step, model.hole_moves(x), time_limit_s),
+                      rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step,
+                      time_limit_s=time_limit_s)
 
 
-def _timed_redrill(config: StudyConfig, step: Any, moves: Sequence[Any]) -> Any:
-    """``step_parts.redrill`` within the study's ``build_timeout_s`` (a worker process, as part-script builds)."""
+def _timed_redrill(config: StudyConfig, step: Any, moves: Sequence[Any], time_limit_s: float | None) -> Any:
+    """``step_parts.redrill`` within ``time_limit_s`` (a worker process, as part-script builds; None: here)."""
     return call_with_time_limit(redrill, (step.shape, list(moves), step.tolerance, step.path),
-                                f"{config.study.part_path}: re-drilling {len(moves)} hole(s)")
+                                f"{config.study.part_path}: re-drilling {len(moves)} hole(s)", time_limit_s)
 
 
 def camera_direction(part_path: Path, trajectory: Trajectory, T_task_part: np.ndarray) -> np.ndarray | None:
@@ -446,8 +452,11 @@ def _mirror_pairs(holes: Sequence[Hole], movable: Sequence[int], patterns: Seque
     return pairs
 
 
-def setup_study(config: StudyConfig, int_values: Mapping[str, int] | None = None) -> StudySetup:
-    """The setup of a study (script or STEP part)."""
+def setup_study(config: StudyConfig, int_values: Mapping[str, int] | None = None,
+                time_limit_s: float | None = None) -> StudySetup:
+    """The setup of a study (script or STEP part). ``time_limit_s``: the part-script import and every CAD build
+    or re-drill run in a worker process killed after that many seconds (``run_study`` gives ``[study]
+    build_timeout_s``); None (the default): in this process, without a limit."""
     if config.study.part_kind == "step":
-        return setup_step(config)
-    return setup_script(config, int_values)
+        return setup_step(config, time_limit_s=time_limit_s)
+    return setup_script(config, int_values, time_limit_s=time_limit_s)

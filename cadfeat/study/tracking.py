@@ -204,7 +204,7 @@ def _view_direction(config: StudyConfig, original_step: Path) -> Any:
         return camera_direction(original_step, traj, T_task_part)
     from cadfeat.cad.parts import load_part
 
-    return load_part(config.study.part_path).view_direction
+    return load_part(config.study.part_path, config.study.build_timeout_s).view_direction
 
 
 def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[Any]]], out_dir: Path | None = None,
