@@ -64,6 +64,9 @@ class Settings(BaseModel):
     model_config = ConfigDict(strict=True, extra="forbid", frozen=True, validate_default=False)
     section: ClassVar[str] = ""
     """The study-file table this model is (``"objective"``): the first part of each error's dotted key."""
+    moved: ClassVar[dict[str, str]] = {}
+    """Keys that moved elsewhere → where (a one-line error names it: ``tracking.placement_mm: this key moved; allowed:
+    [robustness] placement_position_mm …``)."""
 
     def __init__(self, /, **data: Any) -> None:
         """Built in Python: a bad value is one ``CadfeatError`` line (``objective.aggregate: 'median' is not
@@ -198,6 +201,8 @@ def validate_section(model: type[M], data: object, section: str, label: str,
                          f"{', '.join(keys)}")
     table = dict(cast("Mapping[str, Any]", data))
     for key in table:
+        if key in model.moved:
+            raise StudyError(f"{label}: {section}.{key}: this key moved; allowed: {model.moved[key]}")
         if key not in keys:
             raise StudyError(f"{label}: {section}.{key}: unknown key; allowed: keys of [{section}]: {', '.join(keys)}")
     try:

@@ -21,6 +21,7 @@ import numpy as np
 from cadfeat.cad.features.identity import named
 from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
+from cadfeat.study.settings.sections import RobustnessSettings, placement_sigma
 
 #: Sweep kinds and their default values (thesis §6.3.3 ranges where they apply to this scene).
 SWEEPS: dict[str, tuple[float, ...]] = {
@@ -32,8 +33,9 @@ SWEEPS: dict[str, tuple[float, ...]] = {
 }
 
 
-def tracking_config(spec: TrackingSpec) -> Any:
-    """The ``cadfeat.vision`` configuration of a ``[tracking]`` section."""
+def tracking_config(spec: TrackingSpec, robustness: RobustnessSettings | None = None) -> Any:
+    """The ``cadfeat.vision`` configuration of a ``[tracking]`` section; the part's placement error per run is
+    ``[robustness]``'s placement tolerance (``placement_sigma``: σ = 0.4 t per axis; default section if None)."""
     from cadfeat.vision import FilterTuning, SensorModel
     from cadfeat.vision.closed_loop import TrackingConfig
 
@@ -48,8 +50,8 @@ def tracking_config(spec: TrackingSpec) -> Any:
                           tuning=tuning, frame_step=spec.frame_step, settle_frames=spec.settle_frames,
                           converged_mm=spec.converged_mm, converged_deg=spec.converged_deg, gate_px=spec.gate_px,
                           rim_model=spec.rim_model, seed=spec.seed, alpha=spec.alpha,
-                          min_change=spec.min_change_percent / 100.0, placement_mm=spec.placement_mm,
-                          placement_deg=spec.placement_deg, gain_sigma=spec.gain_sigma)
+                          min_change=spec.min_change_percent / 100.0, gain_sigma=spec.gain_sigma,
+                          **placement_sigma(robustness or RobustnessSettings()))
 
 
 def _scene(config: StudyConfig) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray]:
@@ -220,7 +222,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[
     designs = {k: (shape, _named(holes)) for k, (shape, holes) in designs.items()}
     camera, T_cam_part, times, screws = _scene(config)
     _check_frames(config, spec, len(T_cam_part))
-    result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec),
+    result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec, config.robustness),
                            estimator_camera=camera_override)
     section = result.to_json()
     section["warnings"] = _motion_warnings(T_cam_part[result.frame_indices], times[result.frame_indices])
