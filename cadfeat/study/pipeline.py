@@ -47,12 +47,17 @@ from cadfeat.study.verify import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
+    from cadfeat.design.design_space import FeatureModel
+    from cadfeat.design.objectives import Normaliser
     from cadfeat.design.optimize import OptimResult
     from cadfeat.measures.evaluate import Measures
     from cadfeat.study.preflight import Preflight
-    from cadfeat.study.setup import StudySetup
+    from cadfeat.study.setup import Scene, StudySetup
     from cadfeat.trajectory import Trajectory
 
 
@@ -63,7 +68,7 @@ SWEEP_SAMPLES = 41
 
 
 def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Trajectory | None = None, *,
-                  mesh: Any = None) -> Measures:
+                  mesh: trimesh.Trimesh | None = None) -> Measures:
     """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
     the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off)."""
     traj = trajectory if trajectory is not None else setup.trajectory
@@ -134,8 +139,8 @@ def _violations(setup: StudySetup, x: np.ndarray, most: int = 5) -> str:
         "(no 2-D constraint; see the optimiser's message)"
 
 
-def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, prog: StudyProgress,
-                      label: str) -> tuple[Any, Any, list[dict[str, Any]], bool]:
+def _refresh_outlines(setup: StudySetup, res: OptimResult, scene: Scene, normaliser: Normaliser,
+                      prog: StudyProgress, label: str) -> tuple[StudySetup, OptimResult, list[dict[str, Any]], bool]:
     """The optimiser's 2-D constraints use the host-face outlines of the design it was linearised at; when a
     parameter also changes the faces (e.g. a block that grows with the hole spacing), rebuild at the
     optimum, linearise again there (new outlines) and re-optimise from it, until the outlines agree (at
@@ -250,7 +255,7 @@ class _Start:
     """What the set-up phase gives: the base set-up (the part as it is), every set-up to optimise (one per
     integer combination), the measures, pre-flight and objectives of the design before."""
 
-    scene: Any
+    scene: Scene
     base: StudySetup
     setups: list[StudySetup]
     m0: Measures
@@ -275,7 +280,7 @@ class _Delivered:
     and the model's rebuild failure at its optimum (if the CAD-in-the-loop search had to take over)."""
 
     x1: np.ndarray
-    shape1: Any
+    shape1: Shape
     holes1: list[Hole]
     pred_err: float
     shop: dict[str, Any]
@@ -481,7 +486,7 @@ def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered
     }
 
 
-def part_points(shape: Any, mesh: Any = None, most: int = 4000) -> np.ndarray:
+def part_points(shape: Shape, mesh: trimesh.Trimesh | None = None, most: int = 4000) -> np.ndarray:
     """Points of the part (V, 3) mm, part frame, for the pre-flight: the occlusion mesh's vertices (or a coarse
     mesh of ``shape``), at most ``most`` of them (evenly strided)."""
     if mesh is None:
@@ -499,7 +504,7 @@ def preflight_setup(config: StudyConfig, setup: StudySetup, m: Measures) -> Pref
                      setup.hole_names)
 
 
-def _mesh_of(config: StudyConfig, shape: Any) -> Any:
+def _mesh_of(config: StudyConfig, shape: Shape) -> trimesh.Trimesh | None:
     return occlusion_mesh(config, shape)
 
 
@@ -508,8 +513,8 @@ def scored_mask(setup: StudySetup) -> np.ndarray:
     return np.ones(len(setup.holes0), bool) if mask is None else np.asarray(mask, bool)
 
 
-def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Any, list[Hole], float], targets: Any,
-                 info: dict[str, Any], model: Any) -> tuple[np.ndarray, Any, list[Hole], float]:
+def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Shape, list[Hole], float], targets: Any,
+                 info: dict[str, Any], model: FeatureModel) -> tuple[np.ndarray, Shape, list[Hole], float]:
     """``shop.refine_on_rebuild`` on the study's CAD rebuild; ``info["rebuilt_off_target_mm"]``: what remains."""
     x, (shape, holes, err), off = refine_on_rebuild(setup.space, model, setup.problem, x, rebuilt, targets,
                                                     lambda x_new, guess: rebuild(setup, x_new, guess))

@@ -65,7 +65,7 @@ from cadfeat.study.pipeline import (
 )
 from cadfeat.study.preflight import preflight
 from cadfeat.study.progress import StudyProgress
-from cadfeat.study.schema import StudyConfig, StudyError, load_study
+from cadfeat.study.schema import StudyConfig, StudyError, StudySource, load_study
 from cadfeat.study.setup import load_scene, occlusion_mesh, score_rule, setup_study
 from cadfeat.study.trust import objective_changes
 from cadfeat.study.verify import (
@@ -73,6 +73,8 @@ from cadfeat.study.verify import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
     from cadfeat.design.problem import Problem
@@ -141,7 +143,7 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
     return "\n".join(lines)
 
 
-def _num(x: Any) -> str:
+def _num(x: float | None) -> str:
     if x is None:
         return "-"
     if isinstance(x, int):
@@ -150,7 +152,7 @@ def _num(x: Any) -> str:
 
 
 # ------------------------------------------------------------------------------------------ run
-def _resolve(path_or_dict: Any, seed: int | None) -> StudyConfig:
+def _resolve(path_or_dict: StudySource | StudyConfig, seed: int | None) -> StudyConfig:
     config = path_or_dict if isinstance(path_or_dict, StudyConfig) else load_study(path_or_dict)
     return config.with_seed(seed) if seed is not None else config
 
@@ -159,7 +161,7 @@ def default_out_dir(config: StudyConfig) -> Path:
     return EXPORTS_DIR / config.study.name
 
 
-def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int | None = None,
+def run_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | None = None, *, seed: int | None = None,
               quiet: bool = False, progress: bool = True, force: bool = False, track: str | None = None
               ) -> StudyResult:
     """Run a study (a TOML path, a dict or a ``StudyConfig``) and write its outputs to ``out_dir``
@@ -184,7 +186,7 @@ def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int
     return StudyResult(Path(out), results)
 
 
-def preflight_study(path_or_dict: Any, time_limit_s: float | None = None) -> Preflight:
+def preflight_study(path_or_dict: StudySource | StudyConfig, time_limit_s: float | None = None) -> Preflight:
     """The pre-flight of a study on its part as it is (``cadfeat validate``): every hole counts as scored
     (which holes the design moves needs the design map, which ``run`` builds). ``time_limit_s``: the part's
     import and build in a worker process within it; None: in this process."""
@@ -232,8 +234,8 @@ def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], pro
 
 
 # ------------------------------------------------------------------------------------------ evaluate
-def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose: int | None = None,
-                   quiet: bool = True, echo: bool = False, seed: int | None = None,
+def evaluate_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | None = None, *,
+                   pose: int | None = None, quiet: bool = True, echo: bool = False, seed: int | None = None,
                    force: bool = False) -> dict[str, Any]:
     """Score the study's current design without optimising (the thesis GUI's single-pose mode when ``pose``
     is given: one trajectory sample). Returns the results dict; prints the per-feature table (thesis
@@ -325,7 +327,7 @@ class _EvalSetup:
 
 
 def _current_design(config: StudyConfig, time_limit_s: float | None
-                    ) -> tuple[Any, list[Hole], np.ndarray, list[str]]:
+                    ) -> tuple[Shape, list[Hole], np.ndarray, list[str]]:
     """The part as it is (defaults / the STEP file): solid, holes, fixed mask (STEP: holes not in the design;
     scripts: the holes the script declares functional)."""
     if config.study.part_kind == "step":

@@ -83,6 +83,7 @@ __all__ = [
     "StudyConfig",
     "StudyError",
     "StudyInfo",
+    "StudySource",
     "TrackingSpec",
     "TrajectorySpec",
     "load_study",
@@ -98,6 +99,9 @@ OPTIMIZER_KEYS = OptimizerSettings.study_keys()
 STUDY_KEYS = StudyInfo.study_keys()
 PART_POSE_KEYS = PartPose.study_keys()
 DESIGN_KEYS = DesignSpec.study_keys()
+
+StudySource = str | Path | Mapping[str, Any]
+"""A study: a TOML file's path, or a dict with the same tables."""
 
 SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer", "shop",
             "robustness", "tracking")
@@ -162,7 +166,7 @@ class StudyConfig:
 
 
 # ------------------------------------------------------------------------------------------- entry point
-def _read(path_or_dict: Any, base_dir: str | Path | None) -> tuple[dict[str, Any], Path | None, Path, str]:
+def _read(path_or_dict: StudySource, base_dir: str | Path | None) -> tuple[dict[str, Any], Path | None, Path, str]:
     if isinstance(path_or_dict, Mapping):
         base = Path(base_dir) if base_dir is not None else Path.cwd()
         return copy.deepcopy(dict(path_or_dict)), None, base.resolve(), "<study dict>"
@@ -183,7 +187,7 @@ def _read(path_or_dict: Any, base_dir: str | Path | None) -> tuple[dict[str, Any
     return data, path, (Path(base_dir) if base_dir is not None else path.parent).resolve(), label
 
 
-def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyConfig:
+def load_study(path_or_dict: StudySource, base_dir: str | Path | None = None) -> StudyConfig:
     """Read and validate a study (a TOML path, or a dict with the same tables) — before any work.
 
     Relative paths are resolved against the study file's folder (for a dict: ``base_dir`` or the current
