@@ -99,6 +99,11 @@ class Settings(BaseModel):
                 raise reject(name, f"{_fmt(value)} is not allowed", str(extra["x-allowed"]))
         return self
 
+    @property
+    def table(self) -> dict[str, Any]:
+        """The keys the study file (or the caller) gave, as validated (defaults left out)."""
+        return {k: getattr(self, k) for k in type(self).model_fields if k in self.model_fields_set}
+
     def replace(self, **changes: object) -> Self:
         """A validated copy with ``changes`` (``dataclasses.replace`` for a settings model)."""
         return type(self)(**{**self.model_dump(), **changes})

@@ -54,11 +54,6 @@ class TrajectorySettings(Settings):
     def _make(self, context: Mapping[str, Any]) -> Trajectory:
         raise NotImplementedError
 
-    @property
-    def table(self) -> dict[str, Any]:
-        """The keys the study file gave, as validated."""
-        return {k: getattr(self, k) for k in type(self).model_fields if k in self.model_fields_set}
-
     def build(self) -> Trajectory:
         assert self._trajectory is not None
         return self._trajectory

@@ -96,11 +96,6 @@ class _CameraTable(Settings):
         except Exception as exc:  # noqa: BLE001 — a bad calibration file may raise anything from OpenCV
             raise reject("calibration", f"{self.calibration}: {exc}", _CALIBRATION) from None
 
-    @property
-    def table(self) -> dict[str, Any]:
-        """The keys the study file gave (calibration resolved), as validated."""
-        return {k: getattr(self, k) for k in type(self).model_fields if k in self.model_fields_set}
-
     def build(self) -> Camera:
         """The ``Camera`` (built once, when the section was validated)."""
         assert self._camera is not None
