@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,7 +25,13 @@ MIN_DEPTH_MM = 1e-6
 
 
 class CameraError(CadfeatError):
-    """A camera definition or calibration file is invalid."""
+    """A camera definition or calibration file is invalid. ``key`` (the ``Camera`` field at fault, or
+    ``"calibration"``) and ``allowed`` (what it may be) let a study file's check name them."""
+
+    def __init__(self, message: str, key: str = "", allowed: str = "") -> None:
+        super().__init__(message)
+        self.key = key
+        self.allowed = allowed
 
 
 _POSITIVE_FIELDS = ("fx", "fy", "focal_length_mm", "focus_distance_mm")
@@ -69,19 +76,20 @@ class Camera:
         if isinstance(dist, str) or not hasattr(dist, "__len__") or len(dist) not in (4, 5) or \
                 not all(_is_real(d) and math.isfinite(d) for d in dist):
             raise CameraError(f"camera '{self.name}': dist must be 4 or 5 finite numbers (k1, k2, p1, p2[, k3]), "
-                              f"got {dist!r}")
+                              f"got {dist!r}", "dist", "4 or 5 finite numbers [k1, k2, p1, p2(, k3)]")
         dist = tuple(float(d) for d in dist)
         object.__setattr__(self, "dist", dist if len(dist) == 5 else (*dist, 0.0))
         if not (0.0 <= self.cx <= self.width and 0.0 <= self.cy <= self.height):
             raise CameraError(f"camera '{self.name}': principal point (cx, cy) = ({self.cx}, {self.cy}) must lie "
-                              f"inside the {self.width}x{self.height} image")
+                              f"inside the {self.width}x{self.height} image", "cx",
+                              "0 ≤ cx ≤ width and 0 ≤ cy ≤ height (px)")
         self._resolve_aperture()
         if self.blur_circle_mm is None:
             object.__setattr__(self, "blur_circle_mm", 2.0 * self.pixel_pitch_mm)
         if self.focus_distance_mm <= self.focal_length_mm:
             raise CameraError(
                 f"camera '{self.name}': focus_distance_mm ({self.focus_distance_mm}) must exceed "
-                f"focal_length_mm ({self.focal_length_mm})"
+                f"focal_length_mm ({self.focal_length_mm})", "focus_distance_mm", "a distance > focal_length_mm (mm)"
             )
 
     def _check_numbers(self) -> None:
@@ -91,14 +99,17 @@ class Camera:
             if value is None and key in _OPTIONAL_POSITIVE_FIELDS:
                 continue
             if not _is_real(value) or not math.isfinite(value):
-                raise CameraError(f"camera '{self.name}': {key} must be a finite number, got {value!r}")
+                raise CameraError(f"camera '{self.name}': {key} must be a finite number, got {value!r}", key,
+                                  "a finite number")
             if key not in ("cx", "cy") and value <= 0:
-                raise CameraError(f"camera '{self.name}': {key} must be a positive number, got {value!r}")
+                raise CameraError(f"camera '{self.name}': {key} must be a positive number, got {value!r}", key,
+                                  "a number > 0")
             object.__setattr__(self, key, float(value))
         for key in ("width", "height"):
             value = getattr(self, key)
             if not _is_real(value) or not float(value).is_integer() or value < 1:
-                raise CameraError(f"camera '{self.name}': {key} must be a positive integer (pixels), got {value!r}")
+                raise CameraError(f"camera '{self.name}': {key} must be a positive integer (pixels), got {value!r}",
+                                  key, "an integer ≥ 1 (px)")
             object.__setattr__(self, key, int(value))
 
     def _resolve_aperture(self) -> None:
@@ -110,7 +121,8 @@ class Camera:
             if not np.isclose(expected, self.aperture_mm, rtol=1e-6):
                 raise CameraError(
                     f"camera '{self.name}': give f_number or aperture_mm, not both inconsistent "
-                    f"(f/{self.f_number} means aperture {expected:.4g} mm, got {self.aperture_mm})"
+                    f"(f/{self.f_number} means aperture {expected:.4g} mm, got {self.aperture_mm})", "aperture_mm",
+                    "one of f_number or aperture_mm (or both with aperture_mm = focal_length_mm / f_number)"
                 )
         if self.aperture_mm is None:
             object.__setattr__(self, "aperture_mm", self.focal_length_mm / float(self.f_number))
@@ -442,35 +454,25 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 
 
-def camera_from_dict(data: dict[str, Any], origin: str = "camera") -> Camera:
-    """Build a camera from plain data: ``{"preset": name, ...overrides}`` or explicit fields.
-
-    ``origin`` names where the data came from (file and section) for error messages.
-    """
-    data = dict(data)
-    allowed = {f.name for f in dataclasses.fields(Camera)} | {"preset", "calibration"}
-    unknown = sorted(set(data) - allowed)
-    if unknown:
-        raise CameraError(f"{origin}: unknown key(s) {', '.join(unknown)}; allowed: {', '.join(sorted(allowed))}")
-    try:
-        if "preset" in data:
-            base = Camera.preset(data.pop("preset")).to_dict()
-        elif "calibration" in data:
-            base = read_opencv_calibration(data.pop("calibration"))
-        else:
-            base = {}
-        merged = {**base, **data}
-        if "f_number" in data and "aperture_mm" not in data:
-            merged["aperture_mm"] = None
-        if "aperture_mm" in data and "f_number" not in data:
-            merged["f_number"] = None
-        if "dist" in merged:
-            merged["dist"] = tuple(merged["dist"])
-        return Camera(**merged)
-    except TypeError as exc:
-        raise CameraError(f"{origin}: {exc}") from exc
-    except CameraError as exc:
-        raise CameraError(f"{origin}: {exc}") from exc
+def build_camera(overrides: Mapping[str, Any], preset: str | None = None, calibration: str | Path | None = None
+                 ) -> Camera:
+    """A camera from a preset name or an OpenCV calibration file (or neither) and ``overrides`` (``Camera``
+    fields; an override of ``f_number`` or ``aperture_mm`` alone recomputes the other). The checks are
+    ``Camera``'s; a study file's ``[camera]`` is checked first by ``cadfeat.study.settings.CameraSettings``."""
+    if preset is not None:
+        base = Camera.preset(preset).to_dict()
+    elif calibration is not None:
+        base = read_opencv_calibration(calibration)
+    else:
+        base = {}
+    merged = {**base, **overrides}
+    if "f_number" in overrides and "aperture_mm" not in overrides:
+        merged["aperture_mm"] = None
+    if "aperture_mm" in overrides and "f_number" not in overrides:
+        merged["f_number"] = None
+    if "dist" in merged:
+        merged["dist"] = tuple(merged["dist"])
+    return Camera(**merged)
 
 
 def dumps(camera: Camera) -> str:

@@ -36,8 +36,8 @@ from pydantic_core import ErrorDetails, PydanticCustomError
 
 from cadfeat.errors import CadfeatError
 
-__all__ = ["Settings", "StudyError", "Tuple", "boolean", "choice", "context_of", "integer", "number", "range_text",
-           "reject", "seed_from_context", "validate_nested", "validate_section"]
+__all__ = ["Finite", "Settings", "StudyError", "Tuple", "boolean", "check_limit", "choice", "context_of", "integer",
+           "number", "range_text", "reject", "seed_from_context", "validate_nested", "validate_section"]
 
 
 class StudyError(CadfeatError):
@@ -48,6 +48,9 @@ def _as_tuple(value: object) -> object:
     """TOML arrays are lists: a tuple field takes a list as its items (strict validation of each item)."""
     return tuple(cast("list[object]", value)) if isinstance(value, list) else value
 
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+"""A finite float (an integer is accepted and becomes a float)."""
 
 T = TypeVar("T")
 Tuple = Annotated[tuple[T, ...], BeforeValidator(_as_tuple)]
@@ -61,6 +64,9 @@ class Settings(BaseModel):
     model_config = ConfigDict(strict=True, extra="forbid", frozen=True, validate_default=False)
     section: ClassVar[str] = ""
     """The study-file table this model is (``"objective"``): the first part of each error's dotted key."""
+    moved: ClassVar[dict[str, str]] = {}
+    """Keys that moved elsewhere → where (a one-line error names it: ``tracking.placement_mm: this key moved; allowed:
+    [robustness] placement_position_mm …``)."""
 
     def __init__(self, /, **data: Any) -> None:
         """Built in Python: a bad value is one ``CadfeatError`` line (``objective.aggregate: 'median' is not
@@ -88,9 +94,15 @@ class Settings(BaseModel):
         """A field declared with ``choice(default, names)`` holds one of ``names`` (its schema ``enum``)."""
         for name, field in type(self).model_fields.items():
             extra = cast("dict[str, Any] | None", field.json_schema_extra)
-            if isinstance(extra, dict) and "enum" in extra and getattr(self, name) not in extra["enum"]:
-                raise reject(name, f"{_fmt(getattr(self, name))} is not allowed", str(extra["x-allowed"]))
+            value = getattr(self, name)
+            if isinstance(extra, dict) and "enum" in extra and value is not None and value not in extra["enum"]:
+                raise reject(name, f"{_fmt(value)} is not allowed", str(extra["x-allowed"]))
         return self
+
+    @property
+    def table(self) -> dict[str, Any]:
+        """The keys the study file (or the caller) gave, as validated (defaults left out)."""
+        return {k: getattr(self, k) for k in type(self).model_fields if k in self.model_fields_set}
 
     def replace(self, **changes: object) -> Self:
         """A validated copy with ``changes`` (``dataclasses.replace`` for a settings model)."""
@@ -169,6 +181,14 @@ def reject(key: str, problem: str, allowed: str) -> PydanticCustomError:
     return PydanticCustomError("cadfeat", "{problem}", {"key": key, "problem": problem, "allowed": allowed})
 
 
+def check_limit(key: str, value: object, limits: Mapping[str, int], limit: str, what: str) -> None:
+    """An integer ``value`` (of ``key``, relative to the section) must not exceed ``limits[limit]`` (the study's
+    size limits, validation context ``limits``): checked before anything is allocated."""
+    if isinstance(value, int) and not isinstance(value, bool) and value > limits[limit]:
+        raise reject(key, f"{value} {what} is more than the limit of {limits[limit]:,}",
+                     f"at most {limits[limit]:,} (cadfeat.study.schema.LIMITS[{limit!r}])")
+
+
 def _fmt(value: object) -> str:
     return repr(value) if isinstance(value, str) else str(value)
 
@@ -186,6 +206,8 @@ def validate_section(model: type[M], data: object, section: str, label: str,
                          f"{', '.join(keys)}")
     table = dict(cast("Mapping[str, Any]", data))
     for key in table:
+        if key in model.moved:
+            raise StudyError(f"{label}: {section}.{key}: this key moved; allowed: {model.moved[key]}")
         if key not in keys:
             raise StudyError(f"{label}: {section}.{key}: unknown key; allowed: keys of [{section}]: {', '.join(keys)}")
     try:

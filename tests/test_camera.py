@@ -9,8 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from cadfeat.camera import PRESETS, Camera, CameraError, camera_from_dict, write_opencv_calibration
-from cadfeat.errors import CadfeatError
+from cadfeat.camera import PRESETS, Camera, CameraError, build_camera, write_opencv_calibration
+from cadfeat.settings import StudyError, validate_section
+from cadfeat.study.settings.camera import CameraSettings
 
 pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
 
@@ -190,8 +191,8 @@ def test_calibration_fixtures():
     plain = Camera.from_opencv_file(DATA / "plain_calib.json")
     assert (plain.fx, plain.cx, plain.cy, plain.width, plain.height) == (1666.67, 640.0, 512.0, 1280, 1024)
     assert plain.dist == (0.0,) * 5
-    via_dict = camera_from_dict({"calibration": str(DATA / "dalsa_calib_opencv.yaml"), "focal_length_mm": 3.5,
-                                 "focus_distance_mm": 45.0}, origin="study.toml [camera]")
+    via_dict = build_camera({"focal_length_mm": 3.5, "focus_distance_mm": 45.0},
+                            calibration=DATA / "dalsa_calib_opencv.yaml")
     assert via_dict.focal_length_mm == 3.5 and via_dict.fx == ref.fx
 
 
@@ -222,9 +223,9 @@ def test_presets_build_and_round_trip_through_dict(name):
     cam = Camera.preset(name)
     assert cam.name == name and cam.source
     assert cam.aperture_mm == pytest.approx(cam.focal_length_mm / cam.f_number)
-    again = camera_from_dict(json.loads(json.dumps(cam.to_dict())))
+    again = build_camera(json.loads(json.dumps(cam.to_dict())))
     assert again == cam
-    assert camera_from_dict({"preset": name, "focus_distance_mm": 123.0}).focus_distance_mm == 123.0
+    assert build_camera({"focus_distance_mm": 123.0}, preset=name).focus_distance_mm == 123.0
 
 
 @pytest.mark.parametrize("kwargs, fragment", [
@@ -247,12 +248,17 @@ def test_bad_camera_fields(kwargs, fragment):
         Camera(**{**base, **kwargs})
 
 
-def test_bad_camera_dicts_name_origin_key_and_allowed():
-    with pytest.raises(CadfeatError, match=r"study.toml \[camera\]: unknown key\(s\) fxx; allowed: .*fx"):
-        camera_from_dict({"preset": "dalsa-cad1-128a", "fxx": 1.0}, origin="study.toml [camera]")
-    with pytest.raises(CameraError, match="unknown camera preset 'nikon'; allowed: basler"):
-        camera_from_dict({"preset": "nikon"}, origin="study.toml [camera]")
-    with pytest.raises(CameraError, match=r"study.toml \[camera\]: .*focal_length_mm must be a finite number"):
-        camera_from_dict({"preset": "dalsa-cad1-128a", "focal_length_mm": "3.5"}, origin="study.toml [camera]")
-    with pytest.raises(CameraError, match=r"study.toml \[camera\]: .*missing"):
-        camera_from_dict({"fx": 500.0}, origin="study.toml [camera]")
+def test_bad_camera_tables_name_key_and_allowed():
+    """A ``[camera]`` table (``CameraSettings``): one line naming the dotted key and what is allowed; Camera's own
+    checks keep their wording."""
+    cases = [
+        ({"preset": "dalsa-cad1-128a", "fxx": 1.0}, r"camera.fxx: unknown key; allowed: keys of \[camera\]: .*fx"),
+        ({"preset": "nikon"}, "camera.preset: 'nikon' is not allowed; allowed: basler"),
+        ({"preset": "dalsa-cad1-128a", "focal_length_mm": "3.5"}, "camera.focal_length_mm: '3.5' is not allowed"),
+        ({"fx": 500.0}, "camera.fy: missing; allowed: .*fx, fy, cx, cy, width, height"),
+        ({"preset": "dalsa-cad1-128a", "cx": 700.0}, r"camera.cx: camera 'dalsa-cad1-128a': principal point"),
+    ]
+    for table, fragment in cases:
+        with pytest.raises(StudyError, match=fragment) as info:
+            validate_section(CameraSettings, table, "camera", "study.toml")
+        assert str(info.value).startswith("study.toml: camera.") and "\n" not in str(info.value)

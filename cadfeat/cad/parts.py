@@ -17,8 +17,9 @@ A part script is a plain Python file (``parts/*.py``) that also runs unchanged i
 An integer parameter has an ``int`` default (and int bounds). ``load_part(path) -> Part`` validates the
 script; ``Part.build(**overrides)`` validates the values and returns one ``cadquery.Solid`` (mm);
 ``build_shape(part, params, timeout_s)`` runs a build in a worker process with a time limit (DESIGN.md,
-"Known pitfalls": a CAD rebuild may hang), raising ``PartBuildError``; within ``with build_time_limit(s):``
-every ``load_part`` (the script's import) and ``Part.build`` runs that way (the ``cadfeat`` commands do this).
+"Known pitfalls": a CAD rebuild may hang), raising ``PartBuildError``; ``load_part(path,
+time_limit_s)`` runs the script's import and every ``Part.build`` that way (the ``cadfeat`` commands pass
+``[study] build_timeout_s`` or ``--build-timeout``; None: in this process).
 A part script is Python run with the user's rights: its output is captured, ``sys.exit`` is an error. The
 worker processes, the time limit and the output capture live in ``cadfeat.cad.sandbox``.
 
@@ -47,10 +48,9 @@ from cadfeat.cad.features.identity import hole_name, pair_holes
 from cadfeat.cad.sandbox import (
     DEFAULT_BUILD_TIMEOUT_S,
     PartBuildError,
-    build_time_limit,
     call_with_time_limit,
+    check_time_limit,
     contained,
-    current_time_limit,
     run_worker,
     start_workers,
     worker_setup,
@@ -69,7 +69,6 @@ __all__ = [
     "PartBuildError",
     "DEFAULT_BUILD_TIMEOUT_S",
     "build_shape",
-    "build_time_limit",
     "call_with_time_limit",
     "start_workers",
     "find_parts",
@@ -174,7 +173,7 @@ class Part:
     module: ModuleType | None = field(default=None, repr=False, compare=False)
     time_limit_s: float | None = field(default=None, compare=False)
     """The time limit (s) of each ``build``, in a worker process; None: in this process, no limit. Given to
-    ``load_part`` (its default: the enclosing ``build_time_limit``), so a part carries its own limit."""
+    ``load_part``, so a part carries its own limit."""
 
     def __reduce__(self) -> tuple[Any, tuple[str]]:
         """Pickled as its path (re-loaded on unpickling, in a worker: no limit of its own), so parts can be sent
@@ -354,15 +353,11 @@ def _import_script(path: Path) -> ModuleType:
     return module
 
 
-_FROM_CONTEXT: Any = object()
-
-
-def load_part(path: str | os.PathLike[str], time_limit_s: float | None = _FROM_CONTEXT) -> Part:
+def load_part(path: str | os.PathLike[str], time_limit_s: float | None = None) -> Part:
     """Load and validate a part script: a path, or the bare name of a library part (``"thesis_hub"``).
 
     ``time_limit_s``: the import and every ``Part.build`` run in a worker process killed after that many
-    seconds (``PartBuildError``); None: in this process, no limit; not given: the enclosing
-    ``build_time_limit`` block's (the ``cadfeat`` commands set one), else None.
+    seconds (``PartBuildError``); None (the default): in this process, no limit.
 
     Raises ``CadfeatError`` naming the file (and line / key) for a missing file, a syntax error, a script
     raising on import, no ``build``, bad ``PARAMETERS``, or a ``build`` signature not matching them.
@@ -378,9 +373,7 @@ def load_part(path: str | os.PathLike[str], time_limit_s: float | None = _FROM_C
         raise CadfeatError(f"{path}: {what} (library parts: {names})")
     from cadfeat.cad import cqgi_parts
 
-    limit = current_time_limit() if time_limit_s is _FROM_CONTEXT else time_limit_s
-    if limit is not None and not (math.isfinite(limit) and limit > 0):
-        raise CadfeatError(f"build time limit: {limit!r} s is not allowed; allowed: a number of seconds > 0")
+    limit = check_time_limit(time_limit_s)
     if cqgi_parts.is_cqgi_script(path):  # a cq-editor / CQGI script: parsed by CQGI, run only to build
         return dataclasses.replace(cqgi_parts.load_cqgi_part(path, Part, Parameter), time_limit_s=limit)
     if limit is not None:

@@ -3,9 +3,10 @@
 A part script is Python run with the user's rights and a CAD rebuild may hang (DESIGN.md, "Known pitfalls"):
 ``contained`` runs script code with its output captured and ``sys.exit`` refused; ``run_worker`` runs a
 function in a worker process (forkserver with CadQuery preloaded) killed after a time limit;
-``call_with_time_limit`` is the public form. ``build_time_limit(s)`` sets the limit that ``load_part`` /
-``Part.build`` / ``call_with_time_limit`` use within a block (``current_time_limit``; None: in this process,
-no limit). This module imports no numpy and no CadQuery (``cadfeat --help`` stays fast).
+``call_with_time_limit`` is the public form. The limit is always passed explicitly (``load_part(path,
+time_limit_s)``, ``call_with_time_limit(..., timeout_s)``, ``setup_study(config, time_limit_s=...)``; None: in
+this process, no limit): there is no process-wide setting. This module imports no numpy and no CadQuery
+(``cadfeat --help`` stays fast).
 """
 
 from __future__ import annotations
@@ -24,35 +25,25 @@ from typing import Any
 
 from cadfeat.errors import CadfeatError
 
-__all__ = ["DEFAULT_BUILD_TIMEOUT_S", "TIME_LIMIT_HINT", "PartBuildError", "build_time_limit", "call_with_time_limit",
-           "contained", "current_time_limit", "run_worker", "start_workers", "worker_setup"]
+__all__ = ["DEFAULT_BUILD_TIMEOUT_S", "TIME_LIMIT_HINT", "PartBuildError", "call_with_time_limit", "check_time_limit",
+           "contained", "run_worker", "start_workers", "worker_setup"]
 
 DEFAULT_BUILD_TIMEOUT_S = 60.0
 """Time limit (s) of one part-script import or build in the ``cadfeat`` commands (``[study] build_timeout_s``
 changes it for a study, ``--build-timeout`` for ``cadfeat parts`` / ``render``)."""
 TIME_LIMIT_HINT = "if it needs longer, raise [study] build_timeout_s (cadfeat parts / render: --build-timeout S)"
-_time_limit_s: float | None = None  # None: imports and builds run in this process, without a limit
 
 
 class PartBuildError(CadfeatError):
     """A part build raised, returned no solid, or exceeded its time limit."""
 
 
-@contextlib.contextmanager
-def build_time_limit(seconds: float | None, start: bool = True) -> Iterator[None]:
-    """Within the block, every ``load_part`` import and ``Part.build`` runs in a worker process killed after
-    ``seconds`` (``PartBuildError`` naming the script and the limit); ``None``: in this process, no limit.
-    ``start``: start the worker server at once (``start_workers``)."""
-    global _time_limit_s
+def check_time_limit(seconds: float | None) -> float | None:
+    """``seconds`` if it is a time limit (finite, > 0) or None (no limit: in this process); else one
+    ``CadfeatError`` line."""
     if seconds is not None and not (math.isfinite(seconds) and seconds > 0):
         raise CadfeatError(f"build time limit: {seconds!r} s is not allowed; allowed: a number of seconds > 0")
-    if seconds is not None and start:
-        start_workers()
-    previous, _time_limit_s = _time_limit_s, seconds
-    try:
-        yield
-    finally:
-        _time_limit_s = previous
+    return seconds
 
 
 class _Sink(io.TextIOBase):
@@ -109,11 +100,6 @@ def contained(path: Path, what: str, echo: bool = False) -> Iterator[None]:
             more = f"\n    ... ({sink.n_chars - shown} more characters not shown)" if sink.n_chars > shown else ""
             print(f"{path.name} printed while {what}:\n" + "\n".join(f"    {line}" for line in lines) + more,
                   file=sys.stderr)
-
-
-def current_time_limit() -> float | None:
-    """The time limit (s) of the enclosing ``build_time_limit`` block; None outside one (no worker, no limit)."""
-    return _time_limit_s
 
 
 # ------------------------------------------------------------------------------------ worker processes
@@ -190,15 +176,14 @@ def _call_worker(func: Any, args: tuple, conn: Any) -> None:
         conn.close()
 
 
-def call_with_time_limit(func: Any, args: tuple, what: str, timeout_s: float | None = None) -> Any:
-    """``func(*args)`` in a worker process within ``timeout_s`` (default: the ``build_time_limit`` in force; none:
-    in this process). ``func`` must be importable and ``args`` and the result picklable (CadQuery shapes
-    are). A timeout, a dead worker or an exception raises ``PartBuildError`` starting with ``what``. Used for
-    the CAD work that is not a part script's build, e.g. re-drilling a STEP part's holes."""
-    timeout = timeout_s if timeout_s is not None else _time_limit_s
-    if timeout is None:
+def call_with_time_limit(func: Any, args: tuple, what: str, timeout_s: float | None) -> Any:
+    """``func(*args)`` in a worker process within ``timeout_s`` (None: in this process). ``func`` must be
+    importable and ``args`` and the result picklable (CadQuery shapes are). A timeout, a dead worker or an
+    exception raises ``PartBuildError`` starting with ``what``. Used for the CAD work that is not a part
+    script's build, e.g. re-drilling a STEP part's holes."""
+    if check_time_limit(timeout_s) is None:
         return func(*args)
-    status, payload = run_worker(_call_worker, (func, args), timeout, what)
+    status, payload = run_worker(_call_worker, (func, args), timeout_s, what)
     if status != "ok":
         raise PartBuildError(f"{what}: {payload}")
     return payload

@@ -16,7 +16,6 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 
 from cadfeat._version import __version__
-from cadfeat.cad.sandbox import DEFAULT_BUILD_TIMEOUT_S, build_time_limit
 from cadfeat.cli import campaign, explore, listing, parts, render, report, study, track
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError, Terminated
@@ -62,10 +61,10 @@ def sigterm_as_exception() -> Iterator[None]:
 
 def run_guarded(func: Callable[[], int], prog: str = "cadfeat") -> int:
     """``func()`` with the CLI's error handling: one line for bad input (status 2), ``interrupted`` (130),
-    ``terminated`` (143, SIGTERM); every part-script import and CAD build runs in a worker process with the
-    default time limit unless the command sets its own."""
+    ``terminated`` (143, SIGTERM). Each command gives its part-script imports and CAD builds their time limit
+    (``[study] build_timeout_s``, ``--build-timeout``)."""
     try:
-        with sigterm_as_exception(), build_time_limit(DEFAULT_BUILD_TIMEOUT_S, start=False):
+        with sigterm_as_exception():
             return int(func() or 0)
     except Terminated:
         print(f"{prog}: terminated (SIGTERM); nothing half-written was left", file=sys.stderr)

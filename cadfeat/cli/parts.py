@@ -31,10 +31,10 @@ def build_timeout_arg(parser: argparse.ArgumentParser) -> None:
 def parts(args: argparse.Namespace) -> int:
     """List the part scripts: description, parameters (default, bounds, unit), fixed holes."""
 
-    from cadfeat.cad.sandbox import build_time_limit
+    from cadfeat.cad.sandbox import start_workers
 
-    with build_time_limit(args.build_timeout):
-        return _list_parts(args)
+    start_workers()
+    return _list_parts(args)
 
 
 def _list_parts(args: argparse.Namespace) -> int:
@@ -44,12 +44,12 @@ def _list_parts(args: argparse.Namespace) -> int:
 
     target = Path(args.directory) if args.directory else None
     if getattr(args, "params", False):
-        return _params_json(target)
+        return _params_json(target, args.build_timeout)
     if target is not None and target.suffix.lower() in (".step", ".stp"):
         return _step_part(target, args.holes)
     paths = [target] if target is not None and target.is_file() else find_parts(target)
     for path in paths:
-        part = load_part(path)
+        part = load_part(path, args.build_timeout)
         print(f"{part.name}: {part.description}")
         print(f"    file: {part.path}")
         if part.view_direction is not None:
@@ -67,7 +67,7 @@ def _list_parts(args: argparse.Namespace) -> int:
     return 0
 
 
-def _params_json(target: object) -> int:
+def _params_json(target: object, time_limit_s: float | None) -> int:
     """``--params``: the parameters of one script as cq-cli's ``--getparams`` JSON."""
     import json
     from pathlib import Path
@@ -77,11 +77,11 @@ def _params_json(target: object) -> int:
     if target is None or not Path(str(target)).is_file():
         raise CadfeatError(f"--params: {target or '(no script)'} is not a script file; allowed: one part script "
                            "(cadfeat parts SCRIPT.py --params)")
-    print(json.dumps(parameter_listing(Path(str(target)))))
+    print(json.dumps(parameter_listing(Path(str(target)), time_limit_s)))
     return 0
 
 
-def parameter_listing(path: Path) -> list[dict[str, Any]]:
+def parameter_listing(path: Path, time_limit_s: float | None = None) -> list[dict[str, Any]]:
     """``cadfeat parts SCRIPT --params``: cq-cli's ``--getparams`` JSON objects. A CQGI script: exactly
     ``cqgi_parts.getparams``. A cadfeat part script (``PARAMETERS`` + ``build``, which CQGI cannot list): the same
     fields from its ``PARAMETERS`` — ``type`` number, ``name``, ``caption`` (description), ``initial`` (default)
@@ -91,7 +91,7 @@ def parameter_listing(path: Path) -> list[dict[str, Any]]:
 
     if is_cqgi_script(path):
         return getparams(path)
-    part = load_part(path)
+    part = load_part(path, time_limit_s)
     return [{"type": "number", "name": p.name, **({"caption": p.description} if p.description else {}),
              "initial": p.default, "min": p.lower, "max": p.upper} for p in part.parameters.values()]
 

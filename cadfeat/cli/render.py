@@ -67,8 +67,10 @@ def _parse_size(text: str) -> tuple[int, int]:
     return int(w), int(h)
 
 
-def load_shape(path: Path, params: dict[str, float | int]) -> tuple[Any, list, Any, str]:
-    """(shape, holes, view direction or None, name) of a STEP file or a part script."""
+def load_shape(path: Path, params: dict[str, float | int], time_limit_s: float | None = None
+               ) -> tuple[Any, list, Any, str]:
+    """(shape, holes, view direction or None, name) of a STEP file or a part script (imported and built in a
+    worker process within ``time_limit_s``; None: in this process)."""
     from cadfeat.cad.features import extract_holes
     from cadfeat.cad.parts import PARTS_DIR
 
@@ -91,21 +93,19 @@ def load_shape(path: Path, params: dict[str, float | int]) -> tuple[Any, list, A
         raise CadfeatError(f"{path}: unknown part type {path.suffix!r}; allowed: .py (part script), .step, .stp")
     from cadfeat.cad.parts import load_part
 
-    part = load_part(path)
+    part = load_part(path, time_limit_s)
     shape = part.build(**params)
     return shape, extract_holes(shape, prefer_direction=part.view_direction), part.view_direction, part.name
 
 
 def render(args: argparse.Namespace) -> int:
     """Render a part script or STEP file to a PNG (off-screen) and print the PNG path."""
-    from cadfeat.cad.sandbox import build_time_limit
     from cadfeat.render import render_part
     from cadfeat.render.view_geometry import default_view_direction
 
     path = Path(args.part)
     size = _parse_size(args.size)
-    with build_time_limit(args.build_timeout):
-        shape, holes, view, name = load_shape(path, parse_params(args.param))
+    shape, holes, view, name = load_shape(path, parse_params(args.param), args.build_timeout)
     direction = _parse_vector(args.view, "--view") or default_view_direction(holes, towards=view)
     out = Path(args.out) if args.out else Path(f"{name}.png")
     if out.suffix.lower() != ".png":

@@ -60,7 +60,6 @@ class ExploreSession:
     """A loaded study for the explorer (see the module docstring). Thread-safe: one evaluation at a time."""
 
     def __init__(self, study: str | Path, results: str | Path | None = None) -> None:
-        from cadfeat.cad.parts import build_time_limit
         from cadfeat.explore.raycache import CachedRayMesh
         from cadfeat.study.schema import load_study
         from cadfeat.study.setup import setup_study
@@ -69,8 +68,7 @@ class ExploreSession:
         self.study_path = Path(study).resolve()
         self.config = load_study(self.study_path)
         self.timeout_s = self.config.study.build_timeout_s
-        with build_time_limit(self.timeout_s):
-            self.setup = setup_study(self.config)
+        self.setup = setup_study(self.config, time_limit_s=self.timeout_s)  # (rebuilds keep the limit)
         s = self.setup
         self.variables = list(s.space.variables)
         self.names = [v.name for v in self.variables]
@@ -238,11 +236,7 @@ class ExploreSession:
 
     def rebuild(self, values: Mapping[str, Any] | None) -> Any:
         """The real CAD model at the chosen design (time-limited build): a ``cadquery.Solid``."""
-        from cadfeat.cad.parts import build_time_limit
-
-        x = self.design(values)
-        with build_time_limit(self.timeout_s):
-            return self.setup.rebuild_shape(x)
+        return self.setup.rebuild_shape(self.design(values))
 
     def rebuilt_mesh(self, values: Mapping[str, Any] | None) -> dict[str, Any]:
         """The CAD model rebuilt at the chosen design, triangulated for the page (vertices mm, triangles)."""
@@ -278,8 +272,6 @@ class ExploreSession:
         from cadfeat.cad.export import export_step
         from cadfeat.cad.features import extract_holes
         from cadfeat.cad.gltf import export_glb
-        from cadfeat.cad.parts import build_time_limit
-
         shape = self.rebuild(values)
         base = Path(folder) if folder is not None else self.study_path.parent
         target = new_path(base, f"{self.config.study.name}-explore", "")
@@ -287,8 +279,7 @@ class ExploreSession:
         try:
             export_step(shape, stage / "design.step")
             view = getattr(self.setup.part, "view_direction", None)
-            with build_time_limit(self.timeout_s):
-                holes = extract_holes(shape, prefer_direction=view)
+            holes = extract_holes(shape, prefer_direction=view)
             export_glb(shape, self._named(holes, self.design(values)), stage / "design.glb")
             stage.replace(target)
         except BaseException:

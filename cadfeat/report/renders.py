@@ -37,10 +37,9 @@ def _camera(context: ReportContext, results: Results):
         return context.camera
     camera = value(results, "camera")
     if camera:
-        from cadfeat.camera import camera_from_dict
+        from cadfeat.camera import build_camera
 
-        data = {k: v for k, v in camera.items() if k != "source"}
-        return camera_from_dict(data, "results.json camera")
+        return build_camera({k: v for k, v in camera.items() if k != "source"})
     return None
 
 

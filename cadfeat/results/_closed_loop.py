@@ -167,8 +167,8 @@ class TrackingSettings(Record):
     exposure_s: Number | None = None
     initial_error_mm: Number | None = None
     initial_error_deg: Number | None = None
-    placement_mm: Number = 0.0
-    placement_deg: Number = 0.0
+    placement_mm: Number | list[Number] = 0.0
+    placement_deg: Number | list[Number] = 0.0
     gain_sigma: Number = 0.0
     settle_frames: int | None = None
 

@@ -3,8 +3,9 @@
 Every section comes from its one declaration: the ``Settings`` models (``cadfeat.study.settings``: ``[study]``,
 ``[part_pose]``, ``[design]``, ``[constraints]``, ``[objective]``, ``[optimizer]``, ``[shop]``,
 ``[robustness]``, ``[tracking]``) give their own schema (types, bounds, enumerations, defaults, descriptions);
-``[camera]`` is the ``Camera`` dataclass's fields (all optional, over a ``preset`` or a ``calibration`` file) and
-``[trajectory]`` one form per library kind (its arguments, ``kind_arguments``) or a ``csv`` file. ``load_study``
+``[camera]`` (``CameraSettings``) is the ``Camera`` dataclass's fields (all optional, over a ``preset`` or a
+``calibration`` file) and ``[trajectory]`` one form per library kind (its arguments, ``kind_arguments``) or a
+``csv`` file. ``load_study``
 remains the full check (files, the part's parameters and their bounds, what depends on the part's kind). Use it
 with taplo / Even Better TOML by a first line ``#:schema ./study.schema.json`` in the study file (README, "Study
 files").
@@ -24,6 +25,7 @@ from cadfeat.study.settings import (
     ShopSettings,
     TrackingSettings,
 )
+from cadfeat.study.settings.camera import CameraSettings
 from cadfeat.study.settings.design import DesignSpec
 from cadfeat.study.settings.scene import PartPose, StudyInfo
 
@@ -33,7 +35,7 @@ SCHEMA_ID = "https://cadfeat.invalid/schema/study.json"
 """The schema's ``$id`` (a name, not a place to fetch it from)."""
 
 _MODELS: dict[str, type[Settings]] = {
-    "study": StudyInfo, "part_pose": PartPose, "design": DesignSpec,
+    "study": StudyInfo, "camera": CameraSettings, "part_pose": PartPose, "design": DesignSpec,
     "constraints": ConstraintSettings, "objective": ObjectiveSettings, "optimizer": OptimizerSettings,
     "shop": ShopSettings, "robustness": RobustnessSettings, "tracking": TrackingSettings,
 }
@@ -51,36 +53,11 @@ def _model_schema(model: type[Settings]) -> dict[str, Any]:
     return out
 
 
-def _camera_schema() -> dict[str, Any]:
-    """``[camera]``: ``preset`` (a name of ``cadfeat.camera.PRESETS``) or ``calibration`` (an OpenCV file), and
-    any ``Camera`` field as an override (or all of fx, fy, cx, cy, width, height without either)."""
-    from pydantic import TypeAdapter
-
-    from cadfeat.camera import PRESETS, Camera
-
-    fields = TypeAdapter(Camera).json_schema()["properties"]
-    return {"type": "object", "additionalProperties": False,
-            "description": "preset = name (cadfeat cameras), explicit fx fy cx cy width height dist + optics, or "
-                           "calibration = OpenCV file; any field overrides",
-            "properties": {"preset": {"enum": sorted(PRESETS)},
-                           "calibration": {"type": "string", "description": "OpenCV FileStorage file (.yaml, .xml)"},
-                           **fields}}
-
-
 def _trajectory_schema() -> dict[str, Any]:
-    """``[trajectory]``: one object form per library kind (its arguments; required ones required), or a CSV."""
-    from cadfeat.trajectory import TRAJECTORY_KINDS, kind_arguments
+    """``[trajectory]``: one form per library kind (its generated model) or a CSV file (``CsvTrajectory``)."""
+    from cadfeat.trajectory import TRAJECTORY_KINDS, trajectory_model
 
-    forms: list[dict[str, Any]] = [{
-        "type": "object", "additionalProperties": False, "required": ["csv"],
-        "properties": {"csv": {"type": "string", "description": "CSV of poses, relative to the study file"},
-                       "name": {"type": "string"}}}]
-    for kind in TRAJECTORY_KINDS:
-        args = kind_arguments(kind)
-        forms.append({"type": "object", "additionalProperties": False,
-                      "required": ["kind", *(a.name for a in args if a.required)],
-                      "properties": {"kind": {"const": kind}, "name": {"type": "string"},
-                                     **{a.name: {"description": a.arg_type.description} for a in args}}})
+    forms = [_model_schema(trajectory_model(kind)) for kind in (None, *TRAJECTORY_KINDS)]
     return {"description": "kind = library kind + its arguments (cadfeat trajectories), or csv = file of poses",
             "oneOf": forms}
 
@@ -94,8 +71,6 @@ def study_json_schema() -> dict[str, Any]:
             sub = _model_schema(_MODELS[name])
             defs.update(sub.pop("$defs", {}))
             props[name] = sub
-        elif name == "camera":
-            props[name] = _camera_schema()
         else:
             props[name] = _trajectory_schema()
     out: dict[str, Any] = {

@@ -47,12 +47,17 @@ from cadfeat.study.verify import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
+    from cadfeat.design.design_space import FeatureModel
+    from cadfeat.design.objectives import Normaliser
     from cadfeat.design.optimize import OptimResult
     from cadfeat.measures.evaluate import Measures
     from cadfeat.study.preflight import Preflight
-    from cadfeat.study.setup import StudySetup
+    from cadfeat.study.setup import Scene, StudySetup
     from cadfeat.trajectory import Trajectory
 
 
@@ -63,7 +68,7 @@ SWEEP_SAMPLES = 41
 
 
 def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Trajectory | None = None, *,
-                  mesh: Any = None) -> Measures:
+                  mesh: trimesh.Trimesh | None = None) -> Measures:
     """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
     the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off)."""
     traj = trajectory if trajectory is not None else setup.trajectory
@@ -134,8 +139,8 @@ def _violations(setup: StudySetup, x: np.ndarray, most: int = 5) -> str:
         "(no 2-D constraint; see the optimiser's message)"
 
 
-def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, prog: StudyProgress,
-                      label: str) -> tuple[Any, Any, list[dict[str, Any]], bool]:
+def _refresh_outlines(setup: StudySetup, res: OptimResult, scene: Scene, normaliser: Normaliser,
+                      prog: StudyProgress, label: str) -> tuple[StudySetup, OptimResult, list[dict[str, Any]], bool]:
     """The optimiser's 2-D constraints use the host-face outlines of the design it was linearised at; when a
     parameter also changes the faces (e.g. a block that grows with the hole spacing), rebuild at the
     optimum, linearise again there (new outlines) and re-optimise from it, until the outlines agree (at
@@ -151,7 +156,7 @@ def _refresh_outlines(setup: StudySetup, res: Any, scene: Any, normaliser: Any, 
                 break
             names = setup.space.names
             new = study_setup.setup_script(setup.config, setup.int_values, scene, normaliser,
-                               at=dict(zip(names, x, strict=True)))
+                                           at=dict(zip(names, x, strict=True)), time_limit_s=setup.time_limit_s)
             res2, stopped = _optimise(new, prog, label)
         except CadfeatError:
             break
@@ -250,7 +255,7 @@ class _Start:
     """What the set-up phase gives: the base set-up (the part as it is), every set-up to optimise (one per
     integer combination), the measures, pre-flight and objectives of the design before."""
 
-    scene: Any
+    scene: Scene
     base: StudySetup
     setups: list[StudySetup]
     m0: Measures
@@ -275,7 +280,7 @@ class _Delivered:
     and the model's rebuild failure at its optimum (if the CAD-in-the-loop search had to take over)."""
 
     x1: np.ndarray
-    shape1: Any
+    shape1: Shape
     holes1: list[Hole]
     pred_err: float
     shop: dict[str, Any]
@@ -283,12 +288,15 @@ class _Delivered:
     rebuild_failure: str | None
 
 
-def compute(config: StudyConfig, prog: StudyProgress) -> tuple[dict[str, Any], dict[str, Any]]:
+def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None = None
+            ) -> tuple[dict[str, Any], dict[str, Any]]:
     """The study's phases in order: set up, optimise, deliver (shop rounding, CAD rebuild, scores and
-    requirement checks on the B-rep), analyse; returns (results, shapes) for the export and the report."""
+    requirement checks on the B-rep), analyse; returns (results, shapes) for the export and the report.
+    ``time_limit_s``: every part-script import and CAD build in a worker process within it (``run_study``:
+    ``[study] build_timeout_s``); None: in this process."""
     check_robust(config)  # issue 18: a chance constraint names a measure of the study, before any work
     with prog.phase("setup"):
-        start = _set_up(config)
+        start = _set_up(config, time_limit_s)
     with prog.phase("optimise"):
         opt = _optimise_all(config, start, prog)
         robust_run = robust_phase(config, opt, prog, _history)  # issue 18: the robust optimum (opt.res if delivered)
@@ -328,7 +336,7 @@ def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: 
                          setup, done.holes1, part_mesh(config, done.shape1))
 
 
-def _set_up(config: StudyConfig) -> _Start:
+def _set_up(config: StudyConfig, time_limit_s: float | None) -> _Start:
     """The part as it is and every set-up to optimise; the pre-flight refuses a study that cannot mean
     anything before any optimisation."""
     scene = load_scene(config)
@@ -336,17 +344,17 @@ def _set_up(config: StudyConfig) -> _Start:
                what=config.label)  # issue 16: refuse what cannot fit in memory, before any CAD work
     combos = int_grid(config) if config.study.part_kind == "script" else [{}]
     if config.study.part_kind == "step":
-        base = study_setup.setup_study(config)
+        base = study_setup.setup_study(config, time_limit_s=time_limit_s)
         setups = [base]
         m0 = measure_holes(base, base.holes0)
         pre = preflight_setup(config, base, m0)  # refuses a study that cannot mean anything, before any work
     else:  # "before" = the part's own integer values; the others share its objective scales
         defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
-        base = study_setup.setup_script(config, defaults, scene)
+        base = study_setup.setup_script(config, defaults, scene, time_limit_s=time_limit_s)
         m0 = measure_holes(base, base.holes0)
         pre = preflight_setup(config, base, m0)  # before the other combinations (and before any optimisation)
-        setups = [base] + [study_setup.setup_script(config, c, scene, base.problem.normaliser) for c in combos
-                           if c != defaults]
+        setups = [base] + [study_setup.setup_script(config, c, scene, base.problem.normaliser,
+                                                    time_limit_s=time_limit_s) for c in combos if c != defaults]
         if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
             setups = setups[1:]
     obj0, comb0 = score(base, base.holes0)
@@ -478,7 +486,7 @@ def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered
     }
 
 
-def part_points(shape: Any, mesh: Any = None, most: int = 4000) -> np.ndarray:
+def part_points(shape: Shape, mesh: trimesh.Trimesh | None = None, most: int = 4000) -> np.ndarray:
     """Points of the part (V, 3) mm, part frame, for the pre-flight: the occlusion mesh's vertices (or a coarse
     mesh of ``shape``), at most ``most`` of them (evenly strided)."""
     if mesh is None:
@@ -496,7 +504,7 @@ def preflight_setup(config: StudyConfig, setup: StudySetup, m: Measures) -> Pref
                      setup.hole_names)
 
 
-def _mesh_of(config: StudyConfig, shape: Any) -> Any:
+def _mesh_of(config: StudyConfig, shape: Shape) -> trimesh.Trimesh | None:
     return occlusion_mesh(config, shape)
 
 
@@ -505,8 +513,8 @@ def scored_mask(setup: StudySetup) -> np.ndarray:
     return np.ones(len(setup.holes0), bool) if mask is None else np.asarray(mask, bool)
 
 
-def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Any, list[Hole], float], targets: Any,
-                 info: dict[str, Any], model: Any) -> tuple[np.ndarray, Any, list[Hole], float]:
+def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Shape, list[Hole], float], targets: Any,
+                 info: dict[str, Any], model: FeatureModel) -> tuple[np.ndarray, Shape, list[Hole], float]:
     """``shop.refine_on_rebuild`` on the study's CAD rebuild; ``info["rebuilt_off_target_mm"]``: what remains."""
     x, (shape, holes, err), off = refine_on_rebuild(setup.space, model, setup.problem, x, rebuilt, targets,
                                                     lambda x_new, guess: rebuild(setup, x_new, guess))

@@ -41,7 +41,7 @@ def _tuning(config: Any) -> Any:
     from cadfeat.study.tracking import tracking_config
 
     spec = config.tracking if getattr(config, "tracking", None) is not None else TrackingSettings()
-    return tracking_config(spec).tuning
+    return tracking_config(spec).tuning  # (the filter tuning only: no placement)
 
 
 def _arrays(holes: Sequence[Any]) -> tuple[np.ndarray, ...]:

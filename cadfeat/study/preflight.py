@@ -25,11 +25,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.study.schema import StudyError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.camera import Camera
+    from cadfeat.measures.evaluate import Measures
+    from cadfeat.study.schema import StudyConfig
+    from cadfeat.trajectory import Trajectory
 
 __all__ = ["MIN_POSE_SHARE", "Preflight", "check_visibility", "optics_assumptions", "preflight"]
 
@@ -52,7 +58,7 @@ class Preflight:
         return {"assumptions": list(self.assumptions), "warnings": list(self.warnings), **self.numbers}
 
 
-def optics_assumptions(camera_table: Mapping[str, Any], camera: Any) -> list[str]:
+def optics_assumptions(camera_table: Mapping[str, Any], camera: Camera) -> list[str]:
     """The optics a study's ``[camera]`` did not set (neither directly nor through a preset or calibration
     file that defines them), as "key = value (assumed)" lines."""
     from cadfeat.camera import PRESETS
@@ -70,7 +76,7 @@ def optics_assumptions(camera_table: Mapping[str, Any], camera: Any) -> list[str
     return out
 
 
-def check_visibility(measures: Any, label: str, scored: np.ndarray | None = None,
+def check_visibility(measures: Measures, label: str, scored: np.ndarray | None = None,
                      names: Sequence[str] | None = None) -> str | None:
     """Raise ``StudyError`` if no (scored) hole is seen at any trajectory sample: ``measures.visible`` (in front,
     facing the camera, inside the image and the lens's valid field, not hidden) and inside the field of view.
@@ -127,14 +133,29 @@ def _w_first(T_task_cam: np.ndarray) -> np.ndarray:
     return T
 
 
-def preflight(config: Any, camera: Any, trajectory: Any, T_task_part: np.ndarray, part_points: np.ndarray,
-              measures: Any, scored: np.ndarray, names: Sequence[str]) -> Preflight:
+def preflight(config: StudyConfig, camera: Camera, trajectory: Trajectory, T_task_part: np.ndarray,
+              part_points: np.ndarray, measures: Measures, scored: np.ndarray, names: Sequence[str]) -> Preflight:
     """Run the checks of the module docstring; raise ``StudyError`` (one line, cause and key) on the first
     that fails, else return the ``Preflight`` record. ``part_points`` (V, 3) part frame, mm (mesh vertices or
     hole centres); ``measures``: ``measures.Measures`` of the holes along ``trajectory``."""
     label = config.label
     out = Preflight()
-    # 1. plausible field of view
+    _check_field_of_view(label, camera, out)                                     # 1. plausible field of view
+    pts = np.asarray(part_points, float).reshape(-1, 3)
+    T_task_cam = np.asarray(trajectory.T_task_cam, float)
+    T_cam_part = np.linalg.inv(T_task_cam) @ T_task_part
+    _check_units(label, pts, T_cam_part, out)                                    # 2. mm, not m
+    _check_in_image(config, camera, pts, T_task_cam, T_task_part, T_cam_part, out)  # 3. in front, in the image
+    hidden_warning = check_visibility(measures, label, scored, names)             # 4. scored holes seen somewhere
+    if hidden_warning:
+        out.warnings.append(hidden_warning)
+    _check_focus(label, camera, pts, T_cam_part, out)                            # 5. depth of field
+    out.assumptions = optics_assumptions(config.camera.table, camera)
+    return out
+
+
+def _check_field_of_view(label: str, camera: Camera, out: Preflight) -> None:
+    """fx, fy give a plausible field of view (``FOV_RANGE_DEG``) and nearly square pixels (focal lengths in px)."""
     fov_x = 2 * np.degrees(np.arctan(0.5 * camera.width / camera.fx))
     fov_y = 2 * np.degrees(np.arctan(0.5 * camera.height / camera.fy))
     lo, hi = FOV_RANGE_DEG
@@ -148,10 +169,11 @@ def preflight(config: Any, camera: Any, trajectory: Any, T_task_part: np.ndarray
         raise StudyError(f"{label}: camera.fx / camera.fy = {camera.fx:g} / {camera.fy:g}: pixels are not that far "
                          "from square; check camera.fx and camera.fy (both in px)")
     out.numbers["field_of_view_deg"] = [float(fov_x), float(fov_y)]
-    # 2. units: camera–part distances against the part's size
-    pts = np.asarray(part_points, float).reshape(-1, 3)
-    T_task_cam = np.asarray(trajectory.T_task_cam, float)
-    T_cam_part = np.linalg.inv(T_task_cam) @ T_task_part
+
+
+def _check_units(label: str, pts: np.ndarray, T_cam_part: np.ndarray, out: Preflight) -> None:
+    """Camera–part distances against the part's size: metres given for millimetres show as a camera inside the
+    part or absurdly far from it."""
     centre_part = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
     size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
     cams_part = (np.linalg.inv(T_cam_part) @ np.array([0.0, 0.0, 0.0, 1.0]))[:, :3]
@@ -164,32 +186,38 @@ def preflight(config: Any, camera: Any, trajectory: Any, T_task_part: np.ndarray
     if size > 0 and dist > 2000 * size:
         raise StudyError(f"{label}: the camera is a median {dist:.3g} mm from a part only {size:.3g} mm across: the "
                          "trajectory and the part disagree in units (both are mm); check [trajectory] and the part")
-    # 3. the part in front of the camera and inside the image
+
+
+def _check_in_image(config: StudyConfig, camera: Camera, pts: np.ndarray, T_task_cam: np.ndarray,
+                    T_task_part: np.ndarray, T_cam_part: np.ndarray, out: Preflight) -> None:
+    """The part in front of the camera and inside the image at ``MIN_POSE_SHARE`` of the poses; else the
+    likely cause (a w-first CSV quaternion, a camera looking away, a trajectory aimed elsewhere)."""
     share = _share(camera, T_cam_part, pts)
     out.numbers["pose_share_part_in_image"] = share
-    if share < MIN_POSE_SHARE:
-        P = np.einsum("lij,vj->lvi", T_cam_part[:, :3, :3], pts) + T_cam_part[:, None, :3, 3]
-        kind = str(config.trajectory.table.get("kind", "csv"))
-        w_share = _share(camera, np.linalg.inv(_w_first(T_task_cam)) @ T_task_part, pts) if kind == "csv" else 0.0
-        where = f"the part is in the image at {100 * share:.0f}% of the {len(T_cam_part)} poses (need ≥ " \
-                f"{100 * MIN_POSE_SHARE:.0f}%)"
-        if w_share >= max(MIN_POSE_SHARE, 2 * share):
-            cause = (f"the CSV quaternion looks written w-first: read as (qw, qx, qy, qz) the part is in the image "
-                     f"at {100 * w_share:.0f}% of the poses; write columns 5-8 scalar-last (qx, qy, qz, qw) in "
-                     "[trajectory] file")
-        elif not (P[..., 2] > 0).any():
-            cause = ("the camera looks away from the part at every pose (the part is behind it); check the "
-                     "trajectory's orientation (camera z forward, OpenCV frame: [trajectory] target/rotations) "
-                     "and [part_pose]")
-        else:
-            cause = ("the part is not in the camera's field of view: the trajectory does not look at it; check "
-                     "[trajectory] target/centre and [part_pose].position_mm (mm, part frame → task frame)")
-        raise StudyError(f"{label}: the camera never sees the part: {where}: {cause}. Nothing was optimised.")
-    # 4. scored holes seen somewhere
-    hidden_warning = check_visibility(measures, label, scored, names)
-    if hidden_warning:
-        out.warnings.append(hidden_warning)
-    # 5. focus: depth of field against the part's depths
+    if share >= MIN_POSE_SHARE:
+        return
+    P = np.einsum("lij,vj->lvi", T_cam_part[:, :3, :3], pts) + T_cam_part[:, None, :3, 3]
+    kind = str(config.trajectory.table.get("kind", "csv"))
+    w_share = _share(camera, np.linalg.inv(_w_first(T_task_cam)) @ T_task_part, pts) if kind == "csv" else 0.0
+    where = f"the part is in the image at {100 * share:.0f}% of the {len(T_cam_part)} poses (need ≥ " \
+            f"{100 * MIN_POSE_SHARE:.0f}%)"
+    if w_share >= max(MIN_POSE_SHARE, 2 * share):
+        cause = (f"the CSV quaternion looks written w-first: read as (qw, qx, qy, qz) the part is in the image "
+                 f"at {100 * w_share:.0f}% of the poses; write columns 5-8 scalar-last (qx, qy, qz, qw) in "
+                 "[trajectory] file")
+    elif not (P[..., 2] > 0).any():
+        cause = ("the camera looks away from the part at every pose (the part is behind it); check the "
+                 "trajectory's orientation (camera z forward, OpenCV frame: [trajectory] target/rotations) "
+                 "and [part_pose]")
+    else:
+        cause = ("the part is not in the camera's field of view: the trajectory does not look at it; check "
+                 "[trajectory] target/centre and [part_pose].position_mm (mm, part frame → task frame)")
+    raise StudyError(f"{config.label}: the camera never sees the part: {where}: {cause}. Nothing was optimised.")
+
+
+def _check_focus(label: str, camera: Camera, pts: np.ndarray, T_cam_part: np.ndarray, out: Preflight) -> None:
+    """The depth of field (eq. 3.4-3.5) reaches the part's depths along the trajectory (else an error); the
+    focus distance outside them, or a lens model folding inside the image, is a warning."""
     depth = (np.einsum("lj,vj->lv", T_cam_part[:, 2, :3], pts) + T_cam_part[:, None, 2, 3])
     zmin, zmax = float(np.percentile(depth[depth > 0], 1)), float(np.percentile(depth[depth > 0], 99))
     near, far = camera.depth_of_field_mm
@@ -204,5 +232,3 @@ def preflight(config: Any, camera: Any, trajectory: Any, T_task_part: np.ndarray
     if camera.fold_inside_image:
         out.warnings.append(f"the lens calibration folds over {camera.valid_field_deg:.3g}° off axis, inside the "
                             "image: points beyond it count as outside the image (Camera.fold_radius)")
-    out.assumptions = optics_assumptions(config.camera.table, camera)
-    return out

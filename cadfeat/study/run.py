@@ -36,7 +36,7 @@ from cadfeat._version import __version__
 from cadfeat.cad.features import holes_to_arrays
 from cadfeat.cad.features.identity import hole_names
 from cadfeat.cad.parts import load_part
-from cadfeat.cad.sandbox import build_time_limit
+from cadfeat.cad.sandbox import start_workers
 from cadfeat.design.objectives import objective_values
 from cadfeat.errors import CadfeatError
 from cadfeat.report.holes import write_holes_csv
@@ -65,7 +65,7 @@ from cadfeat.study.pipeline import (
 )
 from cadfeat.study.preflight import preflight
 from cadfeat.study.progress import StudyProgress
-from cadfeat.study.schema import StudyConfig, StudyError, load_study
+from cadfeat.study.schema import StudyConfig, StudyError, StudySource, load_study
 from cadfeat.study.setup import load_scene, occlusion_mesh, score_rule, setup_study
 from cadfeat.study.trust import objective_changes
 from cadfeat.study.verify import (
@@ -73,6 +73,8 @@ from cadfeat.study.verify import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
     from cadfeat.design.problem import Problem
@@ -141,7 +143,7 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
     return "\n".join(lines)
 
 
-def _num(x: Any) -> str:
+def _num(x: float | None) -> str:
     if x is None:
         return "-"
     if isinstance(x, int):
@@ -150,7 +152,7 @@ def _num(x: Any) -> str:
 
 
 # ------------------------------------------------------------------------------------------ run
-def _resolve(path_or_dict: Any, seed: int | None) -> StudyConfig:
+def _resolve(path_or_dict: StudySource | StudyConfig, seed: int | None) -> StudyConfig:
     config = path_or_dict if isinstance(path_or_dict, StudyConfig) else load_study(path_or_dict)
     return config.with_seed(seed) if seed is not None else config
 
@@ -159,7 +161,7 @@ def default_out_dir(config: StudyConfig) -> Path:
     return EXPORTS_DIR / config.study.name
 
 
-def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int | None = None,
+def run_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | None = None, *, seed: int | None = None,
               quiet: bool = False, progress: bool = True, force: bool = False, track: str | None = None
               ) -> StudyResult:
     """Run a study (a TOML path, a dict or a ``StudyConfig``) and write its outputs to ``out_dir``
@@ -175,20 +177,22 @@ def run_study(path_or_dict: Any, out_dir: str | Path | None = None, *, seed: int
 
     config = closed_loop_check.with_mode(_resolve(path_or_dict, seed), track)
     out = out_dir if out_dir is not None else default_out_dir(config)
-    with staged_output(out, force) as stage, build_time_limit(config.study.build_timeout_s), \
+    start_workers()  # (CadQuery loads in the worker server meanwhile)
+    with staged_output(out, force) as stage, \
             StudyProgress(config.study.name, enabled=progress and not quiet) as prog:
-        results, shapes = compute(config, prog)
+        results, shapes = compute(config, prog, config.study.build_timeout_s)
         with prog.phase("export"):
             _write_outputs(config, stage, results, shapes, prog)
     return StudyResult(Path(out), results)
 
 
-def preflight_study(path_or_dict: Any) -> Preflight:
+def preflight_study(path_or_dict: StudySource | StudyConfig, time_limit_s: float | None = None) -> Preflight:
     """The pre-flight of a study on its part as it is (``cadfeat validate``): every hole counts as scored
-    (which holes the design moves needs the design map, which ``run`` builds)."""
+    (which holes the design moves needs the design map, which ``run`` builds). ``time_limit_s``: the part's
+    import and build in a worker process within it; None: in this process."""
     config = _resolve(path_or_dict, None)
     camera, traj, T_task_part = load_scene(config)
-    shape, holes, _, names = _current_design(config)
+    shape, holes, _, names = _current_design(config, time_limit_s)
     mesh = occlusion_mesh(config, shape)
     o = config.objective
     T_cam_part = np.linalg.inv(np.asarray(traj.T_task_cam)) @ T_task_part
@@ -230,8 +234,8 @@ def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], pro
 
 
 # ------------------------------------------------------------------------------------------ evaluate
-def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose: int | None = None,
-                   quiet: bool = True, echo: bool = False, seed: int | None = None,
+def evaluate_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | None = None, *,
+                   pose: int | None = None, quiet: bool = True, echo: bool = False, seed: int | None = None,
                    force: bool = False) -> dict[str, Any]:
     """Score the study's current design without optimising (the thesis GUI's single-pose mode when ``pose``
     is given: one trajectory sample). Returns the results dict; prints the per-feature table (thesis
@@ -242,7 +246,7 @@ def evaluate_study(path_or_dict: Any, out_dir: str | Path | None = None, *, pose
     config = _resolve(path_or_dict, seed)
     with contextlib.ExitStack() as stack:
         stage = stack.enter_context(staged_output(out_dir, force)) if out_dir is not None else None
-        stack.enter_context(build_time_limit(config.study.build_timeout_s))
+        start_workers()
         results = _evaluate(config, stage, pose, quiet, echo)
     return results
 
@@ -254,7 +258,8 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
             if pose is not None and not 0 <= pose < len(traj):
                 raise StudyError(f"{config.label}: --pose {pose}: allowed: 0..{len(traj) - 1} "
                                  f"(the trajectory has {len(traj)} samples)")
-            setup = setup_study(config)  # the same holes, names, scored holes and occlusion mesh as ``run``
+            # the same holes, names, scored holes and occlusion mesh as ``run``
+            setup = setup_study(config, time_limit_s=config.study.build_timeout_s)
             shape, holes, fixed, names = setup.shape0, setup.holes0, setup.fixed_mask, setup.hole_names
         full_traj = traj
         if pose is not None:
@@ -321,7 +326,8 @@ class _EvalSetup:
     fixed_mask: np.ndarray
 
 
-def _current_design(config: StudyConfig) -> tuple[Any, list[Hole], np.ndarray, list[str]]:
+def _current_design(config: StudyConfig, time_limit_s: float | None
+                    ) -> tuple[Shape, list[Hole], np.ndarray, list[str]]:
     """The part as it is (defaults / the STEP file): solid, holes, fixed mask (STEP: holes not in the design;
     scripts: the holes the script declares functional)."""
     if config.study.part_kind == "step":
@@ -334,7 +340,7 @@ def _current_design(config: StudyConfig) -> tuple[Any, list[Hole], np.ndarray, l
             with contextlib.suppress(CadfeatError):
                 fixed[holes.index(step.select(list(h.select) if isinstance(h.select, tuple) else h.select))] = False
         return step.shape, holes, fixed, [h.name for h in holes]
-    part = load_part(config.study.part_path)
+    part = load_part(config.study.part_path, time_limit_s)
     shape = part.build()
     holes = part.holes()
     fixed = np.asarray(part.fixed_mask(holes), bool)

@@ -41,7 +41,6 @@ from typing import Any
 from cadfeat.design.objectives import AGGREGATES, COMBINES, ObjectiveConfig
 from cadfeat.design.objectives import MEASURES as _OBJECTIVE_MEASURES
 from cadfeat.design.optimize import METHODS, OptimizerConfig
-from cadfeat.errors import CadfeatError
 from cadfeat.study.part_parameters import PartParameter, part_parameters
 from cadfeat.study.settings import (
     LIMITS,
@@ -56,12 +55,14 @@ from cadfeat.study.settings import (
     TrackingSettings,
     validate_section,
 )
+from cadfeat.study.settings.camera import CameraSettings
 from cadfeat.study.settings.design import DesignSpec, HoleSpec, ParameterSpec, Selector
 from cadfeat.study.settings.scene import (
     PartPose,
     StudyInfo,
 )
-from cadfeat.study.table import Table, check_seed, fmt
+from cadfeat.study.table import Table, check_seed
+from cadfeat.trajectory import TrajectorySettings, validate_trajectory
 
 __all__ = [
     "AGGREGATES",
@@ -82,6 +83,7 @@ __all__ = [
     "StudyConfig",
     "StudyError",
     "StudyInfo",
+    "StudySource",
     "TrackingSpec",
     "TrajectorySpec",
     "load_study",
@@ -98,6 +100,9 @@ STUDY_KEYS = StudyInfo.study_keys()
 PART_POSE_KEYS = PartPose.study_keys()
 DESIGN_KEYS = DesignSpec.study_keys()
 
+StudySource = str | Path | Mapping[str, Any]
+"""A study: a TOML file's path, or a dict with the same tables."""
+
 SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer", "shop",
             "robustness", "tracking")
 SHOP_KEYS = tuple(ShopSettings.model_fields)
@@ -105,33 +110,10 @@ ROBUSTNESS_KEYS = tuple(RobustnessSettings.model_fields)
 REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
 
 # ----------------------------------------------------------------------------------------- dataclasses
-@dataclass(frozen=True)
-class CameraSpec:
-    """``[camera]``: the validated table (calibration path resolved); ``build()`` gives the ``Camera``."""
-
-    table: Mapping[str, Any]
-    origin: str
-
-    def build(self) -> Any:
-        from cadfeat.camera import camera_from_dict
-
-        return camera_from_dict(dict(copy.deepcopy(dict(self.table))), self.origin)
-
-
-@dataclass(frozen=True)
-class TrajectorySpec:
-    """``[trajectory]``: the validated table; ``build()`` gives the ``Trajectory`` (T_task_cam)."""
-
-    table: Mapping[str, Any]
-    origin: str
-    base_dir: Path
-
-    def build(self) -> Any:
-        from cadfeat.trajectory import trajectory_from_dict
-
-        return trajectory_from_dict(copy.deepcopy(dict(self.table)), self.origin, self.base_dir)
-
-
+CameraSpec = CameraSettings
+TrajectorySpec = TrajectorySettings
+"""``[camera]`` (``cadfeat.study.settings.camera``) and ``[trajectory]`` (``cadfeat.trajectory``): ``build()`` gives
+the ``Camera`` / the ``Trajectory``."""
 ConstraintSpec = ConstraintSettings
 """``[constraints]`` (``cadfeat.study.settings``)."""
 
@@ -183,70 +165,8 @@ class StudyConfig:
                                    optimizer=self.optimizer.replace(seed=int(seed)), data=data)
 
 
-# ------------------------------------------------------------------------------------------- sections
-def _check_size(t: Table, key: str, value: Any, limit: str, what: str) -> None:
-    """``value`` (an int) must not exceed ``LIMITS[limit]`` (checked before anything is allocated)."""
-    if isinstance(value, int) and not isinstance(value, bool) and value > LIMITS[limit]:
-        t.fail(key, f"{value} {what} is more than the limit of {LIMITS[limit]:,}",
-               f"at most {LIMITS[limit]:,} (cadfeat.study.schema.LIMITS[{limit!r}])")
-
-
-def _camera_section(data: Any, label: str, base_dir: Path) -> tuple[CameraSpec, dict[str, Any]]:
-    from cadfeat.camera import Camera, camera_from_dict
-
-    fields = [f.name for f in dataclasses.fields(Camera)]
-    t = Table(data, "camera", label, ["preset", "calibration", *fields])
-    table = dict(t.data)
-    for side in ("width", "height"):
-        _check_size(t, f"camera.{side}", table.get(side), "image_side_px", "pixels")
-    if all(isinstance(table.get(k), int) for k in ("width", "height")):
-        _check_size(t, "camera.width * camera.height", table["width"] * table["height"], "image_pixels", "pixels")
-    if t.has("preset") and t.has("calibration"):
-        t.fail("camera.calibration", "given together with camera.preset", "one of preset or calibration")
-    if t.has("calibration"):
-        cal = table["calibration"]
-        if not isinstance(cal, str):
-            t.fail("camera.calibration", f"{fmt(cal)} is not allowed", "a path to an OpenCV calibration file")
-        path = (base_dir / cal).resolve()
-        if not path.is_file():
-            t.fail("camera.calibration", f"file {path} does not exist", "an existing OpenCV calibration file")
-        table["calibration"] = str(path)
-    origin = f"{label}: camera"
-    try:
-        camera_from_dict(copy.deepcopy(table), origin)
-    except CadfeatError as exc:
-        raise StudyError(str(exc)) from exc
-    except Exception as exc:  # noqa: BLE001 — a bad calibration file may raise anything from OpenCV
-        raise StudyError(f"{origin}: {exc}") from exc
-    echo = dict(t.data)
-    return CameraSpec(table, origin), echo
-
-
-def _trajectory_section(data: Any, label: str, base_dir: Path) -> TrajectorySpec:
-    if not isinstance(data, Mapping):
-        raise StudyError(f"{label}: trajectory: expected a table; allowed: kind = <library kind> + arguments, "
-                         "or csv = <file>")
-    t = Table(data, "trajectory", label, list(data))
-    _check_size(t, "trajectory.n", data.get("n"), "trajectory_samples", "samples")
-    _check_size(t, "trajectory.lines", data.get("lines"), "trajectory_lines", "lines")
-    if isinstance(data.get("csv"), str):
-        csv = base_dir / data["csv"]
-        if csv.is_file() and csv.stat().st_size > LIMITS["trajectory_csv_bytes"]:
-            t.fail("trajectory.csv", f"{csv} has {csv.stat().st_size:,} bytes, more than the limit of "
-                   f"{LIMITS['trajectory_csv_bytes']:,}", "a smaller CSV (cadfeat.study.schema.LIMITS"
-                   "['trajectory_csv_bytes'])")
-        if csv.exists() and not csv.is_file():
-            t.fail("trajectory.csv", f"{csv} is not a regular file (a device, folder or pipe)", "a CSV file of poses")
-    spec = TrajectorySpec(dict(data), f"{label}: trajectory", base_dir)
-    try:
-        spec.build()
-    except CadfeatError as exc:
-        raise StudyError(str(exc)) from exc
-    return spec
-
-
 # ------------------------------------------------------------------------------------------- entry point
-def _read(path_or_dict: Any, base_dir: str | Path | None) -> tuple[dict[str, Any], Path | None, Path, str]:
+def _read(path_or_dict: StudySource, base_dir: str | Path | None) -> tuple[dict[str, Any], Path | None, Path, str]:
     if isinstance(path_or_dict, Mapping):
         base = Path(base_dir) if base_dir is not None else Path.cwd()
         return copy.deepcopy(dict(path_or_dict)), None, base.resolve(), "<study dict>"
@@ -267,7 +187,7 @@ def _read(path_or_dict: Any, base_dir: str | Path | None) -> tuple[dict[str, Any
     return data, path, (Path(base_dir) if base_dir is not None else path.parent).resolve(), label
 
 
-def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyConfig:
+def load_study(path_or_dict: StudySource, base_dir: str | Path | None = None) -> StudyConfig:
     """Read and validate a study (a TOML path, or a dict with the same tables) — before any work.
 
     Relative paths are resolved against the study file's folder (for a dict: ``base_dir`` or the current
@@ -281,9 +201,9 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
                              f"{', '.join(REQUIRED_SECTIONS)}; optional: "
                              f"{', '.join(s for s in SECTIONS if s not in REQUIRED_SECTIONS)}")
     info = validate_section(StudyInfo, top.raw("study"), "study", label, {"base_dir": base})
-    camera, camera_echo = _camera_section(top.raw("camera"), label, base)
+    camera = validate_section(CameraSettings, top.raw("camera"), "camera", label, {"base_dir": base, "limits": LIMITS})
     pose = validate_section(PartPose, top.raw("part_pose", {}), "part_pose", label)
-    trajectory = _trajectory_section(top.raw("trajectory"), label, base)
+    trajectory = validate_trajectory(top.raw("trajectory"), label, {"base_dir": base, "limits": LIMITS})
     params: dict[str, PartParameter] = {}
     if info.part_kind == "script":
         params = part_parameters(info.part_path, info.build_timeout_s)  # (runs the script only for a computed table)
@@ -306,9 +226,9 @@ def load_study(path_or_dict: Any, base_dir: str | Path | None = None) -> StudyCo
         tracking = validate_section(TrackingSettings, top.raw("tracking"), "tracking", label, {"seed": info.seed})
     echo = {
         "study": info.study_dump(),
-        "camera": camera_echo,
+        "camera": dict(top.raw("camera")),
         "part_pose": pose.study_dump(),
-        "trajectory": copy.deepcopy(dict(trajectory.table)),
+        "trajectory": copy.deepcopy(dict(top.raw("trajectory"))),
         "design": design.echo(),
         "constraints": constraints.model_dump(mode="json"),
         "objective": objective.study_dump(),

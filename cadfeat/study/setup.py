@@ -42,18 +42,27 @@ from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError
 
 if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
+    from cadfeat.cad.parts import Part
+    from cadfeat.cad.step_parts import HoleMove, StepPart
+    from cadfeat.cad.tolerance import ModelTolerance
     from cadfeat.camera import Camera
     from cadfeat.design.constraints import ConstraintConfig
     from cadfeat.design.design_space import DesignSpace, FeatureModel
+    from cadfeat.design.objectives import Normaliser
     from cadfeat.design.problem import Problem
     from cadfeat.study.settings.design import DesignSpec, Selector
     from cadfeat.trajectory import Trajectory
 
-__all__ = ["MAX_INT_COMBINATIONS", "StudySetup", "int_grid", "setup_study"]
+__all__ = ["MAX_INT_COMBINATIONS", "Scene", "StudySetup", "int_grid", "setup_study"]
 
 MAX_INT_COMBINATIONS = 64
 """Largest number of integer-parameter combinations a study enumerates."""
+Scene = tuple["Camera", "Trajectory", np.ndarray]
+"""(camera, trajectory T_task_cam, T_task_part): a study's scene (``load_scene``)."""
 SYMMETRY_NORMALS = {"x": [(1.0, 0.0, 0.0)], "y": [(0.0, 1.0, 0.0)], "xy": [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]}
 
 
@@ -69,7 +78,7 @@ class StudySetup:
     camera: Camera
     trajectory: Trajectory          # T_task_cam
     T_task_part: np.ndarray
-    shape0: Any                     # cq.Solid
+    shape0: Shape                   # cq.Solid
     holes0: list[Hole]
     fixed_mask: np.ndarray          # (N,) bool
     movable_mask: np.ndarray        # (N,) bool
@@ -77,12 +86,14 @@ class StudySetup:
     model: FeatureModel
     problem: Problem
     constraints: ConstraintConfig
-    rebuild_shape: Callable[[np.ndarray], Any]
-    rebuild_holes: Callable[[Any], list[Hole]]
+    rebuild_shape: Callable[[np.ndarray], Shape]
+    rebuild_holes: Callable[[Shape], list[Hole]]
     values: Callable[[np.ndarray], dict[str, Any]]
     linear: bool = True
     int_values: dict[str, int] = field(default_factory=dict)
-    part: Any = None
+    part: Part | StepPart | None = None
+    time_limit_s: float | None = None
+    """The time limit of each CAD rebuild (s, a worker process); None: in this process (``setup_study``)."""
 
     @property
     def hole_names(self) -> list[str]:
@@ -90,7 +101,7 @@ class StudySetup:
 
 
 # ----------------------------------------------------------------------------------------- common
-def load_scene(config: StudyConfig) -> tuple[Camera, Trajectory, np.ndarray]:
+def load_scene(config: StudyConfig) -> Scene:
     """Camera, trajectory (T_task_cam) and T_task_part of a study."""
     return config.camera.build(), config.trajectory.build(), config.part_pose.T_task_part
 
@@ -110,7 +121,8 @@ def constraint_config(config: StudyConfig, holes: Sequence[Hole] = (), movable: 
                             volume_change_max_frac=frac, part_volume_mm3=volume_mm3, symmetry=pairs)
 
 
-def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Any = None) -> tuple[Any, Any]:
+def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Normaliser | None = None
+             ) -> tuple[Problem, ConstraintConfig]:
     """The ``Problem`` and its ``ConstraintConfig`` (``normaliser``: share another problem's scales)."""
     movable = np.flatnonzero(~np.asarray(args["fixed_mask"], bool))
     part = args.get("part")
@@ -123,7 +135,7 @@ def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Any = Non
     return problem, cc
 
 
-def occlusion_mesh(config: StudyConfig, shape: Any) -> Any:
+def occlusion_mesh(config: StudyConfig, shape: Shape) -> trimesh.Trimesh | None:
     """The part's triangle mesh (part frame, mm) for the occlusion ray test (``objective.occlusion``, default
     on), or None. Built once per setup from the part as loaded; each hole's OWN position (as the design moves
     it) is tested against it, so a hole moved behind an upright is hidden, one moved out from behind it seen."""
@@ -201,13 +213,14 @@ def int_grid(config: StudyConfig) -> list[dict[str, int]]:
 
 
 def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = None,
-                 scene: tuple[Camera, Trajectory, np.ndarray] | None = None, normaliser: Any = None,
-                 at: Mapping[str, Any] | None = None) -> StudySetup:
+                 scene: Scene | None = None, normaliser: Normaliser | None = None,
+                 at: Mapping[str, Any] | None = None, time_limit_s: float | None = None) -> StudySetup:
     """Setup of a part-script study with the integer parameters at ``int_values`` (default: their defaults);
     ``normaliser``: the objective scales of another setup (so that integer combinations compare); ``at``:
-    linearise at these continuous parameter values instead of the part's defaults."""
+    linearise at these continuous parameter values instead of the part's defaults; ``time_limit_s``: as
+    ``setup_study``'s."""
     camera, trajectory, T_task_part = scene or load_scene(config)
-    part = load_part(config.study.part_path)
+    part = load_part(config.study.part_path, time_limit_s)
     specs = [p for p in config.design.parameters if not p.is_int]
     ints = {p.name: int(p.default if p.start is None else p.start) for p in config.design.parameters if p.is_int}
     ints.update({k: int(v) for k, v in (int_values or {}).items()})
@@ -264,15 +277,18 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
                       holes0=holes0, fixed_mask=fixed, movable_mask=moved, space=space, model=model,
                       problem=problem, constraints=cc, rebuild_shape=lambda x: part.build(**values(x)),
                       rebuild_holes=lambda shape: _extract(shape, part.view_direction), values=values,
-                      linear=bool(getattr(dm, "linear", True)), int_values=ints, part=part)
+                      linear=bool(getattr(dm, "linear", True)), int_values=ints, part=part,
+                      time_limit_s=time_limit_s)
 
 
-def _extract(shape: Any, prefer_direction: Any = None, tol: Any = None) -> list[Hole]:
+def _extract(shape: Shape, prefer_direction: Sequence[float] | np.ndarray | None = None,
+             tol: ModelTolerance | None = None) -> list[Hole]:
     return extract_holes(shape, prefer_direction=prefer_direction, tol=tol)
 
 
 # ----------------------------------------------------------------------------------------- STEP
-def setup_step(config: StudyConfig, scene: tuple[Camera, Trajectory, np.ndarray] | None = None) -> StudySetup:
+def setup_step(config: StudyConfig, scene: Scene | None = None,
+               time_limit_s: float | None = None) -> StudySetup:
     """Setup of a STEP study: the selected holes move in their host face planes (``HoleMoveModel``)."""
     camera, trajectory, T_task_part = scene or load_scene(config)
     view = config.design.view_direction or camera_direction(config.study.part_path, trajectory, T_task_part)
@@ -311,21 +327,23 @@ def setup_step(config: StudyConfig, scene: tuple[Camera, Trajectory, np.ndarray]
                 fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
     problem, cc = _problem(args, config)
 
-    def rebuild_holes(shape: Any) -> list[Hole]:  # as the part was read: the same entrance side and tolerances
+    def rebuild_holes(shape: Shape) -> list[Hole]:  # as the part was read: the same entrance side and tolerances
         holes = _extract(shape, view, step.tolerance)
         return [dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(holes)]
 
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                       shape0=step.shape, holes0=holes0, fixed_mask=fixed, movable_mask=movable_mask, space=space,
                       model=model, problem=problem, constraints=cc,
-                      rebuild_shape=lambda x: _timed_redrill(config, step, model.hole_moves(x)),
-                      rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step)
+                      rebuild_shape=lambda x: _timed_redrill(config, step, model.hole_moves(x), time_limit_s),
+                      rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step,
+                      time_limit_s=time_limit_s)
 
 
-def _timed_redrill(config: StudyConfig, step: Any, moves: Sequence[Any]) -> Any:
-    """``step_parts.redrill`` within the study's ``build_timeout_s`` (a worker process, as part-script builds)."""
+def _timed_redrill(config: StudyConfig, step: StepPart, moves: Sequence[HoleMove], time_limit_s: float | None
+                   ) -> Shape:
+    """``step_parts.redrill`` within ``time_limit_s`` (a worker process, as part-script builds; None: here)."""
     return call_with_time_limit(redrill, (step.shape, list(moves), step.tolerance, step.path),
-                                f"{config.study.part_path}: re-drilling {len(moves)} hole(s)")
+                                f"{config.study.part_path}: re-drilling {len(moves)} hole(s)", time_limit_s)
 
 
 def camera_direction(part_path: Path, trajectory: Trajectory, T_task_part: np.ndarray) -> np.ndarray | None:
@@ -342,7 +360,7 @@ def camera_direction(part_path: Path, trajectory: Trajectory, T_task_part: np.nd
     return mean / n if n > 1e-9 else None
 
 
-def step_offset_limits(config: StudyConfig, step: Any, movable: Sequence[int]) -> dict[int, float]:
+def step_offset_limits(config: StudyConfig, step: StepPart, movable: Sequence[int]) -> dict[int, float]:
     """``max_offset_mm`` per movable hole index (1 µm for ``move = false``). A hole whose host face is not
     planar must give one: ``StudyError`` naming the study, the key and the part file otherwise."""
     limits: dict[int, float] = {}
@@ -375,7 +393,7 @@ def check_step_study(config: StudyConfig) -> str:
     return f"dry run re-drilled {names} of {step.path.name} (moved and, where asked, resized)"
 
 
-def step_dry_run(config: StudyConfig, step: Any, movable: Sequence[int]) -> None:
+def step_dry_run(config: StudyConfig, step: StepPart, movable: Sequence[int]) -> None:
     """Re-drill every movable hole once, slightly moved (and resized where asked), before any optimisation:
     ``StudyError`` naming the study, the key, the hole and why, if one cannot be re-drilled."""
     for i, (spec, j) in enumerate(zip(config.design.holes, movable, strict=True)):
@@ -446,8 +464,11 @@ def _mirror_pairs(holes: Sequence[Hole], movable: Sequence[int], patterns: Seque
     return pairs
 
 
-def setup_study(config: StudyConfig, int_values: Mapping[str, int] | None = None) -> StudySetup:
-    """The setup of a study (script or STEP part)."""
+def setup_study(config: StudyConfig, int_values: Mapping[str, int] | None = None,
+                time_limit_s: float | None = None) -> StudySetup:
+    """The setup of a study (script or STEP part). ``time_limit_s``: the part-script import and every CAD build
+    or re-drill run in a worker process killed after that many seconds (``run_study`` gives ``[study]
+    build_timeout_s``); None (the default): in this process, without a limit."""
     if config.study.part_kind == "step":
-        return setup_step(config)
-    return setup_script(config, int_values)
+        return setup_step(config, time_limit_s=time_limit_s)
+    return setup_script(config, int_values, time_limit_s=time_limit_s)

@@ -14,13 +14,24 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.cad.features.identity import named
 from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
+from cadfeat.study.settings.sections import RobustnessSettings, placement_sigma
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
+    from cadfeat.cad.features import Hole
+    from cadfeat.camera import Camera
+    from cadfeat.vision.closed_loop import BeforeAfter, TrackingConfig
+
+Design = tuple["Shape", "Sequence[Hole]"]
+"""A design the closed loop tracks: its solid (part frame, mm) and its holes."""
 
 #: Sweep kinds and their default values (thesis §6.3.3 ranges where they apply to this scene).
 SWEEPS: dict[str, tuple[float, ...]] = {
@@ -32,8 +43,9 @@ SWEEPS: dict[str, tuple[float, ...]] = {
 }
 
 
-def tracking_config(spec: TrackingSpec) -> Any:
-    """The ``cadfeat.vision`` configuration of a ``[tracking]`` section."""
+def tracking_config(spec: TrackingSpec, robustness: RobustnessSettings | None = None) -> TrackingConfig:
+    """The ``cadfeat.vision`` configuration of a ``[tracking]`` section; the part's placement error per run is
+    ``[robustness]``'s placement tolerance (``placement_sigma``: σ = 0.4 t per axis; default section if None)."""
     from cadfeat.vision import FilterTuning, SensorModel
     from cadfeat.vision.closed_loop import TrackingConfig
 
@@ -48,11 +60,11 @@ def tracking_config(spec: TrackingSpec) -> Any:
                           tuning=tuning, frame_step=spec.frame_step, settle_frames=spec.settle_frames,
                           converged_mm=spec.converged_mm, converged_deg=spec.converged_deg, gate_px=spec.gate_px,
                           rim_model=spec.rim_model, seed=spec.seed, alpha=spec.alpha,
-                          min_change=spec.min_change_percent / 100.0, placement_mm=spec.placement_mm,
-                          placement_deg=spec.placement_deg, gain_sigma=spec.gain_sigma)
+                          min_change=spec.min_change_percent / 100.0, gain_sigma=spec.gain_sigma,
+                          **placement_sigma(robustness or RobustnessSettings()))
 
 
-def _scene(config: StudyConfig) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray]:
+def _scene(config: StudyConfig) -> tuple[Camera, np.ndarray, np.ndarray, np.ndarray]:
     from cadfeat.poses import invert_T
     from cadfeat.study.setup import load_scene
 
@@ -88,7 +100,7 @@ def _motion_warnings(T_cam_part: np.ndarray, times_s: np.ndarray) -> list[str]:
             f"trajectory, e.g. a look-at camera rolling about its axis; or track more frames), solvePnP is per frame"]
 
 
-def _curves(result: Any) -> dict[str, Any]:
+def _curves(result: BeforeAfter) -> dict[str, Any]:
     """Per design and estimator: frame times and the median / 10 % / 90 % over runs of both errors."""
     out: dict[str, Any] = {}
     for name, d in result.designs.items():
@@ -104,7 +116,7 @@ def _curves(result: Any) -> dict[str, Any]:
     return out
 
 
-def _frames(result: Any, camera: Any, out_dir: Path | None, count: int = 3) -> list[dict[str, Any]]:
+def _frames(result: BeforeAfter, camera: Camera, out_dir: Path | None, count: int = 3) -> list[dict[str, Any]]:
     """Frames (first, middle, last) of run 0 of each design, drawn with detections and predictions, as PNGs."""
     if out_dir is None:
         return []
@@ -131,7 +143,7 @@ def _frames(result: Any, camera: Any, out_dir: Path | None, count: int = 3) -> l
     return entries
 
 
-def _named(holes: Sequence[Any]) -> list[Any]:
+def _named(holes: Sequence[Hole]) -> list[Hole]:
     """The holes with the study's names: a hole without one is ``H<i+1>``, as in every other section."""
     return named(holes)
 
@@ -140,7 +152,7 @@ def _named(holes: Sequence[Any]) -> list[Any]:
 EXPORTED = {"before": "original.step", "after": "optimised.step"}
 
 
-def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Any, list[Any]]]:
+def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, list[Hole]]]:
     """The designs a ``cadfeat run`` exported to ``out``, with the holes that run tracked (one closed loop).
 
     Shapes: ``original.step`` and ``optimised.step``. Holes: those of results.json ``holes.before`` /
@@ -178,7 +190,7 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Any, lis
     return {k: (shapes[k], _named(holes[k])) for k in EXPORTED}
 
 
-def _hole_from_json(h: Any, path: Path, key: str, i: int) -> Any:
+def _hole_from_json(h: Any, path: Path, key: str, i: int) -> Hole:
     """A ``Hole`` from a results.json hole entry (``study.outputs.hole_dict``). The closed loop uses the entrance
     rim only (centre, axis, radius, depth, through); the narrowest bore is not stored and is taken as the rim."""
     from cadfeat.cad.features import Hole
@@ -193,7 +205,7 @@ def _hole_from_json(h: Any, path: Path, key: str, i: int) -> Any:
                            "(centre_mm, axis, radius_mm, depth_mm, through)") from None
 
 
-def _view_direction(config: StudyConfig, original_step: Path) -> Any:
+def _view_direction(config: StudyConfig, original_step: Path) -> np.ndarray | None:
     """The side the study's camera looks from (part frame), as the study's own extraction uses it."""
     if config.study.part_kind == "step":
         if config.design.view_direction is not None:
@@ -204,11 +216,11 @@ def _view_direction(config: StudyConfig, original_step: Path) -> Any:
         return camera_direction(original_step, traj, T_task_part)
     from cadfeat.cad.parts import load_part
 
-    return load_part(config.study.part_path).view_direction
+    return load_part(config.study.part_path, config.study.build_timeout_s).view_direction
 
 
-def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[Any]]], out_dir: Path | None = None,
-                 spec: TrackingSpec | None = None, camera_override: Any = None) -> dict[str, Any]:
+def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Path | None = None,
+                 spec: TrackingSpec | None = None, camera_override: Camera | None = None) -> dict[str, Any]:
     """The results.json ``tracking`` section for ``designs`` = {"before": (shape, holes), "after": (...)}.
 
     ``out_dir``: where the frame PNGs go (``tracking/``); None writes nothing. ``camera_override``: the camera
@@ -220,7 +232,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[
     designs = {k: (shape, _named(holes)) for k, (shape, holes) in designs.items()}
     camera, T_cam_part, times, screws = _scene(config)
     _check_frames(config, spec, len(T_cam_part))
-    result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec),
+    result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec, config.robustness),
                            estimator_camera=camera_override)
     section = result.to_json()
     section["warnings"] = _motion_warnings(T_cam_part[result.frame_indices], times[result.frame_indices])
@@ -229,7 +241,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[
     return section
 
 
-def sweep(config: StudyConfig, designs: Mapping[str, tuple[Any, Sequence[Any]]], kind: str,
+def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,
           values: Sequence[float] | None = None, spec: TrackingSpec | None = None) -> dict[str, Any]:
     """Thesis §6.3.3 sensitivity: the tracking summary per value of one setting (module docstring).
 

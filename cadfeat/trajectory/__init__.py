@@ -27,7 +27,8 @@ Either header may be followed by six optional columns with known velocity screws
 ``vx_mm_s,vy_mm_s,vz_mm_s,wx_rad_s,wy_rad_s,wz_rad_s``. Times must increase strictly.
 
 The package: ``_core`` (the ``Trajectory`` class and its checks), ``_library`` (the parametric kinds and their
-argument types), ``_csv`` (CSV files), ``_tables`` (study-file tables); everything public is re-exported here.
+argument types), ``_csv`` (CSV files), ``_tables`` (the ``[trajectory]`` models, generated from the kinds'
+signatures); everything public is re-exported here.
 """
 
 from __future__ import annotations
@@ -60,12 +61,18 @@ from cadfeat.trajectory._library import (
     straight_approach,
     waypoints,
 )
-from cadfeat.trajectory._tables import trajectory_from_dict
+from cadfeat.trajectory._tables import (
+    CsvTrajectory,
+    TrajectorySettings,
+    trajectory_from_dict,
+    trajectory_model,
+    validate_trajectory,
+)
 
 __all__ = [
-    "ArgType", "Float", "FloatList", "Int", "KindArgument", "OneOrMoreVec3", "POSITION_COLUMNS", "PoseList",
-    "QUATERNION_COLUMNS", "QUATERNION_NORM_TOL", "ROTATION_TOL", "ROTVEC_COLUMNS", "SCREW_COLUMNS",
-    "TRAJECTORY_KINDS", "Trajectory", "TrajectoryError", "Vec3", "Vec3List", "helical_approach", "kind_arguments",
-    "numerical_velocity_screws", "orbit_arc", "raster_scan", "read_csv", "straight_approach", "trajectory_from_dict",
-    "waypoints", "write_csv",
+    "ArgType", "CsvTrajectory", "Float", "FloatList", "Int", "KindArgument", "OneOrMoreVec3", "POSITION_COLUMNS",
+    "PoseList", "QUATERNION_COLUMNS", "QUATERNION_NORM_TOL", "ROTATION_TOL", "ROTVEC_COLUMNS", "SCREW_COLUMNS",
+    "TRAJECTORY_KINDS", "Trajectory", "TrajectoryError", "TrajectorySettings", "Vec3", "Vec3List", "helical_approach",
+    "kind_arguments", "numerical_velocity_screws", "orbit_arc", "raster_scan", "read_csv", "straight_approach",
+    "trajectory_from_dict", "trajectory_model", "validate_trajectory", "waypoints", "write_csv",
 ]

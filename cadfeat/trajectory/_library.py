@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import inspect
-import math
 import types
 import typing
 from collections.abc import Callable
@@ -12,9 +11,11 @@ from typing import Annotated, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
+from pydantic import Field
 from scipy.spatial.transform import Rotation, Slerp
 
 from cadfeat.poses import look_at, look_at_screws, make_T
+from cadfeat.settings import Finite, Tuple
 from cadfeat.trajectory._core import (
     Trajectory,
     TrajectoryError,
@@ -25,60 +26,30 @@ from cadfeat.trajectory._core import (
 # ---------------------------------------------------------------------- argument types of library kinds
 @dataclass(frozen=True)
 class ArgType:
-    """How a library-trajectory argument is read from plain data (study files): text and converter."""
+    """How a study file gives a library-trajectory argument: its text (``cadfeat trajectories``, error messages)
+    and its pydantic type (strict: a string is not a number, a float not an integer; arrays are TOML arrays),
+    which ``cadfeat.trajectory.TrajectorySettings`` validates. ``array``: passed on as a float array."""
 
     description: str
-    convert: Callable[[Any], Any]
+    annotation: Any
+    array: bool = False
 
 
-def _is_number(x: Any) -> bool:
-    return isinstance(x, int | float | np.integer | np.floating) and not isinstance(x, bool | np.bool_)
+def _shape(inner: Any, n: int | None = None) -> Any:
+    """A TOML array of ``inner`` (a tuple), of exactly ``n`` items when ``n`` is given."""
+    return Annotated[Tuple[inner], Field(min_length=n, max_length=n)] if n else Tuple[inner]
 
 
-def _to_float(value: Any) -> float:
-    if not _is_number(value) or not math.isfinite(float(value)):
-        raise TypeError("expected a finite number")
-    return float(value)
+_VEC3 = _shape(Finite, 3)
+_VEC3_LIST = _shape(_VEC3)
 
-
-def _to_int(value: Any) -> int:
-    if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer):
-        raise TypeError("expected an integer")
-    return int(value)
-
-
-def _to_array(value: Any, shape: tuple[int | None, ...], what: str) -> np.ndarray:
-    try:
-        a = np.asarray(value)
-    except ValueError as exc:  # ragged nesting
-        raise TypeError(f"expected {what}") from exc
-    ok_shape = a.ndim == len(shape) and all(s is None or s == n for s, n in zip(shape, a.shape, strict=True))
-    if not ok_shape or a.dtype == bool or not (np.issubdtype(a.dtype, np.integer) or
-                                                np.issubdtype(a.dtype, np.floating)):
-        raise TypeError(f"expected {what}")
-    a = a.astype(float)
-    if not np.all(np.isfinite(a)):
-        raise TypeError(f"expected {what} with finite numbers")
-    return a
-
-
-def _to_one_or_more_vec3(value: Any) -> np.ndarray:
-    what = "[x, y, z] or a list of [x, y, z] triples"
-    try:
-        return _to_array(value, (3,), what)
-    except TypeError:
-        return _to_array(value, (None, 3), what)
-
-
-Float = Annotated[float, ArgType("number", _to_float)]
-Int = Annotated[int, ArgType("integer", _to_int)]
-Vec3 = Annotated[ArrayLike, ArgType("[x, y, z] (3 numbers)", lambda v: _to_array(v, (3,), "3 numbers [x, y, z]"))]
-Vec3List = Annotated[ArrayLike, ArgType("list of [x, y, z]",
-                                        lambda v: _to_array(v, (None, 3), "a list of [x, y, z] triples"))]
-FloatList = Annotated[ArrayLike, ArgType("list of numbers", lambda v: _to_array(v, (None,), "a list of numbers"))]
-OneOrMoreVec3 = Annotated[ArrayLike, ArgType("[x, y, z] or list of [x, y, z]", _to_one_or_more_vec3)]
-PoseList = Annotated[ArrayLike, ArgType("list of 4x4 matrices",
-                                        lambda v: _to_array(v, (None, 4, 4), "a list of 4x4 matrices"))]
+Float = Annotated[float, ArgType("number", Finite)]
+Int = Annotated[int, ArgType("integer", int)]
+Vec3 = Annotated[ArrayLike, ArgType("[x, y, z] (3 numbers)", _VEC3, True)]
+Vec3List = Annotated[ArrayLike, ArgType("list of [x, y, z]", _VEC3_LIST, True)]
+FloatList = Annotated[ArrayLike, ArgType("list of numbers", _shape(Finite), True)]
+OneOrMoreVec3 = Annotated[ArrayLike, ArgType("[x, y, z] or list of [x, y, z]", _VEC3 | _VEC3_LIST, True)]
+PoseList = Annotated[ArrayLike, ArgType("list of 4x4 matrices", _shape(_shape(_shape(Finite, 4), 4)), True)]
 
 
 def _check(kind: str, ok: bool, message: str) -> None:

@@ -62,8 +62,8 @@ class TrackingConfig:
     convergence bounds; ``gate_px`` association gate; ``rim_model`` measure ellipse centres (True) or
     treat holes as points (False); ``seed`` base seed; ``alpha`` significance of the paired test;
     ``min_change`` smallest relative change of the median RMS error that counts (``metrics.paired_verdict``);
-    run-to-run variability (module docstring): ``placement_mm`` / ``placement_deg`` σ per axis of the part's
-    placement error (0 = every run at the nominal placement, rendered once), ``gain_sigma`` relative σ of the
+    run-to-run variability (module docstring): ``placement_mm`` / ``placement_deg`` σ (one, or one per axis) of
+    the part's placement error (0 = every run at the nominal placement, rendered once), ``gain_sigma`` relative σ of the
     illumination gain per run.
     """
 
@@ -82,8 +82,8 @@ class TrackingConfig:
     seed: int = 0
     alpha: float = 0.05
     min_change: float = 0.05
-    placement_mm: float = 0.2
-    placement_deg: float = 0.2
+    placement_mm: float | tuple[float, ...] = 0.2
+    placement_deg: float | tuple[float, ...] = 0.2
     gain_sigma: float = 0.05
 
     def with_changes(self, **changes: Any) -> TrackingConfig:
@@ -326,7 +326,8 @@ def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: 
     first: list[Detections] = []
     T_runs = np.broadcast_to(T_true, (R_,) + T_true.shape)                        # (R, F, 4, 4) each run's truth
     runs_obs = [obs] * R_
-    if (config.placement_mm > 0 or config.placement_deg > 0) and obs.scene is not None:
+    placed = bool(np.any(np.asarray(config.placement_mm) > 0) or np.any(np.asarray(config.placement_deg) > 0))
+    if placed and obs.scene is not None:
         T_runs = T_true[None] @ placement_errors(config, R_)[:, None]
         runs_obs = placed_observations(camera, obs, T_runs)
     gains = illumination_gains(config, R_)

@@ -249,17 +249,13 @@ def test_build_shape_timeout_and_errors(tmp_path):
 
 
 def test_a_part_carries_its_own_time_limit(tmp_path):
-    """``load_part(path, time_limit_s)``: every ``build`` of that part runs in a worker killed after the limit,
-    with no ``build_time_limit`` block around it; the block only gives the default of ``load_part``."""
-    from cadfeat.cad.parts import build_time_limit
-
+    """``load_part(path, time_limit_s)``: every ``build`` of that part runs in a worker killed after the limit
+    (passed explicitly: there is no process-wide limit); None, the default, builds in this process."""
     path = write(tmp_path, "slow.py", GOOD_HEAD + "import time\ndef build(size_mm):\n    time.sleep(60)\n")
     slow = load_part(path, 1.0)
     assert slow.time_limit_s == 1.0 and load_part(path).time_limit_s is None
     with pytest.raises(PartBuildError, match="exceeded the time limit of 1 s"):
         slow.build()
-    with build_time_limit(5.0, start=False):
-        assert load_part(path, None).time_limit_s is None  # explicit: no limit, whatever the block says
     with pytest.raises(CadfeatError, match="allowed: a number of seconds > 0"):
         load_part(path, 0.0)
 

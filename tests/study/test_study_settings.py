@@ -13,6 +13,7 @@ import tomllib
 from pathlib import Path
 
 import jsonschema
+import numpy as np
 import pytest
 from study_helpers import BASE, study
 
@@ -63,6 +64,32 @@ def test_one_default_per_setting(tmp_path):
     assert cfg.tracking.replace(runs=3).runs == 3
     with pytest.raises(Exception, match="frozen"):
         cfg.tracking.runs = 4
+
+
+def test_one_placement_tolerance(tmp_path):
+    """The part's placement tolerance is declared once, ``[robustness] placement_position_mm`` /
+    ``placement_angle_deg`` (±t): the old ``[tracking]`` keys are refused in one line saying where they moved; the
+    closed loop draws σ = 0.4 t, so vision's own default (0.2) is what the default tolerance (0.5) gives, and the
+    ±t bound holds 2.5 σ of the drawn placements (scipy's normal CDF, over vision's own draws)."""
+    from scipy.stats import norm
+
+    from cadfeat.study.settings import RobustnessSettings
+    from cadfeat.study.tracking import tracking_config
+    from cadfeat.vision.closed_loop import TrackingConfig, placement_errors
+
+    for key in ("placement_mm", "placement_deg"):
+        msg = str(pytest.raises(StudyError, load_study, study(tmp_path, tracking={key: 0.3})).value)
+        assert f"tracking.{key}: this key moved; allowed: [robustness] placement_" in msg and "\n" not in msg
+    default = tracking_config(TrackingSettings())
+    assert (default.placement_mm, default.placement_deg) == (TrackingConfig().placement_mm,
+                                                             TrackingConfig().placement_deg)
+    t = 1.5
+    per_axis = tracking_config(TrackingSettings(runs=2000), RobustnessSettings(placement_position_mm=t,
+                                                                              placement_angle_deg=(0.5, 1.0, 2.0)))
+    assert per_axis.placement_deg == pytest.approx((0.2, 0.4, 0.8))
+    inside = np.abs(placement_errors(per_axis, per_axis.runs)[:, :3, 3]) <= t
+    coverage = 2 * norm.cdf(2.5) - 1  # ≈ 0.988
+    assert inside.mean() == pytest.approx(coverage, abs=4 * np.sqrt(coverage * (1 - coverage) / inside.size))
 
 
 def test_pose_measure_and_its_aggregate(tmp_path):

@@ -9,12 +9,12 @@ vector (deg) or a unit quaternion [x, y, z, w] (converted to the rotation vector
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, ClassVar, cast
+from typing import Any, ClassVar, cast
 
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
 
-from cadfeat.settings import Settings, Tuple, choice, context_of, integer, number, reject
+from cadfeat.settings import Finite, Settings, Tuple, choice, context_of, integer, number, reject
 
 __all__ = ["BUILD_TIMEOUT_S", "SCRIPT_SUFFIXES", "STEP_SUFFIXES", "PartPose", "StudyInfo", "Vector"]
 
@@ -24,7 +24,6 @@ SCRIPT_SUFFIXES = (".py",)
 STEP_SUFFIXES = (".step", ".stp")
 _NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
 
-Finite = Annotated[float, Field(allow_inf_nan=False)]
 Vector = Tuple[Finite]
 """A list of finite numbers (mm, deg, …); its length is checked by the field's validator."""
 

@@ -90,7 +90,9 @@ class RobustnessSettings(Settings):
 
     Tolerances (each ±t; ``distribution`` uniform in [−t, t] or a normal of σ = t/2 truncated at ±t): camera mount
     ``camera_position_mm`` / ``camera_angle_deg`` and part placement ``placement_position_mm`` /
-    ``placement_angle_deg`` (a number, or one per axis), path offset ``path_offset_mm`` (per task axis), speed
+    ``placement_angle_deg`` (a number, or one per axis; the one declaration of the part's placement tolerance:
+    the closed-loop check draws each run's placement from it too, ``placement_sigma``), path offset
+    ``path_offset_mm`` (per task axis), speed
     ``time_scale_percent``, sensor noise ``pixel_noise_grey`` (grey levels around the σ model's 2), the shop's
     hole position ``position_tol_mm`` (across the axis) and diameter ``diameter_tol_mm``; ``size_steps``: the
     analysis also tries a drill ±that many sizes off the table.
@@ -141,6 +143,24 @@ class RobustnessSettings(Settings):
         return self
 
 
+PLACEMENT_SIGMA_PER_TOLERANCE = 0.4
+"""The closed-loop check draws the part's placement per run from a normal of σ = 0.4 t per axis (t: ``[robustness]``
+placement tolerance), so ±t is 2.5 σ (98.8 % of the runs inside it); the robust draws use ±t itself
+(``[robustness] distribution``)."""
+
+
+def placement_sigma(robustness: RobustnessSettings) -> dict[str, float | tuple[float, ...]]:
+    """``placement_mm`` / ``placement_deg`` (σ per axis, one or three) of ``cadfeat.vision``'s ``TrackingConfig``
+    from the study's placement tolerance (``PLACEMENT_SIGMA_PER_TOLERANCE``)."""
+    def sigma(t: object) -> float | tuple[float, ...]:
+        k = PLACEMENT_SIGMA_PER_TOLERANCE
+        if isinstance(t, tuple):
+            return tuple(k * float(v) for v in cast("tuple[float, ...]", t))
+        return k * float(cast(float, t))
+    return {"placement_mm": sigma(robustness.placement_position_mm),
+            "placement_deg": sigma(robustness.placement_angle_deg)}
+
+
 _CL, _FT, _SM = TrackingConfig, FilterTuning, SensorModel  # the vision defaults are the section's defaults
 
 
@@ -157,12 +177,19 @@ class TrackingSettings(Settings):
     ``check``: the closed loop inside ``cadfeat run`` — "fast" (PnP and IEKF, few runs and frames), "full" (these
     settings) or "off"; unset: full when the study has a ``[tracking]`` table, else fast
     (``cadfeat.study.closed_loop_check``).
-    Run-to-run variability of a real cell: the part's placement error per run (σ per axis, mm and deg; the
-    images are rendered again per run) and the illumination gain's relative σ; pixel noise and the initial
-    error's direction are drawn per run too.
+    Run-to-run variability of a real cell: the part's placement error per run (from ``[robustness]
+    placement_position_mm`` / ``placement_angle_deg``, ``placement_sigma``; the images are rendered again per
+    run) and the illumination gain's relative σ; pixel noise and the initial error's direction are drawn per run
+    too. ``placement_mm`` / ``placement_deg`` moved to ``[robustness]`` (``moved``: refused with where to).
     """
 
     section: ClassVar[str] = "tracking"
+    moved: ClassVar[dict[str, str]] = {
+        "placement_mm": "[robustness] placement_position_mm = t, the part's placement tolerance ±t per axis (mm); "
+                        "the closed loop draws σ = 0.4 t (t = 0.5 gives the former default 0.2)",
+        "placement_deg": "[robustness] placement_angle_deg = t, the part's placement tolerance ±t per axis (deg); "
+                         "the closed loop draws σ = 0.4 t (t = 0.5 gives the former default 0.2)",
+    }
 
     estimators: Tuple[Literal["ekf", "iekf", "pnp"]] = choice(
         _CL.estimators, f"a non-empty list of distinct names from {', '.join(TRACKING_ESTIMATORS)}")
@@ -189,8 +216,6 @@ class TrackingSettings(Settings):
     check: Literal["fast", "full", "off"] | None = choice(
         None, f"one of {', '.join(CHECK_MODES)}", description="the closed loop inside cadfeat run (unset: full "
         "with a [tracking] table, else fast)")
-    placement_mm: float = number(_CL.placement_mm, 0.0, 100.0)
-    placement_deg: float = number(_CL.placement_deg, 0.0, 30.0)
     gain_sigma: float = number(_CL.gain_sigma, 0.0, 1.0)
 
     @model_validator(mode="before")
