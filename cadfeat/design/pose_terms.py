@@ -243,15 +243,20 @@ def _hole_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     return geo, J, occlusion
 
 
-_CACHE: OrderedDict[bytes, tuple[Any, Any]] = OrderedDict()
+_CACHE: OrderedDict[bytes, tuple[Any, Any, int]] = OrderedDict()
 #: fixed holes' terms kept (one entry per pose set: the nominal poses, each robust source's and held-out draws)
 CACHE_ENTRIES = 8
+#: the most the kept terms may hold, as a share of the memory budget (``design.memory.budget_bytes``)
+CACHE_BUDGET_SHARE = 0.25
 
 
 def _fixed_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
     """``_hole_terms`` of one set of holes (n, …) at the problem's L poses, kept for the same poses, occlusion
     maps, camera and holes (a key of their bytes; the camera and maps objects are held with the entry so their
-    ids stay theirs)."""
+    ids stay theirs); at most ``CACHE_ENTRIES`` pose sets and ``CACHE_BUDGET_SHARE`` of the memory budget, the
+    least recently used dropped first."""
+    from cadfeat.design.memory import budget_bytes
+
     maps = problem.occlusion
     parts = [np.asarray(problem.T_cam_part, float), centres, axes, radii]
     if maps is not None:
@@ -272,7 +277,19 @@ def _fixed_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.
         _CACHE.move_to_end(key)
         return hit[1]
     terms = _map(lambda a: a, _hole_terms(problem, centres[None], axes[None], radii[None]))
-    _CACHE[key] = (objects, terms)
-    while len(_CACHE) > CACHE_ENTRIES:
+    _CACHE[key] = (objects, terms, _nbytes(terms))
+    cap = budget_bytes() * CACHE_BUDGET_SHARE  # the kept terms stay a small part of the memory budget
+    while len(_CACHE) > CACHE_ENTRIES or (_CACHE and sum(e[2] for e in _CACHE.values()) > cap):
         _CACHE.popitem(last=False)
     return terms
+
+
+def _nbytes(terms: Any) -> int:
+    """Bytes of the arrays of (HoleGeometry, J, occlusion)."""
+    total = [0]
+
+    def add(a: np.ndarray) -> np.ndarray:
+        total[0] += int(np.asarray(a).nbytes)
+        return a
+    _map(add, terms)
+    return total[0]
