@@ -14,13 +14,16 @@ values goes one design at a time (a few seconds). Cost on the flagship (40 poses
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from typing import Any
 
 import numpy as np
 
 from cadfeat.design.objectives import POSE_AGGREGATES, POSE_UNOBSERVABLE_MM, _choice
 
-__all__ = ["hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_values", "stacked_information"]
+__all__ = ["StackedPose", "hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_values",
+           "stacked_information"]
 
 #: rim samples of the occlusion test (``rim_occlusion``)
 RIM_SAMPLES = 16
@@ -104,33 +107,189 @@ def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
 
 
 def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                        noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> Any:
-    """``pose_information`` of B designs as B·L poses (design-major), holes per pose; occlusion by the problem's
-    depth maps (every design's rims at each of the L poses in one ``rim_occlusion`` call). ``noise_grey``: the
-    sensor's grey-level noise, a number or (L, 1) per pose (a robustness draw's pixel noise); None: the model's
-    default."""
-    from cadfeat.measures import pose_information
-    from cadfeat.measures.rim_occlusion import rim_occlusion
+                        noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> StackedPose:
+    """g_POSE's pose information of B designs as B·L poses (design-major), holes per pose; occlusion by the
+    problem's depth maps (every design's rims at each of the L poses in one ``rim_occlusion`` call).
+    ``noise_grey``: the sensor's grey-level noise, a number or (L, 1) per pose (a robustness draw's pixel noise);
+    None: the model's default.
+
+    The same numbers as ONE ``measures.pose_information`` call on the B·L stacked poses with all N holes (tested,
+    bit for bit on the flagship), computed faster: a hole's image geometry, rim occlusion and measurement
+    Jacobian depend on that hole alone, so for the fixed holes (``problem.fixed_mask``) that are the same in every
+    design they are computed once at the L poses and kept (``_fixed_terms``: the same poses, e.g. a robust
+    problem's fixed draws, give the same terms in every evaluation); only the designs' other holes are computed
+    at the B·L poses. What couples the holes — the detection model's gap to the nearest other rim — and the sums
+    over holes are then evaluated on all N holes as ``pose_information`` does (its steps and expressions)."""
+    from cadfeat.measures import pose_models
 
     B, N = radii.shape
+    L = len(problem.T_cam_part)
+    through, depth, ratio = hole_attributes(problem, radii, depth_mm)
+    depth = np.broadcast_to(depth, (B, N))
+    noise = None if noise_grey is None else np.asarray(noise_grey, float)
+    fixed = np.asarray(problem.fixed_mask, bool) & _same_in_every_design(centres, axes, radii, depth)
+    parts = []
+    if fixed.any():
+        idx = np.flatnonzero(fixed)
+        terms = _fixed_terms(problem, centres[0, idx], axes[0, idx], radii[0, idx])
+        parts.append((idx, _map(lambda a: np.tile(a, (B,) + (1,) * (a.ndim - 1)), terms)))
+    if not fixed.all():
+        idx = np.flatnonzero(~fixed)
+        parts.append((idx, _hole_terms(problem, centres[:, idx], axes[:, idx], radii[:, idx])))
+    geo, J, occ = _assemble(parts, B * L, N)
+    models = pose_models.default_models()
+    # measures.pose_information's steps (detection=True, the measurement model's σ and offsets, no prior)
+    p = models.detection_probability(geo, occ)
+    kw = {} if noise is None else {"noise_grey": float(noise) if noise.ndim == 0 else np.tile(noise.reshape(L, 1),
+                                                                                               (B, 1))}
+    sig, off = models.measurement_model(geo, depth_ratio=np.broadcast_to(ratio, (B, N)).repeat(L, axis=0),
+                                        kinds=None, through=through, **kw)
+    p = np.where(np.all(np.isfinite(J), axis=(-1, -2)), p, 0.0)
+    Jw = np.where(p[..., None, None] > 0, J, 0.0) / sig[..., None, None]
+    info = np.einsum("ln,lnai,lnaj->lnij", p, Jw, Jw).sum(axis=1)
+    rhs = np.einsum("ln,lnai,lna->li", p, Jw, off / sig[..., None])
+    return _pose_error(info, rhs, problem.objective_config.pose_rotation_length_mm)
+
+
+class StackedPose:
+    """``stacked_information``'s result: ``information`` (B·L, 6, 6) and the predicted errors of
+    ``measures.pose_information`` (``error_mm`` as ``PoseInformation.error_mm``)."""
+
+    def __init__(self, information: np.ndarray, error_translation_mm: np.ndarray, error_rotation_deg: np.ndarray,
+                 rotation_length_mm: float):
+        self.information = information
+        self.error_translation_mm, self.error_rotation_deg = error_translation_mm, error_rotation_deg
+        self.rotation_length_mm = rotation_length_mm
+
+    def error_mm(self, rotation_length_mm: float | None = None) -> np.ndarray:
+        """(B·L,) √(e_t² + (ℓ e_r)²) mm (``PoseInformation.error_mm``)."""
+        ell = self.rotation_length_mm if rotation_length_mm is None else rotation_length_mm
+        return np.hypot(self.error_translation_mm, ell * np.radians(self.error_rotation_deg))
+
+
+def _same_in_every_design(centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                          depth: np.ndarray) -> np.ndarray:
+    """(N,) bool: holes whose centre, axis, radius and depth are the same in all B designs."""
+    return (np.all(centres == centres[:1], axis=(0, 2)) & np.all(axes == axes[:1], axis=(0, 2))
+            & np.all(radii == radii[:1], axis=0) & np.all(depth == depth[:1], axis=0))
+
+
+def _map(fn: Any, terms: Any) -> Any:
+    """``fn`` applied to every array of (HoleGeometry, J, occlusion) (the geometry's ``rims`` tuple included)."""
+    geo, J, occ = terms
+    fields = [tuple(fn(a) for a in v) if isinstance(v, tuple) else None if v is None else fn(v) for v in geo]
+    return type(geo)(*fields), fn(J), fn(occ)
+
+
+def _assemble(parts: list[tuple[np.ndarray, Any]], M: int, N: int) -> Any:
+    """(HoleGeometry, J, occlusion) of all N holes (M, N, …) from parts (hole indices, the same of those holes)."""
+    def put(pieces: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+        a0 = pieces[0][1]
+        out = np.empty((M, N) + a0.shape[2:], dtype=a0.dtype)
+        for idx, a in pieces:
+            out[:, idx] = a
+        return out
+    geos = [t[0] for _, t in parts]
+    fields = []
+    for k, v in enumerate(geos[0]):
+        if isinstance(v, tuple):
+            fields.append(tuple(put([(idx, g[k][j]) for (idx, _), g in zip(parts, geos, strict=True)])
+                                for j in range(len(v))))
+        elif v is None:
+            fields.append(None)
+        else:
+            fields.append(put([(idx, g[k]) for (idx, _), g in zip(parts, geos, strict=True)]))
+    return (type(geos[0])(*fields), put([(idx, t[1]) for idx, t in parts]),
+            put([(idx, t[2]) for idx, t in parts]))
+
+
+def _pose_error(info: np.ndarray, rhs: np.ndarray, ell: float) -> StackedPose:
+    """The predicted errors of ``measures.pose_information`` from the summed information and bias right-hand
+    side (its steps): covariance (its ``_inverse``), bias δ_b = cov · rhs, √(bias² + σ²) per part."""
+    from cadfeat.measures.pose_information import _inverse  # pyright: ignore[reportPrivateUsage]
+
+    cov = _inverse(info, ell)[0]
+    bias = np.einsum("lij,lj->li", np.where(np.isfinite(cov), cov, 0.0), rhs)
+    sig_t = np.sqrt(np.trace(cov[:, :3, :3], axis1=-2, axis2=-1))
+    sig_r = np.degrees(np.sqrt(np.trace(cov[:, 3:, 3:], axis1=-2, axis2=-1)))
+    b_t, b_r = np.linalg.norm(bias[:, :3], axis=-1), np.degrees(np.linalg.norm(bias[:, 3:], axis=-1))
+    return StackedPose(info, np.hypot(b_t, sig_t), np.hypot(b_r, sig_r), float(ell))
+
+
+def _hole_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
+    """What depends on each hole alone, for B designs' holes (B, n, …) at the problem's L poses as B·L stacked
+    poses: ``pose_models.hole_geometry``, the measurement Jacobian (``rim_centre.measure``) (B·L, n, 2, 6) and
+    the rims' hidden fraction (``rim_occlusion`` against the depth maps; 0 without them) (B·L, n)."""
+    from cadfeat.measures import pose_models
+    from cadfeat.measures.rim_centre import measure
+    from cadfeat.measures.rim_occlusion import rim_occlusion
+
+    B, n = radii.shape
     T = problem.T_cam_part
     L = len(T)
-    TT = np.tile(T, (B, 1, 1))
 
-    def per_pose(a: np.ndarray) -> np.ndarray:  # (B, N, ...) → (B·L, N, ...)
+    def per_pose(a: np.ndarray) -> np.ndarray:  # (B, n, ...) → (B·L, n, ...)
         return np.repeat(a, L, axis=0)
-    c, a, r = per_pose(centres), per_pose(axes), per_pose(radii)
-    through, depth, ratio = hole_attributes(problem, r, None if depth_mm is None else per_pose(np.asarray(depth_mm,
-                                                                                                        float)))
     maps = problem.occlusion
-    occlusion = None
-    if maps is not None:  # the B·N holes side by side at the L poses (one depth map per pose), then design-major
-        hidden = rim_occlusion(maps, T, centres.reshape(B * N, 3), axes.reshape(B * N, 3), radii.reshape(B * N),
+    occlusion = np.zeros((B * L, n))
+    if maps is not None:  # the B·n holes side by side at the L poses (one depth map per pose), then design-major
+        hidden = rim_occlusion(maps, T, centres.reshape(B * n, 3), axes.reshape(B * n, 3), radii.reshape(B * n),
                                samples=RIM_SAMPLES)
-        occlusion = np.moveaxis(hidden.reshape(L, B, N), 1, 0).reshape(B * L, N)
-    noise: dict[str, Any] = {}
-    if noise_grey is not None:
-        n = np.asarray(noise_grey, float)
-        noise["noise_grey"] = float(n) if n.ndim == 0 else np.tile(n.reshape(L, 1), (B, 1))
-    return pose_information(problem.camera, TT, c, a, r, occlusion=occlusion, depth_ratio=ratio, through=through,
-                            rotation_length_mm=problem.objective_config.pose_rotation_length_mm, **noise)
+        occlusion = np.moveaxis(hidden.reshape(L, B, n), 1, 0).reshape(B * L, n)
+    TT, c, a, r = np.tile(T, (B, 1, 1)), per_pose(centres), per_pose(axes), per_pose(radii)
+    geo = pose_models.hole_geometry(problem.camera, TT, c, a, r)
+    J = measure(problem.camera, TT, c, a, r)[1]
+    assert J is not None  # (measure with jacobian=True)
+    return geo, J, occlusion
+
+
+_CACHE: OrderedDict[bytes, tuple[Any, Any, int]] = OrderedDict()
+#: fixed holes' terms kept (one entry per pose set: the nominal poses, each robust source's and held-out draws)
+CACHE_ENTRIES = 8
+#: the most the kept terms may hold, as a share of the memory budget (``design.memory.budget_bytes``)
+CACHE_BUDGET_SHARE = 0.25
+
+
+def _fixed_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
+    """``_hole_terms`` of one set of holes (n, …) at the problem's L poses, kept for the same poses, occlusion
+    maps, camera and holes (a key of their bytes; the camera and maps objects are held with the entry so their
+    ids stay theirs); at most ``CACHE_ENTRIES`` pose sets and ``CACHE_BUDGET_SHARE`` of the memory budget, the
+    least recently used dropped first."""
+    from cadfeat.design.memory import budget_bytes
+
+    maps = problem.occlusion
+    parts = [np.asarray(problem.T_cam_part, float), centres, axes, radii]
+    if maps is not None:
+        for name in ("rows", "to_nominal"):
+            a = getattr(maps, name, None)
+            if a is not None:
+                parts.append(np.asarray(a))
+    h = hashlib.blake2b(digest_size=20)
+    for a in parts:
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.tobytes())
+    objects = (problem.camera, None if maps is None else maps.maps)
+    h.update(repr(tuple(id(o) for o in objects)).encode())
+    key = h.digest()
+    hit = _CACHE.get(key)
+    if hit is not None:
+        _CACHE.move_to_end(key)
+        return hit[1]
+    terms = _map(lambda a: a, _hole_terms(problem, centres[None], axes[None], radii[None]))
+    _CACHE[key] = (objects, terms, _nbytes(terms))
+    cap = budget_bytes() * CACHE_BUDGET_SHARE  # the kept terms stay a small part of the memory budget
+    while len(_CACHE) > CACHE_ENTRIES or (_CACHE and sum(e[2] for e in _CACHE.values()) > cap):
+        _CACHE.popitem(last=False)
+    return terms
+
+
+def _nbytes(terms: Any) -> int:
+    """Bytes of the arrays of (HoleGeometry, J, occlusion)."""
+    total = [0]
+
+    def add(a: np.ndarray) -> np.ndarray:
+        total[0] += int(np.asarray(a).nbytes)
+        return a
+    _map(add, terms)
+    return total[0]

@@ -316,7 +316,8 @@ class Problem:
         L = len(self.screws)
         if np.any(radii <= 0):
             raise CadfeatError(f"a design gives a hole radius ≤ 0 mm: {radii.min():g}")
-        m = self.measures_from_features(centres.reshape(B * N, 3), axes.reshape(B * N, 3), radii.reshape(B * N))
+        m = None if set(cfg.measures) == {"pose"} else \
+            self.measures_from_features(centres.reshape(B * N, 3), axes.reshape(B * N, 3), radii.reshape(B * N))
 
         def per_design(a: np.ndarray) -> np.ndarray:  # (L, B·N) → (B, L, N)
             return np.moveaxis(a.reshape(L, B, N), 1, 0)

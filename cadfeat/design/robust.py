@@ -207,20 +207,47 @@ ROBUST_EVALS_PER_VARIABLE = 30
 """Evaluations of each robust local solve per free design variable (COBYLA's ``maxiter``)."""
 ROBUST_STEP = 0.05
 """COBYLA's initial step, as a fraction of each variable's range."""
+STALL_EVALS_PER_VARIABLE = 2
+"""A robust local solve stops when its best feasible statistic has not risen by ``STALL_TOL`` in this many
+evaluations per free variable plus one (after the initial simplex of n + 1 points, n + 1 more model steps), and
+at least ``STALL_EVALS_MIN``."""
+STALL_EVALS_MIN = 10
+STALL_TOL = 1e-3
+"""The rise (relative, at least 1e-3 absolute) that counts as progress: well below the statistic's sampling
+error over the draws (benchmarks/RESULTS.md, bench_robust: the 10th percentile's bootstrap standard error over
+64 draws), so a solve is not stopped while it still gains anything the draws can resolve."""
+
+
+class _Stalled(Exception):
+    """Raised inside COBYLA's objective to end a local solve that has stopped improving."""
 
 
 def _local(ev: Any, u0: np.ndarray, maxiter: int) -> None:
     """One derivative-free local solve (COBYLA) of the evaluator's robust objective from u0 under its margins:
     the statistic over the draws is piecewise smooth with steps (a hole leaving the view in one draw), where
-    finite-difference gradients mislead a gradient solver. The evaluator keeps the best feasible design."""
+    finite-difference gradients mislead a gradient solver. The evaluator keeps the best feasible design. The
+    solve ends early when its best feasible value has not risen by ``STALL_TOL`` in ``STALL_EVALS_PER_VARIABLE``
+    · (n + 1) evaluations, at least ``STALL_EVALS_MIN`` (a solve that has found no feasible design runs on)."""
     import warnings
 
     from scipy.optimize import minimize
 
+    from cadfeat.design.optimize.evaluator import FEAS_TOL
+
     iteration = [0]
+    best, count, last = [-np.inf], [0], [0]
+    stall = max(STALL_EVALS_MIN, STALL_EVALS_PER_VARIABLE * (u0.size + 1))
 
     def fun(u: np.ndarray) -> float:
-        return -float(ev.combined(u[None])[0])
+        G, C = ev.batch(np.clip(u, 0.0, 1.0)[None])
+        value = float(np.asarray(ev.problem.combined_from(G))[0])
+        count[0] += 1
+        rise = value - best[0] if np.isfinite(best[0]) else np.inf
+        if C[0].min(initial=0.0) >= -FEAS_TOL and rise > STALL_TOL * max(1.0, abs(value)):
+            best[0], last[0] = value, count[0]
+        if np.isfinite(best[0]) and count[0] - last[0] >= stall:
+            raise _Stalled
+        return -value
 
     def callback(*args: Any) -> None:
         iteration[0] += 1
@@ -232,8 +259,11 @@ def _local(ev: Any, u0: np.ndarray, maxiter: int) -> None:
     cons = [{"type": "ineq", "fun": lambda u: ev.batch(np.clip(u, 0.0, 1.0)[None])[1][0]}] if n_cons else []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        minimize(fun, u0, method="COBYLA", constraints=cons, bounds=[(0.0, 1.0)] * u0.size, callback=callback,
-                 options={"maxiter": maxiter, "rhobeg": ROBUST_STEP})
+        try:
+            minimize(fun, u0, method="COBYLA", constraints=cons, bounds=[(0.0, 1.0)] * u0.size, callback=callback,
+                     options={"maxiter": maxiter, "rhobeg": ROBUST_STEP})
+        except _Stalled:
+            pass
 
 
 def robust_optimise(problem: RobustProblem, config: Any, starts: Sequence[np.ndarray],

@@ -35,7 +35,7 @@ from cadfeat.design.uncertainty import CELL_KINDS, KINDS, Uncertainty, draws
 
 __all__ = ["HELD_OUT_SEED_OFFSET", "SOURCES", "RobustDesigns", "RobustRun", "attach_robust", "check_robust",
            "design_statistics",
-           "robust_designs", "robust_phase"]
+           "robust_designs", "robust_phase", "source_objectives", "statistics_of"]
 
 SOURCES = ("cell", *KINDS)
 """The perturbations of results.json ``robustness.designs``: every cell source together, then one at a time."""
@@ -128,31 +128,29 @@ def robust_phase(config: Any, opt: Any, progress: Any, history: Any) -> RobustRu
 def _choose(setup: Any, rp: RobustProblem, nominal: Any, robust: Any, held: Any) -> tuple[str, str]:
     """"robust" unless, on held-out draws, the robust optimum's 5th percentile falls below the original's under a
     source while the nominal optimum's does not, or the nominal optimum (its 5th percentiles not below the
-    original's) has the higher robust statistic — the robust solve did not improve on it (then "nominal")."""
-    model = setup.model
-    feats = [model.features(x) for x in (setup.space.x0, robust.x_best, nominal.x_best)]
-    stats = design_statistics(rp, feats, held, sources=BLOCKS)
+    original's) has the higher robust statistic — the robust solve did not improve on it (then "nominal").
+
+    The three designs (original, robust, nominal optimum; each with its hole depths) are evaluated ONCE on the
+    held-out draws (``source_objectives``): the floors' statistics and the robust statistic come from the same
+    arrays."""
+    X = np.stack([np.asarray(x, float) for x in (setup.space.x0, robust.x_best, nominal.x_best)])
+    c, a, r = setup.model.features_batch(X)
+    G0, G = source_objectives(rp, (c, a, r), held, BLOCKS, rp.inner.hole_depths(X))
+    stats = statistics_of(rp, G0, G)
     below = [_below(stats[k], stats[0]) for k in (1, 2)]
     if below[0] and not below[1]:
         return "nominal", (f"the robust optimum's 5th percentile is below the original's under {', '.join(below[0])}; "
                            "the nominal optimum's is not: the nominal optimum is delivered")
     same = np.allclose(robust.x_best, nominal.x_best, rtol=0.0, atol=1e-9)  # the robust solve kept its start
     if not below[1] and not same and rp.objective.statistic != "chance":
-        v_robust, v_nominal = _held_out_value(rp, held, [robust.x_best, nominal.x_best])
+        other = RobustProblem(rp.inner, rp.objective, held, rp.changed)
+        value, _ = other.value_and_margins({"nominal": G0, **G})
+        v_robust, v_nominal = float(value[1]), float(value[2])
         if v_nominal > v_robust + 1e-9 * max(1.0, abs(v_robust)):
             return "nominal", (f"the nominal optimum's {rp.objective.label} on held-out draws ({v_nominal:.4g}) is "
                                f"above the robust optimum's ({v_robust:.4g}): the robust solve did not improve on "
                                "it, the nominal optimum is delivered")
     return "robust", ""
-
-
-def _held_out_value(rp: RobustProblem, held: Any, xs: list[Any]) -> list[float]:
-    """The robust statistic of designs ``xs`` (design vectors) on the held-out draws ``held``."""
-    X = np.stack([np.asarray(x, float) for x in xs])
-    other = RobustProblem(rp.inner, rp.objective, held, rp.changed)
-    c, a, r = rp.inner.model.features_batch(X)
-    value, _ = other.value_and_margins(other.block_objectives(c, a, r, rp.inner.hole_depths(X)))
-    return [float(v) for v in value]
 
 
 def _below(stats: dict[str, Any], original: dict[str, Any]) -> list[str]:
@@ -178,47 +176,84 @@ def _block(G: np.ndarray, G0: np.ndarray, names: list[str], combined: np.ndarray
     return out
 
 
-def design_statistics(rp: RobustProblem, features: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-                      D: Any, values: bool = False, sources: tuple[str, ...] = SOURCES) -> list[dict[str, Any]]:
-    """Per design (features (N, 3), (N, 3), (N,) each), per source of ``SOURCES``: ``_block`` of the draws ``D``
-    with only that source (the cell sources together for "cell"); the designs evaluated as one batch per source.
-    ``values``: also each source's combined value per draw (``"_values"``, for the report's plots)."""
+Features = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def _design_depths(rp: RobustProblem, depths: Any, B: int) -> np.ndarray:
+    """(B, N) hole depths (mm) of B designs: ``depths`` (B, N), or a list of (N,) / None per design (None: the
+    reference holes' depths, as ``design.pose_terms.hole_attributes`` takes them)."""
+    from cadfeat.design.hole_form import hole_depths
+
+    ref = hole_depths(rp.inner.model.holes)
+    if depths is None:
+        return np.tile(ref, (B, 1))
+    return np.stack([ref if d is None else np.asarray(d, float).reshape(-1) for d in depths])
+
+
+def source_objectives(rp: RobustProblem, features: Features, D: Any, sources: tuple[str, ...] = SOURCES,
+                      depths: Any = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Raw objectives of B designs' features (B, N, 3), (B, N, 3), (B, N) with hole depths ``depths`` (B, N) mm
+    (or a list of (N,)/None per design; None: the reference holes'): nominal (B, K) and, per source of
+    ``sources``, (B, S, K) on the draws ``D`` with only that source (the cell sources together for "cell"); one
+    batch of the B designs per source."""
     from cadfeat.design.robustness import cell_objectives, shop_objectives
 
     p = rp.inner
-    c, a, r = (np.stack([np.asarray(f[i], float) for f in features]) for i in range(3))
+    c, a, r = (np.asarray(v, float) for v in features)
     a = np.broadcast_to(a, c.shape)
-    G0 = p.batch_objectives(c, a, r)
-    pareto = p.objective_config.combine == "pareto"
-    c0 = None if pareto else np.asarray(p.combined_from(G0), float)
-    out: list[dict[str, Any]] = [{} for _ in features]
+    depth = _design_depths(rp, depths, len(r))
+    G0 = p.batch_objectives(c, a, r, depth_mm=depth)
+    out = {}
     for src in sources:
         d = D.only(src)
         if src == "pixel_noise" and "pose" not in p.objective_config.measures:  # only g_POSE's σ model sees it
-            G = np.repeat(G0[:, None], d.size, axis=1)
+            out[src] = np.repeat(G0[:, None], d.size, axis=1)
         elif src == "manufacturing":
-            G = shop_objectives(p, c, a, r, rp.changed, d)
+            out[src] = shop_objectives(p, c, a, r, rp.changed, d, depth)
         else:
-            G = cell_objectives(p, c, a, r, d)
-        comb = None if pareto else np.asarray(p.combined_from(G), float)
-        for b in range(len(features)):
-            out[b][src] = _block(G[b], G0[b], list(p.names), None if comb is None else comb[b],
+            out[src] = cell_objectives(p, c, a, r, d, depth)
+    return G0, out
+
+
+def statistics_of(rp: RobustProblem, G0: np.ndarray, G: dict[str, np.ndarray],
+                  values: bool = False) -> list[dict[str, Any]]:
+    """Per design, per source: ``_block`` of ``source_objectives``' arrays (``design_statistics``)."""
+    p = rp.inner
+    pareto = p.objective_config.combine == "pareto"
+    c0 = None if pareto else np.asarray(p.combined_from(G0), float)
+    out: list[dict[str, Any]] = [{} for _ in range(len(G0))]
+    for src, Gs in G.items():
+        comb = None if pareto else np.asarray(p.combined_from(Gs), float)
+        for b in range(len(G0)):
+            out[b][src] = _block(Gs[b], G0[b], list(p.names), None if comb is None else comb[b],
                                  None if c0 is None else float(c0[b]))
             if values and comb is not None:
                 out[b].setdefault("_values", {})[src] = comb[b].tolist()
                 if src == "cell":
                     out[b].setdefault("_objective_values", {}).update(
-                        {n: G[b, :, k].tolist() for k, n in enumerate(p.names)})
+                        {n: Gs[b, :, k].tolist() for k, n in enumerate(p.names)})
     return out
 
 
-def _robust_value(rp: RobustProblem, features: list[tuple[np.ndarray, ...]]) -> list[float]:
-    """The robust statistic of each design on ``rp``'s draws, as the optimiser computes it (for "chance": the
-    10th percentile of the combined value, the default statistic)."""
+def design_statistics(rp: RobustProblem, features: list[Features], D: Any, values: bool = False,
+                      sources: tuple[str, ...] = SOURCES, depths: list[Any] | None = None) -> list[dict[str, Any]]:
+    """Per design (features (N, 3), (N, 3), (N,) each; ``depths``: its hole depths (N,) mm or None for the
+    reference holes'), per source of ``sources``: ``_block`` of the draws ``D`` with only that source (the cell
+    sources together for "cell"); the designs evaluated as one batch per source (``source_objectives``).
+    ``values``: also each source's combined value per draw (``"_values"``, for the report's plots)."""
+    c, a, r = (np.stack([np.asarray(f[i], float) for f in features]) for i in range(3))
+    G0, G = source_objectives(rp, (c, a, r), D, sources, depths)
+    return statistics_of(rp, G0, G, values)
+
+
+def _robust_value(rp: RobustProblem, features: list[Features], depths: list[Any] | None = None) -> list[float]:
+    """The robust statistic of each design (hole depths ``depths``, as ``design_statistics``) on ``rp``'s draws,
+    as the optimiser computes it (for "chance": the 10th percentile of the combined value, the default
+    statistic)."""
     if rp.objective.statistic == "chance":
         rp = RobustProblem(rp.inner, RobustObjective(), rp.draws, rp.changed)
     c, a, r = (np.stack([np.asarray(f[i], float) for f in features]) for i in range(3))
-    value, _ = rp.value_and_margins(rp.block_objectives(c, a, r))
+    value, _ = rp.value_and_margins(rp.block_objectives(c, a, r, _design_depths(rp, depths, len(r))))
     return [float(x) for x in value]
 
 
@@ -247,6 +282,7 @@ def robust_designs(setup: Any, run: RobustRun | None, holes0: Any, holes1: Any) 
     """The comparison of the original, the delivered and the other optimum (module docstring); None when the
     robust step did not run or the hole counts differ."""
     from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.design.hole_form import hole_depths
 
     if run is None or len(holes0) != len(holes1) or len(holes1) != len(run.problem.changed):
         return None
@@ -261,10 +297,14 @@ def robust_designs(setup: Any, run: RobustRun | None, holes0: Any, holes1: Any) 
              # the same optimum: the same (shop-rounded, rebuilt) design; else the other optimum as solved
              other: delivered_feats if same else setup.model.features(np.asarray(x_other, float))}
     order = ["original", run.delivered, other]
+    other_depths = setup.problem.hole_depths(np.asarray(x_other, float)[None])
+    depths = {"original": hole_depths(list(holes0)), run.delivered: hole_depths(list(holes1)),
+              other: hole_depths(list(holes1)) if same else None if other_depths is None else other_depths[0]}
     samples = spec.samples or 64
     seed_out = config.study.seed + HELD_OUT_SEED_OFFSET
     held = draws(Uncertainty.from_settings(spec), samples, len(rp.changed), seed_out, spec.sampling)
-    stats = dict(zip(order, design_statistics(rp, [feats[k] for k in order], held, values=True), strict=True))
+    stats = dict(zip(order, design_statistics(rp, [feats[k] for k in order], held, values=True,
+                                              depths=[depths[k] for k in order]), strict=True))
     dists = {k: {"combined": v.pop("_values", {}), "objectives_cell": v.pop("_objective_values", {})}
              for k, v in stats.items()}
     below = {k: _below(stats[k], stats["original"]) for k in order[1:]}
@@ -288,7 +328,7 @@ def robust_designs(setup: Any, run: RobustRun | None, holes0: Any, holes1: Any) 
         if k != recommended:
             designs[k] = stats[k]
     flagged = [k for k in order[1:] if below[k]]
-    in_vals = _robust_value(rp, [feats[k] for k in order])
+    in_vals = _robust_value(rp, [feats[k] for k in order], [depths[k] for k in order])
     stat = rp.objective if rp.objective.statistic != "chance" else RobustObjective()
     out_vals = [float(min(statistic(np.asarray(dists[k]["combined"][b]), stat) for b in BLOCKS))
                 for k in order]  # the held-out draws' combined values, already evaluated per source

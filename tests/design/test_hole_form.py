@@ -114,3 +114,40 @@ def test_shop_snaps_the_bore_and_keeps_the_chamfer(setup):
     for i in _targets(setup.model.holes):
         assert 2 * bores[i] == pytest.approx(sd.target_diameters[i], abs=1e-9)
         assert rims[i] - bores[i] == pytest.approx(0.5, abs=1e-9)  # the rim keeps its chamfer: Ø3.4 is no drill
+
+
+def test_robust_design_statistics_see_the_designs_depths(setup):
+    """``robust_study.design_statistics`` (results.json ``robustness.designs``, the report's robust figures and the
+    held-out choice) evaluates each design with its own hole depths: the nominal entry equals the single-design
+    ``Problem.features_objectives`` with those depths, and each camera draw equals a Problem rebuilt with the
+    displaced camera (no occlusion, so the two paths are exact to round-off; the depth-map lookup of displaced
+    cameras is tests/design/test_robust.py's), and not the value with the reference holes' depths."""
+    from cadfeat.design.problem import Problem
+    from cadfeat.design.robust import RobustObjective, RobustProblem
+    from cadfeat.design.uncertainty import Uncertainty, draws
+    from cadfeat.study.robust_study import design_statistics
+    from cadfeat.trajectory import Trajectory
+
+    p0 = setup.problem
+    traj = setup.trajectory
+
+    def problem(trajectory):
+        return Problem(p0.space, p0.model, p0.camera, trajectory, p0.T_task_part, p0.objective_config,
+                       p0.constraint_config, p0.fixed_mask, normaliser=p0.normaliser, feature_mask=p0.feature_mask)
+    p = problem(traj)
+    D = draws(Uncertainty(camera_position_mm=2.0, camera_angle_deg=1.0), 2, len(p.model.holes), seed=3)
+    rp = RobustProblem(p, RobustObjective(), D)
+    X = np.array([[2.2, 1.2, 0.3], [2.2, 3.8, 0.3]])  # shallow and deep targets, same rim
+    feats = [p.model.features(x) for x in X]
+    depths = list(p.hole_depths(X))
+    assert np.ptp(np.stack(depths), axis=0).max() > 2.0
+    stats = design_statistics(rp, feats, D, values=True, sources=("camera",), depths=depths)
+    for (c, a, r), d, st in zip(feats, depths, stats, strict=True):
+        assert st["camera"]["g_POSE"]["nominal"] == pytest.approx(p.features_objectives(c, a, r, depth_mm=d)[0],
+                                                                  rel=1e-9)
+        for s in range(D.size):
+            ref = problem(Trajectory(np.asarray(traj.T_task_cam) @ D.dC[s], np.asarray(traj.times_s)))
+            g, g_ref_depth = (float(p.combined_from(ref.features_objectives(c, a, r, depth_mm=dd)))
+                              for dd in (d, None))
+            assert st["_values"]["camera"][s] == pytest.approx(g, rel=1e-8, abs=1e-10)
+            assert abs(g - g_ref_depth) > 1e-4  # the test sees the depth

@@ -89,3 +89,40 @@ def test_stacked_designs_with_depth_map_occlusion_equal_one_design_at_a_time(tmp
         info = pose_of_features(problem, *problem.model.features(x))
         assert G[b, 0] == pytest.approx(pose_objective(info, "rms", problem.objective_config.pose_rotation_length_mm),
                                         rel=1e-9)
+
+
+def test_fixed_holes_kept_between_calls_give_pose_informations_numbers(tmp_path):
+    """``stacked_information`` evaluates the fixed holes once and keeps them between calls (the robust solve's
+    speed-up); it gives ``measures.pose_information``'s numbers on all holes, design by design
+    (``pose_of_features``: its own rim test and one pose_information call), bit for bit — also when a moving hole
+    comes so close to a fixed hole's rim that the detection model's rim gap couples them."""
+    import copy
+
+    from study_helpers import study
+
+    from cadfeat.design.pose_terms import pose_of_features, stacked_information
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.setup import setup_study
+
+    problem = copy.copy(setup_study(load_study(study(tmp_path, objective={"measures": ["pose"]}))).problem)
+    assert problem.occlusion is not None
+    c0, a0, r0 = (np.asarray(v, float) for v in problem.model.features(problem.space.x0))
+    N = len(r0)
+    problem.fixed_mask = np.arange(N) > 0  # hole 0 moves, the others are fixed
+    X = np.repeat(c0[None], 3, axis=0)
+    X[1, 0, :2] += [2.0, -1.0]
+    d = c0[1] - c0[0]
+    X[2, 0] = c0[1] - d * (1.2 * r0[1] + r0[0] + 0.3) / np.linalg.norm(d)  # rims 0.2·r apart: the gap couples them
+    A, R = np.repeat(a0[None], 3, axis=0), np.repeat(r0[None], 3, axis=0)
+    ell = problem.objective_config.pose_rotation_length_mm
+    for _ in range(2):  # the second call finds the fixed holes' terms kept
+        got = stacked_information(problem, X, A, R)
+        L = len(problem.T_cam_part)
+        for b in range(3):
+            ref = pose_of_features(problem, X[b], A[b], R[b])
+            sl = slice(b * L, (b + 1) * L)
+            assert np.array_equal(got.information[sl], ref.information)
+            assert np.array_equal(got.error_mm(ell)[sl], ref.error_mm(ell))
+    # the close moving hole changes the fixed neighbour's detection probability (the coupling is exercised)
+    near, far = (pose_of_features(problem, X[b], A[b], R[b]) for b in (2, 0))
+    assert np.abs(near.probability[:, 1] - far.probability[:, 1]).max() > 1e-3
