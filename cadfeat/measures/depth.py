@@ -97,6 +97,31 @@ class DepthMaps:
 
     def hidden(self, X: np.ndarray, Y: np.ndarray, Z: np.ndarray) -> np.ndarray:
         """(L, M) bool: points at camera-frame (X, Y, Z) (L, M) mm behind the part's surface at their cell."""
+        x, y, Z, front = self._nominal(X, Y, Z)
+        idx, ok = self._index(x, y)
+        return front & ok & (self._surface(idx) < Z - self._tol(Z))
+
+    def hidden_fraction(self, X: np.ndarray, Y: np.ndarray, Z: np.ndarray) -> np.ndarray:
+        """(L, M) in [0, 1]: ``hidden``'s test at the four cells around each point, bilinearly weighted by the
+        point's position between their centres — a continuous, piecewise-linear function of the point's image
+        position (a point crossing a silhouette goes from 0 to 1 over one cell), equal to ``hidden`` where all
+        four cells agree. Cells outside the grid, and points behind the camera, count as not hidden."""
+        x, y, Z, front = self._nominal(X, Y, Z)
+        u, v = (x - self.lo) / self.cell - 0.5, (y - self.lo) / self.cell - 0.5  # cell-centre coordinates
+        i0, j0 = np.floor(u), np.floor(v)
+        a, b = u - i0, v - j0
+        i0, j0 = i0.astype(np.int64), j0.astype(np.int64)
+        behind = Z - self._tol(Z)
+        out = np.zeros(np.shape(Z))
+        for di, dj, w in ((0, 0, (1 - a) * (1 - b)), (1, 0, a * (1 - b)), (0, 1, (1 - a) * b), (1, 1, a * b)):
+            i, j = i0 + di, j0 + dj
+            ok = (i >= 0) & (i < self.grid) & (j >= 0) & (j < self.grid)
+            idx = np.where(ok, j * self.grid + i, 0)
+            out += np.where(ok & (self._surface(idx) < behind), w, 0.0)
+        return np.where(front, out, 0.0)
+
+    def _nominal(self, X: np.ndarray, Y: np.ndarray, Z: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Normalised (x, y), depth Z in the nominal camera frames (``tile``'s ``to_nominal``) and in-front mask."""
         if X.shape[0] != self.n_poses:
             raise ValueError(f"DepthMaps: built for {self.n_poses} poses, asked about {X.shape[0]}")
         M = getattr(self, "to_nominal", None)
@@ -105,14 +130,18 @@ class DepthMaps:
             X, Y, Z = (R[..., i, 0] * X + R[..., i, 1] * Y + R[..., i, 2] * Z + t[..., i] for i in range(3))
         front = Z > 1e-6
         z = np.where(front, Z, 1.0)
-        idx, ok = self._index(X / z, Y / z)
+        return X / z, Y / z, Z, front
+
+    def _tol(self, Z: np.ndarray) -> np.ndarray:
+        """The depth slack ``tol(Z)`` (module docstring), mm."""
+        return 3.0 * Z * self.cell + 0.5
+
+    def _surface(self, idx: np.ndarray) -> np.ndarray:
+        """The maps' depth at flat cell indices idx (L, M), pose by pose (through ``rows`` when tiled/selected)."""
         rows = getattr(self, "rows", None)
         if rows is None:
-            surface = np.take_along_axis(self.maps, idx, axis=1)
-        else:  # a tiled or selected view: gather from the shared maps
-            surface = self.maps.reshape(-1)[rows[:, None] * self.maps.shape[1] + idx]
-        return front & ok & (surface < Z - (3.0 * Z * self.cell + 0.5))
-
+            return np.take_along_axis(self.maps, idx, axis=1)
+        return self.maps.reshape(-1)[rows[:, None] * self.maps.shape[1] + idx]
 
 def _surface_points(mesh: Any, spacing: float) -> np.ndarray:
     """Points on the mesh about ``spacing`` mm apart: the vertices, plus 4·area/spacing² points per triangle at
