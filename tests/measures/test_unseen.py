@@ -3,7 +3,7 @@ occlusion: a segment-box slab test on the rim points of a hole behind a wall, no
 casts or depth maps.
 
 Rule: a hole facing the camera scores f + (1 − h)(v − f) in FOV (cone and image), focus and resolution (v its
-value as if seen, f the floor, h its rim's hidden fraction); g_DIR counts only holes whose centre is seen;
+value as if seen, f the floor, h its rim's hidden fraction); g_DIR weighs each hole's Jacobian rows by 1 − h;
 g_POSE gives a hidden rim no information. So a hidden hole gains nothing by shrinking, by moving further into
 hiding or by vanishing, and a partly hidden one scores between seen and hidden."""
 
@@ -139,19 +139,26 @@ def test_no_objective_improves_while_its_hole_is_hidden(measure):
     assert g(36.0, 1.5) > hidden[0] and g(40.0, 1.5) > g(36.0, 1.5)  # coming out of hiding pays
 
 
-def test_g_dir_ignores_a_hidden_hole():
-    """Λ counts a hole only where its centre is seen (slab test): a hole hidden at every pose leaves Λ as the
-    other holes give it alone — shrinking, moving or removing it changes nothing."""
-    assert _slab_hidden(np.array([[30.0, 0.0, 5.0], [22.0, 0.0, 5.0]])).all()
+def test_g_dir_weighs_a_hole_by_its_rim_seen():
+    """Λ weighs each hole's rows by the seen fraction of its rim: a hole hidden whole at every pose (slab test)
+    leaves Λ as the other holes give it alone — shrinking, moving or removing it changes nothing —, a partly
+    hidden one adds less image motion than the same hole seen, a wholly seen one as much."""
+    assert _slab_hidden(np.vstack([_rim(30.0, 1.5, 256), _rim(22.0, 1.5, 256)])).all()
     alone = measures.evaluate(CAMERA, T_CAM_PART, SCREWS, OTHERS, np.tile(UP, (3, 1)), np.full(3, 2.0)).resolvability
     assert np.all(alone > 0)
     for occlusion in (MESH, MAPS):
         for x, r in ((30.0, 1.5), (30.0, 0.2), (22.0, 1.5)):
             np.testing.assert_allclose(_evaluate(x, r, occlusion).resolvability, alone, rtol=1e-12)
-    hid = _slab_hidden(np.array([[44.0, 0.0, 5.0]]))[:, 0]
-    assert (~hid).sum() >= 6 and hid.any()  # seen at the early poses: there it adds image motion
-    lam = _evaluate(44.0, 1.5, MESH).resolvability
-    assert np.all(lam[~hid] > alone[~hid]) and np.allclose(lam[hid], alone[hid], rtol=1e-12)
+    h = _slab_fraction(44.0, 1.5)
+    part, seen, hidden = (h > 0) & (h < 1), h == 0, h == 1
+    assert seen.sum() >= 6 and part.sum() >= 2 and hidden.any()
+    lam, free = _evaluate(44.0, 1.5, MESH).resolvability, _evaluate(44.0, 1.5, None).resolvability
+    np.testing.assert_allclose(lam[seen], free[seen], rtol=1e-12)
+    np.testing.assert_allclose(lam[hidden], alone[hidden], rtol=1e-12)
+    assert np.all(lam[part] > alone[part]) and np.all(lam[part] < free[part])
+    # the weight is the seen fraction: Λ² = ‖J γ̇‖² (full rank) adds (1 − h)² of the hole's own image speed²
+    np.testing.assert_allclose(lam[part] ** 2, alone[part] ** 2 + (1 - h[part]) ** 2 * (free[part] ** 2
+                                                                                       - alone[part] ** 2), rtol=1e-9)
 
 
 def test_g_pose_gives_a_hidden_rim_no_information():
