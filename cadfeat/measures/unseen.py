@@ -18,9 +18,10 @@ what hides it (the old centre-ray rule was a staircase of constant floors, flat 
 
 h samples the rim at ``RIM_SAMPLES`` points (``rim_occlusion.rim_points``). With the optimiser's depth maps
 (``depth.DepthMaps``) each point's hidden value is bilinear in its image position between the four nearest cells
-(``DepthMaps.hidden_fraction``), so h is continuous in the design; with the part's mesh (the reported values) each
-point is the exact segment test (``visibility.occluded``'s rule), so h moves in steps of 1/``RIM_SAMPLES``. The
-hard flags stay for reporting: ``Measures.hidden`` (the centre's ray is blocked) and ``Measures.visible``.
+(``DepthMaps.hidden_fraction``; one compiled pass over the rims, ``DepthMaps.circle_hidden_fraction``), so h is
+continuous in the design; with the part's mesh (the reported values) each point is the exact segment test
+(``visibility.occluded``'s rule), so h moves in steps of 1/``RIM_SAMPLES``. The hard flags stay for reporting:
+``Measures.hidden`` (the centre's ray is blocked) and ``Measures.visible``.
 """
 
 from __future__ import annotations
@@ -41,8 +42,6 @@ __all__ = ["RIM_SAMPLES", "UNSEEN_KEYS", "apply_unseen", "rim_hidden_fraction", 
 RIM_SAMPLES = 16
 #: The ``Measures`` fields the rule applies to.
 UNSEEN_KEYS = ("fov", "fov_px", "focus", "resolution_px")
-#: Rim points per block of the depth-map lookups (bounds the temporaries: ~10 arrays of 8 bytes each).
-_BLOCK_POINTS = 1 << 16
 
 
 def unseen_floors(camera: Camera, min_axis_px: float) -> dict[str, float]:
@@ -64,17 +63,18 @@ def rim_hidden_fraction(occlusion: Any, T_cam_part: np.ndarray, centres: np.ndar
     if not where.any():
         return h
     pts = rim_points(centres, axes, radii, samples)  # (N, K, 3)
-    if hasattr(occlusion, "hidden_fraction"):
-        step = max(1, _BLOCK_POINTS // (N * samples))
-        flat = pts.reshape(-1, 3)
-        for i in range(0, L, step):  # blocks of whole poses, each fully batched
-            sl = slice(i, i + step)
-            T = T_cam_part[sl]
-            P = flat @ np.swapaxes(T[:, :3, :3], 1, 2) + T[:, None, :3, 3]  # R p + t (l, N·K, 3)
-            maps = occlusion.select(sl) if L > step else occlusion
-            frac = maps.hidden_fraction(P[..., 0], P[..., 1], P[..., 2])
-            h[sl] = frac.reshape(len(T), N, samples).mean(axis=-1)
-        return np.where(where, h, 0.0)
+    if hasattr(occlusion, "circle_hidden_fraction"):
+        R, t = T_cam_part[:, :3, :3], T_cam_part[:, :3, 3]
+        li, nj = np.nonzero(where)
+        # rim point k = centre + cos φ_k · r u + sin φ_k · r v (``rim_points``' frame u, v): solve for r u, r v
+        # from its first two points
+        phi = 2.0 * np.pi * (np.arange(2) + 0.5) / samples
+        basis = np.linalg.inv(np.column_stack([np.cos(phi), np.sin(phi)]))
+        ru, rv = np.einsum("ij,jnk->ink", basis, pts[:, :2].transpose(1, 0, 2) - centres[None])
+        C, U, V = (np.stack([(R[:, k] @ p.T + (t[:, k, None] if p is centres else 0.0))[li, nj] for k in range(3)])
+                   for p in (centres, ru, rv))  # camera-frame centres and r u, r v (3, M)
+        h[li, nj] = occlusion.circle_hidden_fraction(C, U, V, samples, li)
+        return h
     li, nj = np.nonzero(where)
     cams = -np.einsum("lji,lj->li", T_cam_part[:, :3, :3], T_cam_part[:, :3, 3])  # camera centres, part frame
     blocked = _segments_blocked(occlusion, pts[nj].reshape(-1, 3), np.repeat(axes[nj], samples, axis=0),

@@ -181,3 +181,23 @@ def test_g_pose_gives_a_hidden_rim_no_information():
     seen = pose_information(CAMERA, T_CAM_PART, centres, normals, radii).information
     partly = pose_information(CAMERA, T_CAM_PART, centres, normals, radii, occlusion=occ).information
     assert np.all(np.trace(partly[part], axis1=1, axis2=2) <= np.trace(seen[part], axis1=1, axis2=2))
+
+
+def test_compiled_rim_pass_equals_the_point_lookups():
+    """``DepthMaps.circle_hidden_fraction`` (compiled) is the mean of ``hidden_fraction`` over the rim points,
+    also for tiled maps seen from displaced cameras (the robustness draws)."""
+    rng = np.random.default_rng(5)
+    M, K = 300, RIM_SAMPLES
+    poses = rng.integers(0, 12, M)
+    C = np.einsum("mij,mj->im", T_CAM_PART[poses, :3, :3],
+                  np.column_stack([rng.uniform(0, 50, M), rng.uniform(-20, 20, M), np.full(M, 5.0)])) \
+        + T_CAM_PART[poses, :3, 3].T
+    U, V = rng.normal(0, 2.0, (3, M)), rng.normal(0, 2.0, (3, M))
+    phi = 2 * np.pi * (np.arange(K) + 0.5) / K
+    X, Y, Z = (C[k, :, None] + U[k, :, None] * np.cos(phi) + V[k, :, None] * np.sin(phi) for k in range(3))
+    shift = np.tile(np.eye(4), (24, 1, 1))
+    shift[12:, :3, 3] = [0.4, -0.3, 0.2]  # the second copy's cameras displaced
+    for maps, rows in ((MAPS, poses), (MAPS.tile(2, shift), poses + 12)):
+        expected = maps.hidden_fraction(X, Y, Z, poses=rows).mean(axis=-1)
+        assert (expected == 0).any() and (expected == 1).any() and ((expected > 0) & (expected < 1)).sum() > 20
+        np.testing.assert_allclose(maps.circle_hidden_fraction(C, U, V, K, rows), expected, atol=1e-12)
