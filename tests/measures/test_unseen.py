@@ -201,3 +201,21 @@ def test_compiled_rim_pass_equals_the_point_lookups():
         expected = maps.hidden_fraction(X, Y, Z, poses=rows).mean(axis=-1)
         assert (expected == 0).any() and (expected == 1).any() and ((expected > 0) & (expected < 1)).sum() > 20
         np.testing.assert_allclose(maps.circle_hidden_fraction(C, U, V, K, rows), expected, atol=1e-12)
+
+
+def test_the_depth_maps_visibility_term_slopes_out_of_hiding():
+    """With the depth maps, h is continuous in the hole's position (no step where the centre's ray clears the wall)
+    and, moving away from the wall, falls from 1 to 0 with no flat step in between: a slope to follow."""
+    xs = np.arange(30.0, 46.0, 0.02)
+    centres = np.column_stack([xs, np.zeros_like(xs), np.full_like(xs, 5.0)])
+    m = measures.evaluate(CAMERA, T_CAM_PART, SCREWS, centres, np.tile(UP, (len(xs), 1)), np.full(len(xs), 1.5),
+                          occlusion_mesh=MAPS)
+    h = m.rim_hidden  # (12 poses, positions)
+    assert np.abs(np.diff(h, axis=1)).max() < 0.05  # the centre-ray test jumps by 1 between two such positions
+    assert np.abs(np.diff(m.hidden.astype(float), axis=1)).max() == 1.0
+    for k in range(len(h)):
+        part = (h[k] > 0) & (h[k] < 1)
+        if part.any():
+            assert np.all(np.diff(h[k][part]) < 0)  # strictly decreasing while partly hidden
+            assert np.all(np.diff(m.fov[k][part]) > 0)  # and the FOV margin rises with it
+    assert sum(((h[k] > 0) & (h[k] < 1)).any() for k in range(len(h))) >= 8
