@@ -19,9 +19,11 @@ Objective names: g_FOV (cone margin eq. 3.3, or the image margin in px with ``fo
 g_FOC (focus margin eq. 3.4–3.6), g_RES (minor axis − ω in px, §3.3.3), g_DIR (Λ, px/mm, eq. 4.33),
 g_POSE (the predicted pose error, ``pose_objective``: minus the error in mm, so larger is better; measure key
 "pose", needs ``measures.pose`` = a ``cadfeat.measures.PoseInformation`` of the same poses). All are "larger
-is better". Hidden and folded holes: FOV/focus/resolution score each measure's constant floor at those poses
-(``measures.evaluate.unseen_floors``), Λ and g_POSE give them no rows / no information — so no objective
-improves when a hole the camera cannot see shrinks, moves (staying unseen) or vanishes.
+is better". Hidden, partly hidden and folded holes (``measures.unseen``): with h the hidden fraction of a
+rim at a pose, FOV/focus/resolution score floor + (1 − h)(margin − floor) (each measure's constant floor,
+``unseen_floors``, when hidden whole or folded), Λ weighs the hole's rows by 1 − h, g_POSE gives a hidden rim no
+information — so no objective improves when a hole the camera cannot see shrinks, moves (staying unseen) or
+vanishes, and a partly hidden hole scores between seen and hidden.
 Combination of the normalised objectives ĝ_i = (g_i − offset_i) / scale_i
 (``Normaliser``; default ``"payoff"``: offset = nadir, scale = ideal − nadir, from each objective's own optimum
 over the design space — independent of the starting design):

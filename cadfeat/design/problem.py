@@ -302,13 +302,15 @@ class Problem:
     def pose_arrays(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                     noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> dict[str, Any]:
         """Per-pose arrays of B designs at the problem's L poses: each chosen measure's (B, L, N) feature values
-        (``visible`` for Λ), Λ as (B, L), and for g_POSE ``("pose", (errors (B, L) mm, information (B, L, 6, 6)))``.
+        (``seen``, the Jacobian rows' weights, for Λ), Λ as (B, L), and for g_POSE
+        ``("pose", (errors (B, L) mm, information (B, L, 6, 6)))``.
 
         The per-feature measures come from ONE ``measures.evaluate`` call on the B·N features side by side
         (they are independent per feature); its per-pose Jacobian values mix designs and are not used.
-        Instead Λ is computed per (design, pose) with ``measures.stacked_jacobian`` (rows of features that are
-        not ``visible`` weighted 0, as ``evaluate`` does) and ``measures.resolvability`` on B·L stacked
-        Jacobians. ``noise_grey`` (L, 1) or None: the sensor noise per pose of g_POSE's σ model."""
+        Instead Λ is computed per (design, pose) with ``measures.stacked_jacobian`` (each feature's rows
+        weighted by ``seen``, the seen fraction of its rim, 0 where it cannot be seen, as ``evaluate`` does) and
+        ``measures.resolvability`` on B·L stacked Jacobians. ``noise_grey`` (L, 1) or None: the sensor noise per
+        pose of g_POSE's σ model."""
         from cadfeat import measures
 
         cfg = self.objective_config
@@ -322,7 +324,7 @@ class Problem:
         def per_design(a: np.ndarray) -> np.ndarray:  # (L, B·N) → (B, L, N)
             return np.moveaxis(a.reshape(L, B, N), 1, 0)
         attrs = {"fov": "fov" if cfg.fov_measure == "cone" else "fov_px", "focus": "focus",
-                 "resolution": "resolution_px", "resolvability": "visible"}
+                 "resolution": "resolution_px", "resolvability": "seen"}
         arrays: dict[str, Any] = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
         if "pose" in cfg.measures:  # g_POSE: one pose_information on the B·L stacked poses (``design.pose_terms``)
             from cadfeat.design.pose_terms import stacked_information
@@ -336,7 +338,7 @@ class Problem:
             R, t = self.T_cam_part[:, :3, :3], self.T_cam_part[:, :3, 3]
             pts = centres[:, None] @ np.swapaxes(R, 1, 2)[None] + t[None, :, None, :]  # (B, L, N, 3)
             J = measures.stacked_jacobian(self.camera, pts.reshape(B * L, N, 3),
-                                          arrays["visible"].reshape(B * L, N).astype(float))
+                                          arrays["seen"].reshape(B * L, N))
             arrays["resolvability"] = _resolvability(J, np.tile(self.screws, (B, 1)),
                                                      cfg.rotation_length_mm).reshape(B, L)
         return arrays

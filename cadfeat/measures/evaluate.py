@@ -7,20 +7,21 @@ features. The stacked Jacobian is never formed as (L, 2N, 6) for full-rank poses
 summed from the per-point 2×6 blocks, its eigenvalues give σ_min / condition / manipulability, and
 Λ = ‖J γ̇‖/‖γ̃‖ (``resolvability``); only rank-deficient poses build J̃ and take a pseudo-inverse.
 
-Jacobian weighting: a feature's two Jacobian rows count (weight 1) only where it is ``visible`` (in
-front of the camera, facing it, its rim inside the image, inside the lens's valid field (``Camera.fold_radius``:
-past it rays fold back into the image) and not hidden by the part when a mesh is given); the rows of
-invisible features are zero — the estimator could not measure them.
+Jacobian weighting: a feature's two Jacobian rows are scaled by ``seen`` — the seen fraction 1 − h of its rim
+where it is in front of the camera, facing it, its rim inside the image and inside the lens's valid field
+(``Camera.fold_radius``: past it rays fold back into the image), else 0: 1 for a feature seen whole (h = 0
+without a mesh), 0 for one the part hides whole — the estimator could not measure it.
 
-Hidden and folded feature-poses (DESIGN.md trust rules): a hole the part hides at a pose, or one past the
-lens's fold radius, never scores better there than the same hole seen, and never scores better by shrinking,
-moving or vanishing while it stays unseen — its FOV (cone and image), focus and resolution margins at that pose
-are each measure's floor, a constant independent of the hole's size and position (``unseen_floors``: the value
-of a feature behind the camera — cone −1 − cos(α/2), image ``behind_px``, resolution −ω − max(W, H) — and for
-focus −(near + far)/scale, below any seen hole up to a depth of 2·far + near). Before, they were −|margin|,
-which let an optimiser improve g_RES by shrinking a hidden hole towards the threshold (issue 17). Partly
-hidden holes (centre ray clear, part of the rim hidden) count as seen in these proxies; ``pose_information``
-models them (the detector rejects them). The diagnostics use the
+Hidden, partly hidden and folded feature-poses (DESIGN.md trust rules; the rule is ``measures.unseen``'s): a
+hole past the lens's fold radius, or facing away with its centre hidden, scores each measure's floor
+(``unseen_floors``: the value of a feature behind the camera, a constant independent of the hole's size and
+position) in FOV (cone and image), focus and resolution; a hole facing the camera scores
+floor + (1 − h)(margin − floor), h the hidden fraction of its rim (``Measures.rim_hidden``) — its margin when
+the whole rim is seen, the floor when the whole rim is hidden, between in proportion otherwise. So a hidden hole
+never scores better than the same hole seen, gains nothing by shrinking, moving or vanishing while wholly hidden
+(issue 17: the old −|margin| let an optimiser improve g_RES by shrinking a hidden hole), and a partly hidden one
+gains only by showing more of its rim (a slope out of hiding; the centre-ray floors were flat steps). Λ and
+the diagnostics weigh each feature's rows by the same seen fraction (``seen``). The diagnostics use the
 scaled Jacobian J̃ = J diag(1, 1, 1, 1/ℓ, 1/ℓ, 1/ℓ) (ℓ = ``rotation_length_mm``), so every column is in px/mm;
 with the default ℓ = 1 mm that is the thesis's J.
 """
@@ -43,6 +44,8 @@ from cadfeat.measures.kernels import features, gram_and_speed
 from cadfeat.measures.lens import distort_terms
 from cadfeat.measures.resolution import minor_axis_margin
 from cadfeat.measures.resolvability import check_length, resolvability_from_parts, scale_screws
+from cadfeat.measures.unseen import apply_unseen, rim_hidden_fraction
+from cadfeat.measures.unseen import unseen_floors as unseen_floors  # re-exported (its old home)
 from cadfeat.measures.visibility import occluded
 
 #: Feature-poses per slab in ``evaluate`` (temporaries of 16k doubles = 128 kB stay in the L2 cache).
@@ -60,8 +63,10 @@ class Measures:
     (eq. 3.6, normalised), ``resolution_px`` (minor axis − min_axis_px), ``minor_axis_px``, ``facing``
     (cos), ``visible`` (bool), ``centre_px`` (L, N, 2), ``axes_px`` (L, N, 2), ``angle_rad``.
     Per pose (L,): ``sigma_min``, ``condition``, ``manipulability`` (eq. 4.20–4.21), ``singular`` (bool),
-    ``resolvability`` Λ_k (eq. 4.32, px/mm). ``hidden`` (L, N) bool: hidden by the part (occlusion mesh);
-    ``folded`` (L, N) bool: past the lens's fold radius (module docstring).
+    ``resolvability`` Λ_k (eq. 4.32, px/mm). ``hidden`` (L, N) bool: the centre hidden by the part (occlusion
+    mesh); ``folded`` (L, N) bool: past the lens's fold radius; ``rim_hidden`` (L, N) in [0, 1]: the hidden
+    fraction h of the rim (0 without a mesh, and where facing away, folded or behind the camera; module
+    docstring, ``measures.unseen``); ``seen`` (L, N) in [0, 1]: the Jacobian rows' weight (module docstring).
     """
 
     fov: np.ndarray
@@ -81,6 +86,8 @@ class Measures:
     resolvability: np.ndarray
     hidden: np.ndarray
     folded: np.ndarray
+    rim_hidden: np.ndarray
+    seen: np.ndarray
 
     def as_dict(self) -> dict[str, np.ndarray]:
         """The arrays by field name."""
@@ -158,7 +165,8 @@ def _allocate(L: int, N: int) -> dict[str, np.ndarray]:
     out = {k: np.empty((L, N)) for k in _PER_FEATURE}
     out.update({k: np.empty(L) for k in _PER_POSE})
     out.update(visible=np.empty((L, N), dtype=bool), singular=np.empty(L, dtype=bool),
-               hidden=np.zeros((L, N), dtype=bool), folded=np.zeros((L, N), dtype=bool),
+               hidden=np.zeros((L, N), dtype=bool), folded=np.zeros((L, N), dtype=bool), rim_hidden=np.zeros((L, N)),
+               seen=np.empty((L, N)),
                centre_px=np.empty((L, N, 2)), axes_px=np.empty((L, N, 2)))
     return out
 
@@ -198,10 +206,10 @@ def _evaluate_compiled(kernel: Any, camera: Camera, T: np.ndarray, s: np.ndarray
     out = dict(zip(("fov", "fov_px", "focus", "resolution_px", "minor_axis_px", "facing", "angle_rad"), f,
                    strict=True))
     out.update(visible=visible, centre_px=centre, axes_px=axes_px)
-    out.update(_unseen(camera, lens[0], lens[1], r * lens[2], Z, occlusion_mesh, -rt, c, n, out, min_axis_px))
+    out.update(_unseen(camera, lens[0], lens[1], r * lens[2], Z, occlusion_mesh, T, c, n, r, out, min_axis_px))
     out.update({k: np.empty(L) for k in _PER_POSE}, singular=np.empty(L, dtype=bool))
     D = list(lens[3:]) if mode else [camera.fx, 0.0, 0.0, camera.fy]
-    _jacobian_measures(lens[0], lens[1], lens[2], D, visible, s, rotation_length_mm, out)
+    _jacobian_measures(lens[0], lens[1], lens[2], D, out["seen"], s, rotation_length_mm, out)
     return Measures(**out)
 
 
@@ -241,56 +249,52 @@ def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np
     if not ell.valid.all():  # invalid ellipses: the (depth-clamped) projection of the centre
         bad = ~ell.valid
         centre[bad] = camera.distort_normalized(np.stack([x[bad], y[bad]], axis=-1))
-    flags = _unseen(camera, x, y, r * inv_z, Z, occlusion_mesh, -rt, c, n, out, min_axis_px)
-    out["hidden"][...] = flags["hidden"]
-    out["folded"][...] = flags["folded"]
-    _jacobian_measures(x, y, inv_z, D, visible, s, rotation_length_mm, out)
-
-
-def unseen_floors(camera: Camera, min_axis_px: float) -> dict[str, float]:
-    """The constant margins of an unseen (hidden or folded) feature-pose, per measure (module docstring)."""
-    near, far = camera.depth_of_field_mm
-    return {"fov": -1.0 - float(np.cos(0.5 * camera.fov_rad)), "fov_px": behind_px(camera),
-            "focus": -(near + (far if np.isfinite(far) else 0.0)) / focus_scale_mm(camera),
-            "resolution_px": -float(min_axis_px) - float(max(camera.width, camera.height))}
+    flags = _unseen(camera, x, y, r * inv_z, Z, occlusion_mesh, T, c, n, r, out, min_axis_px)
+    for key in ("hidden", "folded", "rim_hidden", "seen"):
+        out[key][...] = flags[key]
+    _jacobian_measures(x, y, inv_z, D, out["seen"], s, rotation_length_mm, out)
 
 
 def _unseen(camera: Camera, x: np.ndarray, y: np.ndarray, rim_reach: np.ndarray, Z: np.ndarray, mesh: Any,
-            camera_positions: np.ndarray, c: np.ndarray, n: np.ndarray,
-            out: dict[str, np.ndarray], min_axis_px: float = 5.0) -> dict[str, np.ndarray]:
-    """Hidden (by ``mesh``) and folded (past ``camera.fold_radius``: the centre's normalised radius plus the
-    rim's angular reach R/Z) feature-poses: not ``visible``, and their FOV, focus and resolution margins
-    the constant floors of ``unseen_floors`` (module docstring). Modifies ``out`` in place; returns
-    {"hidden", "folded"} (L, N) bool."""
+            T: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray, out: dict[str, np.ndarray],
+            min_axis_px: float = 5.0) -> dict[str, np.ndarray]:
+    """Hidden (the centre's ray, by ``mesh``), folded (past ``camera.fold_radius``: the centre's normalised
+    radius plus the rim's angular reach R/Z) and partly hidden (``rim_hidden``: ``unseen.rim_hidden_fraction``
+    where facing the camera, in front and not folded) feature-poses; hidden and folded ones are not ``visible``,
+    and the FOV, focus and resolution margins follow ``unseen.apply_unseen`` (module docstring). Modifies
+    ``out`` in place; returns {"hidden", "folded"} (L, N) bool and {"rim_hidden", "seen"} (L, N) float
+    (``seen``: 1 − rim_hidden where ``visible`` but for the centre test, else 0)."""
     L, N = x.shape
     r_fold = camera.fold_radius
     folded = np.zeros((L, N), dtype=bool)
     if np.isfinite(r_fold):
         folded = (np.hypot(x, y) + np.abs(rim_reach) > r_fold) & (Z > MIN_DEPTH_MM)
+    rim_hidden = np.zeros((L, N))
     if mesh is None:
         hidden = np.zeros((L, N), dtype=bool)
-    elif hasattr(mesh, "hidden"):  # depth maps of the part at these poses (``measures.depth.DepthMaps``)
-        hidden = mesh.hidden(x * Z, y * Z, Z)
-    else:  # the exact ray test against the mesh
-        hidden = occluded(mesh, camera_positions, c, n)
-    unseen = hidden | folded
-    if unseen.any():
-        out["visible"] &= ~unseen
-        for key, floor in unseen_floors(camera, min_axis_px).items():
-            out[key][unseen] = floor
-    return {"hidden": hidden, "folded": folded}
+    else:
+        if hasattr(mesh, "hidden"):  # depth maps of the part at these poses (``measures.depth.DepthMaps``)
+            hidden = mesh.hidden(x * Z, y * Z, Z)
+        else:  # the exact ray test against the mesh
+            hidden = occluded(mesh, -np.einsum("lji,lj->li", T[:, :3, :3], T[:, :3, 3]), c, n)
+        rim_hidden = rim_hidden_fraction(mesh, T, c, n, r, (out["facing"] > 0.0) & (Z > MIN_DEPTH_MM) & ~folded)
+    seen = np.where(out["visible"] & ~folded, 1.0 - rim_hidden, 0.0)
+    out["visible"] &= ~(hidden | folded)
+    apply_unseen(camera, out, hidden, folded, rim_hidden, min_axis_px)
+    return {"hidden": hidden, "folded": folded, "rim_hidden": rim_hidden, "seen": seen}
 
 
-def _jacobian_measures(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list, visible: np.ndarray,
+def _jacobian_measures(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list, weights: np.ndarray,
                        screws: np.ndarray, rotation_length_mm: float, out: dict[str, np.ndarray]) -> None:
-    """Diagnostics and Λ per pose from the visible features' Jacobians (module docstring), into ``out``.
+    """Diagnostics and Λ per pose from the features' Jacobians, rows scaled by ``weights`` (L, N) (module
+    docstring: ``seen``), into ``out``.
 
     JᵀJ (L, 6, 6) and ‖J γ̇‖ come from the compiled kernel (``kernels.gram_and_speed``) when numba is
     available, else from the transposed stacked Jacobian (``_stacked_transposed``); J̃ itself is built
     only for the rank-deficient poses that need a pseudo-inverse."""
     kernel = gram_and_speed()
     if kernel is None:
-        Jt = _stacked_transposed(x, y, inv_z, D, visible)
+        Jt = _stacked_transposed(x, y, inv_z, D, weights)
         image_speed = np.linalg.norm(np.einsum("lk,lkm->lm", screws, Jt), axis=-1)
         if rotation_length_mm != 1.0:
             Jt[:, 3:, :] /= rotation_length_mm
@@ -300,12 +304,12 @@ def _jacobian_measures(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list,
         L, N = x.shape
         G, image_speed = np.empty((L, 6, 6)), np.empty(L)
         Dfull = [d if isinstance(d, np.ndarray) else np.full((L, N), d) for d in D]
-        kernel(x, y, inv_z, *Dfull, visible, np.ascontiguousarray(screws), float(rotation_length_mm), G,
+        kernel(x, y, inv_z, *Dfull, weights, np.ascontiguousarray(screws), float(rotation_length_mm), G,
                image_speed)
 
         def rows(idx: np.ndarray) -> np.ndarray:
             Jt = _stacked_transposed(x[idx], y[idx], inv_z[idx], [d[idx] if isinstance(d, np.ndarray) else d
-                                                                  for d in D], visible[idx])
+                                                                  for d in D], weights[idx])
             if rotation_length_mm != 1.0:
                 Jt[:, 3:, :] /= rotation_length_mm
             return np.swapaxes(Jt, 1, 2)
@@ -318,11 +322,11 @@ def _jacobian_measures(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list,
         out[key][...] = value
 
 
-def _stacked_transposed(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list, visible: np.ndarray) -> np.ndarray:
-    """Jᵀ (L, 6, 2N) of the visible features (zero rows elsewhere), held transposed (rows of one column
+def _stacked_transposed(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, D: list, weights: np.ndarray) -> np.ndarray:
+    """Jᵀ (L, 6, 2N) of the features, rows scaled by ``weights`` (L, N), held transposed (rows of one column
     contiguous) so JᵀJ is one batched (6, 2N) @ (2N, 6) product; row order within 2N is irrelevant."""
-    L, N = visible.shape
-    w = visible.astype(float)
+    L, N = weights.shape
+    w = np.asarray(weights, dtype=float)
     Dw = [d * w if not (np.isscalar(d) and d == 0.0) else 0.0 for d in D]  # zero weight → zero rows
     Jt = np.empty((L, 12, N))
     fill_jacobian([Jt[:, j] for j in range(12)], x, y, inv_z, Dw)  # the 12 entries of the 2×6 blocks

@@ -4,6 +4,11 @@ Near and far planes D2, D1 (``Camera.depth_of_field_mm``) come from the thin len
 aperture a = f/N, image distance d (from the focus distance) and blur circle c; D1 = ∞ at or past the
 hyperfocal distance. A point at depth Z (its distance along the optical axis, (r_A − r_C)·ν_C of
 eq. 3.6) is in focus when D2 ≤ Z ≤ D1.
+
+Hidden and partly hidden holes (rule of this measure, applied by ``evaluate``; ``measures.unseen``): facing the
+camera, a hole scores f + (1 − h)(margin − f), h the hidden fraction of its rim and f = −(near + far)/scale the
+floor: its margin seen whole, f hidden whole (whatever its depth), between otherwise; past the fold radius, or
+facing away with its centre hidden, f.
 """
 
 from __future__ import annotations

@@ -2,6 +2,11 @@
 
 Margins are positive inside, 0 on the limit. Points at or behind the camera give finite, strongly
 negative values: the cone margin is then ≤ −cos(α/2), the image margin ``BEHIND_PX``.
+
+Hidden and partly hidden holes (rule of this measure, applied by ``evaluate``; ``measures.unseen``): facing the
+camera, a hole scores f + (1 − h)(margin − f), h the hidden fraction of its rim and f the floor (cone
+−1 − cos(α/2), image ``behind_px``): its margin seen whole, f hidden whole (whatever its size and position),
+between otherwise; past the fold radius, or facing away with its centre hidden, f.
 """
 
 from __future__ import annotations

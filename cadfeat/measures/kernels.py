@@ -18,10 +18,11 @@ import numpy as np
 def _gram_and_speed(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, d00: np.ndarray, d01: np.ndarray,
                     d10: np.ndarray, d11: np.ndarray, w: np.ndarray, screws: np.ndarray, ell: float,
                     gram: np.ndarray, speed: np.ndarray) -> None:
-    """Per pose l: gram[l] = Σ_j w J̃_jᵀ J̃_j (6×6) and speed[l] = ‖J γ̇_l‖ over features j with w[l, j] ≠ 0.
+    """Per pose l: gram[l] = Σ_j w² J̃_jᵀ J̃_j (6×6) and speed[l] = ‖J γ̇_l‖ of the rows J_j scaled by w[l, j]
+    (features with w = 0 skipped).
 
     x, y normalised coordinates, inv_z = 1/Z (1/mm), d.. the pixel distortion Jacobian (all (L, N), the
-    d.. may be broadcast views), w (L, N) bool, screws (L, 6), ell = ℓ (mm)."""
+    d.. may be broadcast views), w (L, N) bool or float weights, screws (L, 6), ell = ℓ (mm)."""
     L, N = x.shape
     ju = np.empty(6)
     jv = np.empty(6)
@@ -47,6 +48,11 @@ def _gram_and_speed(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, d00: np.nda
                 jr[3] = da * xy + db * yy1
                 jr[4] = -(da * xx1 + db * xy)
                 jr[5] = da * yl - db * xl
+            wj = w[l, j]
+            if wj != 1:  # a partly seen feature: its rows scaled by its weight (``evaluate``: the rim seen)
+                for k in range(6):
+                    ju[k] *= wj
+                    jv[k] *= wj
             fu = 0.0
             fv = 0.0
             for k in range(6):

@@ -3,6 +3,11 @@
 A hole is resolvable when the minor axis of its image ellipse is at least ``min_axis_px`` (the thesis's
 ω, eq. 3.22). Margins are in pixels; a rim not wholly in front of the camera gets a minor axis of 0
 and the margin −min_axis_px − max(width, height) (strongly negative, finite).
+
+Hidden and partly hidden holes (rule of this measure, applied by ``evaluate``; ``measures.unseen``): facing the
+camera, a hole scores f + (1 − h)(margin − f), h the hidden fraction of its rim and f = −ω − max(W, H) the
+floor: its margin seen whole, f hidden whole (so a hidden hole gains nothing by shrinking towards ω or to
+nothing), between otherwise; past the fold radius, or facing away with its centre hidden, f.
 """
 
 from __future__ import annotations

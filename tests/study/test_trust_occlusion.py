@@ -57,10 +57,11 @@ def test_optimum_moves_out_from_behind_the_wall(tmp_path):
     res = optimise(seen.problem, seen.config.optimizer)
     x = float(res.x_best[0])
     m = seen.problem.measures(res.x_best)
-    # (issue 17: a hidden feature-pose now scores a constant floor, so the objective is a staircase in the
-    # number of hidden poses — no gradient inside a step — and the local starts stop on a step short of the
-    # grazing edge: 5 of 12 poses hidden, where the old −|margin| rule's slope reached ≤ 3)
-    assert x > 38.0 and m.hidden.mean() <= 0.45
+    # (issue 17: a wholly hidden feature-pose scores a constant floor, and a partly hidden one in proportion to
+    # the rim it shows (``measures.unseen``): the objective slopes out of hiding, and g_FOV rises all the way to
+    # the bound x = 45 mm, where 2 of the 12 poses are hidden (the centre-ray floors alone were flat steps: the
+    # local starts stopped at x = 39.5 mm with 5 hidden))
+    assert x > 44.0 and m.hidden.mean() <= 0.25
     from cadfeat import measures
 
     p = seen.problem
