@@ -24,6 +24,7 @@ ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(HERE))
 
+from benchutil import load as _load  # noqa: E402
 from benchutil import median_ms, save_section  # noqa: E402
 
 
@@ -40,6 +41,7 @@ def main() -> str:
     from cadfeat.study.setup import _extract, load_scene
     from cadfeat.vision.crlb import posterior_crlb
 
+    load0 = os.getloadavg()[0]
     cfg = load_study(ROOT / "studies" / "nema17_mount.toml")
     camera, traj, T_task_part = load_scene(cfg)
     T = invert_T(traj.T_task_cam) @ T_task_part
@@ -66,7 +68,12 @@ def main() -> str:
     info = pose_information(camera, T, c, n, r, occlusion=occ).information
     rows.append(("posterior_crlb (40 steps, 12 states)",
                  median_ms(lambda: posterior_crlb(info, np.asarray(traj.times_s)), 20)))
-    lines = [f"## Pose information (bench_pose)\n\nFlagship nema17_mount: L = {L} poses × N = {N} holes, one batch; "
+    machine = _load("run_all", HERE / "run_all.py").machine_description()
+    lines = [f"## Pose information (bench_pose)\n\nMachine: {machine}; load average {load0:.1f} at the start, "
+             f"{os.getloadavg()[0]:.1f} at the end (a machine shared with other jobs: the ratios to the baseline, "
+             "measured in the same run, are the numbers to compare).\n\n"
+             f"Flagship nema17_mount ({', '.join(cfg.objective.measures)} objective, "
+             f"{len(cfg.design.parameters)} design variables): L = {L} poses × N = {N} holes, one batch; "
              "single thread; median wall time.\n", "| step | ms |", "|---|---|"]
     base = rows[0][1]  # the baseline: the four thesis measures on the same batch, measured in this run
     lines[-2:] = ["| step | ms | × the four measures |", "|---|---|---|"]

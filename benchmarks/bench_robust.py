@@ -137,7 +137,8 @@ def main(quick: bool = False) -> str:
     lines = [
         "## Robust vs nominal optimisation on the flagship (bench_robust)",
         "",
-        f"Machine: {machine}; load average {load0:.1f} at the start, {load1:.1f} at the end (a shared machine). "
+        f"Machine: {machine}; load average {load0:.1f} at the start, {load1:.1f} at the end (a shared machine: "
+        "other jobs compete for its 2 cores, so compare the ratios, measured in the same run, and the CPU times). "
         f"`studies/nema17_mount.toml` ({len(config.design.parameters)} variables, objective "
         f"{', '.join(config.objective.measures)}, {len(run64.problem.changed)} holes, "
         f"{len(run64.problem.inner.screws)} poses, occlusion by depth maps); the robust phase "
