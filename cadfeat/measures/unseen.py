@@ -14,7 +14,10 @@ one):
 So a hidden hole never scores better than the same hole seen (f ≤ v); a wholly hidden hole scores f whatever its
 size and position, so it gains nothing by shrinking, by moving while it stays hidden or by vanishing; and a
 partly hidden one gains only by showing more of its rim — the slope that leads an optimiser out from behind
-what hides it (the old centre-ray rule was a staircase of constant floors, flat inside each step).
+what hides it (the old centre-ray rule was a staircase of constant floors, flat inside each step). A partly
+hidden hole whose centre is seen may gain by shrinking when the smaller rim comes wholly into view: that is a hole
+coming into view (it then scores as the smaller hole seen), not a hidden one gaining; with its centre hidden,
+shrinking only hides more of its rim (behind a convex occluder).
 
 h samples the rim at ``RIM_SAMPLES`` points (``rim_occlusion.rim_points``). With the optimiser's depth maps
 (``depth.DepthMaps``) each point's hidden value is bilinear in its image position between the four nearest cells
