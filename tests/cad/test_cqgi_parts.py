@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cqgi_helpers import cqgi_solid
 
 from cadfeat.cad.cqgi_parts import getparams, is_cqgi_script
 from cadfeat.cad.parts import load_part
@@ -28,16 +29,6 @@ EX003 = DATA / "Ex003_Pillow_Block_With_Counterbored_Holes.py"
 EX007 = DATA / "Ex007_Using_Point_Lists.py"
 VESA = DATA / "vesa_plate.py"
 SCRIPTS = [EX002, EX003, EX007, VESA]
-
-
-def _cqgi_solid(path: Path, params: dict):
-    """The script built by CQGI directly (no cadfeat code): its one solid."""
-    from cadquery import cqgi
-
-    src = path.read_text().replace("describe_parameter(", "(lambda *a: None)(")  # (upstream bug, pinned below)
-    result = cqgi.parse(src).build(build_parameters=params)
-    assert result.success, result.exception
-    return result.results[0].shape.val()
 
 
 def test_scripts_are_detected_and_library_parts_are_not():
@@ -122,14 +113,14 @@ def test_holes_follow_the_drawing_and_keep_their_names():
 def test_build_equals_cqgi_and_worker():
     """Part.build (in process and in a time-limited worker) is CQGI's own build of the script."""
     params = {"pattern": 80.0, "cable_x": -12.0, "cable_diameter": 14.0}
-    direct = _cqgi_solid(VESA, params)
+    direct = cqgi_solid(VESA, params)
     part = load_part(VESA)
     mine = part.build(**params)
     assert mine.Volume() == pytest.approx(direct.Volume(), rel=1e-12)
     timed = load_part(VESA, 60.0).build(**params)
     assert timed.Volume() == pytest.approx(direct.Volume(), rel=1e-9)
     # earlier values do not stick (CQGI writes values into its syntax tree): the default build again
-    assert part.build().Volume() == pytest.approx(_cqgi_solid(VESA, {}).Volume(), rel=1e-12)
+    assert part.build().Volume() == pytest.approx(cqgi_solid(VESA, {}).Volume(), rel=1e-12)
 
 
 def test_cqgi_describe_parameter_upstream_bug_is_pinned():
@@ -198,7 +189,7 @@ def test_a_study_runs_on_each_script(study, tmp_path, monkeypatch):
     exported = cq.importers.importStep(str(tmp_path / "out" / "optimised.step")).val()
     got = sorted((tuple(np.round(h.centre, 4)), round(h.radius_mm, 4)) for h in extract_holes(exported))
     want = sorted((tuple(np.round(h.centre, 4)), round(h.radius_mm, 4))
-                  for h in extract_holes(_cqgi_solid(part_path, params)))
+                  for h in extract_holes(cqgi_solid(part_path, params)))
     assert got == want
     assert part_path.read_bytes() == before
     assert result is not None

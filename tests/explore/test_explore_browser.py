@@ -155,7 +155,7 @@ def test_export_step_and_glb(explorer):
     import cadquery as cq
     import numpy as np
     import trimesh
-    from test_cqgi_parts import _cqgi_solid
+    from cqgi_helpers import cqgi_solid
 
     from cadfeat.cad.features import extract_holes
 
@@ -168,7 +168,7 @@ def test_export_step_and_glb(explorer):
     step, glb = (Path(p) for p in text[len("exported "):].split(" and "))
     assert step.parent.parent == work and step.parent.name == "cqgi_ex003-explore-1"
     got = extract_holes(cq.importers.importStep(str(step)).val())
-    want = extract_holes(_cqgi_solid(DATA / "Ex003_Pillow_Block_With_Counterbored_Holes.py", values))
+    want = extract_holes(cqgi_solid(DATA / "Ex003_Pillow_Block_With_Counterbored_Holes.py", values))
     key = lambda hs: sorted((tuple(np.round(h.centre, 6)), round(h.radius_mm, 6)) for h in hs)  # noqa: E731
     assert key(got) == key(want)
     names = json.loads(page.js("JSON.stringify(cadfeatExplore.scene().holes)"))
