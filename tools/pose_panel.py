@@ -253,8 +253,10 @@ def repredict(panel: dict, args: argparse.Namespace) -> None:
         from cadfeat.measures.pose_models import PoseModels
 
         model = PoseModels(**json.loads(args.model.read_text()))
+    x0 = np.asarray(setup.space.x0, float)
     for row in panel["rows"]:
-        s = score(setup, np.array(row["x"]), T, times, FilterTuning(), model)
+        x = np.array(row["x"], float)   # a panel from before variables were added: the new ones at the original's
+        s = score(setup, np.concatenate([x, x0[len(x):]]), T, times, FilterTuning(), model)
         for k in ("pnp_t", "pnp_r", "iekf_t", "iekf_r", "bias_t", "noise_t", "holes_seen"):
             row[k] = s[k]
         for j, name in enumerate(row["holes"]):
