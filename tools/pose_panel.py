@@ -312,15 +312,31 @@ def markdown(panels: list[dict]) -> str:
                          f"| {r['pnp_r']:.4f} | {r['sim_pnp_r']:.4f} | {r['iekf_t']:.4f} | {r['sim_iekf_t']:.4f} "
                          f"| {r['iekf_r']:.4f} | {r['sim_iekf_r']:.4f} | {r['propagated_t']:.4f} / "
                          f"{r['propagated_r']:.4f} | {r['seconds']:.0f} |")
+        if "design_space" in pnl:
+            d = pnl["design_space"]
+            lines += ["", f"Design space: {d['feasible']} of {d['candidates']} Sobol candidates keep every "
+                      f"requirement; their predicted error (g_POSE on the feature model, rotation at 50 mm) spans "
+                      f"{d['predicted_feasible_min']:.4f}–{d['predicted_feasible_max']:.4f} mm (original "
+                      f"{d['predicted_original']:.4f}; the first Sobol points "
+                      f"{d.get('predicted_sobol_min', np.nan):.4f}–{d.get('predicted_sobol_max', np.nan):.4f})."
+                      " \"extreme\" rows: the feasible candidates after those with the lowest and highest of it."]
         if len(pnl["rows"]) >= 4:
             lines += [""] + _stat_lines(pnl["rows"])
+            sobol = [r for r in pnl["rows"] if r["name"] == "original" or r["name"].startswith("sobol")]
+            if len(sobol) >= 4 and len(sobol) < len(pnl["rows"]):
+                st = statistics(sobol)["spearman"]
+                lines += ["", f"Without the extremes and the optimum (original + Sobol, n = {len(sobol)}): Spearman ρ "
+                          + ", ".join(f"{k} {st[k]:.2f}" for k in KEYS) + "."]
         if "split_half" in pnl:
             sh = pnl["split_half"]
+            sb = {k: 2 * sh[k] / (1 + sh[k]) if sh[k] > -1 else float("nan") for k in SIM[:4]}
             lines += ["", "Monte-Carlo reliability: Spearman ρ between the simulated errors of two independent sets "
                       f"of runs (seeds {sh['seeds']}, {sh['runs']} runs): PnP t {sh['sim_pnp_t']:.2f}, "
                       f"PnP r {sh['sim_pnp_r']:.2f}, "
                       f"IEKF t {sh['sim_iekf_t']:.2f}, IEKF r {sh['sim_iekf_r']:.2f} — the ceiling that Monte-Carlo "
-                      "noise puts on any prediction's ρ with one such set."]
+                      "noise puts on any prediction's ρ with one such set; for both sets together (Spearman–Brown, "
+                      f"2ρ/(1 + ρ)): {sb['sim_pnp_t']:.2f}, {sb['sim_pnp_r']:.2f}, {sb['sim_iekf_t']:.2f}, "
+                      f"{sb['sim_iekf_r']:.2f}."]
         for seed, runs, paired in pnl.get("paired_by_seed") or [(pnl.get("seeds", [0])[0], pnl["runs"],
                                                                   pnl.get("paired"))]:
             if not paired:
