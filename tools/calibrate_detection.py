@@ -17,7 +17,10 @@ turned within a cell's placement tolerance, so each rim falls on different sub-p
 noise seeds per placement: the mean offset over placements is the systematic part, the spread of the
 per-placement offsets the pixel-grid ("aliasing") part ``alias_px`` — the closed loop's run-to-run placement
 jitter (``vision.closed_loop``) draws the same; plus 5 partial-occlusion renders (a wall whose edge covers part
-of the rim; one placement, 12 seeds). Run: ``python tools/calibrate_detection.py`` (``--quick`` for a
+of the rim; one placement, 12 seeds) and a large-rim band (``LARGE_RADII`` through holes, 48 conditions: rims of
+90–450 px, where the systematic offset of an oblique rim stands out of the pixel-grid scatter). The offset fit
+weights each row by the uncertainty of its mean offset (pixel-grid scatter over the placements, noise over the
+draws). Run: ``python tools/calibrate_detection.py`` (``--quick`` for a
 smaller grid, no files written).
 """
 
@@ -47,6 +50,13 @@ KINDS = (("blind", 0.3), ("blind", 1.0), ("through", 5.0 / 6.0))   # (kind, dept
 ANGLES_DEG = (0.0, 25.0, 45.0, 60.0, 72.0)
 DISTANCES = (300.0, 520.0)
 BLURS_PX = (0.0, 2.0, 4.0)
+#: Large rims (through the 5 mm plate: depth/diameter 5/(2r)), rims of 90–450 px: where the pixel-grid term is
+#: small, the systematic offset of an oblique rim shows (with the small rims' 6 placements it is within their
+#: pixel-grid scatter). Rendered after the grid and the occlusion rows, so those keep their placement seeds.
+LARGE_RADII = (6.0, 10.0, 16.0)
+LARGE_ANGLES_DEG = (0.0, 30.0, 50.0, 65.0)
+LARGE_DISTANCES = (300.0, 180.0)
+LARGE_BLURS_PX = (0.0, 2.0)
 SEEDS = 12
 #: Placements per condition: the plate shifted in its plane by U(±0.6 mm) and turned by U(±3°) about its normal
 #: (the cell's placement tolerance moves each rim over sub-pixel phases): the mean offset over placements is the
@@ -164,7 +174,7 @@ def render_many(shape, holes, Ts: np.ndarray) -> np.ndarray:
 
 
 def run_grid(radii=RADII, kinds=KINDS, angles=ANGLES_DEG, distances=DISTANCES, blurs=BLURS_PX,
-             seeds=SEEDS_PER_PLACEMENT, occlusion=True) -> list[dict]:
+             seeds=SEEDS_PER_PLACEMENT, occlusion=True, large=True) -> list[dict]:
     from cadfeat.cad.features import extract_holes
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
@@ -178,7 +188,8 @@ def run_grid(radii=RADII, kinds=KINDS, angles=ANGLES_DEG, distances=DISTANCES, b
                     Ts = placements(pose(angle, dist), seed=len(rows))
                     images = render_many(wp.val(), holes, Ts)
                     for blur in blurs:
-                        row = {"radius_mm": radius, "kind": kind, "depth_ratio": ratio, "through": kind == "through",
+                        row = {"radius_mm": radius, "kind": kind, "through": kind == "through",
+                               "depth_ratio": 5.0 / (2 * radius) if kind == "through" else ratio,
                                "angle_deg": angle, "distance_mm": dist, "blur_px": blur, "hidden": 0.0}
                         row.update(measure_placements(images, holes[0], Ts, blur, seeds))
                         rows.append(row)
@@ -198,6 +209,9 @@ def run_grid(radii=RADII, kinds=KINDS, angles=ANGLES_DEG, distances=DISTANCES, b
                    "distance_mm": 300.0, "blur_px": 0.0, "hidden": hidden}
             row.update(measure_condition(images, holes[0], T, 0.0, 12), alias_px=np.nan, placements=1)
             rows.append(row)
+    if large:
+        rows += run_grid(radii=LARGE_RADII, kinds=(("through", 0.0),), angles=LARGE_ANGLES_DEG,
+                         distances=LARGE_DISTANCES, blurs=LARGE_BLURS_PX, seeds=seeds, occlusion=False, large=False)
     return rows
 
 
@@ -254,8 +268,16 @@ def fit(rows: list[dict]) -> PoseModels:
     s0, k_s, w0 = np.abs(rs.x)
     sin_t = np.sqrt(np.clip(1 - a["facing"][ok] ** 2, 0, 1))
     D = np.where(a["through"][ok] > 0, 1.0, 0.5)
-    A = np.column_stack([blur * sin_t, D * sin_t * np.minimum(a["depth_ratio"][ok], 2.0)])
-    (k_b, k_d), *_ = np.linalg.lstsq(A, a["offset_axis_px"][ok], rcond=None)
+    A = np.column_stack([blur * sin_t, sin_t, D * sin_t * np.minimum(a["depth_ratio"][ok], 2.0)])
+    # weighted by the uncertainty of each row's mean offset: its pixel-grid scatter over the placements and its
+    # noise over the draws (per axis); the large rims, with little pixel-grid scatter, carry the constant term
+    n_pl = np.maximum(np.nan_to_num(a["placements"][ok], nan=1.0), 1.0)
+    alias_row = np.nan_to_num(a["alias_px"][ok], nan=0.0) if "alias_px" in a else np.zeros(len(sig))
+    var = alias_row ** 2 / n_pl + sig ** 2 / np.maximum(a["draws"][ok], 1.0) + 1e-4 ** 2
+    wgt = 1.0 / np.sqrt(np.where(np.isfinite(a["alias_px"][ok]), var, np.inf)) if "alias_px" in a else \
+        np.ones(len(sig))
+    use = np.isfinite(a["offset_axis_px"][ok]) & (wgt > 0)
+    (k_b, k_w, k_d), *_ = np.linalg.lstsq(A[use] * wgt[use, None], a["offset_axis_px"][ok][use] * wgt[use], rcond=None)
     # the pixel-grid error: per-axis RMS √(a² + k_a²/ρ) of the offsets over placements (``alias_px``); a table
     # without placements (older) falls back to what the systematic offset leaves of the one placement's offset
     if "alias_px" in a and (np.isfinite(a["alias_px"][ok]) & (a["alias_px"][ok] > 0)).sum() >= 10:
@@ -268,7 +290,7 @@ def fit(rows: list[dict]) -> PoseModels:
         alias_floor, k_alias = (float(v) for v in ra.x)
     else:
         resid2 = 0.5 * np.maximum(a["offset_u_px"][ok] ** 2 + a["offset_v_px"][ok] ** 2
-                                  - (A @ np.array([k_b, k_d])) ** 2, 0.0)    # per-axis squared residual
+                                  - (A @ np.array([k_b, k_w, k_d])) ** 2, 0.0)    # per-axis squared residual
         (floor2, ka2), _ = nnls(np.column_stack([np.ones(len(rho)), 1.0 / rho]), resid2)
         k_alias, alias_floor = float(np.sqrt(ka2)), float(np.sqrt(floor2))
     # occlusion: the raw detector accepts rims cut by an edge of the same grey (a wall's top face over the
@@ -280,7 +302,7 @@ def fit(rows: list[dict]) -> PoseModels:
     o0 = float(RIM_HIDDEN_MAX)
     return replace(base, m0_px=float(m0), w_m_px=float(w_m), kappa_blur=float(kappa), c0=float(c0),
                    w_c=float(w_c), sigma0_px=float(s0), k_sigma=float(k_s), w0_px=float(w0), k_b=float(k_b),
-                   k_d=float(k_d), k_alias_px=k_alias, alias_floor_px=alias_floor, o0=o0,
+                   k_d=float(k_d), k_w_px=float(k_w), k_alias_px=k_alias, alias_floor_px=alias_floor, o0=o0,
                    source=f"tools/calibrate_detection.py: {len(rows)} rendered conditions, noise {NOISE_GREY} grey")
 
 
@@ -333,7 +355,7 @@ def main(argv: list[str] | None = None) -> int:
         rows = list(csv.DictReader((DATA / "detection_calibration.csv").open()))
     elif args.quick:
         rows = run_grid(radii=(1.5,), kinds=KINDS[:1], angles=(0.0, 60.0), distances=(300.0,), blurs=(0.0,),
-                        seeds=4, occlusion=False)
+                        seeds=4, occlusion=False, large=False)
     else:
         rows = run_grid()
     model = fit(rows)

@@ -34,13 +34,49 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
-def designs(space, count: int, seed: int = 0) -> list[np.ndarray]:
+def pose_setup(study: Path):
+    """The study's set-up with g_POSE as its objective (whatever the study lists), so that its ``problem`` scores
+    candidate designs by the predicted pose error on the feature model (no CAD rebuild) and checks every
+    requirement (the study's constraints)."""
+    import dataclasses
+
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.setup import setup_study
+
+    cfg = load_study(study)
+    return setup_study(dataclasses.replace(cfg, objective=cfg.objective.model_copy(update={"measures": ("pose",)})))
+
+
+def designs(setup, count: int, seed: int = 0, extremes: int = 0,
+            candidates: int = 256) -> tuple[list[np.ndarray], list[str], dict]:
+    """The original, the first ``count − 1`` scrambled-Sobol points of the design space (``candidates`` drawn,
+    seeded) **that keep every requirement** (the study's constraint margins ≥ 0 on the feature model), and
+    ``extremes`` more from the remaining feasible candidates: half the lowest and half the highest predicted
+    error (g_POSE on the feature model), so that the panel spans the range the requirements allow. Also returns
+    the spread of the predicted error over all feasible candidates (how much designs can differ at all)."""
     from scipy.stats import qmc
 
+    space, problem = setup.space, setup.problem
     lo = np.array([v.lower for v in space.variables])
     hi = np.array([v.upper for v in space.variables])
-    pts = qmc.Sobol(len(lo), scramble=True, seed=seed).random(max(count - 1, 1))
-    return [np.asarray(space.x0, float)] + [lo + p * (hi - lo) for p in pts[: count - 1]]
+    X = lo + qmc.Sobol(len(lo), scramble=True, seed=seed).random(candidates) * (hi - lo)
+    G, C = problem.evaluate_batch(X)
+    err = -G[:, list(problem.names).index("g_POSE")] if "g_POSE" in problem.names else -G[:, 0]
+    feasible = np.nonzero(C.min(axis=1) >= 0.0)[0]
+    sobol = feasible[: count - 1]
+    rest = feasible[count - 1:]
+    order = rest[np.argsort(err[rest])]
+    k_lo = extremes // 2
+    picks = list(order[:k_lo]) + (list(order[len(order) - (extremes - k_lo):]) if extremes - k_lo else [])
+    g0 = float(-problem.evaluate_batch(np.asarray(space.x0, float)[None])[0][0, 0])
+    xs = [np.asarray(space.x0, float)] + [X[i] for i in sobol] + [X[i] for i in picks]
+    names = (["original"] + [f"sobol {i + 1}" for i in range(len(sobol))]
+             + [f"extreme {'low' if j < k_lo else 'high'} {j + 1}" for j in range(len(picks))])
+    info = {"candidates": candidates, "feasible": int(len(feasible)), "predicted_original": g0,
+            "predicted_feasible_min": float(err[feasible].min()), "predicted_feasible_max": float(err[feasible].max()),
+            **({"predicted_sobol_min": float(err[sobol].min()), "predicted_sobol_max": float(err[sobol].max())}
+               if len(sobol) else {})}
+    return xs, names, info
 
 
 def score(setup, x, T, times, tuning, model=None) -> dict:
@@ -85,12 +121,10 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     from cadfeat.measures.pose_information import pose_information
     from cadfeat.measures.rim_centre import measure
     from cadfeat.poses import invert_T
-    from cadfeat.study.schema import load_study
-    from cadfeat.study.setup import setup_study
     from cadfeat.vision import FilterTuning, SensorModel
     from cadfeat.vision.closed_loop import TrackingConfig, compare, observe, placement_errors, track_design
 
-    setup = setup_study(load_study(study))
+    setup = pose_setup(study)
     traj = setup.trajectory
     idx = np.arange(0, len(traj.T_task_cam), args.frame_step)
     T = (invert_T(np.asarray(traj.T_task_cam)) @ setup.T_task_part)[idx]
@@ -105,8 +139,8 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
                             tuning=tuning, placement_mm=args.placement_mm, placement_deg=args.placement_deg,
                             gain_sigma=args.gain_sigma, seed=args.seed)
     T_runs = T[None] @ placement_errors(config, config.runs)[:, None]
-    xs = designs(setup.space, args.designs)
-    names = ["original"] + [f"sobol {i}" for i in range(1, len(xs))]
+    xs, names, spread = designs(setup, args.designs, extremes=args.extremes, candidates=args.candidates)
+    print(json.dumps({"design_space": spread}), flush=True)
     if optimum is not None:
         xs.append(_optimum(optimum, setup.space))
         names.append("g_POSE optimum")
@@ -154,6 +188,7 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
         rows.append(row)
         print(json.dumps({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()}), flush=True)
     out = {"study": str(study), "rows": rows, "runs": config.runs, "frames": len(T), "seeds": [args.seed],
+           "design_space": spread,
            "variability": {"placement_mm": config.placement_mm, "placement_deg": config.placement_deg,
                            "gain_sigma": config.gain_sigma, "noise_grey": config.sensor.noise_grey}}
     if optimum is not None:
@@ -218,8 +253,10 @@ def repredict(panel: dict, args: argparse.Namespace) -> None:
         from cadfeat.measures.pose_models import PoseModels
 
         model = PoseModels(**json.loads(args.model.read_text()))
+    x0 = np.asarray(setup.space.x0, float)
     for row in panel["rows"]:
-        s = score(setup, np.array(row["x"]), T, times, FilterTuning(), model)
+        x = np.array(row["x"], float)   # a panel from before variables were added: the new ones at the original's
+        s = score(setup, np.concatenate([x, x0[len(x):]]), T, times, FilterTuning(), model)
         for k in ("pnp_t", "pnp_r", "iekf_t", "iekf_r", "bias_t", "noise_t", "holes_seen"):
             row[k] = s[k]
         for j, name in enumerate(row["holes"]):
@@ -275,15 +312,31 @@ def markdown(panels: list[dict]) -> str:
                          f"| {r['pnp_r']:.4f} | {r['sim_pnp_r']:.4f} | {r['iekf_t']:.4f} | {r['sim_iekf_t']:.4f} "
                          f"| {r['iekf_r']:.4f} | {r['sim_iekf_r']:.4f} | {r['propagated_t']:.4f} / "
                          f"{r['propagated_r']:.4f} | {r['seconds']:.0f} |")
+        if "design_space" in pnl:
+            d = pnl["design_space"]
+            lines += ["", f"Design space: {d['feasible']} of {d['candidates']} Sobol candidates keep every "
+                      f"requirement; their predicted error (g_POSE on the feature model, rotation at 50 mm) spans "
+                      f"{d['predicted_feasible_min']:.4f}–{d['predicted_feasible_max']:.4f} mm (original "
+                      f"{d['predicted_original']:.4f}; the first Sobol points "
+                      f"{d.get('predicted_sobol_min', np.nan):.4f}–{d.get('predicted_sobol_max', np.nan):.4f})."
+                      " \"extreme\" rows: the feasible candidates after those with the lowest and highest of it."]
         if len(pnl["rows"]) >= 4:
             lines += [""] + _stat_lines(pnl["rows"])
+            sobol = [r for r in pnl["rows"] if r["name"] == "original" or r["name"].startswith("sobol")]
+            if len(sobol) >= 4 and len(sobol) < len(pnl["rows"]):
+                st = statistics(sobol)["spearman"]
+                lines += ["", f"Without the extremes and the optimum (original + Sobol, n = {len(sobol)}): Spearman ρ "
+                          + ", ".join(f"{k} {st[k]:.2f}" for k in KEYS) + "."]
         if "split_half" in pnl:
             sh = pnl["split_half"]
+            sb = {k: 2 * sh[k] / (1 + sh[k]) if sh[k] > -1 else float("nan") for k in SIM[:4]}
             lines += ["", "Monte-Carlo reliability: Spearman ρ between the simulated errors of two independent sets "
                       f"of runs (seeds {sh['seeds']}, {sh['runs']} runs): PnP t {sh['sim_pnp_t']:.2f}, "
                       f"PnP r {sh['sim_pnp_r']:.2f}, "
                       f"IEKF t {sh['sim_iekf_t']:.2f}, IEKF r {sh['sim_iekf_r']:.2f} — the ceiling that Monte-Carlo "
-                      "noise puts on any prediction's ρ with one such set."]
+                      "noise puts on any prediction's ρ with one such set; for both sets together (Spearman–Brown, "
+                      f"2ρ/(1 + ρ)): {sb['sim_pnp_t']:.2f}, {sb['sim_pnp_r']:.2f}, {sb['sim_iekf_t']:.2f}, "
+                      f"{sb['sim_iekf_r']:.2f}."]
         for seed, runs, paired in pnl.get("paired_by_seed") or [(pnl.get("seeds", [0])[0], pnl["runs"],
                                                                   pnl.get("paired"))]:
             if not paired:
@@ -318,6 +371,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--optimum", type=Path, action="append", default=None,
                     help="a results.json per --study whose optimum joins the panel and is paired-tested")
     ap.add_argument("--designs", type=int, default=12)
+    ap.add_argument("--extremes", type=int, default=0,
+                    help="feasible designs added at the low and high ends of the predicted error (designs())")
+    ap.add_argument("--candidates", type=int, default=256, help="Sobol candidates drawn before the requirements")
     ap.add_argument("--runs", type=int, default=8)
     ap.add_argument("--frame-step", type=int, default=2)
     ap.add_argument("--placement-mm", type=float, default=0.2)

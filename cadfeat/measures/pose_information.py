@@ -223,6 +223,35 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
         p = models.detection_probability(geo, occ)
     else:
         p = (geo.in_front & (geo.facing > 0) & (occ <= models.o0)).astype(float)
+    sig, off = _noise_and_offsets(models, geo, (L, N), sigma_px, depth_ratio, kinds, through, noise_grey, offsets,
+                                  offset_px)
+    p = np.where(np.all(np.isfinite(J), axis=(-1, -2)), p, 0.0)
+    Jw = np.where(p[..., None, None] > 0, J, 0.0) / sig[..., None, None]      # J̃ = J/σ (L, N, 2, 6)
+    per_hole = np.einsum("ln,lnai,lnaj->lnij", p, Jw, Jw)                     # p J̃ᵀJ̃ (L, N, 6, 6)
+    info = per_hole.sum(axis=1)
+    if prior_sigma is not None:
+        info = info + np.diag(np.repeat([1.0 / prior_sigma[0] ** 2, 1.0 / prior_sigma[1] ** 2], 3))
+    cov, w, V = _inverse(info, rotation_length_mm)
+    rhs = np.einsum("ln,lnai,lna->li", p, Jw, off / sig[..., None])            # JᵀW b (L, 6)
+    bias = np.einsum("lij,lj->li", np.where(np.isfinite(cov), cov, 0.0), rhs)
+    sig_t = np.sqrt(np.trace(cov[:, :3, :3], axis1=-2, axis2=-1))
+    sig_r = np.degrees(np.sqrt(np.trace(cov[:, 3:, 3:], axis1=-2, axis2=-1)))
+    b_t, b_r = np.linalg.norm(bias[:, :3], axis=-1), np.degrees(np.linalg.norm(bias[:, 3:], axis=-1))
+    share = _information_share(per_hole, rotation_length_mm)
+    weakest = V[:, :, 0]
+    weakest_sigma = np.where(w[:, 0] > RANK_TOL * np.maximum(w[:, -1], 1e-300),
+                             1.0 / np.sqrt(np.maximum(w[:, 0], 1e-300)), np.inf)
+    return PoseInformation(info, cov, sig_t, sig_r, bias, b_t, b_r, np.hypot(b_t, sig_t), np.hypot(b_r, sig_r),
+                           share, weakest, weakest_sigma, p, sig, off, z, J, p >= 0.5,
+                           float(rotation_length_mm))
+
+
+def _noise_and_offsets(models: Any, geo: Any, shape: tuple[int, int], sigma_px: float | ArrayLike | None,
+                       depth_ratio: ArrayLike | None, kinds: Any, through: ArrayLike | None, noise_grey: float,
+                       offsets: bool, offset_px: ArrayLike | None) -> tuple[np.ndarray, np.ndarray]:
+    """Each hole's centre noise σ_j (L, N) px and systematic offset b_j (L, N, 2) px: a fixed ``sigma_px`` (no
+    offsets), else the measurement model (``offsets`` False: σ only); ``offset_px`` replaces the offsets."""
+    L, N = shape
     if sigma_px is not None:
         sig = np.broadcast_to(np.asarray(sigma_px, dtype=float), (L, N)).copy()
         if np.any(~(sig > 0)):
@@ -236,25 +265,13 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     if offset_px is not None:
         off = np.broadcast_to(np.asarray(offset_px, dtype=float), (L, N, 2))
         off = np.where(np.isfinite(off), off, 0.0)
-    p = np.where(np.all(np.isfinite(J), axis=(-1, -2)), p, 0.0)
-    Jw = np.where(p[..., None, None] > 0, J, 0.0) / sig[..., None, None]      # J̃ = J/σ (L, N, 2, 6)
-    per_hole = np.einsum("ln,lnai,lnaj->lnij", p, Jw, Jw)                     # p J̃ᵀJ̃ (L, N, 6, 6)
-    info = per_hole.sum(axis=1)
-    if prior_sigma is not None:
-        info = info + np.diag(np.repeat([1.0 / prior_sigma[0] ** 2, 1.0 / prior_sigma[1] ** 2], 3))
-    cov, w, V = _inverse(info, rotation_length_mm)
-    rhs = np.einsum("ln,lnai,lna->li", p, Jw, off / sig[..., None])            # JᵀW b (L, 6)
-    bias = np.einsum("lij,lj->li", np.where(np.isfinite(cov), cov, 0.0), rhs)
-    sig_t = np.sqrt(np.trace(cov[:, :3, :3], axis1=-2, axis2=-1))
-    sig_r = np.degrees(np.sqrt(np.trace(cov[:, 3:, 3:], axis1=-2, axis2=-1)))
-    b_t, b_r = np.linalg.norm(bias[:, :3], axis=-1), np.degrees(np.linalg.norm(bias[:, 3:], axis=-1))
+    return sig, off
+
+
+def _information_share(per_hole: np.ndarray, rotation_length_mm: float) -> np.ndarray:
+    """Each hole's share of the information (L, N): tr(S I_j S) / Σ_k tr(S I_k S), S = ``_metric(ℓ)`` putting
+    rotation and translation in mm (0 where no hole is informative)."""
     s = _metric(rotation_length_mm)
     tr_hole = np.einsum("lnii,i->ln", per_hole, s * s)
     total = tr_hole.sum(axis=1, keepdims=True)
-    share = np.where(total > 0, tr_hole / np.where(total > 0, total, 1.0), 0.0)
-    weakest = V[:, :, 0]
-    weakest_sigma = np.where(w[:, 0] > RANK_TOL * np.maximum(w[:, -1], 1e-300),
-                             1.0 / np.sqrt(np.maximum(w[:, 0], 1e-300)), np.inf)
-    return PoseInformation(info, cov, sig_t, sig_r, bias, b_t, b_r, np.hypot(b_t, sig_t), np.hypot(b_r, sig_r),
-                           share, weakest, weakest_sigma, p, sig, off, z, J, p >= 0.5,
-                           float(rotation_length_mm))
+    return np.where(total > 0, tr_hole / np.where(total > 0, total, 1.0), 0.0)

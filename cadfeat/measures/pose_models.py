@@ -34,9 +34,14 @@ per condition and fits it in log space: a = 0, k_a ≈ 0.39 px — the 1/√ρ l
 follow the same law.
 
 **Systematic offset** (px, along d̂): the detector fits the rim's edge; what remains is the asymmetric blur of
-an oblique rim and, for holes whose far wall shows inside the rim, the wall's share of the dark region:
+an oblique rim, a constant shading term of an oblique rim (the bore's wall darkens the far side of the rim's edge
+profile: a fraction of a pixel of edge shift, whatever the rim's size) and, for holes whose far wall shows inside
+the rim, the wall's share of the dark region:
 
-    b = (k_b · β + k_d · D · sin θ · min(depth/diameter, 2)) · d̂,     D = 1 for through holes, 0.5 blind
+    b = (k_b · β + k_w + k_d · D · min(depth/diameter, 2)) · sin θ · d̂,     D = 1 for through holes, 0.5 blind
+
+The constant term k_w ≈ 0.05 px shows on large rims (90–450 px, the calibration's large-rim band), where the
+pixel-grid scatter of the mean offset over placements is small; on small rims it is within that scatter.
 
 Parameters (``PoseModels``) are fitted by ``tools/calibrate_detection.py`` on rendered images of a test
 plate over a grid of causes; the table it measured and the fitted values are package data
@@ -192,6 +197,7 @@ class PoseModels:
     w0_px: float = 1.0
     k_b: float = 0.0
     k_d: float = 0.0
+    k_w_px: float = 0.0
     k_alias_px: float = 0.0
     alias_floor_px: float = 0.0
     gap0_px: float = RIM_GAP_MIN_PX
@@ -220,7 +226,8 @@ class PoseModels:
         thr = np.zeros(shape, bool) if through is None else np.broadcast_to(np.asarray(through, bool), shape)
         del kinds  # plain / counterbore / countersink: the calibration found no kind-specific offset (docstring)
         sin_t = np.sqrt(np.clip(1.0 - geo.facing ** 2, 0.0, 1.0))
-        mag = self.k_b * geo.blur_px * sin_t + self.k_d * np.where(thr, 1.0, 0.5) * sin_t * np.minimum(ratio, 2.0)
+        mag = (self.k_b * geo.blur_px + self.k_w_px
+               + self.k_d * np.where(thr, 1.0, 0.5) * np.minimum(ratio, 2.0)) * sin_t
         return sigma, mag[..., None] * geo.axis_dir_px
 
     def to_json(self) -> str:

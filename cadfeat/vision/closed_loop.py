@@ -108,6 +108,7 @@ class Observation:
     rim_hidden: np.ndarray | None = None
     scene: tuple[Any, Sequence[Hole], SensorModel, np.ndarray | None] | None = None  # (shape, holes, sensor, screws)
     rim_gap: np.ndarray | None = None  # (F, N) px to the nearest other rim at the nominal pose (None: not computed)
+    camera: Camera | None = None  # the detector undistorts the rims' edges with it (``detection.undistorted_centre``)
 
 
 @dataclass
@@ -155,7 +156,7 @@ def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.nd
 
     gap = hole_geometry(camera, T, centres, normals, radii).rim_gap_px(hidden)
     return Observation(optical, offsets, predicted, centres, normals, radii, names, hidden,
-                       (shape, list(holes), sensor, screws), gap)
+                       (shape, list(holes), sensor, screws), gap, camera)
 
 
 def _regions(camera: Camera, clean: np.ndarray, blurred: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
@@ -288,7 +289,7 @@ def detect_sequence(obs: Observation, noise_grey: float, seed: int, gate_px: flo
     dets = []
     for k, img in enumerate(obs.optical):
         frame = sensor_images(img[None] * np.float32(gain), noise_grey, frame_seed(seed, k))[0]
-        d = detect_holes(frame)
+        d = detect_holes(frame, camera=obs.camera, origin_px=obs.offsets[k])
         d = Detections(d.centre_px + obs.offsets[k], d.axes_px, d.angle_rad, d.residual_px)
         dets.append(d)
         pixels[k] = associate(obs.predicted[k], d, gate_px)

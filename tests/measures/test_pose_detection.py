@@ -37,6 +37,7 @@ HELD_OUT = [  # radius, kind, depth/diameter, angle, distance, blur
     (2.2, "blind", 0.5, 35.0, 400.0, 3.0),
     (1.2, "through", 2.0, 55.0, 330.0, 1.0),
     (0.9, "blind", 0.5, 50.0, 650.0, 0.0),
+    (8.0, "through", 5.0 / 16.0, 40.0, 240.0, 1.0),   # a large rim (~190 px): the offset of an oblique rim shows
 ]
 
 
