@@ -13,6 +13,88 @@ from cadfeat.design.optimize.evaluator import Evaluator
 
 
 # -------------------------------------------------------------------------------------------- local
+class _LocalFunctions:
+    """The local solve's objective and constraints (maximise the combined objective, constraints C ≥ 0) on
+    z = u (the free variables' unit coordinates), with finite-difference Jacobians (``local_solve``)."""
+
+    def __init__(self, ev: Evaluator, config: Any, p: int) -> None:
+        self.ev, self.config, self.p = ev, config, p
+        self.problem = ev.problem
+        self.iteration = 0
+
+    def grads(self, z: np.ndarray) -> tuple:
+        return self.ev.gradients(z[:self.p], self.config.fd_step)
+
+    def values(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """G (K,), C (M,) at z; with ``eager_gradients`` the whole finite-difference stencil is evaluated in
+        the same batch (the solver nearly always asks for the gradient where it asked for the value)."""
+        if self.config.eager_gradients:
+            G, C, _, _ = self.grads(z)
+            return G, C
+        G, C = self.ev.batch(z[:self.p][None])
+        return G[0], C[0]
+
+    def fun(self, z: np.ndarray) -> float:
+        return -float(self.problem.combined_from(self.values(z)[0]))
+
+    def fun_jac(self, z: np.ndarray) -> np.ndarray:
+        G, _, dG, _ = self.grads(z)
+        # combined is linear in G for "weighted"/"constraint": d(combined) = Σ_k ∂combined/∂G_k dG_k
+        w = _combine_weights(self.problem, G)
+        return -(w @ dG)
+
+    def cons(self, z: np.ndarray) -> np.ndarray:
+        return self.values(z)[1]
+
+    def cons_jac(self, z: np.ndarray) -> np.ndarray:
+        return self.grads(z)[3]
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of z."""
+        return np.zeros(self.p), np.ones(self.p)
+
+    def callback(self, *args: Any) -> None:
+        """Record each solver iterate with the evaluator (``ev.record``)."""
+        zk = args[0] if not hasattr(args[0], "x") else args[0].x
+        self.iteration += 1
+        G, C = self.ev.batch(np.asarray(zk)[:self.p][None])
+        self.ev.record(self.iteration, G[0], C[0])
+
+
+class _EpigraphFunctions(_LocalFunctions):
+    """Max-min in epigraph form on z = (u, τ): maximise τ subject to C ≥ 0, ĝ_i(u) − τ ≥ 0 (i in ``use``) and
+    ĝ_i(u) − floor_i ≥ 0 (``floors``)."""
+
+    def __init__(self, ev: Evaluator, config: Any, p: int, use: np.ndarray, fl_idx: np.ndarray,
+                 fl_val: np.ndarray) -> None:
+        super().__init__(ev, config, p)
+        self.use, self.fl_idx, self.fl_val = use, fl_idx, fl_val
+
+    def fun(self, z: np.ndarray) -> float:
+        return -float(z[self.p])
+
+    def fun_jac(self, z: np.ndarray) -> np.ndarray:
+        g = np.zeros(self.p + 1)
+        g[self.p] = -1.0
+        return g
+
+    def cons(self, z: np.ndarray) -> np.ndarray:
+        G, C = self.values(z)
+        Gn = self.problem.normalised(G)
+        return np.concatenate([C, Gn[self.use] - z[self.p], Gn[self.fl_idx] - self.fl_val])
+
+    def cons_jac(self, z: np.ndarray) -> np.ndarray:
+        _, _, dG, dC = self.grads(z)
+        use, fl_idx, scales = self.use, self.fl_idx, self.problem.scales
+        top = np.hstack([dC, np.zeros((dC.shape[0], 1))])
+        bottom = np.hstack([dG[use] / scales[use, None], -np.ones((use.size, 1))])
+        fixed = np.hstack([dG[fl_idx] / scales[fl_idx, None], np.zeros((fl_idx.size, 1))])
+        return np.vstack([top, bottom, fixed])
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.append(np.zeros(self.p), -np.inf), np.append(np.ones(self.p), np.inf)
+
+
 def local_solve(ev: Evaluator, u0: np.ndarray, config: Any, *, use: np.ndarray | None = None,
                 floors: dict[int, float] | None = None) -> np.ndarray:
     """One local solve from u0 (unit coordinates of the free variables); returns the final u.
@@ -22,99 +104,47 @@ def local_solve(ev: Evaluator, u0: np.ndarray, config: Any, *, use: np.ndarray |
     combined ones); ``floors``: objective index → lower bound ĝ_i ≥ floor (leximin's fixed objectives).
     Gradients: central differences, step ``config.fd_step`` relative to each variable's range, value and
     Jacobians from one batch."""
-    from scipy.optimize import Bounds, NonlinearConstraint, minimize
-
     problem = ev.problem
-    cfg = problem.objective_config
     use = np.asarray(problem.combined_idx if use is None else use, dtype=int)
     floors = floors or {}
     fl_idx = np.array(sorted(floors), dtype=int)
     fl_val = np.array([floors[i] for i in fl_idx], dtype=float)
-    epigraph = cfg.combine in ("maxmin", "pareto") and (use.size > 1 or bool(floors))
+    epigraph = problem.objective_config.combine in ("maxmin", "pareto") and (use.size > 1 or bool(floors))
     p = u0.size
-    h = config.fd_step
-
-    def grads(z: np.ndarray) -> tuple:
-        return ev.gradients(z[:p], h)
-
-    def values(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """G (K,), C (M,) at z; with ``eager_gradients`` the whole finite-difference stencil is evaluated in
-        the same batch (the solver nearly always asks for the gradient where it asked for the value)."""
-        if config.eager_gradients:
-            G, C, _, _ = grads(z)
-            return G, C
-        G, C = ev.batch(z[:p][None])
-        return G[0], C[0]
-
     if epigraph:
+        f: _LocalFunctions = _EpigraphFunctions(ev, config, p, use, fl_idx, fl_val)
         G0, _ = ev.batch(u0[None])
         tau0 = float(problem.normalised(G0[0])[use].min())
         z0 = np.append(u0, tau0)
-
-        def fun(z: np.ndarray) -> float:
-            return -float(z[p])
-
-        def fun_jac(z: np.ndarray) -> np.ndarray:
-            g = np.zeros(p + 1)
-            g[p] = -1.0
-            return g
-
-        def cons(z: np.ndarray) -> np.ndarray:
-            G, C = values(z)
-            Gn = problem.normalised(G)
-            return np.concatenate([C, Gn[use] - z[p], Gn[fl_idx] - fl_val])
-
-        def cons_jac(z: np.ndarray) -> np.ndarray:
-            _, _, dG, dC = grads(z)
-            top = np.hstack([dC, np.zeros((dC.shape[0], 1))])
-            bottom = np.hstack([dG[use] / problem.scales[use, None], -np.ones((use.size, 1))])
-            fixed = np.hstack([dG[fl_idx] / problem.scales[fl_idx, None], np.zeros((fl_idx.size, 1))])
-            return np.vstack([top, bottom, fixed])
-        lb, ub = np.append(np.zeros(p), -np.inf), np.append(np.ones(p), np.inf)
     else:
+        f = _LocalFunctions(ev, config, p)
         z0 = np.asarray(u0, dtype=float)
-
-        def fun(z: np.ndarray) -> float:
-            return -float(problem.combined_from(values(z)[0]))
-
-        def fun_jac(z: np.ndarray) -> np.ndarray:
-            G, _, dG, _ = grads(z)
-            # combined is linear in G for "weighted"/"constraint": d(combined) = Σ_k ∂combined/∂G_k dG_k
-            w = _combine_weights(problem, G)
-            return -(w @ dG)
-
-        def cons(z: np.ndarray) -> np.ndarray:
-            return values(z)[1]
-
-        def cons_jac(z: np.ndarray) -> np.ndarray:
-            return grads(z)[3]
-        lb, ub = np.zeros(p), np.ones(p)
-
-    iteration = [0]
-
-    def callback(*args: Any) -> None:
-        zk = args[0] if not hasattr(args[0], "x") else args[0].x
-        iteration[0] += 1
-        G, C = ev.batch(np.asarray(zk)[:p][None])
-        ev.record(iteration[0], G[0], C[0])
-
     n_cons = ev.batch(z0[:p][None])[1].shape[1] + (use.size + fl_idx.size if epigraph else 0)
+    return _minimize(f, z0, n_cons, config)
+
+
+def _minimize(f: _LocalFunctions, z0: np.ndarray, n_cons: int, config: Any) -> np.ndarray:
+    """``scipy.optimize.minimize`` (``config.local_solver``: SLSQP or trust-constr) of ``f`` from z0 with
+    ``n_cons`` constraints; the final u clipped to the unit box."""
+    from scipy.optimize import Bounds, NonlinearConstraint, minimize
+
     constraints = []
     if n_cons:
         if config.local_solver == "SLSQP":
-            constraints = [{"type": "ineq", "fun": cons, "jac": cons_jac}]
+            constraints = [{"type": "ineq", "fun": f.cons, "jac": f.cons_jac}]
         else:
-            constraints = [NonlinearConstraint(cons, 0.0, np.inf, jac=cons_jac)]
+            constraints = [NonlinearConstraint(f.cons, 0.0, np.inf, jac=f.cons_jac)]
     options = {"maxiter": config.maxiter}
     if config.local_solver == "SLSQP":
         options["ftol"] = config.ftol
     else:
         options.update(gtol=config.ftol, xtol=config.ftol)
+    lb, ub = f.bounds()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = minimize(fun, z0, jac=fun_jac, method=config.local_solver, bounds=Bounds(lb, ub),
-                       constraints=constraints, callback=callback, options=options)
-    return np.clip(np.asarray(res.x)[:p], 0.0, 1.0)
+        res = minimize(f.fun, z0, jac=f.fun_jac, method=config.local_solver, bounds=Bounds(lb, ub),
+                       constraints=constraints, callback=f.callback, options=options)
+    return np.clip(np.asarray(res.x)[:f.p], 0.0, 1.0)
 
 
 def _combine_weights(problem: Any, G: np.ndarray) -> np.ndarray:
