@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.measures.kernels import compiled
+
 __all__ = ["DepthMaps"]
 
 #: Grid cells per side of the depth maps (over the image's normalised field plus a margin).
@@ -229,19 +231,9 @@ def _circle_fraction(cx: np.ndarray, cy: np.ndarray, cz: np.ndarray, ux: np.ndar
         out[m] = total / K
 
 
-_CIRCLE: list[Any] = []
-
-
 def _circle_kernel() -> Any:
     """The compiled ``_circle_fraction`` (numba imported and compiled on first call, cached on disk), or None."""
-    if not _CIRCLE:
-        try:  # numba is a cadquery dependency; fall back to numpy without it
-            import numba
-        except ImportError:  # pragma: no cover - exercised only without numba
-            _CIRCLE.append(None)
-        else:
-            _CIRCLE.append(numba.njit(cache=True, nogil=True, error_model="numpy")(_circle_fraction))
-    return _CIRCLE[0]
+    return compiled(_circle_fraction)
 
 
 def _surface_points(mesh: Any, spacing: float) -> np.ndarray:

@@ -10,6 +10,7 @@ the numpy path to rounding (different summation order). numba comes with cadquer
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -72,19 +73,20 @@ def _gram_and_speed(x: np.ndarray, y: np.ndarray, inv_z: np.ndarray, d00: np.nda
         speed[l] = np.sqrt(sq)
 
 
-_COMPILED: list = []
+@functools.cache
+def compiled(func: Callable[..., None]) -> Callable[..., None] | None:
+    """``func`` compiled by numba (imported and compiled on the first call, cached on disk), or None without
+    numba (the callers then use their numpy form)."""
+    try:  # numba is a cadquery dependency; fall back to numpy without it
+        import numba
+    except ImportError:  # pragma: no cover - exercised only without numba
+        return None
+    return numba.njit(cache=True, nogil=True, error_model="numpy")(func)
 
 
 def gram_and_speed() -> Callable[..., None] | None:
     """The compiled kernel (numba imported and the kernel compiled on first call), or None without numba."""
-    if not _COMPILED:
-        try:  # numba is a cadquery dependency; fall back to numpy without it
-            import numba
-        except ImportError:  # pragma: no cover - exercised only without numba
-            _COMPILED.append(None)
-        else:
-            _COMPILED.append(numba.njit(cache=True, nogil=True, error_model="numpy")(_gram_and_speed))
-    return _COMPILED[0]
+    return compiled(_gram_and_speed)
 
 
 def _nmin(a: float, b: float) -> float:
