@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features import extract_holes, holes_to_arrays, match_holes
 from cadfeat.cad.output_folder import staged_output  # moved to cadfeat.study.output_folder
 from cadfeat.errors import CadfeatError
 
@@ -503,7 +504,6 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
             raise ExportError(f"{step_path}: volume {volume:.9f} mm^3 differs from the design's "
                               f"{expected_volume_mm3:.9f} mm^3 (relative {rel:.2e}; allowed {allowed:.3g} mm^3: "
                               f"{volume_rtol:.0e} relative plus {shell:.2g} mm over the surface)")
-    from cadfeat.cad.features import extract_holes, holes_to_arrays, match_holes
 
     expected = list(expected_holes)
     found = extract_holes(shape, prefer_direction=prefer_direction)

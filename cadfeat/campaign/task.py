@@ -25,6 +25,8 @@ import time
 from collections.abc import Iterator, Mapping
 from typing import Any
 
+from cadfeat.errors import CadfeatError
+
 __all__ = ["EVENT_TOPIC", "CaseTimeout", "run_case", "warm_worker"]
 
 #: The Dask event topic on which a worker announces the start of a case (key, pid, address, time).
@@ -123,8 +125,6 @@ def run_case(payload: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _is_cadfeat(exc: BaseException) -> bool:
-    from cadfeat.errors import CadfeatError
-
     return isinstance(exc, CadfeatError)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from cadfeat.cli.command import Command
+from cadfeat.errors import CadfeatError
 
 
 def _args(parser: argparse.ArgumentParser) -> None:
@@ -21,7 +22,6 @@ def _args(parser: argparse.ArgumentParser) -> None:
 def campaign(args: argparse.Namespace) -> int:
     """Run many studies (parts x cameras x paths x objective settings) on Dask, resumable; campaign.csv/.html."""
     from cadfeat.campaign.runner import run_campaign
-    from cadfeat.errors import CadfeatError
 
     if args.workers is not None and args.workers < 1:
         raise CadfeatError(f"--workers: {args.workers} is not allowed; allowed: a number of processes >= 1")

@@ -5,10 +5,13 @@ parameters as cq-cli's ``--getparams`` JSON."""
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 from typing import Any
 
+from cadfeat.cad.sandbox import DEFAULT_BUILD_TIMEOUT_S, start_workers
 from cadfeat.cli.command import Command
+from cadfeat.errors import CadfeatError
 
 
 def _arguments(parser: argparse.ArgumentParser) -> None:
@@ -22,8 +25,6 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
 
 def build_timeout_arg(parser: argparse.ArgumentParser) -> None:
     """``--build-timeout S``: the time limit of one part-script import or build (worker process)."""
-    from cadfeat.cad.sandbox import DEFAULT_BUILD_TIMEOUT_S
-
     parser.add_argument("--build-timeout", type=float, default=DEFAULT_BUILD_TIMEOUT_S, metavar="S",
                         help=f"time limit of one part-script import or build, s (default {DEFAULT_BUILD_TIMEOUT_S:g})")
 
@@ -31,15 +32,11 @@ def build_timeout_arg(parser: argparse.ArgumentParser) -> None:
 def parts(args: argparse.Namespace) -> int:
     """List the part scripts: description, parameters (default, bounds, unit), fixed holes."""
 
-    from cadfeat.cad.sandbox import start_workers
-
     start_workers()
     return _list_parts(args)
 
 
 def _list_parts(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from cadfeat.cad.parts import find_parts, load_part
 
     target = Path(args.directory) if args.directory else None
@@ -69,11 +66,6 @@ def _list_parts(args: argparse.Namespace) -> int:
 
 def _params_json(target: object, time_limit_s: float | None) -> int:
     """``--params``: the parameters of one script as cq-cli's ``--getparams`` JSON."""
-    import json
-    from pathlib import Path
-
-    from cadfeat.errors import CadfeatError
-
     if target is None or not Path(str(target)).is_file():
         raise CadfeatError(f"--params: {target or '(no script)'} is not a script file; allowed: one part script "
                            "(cadfeat parts SCRIPT.py --params)")

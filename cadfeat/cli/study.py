@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import json
+from pathlib import Path
 
 from cadfeat.cli.command import Command
+from cadfeat.errors import CadfeatError
 
 
 def _study_arg(parser: argparse.ArgumentParser) -> None:
@@ -89,7 +92,6 @@ def validate(args: argparse.Namespace) -> int:
 def _preflight_if_buildable(config: object) -> object:
     """The study's pre-flight (``cadfeat.study.preflight``) when the part can be built; its refusal is the
     command's error. A part that does not build is left to ``run``/``evaluate`` (validate checks the file)."""
-    from cadfeat.errors import CadfeatError
     from cadfeat.study.run import preflight_study
     from cadfeat.study.schema import StudyError
 
@@ -104,8 +106,6 @@ def _preflight_if_buildable(config: object) -> object:
 def _check_part(config: object) -> None:
     """Load the part as the run will: a script is imported and built at its defaults (worker process, time
     limit), a STEP file is read and its holes extracted."""
-    from cadfeat.errors import CadfeatError
-
     study = config.study  # type: ignore[attr-defined]
     try:
         if study.part_kind == "step":
@@ -129,9 +129,6 @@ def _schema_args(parser: argparse.ArgumentParser) -> None:
 def schema(args: argparse.Namespace) -> int:
     """Write the JSON Schema of a study file (editor completion and checking: README, "Study files"), or with
     ``--results`` of results.json (``cadfeat.results.StudyResults``)."""
-    import json
-    from pathlib import Path
-
     if args.results:
         from cadfeat.results import results_json_schema as make
     else:

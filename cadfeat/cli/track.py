@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from cadfeat.cli.command import Command
+from cadfeat.errors import CadfeatError
 
 SWEEP_KINDS = ("initial_error", "q", "r", "focal_length", "sample_time")
 
@@ -60,7 +61,6 @@ def _f(x: Any) -> str:
 
 def track(args: argparse.Namespace) -> int:
     """Does the new design track better? Images → OpenCV detection → EKF/IEKF/PnP pose, before vs after."""
-    from cadfeat.errors import CadfeatError
     from cadfeat.study.run import default_out_dir
     from cadfeat.study.schema import TrackingSpec, load_study
     from cadfeat.study.tracking import exported_designs, run_tracking, sweep

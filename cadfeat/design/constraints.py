@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from cadfeat.cad.features import Hole, holes_to_arrays
+from cadfeat.cad.features import Hole, as_shape, extract_holes, holes_to_arrays, match_holes
 from cadfeat.cad.features.identity import hole_name
 from cadfeat.errors import CadfeatError
 
@@ -412,8 +412,6 @@ def verify_on_brep(shape: Any, design_holes: Sequence[Hole], config: ConstraintC
     ``volume`` — |V − V0| / V0 ≤ max_frac with ``reference_shape``. A missing hole gives a failed
     ``holes_match`` check. ``tol_mm`` is the numerical tolerance of ``ok``.
     """
-    from cadfeat.cad.features import as_shape, extract_holes, match_holes
-
     solid = as_shape(shape)
     design_holes = list(design_holes)
     fixed = np.asarray(fixed_mask, dtype=bool)

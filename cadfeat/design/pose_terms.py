@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.design.memory import budget_bytes
 from cadfeat.design.objectives import POSE_AGGREGATES, POSE_UNOBSERVABLE_MM, _choice
 
 __all__ = ["StackedPose", "hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_values",
@@ -255,8 +256,6 @@ def _fixed_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.
     maps, camera and holes (a key of their bytes; the camera and maps objects are held with the entry so their
     ids stay theirs); at most ``CACHE_ENTRIES`` pose sets and ``CACHE_BUDGET_SHARE`` of the memory budget, the
     least recently used dropped first."""
-    from cadfeat.design.memory import budget_bytes
-
     maps = problem.occlusion
     parts = [np.asarray(problem.T_cam_part, float), centres, axes, radii]
     if maps is not None:

@@ -16,7 +16,11 @@ as STEP / GLB into a new folder. Nothing existing is overwritten.
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
+import shutil
+import tempfile
 import threading
 import time
 import tomllib
@@ -27,6 +31,10 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.export import export_step
+from cadfeat.cad.features import extract_holes
+from cadfeat.cad.gltf import export_glb
+from cadfeat.design.hole_form import design_depths
 from cadfeat.errors import CadfeatError
 
 __all__ = ["ExploreSession", "new_path"]
@@ -83,8 +91,6 @@ class ExploreSession:
     # ----------------------------------------------------------------------------------- static scene
     def _optimum(self, results: str | Path | None) -> dict[str, float] | None:
         """The optimised design of ``results.json`` (``--results``; default ``exports/<study name>/``)."""
-        import json
-
         from cadfeat.study.run import default_out_dir
 
         path = Path(results) if results is not None else default_out_dir(self.config) / "results.json"
@@ -143,7 +149,6 @@ class ExploreSession:
     def evaluate(self, values: Mapping[str, Any] | None = None, pose: int = 0) -> dict[str, Any]:
         """Every number the page shows at design ``values`` (see the module docstring), with the synthetic
         camera view's predicted ellipses at trajectory sample ``pose``."""
-        from cadfeat.design.hole_form import design_depths
         from cadfeat.design.objectives import objective_values
         from cadfeat.study.run import measure_holes
 
@@ -248,8 +253,6 @@ class ExploreSession:
     def _named(self, holes: list[Any], x: np.ndarray) -> list[Any]:
         """Rebuilt ``holes`` named as the explorer names them: each takes the name of the predicted hole
         (feature model at ``x``) it matches one to one by centre distance and radius (Hungarian)."""
-        import dataclasses
-
         from scipy.optimize import linear_sum_assignment
 
         if not holes:
@@ -266,12 +269,6 @@ class ExploreSession:
     def export(self, values: Mapping[str, Any] | None, folder: str | Path | None = None) -> dict[str, str]:
         """Rebuild the chosen design in CAD and write ``design.step`` and ``design.glb`` (hole names as glTF
         node names) into a NEW folder ``<folder>/explore-<k>`` (default folder: beside the study)."""
-        import shutil
-        import tempfile
-
-        from cadfeat.cad.export import export_step
-        from cadfeat.cad.features import extract_holes
-        from cadfeat.cad.gltf import export_glb
         shape = self.rebuild(values)
         base = Path(folder) if folder is not None else self.study_path.parent
         target = new_path(base, f"{self.config.study.name}-explore", "")

@@ -13,6 +13,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from cadfeat.report.context import ReportContext, worst_poses
 from cadfeat.results import Results, value
 
@@ -135,7 +137,6 @@ def crop_to_content(paths: list[Path], pad_frac: float = 0.03) -> tuple[int, int
     """Crop PNGs rendered from one viewpoint to the union of their non-background pixels (background = the
     corner colour) plus ``pad_frac`` of the size, in place and with one box for all (they stay comparable):
     the overview of part and trajectory then fills the picture. Returns the box (left, top, right, bottom)."""
-    import numpy as np
     from PIL import Image
 
     if not paths:

@@ -30,6 +30,9 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.export import mesh_from_shape
+from cadfeat.cad.features import holes_to_arrays
+
 __all__ = ["PHASES", "design_pose_accuracy", "help_most", "pose_accuracy", "predict", "with_pose"]
 
 PHASES = ("start", "middle", "end")
@@ -45,8 +48,6 @@ def _tuning(config: Any) -> Any:
 
 
 def _arrays(holes: Sequence[Any]) -> tuple[np.ndarray, ...]:
-    from cadfeat.cad.features import holes_to_arrays
-
     c, a, r = holes_to_arrays(list(holes))
     through = np.array([bool(h.through) for h in holes])
     depth = np.array([float(h.depth_mm) for h in holes])
@@ -262,7 +263,6 @@ def part_mesh(config: Any, shape: Any, mesh: Any = None) -> Any:
     prediction always tests occlusion, even when ``objective.occlusion`` is off)."""
     if mesh is not None:
         return mesh
-    from cadfeat.cad.export import mesh_from_shape
 
     return mesh_from_shape(shape, tolerance=0.05)
 
