@@ -145,6 +145,7 @@ def load_step(path: str | os.PathLike[str], prefer_direction: Sequence[float] | 
     """
     import cadquery as cq
 
+    # lazy: would import OCP, scipy.optimize at module load
     from cadfeat.cad.features.extraction import extract_holes_and_skipped
 
     path = Path(path)

@@ -21,7 +21,7 @@ def _args(parser: argparse.ArgumentParser) -> None:
 
 def campaign(args: argparse.Namespace) -> int:
     """Run many studies (parts x cameras x paths x objective settings) on Dask, resumable; campaign.csv/.html."""
-    from cadfeat.campaign.runner import run_campaign
+    from cadfeat.campaign.runner import run_campaign  # lazy: keeps `cadfeat --help` fast
 
     if args.workers is not None and args.workers < 1:
         raise CadfeatError(f"--workers: {args.workers} is not allowed; allowed: a number of processes >= 1")

@@ -21,7 +21,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="write into an existing folder cadfeat did not create (other files untouched)")
     args = parser.parse_args(argv)
 
-    from cadfeat.study.run import run_study
+    from cadfeat.study.run import run_study  # lazy: keeps `cadfeat --help` fast
 
     t0 = time.perf_counter()
     results = []

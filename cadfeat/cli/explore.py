@@ -23,7 +23,7 @@ def explore(args: argparse.Namespace) -> int:
     """Explore a study in the browser: sliders -> measures and objectives along the path, 3-D and camera view."""
     import webbrowser
 
-    from cadfeat.explore import ExploreSession, serve
+    from cadfeat.explore import ExploreSession, serve  # lazy: keeps `cadfeat --help` fast
 
     if not 0 <= args.port <= 65535:
         raise CadfeatError(f"--port {args.port}: allowed: 0..65535 (0: any free port)")
@@ -48,7 +48,7 @@ def explore(args: argparse.Namespace) -> int:
 
 def _check_port(port: int) -> None:
     """``CadfeatError`` if 127.0.0.1:``port`` cannot be bound now (0: any port, always fine)."""
-    from cadfeat.explore.server import HOST
+    from cadfeat.explore.server import HOST  # lazy: keeps `cadfeat --help` fast
 
     if port == 0:
         return

@@ -37,7 +37,7 @@ def parts(args: argparse.Namespace) -> int:
 
 
 def _list_parts(args: argparse.Namespace) -> int:
-    from cadfeat.cad.parts import find_parts, load_part
+    from cadfeat.cad.parts import find_parts, load_part  # lazy: keeps `cadfeat --help` fast
 
     target = Path(args.directory) if args.directory else None
     if getattr(args, "params", False):
@@ -78,7 +78,7 @@ def parameter_listing(path: Path, time_limit_s: float | None = None) -> list[dic
     ``cqgi_parts.getparams``. A cadfeat part script (``PARAMETERS`` + ``build``, which CQGI cannot list): the same
     fields from its ``PARAMETERS`` — ``type`` number, ``name``, ``caption`` (description), ``initial`` (default)
     and ``min`` / ``max`` (bounds)."""
-    from cadfeat.cad.cqgi_parts import getparams, is_cqgi_script
+    from cadfeat.cad.cqgi_parts import getparams, is_cqgi_script  # lazy: keeps `cadfeat --help` fast
     from cadfeat.cad.parts import load_part
 
     if is_cqgi_script(path):
@@ -90,7 +90,7 @@ def parameter_listing(path: Path, time_limit_s: float | None = None) -> list[dic
 
 def _step_part(path: object, holes: bool) -> int:
     """A STEP part: its holes (names, kind, entrance, host face) and the near-round openings it skips."""
-    from cadfeat.cad.step_parts import load_step
+    from cadfeat.cad.step_parts import load_step  # lazy: keeps `cadfeat --help` fast
 
     part = load_step(path)  # type: ignore[arg-type]
     print(f"{part.name}: STEP part, {len(part.holes)} hole(s), {len(part.skipped)} skipped opening(s)")

@@ -68,6 +68,7 @@ class ExploreSession:
     """A loaded study for the explorer (see the module docstring). Thread-safe: one evaluation at a time."""
 
     def __init__(self, study: str | Path, results: str | Path | None = None) -> None:
+        # lazy: import cycle (cadfeat.explore.raycache imports cadfeat.explore.session)
         from cadfeat.explore.raycache import CachedRayMesh
         from cadfeat.study.schema import load_study
         from cadfeat.study.setup import setup_study
@@ -91,7 +92,7 @@ class ExploreSession:
     # ----------------------------------------------------------------------------------- static scene
     def _optimum(self, results: str | Path | None) -> dict[str, float] | None:
         """The optimised design of ``results.json`` (``--results``; default ``exports/<study name>/``)."""
-        from cadfeat.study.run import default_out_dir
+        from cadfeat.study.run import default_out_dir  # lazy: would import scipy.optimize at module load
 
         path = Path(results) if results is not None else default_out_dir(self.config) / "results.json"
         if not path.is_file():
@@ -109,7 +110,7 @@ class ExploreSession:
     def scene(self) -> dict[str, Any]:
         """What the page draws once: variables with bounds, the part mesh, the camera path and intrinsics,
         the hole names, the trajectory times, the current and (if any) the optimum design."""
-        from cadfeat.poses import invert_T
+        from cadfeat.poses import invert_T  # lazy: would import scipy.spatial at module load
         from cadfeat.report.view3d import mesh_arrays
 
         s = self.setup
@@ -149,7 +150,7 @@ class ExploreSession:
     def evaluate(self, values: Mapping[str, Any] | None = None, pose: int = 0) -> dict[str, Any]:
         """Every number the page shows at design ``values`` (see the module docstring), with the synthetic
         camera view's predicted ellipses at trajectory sample ``pose``."""
-        from cadfeat.design.objectives import objective_values
+        from cadfeat.design.objectives import objective_values  # lazy: would import pydantic at module load
         from cadfeat.study.run import measure_holes
 
         x = self.design(values)
@@ -245,7 +246,7 @@ class ExploreSession:
 
     def rebuilt_mesh(self, values: Mapping[str, Any] | None) -> dict[str, Any]:
         """The CAD model rebuilt at the chosen design, triangulated for the page (vertices mm, triangles)."""
-        from cadfeat.report.view3d import mesh_arrays
+        from cadfeat.report.view3d import mesh_arrays  # lazy: would import pydantic at module load
 
         verts, tris = mesh_arrays(self.rebuild(values))
         return {"vertices": _plain(verts.astype(np.float32)), "triangles": tris.astype(int).tolist()}

@@ -67,7 +67,7 @@ def _camera_path(context: ReportContext, results: Results, scale: float) -> dict
     """Camera centres (L, 3) and N_FRUSTA frusta (4 far corners each) in the part frame (mm)."""
     if context.trajectory is None:
         return {}
-    from cadfeat.poses import invert_T
+    from cadfeat.poses import invert_T  # lazy: would import scipy.spatial at module load
 
     T_task_part = np.eye(4) if context.T_task_part is None else np.asarray(context.T_task_part, float)
     T_part_cam = invert_T(T_task_part) @ np.asarray(context.trajectory.T_task_cam, float)

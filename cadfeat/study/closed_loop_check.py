@@ -101,7 +101,7 @@ def attach(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, An
 def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Path | None,
                       progress: Any = None) -> tuple[dict[str, Any] | None, str | None]:
     """(the results.json ``tracking`` section or None, why it was skipped or None) — ``attach``."""
-    from cadfeat.study.tracking import run_tracking
+    from cadfeat.study.tracking import run_tracking  # lazy: would import scipy.optimize at module load
 
     mode = check_mode(config)
     if mode == "off":

@@ -53,7 +53,7 @@ SOURCE_WORDS = {"camera": "the camera mounting error", "placement": "the part's 
 
 def check_robust(config: Any) -> None:
     """Refuse, before any work, a chance constraint on a measure the study does not optimise (one line)."""
-    from cadfeat.study.schema import StudyError
+    from cadfeat.study.schema import StudyError  # lazy: would import scipy.spatial at module load
 
     spec = config.robustness
     if spec.statistic == "chance" and spec.chance_measure not in config.objective.measures:

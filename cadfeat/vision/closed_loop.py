@@ -198,7 +198,7 @@ def illumination_gains(config: TrackingConfig, runs: int) -> np.ndarray:
 def placed_observations(camera: Camera, obs: Observation, T_runs: np.ndarray) -> list[Observation]:
     """``obs`` rendered again at each run's true poses T_runs (R, F, 4, 4) (one renderer for all runs). The
     predicted ellipses and rim occlusion stay those of the nominal placement: the robot does not know δ_r."""
-    from cadfeat.render import CameraViewRenderer
+    from cadfeat.render import CameraViewRenderer  # lazy: would import scipy.optimize at module load
 
     if obs.scene is None:
         raise ValueError("placement jitter needs an Observation made by observe() (it keeps the part to render)")
