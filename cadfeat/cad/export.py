@@ -32,6 +32,7 @@ import numpy as np
 
 from cadfeat.cad.features import extract_holes, holes_to_arrays, match_holes
 from cadfeat.cad.output_folder import staged_output  # moved to cadfeat.study.output_folder
+from cadfeat.cad.tolerance import LINEAR_FLOOR_MM, ModelTolerance
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -492,8 +493,6 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
     volume = shape_volume_mm3(shape)
     rel = None
     if expected_volume_mm3 is not None:
-        from cadfeat.cad.tolerance import LINEAR_FLOOR_MM, ModelTolerance
-
         rel = abs(volume - expected_volume_mm3) / abs(expected_volume_mm3)
         # writing B-spline faces to STEP moves them by ~1e-6 mm (a Fusion 360 part: 3.5e-2 mm³ of 3e4, 1.2e-6
         # relative): the surface may move by its own B-rep tolerance, at most the model tolerance floor

@@ -277,8 +277,6 @@ class Part:
         """The holes of the default build (extraction order), cached on the part."""
         cache = self.__dict__.get("_default_holes_cache")
         if cache is None:
-            from cadfeat.cad.features import extract_holes
-
             cache = extract_holes(self.build(), prefer_direction=self.view_direction)
             object.__setattr__(self, "_default_holes_cache", cache)
         return cache

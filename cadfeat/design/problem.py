@@ -19,7 +19,7 @@ from cadfeat import measures
 from cadfeat.design.constraints import ConstraintConfig, ConstraintSet
 from cadfeat.design.design_space import DesignSpace, FeatureModel
 from cadfeat.design.hole_form import design_depths
-from cadfeat.design.memory import check_fits, chunked, design_bytes
+from cadfeat.design.memory import DEPTH_GRID, check_fits, chunked, design_bytes
 from cadfeat.design.objectives import (
     MEASURES,
     POSE_UNOBSERVABLE_MM,
@@ -34,8 +34,9 @@ from cadfeat.design.objectives import (
 )
 from cadfeat.design.optimize import OptimizerConfig, optimise
 from cadfeat.design.optimize.solvers import sobol_starts
-from cadfeat.design.pose_terms import pose_aggregate_batch
+from cadfeat.design.pose_terms import pose_aggregate_batch, pose_values, stacked_information
 from cadfeat.errors import CadfeatError
+from cadfeat.measures.depth import DepthMaps
 from cadfeat.measures.jacobian import diagnostics_from_gram
 from cadfeat.measures.resolvability import resolvability_from_parts, scale_jacobian, scale_screws
 from cadfeat.poses import invert_T
@@ -242,9 +243,6 @@ class Problem:
         if self.occlusion_mesh is None:
             return None
         if getattr(self, "_depth_maps", None) is None:
-            from cadfeat.design.memory import DEPTH_GRID, check_fits
-            from cadfeat.measures.depth import DepthMaps
-
             check_fits(len(self.T_cam_part), len(self.model.holes), what="the optimiser's occlusion test")
             self._depth_maps = DepthMaps(self.occlusion_mesh, self.camera, self.T_cam_part, grid=DEPTH_GRID)
         maps = self._depth_maps
@@ -267,7 +265,6 @@ class Problem:
         cfg = self.objective_config
         pose = None
         if "pose" in cfg.measures:  # g_POSE: pose information + pose_objective (``design.pose_terms``)
-            from cadfeat.design.pose_terms import pose_values
 
             g_pose, e = pose_values(self, centres[None], axes[None], radii[None], exact_occlusion,
                                     None if depth_mm is None else np.asarray(depth_mm, float).reshape(1, -1))
@@ -320,7 +317,6 @@ class Problem:
                  "resolution": "resolution_px", "resolvability": "seen"}
         arrays: dict[str, Any] = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
         if "pose" in cfg.measures:  # g_POSE: one pose_information on the B·L stacked poses (``design.pose_terms``)
-            from cadfeat.design.pose_terms import stacked_information
 
             info = stacked_information(self, centres, axes, radii, noise_grey, depth_mm)
             arrays["pose"] = (info.error_mm(cfg.pose_rotation_length_mm).reshape(B, L),

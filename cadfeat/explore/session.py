@@ -36,6 +36,7 @@ from cadfeat.cad.features import extract_holes
 from cadfeat.cad.gltf import export_glb
 from cadfeat.design.hole_form import design_depths
 from cadfeat.errors import CadfeatError
+from cadfeat.study.pose_accuracy import with_pose
 
 __all__ = ["ExploreSession", "new_path"]
 
@@ -167,7 +168,6 @@ class ExploreSession:
                                      depth_mm=float(depths[j])) for j, h in enumerate(s.model.holes)]
             m = measure_holes(s, holes, mesh=self.occlusion)
             if "pose" in self.config.objective.measures:  # g_POSE: the pose information of these holes
-                from cadfeat.study.pose_accuracy import with_pose
 
                 m = with_pose(s, holes, s.trajectory, m, mesh=self.occlusion)
             objectives = objective_values(m, self.config.objective, s.problem.units, s.problem.feature_mask)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cadfeat.camera import build_camera
 from cadfeat.report.context import ReportContext, worst_poses
 from cadfeat.results import Results, value
 
@@ -39,8 +40,6 @@ def _camera(context: ReportContext, results: Results):
         return context.camera
     camera = value(results, "camera")
     if camera:
-        from cadfeat.camera import build_camera
-
         return build_camera({k: v for k, v in camera.items() if k != "source"})
     return None
 

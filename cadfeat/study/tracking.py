@@ -20,14 +20,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cadfeat.cad.export import import_step
-from cadfeat.cad.features import Hole
+from cadfeat.cad.features import Hole, extract_holes
 from cadfeat.cad.features.identity import named
 from cadfeat.cad.parts import load_part
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import invert_T
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 from cadfeat.study.settings.sections import RobustnessSettings, placement_sigma
-from cadfeat.study.setup import load_scene
+from cadfeat.study.setup import camera_direction, load_scene
 from cadfeat.vision import FilterTuning, SensorModel
 from cadfeat.vision.closed_loop import TrackingConfig, draw_frame, frame_image, track_designs
 from cadfeat.vision.motion import so3_log
@@ -179,7 +179,6 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
             holes = {k: [_hole_from_json(h, results_path, k, i) for i, h in enumerate(block[k])] for k in EXPORTED}
     if not holes:
         view = _view_direction(config, Path(out) / EXPORTED["before"])
-        from cadfeat.cad.features import extract_holes
 
         holes = {k: extract_holes(shapes[k], prefer_direction=view) for k in EXPORTED}
     return {k: (shapes[k], _named(holes[k])) for k in EXPORTED}
@@ -203,7 +202,6 @@ def _view_direction(config: StudyConfig, original_step: Path) -> np.ndarray | No
     if config.study.part_kind == "step":
         if config.design.view_direction is not None:
             return np.asarray(config.design.view_direction, float)
-        from cadfeat.study.setup import camera_direction, load_scene
 
         _, traj, T_task_part = load_scene(config)
         return camera_direction(original_step, traj, T_task_part)
