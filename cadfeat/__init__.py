@@ -23,7 +23,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 def run_study(path_or_dict: Any, out_dir: Any = None, **kwargs: Any) -> StudyResult:
     """Run a redesign study (a TOML path or a dict) and write its outputs; see ``cadfeat.study.run``."""
-    from cadfeat.study.run import run_study as _run_study
+    from cadfeat.study.run import run_study as _run_study  # lazy: keeps `import cadfeat` light
 
     return _run_study(path_or_dict, out_dir, **kwargs)
 

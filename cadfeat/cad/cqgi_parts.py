@@ -39,6 +39,7 @@ import ast
 import contextlib
 import math
 import re
+import sys
 import types
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -216,8 +217,6 @@ def _two_argument_describe() -> Iterator[None]:
 def _script_dir_on_path(path: Path) -> Iterator[None]:
     """The script's folder on ``sys.path`` during a build, as cq-cli sets it: a script may import its own
     helper modules from beside it."""
-    import sys
-
     folder = str(path.parent)
     added = folder not in sys.path
     if added:

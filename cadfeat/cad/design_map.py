@@ -26,6 +26,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features import holes_to_arrays, match_holes
+from cadfeat.design.outline_motion import outline_rates
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -97,8 +99,6 @@ class DesignMap:
 
     def predict(self, params: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Linear prediction at ``params``: centres (N, 3) mm, unit axes (N, 3), radii (N,) mm."""
-        from cadfeat.cad.features import holes_to_arrays
-
         dx = self.delta(params)
         c0, a0, r0 = holes_to_arrays(self.holes0)
         axes = a0 + self.dA @ dx
@@ -107,8 +107,6 @@ class DesignMap:
 
     def predict_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Batched prediction for parameter vectors X (B, P) in ``names`` order: (B,N,3), (B,N,3), (B,N)."""
-        from cadfeat.cad.features import holes_to_arrays
-
         dX = np.atleast_2d(np.asarray(X, dtype=float)) - np.array([self.at[n] for n in self.names])
         c0, a0, r0 = holes_to_arrays(self.holes0)
         axes = a0 + np.einsum("nkp,bp->bnk", self.dA, dX)
@@ -117,8 +115,6 @@ class DesignMap:
 
 
 def _arrays(holes: Sequence[Hole]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from cadfeat.cad.features import holes_to_arrays
-
     return holes_to_arrays(holes)
 
 
@@ -130,8 +126,6 @@ def _form(holes: Sequence[Hole]) -> tuple[np.ndarray, np.ndarray]:
 def _matched(part: Part, params: dict[str, Any], reference: Sequence[Hole], what: str,
              tol_mm: float, timeout_s: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Hole]]:
     """Centres, axes, radii and the holes of a build at ``params`` in ``reference`` order (matched by geometry)."""
-    from cadfeat.cad.features import match_holes
-
     holes = part.holes_timed(params, timeout_s)
     if len(holes) != len(reference):
         raise CadfeatError(f"{part.path}: {what} changes the number of holes ({len(reference)} -> {len(holes)}); "
@@ -212,7 +206,6 @@ def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = 
             match_tol_mm, timeout_s)
         builds += 1
     unused = [nm for nm in names if not moved_by[nm]]
-    from cadfeat.design.outline_motion import outline_rates
 
     return DesignMap(part.name, names, {nm: float(x[nm]) for nm in names}, holes0, dC, dA, dR, steps, checks,
                      moved_by, linear_by, deviation, builds, unused,

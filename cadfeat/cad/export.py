@@ -30,7 +30,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features import extract_holes, holes_to_arrays, match_holes
 from cadfeat.cad.output_folder import staged_output  # moved to cadfeat.study.output_folder
+from cadfeat.cad.tolerance import LINEAR_FLOOR_MM, ModelTolerance
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -491,8 +493,6 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
     volume = shape_volume_mm3(shape)
     rel = None
     if expected_volume_mm3 is not None:
-        from cadfeat.cad.tolerance import LINEAR_FLOOR_MM, ModelTolerance
-
         rel = abs(volume - expected_volume_mm3) / abs(expected_volume_mm3)
         # writing B-spline faces to STEP moves them by ~1e-6 mm (a Fusion 360 part: 3.5e-2 mm³ of 3e4, 1.2e-6
         # relative): the surface may move by its own B-rep tolerance, at most the model tolerance floor
@@ -503,7 +503,6 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
             raise ExportError(f"{step_path}: volume {volume:.9f} mm^3 differs from the design's "
                               f"{expected_volume_mm3:.9f} mm^3 (relative {rel:.2e}; allowed {allowed:.3g} mm^3: "
                               f"{volume_rtol:.0e} relative plus {shell:.2g} mm over the surface)")
-    from cadfeat.cad.features import extract_holes, holes_to_arrays, match_holes
 
     expected = list(expected_holes)
     found = extract_holes(shape, prefer_direction=prefer_direction)

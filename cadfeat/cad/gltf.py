@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.export import face_meshes
+
 __all__ = ["MM_TO_M", "export_glb"]
 
 MM_TO_M = 1e-3
@@ -43,8 +45,6 @@ def export_glb(shape: Any, holes: Sequence[Any], path: str | os.PathLike[str], t
     """Write ``path`` (.glb): node ``part`` and one node per hole named ``hole.name`` (see the module
     docstring). Returns the path."""
     import trimesh
-
-    from cadfeat.cad.export import face_meshes
 
     path = Path(path)
     groups: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {"part": []}

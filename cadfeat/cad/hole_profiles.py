@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.tolerance import ModelTolerance
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -352,8 +353,6 @@ def hole_profile(shape: Any, hole: Hole, tol: ModelTolerance | None = None, path
     from OCP.TopExp import TopExp
     from OCP.TopoDS import TopoDS
     from OCP.TopTools import TopTools_IndexedMapOfShape
-
-    from cadfeat.cad.tolerance import ModelTolerance
 
     occ = shape.wrapped if hasattr(shape, "wrapped") else shape
     tol = tol or ModelTolerance.of_shape(occ)

@@ -31,6 +31,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import importlib.util
+import inspect
 import io
 import math
 import os
@@ -44,6 +45,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad import cqgi_parts
+from cadfeat.cad.cqgi_parts import cad_shapes
+from cadfeat.cad.features import extract_holes
 from cadfeat.cad.features.identity import hole_name, pair_holes
 from cadfeat.cad.sandbox import (
     DEFAULT_BUILD_TIMEOUT_S,
@@ -215,8 +219,6 @@ class Part:
     def holes(self, **overrides: Any) -> list[Hole]:
         """The extracted holes of ``build(**overrides)`` (through holes enter on the ``view_direction`` side),
         named by ``name_holes``."""
-        from cadfeat.cad.features import extract_holes
-
         holes = extract_holes(self.build(**overrides), prefer_direction=self.view_direction)
         return self.name_holes(holes, overrides)
 
@@ -224,7 +226,6 @@ class Part:
         """``holes(**params)``, built in a worker process with a time limit when ``timeout_s`` is given."""
         if timeout_s is None:
             return self.holes(**dict(params or {}))
-        from cadfeat.cad.features import extract_holes
 
         holes = extract_holes(build_shape(self, params, timeout_s), prefer_direction=self.view_direction)
         return self.name_holes(holes, params)
@@ -276,8 +277,6 @@ class Part:
         """The holes of the default build (extraction order), cached on the part."""
         cache = self.__dict__.get("_default_holes_cache")
         if cache is None:
-            from cadfeat.cad.features import extract_holes
-
             cache = extract_holes(self.build(), prefer_direction=self.view_direction)
             object.__setattr__(self, "_default_holes_cache", cache)
         return cache
@@ -307,8 +306,6 @@ def _fmt(params: Mapping[str, Any]) -> str:
 
 def _one_solid(result: Any, what: str) -> cq.Solid:
     """The single solid of a build result (Workplane, Shape or OCP shape)."""
-    from cadfeat.cad.cqgi_parts import cad_shapes
-
     if result is None:
         raise PartBuildError(f"{what} returned None; it must return a cadquery Workplane or Shape with one solid")
     shapes = cad_shapes(result)
@@ -371,7 +368,6 @@ def load_part(path: str | os.PathLike[str], time_limit_s: float | None = None) -
         names = ", ".join(p.stem for p in find_parts()) if PARTS_DIR.is_dir() else "(no library)"
         what = "is not a regular file" if path.exists() else "part script not found"
         raise CadfeatError(f"{path}: {what} (library parts: {names})")
-    from cadfeat.cad import cqgi_parts
 
     limit = check_time_limit(time_limit_s)
     if cqgi_parts.is_cqgi_script(path):  # a cq-editor / CQGI script: parsed by CQGI, run only to build
@@ -402,8 +398,6 @@ def load_part(path: str | os.PathLike[str], time_limit_s: float | None = None) -
 
 def _check_signature(build: Any, parameters: Mapping[str, Parameter], where: str) -> None:
     """``build`` must accept every parameter as a keyword, and require no other argument."""
-    import inspect
-
     try:
         sig = inspect.signature(build)
     except (TypeError, ValueError):  # pragma: no cover - builtins / C functions

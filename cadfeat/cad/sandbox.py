@@ -135,7 +135,7 @@ def start_workers() -> None:
     """Start the worker server now (it imports CadQuery meanwhile), so the first time-limited import or build
     does not wait for it; nothing to do with the spawn method."""
     if _context().get_start_method() == "forkserver":
-        from multiprocessing import forkserver
+        from multiprocessing import forkserver  # lazy: keeps `cadfeat --help` fast
 
         forkserver.ensure_running()
 

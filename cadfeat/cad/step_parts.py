@@ -30,8 +30,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.export import check_solid, import_step, mesh_from_shape, shape_volume_mm3
+from cadfeat.cad.features import extract_holes
 from cadfeat.cad.hole_profiles import HoleProfile, hole_label, hole_profile, revolved
-from cadfeat.cad.tolerance import ModelTolerance
+from cadfeat.cad.tolerance import ModelTolerance, step_uncertainty_mm
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -143,9 +145,8 @@ def load_step(path: str | os.PathLike[str], prefer_direction: Sequence[float] | 
     """
     import cadquery as cq
 
-    from cadfeat.cad.export import import_step
+    # lazy: would import OCP, scipy.optimize at module load
     from cadfeat.cad.features.extraction import extract_holes_and_skipped
-    from cadfeat.cad.tolerance import step_uncertainty_mm
 
     path = Path(path)
     shape = import_step(path)
@@ -226,16 +227,12 @@ def volume_change_mm3(before: Any, after: Any) -> float:
     fail silently (a blind hole whose drill point touches a pocket wall: ``filled.cut(result)`` returned most
     of the part, pinned in tests/test_occt_behaviour.py); those measure against the small hole solids
     (``_material_in``)."""
-    from cadfeat.cad.export import shape_volume_mm3
-
     return shape_volume_mm3(after.cut(before)) - shape_volume_mm3(before.cut(after))
 
 
 def _material_in(shape: Any, tools: Sequence[Any], tol: ModelTolerance) -> tuple[float, float]:
     """(volume of the union of ``tools``, volume of ``shape``'s material inside it), mm³: Booleans of the
     part with small solids bounded by a hole's own surfaces, which OCCT integrates exactly."""
-    from cadfeat.cad.export import shape_volume_mm3
-
     union = tools[0].fuse(*tools[1:]) if len(tools) > 1 else tools[0]
     fuzzy = tol.linear_mm if tol.linear_mm > 1e-5 else None
     return shape_volume_mm3(union), shape_volume_mm3(shape.intersect(union, tol=fuzzy))
@@ -292,8 +289,6 @@ def redrill(shape: Any, moves: Sequence[HoleMove], tol: ModelTolerance | None = 
     ``verify`` — that re-extracting the holes finds each new hole at its centre, axis and entrance radius.
     Raises ``CadfeatError`` naming the file (``path``) and the hole otherwise.
     """
-    from cadfeat.cad.export import check_solid
-
     tol = tol or ModelTolerance.of_shape(shape)
     moves = list(moves)
     if not moves:
@@ -333,8 +328,6 @@ def _verify(result: Any, moves: Sequence[HoleMove], profiles: Sequence[HoleProfi
             path: Any) -> None:
     """Each new hole is found again by extraction at its centre, axis and entrance radius (a through hole may
     be found from its other end: on the same axis line, with its exit radius)."""
-    from cadfeat.cad.features import extract_holes
-
     found = extract_holes(result, tol=tol)
     centres = np.array([h.centre for h in found]).reshape(-1, 3)
     axes = np.array([h.axis for h in found]).reshape(-1, 3)
@@ -381,8 +374,6 @@ def dry_run(part: StepPart, holes: Sequence[Hole], resize: Sequence[bool] | None
     Each re-drilled solid is also meshed as the run's STL export will mesh it. Raises ``CadfeatError`` naming
     the file, the hole and why (e.g. its wall is cut by another feature, a face cannot be triangulated).
     """
-    from cadfeat.cad.export import mesh_from_shape
-
     resize = list(resize) if resize is not None else [False] * len(holes)
     for hole, grow in zip(holes, resize, strict=True):
         step = max(0.01 * hole.radius_mm, 10 * part.tolerance.linear_mm)

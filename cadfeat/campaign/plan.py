@@ -191,7 +191,7 @@ def _describe(values: Mapping[str, Any]) -> str:
 
 def _validated(label: str, index: int, shown: Mapping[str, Any], study: dict[str, Any]) -> dict[str, Any]:
     """The study's own validator on one case: its resolved dict (defaults filled in), or ``CampaignError``."""
-    from cadfeat.study.schema import StudyError, load_study
+    from cadfeat.study.schema import StudyError, load_study  # lazy: would import scipy.spatial at module load
 
     try:
         config = load_study(study)
@@ -203,7 +203,7 @@ def _validated(label: str, index: int, shown: Mapping[str, Any], study: dict[str
 
 def _overridden(label: str, base: dict[str, Any], overrides: Mapping[str, Mapping[str, Any]],
                 folder: Path) -> dict[str, Any]:
-    from cadfeat.study.schema import SECTIONS
+    from cadfeat.study.schema import SECTIONS  # lazy: would import scipy.spatial at module load
 
     study = copy.deepcopy(base)
     for section, table in overrides.items():

@@ -21,7 +21,11 @@ folder is untouched.
 from __future__ import annotations
 
 import contextlib
+import json
+import logging
 import os
+import signal
+import socket
 import threading
 import time
 from collections.abc import Iterator
@@ -31,6 +35,7 @@ from typing import Any
 
 from cadfeat.campaign.plan import Campaign, Case, load_campaign
 from cadfeat.campaign.store import CampaignStore
+from cadfeat.campaign.summary import write_csv, write_summary
 from cadfeat.campaign.task import EVENT_TOPIC, run_case
 from cadfeat.study.output_folder import pid_alive
 
@@ -68,8 +73,6 @@ def local_cluster(workers: int | None, retries: int = 1) -> Iterator[Any]:
     """A ``LocalCluster`` client: ``workers`` processes (default: the CPU count), one thread each, non-daemonic
     (a study starts CAD build processes), no dashboard, the cores shared out among the workers' render threads
     (``LP_NUM_THREADS``, Mesa llvmpipe); a case is re-run ``retries`` times if its worker dies."""
-    import logging
-
     import dask.config
     from distributed import Client, LocalCluster
 
@@ -114,8 +117,6 @@ def run_campaign(path_or_campaign: str | os.PathLike[str] | Campaign, out_dir: s
     ``scheduler``: address of a running Dask scheduler; else a ``LocalCluster`` of ``workers`` processes (or
     ``client``, an existing ``distributed.Client``). Raises ``CampaignError`` on bad input (nothing run).
     """
-    from cadfeat.campaign.summary import write_summary
-
     t0 = time.perf_counter()
     campaign = path_or_campaign if isinstance(path_or_campaign, Campaign) else load_campaign(path_or_campaign)
     store = CampaignStore.open(out_dir if out_dir is not None else EXPORTS_DIR / campaign.name, campaign)
@@ -149,8 +150,6 @@ def run_campaign(path_or_campaign: str | os.PathLike[str] | Campaign, out_dir: s
 
 def _cleanup_after_stop(store: CampaignStore, wait_s: float = 20.0) -> None:
     """Remove the staging folders of stopped studies once their owner processes (workers) are gone."""
-    import json
-
     deadline = time.monotonic() + wait_s
     for stage in store.staging_left():
         try:
@@ -185,8 +184,6 @@ def _deferred_signals() -> Iterator[_Stop]:
     """Within the block, SIGINT and SIGTERM only set a flag that the loop checks (``_Stop.check``): raised
     directly, the interrupt can land in a callback of Dask's own (a garbage-collection hook) and be swallowed
     there ("Exception ignored in ..."), and the campaign would run on."""
-    import signal
-
     stop = _Stop()
     if threading.current_thread() is not threading.main_thread():
         yield stop
@@ -225,8 +222,6 @@ class _Execution:
                 self.started[msg["key"]] = {**msg, "seen": time.monotonic()}
 
     def run(self) -> None:
-        from cadfeat.campaign.summary import write_csv
-
         with contextlib.suppress(Exception):
             self.client.subscribe_topic(EVENT_TOPIC, self._on_event)
         futures = {}
@@ -264,9 +259,6 @@ class _Execution:
     def kill_busy_workers(self) -> None:
         """SIGKILL the local worker processes still running a case (Ctrl-C on a LocalCluster): a graceful close
         would wait for their studies to finish. Their staging folders are removed afterwards (owner gone)."""
-        import signal
-        import socket
-
         with self.lock:
             busy = [s for k, s in self.started.items() if k not in self.outcomes_keys]
         for start in busy:

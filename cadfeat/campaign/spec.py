@@ -17,6 +17,7 @@ layer (``cadfeat.campaign.plan``), all before any work.
 
 from __future__ import annotations
 
+import itertools
 import re
 import tomllib
 from pathlib import Path
@@ -147,8 +148,6 @@ def parse_campaign(path: str | Path) -> CampaignFile:
 
 def case_values(model: CampaignFile) -> list[dict[str, Any]]:
     """The raw axis values of every case (grid: the Cartesian product, first axis slowest), ``timeout_s`` kept."""
-    import itertools
-
     if model.cases:
         return [dict(c) for c in model.cases]
     keys = list(model.axes)

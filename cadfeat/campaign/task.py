@@ -25,6 +25,8 @@ import time
 from collections.abc import Iterator, Mapping
 from typing import Any
 
+from cadfeat.errors import CadfeatError
+
 __all__ = ["EVENT_TOPIC", "CaseTimeout", "run_case", "warm_worker"]
 
 #: The Dask event topic on which a worker announces the start of a case (key, pid, address, time).
@@ -76,7 +78,7 @@ def _announce(key: str | None) -> None:
 
 def _check_files(files: Mapping[str, str]) -> str | None:
     """None if every file exists here with the expected SHA-256, else the problem (one line)."""
-    from cadfeat.campaign.plan import sha256_file
+    from cadfeat.campaign.plan import sha256_file  # lazy: would import pydantic at module load
 
     for path, digest in files.items():
         if not os.path.isfile(path):
@@ -116,21 +118,19 @@ def run_case(payload: Mapping[str, Any]) -> dict[str, Any]:
         text = " ".join(str(exc).split()) or type(exc).__name__
         return {**out, "status": "failed", "wall_s": time.perf_counter() - t0,
                 "error": text if _is_cadfeat(exc) else f"{type(exc).__name__}: {text}"}
-    from cadfeat.campaign.plan import sha256_file
+    from cadfeat.campaign.plan import sha256_file  # lazy: would import pydantic at module load
 
     results = os.path.join(payload["out_dir"], "results.json")
     return {**out, "status": "done", "wall_s": time.perf_counter() - t0, "results_sha256": sha256_file(results)}
 
 
 def _is_cadfeat(exc: BaseException) -> bool:
-    from cadfeat.errors import CadfeatError
-
     return isinstance(exc, CadfeatError)
 
 
 def _run(payload: Mapping[str, Any]) -> None:
     """The study itself, as ``cadfeat run`` runs it (no progress display in a worker)."""
-    from cadfeat.study import run_study
+    from cadfeat.study import run_study  # lazy: its package loads it on first use
 
     run_study(dict(payload["study"]), payload["out_dir"], quiet=True, progress=False)
 
@@ -138,6 +138,7 @@ def _run(payload: Mapping[str, Any]) -> None:
 def warm_worker() -> int:
     """Import the study code and start the CAD worker server (CadQuery preloaded) in this worker, what its first
     case would otherwise pay; returns the worker's pid."""
+    # lazy: would import scipy.optimize at module load
     from cadfeat.cad.parts import call_with_time_limit, start_workers
     from cadfeat.study import run  # noqa: F401
 

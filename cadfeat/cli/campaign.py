@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from cadfeat.cli.command import Command
+from cadfeat.errors import CadfeatError
 
 
 def _args(parser: argparse.ArgumentParser) -> None:
@@ -20,8 +21,7 @@ def _args(parser: argparse.ArgumentParser) -> None:
 
 def campaign(args: argparse.Namespace) -> int:
     """Run many studies (parts x cameras x paths x objective settings) on Dask, resumable; campaign.csv/.html."""
-    from cadfeat.campaign.runner import run_campaign
-    from cadfeat.errors import CadfeatError
+    from cadfeat.campaign.runner import run_campaign  # lazy: keeps `cadfeat --help` fast
 
     if args.workers is not None and args.workers < 1:
         raise CadfeatError(f"--workers: {args.workers} is not allowed; allowed: a number of processes >= 1")

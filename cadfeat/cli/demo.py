@@ -8,6 +8,8 @@ import argparse
 import time
 from pathlib import Path
 
+from cadfeat.cli import run_guarded
+
 FLAGSHIP = Path(__file__).resolve().parents[2] / "studies" / "nema17_mount.toml"
 
 
@@ -19,8 +21,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="write into an existing folder cadfeat did not create (other files untouched)")
     args = parser.parse_args(argv)
 
-    from cadfeat.cli import run_guarded
-    from cadfeat.study.run import run_study
+    from cadfeat.study.run import run_study  # lazy: keeps `cadfeat --help` fast
 
     t0 = time.perf_counter()
     results = []

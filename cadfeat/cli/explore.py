@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import socket
+import sys
+import time
 
 from cadfeat.cli.command import Command
+from cadfeat.errors import CadfeatError, Terminated
 
 
 def _arguments(parser: argparse.ArgumentParser) -> None:
@@ -17,12 +21,9 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
 
 def explore(args: argparse.Namespace) -> int:
     """Explore a study in the browser: sliders -> measures and objectives along the path, 3-D and camera view."""
-    import sys
-    import time
     import webbrowser
 
-    from cadfeat.errors import CadfeatError, Terminated
-    from cadfeat.explore import ExploreSession, serve
+    from cadfeat.explore import ExploreSession, serve  # lazy: keeps `cadfeat --help` fast
 
     if not 0 <= args.port <= 65535:
         raise CadfeatError(f"--port {args.port}: allowed: 0..65535 (0: any free port)")
@@ -47,10 +48,7 @@ def explore(args: argparse.Namespace) -> int:
 
 def _check_port(port: int) -> None:
     """``CadfeatError`` if 127.0.0.1:``port`` cannot be bound now (0: any port, always fine)."""
-    import socket
-
-    from cadfeat.errors import CadfeatError
-    from cadfeat.explore.server import HOST
+    from cadfeat.explore.server import HOST  # lazy: keeps `cadfeat --help` fast
 
     if port == 0:
         return

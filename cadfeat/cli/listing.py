@@ -9,7 +9,7 @@ from cadfeat.cli.command import Command, no_arguments
 
 def cameras(args: argparse.Namespace) -> int:
     """List the camera presets with their intrinsics and sources."""
-    from cadfeat.camera import PRESETS, Camera
+    from cadfeat.camera import PRESETS, Camera  # lazy: keeps `cadfeat --help` fast
 
     for name in sorted(PRESETS):
         cam = Camera.preset(name)
@@ -21,7 +21,7 @@ def cameras(args: argparse.Namespace) -> int:
 
 def trajectories(args: argparse.Namespace) -> int:
     """List the library trajectory kinds with their arguments (for [trajectory] in study files)."""
-    from cadfeat.trajectory import TRAJECTORY_KINDS, kind_arguments
+    from cadfeat.trajectory import TRAJECTORY_KINDS, kind_arguments  # lazy: keeps `cadfeat --help` fast
 
     for kind, func in TRAJECTORY_KINDS.items():
         summary = " ".join((func.__doc__ or "").strip().split("\n\n")[0].split())

@@ -5,10 +5,13 @@ parameters as cq-cli's ``--getparams`` JSON."""
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 from typing import Any
 
+from cadfeat.cad.sandbox import DEFAULT_BUILD_TIMEOUT_S, start_workers
 from cadfeat.cli.command import Command
+from cadfeat.errors import CadfeatError
 
 
 def _arguments(parser: argparse.ArgumentParser) -> None:
@@ -22,8 +25,6 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
 
 def build_timeout_arg(parser: argparse.ArgumentParser) -> None:
     """``--build-timeout S``: the time limit of one part-script import or build (worker process)."""
-    from cadfeat.cad.sandbox import DEFAULT_BUILD_TIMEOUT_S
-
     parser.add_argument("--build-timeout", type=float, default=DEFAULT_BUILD_TIMEOUT_S, metavar="S",
                         help=f"time limit of one part-script import or build, s (default {DEFAULT_BUILD_TIMEOUT_S:g})")
 
@@ -31,16 +32,12 @@ def build_timeout_arg(parser: argparse.ArgumentParser) -> None:
 def parts(args: argparse.Namespace) -> int:
     """List the part scripts: description, parameters (default, bounds, unit), fixed holes."""
 
-    from cadfeat.cad.sandbox import start_workers
-
     start_workers()
     return _list_parts(args)
 
 
 def _list_parts(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from cadfeat.cad.parts import find_parts, load_part
+    from cadfeat.cad.parts import find_parts, load_part  # lazy: keeps `cadfeat --help` fast
 
     target = Path(args.directory) if args.directory else None
     if getattr(args, "params", False):
@@ -69,11 +66,6 @@ def _list_parts(args: argparse.Namespace) -> int:
 
 def _params_json(target: object, time_limit_s: float | None) -> int:
     """``--params``: the parameters of one script as cq-cli's ``--getparams`` JSON."""
-    import json
-    from pathlib import Path
-
-    from cadfeat.errors import CadfeatError
-
     if target is None or not Path(str(target)).is_file():
         raise CadfeatError(f"--params: {target or '(no script)'} is not a script file; allowed: one part script "
                            "(cadfeat parts SCRIPT.py --params)")
@@ -86,7 +78,7 @@ def parameter_listing(path: Path, time_limit_s: float | None = None) -> list[dic
     ``cqgi_parts.getparams``. A cadfeat part script (``PARAMETERS`` + ``build``, which CQGI cannot list): the same
     fields from its ``PARAMETERS`` — ``type`` number, ``name``, ``caption`` (description), ``initial`` (default)
     and ``min`` / ``max`` (bounds)."""
-    from cadfeat.cad.cqgi_parts import getparams, is_cqgi_script
+    from cadfeat.cad.cqgi_parts import getparams, is_cqgi_script  # lazy: keeps `cadfeat --help` fast
     from cadfeat.cad.parts import load_part
 
     if is_cqgi_script(path):
@@ -98,7 +90,7 @@ def parameter_listing(path: Path, time_limit_s: float | None = None) -> list[dic
 
 def _step_part(path: object, holes: bool) -> int:
     """A STEP part: its holes (names, kind, entrance, host face) and the near-round openings it skips."""
-    from cadfeat.cad.step_parts import load_step
+    from cadfeat.cad.step_parts import load_step  # lazy: keeps `cadfeat --help` fast
 
     part = load_step(path)  # type: ignore[arg-type]
     print(f"{part.name}: STEP part, {len(part.holes)} hole(s), {len(part.skipped)} skipped opening(s)")

@@ -71,7 +71,7 @@ def load_shape(path: Path, params: dict[str, float | int], time_limit_s: float |
                ) -> tuple[Any, list, Any, str]:
     """(shape, holes, view direction or None, name) of a STEP file or a part script (imported and built in a
     worker process within ``time_limit_s``; None: in this process)."""
-    from cadfeat.cad.features import extract_holes
+    from cadfeat.cad.features import extract_holes  # lazy: keeps `cadfeat --help` fast
     from cadfeat.cad.parts import PARTS_DIR
 
     if not path.is_file() and path.suffix == "" and (PARTS_DIR / f"{path}.py").is_file():
@@ -100,7 +100,7 @@ def load_shape(path: Path, params: dict[str, float | int], time_limit_s: float |
 
 def render(args: argparse.Namespace) -> int:
     """Render a part script or STEP file to a PNG (off-screen) and print the PNG path."""
-    from cadfeat.render import render_part
+    from cadfeat.render import render_part  # lazy: keeps `cadfeat --help` fast
     from cadfeat.render.view_geometry import default_view_direction
 
     path = Path(args.part)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from cadfeat.cli.command import Command
 
@@ -17,9 +18,7 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
 
 def report(args: argparse.Namespace) -> int:
     """Write report.html (plots and tables; no renders: those need the study's shapes) from a results.json."""
-    from pathlib import Path
-
-    from cadfeat.report import read_results, write_report
+    from cadfeat.report import read_results, write_report  # lazy: keeps `cadfeat --help` fast
     from cadfeat.study.output_folder import REPORT_NAMES, staged_output
 
     results_path = Path(args.results)

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import json
+from pathlib import Path
 
 from cadfeat.cli.command import Command
+from cadfeat.errors import CadfeatError
 
 
 def _study_arg(parser: argparse.ArgumentParser) -> None:
@@ -47,7 +50,7 @@ def _evaluate_args(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run a redesign study: optimise the movable holes, verify and export STEP/STL, results.json, report."""
-    from cadfeat.study.run import run_study
+    from cadfeat.study.run import run_study  # lazy: keeps `cadfeat --help` fast
 
     result = run_study(args.study, args.out, seed=args.seed, quiet=args.quiet, progress=not args.quiet,
                        force=args.force, track=args.track)
@@ -57,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
 
 def evaluate(args: argparse.Namespace) -> int:
     """Score the study's current design without optimising; print the per-feature table (thesis Table 5.1)."""
-    from cadfeat.study.run import evaluate_study
+    from cadfeat.study.run import evaluate_study  # lazy: keeps `cadfeat --help` fast
 
     evaluate_study(args.study, args.out, pose=args.pose, quiet=args.quiet, echo=True, force=args.force)
     return 0
@@ -66,7 +69,7 @@ def evaluate(args: argparse.Namespace) -> int:
 def validate(args: argparse.Namespace) -> int:
     """Check a study file (sections, keys, types, ranges, files, part parameters, the part builds / the STEP
     file reads) without running it."""
-    from cadfeat.study.schema import load_study
+    from cadfeat.study.schema import load_study  # lazy: keeps `cadfeat --help` fast
 
     config = load_study(args.study)
     _check_part(config)
@@ -89,8 +92,7 @@ def validate(args: argparse.Namespace) -> int:
 def _preflight_if_buildable(config: object) -> object:
     """The study's pre-flight (``cadfeat.study.preflight``) when the part can be built; its refusal is the
     command's error. A part that does not build is left to ``run``/``evaluate`` (validate checks the file)."""
-    from cadfeat.errors import CadfeatError
-    from cadfeat.study.run import preflight_study
+    from cadfeat.study.run import preflight_study  # lazy: keeps `cadfeat --help` fast
     from cadfeat.study.schema import StudyError
 
     try:
@@ -104,8 +106,6 @@ def _preflight_if_buildable(config: object) -> object:
 def _check_part(config: object) -> None:
     """Load the part as the run will: a script is imported and built at its defaults (worker process, time
     limit), a STEP file is read and its holes extracted."""
-    from cadfeat.errors import CadfeatError
-
     study = config.study  # type: ignore[attr-defined]
     try:
         if study.part_kind == "step":
@@ -129,9 +129,6 @@ def _schema_args(parser: argparse.ArgumentParser) -> None:
 def schema(args: argparse.Namespace) -> int:
     """Write the JSON Schema of a study file (editor completion and checking: README, "Study files"), or with
     ``--results`` of results.json (``cadfeat.results.StudyResults``)."""
-    import json
-    from pathlib import Path
-
     if args.results:
         from cadfeat.results import results_json_schema as make
     else:

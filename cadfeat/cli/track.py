@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from cadfeat.cli.command import Command
+from cadfeat.errors import CadfeatError
 
 SWEEP_KINDS = ("initial_error", "q", "r", "focal_length", "sample_time")
 
@@ -30,7 +31,7 @@ def _track_args(parser: argparse.ArgumentParser) -> None:
 
 
 def _write_json(path: Path, data: dict[str, Any]) -> None:
-    from cadfeat.study.outputs import write_json
+    from cadfeat.study.outputs import write_json  # lazy: keeps `cadfeat --help` fast
 
     tmp = path.with_name(path.name + ".tmp")
     write_json(tmp, data)
@@ -60,8 +61,7 @@ def _f(x: Any) -> str:
 
 def track(args: argparse.Namespace) -> int:
     """Does the new design track better? Images → OpenCV detection → EKF/IEKF/PnP pose, before vs after."""
-    from cadfeat.errors import CadfeatError
-    from cadfeat.study.run import default_out_dir
+    from cadfeat.study.run import default_out_dir  # lazy: keeps `cadfeat --help` fast
     from cadfeat.study.schema import TrackingSpec, load_study
     from cadfeat.study.tracking import exported_designs, run_tracking, sweep
 

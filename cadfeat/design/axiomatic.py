@@ -84,7 +84,7 @@ def design_matrix(problem: Any, x: np.ndarray, *, columns: str = "groups", rows:
                   threshold_rel: float = 0.05, step: float = 1e-4) -> DesignMatrix:
     """The design matrix of ``problem`` at design ``x`` (module docstring). ``step``: finite-difference step
     as a fraction of each variable's range."""
-    from cadfeat.design.optimize.evaluator import Evaluator
+    from cadfeat.design.optimize.evaluator import Evaluator  # lazy: would import pydantic at module load
 
     space = problem.space
     ev = Evaluator(problem, np.asarray(x, dtype=float))

@@ -30,7 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from cadfeat.cad.features import Hole, holes_to_arrays
+from cadfeat.cad.export import shape_volume_mm3
+from cadfeat.cad.features import Hole, as_shape, extract_holes, holes_to_arrays, match_holes
 from cadfeat.cad.features.identity import hole_name
 from cadfeat.errors import CadfeatError
 
@@ -412,8 +413,6 @@ def verify_on_brep(shape: Any, design_holes: Sequence[Hole], config: ConstraintC
     ``volume`` — |V − V0| / V0 ≤ max_frac with ``reference_shape``. A missing hole gives a failed
     ``holes_match`` check. ``tol_mm`` is the numerical tolerance of ``ok``.
     """
-    from cadfeat.cad.features import as_shape, extract_holes, match_holes
-
     solid = as_shape(shape)
     design_holes = list(design_holes)
     fixed = np.asarray(fixed_mask, dtype=bool)
@@ -462,8 +461,6 @@ def verify_on_brep(shape: Any, design_holes: Sequence[Hole], config: ConstraintC
         checks.append(_check("symmetry", [names[s.i], names[s.j]], config.symmetry_tol_mm, e, "mm", tol_mm,
                              at_most=True))
     if config.volume_change_max_frac is not None and reference_shape is not None:
-        from cadfeat.cad.export import shape_volume_mm3
-
         v0 = shape_volume_mm3(as_shape(reference_shape))
         frac = abs(shape_volume_mm3(solid) - v0) / v0
         checks.append(_check("volume", [], config.volume_change_max_frac, frac, "fraction", 1e-9, at_most=True))

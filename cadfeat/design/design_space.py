@@ -17,14 +17,16 @@ Both give ``features_batch(X (B,P))`` for batched finite differences.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from cadfeat.cad.features import Hole, holes_to_arrays, match_holes
+from cadfeat.cad.features import FaceOutline, Hole, holes_to_arrays, match_holes
 from cadfeat.cad.features.identity import hole_name
+from cadfeat.cad.step_parts import HoleMove
 from cadfeat.errors import CadfeatError
 
 __all__ = [
@@ -272,10 +274,6 @@ class LinearFeatureModel:
     def holes_at(self, x: np.ndarray) -> list[Hole]:
         """The reference holes with the features (and depth, bore) at ``x`` and their host-face outlines moved to
         ``x`` (``outline_rates``; outlines without rates as at ``x0``)."""
-        import dataclasses
-
-        from cadfeat.cad.features import FaceOutline
-
         c, a, r = self.features(x)
         depth, bore = self.depths_batch(x)[0], self.bores_batch(x)[0]
         dx = np.asarray(x, dtype=float) - self.x0
@@ -408,7 +406,5 @@ class HoleMoveModel(LinearFeatureModel):
 
     def hole_moves(self, x: np.ndarray) -> list[Any]:
         """``step_parts.HoleMove`` for every movable hole at design ``x`` (for ``redrill``)."""
-        from cadfeat.cad.step_parts import HoleMove
-
         c, _, r = self.features(x)
         return [HoleMove(self.holes[i], c[i], float(r[i])) for i in self.movable]

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.design.memory import budget_bytes
 from cadfeat.design.objectives import POSE_AGGREGATES, POSE_UNOBSERVABLE_MM, _choice
 
 __all__ = ["StackedPose", "hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_values",
@@ -47,7 +48,7 @@ def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii:
 
     ``occlusion`` (L, N) overrides the rim test (e.g. held fixed for finite differences); ``depth_mm`` (N,) the
     design's hole depths (default: the reference holes')."""
-    from cadfeat.measures import pose_information
+    from cadfeat.measures import pose_information  # lazy: would import scipy.spatial at module load
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
     cfg = problem.objective_config
@@ -120,7 +121,7 @@ def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, rad
     problem's fixed draws, give the same terms in every evaluation); only the designs' other holes are computed
     at the B·L poses. What couples the holes — the detection model's gap to the nearest other rim — and the sums
     over holes are then evaluated on all N holes as ``pose_information`` does (its steps and expressions)."""
-    from cadfeat.measures import pose_models
+    from cadfeat.measures import pose_models  # lazy: would import scipy.spatial at module load
 
     B, N = radii.shape
     L = len(problem.T_cam_part)
@@ -220,7 +221,7 @@ def _hole_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     """What depends on each hole alone, for B designs' holes (B, n, …) at the problem's L poses as B·L stacked
     poses: ``pose_models.hole_geometry``, the measurement Jacobian (``rim_centre.measure``) (B·L, n, 2, 6) and
     the rims' hidden fraction (``rim_occlusion`` against the depth maps; 0 without them) (B·L, n)."""
-    from cadfeat.measures import pose_models
+    from cadfeat.measures import pose_models  # lazy: would import scipy.spatial at module load
     from cadfeat.measures.rim_centre import measure
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
@@ -255,8 +256,6 @@ def _fixed_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.
     maps, camera and holes (a key of their bytes; the camera and maps objects are held with the entry so their
     ids stay theirs); at most ``CACHE_ENTRIES`` pose sets and ``CACHE_BUDGET_SHARE`` of the memory budget, the
     least recently used dropped first."""
-    from cadfeat.design.memory import budget_bytes
-
     maps = problem.occlusion
     parts = [np.asarray(problem.T_cam_part, float), centres, axes, radii]
     if maps is not None:

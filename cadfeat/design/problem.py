@@ -10,14 +10,19 @@ objective and constraint configurations. Everything the solvers need comes from 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+from cadfeat import measures
 from cadfeat.design.constraints import ConstraintConfig, ConstraintSet
 from cadfeat.design.design_space import DesignSpace, FeatureModel
+from cadfeat.design.hole_form import design_depths
+from cadfeat.design.memory import DEPTH_GRID, check_fits, chunked, design_bytes
 from cadfeat.design.objectives import (
     MEASURES,
+    POSE_UNOBSERVABLE_MM,
     Normaliser,
     ObjectiveConfig,
     aggregate,
@@ -27,7 +32,13 @@ from cadfeat.design.objectives import (
     natural_units,
     per_pose_values,
 )
+from cadfeat.design.optimize import OptimizerConfig, optimise
+from cadfeat.design.optimize.solvers import sobol_starts
+from cadfeat.design.pose_terms import pose_aggregate_batch, pose_values, stacked_information
 from cadfeat.errors import CadfeatError
+from cadfeat.measures.depth import DepthMaps
+from cadfeat.measures.jacobian import diagnostics_from_gram
+from cadfeat.measures.resolvability import resolvability_from_parts, scale_jacobian, scale_screws
 from cadfeat.poses import invert_T
 
 __all__ = ["Problem"]
@@ -36,9 +47,6 @@ __all__ = ["Problem"]
 def _resolvability(J: np.ndarray, screws: np.ndarray, rotation_length_mm: float) -> np.ndarray:
     """``measures.resolvability`` (eq. 4.27–4.32) of stacked Jacobians J (M, 2N, 6), with the Gram matrices
     JᵀJ formed by one batched matmul (as ``measures.evaluate`` does) — same formula and helpers."""
-    from cadfeat.measures.jacobian import diagnostics_from_gram
-    from cadfeat.measures.resolvability import resolvability_from_parts, scale_jacobian, scale_screws
-
     Js = scale_jacobian(J, rotation_length_mm)
     diag = diagnostics_from_gram(np.swapaxes(Js, 1, 2) @ Js)
     image_speed = np.linalg.norm((J @ screws[:, :, None])[..., 0], axis=-1)
@@ -106,7 +114,6 @@ class Problem:
         self.T_cam_part = invert_T(np.asarray(trajectory.T_task_cam, dtype=float)) @ self.T_task_part
         self.screws = np.asarray(trajectory.velocity_screws(), dtype=float)
         # the volume requirement is relative to the part as it is (the start): its radii, not the map's anchor's
-        from cadfeat.design.memory import check_fits
 
         check_fits(len(self.screws), n, occlusion=occlusion_mesh is not None, what="optimisation problem")
         self.cset = ConstraintSet(model.holes, constraint_config, self.fixed_mask,
@@ -158,11 +165,6 @@ class Problem:
         and the design-space centre — never from the starting design), under the same 2-D constraints;
         plus ``samples`` fixed Sobol designs (those meeting the 2-D constraints) to tell an objective that does
         not depend on the design (constant) from non-conflicting ones."""
-        from dataclasses import replace
-
-        from cadfeat.design.optimize import OptimizerConfig, optimise
-        from cadfeat.design.optimize.solvers import sobol_starts
-
         cfg = self.objective_config
         natural = Normaliser.build("natural", dict.fromkeys(self.names, 1.0), unit_by_name)
         space = self.space
@@ -194,8 +196,6 @@ class Problem:
 
     def hole_depths(self, X: np.ndarray) -> np.ndarray | None:
         """(B, N) hole depths (mm) of designs X by the feature model (``design.hole_form``), None without rates."""
-        from cadfeat.design.hole_form import design_depths
-
         return design_depths(self.model, X)
 
     def _features_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -229,8 +229,6 @@ class Problem:
                                exact_occlusion: bool = False) -> Any:
         """``measures.evaluate`` of hole features (part frame) along the trajectory; occlusion by the
         optimiser's depth maps, or by the exact ray test against the mesh with ``exact_occlusion``."""
-        from cadfeat import measures
-
         cfg = self.objective_config
         if np.any(np.asarray(radii) <= 0):
             raise CadfeatError(f"a design gives a hole radius ≤ 0 mm: {np.asarray(radii).tolist()}")
@@ -245,9 +243,6 @@ class Problem:
         if self.occlusion_mesh is None:
             return None
         if getattr(self, "_depth_maps", None) is None:
-            from cadfeat.design.memory import DEPTH_GRID, check_fits
-            from cadfeat.measures.depth import DepthMaps
-
             check_fits(len(self.T_cam_part), len(self.model.holes), what="the optimiser's occlusion test")
             self._depth_maps = DepthMaps(self.occlusion_mesh, self.camera, self.T_cam_part, grid=DEPTH_GRID)
         maps = self._depth_maps
@@ -270,7 +265,6 @@ class Problem:
         cfg = self.objective_config
         pose = None
         if "pose" in cfg.measures:  # g_POSE: pose information + pose_objective (``design.pose_terms``)
-            from cadfeat.design.pose_terms import pose_values
 
             g_pose, e = pose_values(self, centres[None], axes[None], radii[None], exact_occlusion,
                                     None if depth_mm is None else np.asarray(depth_mm, float).reshape(1, -1))
@@ -284,8 +278,6 @@ class Problem:
         """Raw aggregated objectives (B, K) of B designs' features (B,N,3), (B,N,3), (B,N) and hole depths (B,N)
         mm (None: the reference holes'): ``_batch_objectives`` on chunks of designs within the memory budget
         (``cadfeat.design.memory``; one pass when they fit)."""
-        from cadfeat.design.memory import chunked, design_bytes
-
         B, N = np.shape(radii)
         axes = np.broadcast_to(axes, np.shape(centres))
         return chunked(lambda sl: self._batch_objectives(centres[sl], axes[sl], radii[sl],
@@ -311,8 +303,6 @@ class Problem:
         weighted by ``seen``, the seen fraction of its rim, 0 where it cannot be seen, as ``evaluate`` does) and
         ``measures.resolvability`` on B·L stacked Jacobians. ``noise_grey`` (L, 1) or None: the sensor noise per
         pose of g_POSE's σ model."""
-        from cadfeat import measures
-
         cfg = self.objective_config
         B, N = radii.shape
         L = len(self.screws)
@@ -327,7 +317,6 @@ class Problem:
                  "resolution": "resolution_px", "resolvability": "seen"}
         arrays: dict[str, Any] = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
         if "pose" in cfg.measures:  # g_POSE: one pose_information on the B·L stacked poses (``design.pose_terms``)
-            from cadfeat.design.pose_terms import stacked_information
 
             info = stacked_information(self, centres, axes, radii, noise_grey, depth_mm)
             arrays["pose"] = (info.error_mm(cfg.pose_rotation_length_mm).reshape(B, L),
@@ -345,9 +334,6 @@ class Problem:
 
     def aggregate_arrays(self, arrays: dict[str, Any]) -> np.ndarray:
         """Raw aggregated objectives (B, K) of ``pose_arrays`` (any leading batch shape B of the (B, L, …) arrays)."""
-        from cadfeat.design.objectives import POSE_UNOBSERVABLE_MM
-        from cadfeat.design.pose_terms import pose_aggregate_batch
-
         cfg = self.objective_config
         arrays = dict(arrays)
         if "pose" in arrays:

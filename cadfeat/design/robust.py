@@ -28,6 +28,8 @@ starts (the nominal optimum, the best end-points of the nominal multi-start, the
 
 from __future__ import annotations
 
+import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -35,6 +37,9 @@ from typing import Any
 import numpy as np
 
 from cadfeat.design.objectives import ObjectiveConfig
+from cadfeat.design.optimize import _result
+from cadfeat.design.optimize.evaluator import FEAS_TOL, Evaluator
+from cadfeat.design.robustness import cell_objectives, shop_objectives
 from cadfeat.design.uncertainty import Draws
 from cadfeat.errors import CadfeatError
 
@@ -151,8 +156,6 @@ class RobustProblem:
                          depth_mm: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Raw objectives of B designs' features (B, N, 3), (B, N, 3), (B, N): ``"nominal"`` (B, K) and per source
         of ``BLOCKS`` (B, S, K) on the draws with only that source (all cell sources for "cell")."""
-        from cadfeat.design.robustness import cell_objectives, shop_objectives
-
         p = self.inner
         a = np.broadcast_to(axes, np.shape(centres))
         out = {"nominal": p.batch_objectives(centres, a, radii, depth_mm=depth_mm)}
@@ -228,11 +231,7 @@ def _local(ev: Any, u0: np.ndarray, maxiter: int) -> None:
     finite-difference gradients mislead a gradient solver. The evaluator keeps the best feasible design. The
     solve ends early when its best feasible value has not risen by ``STALL_TOL`` in ``STALL_EVALS_PER_VARIABLE``
     · (n + 1) evaluations, at least ``STALL_EVALS_MIN`` (a solve that has found no feasible design runs on)."""
-    import warnings
-
     from scipy.optimize import minimize
-
-    from cadfeat.design.optimize.evaluator import FEAS_TOL
 
     iteration = [0]
     best, count, last = [-np.inf], [0], [0]
@@ -271,11 +270,6 @@ def robust_optimise(problem: RobustProblem, config: Any, starts: Sequence[np.nda
     """Local solves of ``problem`` (COBYLA, ``ROBUST_EVALS_PER_VARIABLE`` evaluations per free variable) from
     each of ``starts`` in turn, one evaluator keeping the best feasible design (ties: the earlier); standard-size
     variables (``snap_standard_sizes``) stay at each start's (snapped) sizes. An ``optimize.OptimResult``."""
-    import time
-
-    from cadfeat.design.optimize import _result
-    from cadfeat.design.optimize.evaluator import Evaluator
-
     if not len(starts):
         raise CadfeatError("robust optimisation: no start given")
     space = problem.space

@@ -28,6 +28,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features import holes_to_arrays
+from cadfeat.design.hole_form import drill_mask, drill_radii_batch
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -114,8 +116,6 @@ class ShopDesign:
 def model_jacobian(model: Any, x: np.ndarray, h: float = 1e-3) -> np.ndarray:
     """(4N, P) d(centres, drilled radii)/dx by central differences, one batched feature evaluation (drilled
     radius: ``hole_form.drill_radii_batch``, the bore of a plain hole, the entrance of the others)."""
-    from cadfeat.design.hole_form import drill_radii_batch
-
     P = x.size
     X = np.concatenate([x + h * np.eye(P), x - h * np.eye(P)])
     c = model.features_batch(X)[0]
@@ -195,8 +195,6 @@ def _feasible(problem: Any, x: np.ndarray) -> bool:
 def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: float, sizes: Sequence[float],
                tol_mm: float) -> ShopDesign:
     """Targets from the rounded variables ``xr`` and the least-squares step towards them."""
-    from cadfeat.design.hole_form import drill_mask, drill_radii_batch
-
     cr, ar = (np.asarray(v, float) for v in model.features(xr)[:2])
     rr = drill_radii_batch(model, xr)[0]
     J = model_jacobian(model, xr)
@@ -230,8 +228,6 @@ def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: f
 # ------------------------------------------------------------------------------ refinement on the CAD rebuild
 def _drilled(holes: Sequence[Hole], design: ShopDesign) -> tuple[np.ndarray, np.ndarray]:
     """Centres (N, 3) and drilled radii (N,) mm of CAD holes: the bore where ``design.drill_bore``, else the rim."""
-    from cadfeat.cad.features import holes_to_arrays
-
     c, _, r = holes_to_arrays(list(holes))
     if design.drill_bore is not None and len(design.drill_bore) == len(r):
         r = np.where(design.drill_bore, [float(h.bore_radius_mm) for h in holes], r)

@@ -16,7 +16,11 @@ as STEP / GLB into a new folder. Nothing existing is overwritten.
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
+import shutil
+import tempfile
 import threading
 import time
 import tomllib
@@ -27,7 +31,12 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.export import export_step
+from cadfeat.cad.features import extract_holes
+from cadfeat.cad.gltf import export_glb
+from cadfeat.design.hole_form import design_depths
 from cadfeat.errors import CadfeatError
+from cadfeat.study.pose_accuracy import with_pose
 
 __all__ = ["ExploreSession", "new_path"]
 
@@ -60,6 +69,7 @@ class ExploreSession:
     """A loaded study for the explorer (see the module docstring). Thread-safe: one evaluation at a time."""
 
     def __init__(self, study: str | Path, results: str | Path | None = None) -> None:
+        # lazy: import cycle (cadfeat.explore.raycache imports cadfeat.explore.session)
         from cadfeat.explore.raycache import CachedRayMesh
         from cadfeat.study.schema import load_study
         from cadfeat.study.setup import setup_study
@@ -83,9 +93,7 @@ class ExploreSession:
     # ----------------------------------------------------------------------------------- static scene
     def _optimum(self, results: str | Path | None) -> dict[str, float] | None:
         """The optimised design of ``results.json`` (``--results``; default ``exports/<study name>/``)."""
-        import json
-
-        from cadfeat.study.run import default_out_dir
+        from cadfeat.study.run import default_out_dir  # lazy: would import scipy.optimize at module load
 
         path = Path(results) if results is not None else default_out_dir(self.config) / "results.json"
         if not path.is_file():
@@ -103,7 +111,7 @@ class ExploreSession:
     def scene(self) -> dict[str, Any]:
         """What the page draws once: variables with bounds, the part mesh, the camera path and intrinsics,
         the hole names, the trajectory times, the current and (if any) the optimum design."""
-        from cadfeat.poses import invert_T
+        from cadfeat.poses import invert_T  # lazy: would import scipy.spatial at module load
         from cadfeat.report.view3d import mesh_arrays
 
         s = self.setup
@@ -143,8 +151,7 @@ class ExploreSession:
     def evaluate(self, values: Mapping[str, Any] | None = None, pose: int = 0) -> dict[str, Any]:
         """Every number the page shows at design ``values`` (see the module docstring), with the synthetic
         camera view's predicted ellipses at trajectory sample ``pose``."""
-        from cadfeat.design.hole_form import design_depths
-        from cadfeat.design.objectives import objective_values
+        from cadfeat.design.objectives import objective_values  # lazy: would import pydantic at module load
         from cadfeat.study.run import measure_holes
 
         x = self.design(values)
@@ -161,7 +168,6 @@ class ExploreSession:
                                      depth_mm=float(depths[j])) for j, h in enumerate(s.model.holes)]
             m = measure_holes(s, holes, mesh=self.occlusion)
             if "pose" in self.config.objective.measures:  # g_POSE: the pose information of these holes
-                from cadfeat.study.pose_accuracy import with_pose
 
                 m = with_pose(s, holes, s.trajectory, m, mesh=self.occlusion)
             objectives = objective_values(m, self.config.objective, s.problem.units, s.problem.feature_mask)
@@ -240,7 +246,7 @@ class ExploreSession:
 
     def rebuilt_mesh(self, values: Mapping[str, Any] | None) -> dict[str, Any]:
         """The CAD model rebuilt at the chosen design, triangulated for the page (vertices mm, triangles)."""
-        from cadfeat.report.view3d import mesh_arrays
+        from cadfeat.report.view3d import mesh_arrays  # lazy: would import pydantic at module load
 
         verts, tris = mesh_arrays(self.rebuild(values))
         return {"vertices": _plain(verts.astype(np.float32)), "triangles": tris.astype(int).tolist()}
@@ -248,8 +254,6 @@ class ExploreSession:
     def _named(self, holes: list[Any], x: np.ndarray) -> list[Any]:
         """Rebuilt ``holes`` named as the explorer names them: each takes the name of the predicted hole
         (feature model at ``x``) it matches one to one by centre distance and radius (Hungarian)."""
-        import dataclasses
-
         from scipy.optimize import linear_sum_assignment
 
         if not holes:
@@ -266,12 +270,6 @@ class ExploreSession:
     def export(self, values: Mapping[str, Any] | None, folder: str | Path | None = None) -> dict[str, str]:
         """Rebuild the chosen design in CAD and write ``design.step`` and ``design.glb`` (hole names as glTF
         node names) into a NEW folder ``<folder>/explore-<k>`` (default folder: beside the study)."""
-        import shutil
-        import tempfile
-
-        from cadfeat.cad.export import export_step
-        from cadfeat.cad.features import extract_holes
-        from cadfeat.cad.gltf import export_glb
         shape = self.rebuild(values)
         base = Path(folder) if folder is not None else self.study_path.parent
         target = new_path(base, f"{self.config.study.name}-explore", "")

@@ -203,6 +203,7 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
         measured detection offsets, to propagate them through the pose Jacobians).
     model : a ``pose_models.PoseModels`` (default: the committed calibration).
     """
+    # lazy: import cycle (cadfeat.measures.pose_models imports cadfeat.measures.pose_information)
     from cadfeat.measures import pose_models
     from cadfeat.measures.rim_centre import measure
 

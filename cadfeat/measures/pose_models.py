@@ -59,6 +59,10 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from cadfeat.camera import Camera
+from cadfeat.measures.ellipse import hole_ellipse
+from cadfeat.measures.focus import defocus_diameter_px
+from cadfeat.measures.fov import image_margin_from_ellipse
+from cadfeat.measures.visibility import facing_margin
 
 DATA = "data"
 MODEL_FILE = "detection_model.json"
@@ -97,11 +101,6 @@ def _sigmoid(x: np.ndarray | float) -> np.ndarray:
 def hole_geometry(camera: Camera, T_cam_part: np.ndarray, centres: np.ndarray, normals: np.ndarray,
                   radii_mm: np.ndarray) -> HoleGeometry:
     """``HoleGeometry`` of holes (N, 3), (N, 3), (N,) (part frame, mm) at poses (L, 4, 4)."""
-    from cadfeat.measures.ellipse import hole_ellipse
-    from cadfeat.measures.focus import defocus_diameter_px
-    from cadfeat.measures.fov import image_margin_from_ellipse
-    from cadfeat.measures.visibility import facing_margin
-
     T = np.asarray(T_cam_part, dtype=float)
     Rm, t = T[:, :3, :3], T[:, :3, 3]
     Rt = np.swapaxes(Rm, 1, 2)  # holes (N, 3) or one set per pose (L, N, 3): R x as x Rᵀ, broadcast over L

@@ -47,6 +47,7 @@ def rim_occlusion(mesh: Any, T_cam_part: ArrayLike, centres: ArrayLike, normals:
 
     ``mesh``: trimesh of the part (part frame) for the exact test, or ``DepthMaps`` built at these poses.
     """
+    # lazy: import cycle (cadfeat.measures.visibility imports cadfeat.measures.rim_occlusion)
     from cadfeat.measures.visibility import occluded
 
     T = np.asarray(T_cam_part, dtype=float)

@@ -27,7 +27,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features import holes_to_arrays
 from cadfeat.cad.features.identity import hole_name
+from cadfeat.measures import hole_ellipse
 from cadfeat.poses import invert_T
 from cadfeat.render.scene import (
     RenderError,
@@ -142,9 +144,6 @@ def _distortion_maps(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
 
 def predicted_ellipses(camera: Camera, holes: Sequence[Hole], T_cam_part: np.ndarray) -> Any:
     """``cadfeat.measures.hole_ellipse`` of the holes' entrance rims at one pose ``T_cam_part`` (4, 4)."""
-    from cadfeat.cad.features import holes_to_arrays
-    from cadfeat.measures import hole_ellipse
-
     centres, axes, radii = holes_to_arrays(holes)
     R, t = T_cam_part[:3, :3], T_cam_part[:3, 3]
     return hole_ellipse(camera, centres @ R.T + t, axes @ R.T, radii)
@@ -156,8 +155,6 @@ def draw_hole_overlay(image: np.ndarray, camera: Camera, holes: Sequence[Hole], 
     numbering of every other output). Holes whose rim is not wholly in front of the camera (invalid ellipse)
     or reaches past the lens's fold radius (``Camera.fold_radius``: the image there is folded) are skipped."""
     import cv2
-
-    from cadfeat.cad.features import holes_to_arrays
 
     out = np.ascontiguousarray(image.copy())
     centres, _, radii = holes_to_arrays(holes)

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features import extract_holes
 from cadfeat.render.scene import (
     HOLE_DARK,
     PICTURE_ANGULAR_TOLERANCE_RAD,
@@ -129,8 +130,6 @@ def render_part(shape: Any, path: str | Path, holes: Sequence[Hole] | None = Non
     ``holes=None`` extracts them (``cadfeat.cad.features.extract_holes``). Without ``view_direction`` the
     view is ``default_view_direction(holes)``. Returns the PNG path.
     """
-    from cadfeat.cad.features import extract_holes
-
     holes = extract_holes(shape) if holes is None else list(holes)
     direction = default_view_direction(holes) if view_direction is None else _unit(view_direction, "view_direction")
     mesh = _picture_mesh(shape)

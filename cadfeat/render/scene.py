@@ -16,6 +16,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.export import mesh_from_shape
+from cadfeat.cad.features import as_shape, holes_to_arrays
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -78,9 +80,6 @@ def shape_polydata(shape: Any, tolerance_mm: float = RENDER_TOLERANCE_MM,
     """Triangle mesh of a B-rep (``cadquery`` Shape / Workplane) as ``pyvista.PolyData`` (mm, part frame)."""
     import pyvista as pv
 
-    from cadfeat.cad.export import mesh_from_shape
-    from cadfeat.cad.features import as_shape
-
     mesh = mesh_from_shape(as_shape(shape), tolerance_mm, angular_tolerance_rad)
     if len(mesh.faces) == 0:
         raise RenderError("the shape has no faces to render")
@@ -99,7 +98,6 @@ def hole_cell_labels(mesh: pv.PolyData, holes: Sequence[Hole], tol_mm: float = 1
     labels = np.full(n_cells, -1, dtype=int)
     if not holes or n_cells == 0:
         return labels
-    from cadfeat.cad.features import holes_to_arrays
 
     centres, axes, radii = holes_to_arrays(holes)
     depth = np.array([h.depth_mm for h in holes])

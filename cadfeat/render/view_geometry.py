@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.features import holes_to_arrays
 from cadfeat.cad.features.identity import hole_name as identity_name
 from cadfeat.poses import invert_T
 from cadfeat.render.scene import RenderError
@@ -108,8 +109,6 @@ def frustum_lines(camera: Camera | None, T_part_cam: np.ndarray, depth_mm: float
 
 
 def _moved_mask(before: Sequence[Hole], after: Sequence[Hole]) -> np.ndarray:
-    from cadfeat.cad.features import holes_to_arrays
-
     c0, _, r0 = holes_to_arrays(before)
     c1, _, r1 = holes_to_arrays(after)
     return (np.linalg.norm(c1 - c0, axis=-1) > MOVE_TOL_MM) | (np.abs(r1 - r0) > MOVE_TOL_MM)
@@ -150,7 +149,6 @@ def closeup_view_direction(mesh: Any, holes: Sequence[Hole], weights: np.ndarray
     target = default_view_direction(holes)
     if not holes:
         return target, np.zeros(0, dtype=bool)
-    from cadfeat.cad.features import holes_to_arrays
 
     k = np.arange(n_candidates) + 0.5
     z = 1.0 - 2.0 * k / n_candidates
@@ -183,7 +181,6 @@ def _visible_from(mesh: Any, holes: Sequence[Hole], eye: np.ndarray) -> np.ndarr
 
     if not holes:
         return np.zeros(0, dtype=bool)
-    from cadfeat.cad.features import holes_to_arrays
 
     centres, axes, _ = holes_to_arrays(holes)
     lift = 1e-3 * float(np.linalg.norm(np.ptp(np.asarray(mesh.points), axis=0)))

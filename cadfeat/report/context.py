@@ -48,7 +48,7 @@ class ReportContext:
 
     def T_cam_part(self, indices: Sequence[int]) -> np.ndarray:
         """(K, 4, 4) part-to-camera transforms at the given samples: ``inv(T_task_cam) @ T_task_part``."""
-        from cadfeat.poses import invert_T
+        from cadfeat.poses import invert_T  # lazy: would import scipy.spatial at module load
 
         T_task_part = np.eye(4) if self.T_task_part is None else np.asarray(self.T_task_part, dtype=float)
         T_task_cam = np.asarray(self.trajectory.T_task_cam, dtype=float)[list(indices)]

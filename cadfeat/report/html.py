@@ -8,9 +8,11 @@ that the page can be checked against results.json.
 
 from __future__ import annotations
 
+import base64
 import html
 import math
 from collections.abc import Iterable, Sequence
+from pathlib import Path
 from typing import Any
 
 CSS = """
@@ -109,9 +111,6 @@ def figure(src: str | tuple[str, str], caption: str, alt: str = "") -> str:
 
 def data_uri(path: Any) -> str:
     """The file as a ``data:`` URI (PNG, SVG, JPEG by suffix; base64)."""
-    import base64
-    from pathlib import Path
-
     path = Path(path)
     mime = {".png": "image/png", ".svg": "image/svg+xml", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}.get(
         path.suffix.lower(), "application/octet-stream")

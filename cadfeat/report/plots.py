@@ -9,7 +9,10 @@ warning, it never stops the report.
 
 from __future__ import annotations
 
+import json
 import logging
+import sys
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -321,10 +324,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     """``python -m cadfeat.report.plots RESULTS_JSON IMG_DIR``: write the plots, print them as one JSON line.
 
     Used by ``build_report`` to draw the plots in a separate process while the renders run."""
-    import json
-    import sys
-    import time
-
     args = list(sys.argv[1:] if argv is None else argv)
     start = time.perf_counter()
     results = json.loads(Path(args[0]).read_text(encoding="utf-8"))

@@ -13,6 +13,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
+from cadfeat.camera import build_camera
 from cadfeat.report.context import ReportContext, worst_poses
 from cadfeat.results import Results, value
 
@@ -37,8 +40,6 @@ def _camera(context: ReportContext, results: Results):
         return context.camera
     camera = value(results, "camera")
     if camera:
-        from cadfeat.camera import build_camera
-
         return build_camera({k: v for k, v in camera.items() if k != "source"})
     return None
 
@@ -135,7 +136,6 @@ def crop_to_content(paths: list[Path], pad_frac: float = 0.03) -> tuple[int, int
     """Crop PNGs rendered from one viewpoint to the union of their non-background pixels (background = the
     corner colour) plus ``pad_frac`` of the size, in place and with one box for all (they stay comparable):
     the overview of part and trajectory then fills the picture. Returns the box (left, top, right, bottom)."""
-    import numpy as np
     from PIL import Image
 
     if not paths:

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.features import as_shape
 from cadfeat.report.context import ReportContext
 from cadfeat.results import FeatureSummary, Measures, Results, section, value
 
@@ -34,8 +35,6 @@ def _b64(a: np.ndarray, dtype: str) -> str:
 
 def mesh_arrays(shape: Any) -> tuple[np.ndarray, np.ndarray]:
     """Triangulated B-rep: vertices (V, 3) mm and triangles (T, 3), tolerance 0.2 % of the bounding box."""
-    from cadfeat.cad.features import as_shape
-
     s = as_shape(shape)
     bb = s.BoundingBox()
     tol = max(1e-3, 0.002 * float(np.linalg.norm([bb.xlen, bb.ylen, bb.zlen])))
@@ -68,7 +67,7 @@ def _camera_path(context: ReportContext, results: Results, scale: float) -> dict
     """Camera centres (L, 3) and N_FRUSTA frusta (4 far corners each) in the part frame (mm)."""
     if context.trajectory is None:
         return {}
-    from cadfeat.poses import invert_T
+    from cadfeat.poses import invert_T  # lazy: would import scipy.spatial at module load
 
     T_task_part = np.eye(4) if context.T_task_part is None else np.asarray(context.T_task_part, float)
     T_part_cam = invert_T(T_task_part) @ np.asarray(context.trajectory.T_task_cam, float)

@@ -29,6 +29,8 @@ loudly, as ``cadfeat track`` does.
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import math
 import os
 import time
@@ -52,8 +54,6 @@ TRACKED_MIN = 0.5
 
 def with_mode(config: StudyConfig, mode: str | None) -> StudyConfig:
     """``config`` with ``[tracking] check = mode`` (the command line's ``--track``/``--no-track``); None keeps it."""
-    import dataclasses
-
     if mode is None:
         return config
     if mode not in CHECK_MODES:
@@ -101,7 +101,7 @@ def attach(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, An
 def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Path | None,
                       progress: Any = None) -> tuple[dict[str, Any] | None, str | None]:
     """(the results.json ``tracking`` section or None, why it was skipped or None) — ``attach``."""
-    from cadfeat.study.tracking import run_tracking
+    from cadfeat.study.tracking import run_tracking  # lazy: would import scipy.optimize at module load
 
     mode = check_mode(config)
     if mode == "off":
@@ -147,8 +147,6 @@ def _inconclusive(section: dict[str, Any]) -> None:
 
 
 def _phase(progress: Any) -> Any:
-    import contextlib
-
     return progress.phase("tracking") if progress is not None else contextlib.nullcontext()
 
 

@@ -28,6 +28,7 @@ from cadfeat.study.settings import (
 from cadfeat.study.settings.camera import CameraSettings
 from cadfeat.study.settings.design import DesignSpec
 from cadfeat.study.settings.scene import PartPose, StudyInfo
+from cadfeat.trajectory import TRAJECTORY_KINDS, trajectory_model
 
 __all__ = ["SCHEMA_ID", "study_json_schema"]
 
@@ -55,8 +56,6 @@ def _model_schema(model: type[Settings]) -> dict[str, Any]:
 
 def _trajectory_schema() -> dict[str, Any]:
     """``[trajectory]``: one form per library kind (its generated model) or a CSV file (``CsvTrajectory``)."""
-    from cadfeat.trajectory import TRAJECTORY_KINDS, trajectory_model
-
     forms = [_model_schema(trajectory_model(kind)) for kind in (None, *TRAJECTORY_KINDS)]
     return {"description": "kind = library kind + its arguments (cadfeat trajectories), or csv = file of poses",
             "oneOf": forms}

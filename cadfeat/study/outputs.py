@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.export import sha256_file
 from cadfeat.cad.features.identity import hole_name
 from cadfeat.results import SCHEMA_VERSION, StudyResults
 
@@ -157,8 +158,6 @@ def normalise_step_header(path: str | os.PathLike[str], product: str) -> None:
 
 def file_entry(path: Path, root: Path) -> dict[str, Any]:
     """``{name, bytes, sha256}`` of a written file (name relative to the output folder)."""
-    from cadfeat.cad.export import sha256_file
-
     return {"name": path.relative_to(root).as_posix(), "bytes": path.stat().st_size, "sha256": sha256_file(path)}
 
 

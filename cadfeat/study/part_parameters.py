@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from cadfeat.cad.cqgi_parts import is_cqgi_script
 from cadfeat.study.settings import StudyError
 from cadfeat.study.table import is_num
 
@@ -64,8 +65,6 @@ _MUTATORS = {"update", "setdefault", "pop", "popitem", "clear", "__setitem__"}
 
 
 def _is_cqgi(path: Path) -> bool:
-    from cadfeat.cad.cqgi_parts import is_cqgi_script
-
     return is_cqgi_script(path)
 
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from cadfeat import measures
 from cadfeat._version import __version__
+from cadfeat.cad.export import mesh_from_shape
 from cadfeat.cad.features import holes_to_arrays
 from cadfeat.cad.features.identity import hole_names
 from cadfeat.design import optimize  # (called through the module: tests replace its functions)
@@ -490,8 +491,6 @@ def part_points(shape: Shape, mesh: trimesh.Trimesh | None = None, most: int = 4
     """Points of the part (V, 3) mm, part frame, for the pre-flight: the occlusion mesh's vertices (or a coarse
     mesh of ``shape``), at most ``most`` of them (evenly strided)."""
     if mesh is None:
-        from cadfeat.cad.export import mesh_from_shape
-
         mesh = mesh_from_shape(shape, tolerance=0.5)
     v = np.asarray(mesh.vertices, float)
     return v[:: max(1, len(v) // most)]

@@ -30,6 +30,9 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.export import mesh_from_shape
+from cadfeat.cad.features import holes_to_arrays
+
 __all__ = ["PHASES", "design_pose_accuracy", "help_most", "pose_accuracy", "predict", "with_pose"]
 
 PHASES = ("start", "middle", "end")
@@ -37,7 +40,7 @@ STEP_MM = 0.25
 
 
 def _tuning(config: Any) -> Any:
-    from cadfeat.study.settings import TrackingSettings
+    from cadfeat.study.settings import TrackingSettings  # lazy: would import pydantic, scipy.spatial at module load
     from cadfeat.study.tracking import tracking_config
 
     spec = config.tracking if getattr(config, "tracking", None) is not None else TrackingSettings()
@@ -45,8 +48,6 @@ def _tuning(config: Any) -> Any:
 
 
 def _arrays(holes: Sequence[Any]) -> tuple[np.ndarray, ...]:
-    from cadfeat.cad.features import holes_to_arrays
-
     c, a, r = holes_to_arrays(list(holes))
     through = np.array([bool(h.through) for h in holes])
     depth = np.array([float(h.depth_mm) for h in holes])
@@ -57,7 +58,7 @@ def predict(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], mesh: Any
             occlusion: np.ndarray | None = None, arrays: tuple[np.ndarray, ...] | None = None) -> tuple[Any, Any]:
     """(``PoseInformation``, rim hidden fraction (L, N)) of ``holes`` at the poses, exact rim test on ``mesh``
     (None: nothing hidden) unless ``occlusion`` is given; ``arrays`` replaces the holes' (c, a, r, through, depth)."""
-    from cadfeat.measures import pose_information
+    from cadfeat.measures import pose_information  # lazy: would import scipy.spatial at module load
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
     c, a, r, through, depth = arrays if arrays is not None else _arrays(holes)
@@ -146,7 +147,7 @@ def _out_of_hiding(j: int, arrays: tuple[np.ndarray, ...], mesh: Any, T: np.ndar
                    errs: Any, e0: float, rot0: float) -> dict[str, Any] | None:
     """The probe move of hole j that lowers the predicted RMS translation error most, with its rim occlusion
     recomputed on ``mesh`` (exact ray test, 8 rim samples); None when no probe helps."""
-    from cadfeat.measures.rim_occlusion import rim_occlusion
+    from cadfeat.measures.rim_occlusion import rim_occlusion  # lazy: would import scipy.spatial at module load
 
     c0, a0, r0, through, depth = arrays
     u, v = _in_plane(a0[j])
@@ -211,7 +212,7 @@ def design_pose_accuracy(camera: Any, T_cam_part: np.ndarray, times_s: np.ndarra
                          names: Sequence[str], movable: Sequence[str], mesh: Any, tuning: Any,
                          rotation_length_mm: float) -> dict[str, Any]:
     """The ``pose_accuracy`` block of one design (module docstring)."""
-    from cadfeat.vision import posterior_crlb
+    from cadfeat.vision import posterior_crlb  # lazy: would import scipy.spatial at module load
 
     info, occ = predict(camera, T_cam_part, holes, mesh, rotation_length_mm)
     _, crlb = posterior_crlb(info.information, times_s, tuning)
@@ -236,7 +237,7 @@ def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, set
     """results.json ``pose_accuracy``: the original (``base``, ``holes0``) and the delivered design (``setup``,
     ``holes1``; None: the original only, ``cadfeat evaluate``), each with its own part mesh for the rim test
     (module docstring)."""
-    from cadfeat.cad.features.identity import hole_names
+    from cadfeat.cad.features.identity import hole_names  # lazy: would import scipy.optimize at module load
 
     tuning = _tuning(config)
     ell = float(config.objective.pose_rotation_length_mm)
@@ -262,7 +263,6 @@ def part_mesh(config: Any, shape: Any, mesh: Any = None) -> Any:
     prediction always tests occlusion, even when ``objective.occlusion`` is off)."""
     if mesh is not None:
         return mesh
-    from cadfeat.cad.export import mesh_from_shape
 
     return mesh_from_shape(shape, tolerance=0.05)
 

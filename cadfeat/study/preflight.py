@@ -28,7 +28,9 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from cadfeat.camera import MIN_DEPTH_MM, PRESETS
 from cadfeat.study.schema import StudyError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -61,8 +63,6 @@ class Preflight:
 def optics_assumptions(camera_table: Mapping[str, Any], camera: Camera) -> list[str]:
     """The optics a study's ``[camera]`` did not set (neither directly nor through a preset or calibration
     file that defines them), as "key = value (assumed)" lines."""
-    from cadfeat.camera import PRESETS
-
     given = set(camera_table)
     if "preset" in camera_table:
         given |= set(PRESETS.get(str(camera_table["preset"]).strip().lower(), {}))
@@ -107,8 +107,6 @@ def check_visibility(measures: Measures, label: str, scored: np.ndarray | None =
 def _in_image(camera: Any, P: np.ndarray) -> np.ndarray:
     """(L, V) bool: points (L, V, 3) camera frame in front of the camera, within the lens's valid field, and
     projecting inside the image."""
-    from cadfeat.camera import MIN_DEPTH_MM
-
     Z = P[..., 2]
     front = Z > MIN_DEPTH_MM
     z = np.where(front, Z, 1.0)
@@ -125,8 +123,6 @@ def _share(camera: Any, T_cam_part: np.ndarray, pts: np.ndarray) -> float:
 
 def _w_first(T_task_cam: np.ndarray) -> np.ndarray:
     """The poses a CSV would give if its quaternion columns (read as qx, qy, qz, qw) were written w-first."""
-    from scipy.spatial.transform import Rotation
-
     q = Rotation.from_matrix(T_task_cam[:, :3, :3]).as_quat()  # (x, y, z, w) as read = file columns 5-8
     T = T_task_cam.copy()
     T[:, :3, :3] = Rotation.from_quat(np.column_stack([q[:, 1], q[:, 2], q[:, 3], q[:, 0]])).as_matrix()

@@ -30,7 +30,10 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.cad.features import holes_to_arrays
+from cadfeat.design.hole_form import hole_depths
 from cadfeat.design.robust import BLOCKS, RobustObjective, RobustProblem, robust_optimise, statistic
+from cadfeat.design.robustness import cell_objectives, shop_objectives
 from cadfeat.design.uncertainty import CELL_KINDS, KINDS, Uncertainty, draws
 
 __all__ = ["HELD_OUT_SEED_OFFSET", "SOURCES", "RobustDesigns", "RobustRun", "attach_robust", "check_robust",
@@ -50,7 +53,7 @@ SOURCE_WORDS = {"camera": "the camera mounting error", "placement": "the part's 
 
 def check_robust(config: Any) -> None:
     """Refuse, before any work, a chance constraint on a measure the study does not optimise (one line)."""
-    from cadfeat.study.schema import StudyError
+    from cadfeat.study.schema import StudyError  # lazy: would import scipy.spatial at module load
 
     spec = config.robustness
     if spec.statistic == "chance" and spec.chance_measure not in config.objective.measures:
@@ -182,8 +185,6 @@ Features = tuple[np.ndarray, np.ndarray, np.ndarray]
 def _design_depths(rp: RobustProblem, depths: Any, B: int) -> np.ndarray:
     """(B, N) hole depths (mm) of B designs: ``depths`` (B, N), or a list of (N,) / None per design (None: the
     reference holes' depths, as ``design.pose_terms.hole_attributes`` takes them)."""
-    from cadfeat.design.hole_form import hole_depths
-
     ref = hole_depths(rp.inner.model.holes)
     if depths is None:
         return np.tile(ref, (B, 1))
@@ -196,8 +197,6 @@ def source_objectives(rp: RobustProblem, features: Features, D: Any, sources: tu
     (or a list of (N,)/None per design; None: the reference holes'): nominal (B, K) and, per source of
     ``sources``, (B, S, K) on the draws ``D`` with only that source (the cell sources together for "cell"); one
     batch of the B designs per source."""
-    from cadfeat.design.robustness import cell_objectives, shop_objectives
-
     p = rp.inner
     c, a, r = (np.asarray(v, float) for v in features)
     a = np.broadcast_to(a, c.shape)
@@ -281,9 +280,6 @@ class RobustDesigns:
 def robust_designs(setup: Any, run: RobustRun | None, holes0: Any, holes1: Any) -> RobustDesigns | None:
     """The comparison of the original, the delivered and the other optimum (module docstring); None when the
     robust step did not run or the hole counts differ."""
-    from cadfeat.cad.features import holes_to_arrays
-    from cadfeat.design.hole_form import hole_depths
-
     if run is None or len(holes0) != len(holes1) or len(holes1) != len(run.problem.changed):
         return None
     config = setup.config

@@ -37,6 +37,7 @@ from cadfeat.cad.features import holes_to_arrays
 from cadfeat.cad.features.identity import hole_names
 from cadfeat.cad.parts import load_part
 from cadfeat.cad.sandbox import start_workers
+from cadfeat.cad.step_parts import load_step
 from cadfeat.design.objectives import objective_values
 from cadfeat.errors import CadfeatError
 from cadfeat.report.holes import write_holes_csv
@@ -63,6 +64,7 @@ from cadfeat.study.pipeline import (
     scored_mask,
     trajectory_info,
 )
+from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy, with_pose
 from cadfeat.study.preflight import preflight
 from cadfeat.study.progress import StudyProgress
 from cadfeat.study.schema import StudyConfig, StudyError, StudySource, load_study
@@ -267,7 +269,6 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
         with prog.phase("measures"):
             m = measure_holes(setup, holes, traj)
             if "pose" in config.objective.measures:  # g_POSE: the holes' pose information at these poses
-                from cadfeat.study.pose_accuracy import with_pose
 
                 m = with_pose(setup, holes, traj, m)
             values = _plain_objectives(config, m, setup.problem)
@@ -278,7 +279,6 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
         summary = measures_summary(m, names, traj.times_s, config.objective.min_axis_px, half_image(camera))
         pose_block = None
         if pose is None:  # the predicted pose error of the design as it is (``study.pose_accuracy``)
-            from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy
 
             pose_block = pose_accuracy(config, setup, holes, part_mesh(config, shape, setup.problem.occlusion_mesh))
         if pose is not None:  # pose indices of the full trajectory
@@ -331,8 +331,6 @@ def _current_design(config: StudyConfig, time_limit_s: float | None
     """The part as it is (defaults / the STEP file): solid, holes, fixed mask (STEP: holes not in the design;
     scripts: the holes the script declares functional)."""
     if config.study.part_kind == "step":
-        from cadfeat.cad.step_parts import load_step
-
         step = load_step(config.study.part_path)
         holes = list(step.holes)
         fixed = np.ones(len(holes), bool)

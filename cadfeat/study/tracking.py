@@ -12,16 +12,25 @@ the focal length the filters assume (the images keep the true camera), or the sa
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.export import import_step
+from cadfeat.cad.features import Hole, extract_holes
 from cadfeat.cad.features.identity import named
+from cadfeat.cad.parts import load_part
 from cadfeat.errors import CadfeatError
+from cadfeat.poses import invert_T
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 from cadfeat.study.settings.sections import RobustnessSettings, placement_sigma
+from cadfeat.study.setup import camera_direction, load_scene
+from cadfeat.vision import FilterTuning, SensorModel
+from cadfeat.vision.closed_loop import TrackingConfig, draw_frame, frame_image, track_designs
+from cadfeat.vision.motion import so3_log
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape
@@ -46,9 +55,6 @@ SWEEPS: dict[str, tuple[float, ...]] = {
 def tracking_config(spec: TrackingSpec, robustness: RobustnessSettings | None = None) -> TrackingConfig:
     """The ``cadfeat.vision`` configuration of a ``[tracking]`` section; the part's placement error per run is
     ``[robustness]``'s placement tolerance (``placement_sigma``: σ = 0.4 t per axis; default section if None)."""
-    from cadfeat.vision import FilterTuning, SensorModel
-    from cadfeat.vision.closed_loop import TrackingConfig
-
     tuning = FilterTuning(r_px2=spec.r_px2, q_rate_mm2_s2=spec.q_rate_mm2_s2, q_omega_rad2_s2=spec.q_omega_rad2_s2,
                           iterations=spec.iterations, tau=spec.tau,
                           sigma0_mm=max(spec.initial_error_mm, 1.0), sigma0_rad=max(np.radians(spec.initial_error_deg),
@@ -65,9 +71,6 @@ def tracking_config(spec: TrackingSpec, robustness: RobustnessSettings | None = 
 
 
 def _scene(config: StudyConfig) -> tuple[Camera, np.ndarray, np.ndarray, np.ndarray]:
-    from cadfeat.poses import invert_T
-    from cadfeat.study.setup import load_scene
-
     camera, traj, T_task_part = load_scene(config)
     return camera, invert_T(traj.T_task_cam) @ T_task_part, np.asarray(traj.times_s), traj.velocity_screws()
 
@@ -88,8 +91,6 @@ def _motion_warnings(T_cam_part: np.ndarray, times_s: np.ndarray) -> list[str]:
     """Warn when the trajectory turns more than ``MAX_FRAME_ROTATION_DEG`` between tracked frames (e.g. a
     look-at camera rolling as its view passes the up vector): the EKF/IEKF's constant-velocity model then
     cannot follow, whatever the design; solvePnP is per frame and unaffected."""
-    from cadfeat.vision.motion import so3_log
-
     R = T_cam_part[:, :3, :3]
     step = np.degrees(np.linalg.norm(so3_log(R[1:] @ np.swapaxes(R[:-1], -1, -2)), axis=-1))
     if step.size == 0 or step.max() <= MAX_FRAME_ROTATION_DEG:
@@ -121,8 +122,6 @@ def _frames(result: BeforeAfter, camera: Camera, out_dir: Path | None, count: in
     if out_dir is None:
         return []
     import cv2
-
-    from cadfeat.vision.closed_loop import draw_frame, frame_image
 
     folder = Path(out_dir) / "tracking"
     folder.mkdir(parents=True, exist_ok=True)
@@ -162,10 +161,6 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
     ``VIEW_DIRECTION``, or the direction towards the trajectory's cameras), so through holes enter on the side
     the camera sees, and named ``H<i+1>``.
     """
-    import json
-
-    from cadfeat.cad.export import import_step
-
     shapes = {}
     for name, file in EXPORTED.items():
         path = Path(out) / file
@@ -184,7 +179,6 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
             holes = {k: [_hole_from_json(h, results_path, k, i) for i, h in enumerate(block[k])] for k in EXPORTED}
     if not holes:
         view = _view_direction(config, Path(out) / EXPORTED["before"])
-        from cadfeat.cad.features import extract_holes
 
         holes = {k: extract_holes(shapes[k], prefer_direction=view) for k in EXPORTED}
     return {k: (shapes[k], _named(holes[k])) for k in EXPORTED}
@@ -193,8 +187,6 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
 def _hole_from_json(h: Any, path: Path, key: str, i: int) -> Hole:
     """A ``Hole`` from a results.json hole entry (``study.outputs.hole_dict``). The closed loop uses the entrance
     rim only (centre, axis, radius, depth, through); the narrowest bore is not stored and is taken as the rim."""
-    from cadfeat.cad.features import Hole
-
     try:
         return Hole(centre=np.asarray(h["centre_mm"], float), axis=np.asarray(h["axis"], float),
                     radius_mm=float(h["radius_mm"]), bore_radius_mm=float(h["radius_mm"]),
@@ -210,11 +202,9 @@ def _view_direction(config: StudyConfig, original_step: Path) -> np.ndarray | No
     if config.study.part_kind == "step":
         if config.design.view_direction is not None:
             return np.asarray(config.design.view_direction, float)
-        from cadfeat.study.setup import camera_direction, load_scene
 
         _, traj, T_task_part = load_scene(config)
         return camera_direction(original_step, traj, T_task_part)
-    from cadfeat.cad.parts import load_part
 
     return load_part(config.study.part_path, config.study.build_timeout_s).view_direction
 
@@ -226,8 +216,6 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     ``out_dir``: where the frame PNGs go (``tracking/``); None writes nothing. ``camera_override``: the camera
     the estimators assume (the images always use the study's camera) — for the focal-length sweep.
     """
-    from cadfeat.vision.closed_loop import track_designs
-
     spec = spec or config.tracking or TrackingSpec()
     designs = {k: (shape, _named(holes)) for k, (shape, holes) in designs.items()}
     camera, T_cam_part, times, screws = _scene(config)

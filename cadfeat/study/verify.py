@@ -17,7 +17,19 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.export import (
+    check_solid,
+    check_stl,
+    export_step,
+    export_stl,
+    import_step,
+    shape_volume_mm3,
+    stl_watertight,
+    verify_step_roundtrip,
+)
+from cadfeat.cad.features import extract_holes, holes_to_arrays
 from cadfeat.cad.features.identity import holes_at, pair_holes, take_names
+from cadfeat.design.constraints import verify_on_brep
 from cadfeat.errors import CadfeatError
 from cadfeat.study.outputs import normalise_step_header
 
@@ -73,8 +85,6 @@ def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = 
     """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
     deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
     loop extracted at ``x``, in model order) when given."""
-    from cadfeat.cad.features import holes_to_arrays
-
     shape = setup.rebuild_shape(x)
     predicted = predicted_holes(setup, x)
     if verified is not None and len(verified) == len(predicted):
@@ -92,8 +102,6 @@ def requirement_checks(setup: StudySetup, shape: Any, holes: Sequence[Hole], whe
     ``verify_on_brep`` re-extracts holes without a preferred direction (a through hole may then be reported
     from its other end), so the design and reference holes are given to it in that same convention, paired
     with the design order by their axis lines."""
-    from cadfeat.design.constraints import verify_on_brep
-
     design = pair_by_axis(holes, extract_plain(shape), f"{where} holes")
     reference = pair_by_axis(setup.holes0, extract_plain(setup.shape0), "original holes")
     checks = verify_on_brep(shape, design, setup.constraints, setup.fixed_mask, reference=reference,
@@ -120,8 +128,6 @@ def fail_on(checks: Sequence[Mapping[str, Any]], label: str) -> None:
 
 
 def extract_plain(shape: Any) -> list[Hole]:
-    from cadfeat.cad.features import extract_holes
-
     return extract_holes(shape)
 
 
@@ -131,8 +137,6 @@ class AnchoredModel:
     predicted around the real optimum, not around the linearisation point."""
 
     def __init__(self, model: Any, x0: np.ndarray, verified: Sequence[Hole] | None) -> None:
-        from cadfeat.cad.features import holes_to_arrays
-
         self.model, self.holes = model, model.holes
         c0, _, r0 = model.features(x0)
         self.dc, self.dr = np.zeros_like(c0), np.zeros_like(r0)
@@ -158,17 +162,6 @@ def export_and_verify(config: StudyConfig, stage: Path, shapes: Mapping[str, Any
     re-imported STEP's holes equal to the design's within ``ROUNDTRIP_TOL_MM`` (and its volume), every kept
     requirement again on the re-imported solid (raises ``CadfeatError`` naming a violated one), a watertight
     STL. Returns (the B-rep and STEP requirement checks, the results.json ``verification`` block)."""
-    from cadfeat.cad.export import (
-        check_solid,
-        check_stl,
-        export_step,
-        export_stl,
-        import_step,
-        shape_volume_mm3,
-        stl_watertight,
-        verify_step_roundtrip,
-    )
-
     setup = shapes["setup"]
     problems = check_solid(shapes["shape1"])
     if problems:

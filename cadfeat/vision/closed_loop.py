@@ -22,17 +22,24 @@ instead of one fixed offset per design: the Monte-Carlo mean is then the expecta
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.export import mesh_from_shape
+from cadfeat.cad.features import holes_to_arrays
 from cadfeat.camera import Camera
+from cadfeat.measures import hole_ellipse
+from cadfeat.measures.ellipse import Ellipse as _E
 from cadfeat.measures.pose_models import RIM_GAP_MIN_PX as _RIM_GAP_MIN_PX
+from cadfeat.measures.pose_models import hole_geometry
+from cadfeat.measures.rim_occlusion import rim_occlusion
 from cadfeat.vision.detection import Detections, associate, detect_holes
 from cadfeat.vision.estimate import FilterTuning, estimate_poses
-from cadfeat.vision.images import SensorModel, apply_optics, optics_kernels, render_sequence, sensor_images
+from cadfeat.vision.images import SensorModel, apply_optics, grey, optics_kernels, render_sequence, sensor_images
 from cadfeat.vision.metrics import aggregate_runs, hold_last, paired_verdict, pose_errors, run_summary
 from cadfeat.vision.motion import so3_exp
 
@@ -137,9 +144,6 @@ def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.nd
             screws: np.ndarray | None = None, predict_occlusion: bool = True) -> Observation:
     """Render + blur once (module docstring). T_cam_part (F, 4, 4) mm, screws (F, 6) for motion blur;
     ``predict_occlusion``: the rims' hidden fractions at these poses (``Observation.rim_hidden``)."""
-    from cadfeat.cad.features import holes_to_arrays
-    from cadfeat.measures import hole_ellipse
-
     centres, normals, radii = holes_to_arrays(holes)
     T = np.asarray(T_cam_part, dtype=float)
     clean = render_sequence(shape, holes, camera, T)
@@ -147,12 +151,10 @@ def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.nd
     c_cam = np.einsum("fij,nj->fni", T[:, :3, :3], centres) + T[:, None, :3, 3]
     n_cam = np.einsum("fij,nj->fni", T[:, :3, :3], normals)
     ell = hole_ellipse(camera, c_cam, n_cam, radii)
-    from cadfeat.measures.ellipse import Ellipse as _E
 
     predicted = [_E(ell.centre_px[k], ell.axes_px[k], ell.angle_rad[k], ell.valid[k]) for k in range(len(T))]
     names = [h.name or f"hole{j}" for j, h in enumerate(holes)]
     hidden = _rim_hidden(shape, holes, T, centres, normals, radii) if predict_occlusion else None
-    from cadfeat.measures.pose_models import hole_geometry
 
     gap = hole_geometry(camera, T, centres, normals, radii).rim_gap_px(hidden)
     return Observation(optical, offsets, predicted, centres, normals, radii, names, hidden,
@@ -196,8 +198,7 @@ def illumination_gains(config: TrackingConfig, runs: int) -> np.ndarray:
 def placed_observations(camera: Camera, obs: Observation, T_runs: np.ndarray) -> list[Observation]:
     """``obs`` rendered again at each run's true poses T_runs (R, F, 4, 4) (one renderer for all runs). The
     predicted ellipses and rim occlusion stay those of the nominal placement: the robot does not know δ_r."""
-    from cadfeat.render import CameraViewRenderer
-    from cadfeat.vision.images import grey
+    from cadfeat.render import CameraViewRenderer  # lazy: would import scipy.optimize at module load
 
     if obs.scene is None:
         raise ValueError("placement jitter needs an Observation made by observe() (it keeps the part to render)")
@@ -215,9 +216,6 @@ def placed_observations(camera: Camera, obs: Observation, T_runs: np.ndarray) ->
 def _rim_hidden(shape: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
                 radii: np.ndarray) -> np.ndarray:
     """(F, N) hidden fraction of each rim (ray test against the part's mesh, ``measures.rim_occlusion``)."""
-    from cadfeat.cad.export import mesh_from_shape
-    from cadfeat.measures.rim_occlusion import rim_occlusion
-
     mesh = mesh_from_shape(shape, tolerance=0.05)
     return rim_occlusion(mesh, T, centres, normals, radii, samples=12, through=[h.through for h in holes],
                          depth_mm=[h.depth_mm for h in holes])
@@ -445,8 +443,6 @@ def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, s
                   ) -> BeforeAfter:
     """Closed loop on several designs along one trajectory (every ``config.frame_step``-th sample), and the
     paired verdict ``after`` vs ``before`` per estimator. ``designs`` maps a name to (shape, holes)."""
-    import time
-
     idx = np.arange(0, len(T_cam_part), max(1, int(config.frame_step)))
     T = np.asarray(T_cam_part, dtype=float)[idx]
     t = np.asarray(times_s, dtype=float)[idx]

@@ -51,7 +51,7 @@ class SensorModel:
 
 def render_sequence(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray) -> np.ndarray:
     """Noiseless grey images (F, H, W) float32 (0..255) of the part at poses T_cam_part (F, 4, 4), mm."""
-    from cadfeat.render import CameraViewRenderer
+    from cadfeat.render import CameraViewRenderer  # lazy: would import scipy.optimize at module load
 
     T = np.asarray(T_cam_part, dtype=float)
     out = np.empty((len(T), camera.height, camera.width), dtype=np.float32)

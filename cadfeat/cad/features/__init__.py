@@ -257,6 +257,7 @@ def extract_holes(shape: Any, prefer_direction: Sequence[float] | None = None, t
     blended by a fillet puts the centre on the plane the fillet blends into (kind ``"..., filleted rim"``); a
     small entrance cone is a chamfer (``"..., chamfered rim"``), a large one a countersink.
     """
+    # lazy: import cycle (cadfeat.cad.features.extraction imports cadfeat.cad.features)
     from cadfeat.cad.features import extraction
 
     return extraction.extract_holes(as_shape(shape), prefer_direction, tol)

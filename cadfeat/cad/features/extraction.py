@@ -23,7 +23,7 @@ Algorithm (DESIGN.md "Known pitfalls"):
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from OCP.BRep import BRep_Tool
@@ -31,7 +31,7 @@ from OCP.BRepAdaptor import BRepAdaptor_Surface
 from OCP.BRepClass3d import BRepClass3d_SolidClassifier
 from OCP.BRepTools import BRepTools
 from OCP.Geom import Geom_Line
-from OCP.GeomAbs import GeomAbs_Plane
+from OCP.GeomAbs import GeomAbs_Plane, GeomAbs_Torus
 from OCP.GeomAPI import GeomAPI_IntCS
 from OCP.gp import gp_Dir, gp_Lin, gp_Pnt
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_OUT, TopAbs_WIRE
@@ -67,6 +67,7 @@ from cadfeat.cad.features._brep import (
     _xyz,
 )
 from cadfeat.cad.features.identity import named
+from cadfeat.cad.tolerance import ModelTolerance
 
 __all__ = ["ANGLE_TOL_RAD", "AREA_RTOL", "CHAMFER_MAX_MM", "CHAMFER_MAX_RATIO", "CLASSIFY_STEP_MM",
            "ENCIRCLING_MAX_GAP_RAD", "LINEAR_TOL_MM", "MIN_CURVE_POINTS", "NEAR_ROUND_MIN_RAD", "OBLIQUE_RIM_MM",
@@ -87,8 +88,6 @@ class SkippedHole:
 
 class _Extractor:
     def __init__(self, shape, prefer_direction: Sequence[float] | None, tol=None) -> None:
-        from cadfeat.cad.tolerance import ModelTolerance
-
         self.shape = shape.wrapped
         self.topo = _Topology.build(self.shape)
         self.tol = tol if tol is not None else ModelTolerance.of_shape(self.shape)
@@ -349,8 +348,6 @@ class _Extractor:
     def _fillet_blend(self, f: int, ref: _Revolution, members: set[int]) -> tuple[int, list[int], float] | None:
         """If face ``f`` is a fillet (torus coaxial with the hole) between the hole wall and a plane
         perpendicular to the axis: (that plane, the fillet's edges on it, their radius mm); else None."""
-        from OCP.GeomAbs import GeomAbs_Torus
-
         surf = BRepAdaptor_Surface(self.topo.faces[f])
         if surf.GetType() != GeomAbs_Torus:
             return None
@@ -492,6 +489,4 @@ def extract_holes_and_skipped(shape, prefer_direction: Sequence[float] | None = 
 
 
 def _with_outline(hole: Hole, outline: FaceOutline | None) -> Hole:
-    from dataclasses import replace
-
     return replace(hole, outline=outline)

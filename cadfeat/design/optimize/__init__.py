@@ -199,6 +199,7 @@ def _snap(ev: Evaluator, problem: Any, config: OptimizerConfig) -> None:
 
 def solve_with_cad(*args: Any, **kwargs: Any) -> OptimResult:
     """The trust-region loop with CAD rebuilds: see ``cadfeat.design.optimize.cad.solve_with_cad``."""
+    # lazy: import cycle (cadfeat.design.optimize.cad imports cadfeat.design.optimize)
     from cadfeat.design.optimize.cad import solve_with_cad as _solve
 
     return _solve(*args, **kwargs)

@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.design.objectives import leximin_better
+
 FEAS_TOL = 1e-6
 """A design is feasible when every constraint margin is ≥ −FEAS_TOL (mm, or normalised units)."""
 LEXIMIN_TOL = 1e-8
@@ -91,7 +93,6 @@ class Evaluator:
         problem = self.problem
         if problem.objective_config.combine != "maxmin" or not hasattr(problem, "leximin_key"):
             return float(problem.combined_from(g)) > best["combined"]
-        from cadfeat.design.objectives import leximin_better
 
         return leximin_better(problem.leximin_key(g), problem.leximin_key(best["G"]), LEXIMIN_TOL)
 

@@ -13,6 +13,7 @@ from typing import Any, ClassVar, cast
 
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
+from scipy.spatial.transform import Rotation  # pyright: ignore[reportMissingTypeStubs]
 
 from cadfeat.settings import Finite, Settings, Tuple, choice, context_of, integer, number, reject
 
@@ -114,7 +115,6 @@ class PartPose(Settings):
         norm = float(np.linalg.norm(q))
         if abs(norm - 1.0) > 1e-3:
             raise reject("quaternion", f"norm {norm:.6g} is not 1", "a unit quaternion [x, y, z, w] (scalar last)")
-        from scipy.spatial.transform import Rotation  # pyright: ignore[reportMissingTypeStubs]
 
         rotvec = np.degrees(Rotation.from_quat(q / norm).as_rotvec())
         object.__setattr__(self, "rotvec_deg", tuple(float(v) for v in rotvec))
@@ -124,8 +124,6 @@ class PartPose(Settings):
     @property
     def T_task_part(self) -> np.ndarray:
         """4x4 transform mapping part coordinates to task coordinates."""
-        from scipy.spatial.transform import Rotation  # pyright: ignore[reportMissingTypeStubs]
-
         T = np.eye(4)
         T[:3, :3] = Rotation.from_rotvec(np.radians(self.rotvec_deg)).as_matrix()
         T[:3, 3] = self.position_mm
