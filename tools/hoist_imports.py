@@ -98,6 +98,7 @@ def top_imports(body: list[ast.stmt]) -> list[ast.Import | ast.ImportFrom]:
 
 
 trees = {m: ast.parse(p.read_text()) for m, p in files.items()}
+SRC = {m: p.read_text().splitlines() for m, p in files.items()}
 edges: dict[str, set[str]] = defaultdict(set)  # module -> cadfeat modules or "ext:name"
 
 
@@ -279,7 +280,10 @@ for m, tree in trees.items():
             own = any(t in MODS for t in tg) or (isinstance(s, ast.ImportFrom) and s.level > 0)
             stats["own" if own else "other"] += 1
             reason = None
-            if len(block) == 1:
+            lines = SRC[m]
+            if "# lazy:" in lines[s.lineno - 1] or "# lazy:" in lines[s.lineno - 2]:
+                reason = "marked lazy"
+            elif len(block) == 1:
                 reason = "only statement"
             elif (lz := lazy_attribute(m, s)):
                 reason = f"heavy: {lz} is loaded lazily by its package"

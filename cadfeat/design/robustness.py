@@ -28,7 +28,6 @@ from typing import Any
 
 import numpy as np
 
-from cadfeat.design.memory import chunked, design_bytes
 from cadfeat.design.uncertainty import Draws
 
 __all__ = ["RAZOR_KEEP", "camera_objectives", "cell_objectives", "cell_poses", "robustness", "shop_features",
@@ -80,6 +79,8 @@ def cell_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: 
     (``cadfeat.design.memory``), each chunk as ONE stack of S·L poses (``Problem.pose_arrays``) aggregated per
     (design, draw) — no loop over designs, poses, holes or draws beyond the chunks. ``depth_mm`` (B, N): the
     designs' hole depths for g_POSE (None: the reference holes')."""
+    from cadfeat.design.memory import chunked, design_bytes  # lazy: looked up per call (tests replace it)
+
     B, N = np.shape(radii)
     per_draw = B * design_bytes(len(problem.screws), N)
     _ = problem.occlusion  # the nominal poses' depth maps, built once and shared (a view) by every chunk's stack

@@ -29,7 +29,7 @@ from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 from cadfeat.study.settings.sections import RobustnessSettings, placement_sigma
 from cadfeat.study.setup import camera_direction, load_scene
 from cadfeat.vision import FilterTuning, SensorModel
-from cadfeat.vision.closed_loop import TrackingConfig, draw_frame, frame_image, track_designs
+from cadfeat.vision.closed_loop import TrackingConfig, draw_frame, frame_image
 from cadfeat.vision.motion import so3_log
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -220,6 +220,8 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     designs = {k: (shape, _named(holes)) for k, (shape, holes) in designs.items()}
     camera, T_cam_part, times, screws = _scene(config)
     _check_frames(config, spec, len(T_cam_part))
+    from cadfeat.vision.closed_loop import track_designs  # lazy: looked up per call (tests replace it)
+
     result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec, config.robustness),
                            estimator_camera=camera_override)
     section = result.to_json()

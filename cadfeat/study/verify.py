@@ -25,7 +25,6 @@ from cadfeat.cad.export import (
     import_step,
     shape_volume_mm3,
     stl_watertight,
-    verify_step_roundtrip,
 )
 from cadfeat.cad.features import extract_holes, holes_to_arrays
 from cadfeat.cad.features.identity import holes_at, pair_holes, take_names
@@ -169,6 +168,8 @@ def export_and_verify(config: StudyConfig, stage: Path, shapes: Mapping[str, Any
     for name, shape in (("original.step", shapes["shape0"]), ("optimised.step", shapes["shape1"])):
         export_step(shape, stage / name)
         normalise_step_header(stage / name, f"{config.study.name} {name[:-5]}")
+    from cadfeat.cad.export import verify_step_roundtrip  # lazy: looked up per call (tests replace it)
+
     # (the rebuild's holes extracted the way verify_step_roundtrip extracts them: no preferred direction)
     trip = verify_step_roundtrip(stage / "optimised.step", extract_plain(shapes["shape1"]),
                                  tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=shape_volume_mm3(shapes["shape1"]),
