@@ -144,14 +144,16 @@ def test_failing_and_overrunning_cases_are_recorded_and_rerun(client, tmp_path: 
     stuck = tmp_path / "slow_points.py"  # its import sleeps (in the CAD worker process): the study waits in C code
     stuck.write_text("__import__('time').sleep(20)\n" + PART.read_text())
     monkeypatch.setattr(runner, "GRACE_S", 2.0)
-    path = _campaign(tmp_path, [f'part = "{broken}"', '"trajectory.radius_end_mm" = 9.0\ntimeout_s = 0.5',
-                                '"trajectory.radius_end_mm" = 11.0', f'part = "{stuck}"\ntimeout_s = 1.0'])
+    # the 0.2 s case cannot finish in time even warm; the stuck case's 4 s leave the study time to reach the worker
+    # (in C) even on a loaded machine, and its import sleeps longer than the limit plus the grace
+    path = _campaign(tmp_path, [f'part = "{broken}"', '"trajectory.radius_end_mm" = 9.0\ntimeout_s = 0.2',
+                                '"trajectory.radius_end_mm" = 11.0', f'part = "{stuck}"\ntimeout_s = 4.0'])
     out = tmp_path / "out"
     result = run_campaign(path, out, client=client, quiet=True)
     status = [r["status"] for r in result.records]
     assert status == ["failed", "timeout", "done", "timeout"], [r.get("error") for r in result.records]
     assert "this part does not build" in result.records[0]["error"]
-    assert "time limit of 0.5 s" in result.records[1]["error"]
+    assert "time limit of 0.2 s" in result.records[1]["error"]
     assert "its worker was restarted" in result.records[3]["error"]  # stuck in C: stopped by the campaign
     done = result.records[2]["case"]
     assert sorted(p.name for p in (out / "cases").iterdir()) == [done]  # nothing half-written
