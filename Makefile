@@ -36,11 +36,14 @@ test-kernels: $(STAMP)
 	done
 
 # ruff; pyright basic on the package (pyrightconfig.json: the rules that fail on the CadQuery/OCP/numpy stubs
-# are listed there, off) and strict on measures/ and the study settings models (pyright-strict.json).
+# are listed there, off) and strict on measures/ and the study settings models (pyright-strict.json); the two
+# pyright runs side by side (one core each), the strict run's output after the basic run's.
 lint: $(STAMP)
 	$(PY) -m ruff check cadfeat tests benchmarks tools $(wildcard parts studies)
-	$(VENV)/bin/pyright --pythonpath $(PY)
-	$(VENV)/bin/pyright --pythonpath $(PY) -p pyright-strict.json
+	log=$$(mktemp); \
+	$(VENV)/bin/pyright --pythonpath $(PY) -p pyright-strict.json > $$log 2>&1 & strict=$$!; \
+	$(VENV)/bin/pyright --pythonpath $(PY); basic=$$?; \
+	wait $$strict; status=$$?; cat $$log; rm -f $$log; test $$basic -eq 0 && test $$status -eq 0
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py
