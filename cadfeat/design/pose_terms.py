@@ -145,11 +145,10 @@ def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, rad
                                                                                                (B, 1))}
     sig, off = models.measurement_model(geo, depth_ratio=np.broadcast_to(ratio, (B, N)).repeat(L, axis=0),
                                         kinds=None, through=through, **kw)
-    p = np.where(np.all(np.isfinite(J), axis=(-1, -2)), p, 0.0)
-    Jw = np.where(p[..., None, None] > 0, J, 0.0) / sig[..., None, None]
-    info = np.einsum("ln,lnai,lnaj->lnij", p, Jw, Jw).sum(axis=1)
-    rhs = np.einsum("ln,lnai,lna->li", p, Jw, off / sig[..., None])
-    return _pose_error(info, rhs, problem.objective_config.pose_rotation_length_mm)
+    from cadfeat.measures.pose_information import weighted_information  # lazy: as pose_models above
+
+    _, per_hole, rhs = weighted_information(p, J, sig, off)
+    return _pose_error(per_hole.sum(axis=1), rhs, problem.objective_config.pose_rotation_length_mm)
 
 
 class StackedPose:
@@ -207,13 +206,13 @@ def _assemble(parts: list[tuple[np.ndarray, Any]], M: int, N: int) -> Any:
 def _pose_error(info: np.ndarray, rhs: np.ndarray, ell: float) -> StackedPose:
     """The predicted errors of ``measures.pose_information`` from the summed information and bias right-hand
     side (its steps): covariance (its ``_inverse``), bias δ_b = cov · rhs, √(bias² + σ²) per part."""
-    from cadfeat.measures.pose_information import _inverse  # pyright: ignore[reportPrivateUsage]
+    from cadfeat.measures.pose_information import (  # pyright: ignore[reportPrivateUsage]
+        _inverse,
+        pose_errors,
+    )
 
     cov = _inverse(info, ell)[0]
-    bias = np.einsum("lij,lj->li", np.where(np.isfinite(cov), cov, 0.0), rhs)
-    sig_t = np.sqrt(np.trace(cov[:, :3, :3], axis1=-2, axis2=-1))
-    sig_r = np.degrees(np.sqrt(np.trace(cov[:, 3:, 3:], axis1=-2, axis2=-1)))
-    b_t, b_r = np.linalg.norm(bias[:, :3], axis=-1), np.degrees(np.linalg.norm(bias[:, 3:], axis=-1))
+    _, sig_t, sig_r, b_t, b_r = pose_errors(cov, rhs)
     return StackedPose(info, np.hypot(b_t, sig_t), np.hypot(b_r, sig_r), float(ell))
 
 

@@ -226,18 +226,12 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
         p = (geo.in_front & (geo.facing > 0) & (occ <= models.o0)).astype(float)
     sig, off = _noise_and_offsets(models, geo, (L, N), sigma_px, depth_ratio, kinds, through, noise_grey, offsets,
                                   offset_px)
-    p = np.where(np.all(np.isfinite(J), axis=(-1, -2)), p, 0.0)
-    Jw = np.where(p[..., None, None] > 0, J, 0.0) / sig[..., None, None]      # J̃ = J/σ (L, N, 2, 6)
-    per_hole = np.einsum("ln,lnai,lnaj->lnij", p, Jw, Jw)                     # p J̃ᵀJ̃ (L, N, 6, 6)
+    p, per_hole, rhs = weighted_information(p, J, sig, off)
     info = per_hole.sum(axis=1)
     if prior_sigma is not None:
         info = info + np.diag(np.repeat([1.0 / prior_sigma[0] ** 2, 1.0 / prior_sigma[1] ** 2], 3))
     cov, w, V = _inverse(info, rotation_length_mm)
-    rhs = np.einsum("ln,lnai,lna->li", p, Jw, off / sig[..., None])            # JᵀW b (L, 6)
-    bias = np.einsum("lij,lj->li", np.where(np.isfinite(cov), cov, 0.0), rhs)
-    sig_t = np.sqrt(np.trace(cov[:, :3, :3], axis1=-2, axis2=-1))
-    sig_r = np.degrees(np.sqrt(np.trace(cov[:, 3:, 3:], axis1=-2, axis2=-1)))
-    b_t, b_r = np.linalg.norm(bias[:, :3], axis=-1), np.degrees(np.linalg.norm(bias[:, 3:], axis=-1))
+    bias, sig_t, sig_r, b_t, b_r = pose_errors(cov, rhs)
     share = _information_share(per_hole, rotation_length_mm)
     weakest = V[:, :, 0]
     weakest_sigma = np.where(w[:, 0] > RANK_TOL * np.maximum(w[:, -1], 1e-300),
@@ -245,6 +239,27 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     return PoseInformation(info, cov, sig_t, sig_r, bias, b_t, b_r, np.hypot(b_t, sig_t), np.hypot(b_r, sig_r),
                            share, weakest, weakest_sigma, p, sig, off, z, J, p >= 0.5,
                            float(rotation_length_mm))
+
+
+def weighted_information(p: np.ndarray, J: np.ndarray, sig: np.ndarray,
+                         off: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per hole and pose: the detection weights p (L, N) (0 where the Jacobian is not finite), the information
+    p J̃ᵀJ̃ (L, N, 6, 6) with J̃ = J/σ, and the bias right-hand side Σ_j p J̃ᵀ b/σ (L, 6) (module docstring)."""
+    p = np.where(np.all(np.isfinite(J), axis=(-1, -2)), p, 0.0)
+    Jw = np.where(p[..., None, None] > 0, J, 0.0) / sig[..., None, None]      # J̃ = J/σ (L, N, 2, 6)
+    per_hole = np.einsum("ln,lnai,lnaj->lnij", p, Jw, Jw)                     # p J̃ᵀJ̃ (L, N, 6, 6)
+    rhs = np.einsum("ln,lnai,lna->li", p, Jw, off / sig[..., None])            # JᵀW b (L, 6)
+    return p, per_hole, rhs
+
+
+def pose_errors(cov: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, ...]:
+    """From the covariance (L, 6, 6) and the bias right-hand side (L, 6): the bias δ_b = cov · rhs (L, 6), the
+    noise σ of translation (mm) and rotation (deg) and the bias norms b_t (mm), b_r (deg), each (L,)."""
+    bias = np.einsum("lij,lj->li", np.where(np.isfinite(cov), cov, 0.0), rhs)
+    sig_t = np.sqrt(np.trace(cov[:, :3, :3], axis1=-2, axis2=-1))
+    sig_r = np.degrees(np.sqrt(np.trace(cov[:, 3:, 3:], axis1=-2, axis2=-1)))
+    b_t, b_r = np.linalg.norm(bias[:, :3], axis=-1), np.degrees(np.linalg.norm(bias[:, 3:], axis=-1))
+    return bias, sig_t, sig_r, b_t, b_r
 
 
 def _noise_and_offsets(models: Any, geo: Any, shape: tuple[int, int], sigma_px: float | ArrayLike | None,
