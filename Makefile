@@ -18,11 +18,15 @@ demo: $(STAMP)
 	tools/ensure_system.sh
 	$(PY) -m cadfeat.cli.demo $(DEMO_ARGS)
 
+# The suite on every core, up to 4 (pytest-xdist), a test file per worker: a file's tests share its module
+# fixtures (a study set up once) and run in order; PYTEST_PARALLEL= runs it in one process.
+PYTEST_PARALLEL ?= -n auto --maxprocesses 4 --dist loadfile
+
 test: $(STAMP)
 	tools/ensure_system.sh
 	CADFEAT_CHROMIUM="$$(tools/ensure_chromium.sh)" && export CADFEAT_CHROMIUM && \
 	$(MAKE) --no-print-directory lint && \
-	$(PY) -m pytest -q && \
+	$(PY) -m pytest -q $(PYTEST_PARALLEL) && \
 	$(MAKE) --no-print-directory test-kernels
 
 # The numerical tests again under another OpenBLAS kernel family that every x86-64 CPU has (Prescott; the
