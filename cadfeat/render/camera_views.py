@@ -11,7 +11,11 @@ The VTK camera is set from the OpenCV model (DESIGN.md frames, eq. A.1–A.7 of 
   becomes the window centre ``(1 − 2(cx + ½)/w, 2(cy + ½)/h − 1)``.
 
 Lens distortion is applied after rendering by remapping the pinhole image (``cv2.remap`` with the
-maps from ``cv2.undistortPoints``), so a hole's rim lands where ``Camera.project`` puts it.
+maps from ``cv2.undistortPoints``), so a hole's rim lands where ``Camera.project`` puts it. The pinhole render
+is padded (same fx, fy; the principal point moved by the pad) to cover every pinhole pixel that a distorted
+pixel inside the lens model's valid field (``Camera.fold_radius``) shows: a barrel lens (k₁ < 0) images a wider
+field than its pinhole, and an unpadded render left a black band along the image's edge where the real camera
+sees the part (its edge then failed the detector's surround test on holes next to it).
 The part is light grey, lit from the camera; hole faces are dark; the background is black. Anti-aliasing
 is off (each pixel samples its centre), which keeps edges unbiased: the dark hole regions found by
 thresholding agree with the exact rim ellipses to ~0.2 px (tests/render/test_render_camera.py).
@@ -22,6 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -87,7 +92,13 @@ class CameraViewRenderer:
         self.mesh = shape_polydata(shape) if mesh is None else mesh
         self._corners = _box_corners(np.asarray(self.mesh.bounds))
         self._maps = _distortion_maps(camera) if camera.has_distortion else None
-        self.plotter = new_plotter((camera.width, camera.height), background=BACKGROUND_BLACK, lighting="none")
+        pad = 0 if self._maps is None else _padding(camera, self._maps)
+        if pad:
+            self._maps = (self._maps[0] + pad, self._maps[1] + pad)
+        self._pinhole = replace(camera, width=camera.width + 2 * pad, height=camera.height + 2 * pad,
+                                cx=camera.cx + pad, cy=camera.cy + pad) if pad else camera
+        self.plotter = new_plotter((self._pinhole.width, self._pinhole.height), background=BACKGROUND_BLACK,
+                                   lighting="none")
         self.plotter.disable_anti_aliasing()  # point sampling at pixel centres: MSAA's resolve biases edges ~¼ px
         import pyvista as pv
 
@@ -100,11 +111,12 @@ class CameraViewRenderer:
         T = np.asarray(T_cam_part, dtype=float)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
             raise RenderError(f"T_cam_part must be a finite 4x4 transform, got shape {T.shape}")
-        set_vtk_camera(self.plotter.camera, self.camera, T, near_far_mm(self._corners, T))
+        pinhole = self._pinhole
+        set_vtk_camera(self.plotter.camera, pinhole, T, near_far_mm(self._corners, T))
         image = screenshot(self.plotter)
-        if image.shape[:2] != (self.camera.height, self.camera.width):
+        if image.shape[:2] != (pinhole.height, pinhole.width):
             raise RenderError(f"rendered {image.shape[1]}x{image.shape[0]} px, expected "
-                              f"{self.camera.width}x{self.camera.height}")
+                              f"{pinhole.width}x{pinhole.height}")
         if self._maps is not None:
             import cv2
 
@@ -140,6 +152,24 @@ def _distortion_maps(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     pts = np.stack([u.ravel(), v.ravel()], axis=-1)[:, None, :]
     und = cv2.undistortPoints(pts, camera.K, camera.dist_coeffs, P=camera.K).reshape(camera.height, camera.width, 2)
     return und[..., 0].astype(np.float32), und[..., 1].astype(np.float32)
+
+
+def _padding(camera: Camera, maps: tuple[np.ndarray, np.ndarray]) -> int:
+    """Pixels to add on each side of the pinhole render so that it holds every pinhole pixel (``maps``) shown
+    by a distorted pixel inside the lens model's valid field (``Camera.fold_radius``; past it the model folds
+    and the pixels are left as they map); at most the image's larger side."""
+    u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
+    valid = np.ones(u.shape, dtype=bool)
+    if np.isfinite(camera.fold_radius):
+        edge = camera.distort_normalized(np.array([camera.fold_radius, 0.0]))
+        rd = (float(edge[0]) - camera.cx) / camera.fx                           # distorted radius of the fold
+        valid = np.hypot((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy) < rd
+    mx, my = maps[0][valid], maps[1][valid]
+    if mx.size == 0:
+        return 0
+    over = max(0.0, -float(mx.min()), float(mx.max()) - (camera.width - 1),
+               -float(my.min()), float(my.max()) - (camera.height - 1))
+    return 0 if over == 0.0 else min(int(math.ceil(over)) + 2, max(camera.width, camera.height))
 
 
 def predicted_ellipses(camera: Camera, holes: Sequence[Hole], T_cam_part: np.ndarray) -> Any:

@@ -120,6 +120,42 @@ def test_dark_holes_match_projection_with_distortion(plate):
         _check_image(renderer.render(T), camera, holes, T)
 
 
+def test_a_barrel_lens_sees_the_part_up_to_its_valid_field():
+    """A plate far larger than the view, seen through the thesis camera's strong barrel lens (k₁ = −1.45): every
+    pixel inside the lens model's valid field (``Camera.fold_radius``, the image of the fold circle) shows the
+    part, none the black background — the pinhole render must cover the wider field a barrel lens images. A hole
+    placed where it images 8 px inside the image's edge is found where ``cv2.projectPoints`` puts its rim."""
+    camera = Camera(fx=231.41, fy=231.25, cx=64.2, cy=61.5, width=128, height=128,
+                    dist=(-1.45, -1.32, 0.0, 0.0, 0.0))
+    T = _pose([0.0, 0.0, 60.0], target=(0.0, 0.0, 0.0))
+    # the hole: the plate point that images at (64.2, 11) px (undistortPoints: the exact inverse, independent)
+    xy = cv2.undistortPoints(np.array([[[64.2, 11.0]]]), camera.K, camera.dist_coeffs).reshape(2)
+    point = invert_T(T) @ np.array([*(xy * 62.5), 62.5, 1.0])        # on the plate's top face z = 2.5
+    wp = cq.Workplane("XY").box(400, 400, 5).faces(">Z").workplane().pushPoints([tuple(point[:2])]).hole(3.0)
+    holes = extract_holes(wp)
+    with CameraViewRenderer(wp.val(), holes, camera) as renderer:
+        image = renderer.render(T)
+    grey = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
+    edge = camera.distort_normalized(np.array([camera.fold_radius, 0.0]))
+    rd = (float(edge[0]) - camera.cx) / camera.fx
+    u, v = np.meshgrid(np.arange(128.0), np.arange(128.0))
+    valid = np.hypot((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy) < 0.97 * rd
+    rim = _rim_points(holes)[0]
+    rvec, _ = cv2.Rodrigues(T[:3, :3])
+    px, _ = cv2.projectPoints(rim, rvec, T[:3, 3], camera.K, camera.dist_coeffs)
+    px = px.reshape(-1, 2)
+    near_hole = np.min(np.hypot(u[..., None] - px[:, 0], v[..., None] - px[:, 1]), axis=-1) < 3.0
+    interior = np.array([[cv2.pointPolygonTest(px.astype(np.float32), (float(a), float(b)), False) >= 0
+                          for a in range(128)] for b in range(128)])
+    part = valid & ~near_hole & ~interior
+    assert part.sum() > 0.5 * 128 * 128
+    assert np.all(grey[part] > 60), f"{int(np.sum(grey[part] <= 60))} pixels of the valid field show background"
+    (cx, cy), _, _ = cv2.fitEllipse(px.astype(np.float32))
+    ys, xs = np.nonzero(interior & (grey < 60))
+    assert len(xs) > 0.8 * interior.sum(), "the hole near the image's edge is dark"
+    assert abs(xs.mean() - cx) < 0.5 and abs(ys.mean() - cy) < 0.5
+
+
 def test_render_camera_views_writes_pngs_with_overlay(plate, tmp_path):
     shape, holes = plate
     camera = Camera(fx=500.0, fy=500.0, cx=160.0, cy=120.0, width=320, height=240)
