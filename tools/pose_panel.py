@@ -92,10 +92,12 @@ def score(setup, x, T, times, tuning, model=None) -> dict:
     occ = rim_occlusion(mesh_from_shape(shape, tolerance=0.05), T, c, n, r, samples=12,
                         through=[h.through for h in holes], depth_mm=[h.depth_mm for h in holes])
     ratio = [h.depth_mm / (2 * h.radius_mm) for h in holes]
-    pi = pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio,
+    kinds = [h.kind for h in holes]
+    pi = pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio, kinds=kinds,
                           through=[h.through for h in holes], prior_sigma=(20.0, 0.1), model=model)
     _, sig = posterior_crlb(pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio,
-                                             through=[h.through for h in holes], model=model).information,
+                                             kinds=kinds, through=[h.through for h in holes],
+                                             model=model).information,
                             times, tuning)
     rms = lambda a: float(np.sqrt(np.mean(np.square(a))))  # noqa: E731
     return {"shape": shape, "holes": holes,
