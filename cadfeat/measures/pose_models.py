@@ -62,7 +62,9 @@ plate square to the optical axis: c_w ≈ 0 whatever θ).
 +0.014–0.020 px along d̂, where the plain blind rule gives −0.011–0.017 px. The cone's contrast only takes over
 once the chamfer is wider than the edge (≥ 2 px; the flagship's chamfers are 0–0.8 mm, 0–5 px), which needs the
 chamfer width (the bore radius) in the batched objective's inputs; applied at full strength whatever the width
-it ranked the flagship panel's rotation worse (ρ 0.75 → 0.36). A chamfered rim is treated as its plain hole.
+it ranked the flagship panel's rotation worse (ρ 0.75 → 0.36), and faded in with the chamfer's width (tanh(w / 2 px),
+the width from the rebuilt holes' bore radii) still worse (0.51): the cone's shading alone does not describe the
+chamfered rims' offsets. A chamfered rim is treated as its plain hole.
 
 Parameters (``PoseModels``) are fitted by ``tools/calibrate_detection.py`` on rendered images of a test
 plate over a grid of causes; the table it measured and the fitted values are package data
