@@ -57,6 +57,14 @@ LARGE_RADII = (6.0, 10.0, 16.0)
 LARGE_ANGLES_DEG = (0.0, 30.0, 50.0, 65.0)
 LARGE_DISTANCES = (300.0, 180.0)
 LARGE_BLURS_PX = (0.0, 2.0)
+#: Interior-contrast band: rims of 80–330 px (little pixel-grid scatter) at small view angles, blind
+#: (the lit floor shows past the rim) and through (the black background shows): the grey just inside an oblique
+#: rim differs between the wall's side and the other (``pose_models.interior_contrast``). Rendered last.
+CONTRAST_RADII = (6.0, 10.0)
+CONTRAST_KINDS = (("blind", 0.2), ("through", 0.0))   # blind: 2.4 and 4 mm deep in the 5 mm plate
+CONTRAST_ANGLES_DEG = (8.0, 15.0, 22.0)   # none of the other grids' angles: a re-run replaces them
+CONTRAST_DISTANCES = (300.0, 180.0)
+CONTRAST_SEED = 1000
 SEEDS = 12
 #: Placements per condition: the plate shifted in its plane by U(±0.6 mm) and turned by U(±3°) about its normal
 #: (the cell's placement tolerance moves each rim over sub-pixel phases): the mean offset over placements is the
@@ -174,7 +182,7 @@ def render_many(shape, holes, Ts: np.ndarray) -> np.ndarray:
 
 
 def run_grid(radii=RADII, kinds=KINDS, angles=ANGLES_DEG, distances=DISTANCES, blurs=BLURS_PX,
-             seeds=SEEDS_PER_PLACEMENT, occlusion=True, large=True) -> list[dict]:
+             seeds=SEEDS_PER_PLACEMENT, occlusion=True, large=True, contrast=True, seed0=0) -> list[dict]:
     from cadfeat.cad.features import extract_holes
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
@@ -185,11 +193,13 @@ def run_grid(radii=RADII, kinds=KINDS, angles=ANGLES_DEG, distances=DISTANCES, b
             holes = [h for h in extract_holes(wp) if np.linalg.norm(h.centre[:2]) < 1e-6]
             for angle in angles:
                 for dist in distances:
-                    Ts = placements(pose(angle, dist), seed=len(rows))
+                    Ts = placements(pose(angle, dist), seed=seed0 + len(rows))
                     images = render_many(wp.val(), holes, Ts)
                     for blur in blurs:
-                        row = {"radius_mm": radius, "kind": kind, "through": kind == "through",
-                               "depth_ratio": 5.0 / (2 * radius) if kind == "through" else ratio,
+                        # what was rendered: a "blind" hole deeper than the 5 mm plate is a through hole
+                        thr = bool(holes[0].through)
+                        row = {"radius_mm": radius, "kind": "through" if thr else kind, "through": thr,
+                               "depth_ratio": float(holes[0].depth_mm) / (2 * radius),
                                "angle_deg": angle, "distance_mm": dist, "blur_px": blur, "hidden": 0.0}
                         row.update(measure_placements(images, holes[0], Ts, blur, seeds))
                         rows.append(row)
@@ -211,8 +221,18 @@ def run_grid(radii=RADII, kinds=KINDS, angles=ANGLES_DEG, distances=DISTANCES, b
             rows.append(row)
     if large:
         rows += run_grid(radii=LARGE_RADII, kinds=(("through", 0.0),), angles=LARGE_ANGLES_DEG,
-                         distances=LARGE_DISTANCES, blurs=LARGE_BLURS_PX, seeds=seeds, occlusion=False, large=False)
+                         distances=LARGE_DISTANCES, blurs=LARGE_BLURS_PX, seeds=seeds, occlusion=False, large=False,
+                         contrast=False)
+    if contrast:
+        rows += contrast_grid(seeds)
     return rows
+
+
+def contrast_grid(seeds: int = SEEDS_PER_PLACEMENT) -> list[dict]:
+    """The interior-contrast band (``CONTRAST_RADII`` …): its own placement seeds (``CONTRAST_SEED``)."""
+    return run_grid(radii=CONTRAST_RADII, kinds=CONTRAST_KINDS, angles=CONTRAST_ANGLES_DEG,
+                    distances=CONTRAST_DISTANCES, blurs=LARGE_BLURS_PX, seeds=seeds, occlusion=False, large=False,
+                    contrast=False, seed0=CONTRAST_SEED)
 
 
 def study_grid(path: Path) -> list[dict]:
@@ -268,7 +288,11 @@ def fit(rows: list[dict]) -> PoseModels:
     s0, k_s, w0 = np.abs(rs.x)
     sin_t = np.sqrt(np.clip(1 - a["facing"][ok] ** 2, 0, 1))
     D = np.where(a["through"][ok] > 0, 1.0, 0.5)
-    A = np.column_stack([blur * sin_t, sin_t, D * sin_t * np.minimum(a["depth_ratio"][ok], 2.0)])
+    from cadfeat.measures.pose_models import interior_contrast
+
+    contrast = np.sqrt(w0 ** 2 + blur ** 2) * interior_contrast(a["facing"][ok], a["depth_ratio"][ok],
+                                                                a["through"][ok] > 0, a["minor_px"][ok])
+    A = np.column_stack([blur * sin_t, sin_t, D * sin_t * np.minimum(a["depth_ratio"][ok], 2.0), contrast])
     # weighted by the uncertainty of each row's mean offset: its pixel-grid scatter over the placements and its
     # noise over the draws (per axis); the large rims, with little pixel-grid scatter, carry the constant term
     n_pl = np.maximum(np.nan_to_num(a["placements"][ok], nan=1.0), 1.0)
@@ -277,7 +301,8 @@ def fit(rows: list[dict]) -> PoseModels:
     wgt = 1.0 / np.sqrt(np.where(np.isfinite(a["alias_px"][ok]), var, np.inf)) if "alias_px" in a else \
         np.ones(len(sig))
     use = np.isfinite(a["offset_axis_px"][ok]) & (wgt > 0)
-    (k_b, k_w, k_d), *_ = np.linalg.lstsq(A[use] * wgt[use, None], a["offset_axis_px"][ok][use] * wgt[use], rcond=None)
+    (k_b, k_w, k_d, k_i), *_ = np.linalg.lstsq(A[use] * wgt[use, None], a["offset_axis_px"][ok][use] * wgt[use],
+                                               rcond=None)
     # the pixel-grid error: per-axis RMS √(a² + k_a²/ρ) of the offsets over placements (``alias_px``); a table
     # without placements (older) falls back to what the systematic offset leaves of the one placement's offset
     if "alias_px" in a and (np.isfinite(a["alias_px"][ok]) & (a["alias_px"][ok] > 0)).sum() >= 10:
@@ -290,7 +315,7 @@ def fit(rows: list[dict]) -> PoseModels:
         alias_floor, k_alias = (float(v) for v in ra.x)
     else:
         resid2 = 0.5 * np.maximum(a["offset_u_px"][ok] ** 2 + a["offset_v_px"][ok] ** 2
-                                  - (A @ np.array([k_b, k_w, k_d])) ** 2, 0.0)    # per-axis squared residual
+                                  - (A @ np.array([k_b, k_w, k_d, k_i])) ** 2, 0.0)    # per-axis squared residual
         (floor2, ka2), _ = nnls(np.column_stack([np.ones(len(rho)), 1.0 / rho]), resid2)
         k_alias, alias_floor = float(np.sqrt(ka2)), float(np.sqrt(floor2))
     # occlusion: the raw detector accepts rims cut by an edge of the same grey (a wall's top face over the
@@ -302,7 +327,8 @@ def fit(rows: list[dict]) -> PoseModels:
     o0 = float(RIM_HIDDEN_MAX)
     return replace(base, m0_px=float(m0), w_m_px=float(w_m), kappa_blur=float(kappa), c0=float(c0),
                    w_c=float(w_c), sigma0_px=float(s0), k_sigma=float(k_s), w0_px=float(w0), k_b=float(k_b),
-                   k_d=float(k_d), k_w_px=float(k_w), k_alias_px=k_alias, alias_floor_px=alias_floor, o0=o0,
+                   k_d=float(k_d), k_w_px=float(k_w), k_i=float(k_i), k_alias_px=k_alias, alias_floor_px=alias_floor,
+                   o0=o0,
                    source=f"tools/calibrate_detection.py: {len(rows)} rendered conditions, noise {NOISE_GREY} grey")
 
 
@@ -337,6 +363,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--study", type=Path, default=None,
                     help="calibrate with this study's camera, depths and hole radii (written to --out)")
     ap.add_argument("--out", type=Path, default=None, help="folder for --study's table and model")
+    ap.add_argument("--add-contrast", action="store_true",
+                    help="render only the interior-contrast band, append it to the committed table, refit, write")
     args = ap.parse_args(argv)
     start = time.perf_counter()
     if args.study is not None:
@@ -351,7 +379,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{len(rows)} conditions in {time.perf_counter() - start:.0f} s -> {args.out}")
         print(model.to_json())
         return 0
-    if args.refit:
+    if args.add_contrast:
+        rows = list(csv.DictReader((DATA / "detection_calibration.csv").open()))
+        rows = [r for r in rows if float(r["angle_deg"]) not in CONTRAST_ANGLES_DEG] + contrast_grid()
+    elif args.refit:
         rows = list(csv.DictReader((DATA / "detection_calibration.csv").open()))
     elif args.quick:
         rows = run_grid(radii=(1.5,), kinds=KINDS[:1], angles=(0.0, 60.0), distances=(300.0,), blurs=(0.0,),
@@ -361,7 +392,9 @@ def main(argv: list[str] | None = None) -> int:
     model = fit(rows)
     print(f"{len(rows)} conditions in {time.perf_counter() - start:.0f} s")
     print(model.to_json())
-    if args.refit:
+    if args.add_contrast:
+        write([{k: r.get(k) for k in FIELDS} for r in rows], model)
+    elif args.refit:
         (DATA / "detection_model.json").write_text(json.dumps(asdict(model), indent=2) + "\n")
     elif not args.quick:
         write(rows, model)

@@ -92,10 +92,12 @@ def score(setup, x, T, times, tuning, model=None) -> dict:
     occ = rim_occlusion(mesh_from_shape(shape, tolerance=0.05), T, c, n, r, samples=12,
                         through=[h.through for h in holes], depth_mm=[h.depth_mm for h in holes])
     ratio = [h.depth_mm / (2 * h.radius_mm) for h in holes]
-    pi = pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio,
+    kinds = [h.kind for h in holes]
+    pi = pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio, kinds=kinds,
                           through=[h.through for h in holes], prior_sigma=(20.0, 0.1), model=model)
     _, sig = posterior_crlb(pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio,
-                                             through=[h.through for h in holes], model=model).information,
+                                             kinds=kinds, through=[h.through for h in holes],
+                                             model=model).information,
                             times, tuning)
     rms = lambda a: float(np.sqrt(np.mean(np.square(a))))  # noqa: E731
     return {"shape": shape, "holes": holes,
@@ -184,7 +186,9 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
         row = {"part": study.stem, "design": i, "name": name, "x": [round(float(v), 3) for v in x],
                **{k: v for k, v in s.items() if k not in ("shape",)},
                "sim_pnp_t": sim["pnp"][0], "sim_pnp_r": sim["pnp"][1], "sim_pnp_lost": sim["pnp"][2],
-               "sim_iekf_t": sim["iekf"][0], "sim_iekf_r": sim["iekf"][1], "seconds": time.perf_counter() - start}
+               "sim_iekf_t": sim["iekf"][0], "sim_iekf_r": sim["iekf"][1], "seconds": time.perf_counter() - start,
+               "runs_t": {m: [q["trans_mm_rms"] for q in res.summaries[m]] for m in config.estimators},
+               "runs_r": {m: [q["rot_deg_rms"] for q in res.summaries[m]] for m in config.estimators}}
         rows.append(row)
         print(json.dumps({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()}), flush=True)
     out = {"study": str(study), "rows": rows, "runs": config.runs, "frames": len(T), "seeds": [args.seed],
@@ -195,9 +199,25 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
         v = compare(tracks["original"], tracks["g_POSE optimum"], config.alpha, config.min_change)
         out["paired"] = {m: {"verdict": d["verdict"],
                              **{f"{k}_{q}": d[k][q] for k in ("translation", "rotation")
-                                for q in ("p_value", "median_change") if q in d[k]}}
+                                for q in ("p_value", "median_change") if q in d[k]},
+                             **paired_combined(rows[0], rows[-1], m, config.alpha)}
                          for m, d in v.items()}
     return out
+
+
+def run_combined(row: dict, est: str) -> np.ndarray:
+    """(R,) each run's combined RMS error √(t² + (ℓ r)²) mm (``ROTATION_LENGTH_MM``, r in rad) of a panel row."""
+    return np.hypot(np.asarray(row["runs_t"][est], float),
+                    ROTATION_LENGTH_MM * np.radians(np.asarray(row["runs_r"][est], float)))
+
+
+def paired_combined(before: dict, after: dict, est: str, alpha: float) -> dict:
+    """The paired Wilcoxon test (``vision.metrics.paired_verdict``, paired by run) on the combined error that
+    g_POSE optimises, ``after`` vs ``before`` panel rows of the same runs."""
+    from cadfeat.vision.metrics import paired_verdict
+
+    v = paired_verdict(run_combined(before, est), run_combined(after, est), alpha)
+    return {"combined_p_value": v["p_value"], "combined_median_change": v["median_change"]}
 
 
 SIM = ("sim_pnp_t", "sim_pnp_r", "sim_iekf_t", "sim_iekf_r", "propagated_t", "propagated_r")
@@ -220,14 +240,18 @@ def merge(panels: list[dict]) -> list[dict]:
             continue
         runs = np.array([g["runs"] for g in group], float)
         split = {k: float(spearmanr([r[k] for r in group[0]["rows"]], [r[k] for r in group[1]["rows"]]).statistic)
-                 for k in SIM[:4]}
+                 for k in SIM[:4]} if len(first["rows"]) >= 4 else None
         for i, row in enumerate(first["rows"]):
             for k in SIM:
                 vals = np.array([g["rows"][i][k] for g in group])
                 row[k] = float(np.sqrt(np.sum(runs * vals ** 2) / runs.sum()))
             row["seconds"] = float(sum(g["rows"][i]["seconds"] for g in group))
-        first["split_half"] = {**split, "seeds": [g.get("seeds", [0])[0] for g in group[:2]],
-                               "runs": [g["runs"] for g in group[:2]]}
+            if all("runs_t" in g["rows"][i] for g in group):   # per-run errors of all sets, in set order
+                for key in ("runs_t", "runs_r"):
+                    row[key] = {m: [v for g in group for v in g["rows"][i][key][m]] for m in row[key]}
+        if split is not None:
+            first["split_half"] = {**split, "seeds": [g.get("seeds", [0])[0] for g in group[:2]],
+                                   "runs": [g["runs"] for g in group[:2]]}
         first["paired_by_seed"] = [(g.get("seeds", [0])[0], g.get("runs"), g["paired"]) for g in group if "paired" in g]
         first["runs"] = int(runs.sum())
         first["seeds"] = [s for g in group for s in g.get("seeds", [0])]
@@ -254,6 +278,10 @@ def repredict(panel: dict, args: argparse.Namespace) -> None:
 
         model = PoseModels(**json.loads(args.model.read_text()))
     x0 = np.asarray(setup.space.x0, float)
+    if "design_space" in panel:   # the spread of the predicted error over the feasible space, with these models
+        sobol = sum(r["name"].startswith("sobol") for r in panel["rows"])
+        panel["design_space"] = designs(pose_setup(Path(panel["study"])), sobol + 1,
+                                        candidates=panel["design_space"]["candidates"])[2]
     for row in panel["rows"]:
         x = np.array(row["x"], float)   # a panel from before variables were added: the new ones at the original's
         s = score(setup, np.concatenate([x, x0[len(x):]]), T, times, FilterTuning(), model)
@@ -267,6 +295,14 @@ def repredict(panel: dict, args: argparse.Namespace) -> None:
 
 
 KEYS = ("pnp_t", "pnp_r", "iekf_t", "iekf_r")
+#: ℓ (mm) of the combined error √(e_t² + (ℓ e_r)²) that g_POSE optimises (the studies' pose_rotation_length_mm)
+ROTATION_LENGTH_MM = 50.0
+
+
+def combined(row: dict, est: str, prefix: str = "") -> float:
+    """√(e_t² + (ℓ e_r)²) mm of a panel row (e_r in rad): predicted, or simulated with ``prefix`` "sim_" — the
+    RMS over runs of each run's combined RMS, exactly, since the stored values are RMS over runs."""
+    return float(np.hypot(row[f"{prefix}{est}_t"], ROTATION_LENGTH_MM * np.radians(row[f"{prefix}{est}_r"])))
 
 
 def statistics(rows: list[dict]) -> dict:
@@ -280,6 +316,11 @@ def statistics(rows: list[dict]) -> dict:
         ok = np.isfinite(p) & np.isfinite(q)
         rho[key] = float(spearmanr(p[ok], q[ok]).statistic) if ok.sum() >= 3 else float("nan")
         ratio[key] = float(np.median(p[ok] / q[ok])) if ok.any() else float("nan")
+    for est in ("pnp", "iekf"):
+        p = np.array([combined(r, est) for r in rows])
+        q = np.array([combined(r, est, "sim_") for r in rows])
+        rho[f"{est}_combined"] = float(spearmanr(p, q).statistic) if len(p) >= 3 else float("nan")
+        ratio[f"{est}_combined"] = float(np.median(p / q))
     for kind in ("t", "r"):
         p = np.array([r[f"propagated_{kind}"] for r in rows])
         q = np.array([r[f"sim_pnp_{kind}"] for r in rows])
@@ -317,8 +358,9 @@ def markdown(panels: list[dict]) -> str:
             lines += ["", f"Design space: {d['feasible']} of {d['candidates']} Sobol candidates keep every "
                       f"requirement; their predicted error (g_POSE on the feature model, rotation at 50 mm) spans "
                       f"{d['predicted_feasible_min']:.4f}–{d['predicted_feasible_max']:.4f} mm (original "
-                      f"{d['predicted_original']:.4f}; the first Sobol points "
-                      f"{d.get('predicted_sobol_min', np.nan):.4f}–{d.get('predicted_sobol_max', np.nan):.4f})."
+                      f"{d['predicted_original']:.4f}"
+                      + (f"; the first Sobol points {d['predicted_sobol_min']:.4f}–{d['predicted_sobol_max']:.4f}"
+                         if "predicted_sobol_min" in d else "") + ")."
                       " \"extreme\" rows: the feasible candidates after those with the lowest and highest of it."]
         if len(pnl["rows"]) >= 4:
             lines += [""] + _stat_lines(pnl["rows"])
@@ -345,6 +387,30 @@ def markdown(panels: list[dict]) -> str:
                       "run; Wilcoxon, two-sided):", ""]
             lines += [f"- {m}: {d['verdict']} " + ", ".join(f"{k} {val:.3g}" for k, val in d.items() if k != "verdict")
                       for m, d in paired.items()]
+        sets = [paired for _, _, paired in pnl.get("paired_by_seed") or [] if paired]
+        if len(sets) >= 2:
+            from scipy.stats import combine_pvalues
+
+            lines += ["", f"Fisher's combination of the {len(sets)} independent sets' p-values (the optimum vs the "
+                      "original):", ""]
+            for m in sets[0]:
+                parts = [f"{kind} p = {combine_pvalues([st[m][f'{kind}_p_value'] for st in sets]).pvalue:.2g}"
+                         for kind in ("translation", "rotation", "combined")
+                         if all(f"{kind}_p_value" in st[m] for st in sets)]
+                lines.append(f"- {m}: " + ", ".join(parts))
+        first_row, last_row = pnl["rows"][0], pnl["rows"][-1]
+        if sets and last_row["name"] == "g_POSE optimum" and "runs_t" in first_row and "runs_t" in last_row:
+            from cadfeat.vision.metrics import paired_verdict
+
+            lines += ["", f"All {len(first_row['runs_t']['pnp'])} runs paired by run (Wilcoxon, two-sided), the "
+                      "optimum vs the original; median change after − before:", ""]
+            for m in first_row["runs_t"]:
+                before, after = first_row, last_row
+                vals = {"translation": paired_verdict(np.array(before["runs_t"][m]), np.array(after["runs_t"][m])),
+                        "rotation": paired_verdict(np.array(before["runs_r"][m]), np.array(after["runs_r"][m])),
+                        "combined": paired_verdict(run_combined(before, m), run_combined(after, m))}
+                lines.append(f"- {m}: " + ", ".join(f"{k} p = {v['p_value']:.2g} ({v['median_change']:+.2g})"
+                                                    for k, v in vals.items()))
         lines.append("")
     ranked = [p for p in panels if len(p["rows"]) >= 4]
     if len({p["study"] for p in ranked}) > 1:
@@ -359,6 +425,9 @@ def _stat_lines(rows: list[dict]) -> list[str]:
            "| predicted/simulated, median | " + " | ".join(f"{st['ratio_median'][k]:.2f}" for k in KEYS) + " |",
            "| predicted/simulated, range | " + " | ".join("{:.2f}–{:.2f}".format(*st["ratio_range"][k]) for k in KEYS)
            + " |",
+           "", f"Combined error √(e_t² + (ℓ e_r)²), ℓ = {ROTATION_LENGTH_MM:g} mm (what g_POSE optimises): Spearman ρ "
+           f"PnP {st['spearman']['pnp_combined']:.2f}, IEKF {st['spearman']['iekf_combined']:.2f}; predicted/simulated "
+           f"median PnP {st['ratio_median']['pnp_combined']:.2f}, IEKF {st['ratio_median']['iekf_combined']:.2f}.",
            "", f"Spearman ρ of the measured offsets propagated vs simulated PnP: "
            f"{st['spearman']['propagated_vs_pnp_t']:.2f} (t), {st['spearman']['propagated_vs_pnp_r']:.2f} (r)."]
     return out
@@ -386,6 +455,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="only write --markdown from earlier --json outputs")
     ap.add_argument("--repredict", action="store_true",
                     help="with --from-json: recompute the predictions with the current models (no closed loop)")
+    ap.add_argument("--notes", type=Path, default=None,
+                    help="a markdown file appended to --markdown (the committed panel's notes)")
     ap.add_argument("--model", type=Path, default=None,
                     help="a detection_model.json (calibrate_detection.py --study); default: the committed one")
     args = ap.parse_args(argv)
@@ -406,7 +477,8 @@ def main(argv: list[str] | None = None) -> int:
     for p in panels:
         print(p["study"], json.dumps(statistics(p["rows"])), json.dumps(p.get("paired", {})))
     if args.markdown:
-        args.markdown.write_text(markdown(panels))
+        notes = "" if args.notes is None else "\n" + args.notes.read_text()
+        args.markdown.write_text(markdown(panels) + notes)
     return 0
 
 

@@ -33,15 +33,38 @@ per condition and fits it in log space: a = 0, k_a ≈ 0.39 px — the 1/√ρ l
 0.41). On the flagship the closed loop's measured offsets (0.037–0.067 px per axis for rims of 1–3 mm radius)
 follow the same law.
 
-**Systematic offset** (px, along d̂): the detector fits the rim's edge; what remains is the asymmetric blur of
-an oblique rim, a constant shading term of an oblique rim (the bore's wall darkens the far side of the rim's edge
-profile: a fraction of a pixel of edge shift, whatever the rim's size) and, for holes whose far wall shows inside
-the rim, the wall's share of the dark region:
+**Systematic offset** (px, along d̂): the detector fits the rim's edge where the smoothed image crosses a
+threshold between the lit face and the dark hole; what remains is
 
-    b = (k_b · β + k_w + k_d · D · min(depth/diameter, 2)) · sin θ · d̂,     D = 1 for through holes, 0.5 blind
+    b = [(k_b · β + k_w + k_d · D · min(depth/diameter, 2)) · sin θ  +  k_i · √(w₀² + β²) · g · ΔI] · d̂
 
-The constant term k_w ≈ 0.05 px shows on large rims (90–450 px, the calibration's large-rim band), where the
-pixel-grid scatter of the mean offset over placements is small; on small rims it is within that scatter.
+with D = 1 for through holes, 0.5 blind. The first bracket is the asymmetric blur of an oblique rim (k_b) and
+what the calibration leaves of a constant and a depth term. The second is the **interior contrast** term: just
+inside the rim the detector's edge sees a different grey on the two sides of an oblique hole. On the side
+opposite d̂ it sees the bore's wall, lit at cos γ = sin θ; on the d̂ side the line of sight past the rim goes
+down the bore and meets the floor (blind hole, lit at cos θ) or the background (through hole, black) while
+depth/diameter · tan θ < 1, else the opposite wall (the same grey, no offset). A brighter interior moves that
+side's threshold crossing inwards by ≈ ½ w ΔI/I (a linear edge ramp of width w, threshold at mid-grey), so the
+centre moves by ≈ ¼ w ΔI/I along the side with the brighter interior — k_i ≈ ¼ for w = √(w₀² + β²), the edge
+width of the σ model. With the renderer's Lambert shading under the camera's headlight (``render.camera_views``:
+a directional light along the optical axis ℓ; a face at cos γ to it has the level A + (1 − A) cos γ,
+A = ``SHADE_AMBIENT``) and the hole faces' albedo q relative to the part's (``HOLE_ALBEDO``):
+
+    ΔI = q · v · (L(c_w) − L_far) / L(c_f),   L(c) = A + (1 − A) c,   v = s((1 − depth/diameter · tan θ) / 0.1)
+    L_far = L(c_f) blind or counterbore (its step's floor), 0 through
+
+with c_f = n · ℓ the face's and floor's cosine and c_w the wall's (its inward normal: the line of sight's part
+across the axis); for a hole on the optical axis c_f = cos θ, c_w = sin θ, off the axis the wall is darker (a
+plate square to the optical axis: c_w ≈ 0 whatever θ).
+
+**Chamfered rims are not modelled apart** (left open): the rim's edge then meets a 45° cone, lit at
+(c_f ± c_w)/√2 on the two sides, and the closed loop measures the flagship's chamfered targets at 38–42° at
++0.014–0.020 px along d̂, where the plain blind rule gives −0.011–0.017 px. The cone's contrast only takes over
+once the chamfer is wider than the edge (≥ 2 px; the flagship's chamfers are 0–0.8 mm, 0–5 px), which needs the
+chamfer width (the bore radius) in the batched objective's inputs; applied at full strength whatever the width
+it ranked the flagship panel's rotation worse (ρ 0.75 → 0.36), and faded in with the chamfer's width (tanh(w / 2 px),
+the width from the rebuilt holes' bore radii) still worse (0.51): the cone's shading alone does not describe the
+chamfered rims' offsets. A chamfered rim is treated as its plain hole.
 
 Parameters (``PoseModels``) are fitted by ``tools/calibrate_detection.py`` on rendered images of a test
 plate over a grid of causes; the table it measured and the fitted values are package data
@@ -51,6 +74,7 @@ plate over a grid of causes; the table it measured and the fitted values are pac
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from functools import lru_cache
 from importlib import resources
@@ -82,6 +106,11 @@ class HoleGeometry(NamedTuple):
     valid: np.ndarray
     in_front: np.ndarray
     rims: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None  # centre, axes, angle px, edge
+    #: cosines to the camera's headlight (a directional light along the optical axis) of the hole's face and
+    #: floor (axis · ℓ) and of the wall seen inside the rim (``interior_contrast``); None = those of a hole on
+    #: the optical axis (cos θ, sin θ)
+    light_face: np.ndarray | None = None
+    light_wall: np.ndarray | None = None
 
     def rim_gap_px(self, occlusion: Any = None) -> np.ndarray | None:
         """(L, N) image gap to the nearest other rim that shows as an edge (``rim_gap_px``): in front, facing
@@ -132,14 +161,28 @@ def hole_geometry(camera: Camera, T_cam_part: np.ndarray, centres: np.ndarray, n
     margin = np.where(point, point_margin, image_margin_from_ellipse(camera, e))
     rims = (np.asarray(e.centre_px), np.asarray(e.axes_px), np.asarray(e.angle_rad),
             valid & in_front & (facing > 0) & ~point)
+    # the headlight shines along the optical axis (ℓ = −ẑ towards the camera): the face and floor get n · ℓ; the
+    # wall seen inside the rim is the one across the bore from the camera, its inward normal the line of sight's
+    # part across the axis
+    view = -c / np.maximum(np.linalg.norm(c, axis=-1, keepdims=True), 1e-12)
+    across = view - np.sum(view * n, axis=-1, keepdims=True) * n
+    an = np.linalg.norm(across, axis=-1)
+    light_face = np.clip(-n[..., 2], 0.0, 1.0)
+    light_wall = np.clip(-across[..., 2] / np.maximum(an, 1e-12), 0.0, 1.0)
     return HoleGeometry(minor, major, margin, facing,
-                        defocus_diameter_px(camera, np.maximum(Z, 1.0)), rim, axis_dir, valid, in_front, rims)
+                        defocus_diameter_px(camera, np.maximum(Z, 1.0)), rim, axis_dir, valid, in_front, rims,
+                        light_face, light_wall)
 
 
 #: A rim that comes closer than this (px) to another hole's rim in the image is not detected: the detector's
 #: surround ring (``vision.detection``, 2.5 px outside the fitted rim) cannot tell a neighbouring edge from the
 #: rim's own, and the closed loop drops such holes at association (``vision.closed_loop.RIM_GAP_MIN_PX``).
 RIM_GAP_MIN_PX = 3.0
+#: The renderer's shading (``render.camera_views``: ambient 0.3, diffuse 0.75 under a 0.75 headlight): a face at
+#: cos γ to the line of sight has the grey level ∝ A + (1 − A) cos γ with A = 0.3 / (0.3 + 0.75 · 0.75).
+SHADE_AMBIENT = 0.3 / (0.3 + 0.75 * 0.75)
+#: Hole faces' albedo over the part's: luma (BT.601) of ``render.scene.HOLE_DARK`` over ``PART_GREY``.
+HOLE_ALBEDO = (0.299 * 0.06 + 0.587 * 0.06 + 0.114 * 0.07) / (0.299 * 0.82 + 0.587 * 0.82 + 0.114 * 0.84)
 #: A neighbouring rim counts as an edge in the image while less than this fraction of it is hidden by the part.
 EDGE_HIDDEN_MAX = 0.5
 
@@ -179,6 +222,48 @@ def rim_gap_px(centre_px: np.ndarray, axes_px: np.ndarray, angle_rad: np.ndarray
     return np.where(ok, gap, np.inf).min(axis=-1)
 
 
+def interior_contrast(facing: Any, depth_ratio: Any, through: Any, minor_px: Any, light_face: Any = None,
+                      light_wall: Any = None) -> np.ndarray:
+    """g · ΔI (module docstring, dimensionless): the grey-level difference just inside an oblique rim between the
+    wall's side and the d̂ side, over the face's level, faded in with the wall's band. ``facing`` cos θ (θ from
+    the line of sight), ``depth_ratio`` depth/diameter, ``through`` bool, ``minor_px`` the rim's minor axis,
+    ``light_face`` / ``light_wall`` the face's and the wall's cosines to the headlight (``HoleGeometry``; None:
+    cos θ and sin θ, a hole on the optical axis); broadcast together. Smooth in θ and the depth (the optimiser
+    differentiates it)."""
+    cos_t = np.clip(np.asarray(facing, dtype=float), 1e-3, 1.0)
+    sin_t = np.sqrt(1.0 - cos_t ** 2)
+    tan_t = sin_t / cos_t
+    ratio = np.maximum(np.asarray(depth_ratio, dtype=float), 0.0)
+    lf = cos_t if light_face is None else np.asarray(light_face, dtype=float)
+    lw = sin_t if light_wall is None else np.asarray(light_wall, dtype=float)
+
+    def level(c: np.ndarray) -> np.ndarray:
+        return SHADE_AMBIENT + (1.0 - SHADE_AMBIENT) * c
+
+    wall = level(lw)
+    far = np.where(np.asarray(through, dtype=bool), 0.0, level(lf))
+    v = _sigmoid((1.0 - ratio * tan_t) / 0.1)                 # the floor / background shows past the d̂ rim
+    delta = HOLE_ALBEDO * v * (wall - far) / level(lf)
+    band = ratio * np.maximum(np.asarray(minor_px, dtype=float), 0.0) * tan_t
+    return np.tanh(band) * delta
+
+
+def _kind_is(kinds: Any, n: int, test: Callable[[str, str], bool]) -> np.ndarray:
+    """(N,) or (L, N) bool: ``test(base, rim)`` of each hole's kind (``Hole.kind``, "<base>[, <rim>]");
+    None = plain holes with sharp rims."""
+    if kinds is None:
+        return np.zeros(n, dtype=bool)
+
+    def one(k: object) -> bool:
+        base, _, rim = str(k).partition(",")
+        return test(base.strip(), rim.strip())
+    return np.vectorize(one, otypes=[bool])(np.asarray(kinds, dtype=object))
+
+
+def _counterbore(base: str, rim: str) -> bool:
+    return base == "counterbore"
+
+
 @dataclass(frozen=True)
 class PoseModels:
     """Parameters of the detection and measurement models (module docstring; px unless stated)."""
@@ -197,6 +282,7 @@ class PoseModels:
     k_b: float = 0.0
     k_d: float = 0.0
     k_w_px: float = 0.0
+    k_i: float = 0.0
     k_alias_px: float = 0.0
     alias_floor_px: float = 0.0
     gap0_px: float = RIM_GAP_MIN_PX
@@ -223,10 +309,13 @@ class PoseModels:
         shape = geo.minor_px.shape  # (L, N); per-hole (N,) or per-pose (L, N) inputs
         ratio = np.zeros(shape) if depth_ratio is None else np.broadcast_to(np.asarray(depth_ratio, float), shape)
         thr = np.zeros(shape, bool) if through is None else np.broadcast_to(np.asarray(through, bool), shape)
-        del kinds  # plain / counterbore / countersink: the calibration found no kind-specific offset (docstring)
+        # a counterbore's rim sees its step's floor past the d̂ side, like a blind hole (interior contrast)
+        floor = ~thr | np.broadcast_to(_kind_is(kinds, shape[-1], _counterbore), shape)
         sin_t = np.sqrt(np.clip(1.0 - geo.facing ** 2, 0.0, 1.0))
         mag = (self.k_b * geo.blur_px + self.k_w_px
                + self.k_d * np.where(thr, 1.0, 0.5) * np.minimum(ratio, 2.0)) * sin_t
+        mag = mag + self.k_i * np.sqrt(self.w0_px ** 2 + geo.blur_px ** 2) * interior_contrast(
+            geo.facing, ratio, ~floor, geo.minor_px, geo.light_face, geo.light_wall)
         return sigma, mag[..., None] * geo.axis_dir_px
 
     def to_json(self) -> str:
