@@ -175,7 +175,8 @@ def remove_stale_staging(parent: str | os.PathLike[str]) -> list[Path]:
     """Delete the staging / set-aside folders in ``parent`` left by cadfeat runs that were killed: named
     ``.<name>.staging-<pid>-<hex>`` or ``.<name>.old-<pid>-<hex>``, holding cadfeat's manifest with that pid
     and this host, whose process no longer exists; or so named, empty, with that pid dead (a run killed
-    between creating the folder and writing its manifest). Returns the folders removed."""
+    between creating the folder and writing its manifest: empty, or holding only a manifest file cut short).
+    Returns the folders removed."""
     removed = []
     try:
         entries = list(Path(parent).iterdir())
@@ -186,8 +187,8 @@ def remove_stale_staging(parent: str | os.PathLike[str]) -> list[Path]:
         if not m or path.is_symlink() or not path.is_dir():
             continue
         data = _manifest(path)
-        if data is None and not pid_alive(int(m.group(2))) and _remove_if_empty(path):
-            removed.append(path)  # killed between creating the folder and writing its manifest
+        if data is None and not pid_alive(int(m.group(2))) and _remove_unfinished(path):
+            removed.append(path)  # killed between creating the folder and finishing its manifest
             continue
         if data is None or int(data.get("pid", -1)) != int(m.group(2)):
             continue
@@ -198,9 +199,22 @@ def remove_stale_staging(parent: str | os.PathLike[str]) -> list[Path]:
     return removed
 
 
-def _remove_if_empty(path: Path) -> bool:
-    """``rmdir`` (an empty folder only: nothing anyone wrote can be lost); True if it was removed."""
+#: A manifest cut short by a kill is smaller than this (a whole one of a staging folder is ~300 bytes).
+_UNFINISHED_MANIFEST_BYTES = 4096
+
+
+def _remove_unfinished(path: Path) -> bool:
+    """Remove a staging folder whose run was killed before its manifest was whole: empty, or holding only
+    cadfeat's manifest file, invalid (cut short) and small; ``rmdir`` otherwise refuses (nothing anyone else
+    wrote can be lost). True if it was removed."""
     try:
+        entries = list(path.iterdir())
+        if entries:
+            if [e.name for e in entries] != [MANIFEST] or not entries[0].is_file() or entries[0].is_symlink():
+                return False
+            if entries[0].stat().st_size >= _UNFINISHED_MANIFEST_BYTES:
+                return False
+            entries[0].unlink()
         path.rmdir()
     except OSError:
         return False

@@ -392,8 +392,16 @@ def test_only_cadfeats_own_staging_of_dead_runs_is_removed(tmp_path):
     empty.mkdir()
     empty_alive = tmp_path / f".out.staging-{os.getpid()}-33333333"
     empty_alive.mkdir()
-    assert sorted(remove_stale_staging(tmp_path)) == sorted([gone, old, empty])
-    assert all(p.is_dir() for p in (alive, foreign, other_host, other_pid, user, empty_alive))
+    cut = tmp_path / f".out.staging-{dead}-44444444"  # killed while writing its manifest: cut short
+    cut.mkdir()
+    (cut / ".cadfeat-output.json").write_text('{"cadfeat_output": 1, "sta')
+    cut_with_more = tmp_path / f".out.staging-{dead}-55555555"  # the same, but holding a file someone wrote
+    cut_with_more.mkdir()
+    (cut_with_more / ".cadfeat-output.json").write_text("")
+    (cut_with_more / "notes.txt").write_text("mine")
+    assert sorted(remove_stale_staging(tmp_path)) == sorted([gone, old, empty, cut])
+    assert all(p.is_dir() for p in (alive, foreign, other_host, other_pid, user, empty_alive, cut_with_more))
+    assert (cut_with_more / "notes.txt").read_text() == "mine"
 
 
 def test_concurrent_runs_into_one_folder_end_in_one_complete_result(tmp_path):
