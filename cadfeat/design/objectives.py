@@ -373,7 +373,8 @@ class Normaliser:
       reach, 0 = what it falls to when another objective is favoured. Fixed by the design space, camera and
       trajectory: the same whatever the starting design. An objective whose range is below ``TINY_REL`` of
       its natural unit does not depend on the design (``constant``): it keeps its natural unit and is left
-      out of the combination;
+      out of the combination. A single objective has nothing to trade off: its row is the best of a fixed
+      Sobol sample of the design space (``Problem.payoff_normaliser``), so ĝ ≥ 1 at its optimum;
     - ``"initial"`` — scale_i = |g_i(x0)| (the initial design), or the natural unit when |g_i(x0)| < 1e-3 ×
       natural unit. START-DEPENDENT: a max-min optimum then moves with the starting design;
     - ``"natural"`` — the natural unit; ``"none"`` — 1 (raw units).

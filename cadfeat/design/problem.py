@@ -164,11 +164,16 @@ class Problem:
         maximised alone on features (multi-start from three scaled Sobol points of ``optimize.sobol_starts``
         and the design-space centre — never from the starting design), under the same 2-D constraints;
         plus ``samples`` fixed Sobol designs (those meeting the 2-D constraints) to tell an objective that does
-        not depend on the design (constant) from non-conflicting ones."""
+        not depend on the design (constant) from non-conflicting ones. With one objective there is nothing to
+        trade off: no solve — its table row is the best of those samples (ĝ = 1 there, 0 at the worst; the
+        study's own solve finds the optimum, ĝ ≥ 1). A local solve there only moved the scale with whichever
+        local optimum its few starts reached, so the reported ĝ of one optimum depended on the starting design."""
         cfg = self.objective_config
         natural = Normaliser.build("natural", dict.fromkeys(self.names, 1.0), unit_by_name)
         space = self.space
         centre = 0.5 * (space.lower + space.upper)
+        if len(cfg.measures) == 1:
+            return self._sampled_normaliser(natural, samples)
         table = []
         for m in cfg.measures:
             sub_cfg = cfg.replace(measures=(m,), combine="weighted", weights={}, thresholds={},
@@ -193,6 +198,29 @@ class Problem:
         normaliser = Normaliser.from_payoff(self.names, G, natural.reference, rng, S.min(axis=0))
         normaliser.payoff["designs"] = X.tolist()
         return normaliser
+
+    def _sampled_normaliser(self, natural: Normaliser, samples: int) -> Normaliser:
+        """``payoff_normaliser`` of a single objective: the payoff row is the best of the fixed Sobol designs that
+        meet the 2-D constraints (the design-space centre if none does)."""
+        space = self.space
+        XS = space.lower + sobol_starts(space.size, samples, 12345) * (space.upper - space.lower)
+        c, a, r = self._features_batch(XS)
+        S = self.batch_objectives(c, a, r, depth_mm=self.hole_depths(XS))
+        feasible = self.cset.stacked(c, r, XS).min(axis=-1, initial=0.0) >= -1e-6
+        if not feasible.any():
+            XS = 0.5 * (space.lower + space.upper)[None]
+            S = self.batch_objectives(*self._features_batch(XS), depth_mm=self.hole_depths(XS))
+            feasible = np.ones(1, dtype=bool)
+        XS, S = XS[feasible], S[feasible]
+        best = int(np.argmax(S[:, 0]))
+        normaliser = Normaliser.from_payoff(self.names, S[best:best + 1], natural.reference, np.ptp(S, axis=0),
+                                            S.min(axis=0))
+        assert normaliser.payoff is not None
+        normaliser.payoff["designs"] = XS[best:best + 1].tolist()
+        return replace(normaliser, note=normaliser.note.replace(
+            "ideal/nadir from the payoff table: each objective maximised alone over the design space (on features)",
+            f"one objective: ideal/nadir = the best/worst of {len(S)} fixed Sobol designs that keep the requirements "
+            "(on features; no payoff solve: nothing to trade off, the study's solve finds the optimum, ĝ ≥ 1 there)"))
 
     def hole_depths(self, X: np.ndarray) -> np.ndarray | None:
         """(B, N) hole depths (mm) of designs X by the feature model (``design.hole_form``), None without rates."""
