@@ -1,58 +1,7 @@
-"""A triangle mesh whose ray queries remember their answers, ray by ray (exact: the same numbers).
-
-``measures.visibility.occluded`` asks ``mesh.ray.intersects_location(origins, directions, multiple_hits=True)``
-for all L·N rays from the holes to the camera positions. When a slider moves one hole, the rays of every other
-hole are the same floats as before; ``CachedRayMesh`` answers those from a dictionary keyed by the ray's exact
-bytes and sends only the new rays to trimesh. Each ray's hits do not depend on the other rays of the batch, so
-the result is identical to the uncached query (``tests/explore/test_explore.py`` checks it).
-"""
+"""The explorer's exact per-ray occlusion cache: ``cadfeat.measures.raycache`` (shared with the study run)."""
 
 from __future__ import annotations
 
-from collections import OrderedDict
-from typing import Any
+from cadfeat.measures.raycache import CachedRayMesh, cache_rays
 
-import numpy as np
-
-__all__ = ["CachedRayMesh"]
-
-
-class CachedRayMesh:
-    """Wraps a ``trimesh.Trimesh``: ``.ray.intersects_location`` with a per-ray cache of at most ``max_rays``."""
-
-    def __init__(self, mesh: Any, max_rays: int = 200_000) -> None:
-        self.mesh = mesh
-        self.max_rays = max_rays
-        self._cache: OrderedDict[bytes, tuple[np.ndarray, np.ndarray]] = OrderedDict()
-        self.hits = self.misses = 0
-
-    @property
-    def ray(self) -> CachedRayMesh:
-        return self
-
-    def intersects_location(self, origins: np.ndarray, directions: np.ndarray,
-                            multiple_hits: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(locations (H, 3), index_ray (H,), index_tri (H,)) as ``trimesh``'s ray intersector returns them."""
-        origins = np.ascontiguousarray(origins, float).reshape(-1, 3)
-        directions = np.ascontiguousarray(directions, float).reshape(-1, 3)
-        keys = [o.tobytes() + d.tobytes() + bytes([multiple_hits]) for o, d in zip(origins, directions, strict=True)]
-        todo = [i for i, k in enumerate(keys) if k not in self._cache]
-        self.hits += len(keys) - len(todo)
-        self.misses += len(todo)
-        if todo:
-            loc, idx, tri = self.mesh.ray.intersects_location(origins[todo], directions[todo],
-                                                              multiple_hits=multiple_hits)
-            idx = np.asarray(idx, int)
-            for j, i in enumerate(todo):
-                sel = idx == j
-                self._cache[keys[i]] = (np.asarray(loc, float)[sel].reshape(-1, 3), np.asarray(tri, int)[sel])
-        parts = [self._cache[k] for k in keys]
-        while len(self._cache) > self.max_rays:  # (after reading this batch's answers)
-            self._cache.popitem(last=False)
-        counts = [len(p[1]) for p in parts]
-        if not sum(counts):
-            return np.zeros((0, 3)), np.zeros(0, int), np.zeros(0, int)
-        locations = np.concatenate([p[0] for p in parts])
-        index_ray = np.repeat(np.arange(len(keys)), counts)
-        index_tri = np.concatenate([p[1] for p in parts])
-        return locations, index_ray, index_tri
+__all__ = ["CachedRayMesh", "cache_rays"]

@@ -314,14 +314,15 @@ def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None
         x1, shop, targets = _shop(setup, x_opt, model)
     with prog.phase("rebuild"):
         done = _deliver(setup, opt, prog, (x_opt, x1, shop, targets, model, verified))
-        m1 = measure_holes(setup, done.holes1, mesh=_mesh_of(config, done.shape1))
+        mesh1 = _mesh_of(config, done.shape1)  # (one mesh: the pose prediction repeats its rays, cache_rays)
+        m1 = measure_holes(setup, done.holes1, mesh=mesh1)
         obj1, comb1 = score(setup, done.holes1)
         checks = requirement_checks(setup, done.shape1, done.holes1, "brep")
     with prog.phase("analyse"):
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, done.x1)
         robust = _robustness(setup, start.base.holes0, done.holes1, start.comb0)
-        pose = _pose_accuracy(config, start, setup, done)
+        pose = _pose_accuracy(config, start, setup, done, mesh1)
     results = _results(config, start, opt, done, (m1, obj1, comb1, checks), (sweep, dmat, robust))
     results["pose_accuracy"] = pose
     attach_robust(results, robust_designs(setup, robust_run, start.base.holes0, done.holes1))  # issue 18
@@ -330,11 +331,13 @@ def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None
     return results, shapes
 
 
-def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: _Delivered) -> dict[str, Any]:
-    """results.json ``pose_accuracy`` (``study.pose_accuracy``): predicted pose error before and after."""
+def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: _Delivered,
+                   mesh1: trimesh.Trimesh | None = None) -> dict[str, Any]:
+    """results.json ``pose_accuracy`` (``study.pose_accuracy``): predicted pose error before and after;
+    ``mesh1``: the delivered design's occlusion mesh when the study built one (else one is made here)."""
     base = start.base
     return pose_accuracy(config, base, base.holes0, part_mesh(config, base.shape0, base.problem.occlusion_mesh),
-                         setup, done.holes1, part_mesh(config, done.shape1))
+                         setup, done.holes1, part_mesh(config, done.shape1, mesh1))
 
 
 def _set_up(config: StudyConfig, time_limit_s: float | None) -> _Start:

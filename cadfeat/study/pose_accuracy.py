@@ -32,6 +32,7 @@ import numpy as np
 
 from cadfeat.cad.export import mesh_from_shape
 from cadfeat.cad.features import holes_to_arrays
+from cadfeat.measures.raycache import cache_rays
 
 __all__ = ["PHASES", "design_pose_accuracy", "help_most", "pose_accuracy", "predict", "with_pose"]
 
@@ -266,7 +267,7 @@ def part_mesh(config: Any, shape: Any, mesh: Any = None) -> Any:
     if mesh is not None:
         return mesh
 
-    return mesh_from_shape(shape, tolerance=0.05)
+    return cache_rays(mesh_from_shape(shape, tolerance=0.05))
 
 
 class _MeasuresWithPose:

@@ -39,6 +39,7 @@ from cadfeat.design.hole_form import variable_kind
 from cadfeat.design.patterns import find_patterns
 from cadfeat.design.problem import Problem
 from cadfeat.errors import CadfeatError
+from cadfeat.measures.raycache import cache_rays
 from cadfeat.study.schema import StudyConfig, StudyError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -138,10 +139,12 @@ def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Normalise
 def occlusion_mesh(config: StudyConfig, shape: Shape) -> trimesh.Trimesh | None:
     """The part's triangle mesh (part frame, mm) for the occlusion ray test (``objective.occlusion``, default
     on), or None. Built once per setup from the part as loaded; each hole's OWN position (as the design moves
-    it) is tested against it, so a hole moved behind an upright is hidden, one moved out from behind it seen."""
+    it) is tested against it, so a hole moved behind an upright is hidden, one moved out from behind it seen.
+    Its exact ray tests keep their answers ray by ray (``measures.raycache.cache_rays``: the same numbers; a study
+    asks for the original's rim rays in its measures, its score and its pose prediction)."""
     if not getattr(config.objective, "occlusion", True):
         return None
-    return mesh_from_shape(shape, tolerance=0.05)
+    return cache_rays(mesh_from_shape(shape, tolerance=0.05))
 
 
 def score_mask(config: StudyConfig, holes: Sequence[Hole], movable: np.ndarray) -> np.ndarray:

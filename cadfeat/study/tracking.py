@@ -29,7 +29,7 @@ from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 from cadfeat.study.settings.sections import RobustnessSettings, placement_sigma
 from cadfeat.study.setup import camera_direction, load_scene
 from cadfeat.vision import FilterTuning, SensorModel
-from cadfeat.vision.closed_loop import TrackingConfig, draw_frame, frame_image
+from cadfeat.vision.closed_loop import TrackingConfig, draw_frame, frame_image, report_frames
 from cadfeat.vision.motion import so3_log
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -129,7 +129,7 @@ def _frames(result: BeforeAfter, camera: Camera, out_dir: Path | None, count: in
     for name, d in result.designs.items():
         obs = result.observations[name]
         n = len(obs.optical)
-        for k in sorted({0, n // 2, n - 1})[:count]:
+        for k in report_frames(n, count):
             img = frame_image(camera, obs, k, result.config.sensor.noise_grey, result.config.seed * 1000)
             rgb = draw_frame(img, obs.predicted[k], d.first_detections[k], d.pixels[0, k])
             path = folder / f"{name}_frame_{k:03d}.png"

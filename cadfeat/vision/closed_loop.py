@@ -141,13 +141,22 @@ class DesignTracking:
 
 
 def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, sensor: SensorModel,
-            screws: np.ndarray | None = None, predict_occlusion: bool = True) -> Observation:
+            screws: np.ndarray | None = None, predict_occlusion: bool = True,
+            frames: Sequence[int] | None = None) -> Observation:
     """Render + blur once (module docstring). T_cam_part (F, 4, 4) mm, screws (F, 6) for motion blur;
-    ``predict_occlusion``: the rims' hidden fractions at these poses (``Observation.rim_hidden``)."""
+    ``predict_occlusion``: the rims' hidden fractions at these poses (``Observation.rim_hidden``); ``frames``:
+    render only these frame indices (the others' images are empty, 1 x 1 black at (0, 0): for runs that render
+    their own placement, ``placed_observations``), None = all."""
     centres, normals, radii = holes_to_arrays(holes)
     T = np.asarray(T_cam_part, dtype=float)
-    clean = render_sequence(shape, holes, camera, T)
-    optical, offsets = _regions(camera, clean, apply_optics(clean, optics_kernels(camera, T, centres, sensor, screws)))
+    keep = np.arange(len(T)) if frames is None else np.unique(np.asarray(frames, dtype=int))
+    clean = render_sequence(shape, holes, camera, T[keep])
+    kernels = optics_kernels(camera, T, centres, sensor, screws)
+    some, some_offsets = _regions(camera, clean, apply_optics(clean, [kernels[k] for k in keep]))
+    optical = [np.zeros((1, 1), np.float32) for _ in range(len(T))]
+    offsets = np.zeros((len(T), 2), dtype=int)
+    for j, k in enumerate(keep):
+        optical[k], offsets[k] = some[j], some_offsets[j]
     c_cam = np.einsum("fij,nj->fni", T[:, :3, :3], centres) + T[:, None, :3, 3]
     n_cam = np.einsum("fij,nj->fni", T[:, :3, :3], normals)
     ell = hole_ellipse(camera, c_cam, n_cam, radii)
@@ -189,6 +198,11 @@ def placement_errors(config: TrackingConfig, runs: int) -> np.ndarray:
     return out
 
 
+def _placed(config: TrackingConfig) -> bool:
+    """Does every run render its own placement (``placement_mm`` or ``placement_deg`` > 0)?"""
+    return bool(np.any(np.asarray(config.placement_mm) > 0) or np.any(np.asarray(config.placement_deg) > 0))
+
+
 def illumination_gains(config: TrackingConfig, runs: int) -> np.ndarray:
     """(R,) the illumination gain per run, 1 + N(0, gain_sigma²) from ``default_rng([run seed, 13])``, ≥ 0.2."""
     return np.array([max(1.0 + np.random.default_rng([config.seed * 1000 + r, 13]).normal(0.0, config.gain_sigma),
@@ -206,7 +220,9 @@ def placed_observations(camera: Camera, obs: Observation, T_runs: np.ndarray) ->
     out = []
     with CameraViewRenderer(shape, holes, camera) as renderer:
         for T in np.asarray(T_runs, dtype=float):
-            clean = np.stack([grey(renderer.render(pose)) for pose in T])
+            clean = np.empty((len(T), camera.height, camera.width), dtype=np.float32)
+            for k, pose in enumerate(T):
+                clean[k] = grey(renderer.render(pose))
             blurred = apply_optics(clean, optics_kernels(camera, T, obs.centres, sensor, screws))
             optical, offsets = _regions(camera, clean, blurred)
             out.append(replace(obs, optical=optical, offsets=offsets))
@@ -239,6 +255,11 @@ def _expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.nda
     if obs.rim_gap is not None:
         out &= obs.rim_gap >= RIM_GAP_MIN_PX
     return out
+
+
+def report_frames(n: int, count: int = 3) -> list[int]:
+    """The frames the report draws of a sequence of n (first, middle, last; at most ``count``)."""
+    return sorted({0, n // 2, n - 1})[:count]
 
 
 def frame_seed(run_seed: int, k: int) -> int:
@@ -326,7 +347,7 @@ def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: 
     first: list[Detections] = []
     T_runs = np.broadcast_to(T_true, (R_,) + T_true.shape)                        # (R, F, 4, 4) each run's truth
     runs_obs = [obs] * R_
-    placed = bool(np.any(np.asarray(config.placement_mm) > 0) or np.any(np.asarray(config.placement_deg) > 0))
+    placed = _placed(config)
     if placed and obs.scene is not None:
         T_runs = T_true[None] @ placement_errors(config, R_)[:, None]
         runs_obs = placed_observations(camera, obs, T_runs)
@@ -449,9 +470,12 @@ def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, s
     t = np.asarray(times_s, dtype=float)[idx]
     sc = None if screws is None else np.asarray(screws, dtype=float)[idx]
     results, observations, timings = {}, {}, {}
+    placed = _placed(config)
     for name, (shape, holes) in designs.items():
         start = time.perf_counter()
-        observations[name] = observe(shape, holes, camera, T, config.sensor, sc)
+        # with placement jitter every run renders its own placement: the nominal images are the report's frames
+        observations[name] = observe(shape, holes, camera, T, config.sensor, sc,
+                                     frames=report_frames(len(T)) if placed else None)
         mid = time.perf_counter()
         results[name] = track_design(camera, observations[name], T, t, config, estimator_camera)
         timings[f"{name}_render"] = mid - start

@@ -54,6 +54,28 @@ def test_ray_cache_is_exact():
     assert key(got) == key(want)
 
 
+def test_a_mesh_given_a_ray_cache_answers_as_the_bare_mesh():
+    """``cache_rays`` (the study's occlusion meshes): the same occlusion as a freshly built mesh without the cache,
+    a repeated query answered from the cache, and the intersector's other queries (``contains``) unchanged."""
+    from cadfeat.measures.raycache import CachedRayMesh, cache_rays
+    from cadfeat.measures.visibility import occluded
+
+    part, mesh = _plate_mesh()
+    _, bare = _plate_mesh()
+    assert cache_rays(mesh) is mesh and cache_rays(mesh).ray is mesh.ray and isinstance(mesh.ray, CachedRayMesh)
+    rng = np.random.default_rng(1)
+    cams = np.column_stack([rng.uniform(-80, 80, 20), rng.uniform(-80, 80, 20), rng.uniform(-40, 200, 20)])
+    centres = np.array([[-34, -44, 5], [34, 44, 5], [0, 0, 5], [40, 0, 0]], float)
+    axes = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [1, 0, 0]], float)
+    want = occluded(bare, cams, centres, axes)
+    assert want.any() and not want.all()
+    np.testing.assert_array_equal(occluded(mesh, cams, centres, axes), want)
+    np.testing.assert_array_equal(occluded(mesh, cams, centres, axes), want)
+    assert mesh.ray.hits == want.size and mesh.ray.misses == want.size
+    points = rng.uniform(-60, 60, (50, 3))
+    np.testing.assert_array_equal(mesh.contains(points), bare.contains(points))
+
+
 def test_glb_nodes_are_hole_names_and_geometry_is_the_stl(tmp_path):
     import trimesh
 

@@ -102,3 +102,18 @@ def test_runs_are_identical_without_variability(scene):
                             gain_sigma=0.0)
     res = track_design(CAMERA, obs, T, times, config)
     assert np.array_equal(res.pixels[0], res.pixels[1], equal_nan=True)
+
+
+def test_observing_some_frames_renders_exactly_those_of_the_full_observation(scene):
+    """``observe(frames=...)`` (what the closed loop renders at the nominal placement when every run renders its
+    own): the kept frames' images and offsets are bit for bit those of the full observation, the others empty."""
+    holes, obs, T, _ = scene
+    some = observe(obs.scene[0], holes, CAMERA, T, SensorModel(noise_grey=2.0), predict_occlusion=False,
+                   frames=[0, 4])
+    for k in range(len(T)):
+        if k in (0, 4):
+            assert np.array_equal(some.optical[k], obs.optical[k]) and obs.optical[k].size > 1
+            assert np.array_equal(some.offsets[k], obs.offsets[k])
+        else:
+            assert some.optical[k].shape == (1, 1) and not some.optical[k].any()
+    np.testing.assert_array_equal(some.rim_gap, obs.rim_gap)
