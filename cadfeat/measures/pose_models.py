@@ -214,7 +214,7 @@ def rim_gap_px(centre_px: np.ndarray, axes_px: np.ndarray, angle_rad: np.ndarray
     ang = np.asarray(angle_rad, dtype=float)
     major = np.stack([np.cos(ang), np.sin(ang)], axis=-1)                       # (L, N, 2)
     rho_i = _radius_along(ax[:, :, None], major[:, :, None], unit)
-    rho_j = _radius_along(ax[:, None, :], major[:, None, :], unit)
+    rho_j = np.swapaxes(rho_i, 1, 2)  # ρ_j towards i = ρ_j towards −unit: the same numbers (ψ's cos and sin negate)
     apart = d - rho_i - rho_j
     nested = np.maximum(rho_i, rho_j) - d - np.minimum(rho_i, rho_j)
     gap: np.ndarray = np.where(d >= np.maximum(rho_i, rho_j), apart, np.maximum(apart, nested))
