@@ -90,7 +90,7 @@ def score(setup, x, T, times, tuning, model=None) -> dict:
     holes = setup.rebuild_holes(shape)
     c, n, r = holes_to_arrays(holes)
     occ = rim_occlusion(mesh_from_shape(shape, tolerance=0.05), T, c, n, r, samples=12,
-                        through=[h.through for h in holes], depth_mm=[h.depth_mm for h in holes], camera=setup.camera)
+                        through=[h.through for h in holes], depth_mm=[h.depth_mm for h in holes])
     ratio = [h.depth_mm / (2 * h.radius_mm) for h in holes]
     kinds = [h.kind for h in holes]
     pi = pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio, kinds=kinds,

@@ -63,7 +63,7 @@ def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii:
         mesh = problem.occlusion_mesh if exact_occlusion else problem.occlusion
         if mesh is not None:
             occlusion = rim_occlusion(mesh, T, centres, axes, radii, samples=RIM_SAMPLES, through=through,
-                                      depth_mm=depth, camera=problem.camera)
+                                      depth_mm=depth)
     return pose_information(problem.camera, T, centres, axes, radii, occlusion=occlusion, depth_ratio=ratio,
                             through=through, kinds=hole_kinds(problem), rotation_length_mm=cfg.pose_rotation_length_mm)
 

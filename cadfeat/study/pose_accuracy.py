@@ -65,8 +65,7 @@ def predict(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], mesh: Any
     c, a, r, through, depth = arrays if arrays is not None else _arrays(holes)
     if occlusion is None:
         occlusion = (np.zeros((len(T_cam_part), len(c))) if mesh is None else
-                     rim_occlusion(mesh, T_cam_part, c, a, r, samples=16, through=through, depth_mm=depth,
-                                   camera=camera))
+                     rim_occlusion(mesh, T_cam_part, c, a, r, samples=16, through=through, depth_mm=depth))
     info = pose_information(camera, T_cam_part, c, a, r, occlusion=occlusion, through=through,
                             kinds=[str(getattr(h, "kind", "plain")) for h in holes] if len(holes) == len(c) else None,
                             depth_ratio=depth / (2.0 * np.maximum(r, 1e-9)), rotation_length_mm=rotation_length_mm)
@@ -126,8 +125,8 @@ def help_most(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], names: 
                      "d_rotation_deg_per_mm_move": 0.0 - rot_norm,
                      "d_rotation_deg_per_mm_radius": float((ep[1] - em[1]) / (rp[j] - rm[j]))}
         if mesh is not None and float(np.mean(info0.probability[:, j])) < 0.5:
-            out[name]["out_of_hiding"] = _out_of_hiding(j, (c0, a0, r0, through, depth), mesh, camera, T_cam_part,
-                                                        occlusion, errs, e0, rot0)
+            out[name]["out_of_hiding"] = _out_of_hiding(j, (c0, a0, r0, through, depth), mesh, T_cam_part, occlusion,
+                                                        errs, e0, rot0)
     best = None
     for name, d in out.items():
         options = [("move", d["d_error_per_mm_move"]), ("radius", d["d_error_per_mm_radius"])]
@@ -146,8 +145,8 @@ def help_most(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], names: 
 PROBE_MM = (3.0, 8.0)
 
 
-def _out_of_hiding(j: int, arrays: tuple[np.ndarray, ...], mesh: Any, camera: Any, T: np.ndarray,
-                   occlusion: np.ndarray, errs: Any, e0: float, rot0: float) -> dict[str, Any] | None:
+def _out_of_hiding(j: int, arrays: tuple[np.ndarray, ...], mesh: Any, T: np.ndarray, occlusion: np.ndarray,
+                   errs: Any, e0: float, rot0: float) -> dict[str, Any] | None:
     """The probe move of hole j that lowers the predicted RMS translation error most, with its rim occlusion
     recomputed on ``mesh`` (exact ray test, 8 rim samples); None when no probe helps."""
     from cadfeat.measures.rim_occlusion import rim_occlusion  # lazy: would import scipy.spatial at module load
@@ -161,7 +160,7 @@ def _out_of_hiding(j: int, arrays: tuple[np.ndarray, ...], mesh: Any, camera: An
             c[j] = c0[j] + dist * d
             occ = occlusion.copy()
             occ[:, j] = rim_occlusion(mesh, T, c[j:j + 1], a0[j:j + 1], r0[j:j + 1], samples=8,
-                                      through=through[j:j + 1], depth_mm=depth[j:j + 1], camera=camera)[:, 0]
+                                      through=through[j:j + 1], depth_mm=depth[j:j + 1])[:, 0]
             e, rot, info = errs(c, r0, occ)
             if e < e0 and (best is None or (e - e0) / dist < best["d_error_per_mm"]):
                 best = {"distance_mm": dist, "direction": d.tolist(), "d_error_mm": e - e0,

@@ -163,7 +163,7 @@ def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.nd
 
     predicted = [_E(ell.centre_px[k], ell.axes_px[k], ell.angle_rad[k], ell.valid[k]) for k in range(len(T))]
     names = [h.name or f"hole{j}" for j, h in enumerate(holes)]
-    hidden = _rim_hidden(shape, holes, camera, T, centres, normals, radii) if predict_occlusion else None
+    hidden = _rim_hidden(shape, holes, T, centres, normals, radii) if predict_occlusion else None
 
     gap = hole_geometry(camera, T, centres, normals, radii).rim_gap_px(hidden)
     return Observation(optical, offsets, predicted, centres, normals, radii, names, hidden,
@@ -229,13 +229,12 @@ def placed_observations(camera: Camera, obs: Observation, T_runs: np.ndarray) ->
     return out
 
 
-def _rim_hidden(shape: Any, holes: Sequence[Hole], camera: Camera, T: np.ndarray, centres: np.ndarray,
-                normals: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """(F, N) hidden fraction of each rim, its surround included (ray test against the part's mesh,
-    ``measures.rim_occlusion``)."""
+def _rim_hidden(shape: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
+                radii: np.ndarray) -> np.ndarray:
+    """(F, N) hidden fraction of each rim (ray test against the part's mesh, ``measures.rim_occlusion``)."""
     mesh = mesh_from_shape(shape, tolerance=0.05)
     return rim_occlusion(mesh, T, centres, normals, radii, samples=12, through=[h.through for h in holes],
-                         depth_mm=[h.depth_mm for h in holes], camera=camera)
+                         depth_mm=[h.depth_mm for h in holes])
 
 
 def _expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.ndarray:
