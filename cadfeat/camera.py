@@ -179,16 +179,24 @@ class Camera:
         return float(np.degrees(np.arctan(self.fold_radius)))
 
     @property
+    def fold_radius_distorted(self) -> float:
+        """The distorted normalised radius r_d(fold) of the fold circle (``fold_radius``; ``inf`` without fold):
+        the image of the lens model's valid field is the ellipse ((u − cx)/fx)² + ((v − cy)/fy)² < r_d²."""
+        r = self.fold_radius
+        if not np.isfinite(r):
+            return float("inf")
+        k1, k2, _, _, k3 = self.dist
+        s = r * r
+        return float(r * (1 + k1 * s + k2 * s * s + k3 * s ** 3))
+
+    @property
     def fold_inside_image(self) -> bool:
         """True when the image of the fold circle (radius fx·r_d(fold) px about the principal point) does not
         contain the whole image: parts of the image are then reachable only by folded rays — the
         calibration is not valid over the image (a warning)."""
-        r = self.fold_radius
-        if not np.isfinite(r):
+        rd = self.fold_radius_distorted
+        if not np.isfinite(rd):
             return False
-        k1, k2, _, _, k3 = self.dist
-        s = r * r
-        rd = r * (1 + k1 * s + k2 * s * s + k3 * s ** 3)
         corners = np.array([[0, 0], [self.width, 0], [0, self.height], [self.width, self.height]], float)
         reach = np.hypot((corners[:, 0] - self.cx) / self.fx, (corners[:, 1] - self.cy) / self.fy)
         return bool(reach.max() > rd)

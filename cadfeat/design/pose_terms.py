@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 from collections import OrderedDict
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -41,9 +42,10 @@ def hole_attributes(problem: Any, radii: np.ndarray,
     return through, depth, depth / (2.0 * np.maximum(np.asarray(radii, float), 1e-9))
 
 
-def hole_kinds(problem: Any) -> list[str]:
-    """(N,) the reference holes' kinds (``Hole.kind``; the offset model treats a counterbore's rim apart)."""
-    return [str(getattr(h, "kind", "plain")) for h in problem.model.holes]
+def hole_kinds(holes: Sequence[Any]) -> list[str]:
+    """(N,) the holes' kinds (``Hole.kind``, "plain" where a hole has none; the offset model treats a
+    counterbore's rim apart)."""
+    return [str(getattr(h, "kind", "plain")) for h in holes]
 
 
 def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
@@ -65,7 +67,8 @@ def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii:
             occlusion = rim_occlusion(mesh, T, centres, axes, radii, samples=RIM_SAMPLES, through=through,
                                       depth_mm=depth)
     return pose_information(problem.camera, T, centres, axes, radii, occlusion=occlusion, depth_ratio=ratio,
-                            through=through, kinds=hole_kinds(problem), rotation_length_mm=cfg.pose_rotation_length_mm)
+                            through=through, kinds=hole_kinds(problem.model.holes),
+                            rotation_length_mm=cfg.pose_rotation_length_mm)
 
 
 def pose_aggregate_batch(errors_mm: np.ndarray, information: np.ndarray, how: str,
@@ -149,7 +152,7 @@ def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, rad
     kw = {} if noise is None else {"noise_grey": float(noise) if noise.ndim == 0 else np.tile(noise.reshape(L, 1),
                                                                                                (B, 1))}
     sig, off = models.measurement_model(geo, depth_ratio=np.broadcast_to(ratio, (B, N)).repeat(L, axis=0),
-                                        kinds=hole_kinds(problem), through=through, **kw)
+                                        kinds=hole_kinds(problem.model.holes), through=through, **kw)
     from cadfeat.measures.pose_information import weighted_information  # lazy: as pose_models above
 
     _, per_hole, rhs = weighted_information(p, J, sig, off)

@@ -188,30 +188,30 @@ class Problem:
             table.append(res.x_best)
         X = np.vstack(table)
         G = self.batch_objectives(*self._features_batch(X), depth_mm=self.hole_depths(X))
-        U = sobol_starts(space.size, samples, 12345)
-        XS = space.lower + U * (space.upper - space.lower)
-        c, a, r = self._features_batch(XS)
-        S = self.batch_objectives(c, a, r, depth_mm=self.hole_depths(XS))
-        feasible = self.cset.stacked(c, r, XS).min(axis=-1, initial=0.0) >= -1e-6  # the kept requirements hold
-        S = np.vstack([S[feasible], G])
+        _, S = self._feasible_sample(samples)
+        S = np.vstack([S, G])
         rng = np.ptp(S, axis=0)
         normaliser = Normaliser.from_payoff(self.names, G, natural.reference, rng, S.min(axis=0))
         normaliser.payoff["designs"] = X.tolist()
         return normaliser
 
-    def _sampled_normaliser(self, natural: Normaliser, samples: int) -> Normaliser:
-        """``payoff_normaliser`` of a single objective: the payoff row is the best of the fixed Sobol designs that
-        meet the 2-D constraints (the design-space centre if none does)."""
+    def _feasible_sample(self, samples: int) -> tuple[np.ndarray, np.ndarray]:
+        """The fixed Sobol designs (``samples`` of them, seed 12345) that keep the requirements, and their raw
+        objectives: (designs (M, n), objectives (M, K))."""
         space = self.space
         XS = space.lower + sobol_starts(space.size, samples, 12345) * (space.upper - space.lower)
         c, a, r = self._features_batch(XS)
         S = self.batch_objectives(c, a, r, depth_mm=self.hole_depths(XS))
-        feasible = self.cset.stacked(c, r, XS).min(axis=-1, initial=0.0) >= -1e-6
-        if not feasible.any():
-            XS = 0.5 * (space.lower + space.upper)[None]
+        feasible = self.cset.stacked(c, r, XS).min(axis=-1, initial=0.0) >= -1e-6  # the kept requirements hold
+        return XS[feasible], S[feasible]
+
+    def _sampled_normaliser(self, natural: Normaliser, samples: int) -> Normaliser:
+        """``payoff_normaliser`` of a single objective: the payoff row is the best of the fixed Sobol designs that
+        meet the 2-D constraints (the design-space centre if none does)."""
+        XS, S = self._feasible_sample(samples)
+        if not len(XS):
+            XS = 0.5 * (self.space.lower + self.space.upper)[None]
             S = self.batch_objectives(*self._features_batch(XS), depth_mm=self.hole_depths(XS))
-            feasible = np.ones(1, dtype=bool)
-        XS, S = XS[feasible], S[feasible]
         best = int(np.argmax(S[:, 0]))
         normaliser = Normaliser.from_payoff(self.names, S[best:best + 1], natural.reference, np.ptp(S, axis=0),
                                             S.min(axis=0))

@@ -159,11 +159,7 @@ def _padding(camera: Camera, maps: tuple[np.ndarray, np.ndarray]) -> int:
     by a distorted pixel inside the lens model's valid field (``Camera.fold_radius``; past it the model folds
     and the pixels are left as they map); at most the image's larger side."""
     u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
-    valid = np.ones(u.shape, dtype=bool)
-    if np.isfinite(camera.fold_radius):
-        edge = camera.distort_normalized(np.array([camera.fold_radius, 0.0]))
-        rd = (float(edge[0]) - camera.cx) / camera.fx                           # distorted radius of the fold
-        valid = np.hypot((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy) < rd
+    valid = np.hypot((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy) < camera.fold_radius_distorted
     mx, my = maps[0][valid], maps[1][valid]
     if mx.size == 0:
         return 0

@@ -32,6 +32,7 @@ import numpy as np
 
 from cadfeat.cad.export import mesh_from_shape
 from cadfeat.cad.features import holes_to_arrays
+from cadfeat.design.pose_terms import hole_kinds
 from cadfeat.measures.raycache import cache_rays
 
 __all__ = ["PHASES", "design_pose_accuracy", "help_most", "pose_accuracy", "predict", "with_pose"]
@@ -67,7 +68,7 @@ def predict(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], mesh: Any
         occlusion = (np.zeros((len(T_cam_part), len(c))) if mesh is None else
                      rim_occlusion(mesh, T_cam_part, c, a, r, samples=16, through=through, depth_mm=depth))
     info = pose_information(camera, T_cam_part, c, a, r, occlusion=occlusion, through=through,
-                            kinds=[str(getattr(h, "kind", "plain")) for h in holes] if len(holes) == len(c) else None,
+                            kinds=hole_kinds(holes) if len(holes) == len(c) else None,
                             depth_ratio=depth / (2.0 * np.maximum(r, 1e-9)), rotation_length_mm=rotation_length_mm)
     return info, occlusion
 

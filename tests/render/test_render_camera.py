@@ -136,7 +136,7 @@ def test_a_barrel_lens_sees_the_part_up_to_its_valid_field():
     with CameraViewRenderer(wp.val(), holes, camera) as renderer:
         image = renderer.render(T)
     grey = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
-    edge = camera.distort_normalized(np.array([camera.fold_radius, 0.0]))
+    edge = camera.distort_normalized(np.array([camera.fold_radius, 0.0]))   # (the lens has no tangential terms)
     rd = (float(edge[0]) - camera.cx) / camera.fx
     u, v = np.meshgrid(np.arange(128.0), np.arange(128.0))
     valid = np.hypot((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy) < 0.97 * rd
