@@ -25,8 +25,8 @@ from typing import Any
 
 from cadfeat.errors import CadfeatError
 
-__all__ = ["DEFAULT_BUILD_TIMEOUT_S", "TIME_LIMIT_HINT", "PartBuildError", "call_with_time_limit", "check_time_limit",
-           "contained", "run_worker", "start_workers", "worker_setup"]
+__all__ = ["DEFAULT_BUILD_TIMEOUT_S", "TIME_LIMIT_HINT", "BackgroundCall", "PartBuildError", "call_with_time_limit",
+           "check_time_limit", "contained", "run_worker", "start_workers", "worker_setup"]
 
 DEFAULT_BUILD_TIMEOUT_S = 60.0
 """Time limit (s) of one part-script import or build in the ``cadfeat`` commands (``[study] build_timeout_s``
@@ -187,3 +187,41 @@ def call_with_time_limit(func: Any, args: tuple, what: str, timeout_s: float | N
     if status != "ok":
         raise PartBuildError(f"{what}: {payload}")
     return payload
+
+
+class BackgroundCall:
+    """``func(*args)`` in a worker process started now, its result collected later (``result``) or the worker
+    killed (``cancel``): work that does not depend on what this process does meanwhile runs on another core
+    (the study's closed-loop check tracks the original design while the optimiser runs). ``func`` must be
+    importable and ``args`` and the result picklable. The worker is a daemon: it dies with cadfeat."""
+
+    def __init__(self, func: Any, args: tuple, what: str) -> None:
+        ctx = _context()
+        self.what = what
+        self._receive, send = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(target=_call_worker, args=(func, args, send), daemon=True)
+        self._proc.start()
+        send.close()
+
+    def result(self, timeout_s: float) -> Any:
+        """``func(*args)``; ``PartBuildError`` (starting with ``what``) when the worker raised, died or did not
+        answer within ``timeout_s``. The worker is gone afterwards."""
+        try:
+            if not self._receive.poll(timeout_s):
+                raise PartBuildError(f"{self.what} gave no result within {timeout_s:g} s")
+            try:
+                status, payload = self._receive.recv()
+            except EOFError:
+                raise PartBuildError(f"{self.what}: worker died (exit code {self._proc.exitcode})") from None
+        finally:
+            self.cancel()
+        if status != "ok":
+            raise PartBuildError(f"{self.what}: {payload}")
+        return payload
+
+    def cancel(self) -> None:
+        """Kill the worker (if it still runs) and free the pipe."""
+        self._receive.close()
+        if self._proc.is_alive():
+            self._proc.kill()
+        self._proc.join()

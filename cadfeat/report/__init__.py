@@ -8,6 +8,6 @@ PyVista are imported only while writing.
 from __future__ import annotations
 
 from cadfeat.report.context import ReportContext
-from cadfeat.report.write import ReportOutput, build_report, read_results, write_report
+from cadfeat.report.write import ReportOutput, build_report, read_results, report_renders, write_report
 
-__all__ = ["ReportContext", "ReportOutput", "build_report", "read_results", "write_report"]
+__all__ = ["ReportContext", "ReportOutput", "build_report", "read_results", "report_renders", "write_report"]

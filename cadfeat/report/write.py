@@ -65,6 +65,13 @@ def write_report(out_dir: str | Path, results: dict, context: ReportContext | No
     return build_report(out_dir, results, context).path
 
 
+def report_renders(out_dir: str | Path, results: dict, context: ReportContext | None) -> Renders:
+    """The report's renders (``make_renders`` into ``out_dir/img``) on their own, for ``build_report``'s
+    ``renders``: they need the designs and their measures, not the closed loop."""
+    results, context = _single_design(results, context)
+    return make_renders(context, results, Path(out_dir) / IMG_DIR)
+
+
 def read_results(path: str | Path) -> dict:
     """Read a results.json; a missing or malformed file raises CadfeatError naming it."""
     path = Path(path)
@@ -81,7 +88,8 @@ def read_results(path: str | Path) -> dict:
 
 
 def build_report(out_dir: str | Path, results: dict, context: ReportContext | None = None, *,
-                 parallel: bool | None = None, self_contained: bool = True) -> ReportOutput:
+                 parallel: bool | None = None, self_contained: bool = True,
+                 renders: Renders | None = None) -> ReportOutput:
     """``write_report`` that also returns the images, notes and the time of each phase (s).
 
     ``parallel`` (default: off unless ``CADFEAT_REPORT_PARALLEL=1``): when there are renders, draw the plots
@@ -92,6 +100,8 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
     mailed; the PNGs are written to ``img/`` all the same (False: the page links them).
     ``timings_s``: "renders" (with "renders: part"/"renders: views"), "plots" (drawing time, wherever it ran),
     "plots: wait" (time spent waiting for the child after the renders), "html", "total" (wall).
+    ``renders``: ``report_renders``'s images, made earlier (``cadfeat run`` renders them while the closed loop
+    runs in its workers); None renders them here.
     """
     t0 = time.perf_counter()
     results, context = _single_design(results, context)
@@ -106,7 +116,7 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
 
     start = time.perf_counter()
     try:
-        renders = make_renders(context, results, img_dir)
+        renders = make_renders(context, results, img_dir) if renders is None else renders
     except BaseException:  # Ctrl-C during the renders: leave no plot process behind
         if child is not None:
             child.kill()

@@ -36,11 +36,14 @@ import os
 import time
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 from cadfeat.study.settings.sections import CHECK_MODES
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.sandbox import BackgroundCall
 
 ENV = "CADFEAT_TRACKING_CHECK"
 FAST_ESTIMATORS = ("pnp", "iekf")
@@ -50,6 +53,10 @@ FAST_SETTLE = 3
 MIN_HOLES = 3
 SKIPPED = "closed-loop check skipped"
 TRACKED_MIN = 0.5
+BACKGROUND_ENV = "CADFEAT_TRACKING_BACKGROUND"
+BACKGROUND_WAIT_S = 3600.0
+#: Where ``pipeline.compute`` keeps the workers of ``start_design`` in its shapes, per design name.
+BACKGROUND_KEYS = {"before": "tracking_before", "after": "tracking_after"}
 
 
 def with_mode(config: StudyConfig, mode: str | None) -> StudyConfig:
@@ -98,33 +105,86 @@ def attach(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, An
         results.setdefault("warnings", []).append(skipped)
 
 
-def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Path | None,
-                      progress: Any = None) -> tuple[dict[str, Any] | None, str | None]:
-    """(the results.json ``tracking`` section or None, why it was skipped or None) — ``attach``."""
-    from cadfeat.study.tracking import run_tracking  # lazy: would import scipy.optimize at module load
-
+def check_spec(config: StudyConfig, n_samples: int) -> tuple[str, TrackingSpec | None]:
+    """(mode, the tracking settings the check runs with; None when the mode is ``off``)."""
     mode = check_mode(config)
     if mode == "off":
-        return None, None
-    designs = {"before": (shapes["shape0"], shapes["holes0"]), "after": (shapes["shape1"], shapes["holes1"])}
+        return mode, None
     if mode == "full":
-        spec = config.tracking or TrackingSpec(seed=config.study.seed)
-    else:
-        spec = fast_spec(config, len(shapes["setup"].trajectory.times_s))
+        return mode, config.tracking or TrackingSpec(seed=config.study.seed)
+    return mode, fast_spec(config, n_samples)
+
+
+def start_design(config: StudyConfig, name: str, shape: Any, holes: Any, n_samples: int) -> BackgroundCall | None:
+    """Start tracking one design (``shape``, ``holes``; ``name`` "before" or "after") in a worker process, so
+    that the check runs on another core while this process goes on: the original while the optimiser runs,
+    the recommended design during the analysis, export and the report's renders (neither depends on what this
+    process does meanwhile). None when there is nothing to track (mode ``off``, too few holes),
+    ``CADFEAT_TRACKING_BACKGROUND=0``, or the worker cannot start (the check then tracks the design itself). Its
+    numbers are those the check computes in this process (``closed_loop.track_one`` of
+    ``tracking.track_arguments``; tests/study/test_closed_loop_check.py)."""
+    from cadfeat.cad.sandbox import BackgroundCall
+    from cadfeat.study.tracking import track_arguments
+    from cadfeat.vision.closed_loop import track_one
+
+    _, spec = check_spec(config, n_samples)
+    if spec is None or len(holes) < MIN_HOLES or os.environ.get(BACKGROUND_ENV, "1").strip() == "0":
+        return None
+    try:
+        return BackgroundCall(track_one, track_arguments(config, spec, (shape, list(holes))),
+                              f"the closed loop of the {'original' if name == 'before' else 'recommended'} design")
+    except Exception:  # noqa: BLE001 - an optimisation: the check then runs here, where errors are reported
+        return None
+
+
+def _collect(pending: Mapping[str, BackgroundCall | None], progress: Any) -> dict[str, Any]:
+    """{design name: its worker's tracking} for the workers ``start_design`` started that delivered (a design
+    whose worker failed is tracked here by the check, where a failure is reported as the check reports it)."""
+    out = {}
+    for name, call in pending.items():
+        if call is None:
+            continue
+        try:
+            out[name] = call.result(BACKGROUND_WAIT_S)
+        except CadfeatError as exc:
+            if progress is not None:
+                progress.log(f"{exc}; tracking it in this process")
+    return out
+
+
+def cancel(shapes: Mapping[str, Any]) -> None:
+    """Stop the workers ``start_design`` started for ``shapes`` (keys "tracking_before"/"tracking_after")."""
+    for key in BACKGROUND_KEYS.values():
+        if shapes.get(key) is not None:
+            shapes[key].cancel()
+
+
+def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Path | None,
+                      progress: Any = None) -> tuple[dict[str, Any] | None, str | None]:
+    """(the results.json ``tracking`` section or None, why it was skipped or None) — ``attach``. ``shapes`` may
+    hold ``start_design``'s workers under ``BACKGROUND_KEYS`` (their designs are not tracked again here)."""
+    from cadfeat.study.tracking import run_tracking  # lazy: would import scipy.optimize at module load
+
+    mode, spec = check_spec(config, len(shapes["setup"].trajectory.times_s))
+    designs = {"before": (shapes["shape0"], shapes["holes0"]), "after": (shapes["shape1"], shapes["holes1"])}
     few = min(len(shapes["holes0"]), len(shapes["holes1"]))
-    if mode == "fast" and few < MIN_HOLES:
-        return None, f"{SKIPPED}: the part has {few} hole(s); a pose needs at least {MIN_HOLES}"
+    if spec is None or (mode == "fast" and few < MIN_HOLES):
+        cancel(shapes)
+        return None, None if spec is None else f"{SKIPPED}: the part has {few} hole(s); a pose needs at least " \
+                                               f"{MIN_HOLES}"
     t0, c0 = time.perf_counter(), time.process_time()
+    pending = {name: shapes.get(key) for name, key in BACKGROUND_KEYS.items()}
     try:
         with _phase(progress):
-            section = run_tracking(config, designs, stage, spec)
+            section = run_tracking(config, designs, stage, spec, tracked=_collect(pending, progress))
     except (CadfeatError, ImportError, RuntimeError, OSError, ValueError) as exc:
         if mode == "full":
             raise
         return None, f"{SKIPPED}: the part could not be rendered and tracked ({type(exc).__name__}: {exc})"
     section["check"] = {"mode": mode, "runs": spec.runs, "frames": section["settings"]["frames"],
                         "estimators": list(spec.estimators), "seconds": round(time.perf_counter() - t0, 2),
-                        "cpu_seconds": round(time.process_time() - c0, 2)}
+                        "cpu_seconds": round(time.process_time() - c0, 2),
+                        "in_worker": sorted(k for k, v in pending.items() if v is not None)}
     _inconclusive(section)
     return section, None
 

@@ -26,6 +26,7 @@ from cadfeat.design.patterns import check_patterns, find_patterns
 from cadfeat.design.robustness import robustness
 from cadfeat.design.shop import hole_sizes, refine_on_rebuild, shop_design
 from cadfeat.errors import CadfeatError
+from cadfeat.study import closed_loop_check
 from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
@@ -298,6 +299,20 @@ def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None
     check_robust(config)  # issue 18: a chance constraint names a measure of the study, before any work
     with prog.phase("setup"):
         start = _set_up(config, time_limit_s)
+    base = start.base  # issue 17: the closed-loop check tracks the original on another core meanwhile
+    shapes: dict[str, Any] = {"tracking_before": closed_loop_check.start_design(
+        config, "before", base.shape0, base.holes0, len(base.trajectory.times_s))}
+    try:
+        return _after_set_up(config, prog, start, shapes)
+    except BaseException:
+        closed_loop_check.cancel(shapes)
+        raise
+
+
+def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shapes: dict[str, Any]
+                  ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``compute``'s phases after the set-up: optimise, deliver, analyse; ``shapes`` gains the designs (and the
+    recommended design's closed loop in a worker, ``closed_loop_check.start_design``, before the analysis)."""
     with prog.phase("optimise"):
         opt = _optimise_all(config, start, prog)
         robust_run = robust_phase(config, opt, prog, _history)  # issue 18: the robust optimum (opt.res if delivered)
@@ -318,6 +333,8 @@ def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None
         m1 = measure_holes(setup, done.holes1, mesh=mesh1)
         obj1, comb1 = score(setup, done.holes1)
         checks = requirement_checks(setup, done.shape1, done.holes1, "brep")
+    shapes["tracking_after"] = closed_loop_check.start_design(config, "after", done.shape1, done.holes1,
+                                                              len(setup.trajectory.times_s))
     with prog.phase("analyse"):
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, done.x1)
@@ -326,8 +343,8 @@ def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None
     results = _results(config, start, opt, done, (m1, obj1, comb1, checks), (sweep, dmat, robust))
     results["pose_accuracy"] = pose
     attach_robust(results, robust_designs(setup, robust_run, start.base.holes0, done.holes1))  # issue 18
-    shapes = {"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,
-              "holes1": done.holes1, "setup": setup, "base": start.base}
+    shapes.update({"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,
+                   "holes1": done.holes1, "setup": setup, "base": start.base})
     return results, shapes
 
 

@@ -201,6 +201,8 @@ def source_objectives(rp: RobustProblem, features: Features, D: Any, sources: tu
     c, a, r = (np.asarray(v, float) for v in features)
     a = np.broadcast_to(a, c.shape)
     depth = _design_depths(rp, depths, len(r))
+    first, back = _distinct_designs(c, a, r, depth)  # the same design twice (e.g. robust = nominal) costs once
+    c, a, r, depth = c[first], a[first], r[first], depth[first]
     G0 = p.batch_objectives(c, a, r, depth_mm=depth)
     out = {}
     for src in sources:
@@ -211,7 +213,17 @@ def source_objectives(rp: RobustProblem, features: Features, D: Any, sources: tu
             out[src] = shop_objectives(p, c, a, r, rp.changed, d, depth)
         else:
             out[src] = cell_objectives(p, c, a, r, d, depth)
-    return G0, out
+    return G0[back], {src: v[back] for src, v in out.items()}
+
+
+def _distinct_designs(*arrays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(first, back): the indices of the first of each distinct design (rows of ``arrays`` bit-equal in all of
+    them) and, per design, the index of its distinct design in ``first`` (``x[first][back]`` gives ``x``)."""
+    keys = [b"".join(np.ascontiguousarray(x[i]).tobytes() for x in arrays) for i in range(len(arrays[0]))]
+    seen: dict[bytes, int] = {}
+    back = np.array([seen.setdefault(k, len(seen)) for k in keys], dtype=int)
+    first = np.array([keys.index(k) for k in seen], dtype=int)
+    return first, back
 
 
 def statistics_of(rp: RobustProblem, G0: np.ndarray, G: dict[str, np.ndarray],
@@ -252,8 +264,10 @@ def _robust_value(rp: RobustProblem, features: list[Features], depths: list[Any]
     if rp.objective.statistic == "chance":
         rp = RobustProblem(rp.inner, RobustObjective(), rp.draws, rp.changed)
     c, a, r = (np.stack([np.asarray(f[i], float) for f in features]) for i in range(3))
-    value, _ = rp.value_and_margins(rp.block_objectives(c, a, r, _design_depths(rp, depths, len(r))))
-    return [float(x) for x in value]
+    depth = _design_depths(rp, depths, len(r))
+    first, back = _distinct_designs(c, a, r, depth)
+    value, _ = rp.value_and_margins(rp.block_objectives(c[first], a[first], r[first], depth[first]))
+    return [float(x) for x in np.asarray(value)[back]]
 
 
 @dataclass

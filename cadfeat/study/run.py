@@ -11,8 +11,9 @@
    score it, check every kept requirement on the B-rep (``verify_on_brep``);
 5. in a staged folder (``export.staged_output``): ``original.step``, ``optimised.step``, ``optimised.stl``;
    re-import ``optimised.step``, match its holes to the design to 1e-6 mm (``verify_step_roundtrip``) and
-   check every kept requirement again on the re-imported solid; ``results.json``; the report
-   (``cadfeat.report.write_report``) if that module is available; then publish the folder.
+   check every kept requirement again on the re-imported solid; the report's renders while the closed-loop
+   check's workers track both designs (``study.closed_loop_check``); ``results.json``; the report
+   (``cadfeat.report.build_report``); then publish the folder.
 
 Nothing is written if validation, the CAD rebuild or a verification fails, or if the run is interrupted
 before the optimiser found a design; the input part file is only read.
@@ -21,10 +22,9 @@ before the optimiser found a design; the input part file is only read.
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import io
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -183,8 +183,11 @@ def run_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | Non
     with staged_output(out, force) as stage, \
             StudyProgress(config.study.name, enabled=progress and not quiet) as prog:
         results, shapes = compute(config, prog, config.study.build_timeout_s)
-        with prog.phase("export"):
-            _write_outputs(config, stage, results, shapes, prog)
+        try:
+            with prog.phase("export"):
+                _write_outputs(config, stage, results, shapes, prog)
+        finally:  # the closed loop's workers (``closed_loop_check.start_design``), if not collected
+            closed_loop_check.cancel(shapes)
     return StudyResult(Path(out), results)
 
 
@@ -206,7 +209,8 @@ def preflight_study(path_or_dict: StudySource | StudyConfig, time_limit_s: float
 
 def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], shapes: Mapping[str, Any],
                    prog: StudyProgress) -> None:
-    """Write and verify the outputs into the staging folder ``stage`` (published by the caller)."""
+    """Write and verify the outputs into the staging folder ``stage`` (published by the caller). The report's
+    renders are made before the closed-loop check collects its workers' tracking (they run meanwhile)."""
     t0 = time.perf_counter()
     results["constraints"], results["verification"] = export_and_verify(config, stage, shapes,
                                                                         results["constraints"])
@@ -215,24 +219,36 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
                                                                  "holes.csv")]
     results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
     results["versions"] = versions()
+    finish_report = _report(stage, results, shapes, prog)
     closed_loop_check.attach(config, results, shapes, stage, prog)  # the closed loop confirms (issue 17)
     results["verdict"] = verdict_json(plain(results))
     write_results(stage / "results.json", results)
-    _report(stage, results, shapes, prog)
+    if finish_report is not None:
+        finish_report(results)
 
 
-def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], prog: StudyProgress) -> None:
-    """``cadfeat.report.write_report`` if that module exists (the report helper's)."""
-    if importlib.util.find_spec("cadfeat.report") is None:
-        return
+def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], prog: StudyProgress
+            ) -> Callable[[dict[str, Any]], None]:
+    """The report's renders now (they need the designs and their measures, not the closed loop, whose workers
+    run meanwhile); returns what writes the report from the final results (``report.build_report``)."""
+    context = _report_context(shapes)
+    with prog.phase("report"):
+        renders = report.report_renders(stage, plain(results), context)
+
+    def finish(final: dict[str, Any]) -> None:
+        with prog.phase("report"):
+            report.build_report(stage, plain(final), context, renders=renders)
+    return finish
+
+
+def _report_context(shapes: Mapping[str, Any]) -> report.ReportContext:
+    """The report's designs, camera and trajectory (camera views at each hole's worst pose, its default)."""
     setup = shapes["setup"]
     fixed = getattr(setup, "fixed_mask", None)
-    context = report.ReportContext(  # camera views at each hole's worst pose (the report's default)
+    return report.ReportContext(
         shape_before=shapes["shape0"], shape_after=shapes["shape1"], holes_before=shapes["holes0"],
         holes_after=shapes["holes1"], fixed_mask=np.asarray(fixed, bool), camera=setup.camera,
         trajectory=setup.trajectory, T_task_part=setup.T_task_part)
-    with prog.phase("report"):
-        report.write_report(stage, plain(results), context)
 
 
 # ------------------------------------------------------------------------------------------ evaluate
@@ -312,7 +328,9 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
                 "objectives": {**results["objectives"], "after": values}}
         shapes = {"shape0": shape, "shape1": shape, "holes0": holes, "holes1": holes,
                   "setup": _EvalSetup(config, camera, full_traj, T_task_part, holes, fixed)}
-        _report(stage, same, shapes, prog)
+        finish_report = _report(stage, same, shapes, prog)
+        if finish_report is not None:
+            finish_report(same)
     return plain(results)
 
 

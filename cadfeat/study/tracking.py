@@ -210,11 +210,14 @@ def _view_direction(config: StudyConfig, original_step: Path) -> np.ndarray | No
 
 
 def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Path | None = None,
-                 spec: TrackingSpec | None = None, camera_override: Camera | None = None) -> dict[str, Any]:
+                 spec: TrackingSpec | None = None, camera_override: Camera | None = None,
+                 tracked: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The results.json ``tracking`` section for ``designs`` = {"before": (shape, holes), "after": (...)}.
 
     ``out_dir``: where the frame PNGs go (``tracking/``); None writes nothing. ``camera_override``: the camera
-    the estimators assume (the images always use the study's camera) — for the focal-length sweep.
+    the estimators assume (the images always use the study's camera) — for the focal-length sweep. ``tracked``:
+    designs already tracked with ``spec`` (``closed_loop.track_one`` of ``track_arguments``, e.g. in a worker),
+    not re-run.
     """
     spec = spec or config.tracking or TrackingSpec()
     designs = {k: (shape, _named(holes)) for k, (shape, holes) in designs.items()}
@@ -223,12 +226,24 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     from cadfeat.vision.closed_loop import track_designs  # lazy: looked up per call (tests replace it)
 
     result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec, config.robustness),
-                           estimator_camera=camera_override)
+                           estimator_camera=camera_override, **({"tracked": tracked} if tracked else {}))
     section = result.to_json()
     section["warnings"] = _motion_warnings(T_cam_part[result.frame_indices], times[result.frame_indices])
     section["curves"] = _curves(result)
     section["frames"] = _frames(result, camera, out_dir)
     return section
+
+
+def track_arguments(config: StudyConfig, spec: TrackingSpec, design: Design) -> tuple[Any, ...]:
+    """The arguments of ``closed_loop.track_one`` that track one design (shape, holes) of the study as
+    ``run_tracking`` tracks it with ``spec`` (the same holes' names, frames and runs), for ``run_tracking``'s
+    ``tracked``; plain arrays and dataclasses (picklable: the study's check tracks the original in a worker)."""
+    from cadfeat.vision.closed_loop import tracked_frames  # lazy: scipy.optimize
+
+    camera, T_cam_part, times, screws = _scene(config)
+    _check_frames(config, spec, len(T_cam_part))
+    _, T, t, sc = tracked_frames(T_cam_part, times, screws, spec.frame_step)
+    return camera, T, t, sc, (design[0], _named(design[1])), tracking_config(spec, config.robustness)
 
 
 def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,

@@ -23,7 +23,7 @@ instead of one fixed offset per design: the Monte-Carlo mean is then the expecta
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -458,27 +458,44 @@ def _finite_json(value: Any) -> Any:
     return value
 
 
+def track_one(camera: Camera, T: np.ndarray, t: np.ndarray, sc: np.ndarray | None, design: tuple[Any, Sequence[Hole]],
+              config: TrackingConfig, estimator_camera: Camera | None = None
+              ) -> tuple[DesignTracking, Observation, dict[str, float]]:
+    """One design of ``track_designs`` on its tracked frames ``T`` (F, 4, 4), times ``t`` (F,) s and screws ``sc``
+    (F, 6) or None: its tracking, observation and wall-clock timings ("render", "track", s). A design's numbers do
+    not depend on the other designs (the runs' seeds are the config's), so designs may be tracked apart — the
+    study's check tracks the original in a worker process while the optimiser runs (``study.closed_loop_check``)."""
+    shape, holes = design
+    start = time.perf_counter()
+    # with placement jitter every run renders its own placement: the nominal images are the report's frames
+    obs = observe(shape, holes, camera, T, config.sensor, sc, frames=report_frames(len(T)) if _placed(config) else None)
+    mid = time.perf_counter()
+    tracked = track_design(camera, obs, T, t, config, estimator_camera)
+    return tracked, obs, {"render": mid - start, "track": time.perf_counter() - mid}
+
+
+def tracked_frames(T_cam_part: np.ndarray, times_s: np.ndarray, screws: np.ndarray | None, frame_step: int
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """(indices, poses, times, screws) of every ``frame_step``-th sample of the trajectory (the tracked frames)."""
+    idx = np.arange(0, len(T_cam_part), max(1, int(frame_step)))
+    sc = None if screws is None else np.asarray(screws, dtype=float)[idx]
+    return idx, np.asarray(T_cam_part, dtype=float)[idx], np.asarray(times_s, dtype=float)[idx], sc
+
+
 def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, screws: np.ndarray | None,
                   designs: dict[str, tuple[Any, Sequence[Hole]]], config: TrackingConfig,
-                  before: str = "before", after: str = "after", estimator_camera: Camera | None = None
+                  before: str = "before", after: str = "after", estimator_camera: Camera | None = None,
+                  tracked: Mapping[str, tuple[DesignTracking, Observation, dict[str, float]]] | None = None
                   ) -> BeforeAfter:
     """Closed loop on several designs along one trajectory (every ``config.frame_step``-th sample), and the
-    paired verdict ``after`` vs ``before`` per estimator. ``designs`` maps a name to (shape, holes)."""
-    idx = np.arange(0, len(T_cam_part), max(1, int(config.frame_step)))
-    T = np.asarray(T_cam_part, dtype=float)[idx]
-    t = np.asarray(times_s, dtype=float)[idx]
-    sc = None if screws is None else np.asarray(screws, dtype=float)[idx]
+    paired verdict ``after`` vs ``before`` per estimator. ``designs`` maps a name to (shape, holes); ``tracked``:
+    designs already tracked with this config by ``track_one`` (their entries of ``designs`` are not re-run)."""
+    idx, T, t, sc = tracked_frames(T_cam_part, times_s, screws, config.frame_step)
     results, observations, timings = {}, {}, {}
-    placed = _placed(config)
-    for name, (shape, holes) in designs.items():
-        start = time.perf_counter()
-        # with placement jitter every run renders its own placement: the nominal images are the report's frames
-        observations[name] = observe(shape, holes, camera, T, config.sensor, sc,
-                                     frames=report_frames(len(T)) if placed else None)
-        mid = time.perf_counter()
-        results[name] = track_design(camera, observations[name], T, t, config, estimator_camera)
-        timings[f"{name}_render"] = mid - start
-        timings[f"{name}_track"] = time.perf_counter() - mid
+    for name, design in designs.items():
+        done = (tracked or {}).get(name) or track_one(camera, T, t, sc, design, config, estimator_camera)
+        results[name], observations[name] = done[0], done[1]
+        timings[f"{name}_render"], timings[f"{name}_track"] = done[2]["render"], done[2]["track"]
     verdicts = compare(results[before], results[after], config.alpha, config.min_change) \
         if before in results and after in results else {}
     return BeforeAfter(results, observations, verdicts, config, idx, timings)

@@ -53,13 +53,23 @@ def _study(tmp_path, **tracking):
     return write_toml(tmp_path / "huddle.toml", data)
 
 
-def test_run_confirms_by_the_closed_loop_and_the_verdict_rejects(tmp_path, capsys):
+def _run(tmp_path, out):
     from cadfeat.cli import main
 
-    out = tmp_path / "out"
     assert main(["run", str(_study(tmp_path)), "--out", str(out), "--quiet"]) == 0
+    return json.loads((out / "results.json").read_text())
+
+
+def test_run_confirms_by_the_closed_loop_and_the_verdict_rejects(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv(clc.BACKGROUND_ENV, raising=False)  # the default: both designs tracked in workers
+    results = _run(tmp_path, tmp_path / "out")
     text = capsys.readouterr().out
-    results = json.loads((out / "results.json").read_text())
+    assert results["tracking"]["check"]["in_worker"] == ["after", "before"]
+    monkeypatch.setenv(clc.BACKGROUND_ENV, "0")  # the same check, every design tracked in this process
+    here = _run(tmp_path, tmp_path / "here")
+    assert here["tracking"]["check"]["in_worker"] == []
+    for key in ("designs", "verdicts", "curves", "settings"):  # the workers' numbers are this process's, exactly
+        assert results["tracking"][key] == here["tracking"][key], key
     variables = {v["name"]: v for v in results["variables"]}
     assert variables["size_mm"]["after"] > 2.2  # the proxy (resolution) drove the holes together
     assert results["objectives"]["after"]["g_RES"] > results["objectives"]["before"]["g_RES"]
@@ -81,7 +91,7 @@ def test_run_confirms_by_the_closed_loop_and_the_verdict_rejects(tmp_path, capsy
     assert any(f["rule"] == "tracking" and f["outcome"] == "do not adopt" for f in verdict["findings"])
     assert "closed loop (fast: 8 paired runs" in text and "worse (translation p = " in text
     assert "verdict: do not adopt" in text
-    html = (out / "report.html").read_text()
+    html = (tmp_path / "out" / "report.html").read_text()
     assert "fast closed-loop check" in html
 
 

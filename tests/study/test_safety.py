@@ -467,3 +467,20 @@ def test_cad_work_in_a_worker_is_cut_off_at_the_limit():
     assert time.monotonic() - t0 < 30
     with pytest.raises(PartBuildError, match="ZeroDivisionError"):
         call_with_time_limit(divmod, (1, 0), "dividing", timeout_s=60)
+
+
+def test_background_work_in_a_worker_comes_back_fails_cleanly_and_is_killed():
+    """``BackgroundCall`` (the closed-loop check's workers): its result later, a failure as ``PartBuildError``
+    naming the work (the check then tracks the design itself), and ``cancel`` kills a worker still running."""
+    from cadfeat.cad.parts import PartBuildError
+    from cadfeat.cad.sandbox import BackgroundCall
+
+    assert BackgroundCall(pow, (2, 10), "pow").result(60) == 1024
+    with pytest.raises(PartBuildError, match="dividing: ZeroDivisionError"):
+        BackgroundCall(divmod, (1, 0), "dividing").result(60)
+    with pytest.raises(PartBuildError, match="sleeping gave no result within 0.5 s"):
+        BackgroundCall(time.sleep, (600,), "sleeping").result(0.5)
+    call = BackgroundCall(time.sleep, (600,), "sleeping")
+    t0 = time.monotonic()
+    call.cancel()
+    assert not call._proc.is_alive() and time.monotonic() - t0 < 30
