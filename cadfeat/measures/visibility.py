@@ -27,7 +27,7 @@ def occluded(mesh: Any, camera_positions: ArrayLike, centres: ArrayLike, axes: A
     """(L, N) bool: the segment from each feature centre (N, 3) to each camera centre (L, 3) hits ``mesh``.
 
     All in the part frame, mm. ``mesh`` is a ``trimesh.Trimesh`` (e.g. ``export.mesh_from_shape``); one
-    batched ray query (trimesh's ray-triangle intersector, rtree-accelerated) for all L·N rays. Rays start
+    batched ray query (trimesh's intersector: Embree through embreex, a dependency) for all L·N rays. Rays start
     slightly off the feature along its axis so they do not hit the feature's own face.
     """
     cam = np.asarray(camera_positions, dtype=float).reshape(-1, 3)

@@ -125,16 +125,30 @@ def start_design(config: StudyConfig, name: str, shape: Any, holes: Any, n_sampl
     ``tracking.track_arguments``; tests/study/test_closed_loop_check.py)."""
     from cadfeat.cad.sandbox import BackgroundCall
     from cadfeat.study.tracking import track_arguments
-    from cadfeat.vision.closed_loop import track_one
 
     _, spec = check_spec(config, n_samples)
     if spec is None or len(holes) < MIN_HOLES or os.environ.get(BACKGROUND_ENV, "1").strip() == "0":
         return None
+    threads = 1 if name == "before" else None  # beside the optimiser (one core): the renderer and OpenCV on one
     try:
-        return BackgroundCall(track_one, track_arguments(config, spec, (shape, list(holes))),
+        return BackgroundCall(_track_design, (threads, track_arguments(config, spec, (shape, list(holes)))),
                               f"the closed loop of the {'original' if name == 'before' else 'recommended'} design")
     except Exception:  # noqa: BLE001 - an optimisation: the check then runs here, where errors are reported
         return None
+
+
+def _track_design(threads: int | None, arguments: tuple[Any, ...]) -> Any:
+    """In a worker: ``closed_loop.track_one(*arguments)`` with the software renderer (llvmpipe,
+    ``LP_NUM_THREADS``, read when the worker's OpenGL context is made) and OpenCV on ``threads`` threads (None:
+    theirs); the images and numbers do not depend on it (tests/study/test_closed_loop_check.py)."""
+    if threads is not None:
+        import cv2
+
+        os.environ["LP_NUM_THREADS"] = str(threads)
+        cv2.setNumThreads(threads)
+    from cadfeat.vision.closed_loop import track_one  # lazy: scipy.optimize
+
+    return track_one(*arguments)
 
 
 def _collect(pending: Mapping[str, BackgroundCall | None], progress: Any) -> dict[str, Any]:
