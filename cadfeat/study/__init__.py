@@ -5,8 +5,9 @@
 - ``run``: ``run_study`` (optimise, rebuild, verify, export, report) and ``evaluate_study``;
 - ``outputs``: results.json pieces; ``progress``: the progress display.
 
-``run_study``, ``evaluate_study`` and ``StudyResult`` are importable from here (lazily: the run imports
-numpy-heavy modules only when used).
+``run_study``, ``evaluate_study`` and ``StudyResult`` are importable from here, and ``score_design`` /
+``track_design`` (``designs``: any design of a study, a parameter dict, scored and tracked) — lazily: the run
+imports numpy-heavy modules only when used.
 """
 
 from __future__ import annotations
@@ -14,10 +15,11 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-__all__ = ["StudyResult", "evaluate_study", "run_study"]
+__all__ = ["StudyResult", "evaluate_study", "run_study", "score_design", "track_design"]
+_HOMES = {"score_design": "cadfeat.study.designs", "track_design": "cadfeat.study.designs"}
 
 
 def __getattr__(name: str) -> Any:
     if name in __all__:
-        return getattr(importlib.import_module("cadfeat.study.run"), name)
+        return getattr(importlib.import_module(_HOMES.get(name, "cadfeat.study.run")), name)
     raise AttributeError(f"module 'cadfeat.study' has no attribute {name!r}")

@@ -93,6 +93,15 @@ def test_run_confirms_by_the_closed_loop_and_the_verdict_rejects(tmp_path, capsy
     assert "verdict: do not adopt" in text
     html = (tmp_path / "out" / "report.html").read_text()
     assert "fast closed-loop check" in html
+    # one closed loop: the public API tracks the delivered design (a parameter dict) with the run's numbers
+    from cadfeat.study import track_design
+
+    values = {v["name"]: v["after"] for v in results["variables"]}
+    tracked = track_design(_study(tmp_path), values)
+    for key in ("designs", "verdicts", "settings"):
+        assert tracked[key] == results["tracking"][key], key
+    with pytest.raises(StudyError, match="unknown \\[tracking\\] key\\(s\\) run; allowed: .*runs"):
+        track_design(_study(tmp_path), values, run=3)
 
 
 def test_mode_precedence_and_fast_settings(tmp_path, monkeypatch):

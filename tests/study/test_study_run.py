@@ -555,3 +555,29 @@ def test_flagship_requirements_are_checked_under_the_holes_own_names(tmp_path, m
         assert used <= {(c["name"], tuple(sorted(c["holes"]))) for c in checks}, where
         assert {h for c in checks if c["name"] == "fixed" for h in c["holes"]} <= fixed
         assert all(h in names for c in checks for h in c["holes"])
+
+
+def test_score_design_of_the_delivered_values_is_the_runs_after(small_run):
+    """The public API (issue 17): ``score_design`` of the run's delivered variables rebuilds the same CAD model and
+    scores it as the run did — the same objectives, combined value and kept requirements, holes at the exported
+    positions; an unknown variable or a value out of bounds is one error naming the key and what is allowed."""
+    from cadfeat.study import score_design
+    from cadfeat.study.schema import StudyError
+
+    result, _, _ = small_run
+    r = result.results
+    values = {v["name"]: v["after"] for v in r["variables"]}
+    s = score_design(copy.deepcopy(SMALL), values)
+    assert s["values"] == pytest.approx(values, abs=1e-9)
+    assert s["objectives"] == pytest.approx(r["objectives"]["after"], rel=1e-9, abs=1e-12)
+    assert s["combined"] == pytest.approx(r["objectives"]["combined_after"], rel=1e-9)
+    brep = [c for c in r["constraints"] if c.get("checked_on") == "brep"]
+    assert s["requirements_hold"] and [c["name"] for c in s["requirements"]] == [c["name"] for c in brep]
+    assert [c["value"] for c in s["requirements"]] == pytest.approx([c["value"] for c in brep], rel=1e-9, abs=1e-9)
+    for got, want in zip(s["holes"], r["holes"]["after"], strict=True):
+        assert got["centre_mm"] == pytest.approx(want["centre_mm"], abs=1e-6)
+        assert got["radius_mm"] == pytest.approx(want["radius_mm"], abs=1e-6)
+    with pytest.raises(StudyError, match=r"design variable\(s\) z9 not in the study; allowed: x0, y0"):
+        score_design(copy.deepcopy(SMALL), {"z9": 1.0})
+    with pytest.raises(StudyError, match=r"x0=5.0 is not allowed; allowed: a number in \[-18, -4\] mm"):
+        score_design(copy.deepcopy(SMALL), {"x0": 5.0})

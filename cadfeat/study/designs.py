@@ -1,0 +1,150 @@
+"""Any design of a study, scored and tracked (issue 17: one closed loop, a public API for any design).
+
+A design is a parameter dict ``{design variable: value}`` — the names of the study's design space
+(``cadfeat run`` prints them: a part script's parameters, a STEP part's ``H1.s``/``H1.t``/``H1.d``, …) and, for a
+part script, its integer parameters; a variable not given keeps the study's start (``StudySetup.space.x0``).
+
+- ``score_design(study, values)``: the part rebuilt in CAD at that design (the real model, never the surrogate),
+  its holes extracted in the design's order and named as ``cadfeat run`` names them, then scored exactly as
+  ``cadfeat run`` scores its delivered design: the objectives and their combined value (``pipeline.score``),
+  every kept requirement measured on the B-rep (``verify.requirement_checks``) and the predicted pose error
+  before (the study's original) and at this design (``study.pose_accuracy``).
+- ``track_design(study, values)``: the closed loop on that design and, paired with it, the study's original
+  (``against="original"``; None tracks the design alone), with the settings of ``cadfeat run``'s check (``mode``
+  fast or full) and any ``[tracking]`` key overridden (``runs=16``, ``seed=11``, …): the results.json
+  ``tracking`` section, ``cadfeat track``'s numbers for the same design.
+
+Bad input (an unknown variable, a value outside its bounds, an unknown ``[tracking]`` key) is one
+``StudyError`` naming the key and the allowed values, before any CAD work.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec, load_study
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
+    from cadfeat.study.setup import StudySetup
+
+__all__ = ["score_design", "track_design"]
+
+StudySource = str | Path | Mapping[str, Any] | StudyConfig
+
+
+def score_design(study: StudySource, values: Mapping[str, float] | None = None, *,
+                 seed: int | None = None) -> dict[str, Any]:
+    """The design ``values`` of ``study`` (module docstring) rebuilt in CAD and scored as ``cadfeat run`` scores
+    its delivered design. Returns {"values", "holes", "objectives", "combined" (None for pareto),
+    "requirements" (each kept requirement's check), "requirements_hold", "rebuild_deviation_mm" (largest
+    centre/radius deviation of the CAD holes from the feature model's prediction), "pose_accuracy" (results.json's
+    block: "before" the original, "after" this design)}, as results.json writes them (``outputs.plain``)."""
+    from cadfeat.study.outputs import hole_dict, plain
+    from cadfeat.study.pipeline import score
+    from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy
+    from cadfeat.study.verify import requirement_checks
+
+    config, setup, x, (shape, holes, deviation) = _design(study, values, seed)
+    objectives, combined = score(setup, holes)
+    checks = requirement_checks(setup, shape, holes, "brep")
+    pose = pose_accuracy(config, setup, setup.holes0, part_mesh(config, setup.shape0), setup, holes,
+                         part_mesh(config, shape))
+    fixed, movable = np.asarray(setup.fixed_mask, bool), np.asarray(setup.movable_mask, bool)
+    return plain({"values": {**setup.space.as_dict(x), **dict(setup.int_values)},
+            "holes": [hole_dict(h, i, bool(fixed[i]), bool(movable[i])) for i, h in enumerate(holes)],
+            "objectives": objectives, "combined": combined, "requirements": checks,
+            "requirements_hold": all(bool(c["ok"]) for c in checks),
+            "rebuild_deviation_mm": float(deviation), "pose_accuracy": pose})
+
+
+def track_design(study: StudySource, values: Mapping[str, float] | None = None, *, against: str | None = "original",
+                 mode: str = "fast", seed: int | None = None, out_dir: str | Path | None = None,
+                 **tracking: Any) -> dict[str, Any]:
+    """The closed loop on the design ``values`` of ``study`` ("after") and, with ``against="original"``, on the
+    study's original ("before", paired run by run: the verdict per estimator). ``mode``: "fast" (``cadfeat
+    run``'s default check: PnP + IEKF, 8 runs, ≤ 20 frames) or "full" (the study's ``[tracking]`` settings);
+    ``tracking``: ``[tracking]`` keys overriding either (e.g. ``runs=16, seed=11``); ``out_dir``: where the drawn
+    frames go (None: none written). Returns the results.json ``tracking`` section (as results.json writes it)."""
+    from cadfeat.study.closed_loop_check import fast_spec
+    from cadfeat.study.outputs import plain
+    from cadfeat.study.tracking import run_tracking
+
+    if against not in ("original", None):
+        raise StudyError(f"track_design: against={against!r} is not allowed; allowed: 'original' or None")
+    if mode not in ("fast", "full"):
+        raise StudyError(f"track_design: mode={mode!r} is not allowed; allowed: 'fast', 'full'")
+    config = _config(study, seed)
+    spec = _with_keys(config.tracking or TrackingSpec(seed=config.study.seed), tracking, config.label)
+    _, setup, _, (shape, holes, _) = _design(config, values, None)
+    if mode == "fast":  # the check's fast settings on the study's (and the given keys over them)
+        spec = _with_keys(fast_spec(dataclasses.replace(config, tracking=spec), len(setup.trajectory.times_s)),
+                          tracking, config.label)
+    designs = {"after": (shape, holes)}
+    if against == "original":
+        designs = {"before": (setup.shape0, setup.holes0), **designs}
+    return plain(run_tracking(config, designs, None if out_dir is None else Path(out_dir), spec))
+
+
+def _config(study: StudySource, seed: int | None) -> StudyConfig:
+    config = study if isinstance(study, StudyConfig) else load_study(study)
+    return config.with_seed(seed) if seed is not None else config
+
+
+def _with_keys(spec: TrackingSpec, keys: Mapping[str, Any], label: str) -> TrackingSpec:
+    """``spec`` with the ``[tracking]`` ``keys`` replaced; an unknown key is one error listing the allowed ones."""
+    unknown = sorted(set(keys) - set(TrackingSpec.model_fields))
+    if unknown:
+        raise StudyError(f"{label}: track_design: unknown [tracking] key(s) {', '.join(unknown)}; allowed: "
+                         f"{', '.join(sorted(TrackingSpec.model_fields))}")
+    return spec.replace(**keys) if keys else spec
+
+
+def _design(study: StudySource, values: Mapping[str, float] | None, seed: int | None
+            ) -> tuple[StudyConfig, StudySetup, np.ndarray, tuple[Any, list[Hole], float]]:
+    """(config, the set-up of the design's integer parameters, the design vector, ``verify.rebuild`` at it)."""
+    from cadfeat.study.setup import setup_study
+    from cadfeat.study.verify import rebuild
+
+    config = _config(study, seed)
+    values = dict(values or {})
+    ints = {p.name: p for p in config.design.parameters if p.is_int} if config.study.part_kind == "script" else {}
+    int_values = {k: _int_value(config, ints[k], values.pop(k)) for k in list(values) if k in ints}
+    setup = setup_study(config, int_values or None, time_limit_s=config.study.build_timeout_s)
+    x = _vector(config, setup, values, sorted(ints))
+    return config, setup, x, rebuild(setup, x)
+
+
+def _int_value(config: StudyConfig, parameter: Any, value: Any) -> int:
+    lo, hi = parameter.bounds
+    if isinstance(value, bool) or not float(value).is_integer() or not lo <= int(value) <= hi:
+        raise StudyError(f"{config.label}: design value {parameter.name}={value!r} is not allowed; allowed: an "
+                         f"integer in [{lo:g}, {hi:g}]")
+    return int(value)
+
+
+def _vector(config: StudyConfig, setup: StudySetup, values: Mapping[str, Any], ints: list[str]) -> np.ndarray:
+    """The design vector: ``values`` over the study's start; one error per unknown name or value out of bounds."""
+    space = setup.space
+    names = list(space.names)
+    unknown = sorted(set(values) - set(names))
+    if unknown:
+        raise StudyError(f"{config.label}: design variable(s) {', '.join(unknown)} not in the study; allowed: "
+                         f"{', '.join(names + ints)}")
+    x = np.array(space.x0, dtype=float)
+    for k, v in values.items():
+        var = space.variables[names.index(k)]
+        try:
+            value = float(v)
+        except (TypeError, ValueError):
+            value = float("nan")
+        if not (np.isfinite(value) and var.lower <= value <= var.upper):
+            raise StudyError(f"{config.label}: design value {k}={v!r} is not allowed; allowed: a number in "
+                             f"[{var.lower:g}, {var.upper:g}] {var.unit}")
+        x[names.index(k)] = value
+    return x
