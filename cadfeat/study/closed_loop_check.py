@@ -12,7 +12,7 @@ Modes (``[tracking] check``, ``cadfeat run --track MODE`` / ``--no-track``):
   Monte-Carlo runs on at most ``FAST_FRAMES`` frames of the trajectory (every k-th sample), statistics after
   ``FAST_SETTLE`` frames; the sensor, initial error and filter tuning are the study's ``[tracking]`` values
   (or the vision defaults). 8 runs is the fewest for which a two-sided Wilcoxon test can reach p < 0.01
-  (2/2⁸ = 0.0078). On the flagship it costs ~10 s (README, ``benchmarks/bench_study.py``).
+  (2/2⁸ = 0.0078).
 - ``full``: the study's ``[tracking]`` settings as they are (the default when the study has that table; what
   ``cadfeat track`` runs).
 - ``off``: no closed loop (the verdict then rests on the proxies).
@@ -20,6 +20,13 @@ Modes (``[tracking] check``, ``cadfeat run --track MODE`` / ``--no-track``):
 Precedence: the command line, then the study's ``check``, then the environment variable ``CADFEAT_TRACKING_CHECK``
 (fast | full | off; read for studies without a ``[tracking]`` table only — the test suite sets it to ``off`` so
 its many small studies stay fast), then the default above.
+
+Where it runs: each design is tracked in a worker process (``start_design``; ``cad.sandbox.BackgroundCall``)
+while the run goes on — the original from the end of the set-up, beside the optimiser (on one thread: the
+optimiser has the other core), the recommended design from the end of its CAD rebuild, beside the analysis,
+the export and the report's renders; ``closed_loop_check`` then only collects them (a worker that failed leaves
+its design to this process). The numbers are those of the check run here (``CADFEAT_TRACKING_BACKGROUND=0``);
+the cost on the flagship is in README ("Time budget") and ``benchmarks/bench_study.py``.
 
 "Whenever the part can be rendered": the fast check is skipped — with a warning in results.json and the
 printout, never an error after the optimisation — when fewer than ``MIN_HOLES`` holes exist (a pose needs at
