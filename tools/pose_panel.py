@@ -80,10 +80,14 @@ def designs(setup, count: int, seed: int = 0, extremes: int = 0,
 
 
 def score(setup, x, T, times, tuning, model=None) -> dict:
+    """Predicted errors of design ``x`` along the frames T (the rows' ``pnp_*`` / ``iekf_*``): RMS over the frames
+    after the closed loop's ``settle_frames`` (``TrackingConfig``), the frames its simulated RMS counts
+    (``vision.metrics.run_summary``); the per-hole columns over all frames."""
     from cadfeat.cad.export import mesh_from_shape
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.measures.pose_information import pose_information
     from cadfeat.measures.rim_occlusion import rim_occlusion
+    from cadfeat.vision.closed_loop import TrackingConfig
     from cadfeat.vision.crlb import posterior_crlb
 
     shape = setup.rebuild_shape(x)
@@ -99,7 +103,8 @@ def score(setup, x, T, times, tuning, model=None) -> dict:
                                              kinds=kinds, through=[h.through for h in holes],
                                              model=model).information,
                             times, tuning)
-    rms = lambda a: float(np.sqrt(np.mean(np.square(a))))  # noqa: E731
+    settle = min(TrackingConfig().settle_frames, len(T) - 1)
+    rms = lambda a: float(np.sqrt(np.mean(np.square(a[settle:]))))  # noqa: E731
     return {"shape": shape, "holes": holes,
             "pnp_t": rms(pi.error_translation_mm), "pnp_r": rms(pi.error_rotation_deg),
             "iekf_t": rms(np.hypot(pi.bias_translation_mm, sig[:, 0])),
