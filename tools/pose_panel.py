@@ -462,9 +462,16 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --from-json: recompute the predictions with the current models (no closed loop)")
     ap.add_argument("--notes", type=Path, default=None,
                     help="a markdown file appended to --markdown (the committed panel's notes)")
+    ap.add_argument("--supersample", type=int, default=1,
+                    help="the closed loop renders with k x k sub-pixels per pixel (render.camera_views."
+                         "DEFAULT_SUPERSAMPLE; pair with a --model calibrated at the same k)")
     ap.add_argument("--model", type=Path, default=None,
                     help="a detection_model.json (calibrate_detection.py --study); default: the committed one")
     args = ap.parse_args(argv)
+    if args.supersample != 1:
+        import cadfeat.render.camera_views as views
+
+        views.DEFAULT_SUPERSAMPLE = args.supersample
     if args.from_json:
         panels = [p for f in args.from_json for p in json.loads(f.read_text())["panels"]]
         panels = merge(panels)

@@ -20,14 +20,15 @@ The part is light grey, lit from the camera; hole faces are dark; the background
 is off (each pixel samples its centre), which keeps edges unbiased: the dark hole regions found by
 thresholding agree with the exact rim ellipses to ~0.2 px (tests/render/test_render_camera.py).
 
-``supersample=k`` (default 1: point sampling) integrates each pixel over its area as a sensor does: the pinhole
-image is rendered at k× (fx, fy, width, height × k; principal point k(c + ½) − ½, so that the k × k block of
-sub-pixels of pixel (u, v) is centred on it) and each k × k block is averaged (``cv2.resize`` with
-``INTER_AREA``, an exact box mean for an integer factor), before the lens distortion and any optics blur. A point
-sampled edge sits on the pixel grid (a rim's fitted centre then carries a staircase error that depends on its
-sub-pixel placement); the box mean of k² point samples gives each edge pixel its covered fraction to 1/k², so
-the edge keeps its sub-pixel position. Unlike MSAA's resolve (off, above), the box mean is centred on the pixel:
-it does not move edges (tests/render/test_render_supersample.py: against the exact area fraction of a disc).
+``supersample=k`` (default ``DEFAULT_SUPERSAMPLE`` = 1: point sampling) integrates each pixel over its area as
+a sensor does: the pinhole image is rendered at k× (fx, fy, width, height × k; principal point k(c + ½) − ½, so
+that the k × k block of sub-pixels of pixel (u, v) is centred on it) and each k × k block is averaged
+(``cv2.resize`` with ``INTER_AREA``, an exact box mean for an integer factor), before the lens distortion and any
+optics blur. A point sampled edge sits on the pixel grid (a rim's fitted centre then carries a staircase error
+that depends on its sub-pixel placement); the box mean of k² point samples gives each edge pixel its covered
+fraction to 1/k², so the edge keeps its sub-pixel position. Unlike MSAA's resolve (off, above), the box mean is
+centred on the pixel: it does not move edges (tests/render/test_render_supersample.py: against the exact
+coverage of a polygon).
 One plotter serves any number of poses (``CameraViewRenderer``).
 """
 
@@ -62,6 +63,10 @@ if TYPE_CHECKING:  # pragma: no cover
 BACKGROUND_BLACK = (0.0, 0.0, 0.0)
 ELLIPSE_COLOUR_RGB = (40, 220, 60)
 CENTRE_COLOUR_RGB = (255, 60, 40)
+#: Sub-pixels per pixel side of ``CameraViewRenderer`` when it is not given ``supersample`` (module docstring):
+#: 1 = point sampling at pixel centres. The closed loop and the calibration renders go through this default;
+#: ``tools/pose_panel.py --supersample`` and ``tools/calibrate_detection.py --supersample`` set it for a run.
+DEFAULT_SUPERSAMPLE = 1
 
 
 def set_vtk_camera(vtk_camera: Any, camera: Camera, T_cam_part: np.ndarray, near_far_mm: tuple[float, float]) -> None:
@@ -96,7 +101,9 @@ class CameraViewRenderer:
     """
 
     def __init__(self, shape: Any, holes: Sequence[Hole], camera: Camera, *, mesh: Any = None,
-                 supersample: int = 1) -> None:
+                 supersample: int | None = None) -> None:
+        if supersample is None:
+            supersample = DEFAULT_SUPERSAMPLE
         if isinstance(supersample, bool) or not isinstance(supersample, int | np.integer) \
                 or not 1 <= supersample <= 8:
             raise RenderError(f"supersample must be an integer in 1..8 (sub-pixels per pixel side), "
