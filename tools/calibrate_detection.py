@@ -357,23 +357,40 @@ def write(rows: list[dict], model: PoseModels) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    global DATA
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a small grid, print only (no files written)")
     ap.add_argument("--refit", action="store_true", help="refit the models to the committed table (no renders)")
     ap.add_argument("--study", type=Path, default=None,
                     help="calibrate with this study's camera, depths and hole radii (written to --out)")
     ap.add_argument("--out", type=Path, default=None, help="folder for --study's table and model")
+    ap.add_argument("--supersample", type=int, default=1,
+                    help="render with k x k sub-pixels per pixel (render.camera_views.DEFAULT_SUPERSAMPLE); k > 1 "
+                         "needs --out (the committed calibration is of the default renderer)")
     ap.add_argument("--add-contrast", action="store_true",
                     help="render only the interior-contrast band, append it to the committed table, refit, write")
     args = ap.parse_args(argv)
     start = time.perf_counter()
+    if args.supersample != 1:
+        if args.out is None or args.study is not None or args.quick or args.refit or args.add_contrast:
+            ap.error("--supersample needs --out and the full grid (no --study, --quick, --refit, --add-contrast)")
+        import cadfeat.render.camera_views as views
+
+        views.DEFAULT_SUPERSAMPLE = args.supersample
+        rows = run_grid()
+        model = replace(fit(rows), source=f"tools/calibrate_detection.py --supersample {args.supersample}: "
+                                          f"{len(rows)} rendered conditions, noise {NOISE_GREY} grey")
+        DATA = args.out
+        write(rows, model)
+        print(f"{len(rows)} conditions in {time.perf_counter() - start:.0f} s -> {args.out}")
+        print(model.to_json())
+        return 0
     if args.study is not None:
         if args.out is None:
             ap.error("--study needs --out (a folder for the study's calibration)")
         rows = study_grid(args.study)
         model = replace(fit(rows), source=f"tools/calibrate_detection.py --study {args.study.name}: {len(rows)} "
                                           f"rendered conditions with the study's camera")
-        global DATA
         DATA = args.out
         write(rows, model)
         print(f"{len(rows)} conditions in {time.perf_counter() - start:.0f} s -> {args.out}")
