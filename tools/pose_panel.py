@@ -85,6 +85,7 @@ def score(setup, x, T, times, tuning, model=None) -> dict:
     (``vision.metrics.run_summary``); the per-hole columns over all frames."""
     from cadfeat.cad.export import mesh_from_shape
     from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.measures.pose_estimator import equal_weight_errors
     from cadfeat.measures.pose_information import pose_information
     from cadfeat.measures.rim_occlusion import rim_occlusion
     from cadfeat.vision.closed_loop import TrackingConfig
@@ -105,8 +106,9 @@ def score(setup, x, T, times, tuning, model=None) -> dict:
                             times, tuning)
     settle = min(TrackingConfig().settle_frames, len(T) - 1)
     rms = lambda a: float(np.sqrt(np.mean(np.square(a[settle:]))))  # noqa: E731
-    eq_t, eq_r, eq_bias = equal_weight_errors(pi)
-    _, eq_sig = posterior_crlb(equal_weight_information(pi), times, tuning)
+    eq = equal_weight_errors(pi)
+    eq_t, eq_r, eq_bias = eq.translation_mm, eq.rotation_deg, eq.bias
+    _, eq_sig = posterior_crlb(eq.information, times, tuning)
     return {"shape": shape, "holes": holes,
             "eq_pnp_t": rms(eq_t), "eq_pnp_r": rms(eq_r),
             "eq_iekf_t": rms(np.hypot(np.linalg.norm(eq_bias[:, :3], axis=-1), eq_sig[:, 0])),
@@ -118,42 +120,6 @@ def score(setup, x, T, times, tuning, model=None) -> dict:
             "holes_seen": float(pi.detected.sum(axis=1).mean()),
             "model_px": np.sqrt(pi.sigma_px ** 2 + np.sum(pi.offset_px ** 2, axis=-1) / 2),   # (L, N) per axis
             "model_detected": pi.detected}
-
-
-def _equal_weight_gain(pi) -> tuple[np.ndarray, np.ndarray]:
-    """The pose gain G (L, N, 6, 2) of the estimator the closed loop runs — least squares with every detected
-    hole weighted alike (cv2.solvePnP's reprojection error; the IEKF's R = r I) — and the holes' weights p (L, N):
-    δ = Σ_j G_j (b_j + ε_j), G_j = A⁻¹ p_j J_jᵀ / s², A = Σ_j p_j J_jᵀ J_j / s² + the prior, s the median σ_j of the
-    pose's holes (scales only the prior)."""
-    J = np.asarray(pi.jacobian)
-    p = np.where(np.all(np.isfinite(J), axis=(-1, -2)), np.asarray(pi.probability), 0.0)
-    Jz = np.where(p[..., None, None] > 0, J, 0.0)
-    sig = np.asarray(pi.sigma_px)
-    s2 = np.median(np.where(p > 0, sig, np.nan), axis=1) ** 2
-    s2 = np.where(np.isfinite(s2), s2, 1.0)[:, None, None]
-    A = np.einsum("ln,lnai,lnaj->lij", p, Jz, Jz) / s2 + np.diag(np.repeat([1.0 / 20.0 ** 2, 1.0 / 0.1 ** 2], 3))
-    return np.einsum("lij,ln,lnaj->lnia", np.linalg.inv(A), p, Jz) / s2[..., None], p
-
-
-def equal_weight_errors(pi) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per pose the equal-weight estimator's RMS error (``_equal_weight_gain``): translation mm (L,), rotation deg
-    (L,) — √(bias² + tr G Σ Gᵀ) with the models' σ_j and offsets b_j — and its bias (L, 6)."""
-    G, p = _equal_weight_gain(pi)
-    var = np.where(p > 0, np.asarray(pi.sigma_px) ** 2, 0.0)
-    cov = np.einsum("lnia,ln,lnja->lij", G, var, G)
-    bias = np.einsum("lnia,lna->li", G, np.asarray(pi.offset_px))
-    t = np.sqrt(np.trace(cov[:, :3, :3], axis1=1, axis2=2) + np.sum(bias[:, :3] ** 2, axis=-1))
-    r = np.degrees(np.sqrt(np.trace(cov[:, 3:, 3:], axis1=1, axis2=2) + np.sum(bias[:, 3:] ** 2, axis=-1)))
-    return t, r, bias
-
-
-def equal_weight_information(pi) -> np.ndarray:
-    """(L, 6, 6) the information of the equal-weight estimate per pose (the inverse of its noise covariance), the
-    per-frame input of the filter's posterior bound in place of the CRLB's Σ p JᵀJ/σ²."""
-    G, p = _equal_weight_gain(pi)
-    var = np.where(p > 0, np.asarray(pi.sigma_px) ** 2, 0.0)
-    cov = np.einsum("lnia,ln,lnja->lij", G, var, G)
-    return np.linalg.inv(cov + np.eye(6) * 1e-12)
 
 
 def _optimum(path: Path, space) -> np.ndarray:
@@ -482,7 +448,7 @@ def _stat_lines(rows: list[dict]) -> list[str]:
         eq = statistics([{**r, **{k: r[f"eq_{k}"] for k in KEYS}} for r in rows])
         out += ["", "Predicted for the estimators the closed loop runs — every detected hole weighted alike (PnP's "
                 "reprojection error, the IEKF's R = r I), error √(bias² + tr G Σ Gᵀ) of that least squares "
-                "(`equal_weight_errors`) instead of the CRLB's 1/σ² weights: Spearman ρ "
+                "(`measures.pose_estimator`) instead of the CRLB's 1/σ² weights: Spearman ρ "
                 + ", ".join(f"{LABELS[k]} {eq['spearman'][k]:.2f}" for k in KEYS)
                 + f"; combined PnP {eq['spearman']['pnp_combined']:.2f}, IEKF {eq['spearman']['iekf_combined']:.2f}; "
                 "predicted/simulated " + ", ".join("{:.2f}–{:.2f}".format(*eq["ratio_range"][k]) for k in KEYS) + "."]

@@ -1,4 +1,4 @@
-"""The panel's equal-weight prediction (``tools/pose_panel.equal_weight_errors``) against ``cv2.solvePnP``.
+"""The equal-weight estimator's error (``measures.pose_estimator.equal_weight_errors``) against ``cv2.solvePnP``.
 
 Independent reference: a Monte-Carlo of ``cv2.solvePnP`` (iterative, refined from the true pose: the closed loop's
 PnP minimises the unweighted reprojection error) on point features whose image noise differs from point to point
@@ -9,19 +9,12 @@ lower than what that estimator reaches when the σ_j differ (the reason the pane
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import cv2
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-
-import pose_panel  # noqa: E402
-
-from cadfeat.camera import Camera  # noqa: E402
-from cadfeat.measures.pose_information import pose_information  # noqa: E402
+from cadfeat.camera import Camera
+from cadfeat.measures.pose_estimator import equal_weight_errors
+from cadfeat.measures.pose_information import pose_information
 
 CAMERA = Camera(fx=900.0, fy=900.0, cx=320.0, cy=240.0, width=640, height=480, focus_distance_mm=300.0)
 DRAWS = 3000
@@ -43,7 +36,8 @@ def test_equal_weight_errors_match_a_solvepnp_monte_carlo():
     normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
     pi = pose_information(CAMERA, T[None], pts, normals, np.zeros(len(pts)), sigma_px=sigma[None],
                           detection=False, offset_px=offset[None])
-    pred_t, pred_r, _ = pose_panel.equal_weight_errors(pi)
+    eq = equal_weight_errors(pi)
+    pred_t, pred_r = eq.translation_mm, eq.rotation_deg
     rng = np.random.default_rng(7)
     rvec0, tvec0 = cv2.Rodrigues(T[:3, :3])[0], T[:3, 3].copy()
     clean = CAMERA.project(pts @ T[:3, :3].T + T[:3, 3])
