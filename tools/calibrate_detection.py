@@ -356,8 +356,18 @@ def write(rows: list[dict], model: PoseModels) -> None:
     (DATA / "detection_model.json.tmp").replace(DATA / "detection_model.json")
 
 
-def main(argv: list[str] | None = None) -> int:
+def _write_to(out: Path, rows: list[dict], source: str, start: float) -> int:
+    """Fit ``rows`` and write the table and model into ``out`` (not the committed data folder)."""
     global DATA
+    model = replace(fit(rows), source=f"tools/calibrate_detection.py {source}")
+    DATA = out
+    write(rows, model)
+    print(f"{len(rows)} conditions in {time.perf_counter() - start:.0f} s -> {out}")
+    print(model.to_json())
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a small grid, print only (no files written)")
     ap.add_argument("--refit", action="store_true", help="refit the models to the committed table (no renders)")
@@ -378,24 +388,14 @@ def main(argv: list[str] | None = None) -> int:
 
         views.DEFAULT_SUPERSAMPLE = args.supersample
         rows = run_grid()
-        model = replace(fit(rows), source=f"tools/calibrate_detection.py --supersample {args.supersample}: "
-                                          f"{len(rows)} rendered conditions, noise {NOISE_GREY} grey")
-        DATA = args.out
-        write(rows, model)
-        print(f"{len(rows)} conditions in {time.perf_counter() - start:.0f} s -> {args.out}")
-        print(model.to_json())
-        return 0
+        return _write_to(args.out, rows, f"--supersample {args.supersample}: {len(rows)} rendered conditions, noise "
+                         f"{NOISE_GREY} grey", start)
     if args.study is not None:
         if args.out is None:
             ap.error("--study needs --out (a folder for the study's calibration)")
         rows = study_grid(args.study)
-        model = replace(fit(rows), source=f"tools/calibrate_detection.py --study {args.study.name}: {len(rows)} "
-                                          f"rendered conditions with the study's camera")
-        DATA = args.out
-        write(rows, model)
-        print(f"{len(rows)} conditions in {time.perf_counter() - start:.0f} s -> {args.out}")
-        print(model.to_json())
-        return 0
+        return _write_to(args.out, rows, f"--study {args.study.name}: {len(rows)} rendered conditions with the "
+                         "study's camera", start)
     if args.add_contrast:
         rows = list(csv.DictReader((DATA / "detection_calibration.csv").open()))
         rows = [r for r in rows if float(r["angle_deg"]) not in CONTRAST_ANGLES_DEG] + contrast_grid()
