@@ -48,7 +48,7 @@ def equal_weight_errors(info: Any) -> EqualWeightErrors:
     bias = np.einsum("lnia,lna->li", G, np.nan_to_num(np.asarray(info.offset_px, float)))
     t = np.sqrt(np.trace(cov[:, :3, :3], axis1=1, axis2=2) + np.sum(bias[:, :3] ** 2, axis=-1))
     r = np.degrees(np.sqrt(np.trace(cov[:, 3:, 3:], axis1=1, axis2=2) + np.sum(bias[:, 3:] ** 2, axis=-1)))
-    return EqualWeightErrors(t, r, bias, np.linalg.inv(cov + np.eye(6) * 1e-12))
+    return EqualWeightErrors(t, r, bias, _inverse(cov + np.eye(6) * 1e-12))
 
 
 def _gain(info: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -61,4 +61,10 @@ def _gain(info: Any) -> tuple[np.ndarray, np.ndarray]:
     s2 = np.where(np.isfinite(s2), s2, 1.0)[:, None, None]
     prior = np.diag(np.repeat([1.0 / PRIOR_SIGMA[0] ** 2, 1.0 / PRIOR_SIGMA[1] ** 2], 3))
     A = np.einsum("ln,lnai,lnaj->lij", p, Jz, Jz) / s2 + prior
-    return np.einsum("lij,ln,lnaj->lnia", np.linalg.inv(A), p, Jz) / s2[..., None], p
+    return np.einsum("lij,ln,lnaj->lnia", _inverse(A), p, Jz) / s2[..., None], p
+
+
+def _inverse(a: np.ndarray) -> np.ndarray:
+    """The inverse of each matrix of a stack (..., 6, 6)."""
+    inverse: np.ndarray = np.linalg.inv(np.asarray(a, dtype=float))
+    return inverse
