@@ -44,6 +44,19 @@ def popen(*args: str, cwd: Path = ROOT) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True, cwd=cwd, env={**ENV, "PYTHONFAULTHANDLER": "1"})
 
 
+def _signal_state(pid: int) -> str:
+    """Each thread's blocked, ignored and caught signal sets (/proc, Linux): why a signal was not acted on."""
+    out = []
+    for task in sorted(Path(f"/proc/{pid}/task").glob("*")):
+        try:
+            status = (task / "status").read_text().splitlines()
+        except OSError:
+            continue
+        out.append(f"{pid}/{task.name}: " + " ".join(line.replace("\t", "") for line in status
+                                                     if line.startswith(("Name", "SigBlk", "SigIgn", "SigCgt"))))
+    return "\n".join(out)
+
+
 def finish(proc: subprocess.Popen, timeout_s: float = 60.0) -> str:
     """Wait for cadfeat to exit after a signal; its stderr. If it does not: the process tree and every thread's
     stack (SIGABRT, dumped by faulthandler) in the failure message, to show what it was waiting on."""
@@ -52,6 +65,8 @@ def finish(proc: subprocess.Popen, timeout_s: float = 60.0) -> str:
     except subprocess.TimeoutExpired:
         tree = subprocess.run(["ps", "-o", "pid,ppid,stat,etime,args", "--ppid", str(proc.pid), "-p", str(proc.pid)],
                               capture_output=True, text=True).stdout
+        tree += "\nsignal masks (SigBlk/SigIgn/SigCgt) of cadfeat's threads and of this test process:\n" + \
+            _signal_state(proc.pid) + "\n" + _signal_state(os.getpid())
         proc.send_signal(signal.SIGABRT)
         try:
             err = proc.communicate(timeout=30)[1]
