@@ -39,9 +39,18 @@ def cadfeat(*args: str, cwd: Path = ROOT, timeout: float = 180, memory_limit: bo
                           env=ENV, timeout=timeout, preexec_fn=_limit_memory if memory_limit else None)
 
 
+def _as_from_a_terminal() -> None:
+    """In the child: SIGINT and SIGTERM at their default dispositions, as a command typed in a terminal has them.
+    A harness started in the background of a non-interactive shell (``cmd &``) ignores SIGINT, and an ignored
+    signal stays ignored across exec: Python then keeps it ignored and Ctrl-C could not be tested."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def popen(*args: str, cwd: Path = ROOT) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "cadfeat", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=cwd, env={**ENV, "PYTHONFAULTHANDLER": "1"})
+                            stderr=subprocess.PIPE, text=True, cwd=cwd, env={**ENV, "PYTHONFAULTHANDLER": "1"},
+                            preexec_fn=_as_from_a_terminal)
 
 
 def _signal_state(pid: int) -> str:
