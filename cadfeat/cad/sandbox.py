@@ -140,29 +140,55 @@ def start_workers() -> None:
         forkserver.ensure_running()
 
 
+class _Worker:
+    """``target(*args, conn)`` in a worker process (the forkserver; a daemon: it dies with cadfeat), started now;
+    its one ``(status, payload)`` reply read later (``reply``); ``stop`` kills it if it still runs."""
+
+    def __init__(self, target: Any, args: tuple) -> None:
+        ctx = _context()
+        self._receive, send = ctx.Pipe(duplex=False)
+        self.proc = ctx.Process(target=target, args=(*args, send), daemon=True)
+        self.proc.start()
+        send.close()
+
+    def reply(self, timeout_s: float, what: str) -> tuple[str, Any] | None:
+        """The worker's reply, None when none came within ``timeout_s``; ``PartBuildError`` if it died."""
+        if not self._receive.poll(timeout_s):
+            return None
+        try:
+            return self._receive.recv()
+        except EOFError:
+            self.proc.join(5.0)
+            raise PartBuildError(f"{what}: worker died (exit code {self.proc.exitcode}): out of memory, or a crash "
+                                 "in the CAD kernel?") from None
+
+    def stop(self) -> None:
+        """Kill the worker (if it still runs) and free the pipe."""
+        self._receive.close()
+        if self.proc.is_alive():
+            self.proc.kill()
+        self.proc.join()
+
+
 def run_worker(target: Any, args: tuple, timeout_s: float, what: str) -> tuple[str, Any]:
     """``target(*args, conn)`` in a worker process: its ``(status, payload)`` reply, or ``PartBuildError`` when
     no reply comes within ``timeout_s`` (the worker is killed) or the worker dies."""
-    ctx = _context()
-    receive, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=target, args=(*args, send), daemon=True)
-    proc.start()
-    send.close()
+    worker = _Worker(target, args)
     try:
-        if not receive.poll(timeout_s):
-            raise PartBuildError(f"{what} exceeded the time limit of {timeout_s:g} s and was stopped; "
-                                 f"{TIME_LIMIT_HINT}")
-        try:
-            return receive.recv()
-        except EOFError:
-            proc.join(5.0)
-            raise PartBuildError(f"{what}: worker died (exit code {proc.exitcode}): out of memory, or a crash in "
-                                 "the CAD kernel?") from None
+        reply = worker.reply(timeout_s, what)
     finally:
-        receive.close()
-        if proc.is_alive():
-            proc.kill()
-        proc.join()
+        worker.stop()
+    if reply is None:
+        raise PartBuildError(f"{what} exceeded the time limit of {timeout_s:g} s and was stopped; {TIME_LIMIT_HINT}")
+    return reply
+
+
+def _payload(reply: tuple[str, Any], what: str) -> Any:
+    """The payload of ``_call_worker``'s ``("ok", payload)``; its ``("error", message)`` as ``PartBuildError``."""
+    status, payload = reply
+    if status != "ok":
+        raise PartBuildError(f"{what}: {payload}")
+    return payload
 
 
 def _call_worker(func: Any, args: tuple, conn: Any) -> None:
@@ -183,10 +209,7 @@ def call_with_time_limit(func: Any, args: tuple, what: str, timeout_s: float | N
     script's build, e.g. re-drilling a STEP part's holes."""
     if check_time_limit(timeout_s) is None:
         return func(*args)
-    status, payload = run_worker(_call_worker, (func, args), timeout_s, what)
-    if status != "ok":
-        raise PartBuildError(f"{what}: {payload}")
-    return payload
+    return _payload(run_worker(_call_worker, (func, args), timeout_s, what), what)
 
 
 class BackgroundCall:
@@ -196,32 +219,20 @@ class BackgroundCall:
     importable and ``args`` and the result picklable. The worker is a daemon: it dies with cadfeat."""
 
     def __init__(self, func: Any, args: tuple, what: str) -> None:
-        ctx = _context()
         self.what = what
-        self._receive, send = ctx.Pipe(duplex=False)
-        self._proc = ctx.Process(target=_call_worker, args=(func, args, send), daemon=True)
-        self._proc.start()
-        send.close()
+        self._worker = _Worker(_call_worker, (func, args))
 
     def result(self, timeout_s: float) -> Any:
         """``func(*args)``; ``PartBuildError`` (starting with ``what``) when the worker raised, died or did not
         answer within ``timeout_s``. The worker is gone afterwards."""
         try:
-            if not self._receive.poll(timeout_s):
-                raise PartBuildError(f"{self.what} gave no result within {timeout_s:g} s")
-            try:
-                status, payload = self._receive.recv()
-            except EOFError:
-                raise PartBuildError(f"{self.what}: worker died (exit code {self._proc.exitcode})") from None
+            reply = self._worker.reply(timeout_s, self.what)
         finally:
             self.cancel()
-        if status != "ok":
-            raise PartBuildError(f"{self.what}: {payload}")
-        return payload
+        if reply is None:
+            raise PartBuildError(f"{self.what} gave no result within {timeout_s:g} s")
+        return _payload(reply, self.what)
 
     def cancel(self) -> None:
         """Kill the worker (if it still runs) and free the pipe."""
-        self._receive.close()
-        if self._proc.is_alive():
-            self._proc.kill()
-        self._proc.join()
+        self._worker.stop()

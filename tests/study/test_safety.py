@@ -507,4 +507,4 @@ def test_background_work_in_a_worker_comes_back_fails_cleanly_and_is_killed():
     call = BackgroundCall(time.sleep, (600,), "sleeping")
     t0 = time.monotonic()
     call.cancel()
-    assert not call._proc.is_alive() and time.monotonic() - t0 < 30
+    assert not call._worker.proc.is_alive() and time.monotonic() - t0 < 30
