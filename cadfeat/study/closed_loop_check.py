@@ -189,10 +189,12 @@ def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Pat
     mode, spec = check_spec(config, len(shapes["setup"].trajectory.times_s))
     designs = {"before": (shapes["shape0"], shapes["holes0"]), "after": (shapes["shape1"], shapes["holes1"])}
     few = min(len(shapes["holes0"]), len(shapes["holes1"]))
-    if spec is None or (mode == "fast" and few < MIN_HOLES):
+    if spec is None:
         cancel(shapes)
-        return None, None if spec is None else f"{SKIPPED}: the part has {few} hole(s); a pose needs at least " \
-                                               f"{MIN_HOLES}"
+        return None, None
+    if mode == "fast" and few < MIN_HOLES:
+        cancel(shapes)
+        return None, f"{SKIPPED}: the part has {few} hole(s); a pose needs at least {MIN_HOLES}"
     t0, c0 = time.perf_counter(), time.process_time()
     pending = {name: shapes.get(key) for name, key in BACKGROUND_KEYS.items()}
     try:

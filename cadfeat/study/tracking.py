@@ -226,7 +226,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     from cadfeat.vision.closed_loop import track_designs  # lazy: looked up per call (tests replace it)
 
     result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec, config.robustness),
-                           estimator_camera=camera_override, **({"tracked": tracked} if tracked else {}))
+                           estimator_camera=camera_override, tracked=tracked)
     section = result.to_json()
     section["warnings"] = _motion_warnings(T_cam_part[result.frame_indices], times[result.frame_indices])
     section["curves"] = _curves(result)
