@@ -15,7 +15,8 @@ part script, its integer parameters; a variable not given keeps the study's star
   ``tracking`` section, ``cadfeat track``'s numbers for the same design.
 
 Bad input (an unknown variable, a value outside its bounds, an unknown ``[tracking]`` key) is one
-``StudyError`` naming the key and the allowed values, before any CAD work.
+``StudyError`` naming the key and the allowed values, before any CAD work (a STEP part's variables, its holes',
+once its set-up has read them).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec, load_study
+from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
@@ -57,10 +58,10 @@ def score_design(study: StudySource, values: Mapping[str, float] | None = None, 
                          part_mesh(config, shape))
     fixed, movable = np.asarray(setup.fixed_mask, bool), np.asarray(setup.movable_mask, bool)
     return plain({"values": {**setup.space.as_dict(x), **dict(setup.int_values)},
-            "holes": [hole_dict(h, i, bool(fixed[i]), bool(movable[i])) for i, h in enumerate(holes)],
-            "objectives": objectives, "combined": combined, "requirements": checks,
-            "requirements_hold": all(bool(c["ok"]) for c in checks),
-            "rebuild_deviation_mm": float(deviation), "pose_accuracy": pose})
+                  "holes": [hole_dict(h, i, bool(fixed[i]), bool(movable[i])) for i, h in enumerate(holes)],
+                  "objectives": objectives, "combined": combined, "requirements": checks,
+                  "requirements_hold": all(bool(c["ok"]) for c in checks),
+                  "rebuild_deviation_mm": float(deviation), "pose_accuracy": pose})
 
 
 def track_design(study: StudySource, values: Mapping[str, float] | None = None, *, against: str | None = "original",
@@ -79,7 +80,9 @@ def track_design(study: StudySource, values: Mapping[str, float] | None = None, 
         raise StudyError(f"track_design: against={against!r} is not allowed; allowed: 'original' or None")
     if mode not in ("fast", "full"):
         raise StudyError(f"track_design: mode={mode!r} is not allowed; allowed: 'fast', 'full'")
-    config = _config(study, seed)
+    from cadfeat.study.run import _resolve
+
+    config = _resolve(study, seed)
     spec = _with_keys(config.tracking or TrackingSpec(seed=config.study.seed), tracking, config.label)
     _, setup, _, (shape, holes, _) = _design(config, values, None)
     if mode == "fast":  # the check's fast settings on the study's (and the given keys over them)
@@ -89,11 +92,6 @@ def track_design(study: StudySource, values: Mapping[str, float] | None = None, 
     if against == "original":
         designs = {"before": (setup.shape0, setup.holes0), **designs}
     return plain(run_tracking(config, designs, None if out_dir is None else Path(out_dir), spec))
-
-
-def _config(study: StudySource, seed: int | None) -> StudyConfig:
-    config = study if isinstance(study, StudyConfig) else load_study(study)
-    return config.with_seed(seed) if seed is not None else config
 
 
 def _with_keys(spec: TrackingSpec, keys: Mapping[str, Any], label: str) -> TrackingSpec:
@@ -107,44 +105,52 @@ def _with_keys(spec: TrackingSpec, keys: Mapping[str, Any], label: str) -> Track
 
 def _design(study: StudySource, values: Mapping[str, float] | None, seed: int | None
             ) -> tuple[StudyConfig, StudySetup, np.ndarray, tuple[Any, list[Hole], float]]:
-    """(config, the set-up of the design's integer parameters, the design vector, ``verify.rebuild`` at it)."""
+    """(config, the set-up of the design's integer parameters, the design vector, ``verify.rebuild`` at it). A part
+    script's values are checked against the study's parameters before any CAD work; a STEP part's variables (its
+    holes') are known once its set-up has read them."""
+    from cadfeat.study.run import _resolve
     from cadfeat.study.setup import setup_study
     from cadfeat.study.verify import rebuild
 
-    config = _config(study, seed)
+    config = _resolve(study, seed)
     values = dict(values or {})
-    ints = {p.name: p for p in config.design.parameters if p.is_int} if config.study.part_kind == "script" else {}
-    int_values = {k: _int_value(config, ints[k], values.pop(k)) for k in list(values) if k in ints}
+    params = {p.name: p for p in config.design.parameters} if config.study.part_kind == "script" else {}
+    ints = sorted(k for k, p in params.items() if p.is_int)
+    int_values = {k: _int_value(config, params[k], values.pop(k)) for k in list(values) if k in ints}
+    if params:
+        _check(config, values, {k: (p.lower, p.upper, p.unit) for k, p in params.items() if not p.is_int}, ints)
     setup = setup_study(config, int_values or None, time_limit_s=config.study.build_timeout_s)
-    x = _vector(config, setup, values, sorted(ints))
+    space = setup.space
+    if not params:
+        _check(config, values, {v.name: (v.lower, v.upper, v.unit) for v in space.variables}, [])
+    x = np.array(space.x0, dtype=float)
+    for k, v in values.items():
+        x[list(space.names).index(k)] = float(v)
     return config, setup, x, rebuild(setup, x)
 
 
 def _int_value(config: StudyConfig, parameter: Any, value: Any) -> int:
-    lo, hi = parameter.bounds
-    if isinstance(value, bool) or not float(value).is_integer() or not lo <= int(value) <= hi:
+    lo, hi = parameter.lower, parameter.upper
+    if isinstance(value, bool) or not isinstance(value, int | float) or not float(value).is_integer() \
+            or not lo <= int(value) <= hi:
         raise StudyError(f"{config.label}: design value {parameter.name}={value!r} is not allowed; allowed: an "
                          f"integer in [{lo:g}, {hi:g}]")
     return int(value)
 
 
-def _vector(config: StudyConfig, setup: StudySetup, values: Mapping[str, Any], ints: list[str]) -> np.ndarray:
-    """The design vector: ``values`` over the study's start; one error per unknown name or value out of bounds."""
-    space = setup.space
-    names = list(space.names)
-    unknown = sorted(set(values) - set(names))
+def _check(config: StudyConfig, values: Mapping[str, Any], bounds: Mapping[str, tuple[float, float, str]],
+           ints: list[str]) -> None:
+    """One error for the first unknown name or value outside its bounds (lower, upper, unit) of ``values``."""
+    unknown = sorted(set(values) - set(bounds))
     if unknown:
         raise StudyError(f"{config.label}: design variable(s) {', '.join(unknown)} not in the study; allowed: "
-                         f"{', '.join(names + ints)}")
-    x = np.array(space.x0, dtype=float)
+                         f"{', '.join(list(bounds) + ints)}")
     for k, v in values.items():
-        var = space.variables[names.index(k)]
+        lower, upper, unit = bounds[k]
         try:
             value = float(v)
         except (TypeError, ValueError):
             value = float("nan")
-        if not (np.isfinite(value) and var.lower <= value <= var.upper):
+        if not (np.isfinite(value) and lower <= value <= upper):
             raise StudyError(f"{config.label}: design value {k}={v!r} is not allowed; allowed: a number in "
-                             f"[{var.lower:g}, {var.upper:g}] {var.unit}")
-        x[names.index(k)] = value
-    return x
+                             f"[{lower:g}, {upper:g}] {unit}".rstrip())

@@ -581,3 +581,26 @@ def test_score_design_of_the_delivered_values_is_the_runs_after(small_run):
         score_design(copy.deepcopy(SMALL), {"z9": 1.0})
     with pytest.raises(StudyError, match=r"x0=5.0 is not allowed; allowed: a number in \[-18, -4\] mm"):
         score_design(copy.deepcopy(SMALL), {"x0": 5.0})
+
+
+def test_score_design_refuses_a_bad_script_design_before_any_cad_work(monkeypatch):
+    """A part script's design values are checked against the study's parameters before its set-up builds anything:
+    an integer parameter given 2.5 or outside its bounds, an unknown name, a value out of bounds."""
+    from cadfeat.study import score_design
+    from cadfeat.study import setup as setup_mod
+    from cadfeat.study.schema import StudyError
+
+    def no_cad(*a, **k):
+        raise AssertionError("set-up (CAD work) started before the design values were checked")
+
+    monkeypatch.setattr(setup_mod, "setup_study", no_cad)
+    data = copy.deepcopy(SMALL)
+    data["design"]["parameters"]["count"] = {"lower": 2, "upper": 4}
+    with pytest.raises(StudyError, match=r"count=2.5 is not allowed; allowed: an integer in \[2, 4\]"):
+        score_design(data, {"count": 2.5})
+    with pytest.raises(StudyError, match=r"count=5 is not allowed; allowed: an integer in \[2, 4\]"):
+        score_design(data, {"count": 5})
+    with pytest.raises(StudyError, match=r"design variable\(s\) z9 not in the study; allowed: x0, y0, count"):
+        score_design(data, {"z9": 1.0})
+    with pytest.raises(StudyError, match=r"y0=20 is not allowed; allowed: a number in \[-8, 12\] mm"):
+        score_design(data, {"y0": 20})
