@@ -70,9 +70,11 @@ def track_design(study: StudySource, values: Mapping[str, float] | None = None, 
     """The closed loop on the design ``values`` of ``study`` ("after") and, with ``against="original"``, on the
     study's original ("before", paired run by run: the verdict per estimator). ``mode``: "fast" (``cadfeat
     run``'s default check: PnP + IEKF, 8 runs, ≤ 20 frames) or "full" (the study's ``[tracking]`` settings);
-    ``tracking``: ``[tracking]`` keys overriding either (e.g. ``runs=16, seed=11``); ``out_dir``: where the drawn
-    frames go (None: none written). Returns the results.json ``tracking`` section (as results.json writes it)."""
+    ``tracking``: ``[tracking]`` keys overriding either (e.g. ``runs=16, seed=11``); ``out_dir``: a folder the drawn
+    frames go into, under ``tracking/`` (None: none written; a non-empty folder cadfeat did not create is refused,
+    as by ``cadfeat run``). Returns the results.json ``tracking`` section (as results.json writes it)."""
     from cadfeat.study.closed_loop_check import fast_spec
+    from cadfeat.study.output_folder import check_output_folder, staged_output
     from cadfeat.study.outputs import plain
     from cadfeat.study.tracking import run_tracking
 
@@ -84,6 +86,8 @@ def track_design(study: StudySource, values: Mapping[str, float] | None = None, 
 
     config = _resolve(study, seed)
     spec = _with_keys(config.tracking or TrackingSpec(seed=config.study.seed), tracking, config.label)
+    if out_dir is not None:
+        check_output_folder(out_dir, names=("tracking",))  # before any work
     _, setup, _, (shape, holes, _) = _design(config, values, None)
     if mode == "fast":  # the check's fast settings on the study's (and the given keys over them)
         spec = _with_keys(fast_spec(dataclasses.replace(config, tracking=spec), len(setup.trajectory.times_s)),
@@ -91,7 +95,10 @@ def track_design(study: StudySource, values: Mapping[str, float] | None = None, 
     designs = {"after": (shape, holes)}
     if against == "original":
         designs = {"before": (setup.shape0, setup.holes0), **designs}
-    return plain(run_tracking(config, designs, None if out_dir is None else Path(out_dir), spec))
+    if out_dir is None:
+        return plain(run_tracking(config, designs, None, spec))
+    with staged_output(out_dir, merge=True, names=("tracking",)) as stage:  # never over what cadfeat did not write
+        return plain(run_tracking(config, designs, stage, spec))
 
 
 def _with_keys(spec: TrackingSpec, keys: Mapping[str, Any], label: str) -> TrackingSpec:

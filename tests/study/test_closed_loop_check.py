@@ -15,6 +15,7 @@ import pytest
 
 cq = pytest.importorskip("cadquery")
 
+from cadfeat.errors import CadfeatError  # noqa: E402
 from cadfeat.study import closed_loop_check as clc  # noqa: E402
 from cadfeat.study.schema import StudyError, load_study  # noqa: E402
 from tests.study_helpers import write_toml  # noqa: E402
@@ -102,6 +103,14 @@ def test_run_confirms_by_the_closed_loop_and_the_verdict_rejects(tmp_path, capsy
         assert tracked[key] == results["tracking"][key], key
     with pytest.raises(StudyError, match="unknown \\[tracking\\] key\\(s\\) run; allowed: .*runs"):
         track_design(_study(tmp_path), values, run=3)
+    user = tmp_path / "user"  # a folder cadfeat did not create: its frames are not written over the user's files
+    (user / "tracking").mkdir(parents=True)
+    (user / "tracking" / "after_frame_000.png").write_bytes(b"the user's")
+    with pytest.raises(CadfeatError, match="holds files cadfeat did not write"):
+        track_design(_study(tmp_path), values, out_dir=user)
+    assert (user / "tracking" / "after_frame_000.png").read_bytes() == b"the user's"
+    drawn = track_design(_study(tmp_path), values, out_dir=tmp_path / "frames")
+    assert drawn["frames"] and all((tmp_path / "frames" / f["path"]).is_file() for f in drawn["frames"])
 
 
 def test_mode_precedence_and_fast_settings(tmp_path, monkeypatch):
