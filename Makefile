@@ -11,6 +11,9 @@ setup: $(STAMP)
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
+	# one cv2: the contrib wheel only (a venv that has the base wheel loses both, then gets contrib alone)
+	if $(PY) -m pip show -q opencv-python-headless 2>/dev/null; then \
+	  $(PY) -m pip uninstall -q -y opencv-python-headless opencv-contrib-python-headless; fi
 	$(PY) -m pip install -q -e '.[dev]'
 	touch $(STAMP)
 
