@@ -1,0 +1,8 @@
+"""The robot cell as one model (DESIGN.md "The cell is one model").
+
+The camera's mount tolerance, the part's placement tolerance, the light and the sensor, the part's material and
+finish, how its holes are made, and the detector with its gate: declared once, each number saying whether it is a
+± bound or a standard deviation. The same ``Cell`` reaches g_POSE's models (``measures.pose_models``), the robust
+draws (``design.robust``) and the closed loop (``vision``). It sits on the lowest floor, beside ``camera.py``:
+measures, design, render and vision all read it, and it imports none of them.
+"""
