@@ -6,3 +6,18 @@ finish, how its holes are made, and the detector with its gate: declared once, e
 draws (``design.robust``) and the closed loop (``vision``). It sits on the lowest floor, beside ``camera.py``:
 measures, design, render and vision all read it, and it imports none of them.
 """
+
+from cadfeat.cell.model import (
+    BOUND_KEYS,
+    DETECTORS,
+    HOLE_ENDS,
+    PER_AXIS,
+    PLACEMENT_SIGMA_PER_TOLERANCE,
+    SIGMA_KEYS,
+    Cell,
+    per_axis,
+    triple,
+)
+
+__all__ = ["BOUND_KEYS", "DETECTORS", "HOLE_ENDS", "PER_AXIS", "PLACEMENT_SIGMA_PER_TOLERANCE", "SIGMA_KEYS", "Cell",
+           "per_axis", "triple"]

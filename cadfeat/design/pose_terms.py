@@ -68,7 +68,15 @@ def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii:
                                       depth_mm=depth)
     return pose_information(problem.camera, T, centres, axes, radii, occlusion=occlusion, depth_ratio=ratio,
                             through=through, kinds=hole_kinds(problem.model.holes),
-                            rotation_length_mm=cfg.pose_rotation_length_mm)
+                            rotation_length_mm=cfg.pose_rotation_length_mm, model=cell_models(problem.cell),
+                            noise_grey=problem.cell.noise_sigma_grey)
+
+
+def cell_models(cell: Any) -> Any:
+    """g_POSE's detection and measurement models (``measures.pose_models``) in the study's cell (``Cell``)."""
+    from cadfeat.measures import pose_models  # lazy: would import scipy.spatial at module load
+
+    return pose_models.default_models().for_cell(cell)
 
 
 def pose_aggregate_batch(errors_mm: np.ndarray, information: np.ndarray, how: str,
@@ -120,7 +128,7 @@ def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, rad
     """g_POSE's pose information of B designs as B·L poses (design-major), holes per pose; occlusion by the
     problem's depth maps (every design's rims at each of the L poses in one ``rim_occlusion`` call).
     ``noise_grey``: the sensor's grey-level noise, a number or (L, 1) per pose (a robustness draw's pixel noise);
-    None: the model's default.
+    None: the cell's (``problem.cell.noise_sigma_grey``).
 
     The same numbers as ONE ``measures.pose_information`` call on the B·L stacked poses with all N holes (tested,
     bit for bit on the flagship), computed faster: a hole's image geometry, rim occlusion and measurement
@@ -129,13 +137,12 @@ def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, rad
     problem's fixed draws, give the same terms in every evaluation); only the designs' other holes are computed
     at the B·L poses. What couples the holes — the detection model's gap to the nearest other rim — and the sums
     over holes are then evaluated on all N holes as ``pose_information`` does (its steps and expressions)."""
-    from cadfeat.measures import pose_models  # lazy: would import scipy.spatial at module load
 
     B, N = radii.shape
     L = len(problem.T_cam_part)
     through, depth, ratio = hole_attributes(problem, radii, depth_mm)
     depth = np.broadcast_to(depth, (B, N))
-    noise = None if noise_grey is None else np.asarray(noise_grey, float)
+    noise = np.asarray(problem.cell.noise_sigma_grey if noise_grey is None else noise_grey, float)
     fixed = np.asarray(problem.fixed_mask, bool) & _same_in_every_design(centres, axes, radii, depth)
     parts = []
     if fixed.any():
@@ -146,11 +153,10 @@ def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, rad
         idx = np.flatnonzero(~fixed)
         parts.append((idx, _hole_terms(problem, centres[:, idx], axes[:, idx], radii[:, idx])))
     geo, J, occ = _assemble(parts, B * L, N)
-    models = pose_models.default_models()
+    models = cell_models(problem.cell)
     # measures.pose_information's steps (detection=True, the measurement model's σ and offsets, no prior)
     p = models.detection_probability(geo, occ)
-    kw = {} if noise is None else {"noise_grey": float(noise) if noise.ndim == 0 else np.tile(noise.reshape(L, 1),
-                                                                                               (B, 1))}
+    kw = {"noise_grey": float(noise) if noise.ndim == 0 else np.tile(noise.reshape(L, 1), (B, 1))}
     sig, off = models.measurement_model(geo, depth_ratio=np.broadcast_to(ratio, (B, N)).repeat(L, axis=0),
                                         kinds=hole_kinds(problem.model.holes), through=through, **kw)
     from cadfeat.measures.pose_information import weighted_information  # lazy: as pose_models above

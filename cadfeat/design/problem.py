@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from cadfeat import measures
+from cadfeat.cell import Cell
 from cadfeat.design.constraints import ConstraintConfig, ConstraintSet
 from cadfeat.design.design_space import DesignSpace, FeatureModel
 from cadfeat.design.hole_form import design_depths
@@ -90,14 +91,17 @@ class Problem:
     moving holes). ``normaliser`` defaults to the objective config's ``normalisation``: for ``"payoff"``
     (default) the payoff table of the design space (``payoff_normaliser``), else ``Normaliser.build(method,
     g(x0), natural units at x0)``. ``feature_mask`` (N,) bool: the holes whose FOV/focus/resolution are scored
-    (default: the movable ones, all when none moves).
+    (default: the movable ones, all when none moves). ``cell``: the robot cell g_POSE is predicted in (default
+    ``Cell()``).
     """
 
     def __init__(self, space: DesignSpace, model: FeatureModel, camera: Any, trajectory: Any,
                  T_task_part: np.ndarray, objective_config: ObjectiveConfig, constraint_config: ConstraintConfig,
                  fixed_mask: Any = None, *, occlusion_mesh: Any = None, normaliser: Normaliser | None = None,
-                 feature_mask: Any = None):
+                 feature_mask: Any = None, cell: Cell | None = None):
         self.space = space
+        self.cell = cell if cell is not None else Cell()
+        """The robot cell (``cadfeat.cell.Cell``): g_POSE's models see its gate, placement and sensor noise."""
         self.model = model
         self.camera = camera
         self.trajectory = trajectory
@@ -181,7 +185,7 @@ class Problem:
             sub_norm = Normaliser.build("natural", {MEASURES[m]: 1.0}, unit_by_name)
             sub = Problem(replace(space, x0=centre), self.model, self.camera, self.trajectory, self.T_task_part,
                           sub_cfg, self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
-                          normaliser=sub_norm, feature_mask=self.feature_mask)
+                          normaliser=sub_norm, feature_mask=self.feature_mask, cell=self.cell)
             sub._depth_maps = self.occlusion  # the same poses: share the depth maps
             res = optimise(sub, OptimizerConfig(method="multistart", starts=3, maxiter=60, seed=0,
                                                 snap_standard_sizes=False), x_start=centre)
@@ -249,7 +253,7 @@ class Problem:
         """The same problem on another feature model (same normaliser, so values stay comparable)."""
         other = Problem(self.space, model, self.camera, self.trajectory, self.T_task_part, self.objective_config,
                         self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
-                        normaliser=self.normaliser, feature_mask=self.feature_mask)
+                        normaliser=self.normaliser, feature_mask=self.feature_mask, cell=self.cell)
         other._depth_maps = getattr(self, "_depth_maps", None)
         return other
 

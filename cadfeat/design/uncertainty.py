@@ -1,12 +1,14 @@
 """The uncertainty of the cell that will be built, and a fixed, seeded set of draws of it (common random numbers).
 
-``Uncertainty`` holds the study's tolerances (``[robustness]``, ``cadfeat.study.settings.RobustnessSettings``):
+``Uncertainty`` holds the study's tolerances: the cell's (``[cell]``, ``cadfeat.cell.Cell``: the camera mount, the
+part placement, the sensor noise) and the path's and shop's (``[robustness]``, ``study.settings.RobustnessSettings``):
 
 - camera mounting error: translation (mm) and rotation (deg) per camera axis, the same at every pose;
 - part placement error in the cell: translation (mm) and rotation (deg) per part axis;
 - trajectory variation: a path offset (mm per task axis, the whole path displaced) and a time scaling (± percent
   of the speed, the same path run faster or slower);
-- pixel noise: ± grey levels around the σ model's nominal sensor noise (g_POSE's centre noise grows with it);
+- pixel noise: ± grey levels around the cell's nominal sensor noise σ (``nominal_noise_grey``; g_POSE's centre noise
+  grows with it);
 - the shop's tolerances: each hole the study designs displaced across its axis (± mm per direction) and its
   diameter changed (± mm).
 
@@ -26,12 +28,13 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.cell import Cell, triple
 from cadfeat.errors import CadfeatError
 
 __all__ = ["CELL_KINDS", "KINDS", "NOMINAL_NOISE_GREY", "SAMPLINGS", "Draws", "Uncertainty", "draws", "rigid"]
 
 NOMINAL_NOISE_GREY = 2.0
-"""The sensor's grey-level noise the pose-accuracy σ model assumes (``pose_information(noise_grey=2.0)``)."""
+"""The default cell's sensor noise σ (grey levels; ``cadfeat.cell.Cell.noise_sigma_grey``)."""
 SAMPLINGS = ("sobol", "lhs")
 KINDS = ("camera", "placement", "path", "pixel_noise", "manufacturing")
 """The sources of uncertainty, each a perturbation of results.json ``robustness.designs``."""
@@ -55,17 +58,18 @@ class Uncertainty:
     position_tol_mm: float = 0.1
     diameter_tol_mm: float = 0.1
     distribution: str = "uniform"
+    nominal_noise_grey: float = NOMINAL_NOISE_GREY
 
     @staticmethod
-    def from_settings(spec: Any) -> Uncertainty:
-        """The uncertainty of a ``[robustness]`` settings object (numbers become one value per axis)."""
-        def triple(v: Any) -> Triple:
-            t = tuple(float(x) for x in (v if isinstance(v, tuple | list) else (v, v, v)))
-            return (t[0], t[1], t[2])
-        return Uncertainty(triple(spec.camera_position_mm), triple(spec.camera_angle_deg),
-                           triple(spec.placement_position_mm), triple(spec.placement_angle_deg),
-                           triple(spec.path_offset_mm), float(spec.time_scale_percent), float(spec.pixel_noise_grey),
-                           float(spec.position_tol_mm), float(spec.diameter_tol_mm), str(spec.distribution))
+    def from_settings(spec: Any, cell: Cell | None = None) -> Uncertainty:
+        """The uncertainty of a ``[robustness]`` settings object in the cell ``cell`` (``[cell]``; the default
+        cell if None): numbers become one value per axis."""
+        cell = cell or Cell()
+        return Uncertainty(triple(cell.camera_position_mm), triple(cell.camera_angle_deg),
+                           triple(cell.placement_position_mm), triple(cell.placement_angle_deg),
+                           triple(spec.path_offset_mm), float(spec.time_scale_percent), float(cell.noise_spread_grey),
+                           float(spec.position_tol_mm), float(spec.diameter_tol_mm), str(spec.distribution),
+                           float(cell.noise_sigma_grey))
 
     def to_dict(self) -> dict[str, Any]:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
@@ -164,7 +168,7 @@ def draws(uncertainty: Uncertainty, S: int, N: int, seed: int, sampling: str = "
     place = rigid(np.radians(E[:, 6:9] * u.placement_angle_deg), E[:, 9:12] * u.placement_position_mm)
     offset = E[:, 12:15] * np.asarray(u.path_offset_mm)
     scale = 1.0 + E[:, 15] * u.time_scale_percent / 100.0
-    noise = np.maximum(NOMINAL_NOISE_GREY + E[:, 16] * u.pixel_noise_grey, 0.0) if u.pixel_noise_grey > 0 else None
+    noise = np.maximum(u.nominal_noise_grey + E[:, 16] * u.pixel_noise_grey, 0.0) if u.pixel_noise_grey > 0 else None
     shift = E[:, 17:17 + 2 * N].reshape(S, N, 2) * u.position_tol_mm
     diam = E[:, 17 + 2 * N:17 + 3 * N] * u.diameter_tol_mm
     return Draws(cam, place, offset, scale, noise, shift, diam)

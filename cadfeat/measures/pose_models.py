@@ -92,10 +92,10 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
 from importlib import resources
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -104,6 +104,9 @@ from cadfeat.measures.ellipse import hole_ellipse
 from cadfeat.measures.focus import defocus_diameter_px
 from cadfeat.measures.fov import image_margin_from_ellipse
 from cadfeat.measures.visibility import facing_margin
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cell import Cell
 
 DATA = "data"
 MODEL_FILE = "detection_model.json"
@@ -345,8 +348,8 @@ class PoseModels:
     alias_floor_px: float = 0.0
     gap0_px: float = RIM_GAP_MIN_PX
     w_g_px: float = 0.3
-    #: association (module docstring): the closed loop's gate and the cell's placement tolerance per axis
-    #: (``vision.closed_loop.TrackingConfig`` defaults ``gate_px``, ``placement_mm``, ``placement_deg``; not fitted)
+    #: association (module docstring): the closed loop's gate and the σ per axis of the part's placement error —
+    #: the cell's (``for_cell``: ``[cell] gate_px`` and σ = 0.4 t of its placement tolerance; not fitted)
     gate_px: float = 10.0
     placement_mm: float = 0.2
     placement_deg: float = 0.2
@@ -394,6 +397,20 @@ class PoseModels:
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=2)
+
+    def for_cell(self, cell: Cell) -> PoseModels:
+        """These models in ``cell`` (``cadfeat.cell.Cell``): the association term's gate is the cell's
+        ``gate_px`` and its placement σ the cell's (``Cell.placement_sigma``: σ = 0.4 t per axis, as the closed loop
+        draws it; a per-axis tolerance enters as the RMS of its three σ, since the term's image shift is the RMS
+        over directions)."""
+        mm, deg = cell.placement_sigma()
+        return replace(self, gate_px=float(cell.gate_px), placement_mm=_rms_axis(mm), placement_deg=_rms_axis(deg))
+
+
+def _rms_axis(value: float | tuple[float, ...]) -> float:
+    """A per-axis σ as one number: itself, or the RMS of its three values."""
+    v = np.atleast_1d(np.asarray(value, dtype=float))
+    return float(np.sqrt(np.mean(v * v)))
 
 
 @lru_cache(maxsize=1)

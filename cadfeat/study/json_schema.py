@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from cadfeat.cell import Cell
 from cadfeat.settings import Settings
 from cadfeat.study import schema as study_schema
 from cadfeat.study.settings import (
@@ -38,7 +39,7 @@ SCHEMA_ID = "https://cadfeat.invalid/schema/study.json"
 _MODELS: dict[str, type[Settings]] = {
     "study": StudyInfo, "camera": CameraSettings, "part_pose": PartPose, "design": DesignSpec,
     "constraints": ConstraintSettings, "objective": ObjectiveSettings, "optimizer": OptimizerSettings,
-    "shop": ShopSettings, "robustness": RobustnessSettings, "tracking": TrackingSettings,
+    "shop": ShopSettings, "robustness": RobustnessSettings, "tracking": TrackingSettings, "cell": Cell,
 }
 
 

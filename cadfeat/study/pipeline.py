@@ -587,7 +587,8 @@ def _robustness(setup: StudySetup, holes0: Sequence[Hole], holes1: Sequence[Hole
     changed = (np.linalg.norm(c1 - c0, axis=1) > 1e-6) | (np.abs(r1 - r0) > 1e-6)
     return robustness(setup.problem, c1, a1, r1, changed, position_tol_mm=spec.position_tol_mm,
                       size_steps=spec.size_steps, sizes=hole_sizes(setup.config.shop.hole_sizes),
-                      camera_position_mm=spec.camera_position_mm, camera_angle_deg=spec.camera_angle_deg,
+                      camera_position_mm=setup.config.cell.camera_position_mm,
+                      camera_angle_deg=setup.config.cell.camera_angle_deg,
                       samples=spec.samples, combined_before=combined_before, seed=setup.config.study.seed)
 
 

@@ -32,7 +32,8 @@ import numpy as np
 
 from cadfeat.cad.export import mesh_from_shape
 from cadfeat.cad.features import holes_to_arrays
-from cadfeat.design.pose_terms import hole_kinds
+from cadfeat.cell import Cell
+from cadfeat.design.pose_terms import cell_models, hole_kinds
 from cadfeat.measures.raycache import cache_rays
 
 __all__ = ["PHASES", "design_pose_accuracy", "help_most", "pose_accuracy", "predict", "with_pose"]
@@ -57,19 +58,23 @@ def _arrays(holes: Sequence[Any]) -> tuple[np.ndarray, ...]:
 
 
 def predict(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], mesh: Any, rotation_length_mm: float,
-            occlusion: np.ndarray | None = None, arrays: tuple[np.ndarray, ...] | None = None) -> tuple[Any, Any]:
+            occlusion: np.ndarray | None = None, arrays: tuple[np.ndarray, ...] | None = None,
+            cell: Cell | None = None) -> tuple[Any, Any]:
     """(``PoseInformation``, rim hidden fraction (L, N)) of ``holes`` at the poses, exact rim test on ``mesh``
-    (None: nothing hidden) unless ``occlusion`` is given; ``arrays`` replaces the holes' (c, a, r, through, depth)."""
+    (None: nothing hidden) unless ``occlusion`` is given; ``arrays`` replaces the holes' (c, a, r, through, depth);
+    ``cell``: the robot cell (its gate, placement and sensor noise; default ``Cell()``) — g_POSE's own."""
     from cadfeat.measures import pose_information  # lazy: would import scipy.spatial at module load
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
     c, a, r, through, depth = arrays if arrays is not None else _arrays(holes)
+    cell = cell if cell is not None else Cell()
     if occlusion is None:
         occlusion = (np.zeros((len(T_cam_part), len(c))) if mesh is None else
                      rim_occlusion(mesh, T_cam_part, c, a, r, samples=16, through=through, depth_mm=depth))
     info = pose_information(camera, T_cam_part, c, a, r, occlusion=occlusion, through=through,
                             kinds=hole_kinds(holes) if len(holes) == len(c) else None,
-                            depth_ratio=depth / (2.0 * np.maximum(r, 1e-9)), rotation_length_mm=rotation_length_mm)
+                            depth_ratio=depth / (2.0 * np.maximum(r, 1e-9)), rotation_length_mm=rotation_length_mm,
+                            model=cell_models(cell), noise_grey=cell.noise_sigma_grey)
     return info, occlusion
 
 
@@ -88,7 +93,7 @@ def _in_plane(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def help_most(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], names: Sequence[str],
               movable: Sequence[str], occlusion: np.ndarray, rotation_length_mm: float,
-              mesh: Any = None) -> dict[str, Any]:
+              mesh: Any = None, cell: Cell | None = None) -> dict[str, Any]:
     """Per movable hole: d(RMS translation error)/d(move) along the steepest in-plane direction and
     d/d(radius) (mm per mm, central differences, ``STEP_MM``), the same for the RMS rotation error (deg per mm),
     and the best single change (module docstring). With the part ``mesh``, a hole hidden at most poses (mean
@@ -97,7 +102,8 @@ def help_most(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], names: 
     c0, a0, r0, through, depth = _arrays(holes)
 
     def errs(c: np.ndarray, r: np.ndarray, occ: np.ndarray = occlusion) -> tuple[float, float, Any]:
-        info, _ = predict(camera, T_cam_part, holes, None, rotation_length_mm, occ, (c, a0, r, through, depth))
+        info, _ = predict(camera, T_cam_part, holes, None, rotation_length_mm, occ, (c, a0, r, through, depth),
+                          cell)
         return _rms(info.error_translation_mm), _rms(info.error_rotation_deg), info
 
     e0, rot0, info0 = errs(c0, r0)
@@ -213,11 +219,11 @@ def _finite(v: np.ndarray) -> list[float | None]:
 
 def design_pose_accuracy(camera: Any, T_cam_part: np.ndarray, times_s: np.ndarray, holes: Sequence[Any],
                          names: Sequence[str], movable: Sequence[str], mesh: Any, tuning: Any,
-                         rotation_length_mm: float) -> dict[str, Any]:
-    """The ``pose_accuracy`` block of one design (module docstring)."""
+                         rotation_length_mm: float, cell: Cell | None = None) -> dict[str, Any]:
+    """The ``pose_accuracy`` block of one design (module docstring) in the robot cell ``cell``."""
     from cadfeat.vision import posterior_crlb  # lazy: would import scipy.spatial at module load
 
-    info, occ = predict(camera, T_cam_part, holes, mesh, rotation_length_mm)
+    info, occ = predict(camera, T_cam_part, holes, mesh, rotation_length_mm, cell=cell)
     _, crlb = posterior_crlb(info.information, times_s, tuning)
     per_pose = {"error_translation_mm": info.error_translation_mm, "error_rotation_deg": info.error_rotation_deg,
                 "bias_translation_mm": info.bias_translation_mm, "bias_rotation_deg": info.bias_rotation_deg,
@@ -231,7 +237,7 @@ def design_pose_accuracy(camera: Any, T_cam_part: np.ndarray, times_s: np.ndarra
         "holes_detected_mean": float(np.asarray(info.detected, float).sum(axis=1).mean()),
         "share": dict(zip(names, map(float, share), strict=True)),
         "weakest": _phases(info),
-        "help_most": help_most(camera, T_cam_part, holes, names, movable, occ, rotation_length_mm, mesh),
+        "help_most": help_most(camera, T_cam_part, holes, names, movable, occ, rotation_length_mm, mesh, cell),
     }
 
 
@@ -257,7 +263,7 @@ def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, set
     for key, s, holes, mesh in designs:
         T = np.linalg.inv(np.asarray(s.trajectory.T_task_cam)) @ s.T_task_part
         out[key] = design_pose_accuracy(s.camera, T, np.asarray(s.trajectory.times_s, float), holes,
-                                        hole_names(list(holes)), movable, mesh, tuning, ell)
+                                        hole_names(list(holes)), movable, mesh, tuning, ell, config.cell)
     return out
 
 
@@ -286,5 +292,6 @@ def with_pose(setup: Any, holes: Sequence[Any], trajectory: Any, measures: Any, 
     ``Problem.features_objectives(exact_occlusion=True)``)."""
     T = np.linalg.inv(np.asarray(trajectory.T_task_cam)) @ setup.T_task_part
     mesh = mesh if mesh is not None else getattr(setup.problem, "occlusion_mesh", None)
-    info, _ = predict(setup.camera, T, holes, mesh, float(setup.config.objective.pose_rotation_length_mm))
+    info, _ = predict(setup.camera, T, holes, mesh, float(setup.config.objective.pose_rotation_length_mm),
+                      cell=setup.config.cell)
     return _MeasuresWithPose(measures, info)

@@ -75,7 +75,7 @@ class RobustRun:
 
 def _uncertainty(config: Any) -> tuple[Uncertainty, RobustObjective]:
     spec = config.robustness
-    return Uncertainty.from_settings(spec), RobustObjective.from_settings(spec)
+    return Uncertainty.from_settings(spec, config.cell), RobustObjective.from_settings(spec)
 
 
 def _starts(opt: Any, space: Any, most: int = 2) -> list[np.ndarray]:
@@ -312,7 +312,7 @@ def robust_designs(setup: Any, run: RobustRun | None, holes0: Any, holes1: Any) 
               other: hole_depths(list(holes1)) if same else None if other_depths is None else other_depths[0]}
     samples = spec.samples or 64
     seed_out = config.study.seed + HELD_OUT_SEED_OFFSET
-    held = draws(Uncertainty.from_settings(spec), samples, len(rp.changed), seed_out, spec.sampling)
+    held = draws(Uncertainty.from_settings(spec, config.cell), samples, len(rp.changed), seed_out, spec.sampling)
     stats = dict(zip(order, design_statistics(rp, [feats[k] for k in order], held, values=True,
                                               depths=[depths[k] for k in order]), strict=True))
     dists = {k: {"combined": v.pop("_values", {}), "objectives_cell": v.pop("_objective_values", {})}

@@ -17,7 +17,10 @@ what must be kept, what to optimise and how (README, "Study files", has a full a
     [objective]    measures, aggregate, combine, weights, thresholds, min_axis_px, rotation_length_mm,
                    smoothmin_beta, normalisation (payoff | initial | natural | none), fov_measure (cone | image)
     [optimizer]    method, starts, maxiter, seed, local_solver, snap_standard_sizes
+    [robustness]   the robust objective and its draws; path and shop tolerances
     [tracking]     optional closed-loop check (``cadfeat track``, cadfeat.vision): ``TRACKING_KEYS``
+    [cell]         the robot cell, declared once (``cadfeat.cell.Cell``): camera mount and part placement
+                   tolerances (± bounds), sensor noise and light gain (σ), the detector and its gate, hole ends
 
 Everything is checked before any work is done (``load_study``): unknown sections and keys, types, ranges,
 enumerations, that files exist, that design parameters exist in the part script and that their bounds lie
@@ -38,6 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cadfeat.cell import Cell
 from cadfeat.design.objectives import AGGREGATES, COMBINES, ObjectiveConfig
 from cadfeat.design.objectives import MEASURES as _OBJECTIVE_MEASURES
 from cadfeat.design.optimize import METHODS, OptimizerConfig
@@ -104,7 +108,7 @@ StudySource = str | Path | Mapping[str, Any]
 """A study: a TOML file's path, or a dict with the same tables."""
 
 SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer", "shop",
-            "robustness", "tracking")
+            "robustness", "tracking", "cell")
 SHOP_KEYS = tuple(ShopSettings.model_fields)
 ROBUSTNESS_KEYS = tuple(RobustnessSettings.model_fields)
 REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
@@ -145,6 +149,8 @@ class StudyConfig:
     shop: ShopSpec = field(default_factory=ShopSpec)
     robustness: RobustnessSpec = field(default_factory=RobustnessSpec)
     tracking: TrackingSpec | None = None
+    cell: Cell = field(default_factory=Cell)
+    """``[cell]``: the robot cell, declared once (``cadfeat.cell``)."""
 
     @property
     def label(self) -> str:
@@ -224,6 +230,7 @@ def load_study(path_or_dict: StudySource, base_dir: str | Path | None = None) ->
     tracking = None
     if "tracking" in data:
         tracking = validate_section(TrackingSettings, top.raw("tracking"), "tracking", label, {"seed": info.seed})
+    cell = validate_section(Cell, top.raw("cell", {}), "cell", label)
     echo = {
         "study": info.study_dump(),
         "camera": dict(top.raw("camera")),
@@ -235,11 +242,13 @@ def load_study(path_or_dict: StudySource, base_dir: str | Path | None = None) ->
         "optimizer": optimizer.study_dump(),
         "shop": shop.model_dump(mode="json"),
         "robustness": robustness.model_dump(mode="json"),
+        "cell": cell.model_dump(mode="json"),
     }
     if tracking is not None:
         echo["tracking"] = tracking.model_dump(mode="json")
     return StudyConfig(path, base, info, camera, pose, trajectory, design, constraints, objective, optimizer,
-                       params, _drop_none(echo), shop=shop, robustness=robustness, tracking=tracking)
+                       params, _drop_none(echo), shop=shop, robustness=robustness, tracking=tracking,
+                       cell=cell)
 
 
 def _drop_none(value: Any) -> Any:

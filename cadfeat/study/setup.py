@@ -132,7 +132,8 @@ def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Normalise
     problem = Problem(args["space"], args["model"], args["camera"], args["trajectory"], args["T_task_part"],
                       config.objective, cc, args["fixed_mask"], normaliser=normaliser,
                       occlusion_mesh=occlusion_mesh(config, args["shape0"]),
-                      feature_mask=score_mask(config, args["holes"], ~np.asarray(args["fixed_mask"], bool)))
+                      feature_mask=score_mask(config, args["holes"], ~np.asarray(args["fixed_mask"], bool)),
+                      cell=config.cell)
     return problem, cc
 
 

@@ -23,10 +23,10 @@ from cadfeat.cad.export import import_step
 from cadfeat.cad.features import Hole, extract_holes
 from cadfeat.cad.features.identity import named
 from cadfeat.cad.parts import load_part
+from cadfeat.cell import Cell
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import invert_T
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
-from cadfeat.study.settings.sections import RobustnessSettings, placement_sigma
 from cadfeat.study.setup import camera_direction, load_scene
 from cadfeat.vision import FilterTuning, SensorModel
 from cadfeat.vision.closed_loop import TrackingConfig, draw_frame, frame_image, report_frames
@@ -52,22 +52,25 @@ SWEEPS: dict[str, tuple[float, ...]] = {
 }
 
 
-def tracking_config(spec: TrackingSpec, robustness: RobustnessSettings | None = None) -> TrackingConfig:
-    """The ``cadfeat.vision`` configuration of a ``[tracking]`` section; the part's placement error per run is
-    ``[robustness]``'s placement tolerance (``placement_sigma``: σ = 0.4 t per axis; default section if None)."""
+def tracking_config(spec: TrackingSpec, cell: Cell | None = None) -> TrackingConfig:
+    """The ``cadfeat.vision`` configuration of a ``[tracking]`` section in the study's cell (``[cell]``; the
+    default cell if None): each run's part placement σ = 0.4 t per axis (``Cell.placement_sigma``), the sensor
+    noise σ, the light's gain σ, the detector and its gate."""
+    cell = cell or Cell()
+    placement_mm, placement_deg = cell.placement_sigma()
     tuning = FilterTuning(r_px2=spec.r_px2, q_rate_mm2_s2=spec.q_rate_mm2_s2, q_omega_rad2_s2=spec.q_omega_rad2_s2,
                           iterations=spec.iterations, tau=spec.tau,
                           sigma0_mm=max(spec.initial_error_mm, 1.0), sigma0_rad=max(np.radians(spec.initial_error_deg),
                                                                                     0.01))
     return TrackingConfig(estimators=tuple(spec.estimators), runs=spec.runs,
-                          sensor=SensorModel(noise_grey=spec.noise_grey, defocus=spec.defocus,
+                          sensor=SensorModel(noise_grey=cell.noise_sigma_grey, defocus=spec.defocus,
                                              exposure_s=spec.exposure_s),
                           initial_error_mm=spec.initial_error_mm, initial_error_deg=spec.initial_error_deg,
                           tuning=tuning, frame_step=spec.frame_step, settle_frames=spec.settle_frames,
-                          converged_mm=spec.converged_mm, converged_deg=spec.converged_deg, gate_px=spec.gate_px,
+                          converged_mm=spec.converged_mm, converged_deg=spec.converged_deg, gate_px=cell.gate_px,
                           rim_model=spec.rim_model, seed=spec.seed, alpha=spec.alpha,
-                          min_change=spec.min_change_percent / 100.0, gain_sigma=spec.gain_sigma,
-                          **placement_sigma(robustness or RobustnessSettings()))
+                          min_change=spec.min_change_percent / 100.0, gain_sigma=cell.gain_sigma,
+                          placement_mm=placement_mm, placement_deg=placement_deg, detector=cell.detector)
 
 
 def _scene(config: StudyConfig) -> tuple[Camera, np.ndarray, np.ndarray, np.ndarray]:
@@ -225,7 +228,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     _check_frames(config, spec, len(T_cam_part))
     from cadfeat.vision.closed_loop import track_designs  # lazy: looked up per call (tests replace it)
 
-    result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec, config.robustness),
+    result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec, config.cell),
                            estimator_camera=camera_override, tracked=tracked)
     section = result.to_json()
     section["warnings"] = _motion_warnings(T_cam_part[result.frame_indices], times[result.frame_indices])
@@ -243,7 +246,7 @@ def track_arguments(config: StudyConfig, spec: TrackingSpec, design: Design) -> 
     camera, T_cam_part, times, screws = _scene(config)
     _check_frames(config, spec, len(T_cam_part))
     _, T, t, sc = tracked_frames(T_cam_part, times, screws, spec.frame_step)
-    return camera, T, t, sc, (design[0], _named(design[1])), tracking_config(spec, config.robustness)
+    return camera, T, t, sc, (design[0], _named(design[1])), tracking_config(spec, config.cell)
 
 
 def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,

@@ -71,7 +71,7 @@ class TrackingConfig:
     ``min_change`` smallest relative change of the median RMS error that counts (``metrics.paired_verdict``);
     run-to-run variability (module docstring): ``placement_mm`` / ``placement_deg`` σ (one, or one per axis) of
     the part's placement error (0 = every run at the nominal placement, rendered once), ``gain_sigma`` relative σ of the
-    illumination gain per run.
+    illumination gain per run; ``detector`` the hole detector (``cadfeat.cell.DETECTORS``).
     """
 
     estimators: tuple[str, ...] = ("ekf", "iekf", "pnp")
@@ -92,6 +92,7 @@ class TrackingConfig:
     placement_mm: float | tuple[float, ...] = 0.2
     placement_deg: float | tuple[float, ...] = 0.2
     gain_sigma: float = 0.05
+    detector: str = "cadfeat"
 
     def with_changes(self, **changes: Any) -> TrackingConfig:
         return replace(self, **changes)

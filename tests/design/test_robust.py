@@ -154,18 +154,19 @@ def test_same_seed_same_robust_optimum_bit_for_bit(razor):
 
 def test_uncertainty_settings_errors_name_file_key_and_allowed(tmp_path):
     study = copy.deepcopy(RAZOR_STUDY)
-    study["robustness"] = {"camera_angle_deg": [1.0, 2.0]}
-    with pytest.raises(StudyError, match=r"robustness\.camera_angle_deg: \[1\.0, 2\.0\] is not allowed; allowed: "
+    study["cell"] = {"camera_angle_deg": [1.0, 2.0]}
+    with pytest.raises(StudyError, match=r"cell\.camera_angle_deg: \[1\.0, 2\.0\] is not allowed; allowed: "
                                          r"a number ≥ 0 or a list of three"):
         load_study(study)
+    del study["cell"]
     study["robustness"] = {"statistic": "chance", "chance_measure": "pose", "chance_min": -0.5}
     from cadfeat.study.robust_study import check_robust
 
     with pytest.raises(StudyError, match=r"robustness\.chance_measure: 'pose' is not allowed; allowed: one of "
                                          r"objective\.measures \(resolvability\)"):
         check_robust(load_study(study))
-    per_axis = load_study({**copy.deepcopy(RAZOR_STUDY), "robustness": {"camera_position_mm": [1, 2, 3]}})
-    assert Uncertainty.from_settings(per_axis.robustness).camera_position_mm == (1.0, 2.0, 3.0)
+    per_axis = load_study({**copy.deepcopy(RAZOR_STUDY), "cell": {"camera_position_mm": [1, 2, 3]}})
+    assert Uncertainty.from_settings(per_axis.robustness, per_axis.cell).camera_position_mm == (1.0, 2.0, 3.0)
 
 
 def test_a_stalled_robust_solve_stops_early_with_the_full_solves_optimum(razor, monkeypatch):

@@ -42,8 +42,9 @@ STUDY = {
     "objective": {"measures": ["resolution"]},
     "optimizer": {"method": "multistart", "starts": 1, "maxiter": 10},
     "shop": {"hole_sizes": [5.5, 6.0, 7.0, 8.0, 8.5]},
-    "tracking": {"check": "fast", "noise_grey": 4.0, "initial_error_mm": 5.0, "initial_error_deg": 1.0,
+    "tracking": {"check": "fast", "initial_error_mm": 5.0, "initial_error_deg": 1.0,
                  "r_px2": 0.05, "q_rate_mm2_s2": 10.0, "q_omega_rad2_s2": 1e-4},
+    "cell": {"noise_sigma_grey": 4.0},
 }
 
 

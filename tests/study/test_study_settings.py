@@ -67,25 +67,25 @@ def test_one_default_per_setting(tmp_path):
 
 
 def test_one_placement_tolerance(tmp_path):
-    """The part's placement tolerance is declared once, ``[robustness] placement_position_mm`` /
+    """The part's placement tolerance is declared once, ``[cell] placement_position_mm`` /
     ``placement_angle_deg`` (±t): the old ``[tracking]`` keys are refused in one line saying where they moved; the
     closed loop draws σ = 0.4 t, so vision's own default (0.2) is what the default tolerance (0.5) gives, and the
     ±t bound holds 2.5 σ of the drawn placements (scipy's normal CDF, over vision's own draws)."""
     from scipy.stats import norm
 
-    from cadfeat.study.settings import RobustnessSettings
+    from cadfeat.cell import Cell
     from cadfeat.study.tracking import tracking_config
     from cadfeat.vision.closed_loop import TrackingConfig, placement_errors
 
     for key in ("placement_mm", "placement_deg"):
         msg = str(pytest.raises(StudyError, load_study, study(tmp_path, tracking={key: 0.3})).value)
-        assert f"tracking.{key}: this key moved; allowed: [robustness] placement_" in msg and "\n" not in msg
+        assert f"tracking.{key}: this key moved; allowed: [cell] placement_" in msg and "\n" not in msg
     default = tracking_config(TrackingSettings())
     assert (default.placement_mm, default.placement_deg) == (TrackingConfig().placement_mm,
                                                              TrackingConfig().placement_deg)
     t = 1.5
-    per_axis = tracking_config(TrackingSettings(runs=2000), RobustnessSettings(placement_position_mm=t,
-                                                                              placement_angle_deg=(0.5, 1.0, 2.0)))
+    per_axis = tracking_config(TrackingSettings(runs=2000), Cell(placement_position_mm=t,
+                                                                placement_angle_deg=(0.5, 1.0, 2.0)))
     assert per_axis.placement_deg == pytest.approx((0.2, 0.4, 0.8))
     inside = np.abs(placement_errors(per_axis, per_axis.runs)[:, :3, 3]) <= t
     coverage = 2 * norm.cdf(2.5) - 1  # ≈ 0.988

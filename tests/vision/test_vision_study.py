@@ -37,8 +37,9 @@ STUDY = {
     "trajectory": {"kind": "orbit_arc", "centre": [0, 0, 2.5], "radius_mm": 300.0, "elevation_deg": 70.0,
                    "azimuth_start_deg": -110.0, "azimuth_end_deg": -70.0, "n": 10, "duration_s": 1.0},
     "design": {"parameters": ["spread_mm"]},
-    "tracking": {"runs": 6, "settle_frames": 3, "noise_grey": 4.0, "initial_error_mm": 5.0, "initial_error_deg": 1.0,
+    "tracking": {"runs": 6, "settle_frames": 3, "initial_error_mm": 5.0, "initial_error_deg": 1.0,
                  "r_px2": 0.05, "q_rate_mm2_s2": 10.0, "q_omega_rad2_s2": 1e-4},
+    "cell": {"noise_sigma_grey": 4.0},
 }
 
 
@@ -56,7 +57,7 @@ def test_tracking_section_is_validated(tmp_path):
     assert load_study(config.to_dict(), base_dir=tmp_path).tracking == config.tracking
     assert load_study(_study(tmp_path)).tracking.iterations == 30  # defaults fill the keys not given
     for key, value, allowed in (("estimators", ["ukf"], "ekf, iekf, pnp"), ("runs", 0, "integer"),
-                                ("noise_grey", -1.0, "number"), ("rim_model", "yes", "true or false"),
+                                ("noise_grey", 1.0, "[cell] noise_sigma_grey"), ("rim_model", "yes", "true or false"),
                                 ("nosie_grey", 1.0, "keys of [tracking]")):
         with pytest.raises(StudyError, match=rf"tracking\.{key}.*allowed: .*{re.escape(allowed)}"):
             load_study(_study(tmp_path, **{key: value}))

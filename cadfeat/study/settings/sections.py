@@ -6,10 +6,11 @@ Units are in the key names (mm, percent, deg, s, px², grey levels on the 0..255
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Literal, cast
+from typing import Any, ClassVar, Literal
 
 from pydantic import ValidationInfo, field_validator, model_validator
 
+from cadfeat.cell import PER_AXIS, per_axis
 from cadfeat.design.shop import HOLE_SIZE_TABLES, hole_sizes
 from cadfeat.study.settings._base import (
     Settings,
@@ -70,17 +71,7 @@ class ShopSettings(Settings):
         return hole_sizes(value)
 
 
-PER_AXIS = "a number ≥ 0 or a list of three numbers ≥ 0 (per axis x, y, z)"
 ROBUST_STATISTICS = ("percentile", "mean", "chance")
-
-
-def _per_axis(value: object, hi: float) -> float | tuple[float, ...]:
-    """A tolerance per axis: one number ≥ 0 for every axis, or three (x, y, z)."""
-    items: tuple[object, ...] = cast("tuple[object, ...]", value) if isinstance(value, tuple) else (value,)
-    nums = [float(v) for v in items if isinstance(v, int | float) and not isinstance(v, bool)]
-    if len(items) not in (1, 3) or len(nums) != len(items) or not all(0.0 <= v <= hi for v in nums):
-        raise ValueError("not a tolerance per axis")
-    return nums[0] if not isinstance(value, tuple) else tuple(nums)
 
 
 class RobustnessSettings(Settings):
@@ -88,14 +79,11 @@ class RobustnessSettings(Settings):
     (``cadfeat.design.uncertainty``, ``cadfeat.design.robust``, ``cadfeat.design.robustness``) — one table for
     the tolerances, the robust objective and the analysis.
 
-    Tolerances (each ±t; ``distribution`` uniform in [−t, t] or a normal of σ = t/2 truncated at ±t): camera mount
-    ``camera_position_mm`` / ``camera_angle_deg`` and part placement ``placement_position_mm`` /
-    ``placement_angle_deg`` (a number, or one per axis; the one declaration of the part's placement tolerance:
-    the closed-loop check draws each run's placement from it too, ``placement_sigma``), path offset
-    ``path_offset_mm`` (per task axis), speed
-    ``time_scale_percent``, sensor noise ``pixel_noise_grey`` (grey levels around the σ model's 2), the shop's
-    hole position ``position_tol_mm`` (across the axis) and diameter ``diameter_tol_mm``; ``size_steps``: the
-    analysis also tries a drill ±that many sizes off the table.
+    Tolerances (each ±t; ``distribution`` uniform in [−t, t] or a normal of σ = t/2 truncated at ±t): the camera mount,
+    the part's placement and the sensor noise's spread are the cell's (``[cell]``, ``cadfeat.cell.Cell``: declared
+    once, read by the robust draws, g_POSE and the closed loop alike); here the path offset ``path_offset_mm`` (per
+    task axis), speed ``time_scale_percent``, the shop's hole position ``position_tol_mm`` (across the axis) and
+    diameter ``diameter_tol_mm``; ``size_steps``: the analysis also tries a drill ±that many sizes off the table.
     Robust objective (``robust = true``, the default): maximise the ``percentile`` (default 10th) of the combined
     objective over ``draws`` fixed draws (``sampling``: Sobol or Latin hypercube, seeded by the study), or its
     ``mean``, or (``chance``) the nominal value subject to ``chance_measure`` ≥ ``chance_min`` (raw units; g_POSE
@@ -111,29 +99,26 @@ class RobustnessSettings(Settings):
     draws: int = integer(64, 2, 4096, description="draws the robust objective is evaluated on")
     sampling: Literal["sobol", "lhs"] = choice("sobol", ("sobol", "lhs"))
     distribution: Literal["uniform", "normal"] = choice("uniform", ("uniform", "normal"))
-    camera_position_mm: float | Tuple[float] = choice(2.0, PER_AXIS)
-    camera_angle_deg: float | Tuple[float] = choice(1.0, PER_AXIS)
-    placement_position_mm: float | Tuple[float] = choice(0.5, PER_AXIS)
-    placement_angle_deg: float | Tuple[float] = choice(0.5, PER_AXIS)
     path_offset_mm: float | Tuple[float] = choice(0.5, PER_AXIS)
     time_scale_percent: float = number(10.0, 0.0, 90.0)
-    pixel_noise_grey: float = number(1.0, 0.0, 2.0)
 
     section: ClassVar[str] = "robustness"
+    moved: ClassVar[dict[str, str]] = {
+        "camera_position_mm": "[cell] camera_position_mm (the camera's mount tolerance ±t, mm)",
+        "camera_angle_deg": "[cell] camera_angle_deg (the camera's mount tolerance ±t, deg)",
+        "placement_position_mm": "[cell] placement_position_mm (the part's placement tolerance ±t, mm)",
+        "placement_angle_deg": "[cell] placement_angle_deg (the part's placement tolerance ±t, deg)",
+        "pixel_noise_grey": "[cell] noise_spread_grey (± spread of the sensor noise σ from cell to cell)",
+    }
     position_tol_mm: float = number(0.1, 0.0, 10.0)
     diameter_tol_mm: float = number(0.1, 0.0, 10.0)
     size_steps: int = integer(1, 0, 5)
     samples: int = integer(200, 0, 10000)
 
-    @field_validator("camera_position_mm", "placement_position_mm", "path_offset_mm")
+    @field_validator("path_offset_mm")
     @classmethod
     def _mm(cls, value: Any) -> float | tuple[float, ...]:
-        return _per_axis(value, 100.0)
-
-    @field_validator("camera_angle_deg", "placement_angle_deg")
-    @classmethod
-    def _deg(cls, value: Any) -> float | tuple[float, ...]:
-        return _per_axis(value, 30.0)
+        return per_axis(value, 100.0)
 
     @model_validator(mode="after")
     def _chance(self) -> RobustnessSettings:
@@ -141,24 +126,6 @@ class RobustnessSettings(Settings):
             raise reject("chance_measure", "statistic = \"chance\" needs chance_measure and chance_min",
                          "a measure of objective.measures and its bound chance_min (raw units)")
         return self
-
-
-PLACEMENT_SIGMA_PER_TOLERANCE = 0.4
-"""The closed-loop check draws the part's placement per run from a normal of σ = 0.4 t per axis (t: ``[robustness]``
-placement tolerance), so ±t is 2.5 σ (98.8 % of the runs inside it); the robust draws use ±t itself
-(``[robustness] distribution``)."""
-
-
-def placement_sigma(robustness: RobustnessSettings) -> dict[str, float | tuple[float, ...]]:
-    """``placement_mm`` / ``placement_deg`` (σ per axis, one or three) of ``cadfeat.vision``'s ``TrackingConfig``
-    from the study's placement tolerance (``PLACEMENT_SIGMA_PER_TOLERANCE``)."""
-    def sigma(t: object) -> float | tuple[float, ...]:
-        k = PLACEMENT_SIGMA_PER_TOLERANCE
-        if isinstance(t, tuple):
-            return tuple(k * float(v) for v in cast("tuple[float, ...]", t))
-        return k * float(cast(float, t))
-    return {"placement_mm": sigma(robustness.placement_position_mm),
-            "placement_deg": sigma(robustness.placement_angle_deg)}
 
 
 _CL, _FT, _SM = TrackingConfig, FilterTuning, SensorModel  # the vision defaults are the section's defaults
@@ -177,25 +144,26 @@ class TrackingSettings(Settings):
     ``check``: the closed loop inside ``cadfeat run`` — "fast" (PnP and IEKF, few runs and frames), "full" (these
     settings) or "off"; unset: full when the study has a ``[tracking]`` table, else fast
     (``cadfeat.study.closed_loop_check``).
-    Run-to-run variability of a real cell: the part's placement error per run (from ``[robustness]
-    placement_position_mm`` / ``placement_angle_deg``, ``placement_sigma``; the images are rendered again per
-    run) and the illumination gain's relative σ; pixel noise and the initial error's direction are drawn per run
-    too. ``placement_mm`` / ``placement_deg`` moved to ``[robustness]`` (``moved``: refused with where to).
+    The cell it runs in is the study's ``[cell]`` (``cadfeat.cell.Cell``): each run's part placement (σ = 0.4 t of the
+    placement tolerance), the sensor noise σ, the light's gain σ, the detector and its gate; the initial error's
+    direction is drawn per run too. Keys that moved to ``[cell]`` are refused with where to (``moved``).
     """
 
     section: ClassVar[str] = "tracking"
     moved: ClassVar[dict[str, str]] = {
-        "placement_mm": "[robustness] placement_position_mm = t, the part's placement tolerance ±t per axis (mm); "
+        "placement_mm": "[cell] placement_position_mm = t, the part's placement tolerance ±t per axis (mm); "
                         "the closed loop draws σ = 0.4 t (t = 0.5 gives the former default 0.2)",
-        "placement_deg": "[robustness] placement_angle_deg = t, the part's placement tolerance ±t per axis (deg); "
+        "placement_deg": "[cell] placement_angle_deg = t, the part's placement tolerance ±t per axis (deg); "
                          "the closed loop draws σ = 0.4 t (t = 0.5 gives the former default 0.2)",
+        "noise_grey": "[cell] noise_sigma_grey (σ of the sensor's grey-level noise)",
+        "gate_px": "[cell] gate_px (the association gate, px)",
+        "gain_sigma": "[cell] gain_sigma (relative σ of the light's gain from run to run)",
     }
 
     estimators: Tuple[Literal["ekf", "iekf", "pnp"]] = choice(
         _CL.estimators, f"a non-empty list of distinct names from {', '.join(TRACKING_ESTIMATORS)}")
     runs: int = integer(_CL.runs, 1, 10_000)
     seed: int = integer(_CL.seed, 0, 2**32 - 1)
-    noise_grey: float = number(_SM.noise_grey, 0.0, 100.0)
     defocus: bool = boolean(_SM.defocus)
     exposure_s: float = number(_SM.exposure_s, 0.0, 1.0)
     initial_error_mm: float = number(_CL.initial_error_mm, 0.0, 10_000.0)
@@ -209,14 +177,12 @@ class TrackingSettings(Settings):
     settle_frames: int = integer(_CL.settle_frames, 0)
     converged_mm: float = number(_CL.converged_mm, 0.0, lo_open=True)
     converged_deg: float = number(_CL.converged_deg, 0.0, lo_open=True)
-    gate_px: float = number(_CL.gate_px, 0.0, lo_open=True)
     rim_model: bool = boolean(_CL.rim_model)
     alpha: float = number(_CL.alpha, 0.0, 0.5, lo_open=True)
     min_change_percent: float = number(100.0 * _CL.min_change, 0.0, 100.0)
     check: Literal["fast", "full", "off"] | None = choice(
         None, f"one of {', '.join(CHECK_MODES)}", description="the closed loop inside cadfeat run (unset: full "
         "with a [tracking] table, else fast)")
-    gain_sigma: float = number(_CL.gain_sigma, 0.0, 1.0)
 
     @model_validator(mode="before")
     @classmethod

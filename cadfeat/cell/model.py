@@ -1,0 +1,131 @@
+"""``Cell``: the robot cell that will be built, declared once (the study's ``[cell]`` table).
+
+Every physical number of the cell lives here, and says what it is:
+
+- a **± bound** (a tolerance t: the error lies in [−t, t]): the camera's mount ``camera_position_mm`` /
+  ``camera_angle_deg`` (camera frame, the same at every pose) and the part's placement ``placement_position_mm`` /
+  ``placement_angle_deg`` (part frame), one number for every axis or three (x, y, z); the spread of the sensor's
+  noise from cell to cell ``noise_spread_grey``;
+- a **standard deviation** σ: the sensor's grey-level noise ``noise_sigma_grey`` (0..255 scale, per pixel and
+  frame) and the light's gain from run to run ``gain_sigma`` (relative);
+- a **setting**: the detector (``detector``) and its association gate ``gate_px``, how the holes are made
+  (``hole_ends``).
+
+``BOUND_KEYS`` and ``SIGMA_KEYS`` list which is which (the JSON Schema carries it too: ``x-statistic``).
+
+Where each reaches (the same object, so a prediction and the check that confirms it assume one cell):
+
+- g_POSE's models (``measures.pose_models.PoseModels.for_cell``): the gate and the placement error of the
+  association term, the noise of the centre's σ model;
+- the robust draws (``design.uncertainty.Uncertainty.from_cell``): the mount and placement tolerances ±t, the
+  noise σ ± its spread;
+- the closed loop (``vision.closed_loop.TrackingConfig`` via ``study.tracking.tracking_config``): each run's
+  placement drawn from a normal of σ = ``PLACEMENT_SIGMA_PER_TOLERANCE`` · t per axis (``placement_sigma``), the
+  noise σ, the gain σ, the gate and the detector.
+
+Units are in the names: mm, degrees, grey levels, px.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar, Literal, cast
+
+from pydantic import Field, field_validator
+
+from cadfeat.settings import Settings, Tuple, choice, number
+
+__all__ = ["BOUND_KEYS", "DETECTORS", "HOLE_ENDS", "PER_AXIS", "PLACEMENT_SIGMA_PER_TOLERANCE", "SIGMA_KEYS", "Cell",
+           "per_axis", "triple"]
+
+PER_AXIS = "a number ≥ 0 or a list of three numbers ≥ 0 (per axis x, y, z)"
+DETECTORS = ("cadfeat", "edcircles", "blob")
+"""The hole detectors of the closed loop (``vision.detectors``): cadfeat's own, EDCircles (OpenCV contrib,
+written elsewhere) and SimpleBlobDetector (the naive practitioner's)."""
+HOLE_ENDS = ("as_modelled", "drilled", "milled")
+"""How a blind hole ends as the shop makes it: as the CAD model has it, a 118° drill point, or a flat floor."""
+
+PLACEMENT_SIGMA_PER_TOLERANCE = 0.4
+"""The closed loop draws the part's placement per run from a normal of σ = 0.4 t per axis (t the placement
+tolerance), so ±t is 2.5 σ (98.8 % of the runs inside it); g_POSE's association term assumes the same σ. The
+robust draws use ±t itself (``[robustness] distribution``)."""
+
+PerAxis = float | tuple[float, ...]
+
+
+def per_axis(value: object, hi: float) -> PerAxis:
+    """A tolerance per axis: one number in [0, hi] for every axis, or three (x, y, z)."""
+    items: tuple[object, ...] = cast("tuple[object, ...]", value) if isinstance(value, tuple) else (value,)
+    nums = [float(v) for v in items if isinstance(v, int | float) and not isinstance(v, bool)]
+    if len(items) not in (1, 3) or len(nums) != len(items) or not all(0.0 <= v <= hi for v in nums):
+        raise ValueError("not a tolerance per axis")
+    return nums[0] if not isinstance(value, tuple) else tuple(nums)
+
+
+def triple(value: PerAxis) -> tuple[float, float, float]:
+    """A per-axis value as (x, y, z)."""
+    t = tuple(float(x) for x in (value if isinstance(value, tuple) else (value, value, value)))
+    return (t[0], t[1], t[2])
+
+
+def _stat(field: Any, statistic: Literal["bound", "sigma"]) -> Any:
+    """A field whose JSON Schema says whether its number is a ± bound or a standard deviation."""
+    extra = dict(cast("dict[str, Any]", field.json_schema_extra))
+    extra["x-statistic"] = statistic
+    return Field(field.default, description=field.description, json_schema_extra=extra)
+
+
+def _bound(default: PerAxis, what: str) -> Any:
+    return _stat(choice(default, PER_AXIS, description=f"± tolerance of the {what}, per axis"), "bound")
+
+
+class Cell(Settings):
+    """``[cell]``: the robot cell (module docstring). Defaults: a camera mounted to ±2 mm / ±1°, the part placed to
+    ±0.5 mm / ±0.5°, 2 grey levels of sensor noise (±1 from cell to cell), a 5 % light gain spread, cadfeat's
+    detector with a 10 px gate, holes as modelled."""
+
+    section: ClassVar[str] = "cell"
+
+    camera_position_mm: float | Tuple[float] = _bound(2.0, "camera's mount position (mm, camera frame)")
+    camera_angle_deg: float | Tuple[float] = _bound(1.0, "camera's mount angle (deg, camera frame)")
+    placement_position_mm: float | Tuple[float] = _bound(0.5, "part's placement position (mm, part frame)")
+    placement_angle_deg: float | Tuple[float] = _bound(0.5, "part's placement angle (deg, part frame)")
+    noise_sigma_grey: float = _stat(number(2.0, 0.0, 100.0, description="σ of the sensor's grey-level noise "
+                                           "(0..255 scale, per pixel and frame)"), "sigma")
+    noise_spread_grey: float = _stat(number(1.0, 0.0, 100.0, description="± spread of that σ from cell to cell "
+                                            "(the robust draws)"), "bound")
+    gain_sigma: float = _stat(number(0.05, 0.0, 1.0, description="relative σ of the light's gain from run to run"),
+                              "sigma")
+    gate_px: float = number(10.0, 0.0, lo_open=True, description="association gate of a detection to its hole (px)")
+    detector: Literal["cadfeat", "edcircles", "blob"] = choice("cadfeat", DETECTORS,
+                                                                description="the closed loop's hole detector")
+    hole_ends: Literal["as_modelled", "drilled", "milled"] = choice(
+        "as_modelled", HOLE_ENDS, description="how a blind hole ends as the shop makes it")
+
+    @field_validator("camera_position_mm", "placement_position_mm")
+    @classmethod
+    def _mm(cls, value: Any) -> PerAxis:
+        return per_axis(value, 100.0)
+
+    @field_validator("camera_angle_deg", "placement_angle_deg")
+    @classmethod
+    def _deg(cls, value: Any) -> PerAxis:
+        return per_axis(value, 30.0)
+
+    def placement_sigma(self) -> tuple[PerAxis, PerAxis]:
+        """(mm, deg) σ per axis of the part's placement error as the closed loop draws it and g_POSE's association
+        term assumes it: ``PLACEMENT_SIGMA_PER_TOLERANCE`` · t (one number, or three)."""
+        def sigma(t: PerAxis) -> PerAxis:
+            k = PLACEMENT_SIGMA_PER_TOLERANCE
+            return tuple(k * v for v in t) if isinstance(t, tuple) else k * t
+        return sigma(self.placement_position_mm), sigma(self.placement_angle_deg)
+
+
+def _keys(statistic: str) -> tuple[str, ...]:
+    return tuple(n for n, f in Cell.model_fields.items()
+                 if dict(cast("dict[str, Any]", f.json_schema_extra or {})).get("x-statistic") == statistic)
+
+
+BOUND_KEYS = _keys("bound")
+"""The ``[cell]`` keys that are ± bounds."""
+SIGMA_KEYS = _keys("sigma")
+"""The ``[cell]`` keys that are standard deviations."""
