@@ -32,6 +32,7 @@ from typing import Any, ClassVar, Literal, cast
 
 from pydantic import Field, field_validator
 
+from cadfeat.cell import defaults as D
 from cadfeat.settings import Settings, Tuple, choice, number
 
 __all__ = ["BOUND_KEYS", "DETECTORS", "HOLE_ENDS", "PER_AXIS", "PLACEMENT_SIGMA_PER_TOLERANCE", "SIGMA_KEYS", "Cell",
@@ -44,7 +45,7 @@ written elsewhere) and SimpleBlobDetector (the naive practitioner's)."""
 HOLE_ENDS = ("as_modelled", "drilled", "milled")
 """How a blind hole ends as the shop makes it: as the CAD model has it, a 118° drill point, or a flat floor."""
 
-PLACEMENT_SIGMA_PER_TOLERANCE = 0.4
+PLACEMENT_SIGMA_PER_TOLERANCE = D.PLACEMENT_SIGMA_PER_TOLERANCE
 """The closed loop draws the part's placement per run from a normal of σ = 0.4 t per axis (t the placement
 tolerance), so ±t is 2.5 σ (98.8 % of the runs inside it); g_POSE's association term assumes the same σ. The
 robust draws use ±t itself (``[robustness] distribution``)."""
@@ -78,6 +79,12 @@ def _bound(default: PerAxis, what: str) -> Any:
     return _stat(choice(default, PER_AXIS, description=f"± tolerance of the {what}, per axis"), "bound")
 
 
+_NOISE = "σ of the sensor's grey-level noise (0..255 scale, per pixel and frame)"
+_SPREAD = "± spread of that σ from cell to cell (the robust draws)"
+_GAIN = "relative σ of the light's gain from run to run"
+_GATE = "association gate of a detection to its hole (px)"
+
+
 class Cell(Settings):
     """``[cell]``: the robot cell (module docstring). Defaults: a camera mounted to ±2 mm / ±1°, the part placed to
     ±0.5 mm / ±0.5°, 2 grey levels of sensor noise (±1 from cell to cell), a 5 % light gain spread, cadfeat's
@@ -85,17 +92,14 @@ class Cell(Settings):
 
     section: ClassVar[str] = "cell"
 
-    camera_position_mm: float | Tuple[float] = _bound(2.0, "camera's mount position (mm, camera frame)")
-    camera_angle_deg: float | Tuple[float] = _bound(1.0, "camera's mount angle (deg, camera frame)")
-    placement_position_mm: float | Tuple[float] = _bound(0.5, "part's placement position (mm, part frame)")
-    placement_angle_deg: float | Tuple[float] = _bound(0.5, "part's placement angle (deg, part frame)")
-    noise_sigma_grey: float = _stat(number(2.0, 0.0, 100.0, description="σ of the sensor's grey-level noise "
-                                           "(0..255 scale, per pixel and frame)"), "sigma")
-    noise_spread_grey: float = _stat(number(1.0, 0.0, 100.0, description="± spread of that σ from cell to cell "
-                                            "(the robust draws)"), "bound")
-    gain_sigma: float = _stat(number(0.05, 0.0, 1.0, description="relative σ of the light's gain from run to run"),
-                              "sigma")
-    gate_px: float = number(10.0, 0.0, lo_open=True, description="association gate of a detection to its hole (px)")
+    camera_position_mm: float | Tuple[float] = _bound(D.CAMERA_POSITION_MM, "camera's mount (mm, camera frame)")
+    camera_angle_deg: float | Tuple[float] = _bound(D.CAMERA_ANGLE_DEG, "camera's mount (deg, camera frame)")
+    placement_position_mm: float | Tuple[float] = _bound(D.PLACEMENT_POSITION_MM, "part's placement (mm, part frame)")
+    placement_angle_deg: float | Tuple[float] = _bound(D.PLACEMENT_ANGLE_DEG, "part's placement (deg, part frame)")
+    noise_sigma_grey: float = _stat(number(D.NOISE_SIGMA_GREY, 0.0, 100.0, description=_NOISE), "sigma")
+    noise_spread_grey: float = _stat(number(D.NOISE_SPREAD_GREY, 0.0, 100.0, description=_SPREAD), "bound")
+    gain_sigma: float = _stat(number(D.GAIN_SIGMA, 0.0, 1.0, description=_GAIN), "sigma")
+    gate_px: float = number(D.GATE_PX, 0.0, lo_open=True, description=_GATE)
     detector: Literal["cadfeat", "edcircles", "blob"] = choice("cadfeat", DETECTORS,
                                                                 description="the closed loop's hole detector")
     hole_ends: Literal["as_modelled", "drilled", "milled"] = choice(

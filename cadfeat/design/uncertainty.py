@@ -29,11 +29,12 @@ from typing import Any
 import numpy as np
 
 from cadfeat.cell import Cell, triple
+from cadfeat.cell import defaults as D
 from cadfeat.errors import CadfeatError
 
 __all__ = ["CELL_KINDS", "KINDS", "NOMINAL_NOISE_GREY", "SAMPLINGS", "Draws", "Uncertainty", "draws", "rigid"]
 
-NOMINAL_NOISE_GREY = 2.0
+NOMINAL_NOISE_GREY = D.NOISE_SIGMA_GREY
 """The default cell's sensor noise σ (grey levels; ``cadfeat.cell.Cell.noise_sigma_grey``)."""
 SAMPLINGS = ("sobol", "lhs")
 KINDS = ("camera", "placement", "path", "pixel_noise", "manufacturing")
@@ -48,13 +49,13 @@ Triple = tuple[float, float, float]
 class Uncertainty:
     """Tolerances of the cell and the shop (module docstring; defaults: the study's ``[robustness]``)."""
 
-    camera_position_mm: Triple = (2.0, 2.0, 2.0)
-    camera_angle_deg: Triple = (1.0, 1.0, 1.0)
-    placement_position_mm: Triple = (0.5, 0.5, 0.5)
-    placement_angle_deg: Triple = (0.5, 0.5, 0.5)
+    camera_position_mm: Triple = (D.CAMERA_POSITION_MM,) * 3
+    camera_angle_deg: Triple = (D.CAMERA_ANGLE_DEG,) * 3
+    placement_position_mm: Triple = (D.PLACEMENT_POSITION_MM,) * 3
+    placement_angle_deg: Triple = (D.PLACEMENT_ANGLE_DEG,) * 3
     path_offset_mm: Triple = (0.5, 0.5, 0.5)
     time_scale_percent: float = 10.0
-    pixel_noise_grey: float = 1.0
+    pixel_noise_grey: float = D.NOISE_SPREAD_GREY
     position_tol_mm: float = 0.1
     diameter_tol_mm: float = 0.1
     distribution: str = "uniform"

@@ -55,6 +55,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cadfeat.camera import Camera
+from cadfeat.cell import defaults as D
 from cadfeat.errors import CadfeatError
 
 __all__ = ["PoseInformation", "direction_words", "pose_information"]
@@ -175,7 +176,7 @@ def direction_words(v: np.ndarray) -> str:
 def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, normals: ArrayLike,
                      radii_mm: ArrayLike, *, sigma_px: float | ArrayLike | None = None, detection: bool = True,
                      occlusion: ArrayLike | None = None, depth_ratio: ArrayLike | None = None,
-                     kinds: Any = None, through: ArrayLike | None = None, noise_grey: float = 2.0,
+                     kinds: Any = None, through: ArrayLike | None = None, noise_grey: float = D.NOISE_SIGMA_GREY,
                      offsets: bool = True, rotation_length_mm: float = 50.0,
                      prior_sigma: tuple[float, float] | None = None, offset_px: ArrayLike | None = None,
                      model: Any = None) -> PoseInformation:

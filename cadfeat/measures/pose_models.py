@@ -100,6 +100,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from cadfeat.camera import Camera
+from cadfeat.cell import defaults as D
 from cadfeat.measures.ellipse import hole_ellipse
 from cadfeat.measures.focus import defocus_diameter_px
 from cadfeat.measures.fov import image_margin_from_ellipse
@@ -350,9 +351,9 @@ class PoseModels:
     w_g_px: float = 0.3
     #: association (module docstring): the closed loop's gate and the σ per axis of the part's placement error —
     #: the cell's (``for_cell``: ``[cell] gate_px`` and σ = 0.4 t of its placement tolerance; not fitted)
-    gate_px: float = 10.0
-    placement_mm: float = 0.2
-    placement_deg: float = 0.2
+    gate_px: float = D.GATE_PX
+    placement_mm: float = D.PLACEMENT_SIGMA_MM
+    placement_deg: float = D.PLACEMENT_SIGMA_DEG
     source: str = "defaults (not calibrated)"
 
     def detection_probability(self, geo: HoleGeometry, occlusion: np.ndarray) -> np.ndarray:
@@ -378,7 +379,7 @@ class PoseModels:
         return -np.expm1(-gate ** 2 / (2.0 * np.maximum(var, 1e-12)))
 
     def measurement_model(self, geo: HoleGeometry, *, depth_ratio: Any = None, kinds: Any = None,
-                          through: Any = None, noise_grey: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+                          through: Any = None, noise_grey: float = D.NOISE_SIGMA_GREY) -> tuple[np.ndarray, np.ndarray]:
         """Centre noise σ (L, N) px and systematic offset b (L, N, 2) px (module docstring)."""
         rho = np.maximum(geo.rim_px, 1.0)
         edge = self.k_sigma * (noise_grey / 2.0) * np.sqrt(self.w0_px ** 2 + geo.blur_px ** 2)

@@ -32,6 +32,7 @@ import numpy as np
 from cadfeat.cad.export import mesh_from_shape
 from cadfeat.cad.features import holes_to_arrays
 from cadfeat.camera import Camera
+from cadfeat.cell import defaults as D
 from cadfeat.measures import hole_ellipse
 from cadfeat.measures.ellipse import Ellipse as _E
 from cadfeat.measures.pose_models import RIM_GAP_MIN_PX as _RIM_GAP_MIN_PX
@@ -84,14 +85,14 @@ class TrackingConfig:
     settle_frames: int = 5
     converged_mm: float = 2.0
     converged_deg: float = 1.0
-    gate_px: float = 10.0
+    gate_px: float = D.GATE_PX
     rim_model: bool = True
     seed: int = 0
     alpha: float = 0.05
     min_change: float = 0.05
-    placement_mm: float | tuple[float, ...] = 0.2
-    placement_deg: float | tuple[float, ...] = 0.2
-    gain_sigma: float = 0.05
+    placement_mm: float | tuple[float, ...] = D.PLACEMENT_SIGMA_MM
+    placement_deg: float | tuple[float, ...] = D.PLACEMENT_SIGMA_DEG
+    gain_sigma: float = D.GAIN_SIGMA
     detector: str = "cadfeat"
 
     def with_changes(self, **changes: Any) -> TrackingConfig:

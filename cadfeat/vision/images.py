@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cadfeat.camera import Camera
+from cadfeat.cell import defaults as D
 from cadfeat.measures import image_jacobian
 from cadfeat.measures.focus import defocus_diameter_px
 
@@ -43,7 +44,7 @@ class SensorModel:
     """Sensor effects: ``noise_grey`` σ of additive Gaussian noise (grey levels, 8-bit scale), ``defocus``
     (thin-lens blur on/off), ``exposure_s`` (0 = no motion blur), ``blur_scale`` multiplies both blurs."""
 
-    noise_grey: float = 2.0
+    noise_grey: float = D.NOISE_SIGMA_GREY
     defocus: bool = True
     exposure_s: float = 0.0
     blur_scale: float = 1.0

@@ -29,7 +29,7 @@ def test_each_number_says_whether_it_is_a_bound_or_a_sigma():
     schema = Cell.model_json_schema()["properties"]
     assert schema["placement_position_mm"]["x-statistic"] == "bound"
     assert schema["noise_sigma_grey"]["x-statistic"] == "sigma"
-    with pytest.raises(CadfeatError, match=r"cell\.detector: 'hough' is not allowed; allowed: cadfeat, edcircles, blob"):
+    with pytest.raises(CadfeatError, match=r"cell\.detector: 'hough' is not allowed; allowed: cadfeat, edcircles"):
         Cell(detector="hough")
 
 
@@ -126,3 +126,27 @@ def test_the_study_cell_reaches_the_closed_loop(celled):
     inside = (t <= 2.0).mean()
     p = 2 * norm.cdf(2.5) - 1
     assert inside == pytest.approx(p, abs=4 * np.sqrt(p * (1 - p) / t.size))
+
+
+def test_the_lower_layers_default_to_the_default_cell():
+    """Each lower layer's default is the default cell's number (``cadfeat.cell.defaults``, declared once): the
+    closed loop's, g_POSE's models', the robust draws' and ``pose_information``'s."""
+    import inspect
+
+    from cadfeat.design.uncertainty import Uncertainty
+    from cadfeat.measures import pose_information
+    from cadfeat.measures.pose_models import PoseModels
+    from cadfeat.study.settings import RobustnessSettings, TrackingSettings
+    from cadfeat.study.tracking import tracking_config
+    from cadfeat.vision.closed_loop import TrackingConfig
+    from cadfeat.vision.images import SensorModel
+
+    cell = Cell()
+    tc = TrackingConfig()
+    assert SensorModel().noise_grey == cell.noise_sigma_grey
+    assert (tc.gate_px, tc.gain_sigma, (tc.placement_mm, tc.placement_deg), tc.detector) == \
+        (cell.gate_px, cell.gain_sigma, cell.placement_sigma(), cell.detector)
+    assert tracking_config(TrackingSettings()) == tracking_config(TrackingSettings(), cell)
+    assert PoseModels().for_cell(cell) == PoseModels()
+    assert Uncertainty() == Uncertainty.from_settings(RobustnessSettings(), cell)
+    assert inspect.signature(pose_information).parameters["noise_grey"].default == cell.noise_sigma_grey
