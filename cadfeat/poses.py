@@ -49,6 +49,12 @@ def invert_T(T: ArrayLike) -> np.ndarray:
     return make_T(Rt, -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3]))
 
 
+def cam_from_part(T_task_cam: ArrayLike, T_task_part: ArrayLike) -> np.ndarray:
+    """``T_cam_part = inv(T_task_cam) @ T_task_part`` (..., 4, 4): the part in the camera frame at each camera pose of
+    a trajectory (``T_task_cam``, the camera in the task frame) with the part placed at ``T_task_part`` (mm)."""
+    return invert_T(T_task_cam) @ np.asarray(T_task_part, dtype=float)
+
+
 def transform_points(T: ArrayLike, p: ArrayLike) -> np.ndarray:
     """``R p + t`` for transforms (..., 4, 4) and points (..., 3) broadcast against each other, mm."""
     T = np.asarray(T, dtype=float)
@@ -151,7 +157,10 @@ def hat(w: ArrayLike) -> np.ndarray:
     return W
 
 
-def _rotvec_to_matrix(w: np.ndarray) -> np.ndarray:
+def rotvec_matrix(w: ArrayLike) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of rotation vectors w (..., 3) rad (scipy's Rotation: exact for small angles,
+    unlike ``cv2.Rodrigues`` — DESIGN.md pitfalls)."""
+    w = np.asarray(w, dtype=float)
     return Rotation.from_rotvec(w.reshape(-1, 3)).as_matrix().reshape(w.shape[:-1] + (3, 3))
 
 
@@ -181,7 +190,7 @@ def se3_exp(xi: ArrayLike) -> np.ndarray:
     v, w = xi[..., :3], xi[..., 3:]
     B, C = _v_coefficients(np.linalg.norm(w, axis=-1))
     t = v + B[..., None] * np.cross(w, v) + C[..., None] * np.cross(w, np.cross(w, v))
-    return make_T(_rotvec_to_matrix(w), t)
+    return make_T(rotvec_matrix(w), t)
 
 
 def se3_log(T: ArrayLike) -> np.ndarray:

@@ -205,3 +205,22 @@ def test_look_at_screws_match_finite_differences():
     # log(T(t−h)⁻¹ T(t+h)) / 2h is the body twist at t up to O(h²) (Magnus expansion)
     screws = look_at_screws(eye(t), target(t), eye_dot(t), target_dot(t), up)
     np.testing.assert_allclose(screws, fd, rtol=1e-5, atol=1e-4)
+
+
+def test_cam_from_part_is_the_camera_frame_of_the_part_and_is_the_only_one():
+    """``poses.cam_from_part`` maps part points into the camera frame (against ``np.linalg.inv``), and no module
+    of the package writes ``inv(T_task_cam) @ T_task_part`` again (DESIGN.md: the cell's frames declared once)."""
+    import re
+    from pathlib import Path
+
+    from cadfeat.poses import cam_from_part, look_at
+
+    T_task_cam = np.stack([look_at([100.0, -50.0, 300.0 + k], [0.0, 0.0, 0.0]) for k in range(3)])
+    T_task_part = look_at([5.0, 2.0, -3.0], [10.0, 0.0, 50.0])
+    p = np.array([3.0, -4.0, 5.0, 1.0])
+    expected = np.linalg.inv(T_task_cam) @ (T_task_part @ p)
+    np.testing.assert_allclose(cam_from_part(T_task_cam, T_task_part) @ p, expected, atol=1e-9)
+    root = Path(__file__).resolve().parent.parent / "cadfeat"
+    again = [str(f) for f in root.rglob("*.py") if f.name != "poses.py"
+             and re.search(r"(inv|invert_T)\([^()]*T_task_cam[^()]*\)\)? @ [\w.]*T_task_part", f.read_text())]
+    assert not again, f"inv(T_task_cam) @ T_task_part written again in {again}: use poses.cam_from_part"

@@ -40,7 +40,7 @@ from cadfeat.errors import CadfeatError
 from cadfeat.measures.depth import DepthMaps
 from cadfeat.measures.jacobian import diagnostics_from_gram
 from cadfeat.measures.resolvability import resolvability_from_parts, scale_jacobian, scale_screws
-from cadfeat.poses import invert_T
+from cadfeat.poses import cam_from_part
 
 __all__ = ["Problem"]
 
@@ -115,7 +115,7 @@ class Problem:
             self.feature_mask = np.asarray(feature_mask, dtype=bool)
         else:
             self.feature_mask = ~self.fixed_mask if (~self.fixed_mask).any() else None
-        self.T_cam_part = invert_T(np.asarray(trajectory.T_task_cam, dtype=float)) @ self.T_task_part
+        self.T_cam_part = cam_from_part(trajectory.T_task_cam, self.T_task_part)
         self.screws = np.asarray(trajectory.velocity_screws(), dtype=float)
         # the volume requirement is relative to the part as it is (the start): its radii, not the map's anchor's
 

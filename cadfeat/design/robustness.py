@@ -29,23 +29,13 @@ from typing import Any
 import numpy as np
 
 from cadfeat.design.uncertainty import Draws
+from cadfeat.poses import rotvec_matrix
 
 __all__ = ["RAZOR_KEEP", "camera_objectives", "cell_objectives", "cell_poses", "robustness", "shop_features",
            "shop_objectives"]
 
 RAZOR_KEEP = 0.5
 """Share of the combined objective's gain the 5th percentile must keep under a perturbation."""
-
-
-def _rotvec_to_R(w: np.ndarray) -> np.ndarray:
-    """(S, 3) rotation vectors (rad) → (S, 3, 3) rotation matrices (Rodrigues)."""
-    theta = np.linalg.norm(w, axis=-1, keepdims=True)
-    k = np.where(theta > 0, w / np.where(theta > 0, theta, 1.0), 0.0)
-    K = np.zeros(w.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -k[..., 2], k[..., 1], -k[..., 0]
-    K = K - np.swapaxes(K, -1, -2)
-    t = theta[..., None]
-    return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * (K @ K)
 
 
 def _across(axes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -206,7 +196,7 @@ def robustness(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.nd
     G_man = problem.batch_objectives(C, np.broadcast_to(a, C.shape), Rr)
     # camera mount
     dT = np.tile(np.eye(4), (samples, 1, 1))
-    dT[:, :3, :3] = _rotvec_to_R(np.radians(rng.uniform(-cam_deg, cam_deg, (samples, 3))))
+    dT[:, :3, :3] = rotvec_matrix(np.radians(rng.uniform(-cam_deg, cam_deg, (samples, 3))))
     dT[:, :3, 3] = rng.uniform(-cam_mm, cam_mm, (samples, 3))
     G_cam = camera_objectives(problem, c, a, r, dT)
     for key, G in (("manufacturing", G_man), ("camera", G_cam)):

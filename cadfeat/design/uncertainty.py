@@ -31,6 +31,7 @@ import numpy as np
 from cadfeat.cell import Cell, triple
 from cadfeat.cell import defaults as D
 from cadfeat.errors import CadfeatError
+from cadfeat.poses import rotvec_matrix
 
 __all__ = ["CELL_KINDS", "KINDS", "NOMINAL_NOISE_GREY", "SAMPLINGS", "Draws", "Uncertainty", "draws", "rigid"]
 
@@ -79,12 +80,10 @@ class Uncertainty:
 def rigid(rotvec_rad: np.ndarray, translation_mm: np.ndarray) -> np.ndarray:
     """(S, 4, 4) rigid transforms of rotation vectors (S, 3) rad and translations (S, 3) mm (scipy Rotation:
     exact for small angles, DESIGN.md pitfalls)."""
-    from scipy.spatial.transform import Rotation
-
     S = len(rotvec_rad)
     T = np.tile(np.eye(4), (S, 1, 1))
     if S:
-        T[:, :3, :3] = Rotation.from_rotvec(np.asarray(rotvec_rad, float)).as_matrix()
+        T[:, :3, :3] = rotvec_matrix(rotvec_rad)
     T[:, :3, 3] = translation_mm
     return T
 

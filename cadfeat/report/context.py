@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from cadfeat.poses import cam_from_part
 from cadfeat.results import Measures, Results, present, section
 
 
@@ -47,12 +48,11 @@ class ReportContext:
         return sorted({min(max(int(i) + (n if int(i) < 0 else 0), 0), n - 1) for i in chosen})
 
     def T_cam_part(self, indices: Sequence[int]) -> np.ndarray:
-        """(K, 4, 4) part-to-camera transforms at the given samples: ``inv(T_task_cam) @ T_task_part``."""
-        from cadfeat.poses import invert_T  # lazy: would import scipy.spatial at module load
+        """(K, 4, 4) part-to-camera transforms at the given samples (``poses.cam_from_part``)."""
 
         T_task_part = np.eye(4) if self.T_task_part is None else np.asarray(self.T_task_part, dtype=float)
         T_task_cam = np.asarray(self.trajectory.T_task_cam, dtype=float)[list(indices)]
-        return invert_T(T_task_cam) @ T_task_part
+        return cam_from_part(T_task_cam, T_task_part)
 
 
 #: Most camera views per design (one per distinct worst pose, in hole order).

@@ -26,6 +26,7 @@ from cadfeat.design.patterns import check_patterns, find_patterns
 from cadfeat.design.robustness import robustness
 from cadfeat.design.shop import hole_sizes, refine_on_rebuild, shop_design
 from cadfeat.errors import CadfeatError
+from cadfeat.poses import cam_from_part
 from cadfeat.study import closed_loop_check
 from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
 from cadfeat.study.outputs import (
@@ -77,7 +78,7 @@ def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Trajecto
     o = setup.config.objective
     if mesh is None:
         mesh = getattr(getattr(setup, "problem", None), "occlusion_mesh", None)
-    T_cam_part = np.linalg.inv(np.asarray(traj.T_task_cam)) @ setup.T_task_part
+    T_cam_part = cam_from_part(traj.T_task_cam, setup.T_task_part)
     c, a, r = holes_to_arrays(list(holes))
     return measures.evaluate(setup.camera, T_cam_part, traj.velocity_screws(), c, a, r, min_axis_px=o.min_axis_px,
                              rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)

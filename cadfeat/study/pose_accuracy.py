@@ -35,6 +35,7 @@ from cadfeat.cad.features import holes_to_arrays
 from cadfeat.cell import Cell
 from cadfeat.design.pose_terms import cell_models, hole_kinds
 from cadfeat.measures.raycache import cache_rays
+from cadfeat.poses import cam_from_part
 
 __all__ = ["PHASES", "design_pose_accuracy", "help_most", "pose_accuracy", "predict", "with_pose"]
 
@@ -261,7 +262,7 @@ def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, set
     }
     designs = [("before", base, holes0, mesh0)] + ([("after", setup, holes1, mesh1)] if holes1 is not None else [])
     for key, s, holes, mesh in designs:
-        T = np.linalg.inv(np.asarray(s.trajectory.T_task_cam)) @ s.T_task_part
+        T = cam_from_part(s.trajectory.T_task_cam, s.T_task_part)
         out[key] = design_pose_accuracy(s.camera, T, np.asarray(s.trajectory.times_s, float), holes,
                                         hole_names(list(holes)), movable, mesh, tuning, ell, config.cell)
     return out
@@ -290,7 +291,7 @@ def with_pose(setup: Any, holes: Sequence[Any], trajectory: Any, measures: Any, 
     """``measures`` of ``holes`` along ``trajectory`` with their ``PoseInformation`` attached as ``pose``: the
     exact rim test against ``mesh`` (default the set-up's part mesh, as
     ``Problem.features_objectives(exact_occlusion=True)``)."""
-    T = np.linalg.inv(np.asarray(trajectory.T_task_cam)) @ setup.T_task_part
+    T = cam_from_part(trajectory.T_task_cam, setup.T_task_part)
     mesh = mesh if mesh is not None else getattr(setup.problem, "occlusion_mesh", None)
     info, _ = predict(setup.camera, T, holes, mesh, float(setup.config.objective.pose_rotation_length_mm),
                       cell=setup.config.cell)

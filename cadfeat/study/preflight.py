@@ -31,6 +31,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from cadfeat.camera import MIN_DEPTH_MM, PRESETS
+from cadfeat.poses import cam_from_part
 from cadfeat.study.schema import StudyError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -139,7 +140,7 @@ def preflight(config: StudyConfig, camera: Camera, trajectory: Trajectory, T_tas
     _check_field_of_view(label, camera, out)                                     # 1. plausible field of view
     pts = np.asarray(part_points, float).reshape(-1, 3)
     T_task_cam = np.asarray(trajectory.T_task_cam, float)
-    T_cam_part = np.linalg.inv(T_task_cam) @ T_task_part
+    T_cam_part = cam_from_part(T_task_cam, T_task_part)
     _check_units(label, pts, T_cam_part, out)                                    # 2. mm, not m
     _check_in_image(config, camera, pts, T_task_cam, T_task_part, T_cam_part, out)  # 3. in front, in the image
     hidden_warning = check_visibility(measures, label, scored, names)             # 4. scored holes seen somewhere
@@ -194,7 +195,7 @@ def _check_in_image(config: StudyConfig, camera: Camera, pts: np.ndarray, T_task
         return
     P = np.einsum("lij,vj->lvi", T_cam_part[:, :3, :3], pts) + T_cam_part[:, None, :3, 3]
     kind = str(config.trajectory.table.get("kind", "csv"))
-    w_share = _share(camera, np.linalg.inv(_w_first(T_task_cam)) @ T_task_part, pts) if kind == "csv" else 0.0
+    w_share = _share(camera, cam_from_part(_w_first(T_task_cam), T_task_part), pts) if kind == "csv" else 0.0
     where = f"the part is in the image at {100 * share:.0f}% of the {len(T_cam_part)} poses (need ≥ " \
             f"{100 * MIN_POSE_SHARE:.0f}%)"
     if w_share >= max(MIN_POSE_SHARE, 2 * share):

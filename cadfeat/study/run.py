@@ -40,6 +40,7 @@ from cadfeat.cad.sandbox import start_workers
 from cadfeat.cad.step_parts import load_step
 from cadfeat.design.objectives import objective_values
 from cadfeat.errors import CadfeatError
+from cadfeat.poses import cam_from_part
 from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
 from cadfeat.results import StudyResults
@@ -200,7 +201,7 @@ def preflight_study(path_or_dict: StudySource | StudyConfig, time_limit_s: float
     shape, holes, _, names = _current_design(config, time_limit_s)
     mesh = occlusion_mesh(config, shape)
     o = config.objective
-    T_cam_part = np.linalg.inv(np.asarray(traj.T_task_cam)) @ T_task_part
+    T_cam_part = cam_from_part(traj.T_task_cam, T_task_part)
     m = measures.evaluate(camera, T_cam_part, traj.velocity_screws(), *holes_to_arrays(list(holes)),
                           min_axis_px=o.min_axis_px, rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
     return preflight(config, camera, traj, T_task_part, part_points(shape, mesh), m, np.ones(len(holes), bool),

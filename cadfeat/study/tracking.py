@@ -25,7 +25,7 @@ from cadfeat.cad.features.identity import named
 from cadfeat.cad.parts import load_part
 from cadfeat.cell import Cell
 from cadfeat.errors import CadfeatError
-from cadfeat.poses import invert_T
+from cadfeat.poses import cam_from_part
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 from cadfeat.study.setup import camera_direction, load_scene
 from cadfeat.vision import FilterTuning, SensorModel
@@ -75,7 +75,7 @@ def tracking_config(spec: TrackingSpec, cell: Cell | None = None) -> TrackingCon
 
 def _scene(config: StudyConfig) -> tuple[Camera, np.ndarray, np.ndarray, np.ndarray]:
     camera, traj, T_task_part = load_scene(config)
-    return camera, invert_T(traj.T_task_cam) @ T_task_part, np.asarray(traj.times_s), traj.velocity_screws()
+    return camera, cam_from_part(traj.T_task_cam, T_task_part), np.asarray(traj.times_s), traj.velocity_screws()
 
 
 def _check_frames(config: StudyConfig, spec: TrackingSpec, n_samples: int) -> None:

@@ -13,7 +13,8 @@ import pytest
 from study_helpers import plate_study
 
 from cadfeat.design.problem import Problem
-from cadfeat.design.robustness import _rotvec_to_R, camera_objectives, robustness
+from cadfeat.design.robustness import camera_objectives, robustness
+from cadfeat.poses import rotvec_matrix
 from cadfeat.study.schema import load_study
 from cadfeat.study.setup import setup_study
 from cadfeat.trajectory import Trajectory
@@ -32,7 +33,7 @@ def test_camera_mount_error_equals_a_rebuilt_problem(setup):
     p = setup.problem
     c, a, r = (np.asarray(v, float) for v in setup.model.features(setup.space.x0))
     dT = np.eye(4)
-    dT[:3, :3] = _rotvec_to_R(np.radians([[0.8, -0.5, 1.0]]))[0]
+    dT[:3, :3] = rotvec_matrix(np.radians([[0.8, -0.5, 1.0]]))[0]
     dT[:3, 3] = [1.5, -2.0, 0.7]
     G = camera_objectives(p, c, a, r, dT[None])[0]
     traj = Trajectory(np.asarray(setup.trajectory.T_task_cam) @ dT, setup.trajectory.times_s)
