@@ -129,3 +129,25 @@ def test_readme_layout_table_names_existing_paths():
     missing = {s for s in subpackages if not any(s == entry or s.startswith(entry + "/") or
                                                   s.split("/")[-1] + "/" in row for entry in listed for row in rows)}
     assert not missing, f"README layout table misses {sorted(missing)}"
+
+
+def _floor(module: str) -> str:
+    """The sub-package a module belongs to (``cadfeat.cad.features.identity`` → ``cadfeat.cad``); a module at the
+    package root is its own floor (``cadfeat.camera``)."""
+    parts = module.split(".")
+    return ".".join(parts[:2])
+
+
+def test_no_import_circle_among_sub_packages():
+    """The floors of the layout (DESIGN.md "Layout") import downwards only: no loop between sub-packages (or root
+    modules), counting lazy imports — an arrow up a floor (e.g. cad importing study) makes one."""
+    graph: dict[str, set[str]] = {}
+    for module, targets in _graph().items():
+        if module == "cadfeat":
+            continue  # the package's own __init__ re-exports the public names of every floor
+        src = _floor(module)
+        graph.setdefault(src, set()).update(_floor(t) for t in targets if t != "cadfeat" and _floor(t) != src)
+    for node in list(graph.values()):
+        for t in node:
+            graph.setdefault(t, set())
+    assert _cycle(graph) is None, f"import loop between sub-packages: {' -> '.join(_cycle(graph) or [])}"

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cadfeat.cad.features import holes_to_arrays, match_holes
-from cadfeat.design.outline_motion import outline_rates
+from cadfeat.cad.outline_motion import outline_rates
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -55,7 +55,7 @@ class DesignMap:
     ``linear_by``: parameter → whether the map is linear in it (checked at ``check_steps``), ``linear``:
     all of them; ``deviation_mm``: parameter → the largest deviation from the linear prediction at the
     check step; ``n_builds``: CAD builds spent; ``outline_rates``: per hole, how its host face's outline moves
-    with the parameters (``cadfeat.design.outline_motion.OutlineRates``, None where it cannot be paired);
+    with the parameters (``cadfeat.cad.outline_motion.OutlineRates``, None where it cannot be paired);
     ``dD`` (N, P) ∂depth/∂parameter and ``dB`` (N, P) ∂bore radius/∂parameter (mm per unit; None: not read).
     """
 

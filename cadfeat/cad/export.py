@@ -10,7 +10,7 @@ disk is what was designed (DESIGN.md, "Errors and bad input" and the STEP-units 
   and volume.
 - ``export_stl`` / ``mesh_from_shape`` / ``check_stl`` tessellate with an ABSOLUTE chord tolerance in mm
   and check the mesh (watertight, consistent winding, volume within the tessellation bound).
-- ``staged_output`` (``cadfeat.study.output_folder``; the name here is kept for older code) writes into a
+- ``staged_output`` (``cadfeat.output_folder``, the root floor: cad and study both write output folders) writes into a
   temporary folder beside the destination and moves it into place only when everything succeeded, so a
   failed or interrupted run never leaves a half-written STEP; it replaces only folders cadfeat created.
 
@@ -31,9 +31,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cadfeat.cad.features import extract_holes, holes_to_arrays, match_holes
-from cadfeat.cad.output_folder import staged_output  # moved to cadfeat.study.output_folder
 from cadfeat.cad.tolerance import LINEAR_FLOOR_MM, ModelTolerance
 from cadfeat.errors import CadfeatError
+from cadfeat.output_folder import staged_output
 
 if TYPE_CHECKING:  # pragma: no cover
     import cadquery as cq

@@ -37,7 +37,7 @@ from cadfeat.campaign.plan import Campaign, Case, load_campaign
 from cadfeat.campaign.store import CampaignStore
 from cadfeat.campaign.summary import write_csv, write_summary
 from cadfeat.campaign.task import EVENT_TOPIC, run_case
-from cadfeat.study.output_folder import pid_alive
+from cadfeat.output_folder import pid_alive
 
 __all__ = ["EXPORTS_DIR", "CampaignResult", "local_cluster", "run_campaign"]
 

@@ -112,7 +112,7 @@ class CampaignStore:
 
     def remove_stale_staging(self) -> list[Path]:
         """Staging folders of studies whose worker was killed (the study layer's own rule: owner pid gone)."""
-        from cadfeat.cad.output_folder import remove_stale_staging  # lazy: its package loads it on first use
+        from cadfeat.output_folder import remove_stale_staging  # lazy: its package loads it on first use
 
         return remove_stale_staging(self.cases_dir)
 

@@ -18,8 +18,8 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
 
 def report(args: argparse.Namespace) -> int:
     """Write report.html (plots and tables; no renders: those need the study's shapes) from a results.json."""
+    from cadfeat.output_folder import REPORT_NAMES, staged_output
     from cadfeat.report import read_results, write_report  # lazy: keeps `cadfeat --help` fast
-    from cadfeat.study.output_folder import REPORT_NAMES, staged_output
 
     results_path = Path(args.results)
     results = read_results(results_path)

@@ -184,7 +184,7 @@ class LinearFeatureModel:
     ``c(x) = centres0 + dC @ (x - x0)`` with ``dC`` (N,3,P) mm per unit, ``r(x) = radii0 + dR @ (x - x0)``
     (N,P); axes ``a0 + dA @ (x - x0)`` normalised (``dA`` (N,3,P), default zero: constant axes).
     ``holes`` are the reference holes at ``x0`` (outlines for the constraints); ``outline_rates``: per hole, how
-    its host face's outline moves with x (``cadfeat.design.outline_motion.OutlineRates`` or None: fixed);
+    its host face's outline moves with x (``cadfeat.cad.outline_motion.OutlineRates`` or None: fixed);
     ``dD``, ``dB`` (N,P): ∂depth/∂x and ∂bore radius/∂x (mm per unit; None: the holes' own depth and bore at
     every x) — ``depths_batch`` and ``bores_batch`` (issue 17: depth and rim chamfer as design variables).
     """

@@ -73,8 +73,8 @@ def track_design(study: StudySource, values: Mapping[str, float] | None = None, 
     ``tracking``: ``[tracking]`` keys overriding either (e.g. ``runs=16, seed=11``); ``out_dir``: a folder the drawn
     frames go into, under ``tracking/`` (None: none written; a non-empty folder cadfeat did not create is refused,
     as by ``cadfeat run``). Returns the results.json ``tracking`` section (as results.json writes it)."""
+    from cadfeat.output_folder import check_output_folder, staged_output
     from cadfeat.study.closed_loop_check import fast_spec
-    from cadfeat.study.output_folder import check_output_folder, staged_output
     from cadfeat.study.outputs import plain
     from cadfeat.study.tracking import run_tracking
 

@@ -40,12 +40,12 @@ from cadfeat.cad.sandbox import start_workers
 from cadfeat.cad.step_parts import load_step
 from cadfeat.design.objectives import objective_values
 from cadfeat.errors import CadfeatError
+from cadfeat.output_folder import staged_output
 from cadfeat.poses import cam_from_part
 from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
 from cadfeat.results import StudyResults
 from cadfeat.study import closed_loop_check
-from cadfeat.study.output_folder import staged_output
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
     file_entry,
@@ -172,7 +172,7 @@ def run_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | Non
     report. ``seed`` overrides the study's seeds. Raises ``CadfeatError`` (nothing written) on bad input or a
     failed verification; ``KeyboardInterrupt`` before the optimiser found a design also writes nothing.
 
-    The output folder is checked before any work (``cadfeat.study.output_folder``): a non-empty folder cadfeat
+    The output folder is checked before any work (``cadfeat.output_folder``): a non-empty folder cadfeat
     did not create is refused unless ``force`` (then cadfeat's files are added, other files untouched).
     ``track``: the closed-loop check's mode, fast | full | off (default: the study's; ``study.closed_loop_check``).
     Every part-script import and CAD build runs in a worker process within ``[study] build_timeout_s``.

@@ -401,7 +401,7 @@ def _dead_pid() -> int:
 
 
 def test_only_cadfeats_own_staging_of_dead_runs_is_removed(tmp_path):
-    from cadfeat.study.output_folder import remove_stale_staging
+    from cadfeat.output_folder import remove_stale_staging
 
     dead = _dead_pid()
     gone = _fake_staging(tmp_path, f".out.staging-{dead}-0123abcd", dead)
@@ -433,7 +433,7 @@ def test_concurrent_runs_into_one_folder_end_in_one_complete_result(tmp_path):
     files and a manifest listing them), the other writer gets a one-line error or replaced it, no staging left."""
     import threading
 
-    from cadfeat.study.output_folder import OutputFolderError, is_cadfeat_folder, staged_output
+    from cadfeat.output_folder import OutputFolderError, is_cadfeat_folder, staged_output
 
     out = tmp_path / "out"
     barrier = threading.Barrier(2)
@@ -464,7 +464,7 @@ def test_concurrent_runs_into_one_folder_end_in_one_complete_result(tmp_path):
 def test_output_folder_of_an_older_cadfeat_counts_as_cadfeats(tmp_path):
     """A folder written before manifests existed (only cadfeat's names, a results.json naming cadfeat_version) is
     cadfeat's; one more file of the user's, or a results.json of someone else, and it is not."""
-    from cadfeat.study.output_folder import is_cadfeat_folder
+    from cadfeat.output_folder import is_cadfeat_folder
 
     old = tmp_path / "old"
     old.mkdir()

@@ -215,7 +215,7 @@ def test_failed_verification_leaves_previous_output(tmp_path, monkeypatch):
     from cadfeat.cad.export import ExportError
 
     no_report(monkeypatch)
-    from cadfeat.study.output_folder import staged_output
+    from cadfeat.output_folder import staged_output
 
     out = tmp_path / "out"
     with staged_output(out) as stage:  # the previous output: a folder cadfeat made

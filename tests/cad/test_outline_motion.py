@@ -1,4 +1,4 @@
-"""Host-face outlines that move with the design (cadfeat.design.outline_motion, issue 16 item 2).
+"""Host-face outlines that move with the design (cadfeat.cad.outline_motion, issue 16 item 2).
 
 Reference: the 2-D edge/keep-out margins of the holes and outlines of a REAL CAD rebuild at each design (the
 thesis cube, whose plates and tunnel grow with d), against the margins predicted from the map at d = 4 mm."""
