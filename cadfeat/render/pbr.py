@@ -44,8 +44,14 @@ import numpy as np
 from cadfeat.cell.light import Light
 from cadfeat.cell.material import Material, bsdf_dict
 from cadfeat.render.camera_views import _distortion_maps, _padding, near_far_mm
-from cadfeat.render.pbr_scene import emitter_mesh_ply, light_dicts, part_mesh_arrays, sensor_dict, use_variant, \
-    write_ply
+from cadfeat.render.pbr_scene import (
+    emitter_mesh_ply,
+    light_dicts,
+    part_mesh_arrays,
+    sensor_dict,
+    use_variant,
+    write_ply,
+)
 from cadfeat.render.scene import RenderError
 from cadfeat.render.sensor import Sensor, expose
 

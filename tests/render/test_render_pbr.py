@@ -1,0 +1,146 @@
+"""Physically based camera images (``render.pbr.PbrRenderer``, Mitsuba 3) against independent geometry.
+
+References: ``Camera.project`` (the OpenCV model, cross-checked with ``cv2.projectPoints``) for points, and
+``measures.hole_ellipse`` for a hole's rim; the camera has fx ≠ fy, an off-centre principal point and lens
+distortion, so each of the renderer's steps (fov, principal point's half-pixel shift, the row resampling, the
+distortion remap) shows as a shift if it is wrong.
+
+- Thin dark discs parallel to the image plane against the uniform dome (the background reads exactly the dome's
+  radiance): the pinhole image of each is a circle centred on its centre's projection, so the centroid of
+  (background − image) — pixels integrate over their area (box filter) — lands on ``Camera.project`` of its
+  centre (distortion adds ≲ 0.01 px over a 6 px disc).
+- A deep blind hole seen at ~30° under a spot light behind the camera: a matt face, a darker far wall (cosine
+  law), the floor hidden; edge points where each ray from the predicted centre crosses the level midway between
+  the face and the bore, an ellipse fitted to them (``cv2.fitEllipse``).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+pytest.importorskip("mitsuba")
+cq = pytest.importorskip("cadquery")
+
+from cadfeat.camera import Camera  # noqa: E402
+from cadfeat.cell.light import Light  # noqa: E402
+from cadfeat.cell.material import Material  # noqa: E402
+from cadfeat.measures import hole_ellipse  # noqa: E402
+from cadfeat.poses import invert_T, look_at  # noqa: E402
+from cadfeat.render import CameraRenderer, RenderError, camera_renderer  # noqa: E402
+from cadfeat.render.pbr import PbrRenderer, row_resampling  # noqa: E402
+
+CAMERA = Camera(fx=400.0, fy=430.0, cx=81.3, cy=62.7, width=160, height=128, focus_distance_mm=100.0,
+                dist=(-0.12, 0.04, 0.001, -0.002, 0.0))
+DISC_CENTRES = np.array([[0.0, 0.0, 0.0], [12.0, 5.0, 0.0], [-10.0, -8.0, 0.0], [9.0, -9.0, 0.0]])
+DISC_RADIUS_MM = 1.5
+WINDOW_PX = 11
+
+
+def _discs() -> object:
+    """Thin discs (20 µm) facing +z at ``DISC_CENTRES``: their top faces' centres are the centres given."""
+    pts = [(float(x), float(y)) for x, y, _ in DISC_CENTRES]
+    return cq.Workplane("XY").workplane(offset=-0.02).pushPoints(pts).circle(DISC_RADIUS_MM).extrude(0.02).val()
+
+
+def _centroid(weights: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Weighted centroid (x, y) px of ``weights`` in a window of ±WINDOW_PX around ``at``."""
+    u0, v0 = (int(round(a)) for a in at)
+    win = weights[v0 - WINDOW_PX:v0 + WINDOW_PX + 1, u0 - WINDOW_PX:u0 + WINDOW_PX + 1].astype(float)
+    v, u = np.mgrid[v0 - WINDOW_PX:v0 + WINDOW_PX + 1, u0 - WINDOW_PX:u0 + WINDOW_PX + 1]
+    return np.array([(win * u).sum(), (win * v).sum()]) / win.sum()
+
+
+def test_projected_points_land_within_a_tenth_of_a_pixel():
+    T = invert_T(look_at(np.array([2.0, -1.5, 100.0]), np.array([2.0, -1.5, 0.0]), up=(0.3, 1.0, 0.0)))
+    light = Light(kind="dome", intensity=1.0)
+    with PbrRenderer(_discs(), [], CAMERA, light=light, material=Material(name="black_anodised"), spp=16) as r:
+        image = r.render(T)
+    assert image.shape == (CAMERA.height, CAMERA.width) and image.dtype == np.float32
+    centres_cam = DISC_CENTRES @ T[:3, :3].T + T[:3, 3]
+    expected = CAMERA.project(centres_cam)
+    rvec, _ = cv2.Rodrigues(np.eye(3))
+    cv_px, _ = cv2.projectPoints(centres_cam, rvec, np.zeros(3), CAMERA.K, CAMERA.dist_coeffs)
+    np.testing.assert_allclose(expected, cv_px.reshape(-1, 2), atol=1e-6)        # the reference is OpenCV's
+    background = np.median(image)
+    assert background == pytest.approx(1.0, abs=1e-3)                            # the dome seen directly
+    found = np.array([_centroid(background - image, p) for p in expected])
+    error = np.linalg.norm(found - expected, axis=1)
+    assert error.max() < 0.1, f"centroid errors {error} px"
+
+
+def test_fx_fy_and_the_principal_point_are_not_ignored():
+    """The same check fails by pixels when fy is taken equal to fx (the test can tell)."""
+    T = invert_T(look_at(np.array([2.0, -1.5, 100.0]), np.array([2.0, -1.5, 0.0]), up=(0.3, 1.0, 0.0)))
+    square = CAMERA.replace(fy=CAMERA.fx)
+    with PbrRenderer(_discs(), [], square, light=Light(kind="dome"), material=Material(name="black_anodised"),
+                     spp=4) as r:
+        image = r.render(T)
+    expected = CAMERA.project(DISC_CENTRES @ T[:3, :3].T + T[:3, 3])
+    found = np.array([_centroid(1.0 - image, p) for p in expected])
+    assert np.linalg.norm(found - expected, axis=1).max() > 1.0
+
+
+def _edge_points(image: np.ndarray, centre: np.ndarray, radius_px: float, rays: int = 120) -> np.ndarray:
+    """Where each ray from ``centre`` first crosses, going outward, the level midway between the bore (2 px inside
+    the edge) and the face (2 px outside), searched between 0.5 and 1.6 × ``radius_px`` (bilinear samples)."""
+    phi = np.linspace(0, 2 * np.pi, rays, endpoint=False)
+    s = np.arange(0.4 * radius_px, 1.8 * radius_px, 0.05)
+    d = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+    pts = centre[None, None, :] + s[None, :, None] * d[:, None, :]                 # (rays, S, 2)
+    prof = cv2.remap(image, pts[..., 0].astype(np.float32), pts[..., 1].astype(np.float32), cv2.INTER_LINEAR)
+    face = np.median(image)
+    step = int(round(2.0 / 0.05))
+    out = []
+    for k in range(rays):                                                          # loop over rays: a test helper
+        p = prof[k]
+        i = int(np.argmax(p > 0.5 * face + 0.5 * p[: len(p) // 3].mean()))      # first clearly-face sample
+        inner, outer = p[max(i - step, 0)], p[min(i + step, len(p) - 1)]
+        level = 0.5 * (inner + outer)
+        j = max(i - step, 0) + int(np.argmax(p[max(i - step, 0):] >= level))
+        t = (level - p[j - 1]) / (p[j] - p[j - 1])
+        out.append(centre + (s[j - 1] + t * 0.05) * d[k])
+    return np.array(out)
+
+
+def test_hole_rim_ellipse_centre_matches_hole_ellipse():
+    plate = cq.Workplane("XY").box(40, 40, 15).faces(">Z").workplane().hole(5.0, 12.0)
+    from cadfeat.cad.features import extract_holes
+
+    holes = extract_holes(plate)
+    eye = np.array([4.0, -45.0, 7.5 + 80.0])
+    T = invert_T(look_at(eye, np.array([1.0, 0.0, 7.5]), up=(0.0, 1.0, 0.0)))
+    behind = eye + 30.0 * (eye - np.array([1.0, 0.0, 7.5])) / np.linalg.norm(eye - np.array([1.0, 0.0, 7.5]))
+    light = Light(kind="spot", position_mm=tuple(behind), target_mm=(0.0, 0.0, 7.5), cutoff_deg=40.0,
+                  beam_deg=35.0)
+    with PbrRenderer(plate, holes, CAMERA, light=light, material=Material(name="grey_plastic"), spp=16) as r:
+        image = r.render(T)
+    h = holes[0]
+    predicted = hole_ellipse(CAMERA, T[:3, :3] @ h.centre + T[:3, 3], T[:3, :3] @ h.axis, h.radius_mm)
+    centre = np.asarray(predicted.centre_px)
+    edges = _edge_points(image, centre, float(np.asarray(predicted.axes_px)[0]) / 2)
+    (fx, fy), (a, b), _ = cv2.fitEllipse(edges.astype(np.float32))
+    assert abs(max(a, b) - float(np.asarray(predicted.axes_px)[0])) < 0.5
+    assert np.hypot(fx - centre[0], fy - centre[1]) < 0.3
+
+
+def test_row_resampling_is_an_area_mean():
+    """Each output row is the mean of the input over its span (a constant stays, a step keeps its area)."""
+    M = row_resampling(10, 11, 1.075)
+    np.testing.assert_allclose(M.sum(axis=1), 1.0, atol=1e-6)
+    step = (np.arange(11) < 4.0).astype(float)                 # input edge at 4.0 → output edge at 4 / 1.075
+    assert (M @ step).sum() == pytest.approx(4.0 / 1.075, abs=1e-5)
+
+
+def test_interface_and_factory():
+    with camera_renderer("pbr", _discs(), [], CAMERA, light=Light(kind="dome"), spp=1) as r:
+        assert isinstance(r, CameraRenderer)
+        grey = r.render_grey(invert_T(look_at(np.array([0.0, 0.0, 100.0]), np.zeros(3), up=(0.0, 1.0, 0.0))))
+        assert grey.shape == (CAMERA.height, CAMERA.width) and 0.0 <= grey.min() and grey.max() <= 255.0
+        assert r.estimate_seconds(np.eye(4) @ invert_T(look_at(np.array([0.0, 0.0, 100.0]), np.zeros(3),
+                                                                 up=(0.0, 1.0, 0.0)))) > 0
+    with pytest.raises(RenderError, match="allowed: raster, pbr"):
+        camera_renderer("opengl", _discs(), [], CAMERA)
+    with pytest.raises(RenderError, match="hole_ends"):
+        PbrRenderer(_discs(), [], CAMERA, hole_ends="reamed")
