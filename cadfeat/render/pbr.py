@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.cad.hole_ends import HOLE_ENDS
 from cadfeat.cell.light import Light
 from cadfeat.cell.material import Material, bsdf_dict
 from cadfeat.render.camera_views import _distortion_maps, _padding, near_far_mm
@@ -67,7 +68,6 @@ TOLERANCE_MM = 0.01
 ANGULAR_TOLERANCE_RAD = 0.1
 #: Luminance of linear RGB (Rec. 709 / sRGB primaries, Mitsuba's RGB variants).
 LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
-HOLE_ENDS = ("as_modelled", "drilled", "milled")
 
 
 def row_resampling(height_out: int, height_in: int, scale: float) -> np.ndarray:
@@ -210,8 +210,6 @@ def _checked_pose(T_cam_part: np.ndarray) -> np.ndarray:
 
 def _shaped_holes(shape: Any, holes: Sequence[Hole], hole_ends: str) -> Any:
     """``shape`` with its blind holes' ends made as ``hole_ends`` says (``cad.hole_ends``)."""
-    if hole_ends != "drilled":
-        return shape
-    from cadfeat.cad.hole_ends import drill_points
+    from cadfeat.cad.hole_ends import with_hole_ends
 
-    return drill_points(shape, holes)
+    return with_hole_ends(shape, holes, hole_ends)

@@ -19,9 +19,12 @@ Deterministic: the noise of frame k comes from ``numpy.random.default_rng([seed,
 
 from __future__ import annotations
 
-import numpy as np
+from typing import Self
 
-from cadfeat.settings import Settings, choice, integer, number
+import numpy as np
+from pydantic import model_validator
+
+from cadfeat.settings import Settings, choice, integer, number, reject
 
 __all__ = ["Sensor", "capture", "expose", "exposure_gain"]
 
@@ -43,6 +46,12 @@ class Sensor(Settings):
     bits: int = choice(8, "8 or 12", description="bit depth of the codes")
     seed: int = integer(0, 0, description="noise seed (frame k uses default_rng([seed, k]))")
 
+    @model_validator(mode="after")
+    def _bit_depth(self) -> Self:
+        if self.bits not in (8, 12):
+            raise reject("bits", f"{self.bits} is not allowed", "8 or 12")
+        return self
+
 
 def exposure_gain(radiance: np.ndarray, sensor: Sensor) -> float:
     """Grey levels per unit radiance for ``radiance`` (H, W) under ``sensor``'s exposure (module docstring)."""
@@ -62,10 +71,6 @@ def capture(radiance: np.ndarray, sensor: Sensor, frame: int = 0, *, gain: float
             codes: bool = False) -> np.ndarray:
     """The sensor's frame ``frame`` of ``radiance`` (H, W): exposed, with shot and read noise, saturated and
     quantised; grey on the 0 … 255 scale (float32) or, ``codes=True``, the ``bits``-bit integer codes."""
-    if sensor.bits not in (8, 12):
-        from cadfeat.errors import CadfeatError
-
-        raise CadfeatError(f"sensor.bits: {sensor.bits} is not allowed; allowed: 8 or 12")
     grey = expose(radiance, sensor, gain)
     rng = np.random.default_rng([sensor.seed, int(frame)])
     if sensor.full_well_e > 0:
