@@ -137,25 +137,27 @@ class PbrRenderer:
         self.render_cy = (self.pinhole.cy + 0.5) * s - 0.5   # v' + ½ = (v + ½)·s: edge coordinates scale by s
 
     def scene(self, T_cam_part: np.ndarray, *, spp: int | None = None,
-              crop: tuple[int, int, int, int] | None = None) -> Any:
-        """The Mitsuba scene at pose ``T_cam_part`` (4, 4): the part, the sensor and the light."""
+              crop: tuple[int, int, int, int] | None = None, decimate: int = 1) -> Any:
+        """The Mitsuba scene at pose ``T_cam_part`` (4, 4): the part, the sensor and the light. ``decimate`` = k
+        renders the same view on a k× coarser film (fx / k; pixel centres k(c + ½) − ½ → c)."""
         import mitsuba as mi
 
         T = _checked_pose(T_cam_part)
         near, far = near_far_mm(self._corners, T)
-        p = self.pinhole
-        sensor = sensor_dict(p.width, self.render_height, p.fx, p.cx, self.render_cy, T, spp=spp or self.spp,
+        p, k = self.pinhole, decimate
+        sensor = sensor_dict(p.width // k, self.render_height // k, p.fx / k, (p.cx + 0.5) / k - 0.5,
+                             (self.render_cy + 0.5) / k - 0.5, T, spp=spp or self.spp,
                              near_far_mm=(near * 0.5, far * 2.0), crop=crop)
         return mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": self.max_depth},
                              "sensor": sensor, "part": self._part, **light_dicts(self.light, T, self._emitter)})
 
     def render_raw(self, T_cam_part: np.ndarray, *, spp: int | None = None,
-                   crop: tuple[int, int, int, int] | None = None) -> np.ndarray:
-        """Radiance × π of the square-pixel pinhole film (or its ``crop`` = (x, y, w, h)), before the row
-        resampling and the distortion: (h, w) float32."""
+                   crop: tuple[int, int, int, int] | None = None, decimate: int = 1) -> np.ndarray:
+        """Radiance × π of the square-pixel pinhole film (or its ``crop`` = (x, y, w, h); ``decimate``: see
+        ``scene``), before the row resampling and the distortion: (h, w) float32."""
         import mitsuba as mi
 
-        scene = self.scene(T_cam_part, spp=spp, crop=crop)
+        scene = self.scene(T_cam_part, spp=spp, crop=crop, decimate=decimate)
         rgb = np.asarray(mi.render(scene, spp=spp or self.spp, seed=self._frame), dtype=np.float32)
         self._frame += 1
         return (rgb[..., :3] @ LUMINANCE_RGB) * np.float32(math.pi)
@@ -177,18 +179,16 @@ class PbrRenderer:
         the noise is ``render.sensor.capture``'s."""
         return expose(self.render(T_cam_part), self.sensor)
 
-    def estimate_seconds(self, T_cam_part: np.ndarray, spp: int | None = None, window_px: int = 64) -> float:
-        """Expected seconds of one ``render`` at ``spp``: a warm ``window_px``² crop at the image centre is timed
-        (after an untimed one that compiles the kernels) and scaled by pixels × spp."""
+    def estimate_seconds(self, T_cam_part: np.ndarray, spp: int | None = None, decimate: int = 4) -> float:
+        """Expected seconds of one ``render`` at ``spp`` and pose ``T_cam_part``: the same view on a ``decimate``×
+        coarser film (the same content, 1/decimate² of the pixels) at ``spp`` is timed warm (after an untimed one
+        that compiles the kernels) and scaled by decimate². Within ~±30 % of the measured frame on the flagship
+        part (benchmarks/bench_pbr.py); it costs ~2/decimate² of a frame."""
         spp = spp or self.spp
-        w, h = min(window_px, self.pinhole.width), min(window_px, self.render_height)
-        crop = ((self.pinhole.width - w) // 2, (self.render_height - h) // 2, w, h)
-        probe_spp = min(spp, 4)
-        self.render_raw(T_cam_part, spp=probe_spp, crop=crop)
+        self.render_raw(T_cam_part, spp=spp, decimate=decimate)
         t0 = time.perf_counter()
-        self.render_raw(T_cam_part, spp=probe_spp, crop=crop)
-        per_sample = (time.perf_counter() - t0) / (w * h * probe_spp)
-        return per_sample * self.pinhole.width * self.render_height * spp
+        self.render_raw(T_cam_part, spp=spp, decimate=decimate)
+        return (time.perf_counter() - t0) * decimate ** 2
 
     def close(self) -> None:
         self._part = None

@@ -24,8 +24,8 @@ from cadfeat.cell.light import Light, emitter_strength
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import invert_T
 
-__all__ = ["PREFERRED_VARIANTS", "annulus_mesh", "light_dicts", "part_mesh_arrays", "sensor_dict", "use_variant",
-           "write_ply"]
+__all__ = ["PREFERRED_VARIANTS", "annulus_mesh", "emitter_mesh_ply", "light_dicts", "part_mesh_arrays", "sampler_dict",
+           "sensor_dict", "use_variant", "write_ply"]
 
 #: Variants tried in order when none is asked for: LLVM's JIT (vectorised, all cores), then plain C++.
 PREFERRED_VARIANTS = ("llvm_ad_rgb", "scalar_rgb")
@@ -134,7 +134,14 @@ def sensor_dict(width: int, height: int, fx: float, cx: float, cy: float, T_cam_
             "principal_point_offset_y": (height / 2 - (cy + 0.5)) / height,
             "near_clip": float(near_far_mm[0]), "far_clip": float(near_far_mm[1]),
             "to_world": mi.ScalarTransform4f(invert_T(np.asarray(T_cam_part, float)) @ MITSUBA_FROM_OPENCV),
-            "sampler": {"type": "stratified", "sample_count": int(spp)}, "film": film}
+            "sampler": sampler_dict(spp), "film": film}
+
+
+def sampler_dict(spp: int) -> dict[str, Any]:
+    """Stratified samples (jittered on a √spp × √spp grid: pixel coverage, hence edges, converge fastest) when
+    ``spp`` is a power of 4 (what Mitsuba's ``stratified`` takes without rounding), else independent ones."""
+    power_of_4 = spp > 0 and spp & (spp - 1) == 0 and (spp.bit_length() - 1) % 2 == 0
+    return {"type": "stratified" if power_of_4 else "independent", "sample_count": int(spp)}
 
 
 def _area_light(filename: Path, T_part_cam: np.ndarray, radiance: float) -> dict[str, Any]:
