@@ -144,3 +144,29 @@ def test_interface_and_factory():
         camera_renderer("opengl", _discs(), [], CAMERA)
     with pytest.raises(RenderError, match="hole_ends"):
         PbrRenderer(_discs(), [], CAMERA, hole_ends="reamed")
+
+
+def test_drilled_ends_change_only_the_blind_holes_floor():
+    """A Ø6 blind hole 3 mm deep seen head-on under the coaxial light: ``hole_ends="drilled"`` changes the image
+    only inside the rim (the face outside is the same part, the same light, the same sampler seeds: identical),
+    and the cone's facets (normals 31° off the axis) send blasted aluminium's glossy lobe away from the lens: the
+    floor reads darker than the flat one, which sends it straight back (≈ 0.4 of it here)."""
+    plate = cq.Workplane("XY").box(30, 30, 10).faces(">Z").workplane().hole(6.0, 3.0)
+    from cadfeat.cad.features import extract_holes
+
+    holes = extract_holes(plate)
+    T = invert_T(look_at(np.array([0.0, 0.0, 5.0 + 90.0]), np.array([0.0, 0.0, 5.0]), up=(0.0, 1.0, 0.0)))
+    light = Light(kind="coaxial", reference_mm=90.0)
+    images = {}
+    for ends in ("milled", "drilled"):
+        with PbrRenderer(plate, holes, CAMERA.replace(dist=(0.0, 0.0, 0.0, 0.0, 0.0)), light=light,
+                         material=Material(name="blasted_aluminium"), spp=16, hole_ends=ends) as r:
+            images[ends] = r.render(T)
+    centre = CAMERA.project(np.array([[0.0, 0.0, 90.0]]))[0]
+    v, u = np.mgrid[:CAMERA.height, :CAMERA.width]
+    rho = np.hypot((u - centre[0]) / CAMERA.fx, (v - centre[1]) / CAMERA.fy) * 90.0     # mm on the face plane
+    outside, floor = rho > 3.0 + 0.5, rho < 2.0
+    diff = np.abs(images["drilled"] - images["milled"])
+    assert diff[outside].max() < 1e-3 * images["milled"][outside].max()
+    assert images["drilled"][floor].mean() < 0.95 * images["milled"][floor].mean()
+    assert images["drilled"][floor].mean() > 0.2 * images["milled"][floor].mean()
