@@ -16,6 +16,8 @@ Where the numbers come from (engineering estimates, not measurements of a given 
 - Black anodised aluminium: a dark dye under a clear oxide layer (n ≈ 1.6): ``roughplastic`` with diffuse
   reflectance 0.03 and α 0.25 (a soft sheen). Grey plastic (polypropylene / ABS): ``roughplastic`` with
   diffuse reflectance 0.45 (a mid grey) and α 0.15, interior index of polypropylene (1.49).
+- ``white_reference``: a Lambertian white of reflectance 0.99 (a Spectralon target), to check a light's strength
+  (``cell.light``: it reads 0.99 × intensity where the light's irradiance is its intensity); no roughness.
 """
 
 from __future__ import annotations
@@ -63,6 +65,8 @@ MATERIALS: dict[str, MaterialSpec] = {spec.name: spec for spec in (
     _metal("blasted_steel", 0.40, "sand-blasted steel: matt metallic", **_STEEL),
     _plastic("black_anodised", 0.25, 0.03, 1.6, "black anodised aluminium: dark with a soft sheen"),
     _plastic("grey_plastic", 0.15, 0.45, "polypropylene", "mid-grey moulded or machined plastic"),
+    MaterialSpec("white_reference", "diffuse", 0.0, (("reflectance", {"type": "rgb", "value": [0.99] * 3}),),
+                 "a Lambertian white reference target (Spectralon-like, reflectance 0.99): for calibration"),
 )}
 
 
@@ -85,5 +89,7 @@ def material_spec(material: Material) -> MaterialSpec:
 def bsdf_dict(material: Material) -> dict[str, Any]:
     """The Mitsuba 3 BSDF of ``material`` as a ``mi.load_dict`` table (GGX, α from ``roughness`` or the name)."""
     spec = material_spec(material)
+    if spec.kind == "diffuse":
+        return {"type": spec.kind, **dict(spec.params)}
     alpha = spec.alpha if material.roughness is None else material.roughness
     return {"type": spec.kind, "distribution": "ggx", "alpha": float(alpha), **dict(spec.params)}

@@ -18,7 +18,7 @@ from cadfeat.errors import CadfeatError
 
 def test_named_materials_and_roughness_override():
     assert {"machined_aluminium", "blasted_aluminium", "machined_steel", "blasted_steel", "black_anodised",
-            "grey_plastic"} <= set(MATERIALS)
+            "grey_plastic", "white_reference"} <= set(MATERIALS)
     al = bsdf_dict(Material(name="machined_aluminium"))
     assert al["type"] == "roughconductor" and al["material"] == "Al" and 0.05 <= al["alpha"] <= 0.15
     assert 0.3 <= bsdf_dict(Material(name="blasted_steel"))["alpha"] <= 0.5

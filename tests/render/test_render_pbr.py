@@ -170,3 +170,20 @@ def test_drilled_ends_change_only_the_blind_holes_floor():
     assert diff[outside].max() < 1e-3 * images["milled"][outside].max()
     assert images["drilled"][floor].mean() < 0.95 * images["milled"][floor].mean()
     assert images["drilled"][floor].mean() > 0.2 * images["milled"][floor].mean()
+
+
+@pytest.mark.parametrize("kind", ["ring", "coaxial", "dome", "spot"])
+def test_light_strength_reads_as_irradiance_on_a_white_target(kind):
+    """A Lambertian white target (reflectance 0.99) facing the camera at the light's reference distance reads
+    0.99 × intensity at the image centre: the emitters' strengths (``cell.light.emitter_strength``: closed-form
+    irradiance of a disc, an annulus, a point, a hemisphere) agree with the path tracer's radiometry."""
+    D = 250.0
+    target = cq.Workplane("XY").box(400, 400, 2).translate((0, 0, -1)).val()
+    eye = np.array([0.0, 0.0, D])
+    T = invert_T(look_at(eye, np.zeros(3), up=(0.0, 1.0, 0.0)))
+    light = Light(kind=kind, intensity=0.6, reference_mm=D, position_mm=(0.0, 0.0, D), target_mm=(0.0, 0.0, 0.0))
+    cam = Camera(fx=200.0, fy=200.0, cx=31.5, cy=23.5, width=64, height=48, focus_distance_mm=D)
+    with PbrRenderer(target, [], cam, light=light, material=Material(name="white_reference"), spp=64) as r:
+        image = r.render(T)
+    centre = image[20:28, 28:36].mean()        # ±4 px: ±5 mm on the target, irradiance flat there to < 0.1 %
+    assert centre == pytest.approx(0.99 * 0.6, rel=0.01)
