@@ -187,3 +187,25 @@ def test_light_strength_reads_as_irradiance_on_a_white_target(kind):
         image = r.render(T)
     centre = image[20:28, 28:36].mean()        # ±4 px: ±5 mm on the target, irradiance flat there to < 0.1 %
     assert centre == pytest.approx(0.99 * 0.6, rel=0.01)
+
+
+@pytest.fixture
+def scalar_variant():
+    """Mitsuba's plain C++ variant for one test (the process-global variant is restored after it)."""
+    from cadfeat.render.pbr_scene import use_variant
+
+    before = use_variant()
+    yield use_variant("scalar_rgb")
+    use_variant(before)
+
+
+def test_scalar_variant_projects_the_same(scalar_variant):
+    """The fallback variant (no LLVM) renders the same geometry: disc centroids on ``Camera.project``."""
+    T = invert_T(look_at(np.array([2.0, -1.5, 100.0]), np.array([2.0, -1.5, 0.0]), up=(0.3, 1.0, 0.0)))
+    with PbrRenderer(_discs(), [], CAMERA, light=Light(kind="dome"), material=Material(name="black_anodised"),
+                     spp=4, variant=scalar_variant) as r:
+        assert r.variant == "scalar_rgb"
+        image = r.render(T)
+    expected = CAMERA.project(DISC_CENTRES @ T[:3, :3].T + T[:3, 3])
+    found = np.array([_centroid(1.0 - image, p) for p in expected])
+    assert np.linalg.norm(found - expected, axis=1).max() < 0.15
