@@ -3,7 +3,7 @@
 ``CameraRenderer`` is the protocol both satisfy: ``render(T_cam_part)`` (the renderer's own image: RGB uint8 for
 the raster, linear radiance float32 for the PBR), ``render_grey(T_cam_part)`` (what the closed loop reads:
 noiseless grey (H, W) float32 in 0 … 255), ``close()`` and the context manager. ``camera_renderer(kind, shape,
-holes, camera, **cell)`` builds either.
+holes, camera, **cell)`` builds either; ``grey_sequence(renderer, T_cam_part)`` renders a trajectory's frames.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
 
-__all__ = ["RENDERER_KINDS", "CameraRenderer", "camera_renderer"]
+__all__ = ["RENDERER_KINDS", "CameraRenderer", "camera_renderer", "grey_sequence"]
 
 RENDERER_KINDS = ("raster", "pbr")
 
@@ -53,3 +53,13 @@ def camera_renderer(kind: Literal["raster", "pbr"] | str, shape: Any, holes: Seq
 
         return PbrRenderer(shape, holes, camera, **cell)
     raise RenderError(f"renderer: {kind!r} is not allowed; allowed: {', '.join(RENDERER_KINDS)}")
+
+
+def grey_sequence(renderer: CameraRenderer, T_cam_part: np.ndarray) -> np.ndarray:
+    """Noiseless grey frames (F, H, W) float32 in 0 … 255 of ``renderer`` at poses ``T_cam_part`` (F, 4, 4) (what
+    ``vision.images.render_sequence`` returns for the raster renderer)."""
+    T = np.asarray(T_cam_part, dtype=float)
+    if T.ndim != 3 or T.shape[1:] != (4, 4):
+        raise RenderError(f"T_cam_part must have shape (F, 4, 4), got {T.shape}")
+    frames = [renderer.render_grey(pose) for pose in T]
+    return np.stack(frames).astype(np.float32) if frames else np.zeros((0, 0, 0), np.float32)

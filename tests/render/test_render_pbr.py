@@ -28,7 +28,7 @@ from cadfeat.cell.light import Light  # noqa: E402
 from cadfeat.cell.material import Material  # noqa: E402
 from cadfeat.measures import hole_ellipse  # noqa: E402
 from cadfeat.poses import invert_T, look_at  # noqa: E402
-from cadfeat.render import CameraRenderer, RenderError, camera_renderer  # noqa: E402
+from cadfeat.render import CameraRenderer, RenderError, camera_renderer, grey_sequence  # noqa: E402
 from cadfeat.render.pbr import PbrRenderer, row_resampling  # noqa: E402
 
 CAMERA = Camera(fx=400.0, fy=430.0, cx=81.3, cy=62.7, width=160, height=128, focus_distance_mm=100.0,
@@ -134,12 +134,17 @@ def test_row_resampling_is_an_area_mean():
 
 
 def test_interface_and_factory():
+    T = invert_T(look_at(np.array([0.0, 0.0, 100.0]), np.zeros(3), up=(0.0, 1.0, 0.0)))
     with camera_renderer("pbr", _discs(), [], CAMERA, light=Light(kind="dome"), spp=1) as r:
         assert isinstance(r, CameraRenderer)
-        grey = r.render_grey(invert_T(look_at(np.array([0.0, 0.0, 100.0]), np.zeros(3), up=(0.0, 1.0, 0.0))))
-        assert grey.shape == (CAMERA.height, CAMERA.width) and 0.0 <= grey.min() and grey.max() <= 255.0
-        assert r.estimate_seconds(np.eye(4) @ invert_T(look_at(np.array([0.0, 0.0, 100.0]), np.zeros(3),
-                                                                 up=(0.0, 1.0, 0.0)))) > 0
+        frames = grey_sequence(r, np.stack([T, T]))
+        assert frames.shape == (2, CAMERA.height, CAMERA.width) and frames.dtype == np.float32
+        assert 0.0 <= frames.min() and frames.max() <= 255.0
+        assert r.estimate_seconds(T) > 0
+    with camera_renderer("raster", _discs(), [], CAMERA) as raster:
+        assert isinstance(raster, CameraRenderer)
+        grey = raster.render_grey(T)
+        np.testing.assert_allclose(grey, cv2.cvtColor(raster.render(T), cv2.COLOR_RGB2GRAY), atol=0.51)
     with pytest.raises(RenderError, match="allowed: raster, pbr"):
         camera_renderer("opengl", _discs(), [], CAMERA)
     with pytest.raises(RenderError, match="hole_ends"):
