@@ -12,5 +12,5 @@ from cadfeat.render.part_views import render_comparison, render_part
 from cadfeat.render.scene import RenderError, new_plotter, shape_polydata, use_egl
 
 __all__ = ["RENDERER_KINDS", "CameraRenderer", "CameraViewRenderer", "RenderError", "camera_renderer",
-           "draw_hole_overlay", "grey_sequence", "new_plotter", "render_camera_views", "render_comparison", "render_part",
-           "shape_polydata", "use_egl"]
+           "draw_hole_overlay", "grey_sequence", "new_plotter", "render_camera_views", "render_comparison",
+           "render_part", "shape_polydata", "use_egl"]
