@@ -152,6 +152,12 @@ class CameraViewRenderer:
             image = draw_hole_overlay(image, self.camera, self.holes, T)
         return image
 
+    def render_grey(self, T_cam_part: np.ndarray) -> np.ndarray:
+        """Grey (H, W) float32 in 0 … 255 at pose ``T_cam_part``: the luma of ``render`` (as
+        ``vision.images.grey``), what the closed loop reads (``render.interface.CameraRenderer``)."""
+        rgb = self.render(T_cam_part).astype(np.float32)
+        return rgb @ np.array([0.299, 0.587, 0.114], dtype=np.float32)
+
     def close(self) -> None:
         self.plotter.close()
 
