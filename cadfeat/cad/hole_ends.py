@@ -17,6 +17,7 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+from cadfeat.cell.defaults import HOLE_ENDS
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -27,7 +28,6 @@ __all__ = ["DRILL_POINT_DEG", "HOLE_ENDS", "drill_point_depth_mm", "drill_point_
 
 #: Included angle of a standard twist drill's point (degrees).
 DRILL_POINT_DEG = 118.0
-HOLE_ENDS = ("as_modelled", "drilled", "milled")
 
 
 def drill_point_depth_mm(radius_mm: float, point_deg: float = DRILL_POINT_DEG) -> float:

@@ -6,6 +6,15 @@ take a cell's numbers (``vision.images.SensorModel``, ``vision.closed_loop.Track
 replaces them all at once.
 """
 
+HOLE_ENDS = ("as_modelled", "drilled", "milled")
+"""How a blind hole ends as the shop makes it: as the CAD model has it, a 118° drill point, or a flat floor
+(``cad.hole_ends``)."""
+DETECTORS = ("cadfeat", "edcircles", "blob")
+"""The closed loop's hole detectors (``vision.detectors``): cadfeat's own, EDCircles (OpenCV contrib, written
+elsewhere) and SimpleBlobDetector (the naive practitioner's)."""
+RENDERERS = ("raster", "pbr")
+"""The closed loop's renderers (``render.interface``): VTK raster (holes painted dark) and Mitsuba 3 (physics)."""
+
 CAMERA_POSITION_MM = 2.0
 """± the camera's mount position tolerance per axis (mm, camera frame)."""
 CAMERA_ANGLE_DEG = 1.0

@@ -9,7 +9,9 @@ Every physical number of the cell lives here, and says what it is:
 - a **standard deviation** σ: the sensor's grey-level noise ``noise_sigma_grey`` (0..255 scale, per pixel and
   frame) and the light's gain from run to run ``gain_sigma`` (relative);
 - a **setting**: the detector (``detector``) and its association gate ``gate_px``, how the holes are made
-  (``hole_ends``).
+  (``hole_ends``), the light (``[cell.light]``, ``cell.light.Light``: ring, coaxial, dome or spot) and the part's
+  material and finish (``[cell.material]``, ``cell.material.Material``) — what the physically based closed loop
+  renders (``[tracking] renderer = "pbr"``).
 
 ``BOUND_KEYS`` and ``SIGMA_KEYS`` list which is which (the JSON Schema carries it too: ``x-statistic``).
 
@@ -30,20 +32,19 @@ from __future__ import annotations
 
 from typing import Any, ClassVar, Literal, cast
 
-from pydantic import Field, field_validator
+from pydantic import Field, ValidationInfo, field_validator
 
 from cadfeat.cell import defaults as D
-from cadfeat.settings import Settings, Tuple, choice, number
+from cadfeat.cell.light import Light
+from cadfeat.cell.material import Material
+from cadfeat.settings import Settings, Tuple, choice, context_of, number, validate_nested
 
 __all__ = ["BOUND_KEYS", "DETECTORS", "HOLE_ENDS", "PER_AXIS", "PLACEMENT_SIGMA_PER_TOLERANCE", "SIGMA_KEYS", "Cell",
            "per_axis", "triple"]
 
 PER_AXIS = "a number ≥ 0 or a list of three numbers ≥ 0 (per axis x, y, z)"
-DETECTORS = ("cadfeat", "edcircles", "blob")
-"""The hole detectors of the closed loop (``vision.detectors``): cadfeat's own, EDCircles (OpenCV contrib,
-written elsewhere) and SimpleBlobDetector (the naive practitioner's)."""
-HOLE_ENDS = ("as_modelled", "drilled", "milled")
-"""How a blind hole ends as the shop makes it: as the CAD model has it, a 118° drill point, or a flat floor."""
+DETECTORS = D.DETECTORS
+HOLE_ENDS = D.HOLE_ENDS
 
 PLACEMENT_SIGMA_PER_TOLERANCE = D.PLACEMENT_SIGMA_PER_TOLERANCE
 """The closed loop draws the part's placement per run from a normal of σ = 0.4 t per axis (t the placement
@@ -104,6 +105,19 @@ class Cell(Settings):
                                                                 description="the closed loop's hole detector")
     hole_ends: Literal["as_modelled", "drilled", "milled"] = choice(
         "as_modelled", HOLE_ENDS, description="how a blind hole ends as the shop makes it")
+    light: Light = choice(Light, "a table [cell.light] (kind = ring | coaxial | dome | spot, …)", factory=True,
+                          description="the cell's light (cadfeat.cell.light)")
+    material: Material = choice(Material, "a table [cell.material] (name, roughness)", factory=True,
+                                description="the part's material and finish (cadfeat.cell.material)")
+
+    @field_validator("light", "material", mode="before")
+    @classmethod
+    def _table(cls, value: Any, info: ValidationInfo) -> Any:
+        """A sub-table validated as its model, its errors keyed ``cell.light.kind``."""
+        model = Light if info.field_name == "light" else Material
+        if isinstance(value, model):
+            return value
+        return validate_nested(model, value, str(info.field_name), "cell", context_of(info))
 
     @field_validator("camera_position_mm", "placement_position_mm")
     @classmethod

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 
+from cadfeat.cell.defaults import RENDERERS
 from cadfeat.render.scene import RenderError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -21,7 +22,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = ["RENDERER_KINDS", "CameraRenderer", "camera_renderer", "grey_sequence"]
 
-RENDERER_KINDS = ("raster", "pbr")
+RENDERER_KINDS = RENDERERS
 
 
 @runtime_checkable

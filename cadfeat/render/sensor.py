@@ -6,7 +6,11 @@ A camera turns it into grey levels:
 1. **exposure**: ``grey = gain · radiance`` on the 8-bit scale (0 … 255 = full scale whatever the bit depth).
    ``exposure="fixed"``: ``gain`` as given (grey levels per unit radiance). ``exposure="auto"``: the gain puts
    the ``auto_percentile``-th percentile of the frame's radiance (the brightest lit faces; specular highlights
-   above it saturate, as in a real auto-exposed frame) at ``auto_fraction`` of full scale.
+   above it saturate, as in a real auto-exposed frame) at ``auto_fraction`` of full scale. ``exposure="meter"``:
+   the median radiance of the part (the pixels above ``METER_FLOOR`` of the median of the lit pixels: the
+   cell's background is black; under a dome or ambient light it is metered too) at ``meter_fraction`` of full scale — an averaging meter on the part, as an engineer sets
+   a cell's exposure: it follows the faces, which fill the part's image, not a hole's highlight (a small bright
+   blind hole saturates instead of darkening the part), so two designs of one part get the same exposure.
 2. **saturation**: the well holds at most full scale: clip to 0 … 255.
 3. **shot noise**: the signal in electrons, ``grey / 255 · full_well_e``, is Poisson distributed (none when
    ``full_well_e`` = 0); **read noise**: additive Gaussian of σ ``read_noise_grey`` grey levels (8-bit scale).
@@ -29,6 +33,9 @@ from cadfeat.settings import Settings, choice, integer, number, reject
 __all__ = ["Sensor", "capture", "expose", "exposure_gain"]
 
 FULL_SCALE_GREY = 255.0
+#: Metered exposure: a pixel belongs to the part when its radiance exceeds this fraction of the median of the lit
+#: pixels (path-tracing noise in the black background stays below it).
+METER_FLOOR = 1e-3
 
 
 class Sensor(Settings):
@@ -37,10 +44,12 @@ class Sensor(Settings):
 
     section = "sensor"
 
-    exposure: str = choice("auto", ("auto", "fixed"), description="auto: percentile to a fraction; fixed: gain")
+    exposure: str = choice("auto", ("auto", "fixed", "meter"),
+                           description="auto: percentile to a fraction; fixed: gain; meter: the part's median")
     gain: float = number(200.0, 0.0, lo_open=True, description="fixed exposure: grey levels per unit radiance")
     auto_fraction: float = number(0.8, 0.0, 1.0, lo_open=True, description="auto: level of the percentile")
     auto_percentile: float = number(99.0, 0.0, 100.0, lo_open=True, description="auto: percentile of radiance")
+    meter_fraction: float = number(0.45, 0.0, 1.0, lo_open=True, description="meter: level of the part's median")
     full_well_e: float = number(10000.0, 0.0, description="electrons at full scale (shot noise); 0: none")
     read_noise_grey: float = number(1.0, 0.0, description="σ of the read noise, grey levels (8-bit scale)")
     bits: int = choice(8, "8 or 12", description="bit depth of the codes")
@@ -57,6 +66,12 @@ def exposure_gain(radiance: np.ndarray, sensor: Sensor) -> float:
     """Grey levels per unit radiance for ``radiance`` (H, W) under ``sensor``'s exposure (module docstring)."""
     if sensor.exposure == "fixed":
         return sensor.gain
+    if sensor.exposure == "meter":
+        r = np.asarray(radiance, dtype=np.float64)
+        lit = r[r > 0]
+        part = lit[lit > METER_FLOOR * float(np.median(lit))] if lit.size else lit
+        level = float(np.median(part)) if part.size else 0.0
+        return sensor.gain if level <= 0 else sensor.meter_fraction * FULL_SCALE_GREY / level
     level = float(np.percentile(radiance, sensor.auto_percentile))
     return sensor.gain if level <= 0 else sensor.auto_fraction * FULL_SCALE_GREY / level
 

@@ -171,6 +171,8 @@ class TrackingSettings(Record):
     placement_deg: Number | list[Number] = 0.0
     gain_sigma: Number = 0.0
     settle_frames: int | None = None
+    detector: str = "cadfeat"
+    renderer: str = "raster"
 
 
 class Tracking(Record):

@@ -70,7 +70,9 @@ def tracking_config(spec: TrackingSpec, cell: Cell | None = None) -> TrackingCon
                           converged_mm=spec.converged_mm, converged_deg=spec.converged_deg, gate_px=cell.gate_px,
                           rim_model=spec.rim_model, seed=spec.seed, alpha=spec.alpha,
                           min_change=spec.min_change_percent / 100.0, gain_sigma=cell.gain_sigma,
-                          placement_mm=placement_mm, placement_deg=placement_deg, detector=cell.detector)
+                          placement_mm=placement_mm, placement_deg=placement_deg, detector=cell.detector,
+                          renderer=spec.renderer, spp=spec.spp, light=cell.light, material=cell.material,
+                          hole_ends=cell.hole_ends)
 
 
 def _scene(config: StudyConfig) -> tuple[Camera, np.ndarray, np.ndarray, np.ndarray]:

@@ -40,7 +40,7 @@ from cadfeat.measures.pose_models import hole_geometry
 from cadfeat.measures.rim_occlusion import rim_occlusion
 from cadfeat.vision.detection import Detections, associate, detect_holes
 from cadfeat.vision.estimate import FilterTuning, estimate_poses
-from cadfeat.vision.images import SensorModel, apply_optics, grey, optics_kernels, render_sequence, sensor_images
+from cadfeat.vision.images import SensorModel, apply_optics, optics_kernels, render_sequence, sensor_images
 from cadfeat.vision.metrics import aggregate_runs, hold_last, paired_verdict, pose_errors, run_summary
 from cadfeat.vision.motion import so3_exp
 
@@ -72,7 +72,9 @@ class TrackingConfig:
     ``min_change`` smallest relative change of the median RMS error that counts (``metrics.paired_verdict``);
     run-to-run variability (module docstring): ``placement_mm`` / ``placement_deg`` σ (one, or one per axis) of
     the part's placement error (0 = every run at the nominal placement, rendered once), ``gain_sigma`` relative σ of the
-    illumination gain per run; ``detector`` the hole detector (``cadfeat.cell.DETECTORS``).
+    illumination gain per run; ``detector`` the hole detector (``cadfeat.cell.DETECTORS``); ``renderer`` "raster"
+    (VTK, holes painted dark) or "pbr" (Mitsuba 3: the cell's ``light``, ``material`` and ``hole_ends``, ``spp``
+    samples per pixel).
     """
 
     estimators: tuple[str, ...] = ("ekf", "iekf", "pnp")
@@ -94,6 +96,22 @@ class TrackingConfig:
     placement_deg: float | tuple[float, ...] = D.PLACEMENT_SIGMA_DEG
     gain_sigma: float = D.GAIN_SIGMA
     detector: str = "cadfeat"
+    renderer: str = "raster"
+    spp: int = 16
+    light: Any = None
+    material: Any = None
+    hole_ends: str = "as_modelled"
+
+    def render_options(self) -> dict[str, Any]:
+        """The keyword arguments of ``render.camera_renderer`` for this config's renderer: none for the raster
+        one; the cell's light, material and hole ends, the samples per pixel and a metered exposure for the
+        physically based one (``render.sensor``: the part's median at a fixed fraction of full scale)."""
+        if self.renderer != "pbr":
+            return {}
+        from cadfeat.render.sensor import Sensor  # lazy: pydantic
+
+        return {"light": self.light, "material": self.material, "spp": self.spp, "hole_ends": self.hole_ends,
+                "sensor": Sensor(exposure="meter")}
 
     def with_changes(self, **changes: Any) -> TrackingConfig:
         return replace(self, **changes)
@@ -118,6 +136,8 @@ class Observation:
     scene: tuple[Any, Sequence[Hole], SensorModel, np.ndarray | None] | None = None  # (shape, holes, sensor, screws)
     rim_gap: np.ndarray | None = None  # (F, N) px to the nearest other rim at the nominal pose (None: not computed)
     camera: Camera | None = None  # the detector undistorts the rims' edges with it (``detection.undistorted_centre``)
+    renderer: str = "raster"  # the renderer kind and options that made the images (placement re-renders use them)
+    render_options: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -144,15 +164,17 @@ class DesignTracking:
 
 def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, sensor: SensorModel,
             screws: np.ndarray | None = None, predict_occlusion: bool = True,
-            frames: Sequence[int] | None = None) -> Observation:
+            frames: Sequence[int] | None = None, renderer: str = "raster",
+            render_options: Mapping[str, Any] | None = None) -> Observation:
     """Render + blur once (module docstring). T_cam_part (F, 4, 4) mm, screws (F, 6) for motion blur;
     ``predict_occlusion``: the rims' hidden fractions at these poses (``Observation.rim_hidden``); ``frames``:
     render only these frame indices (the others' images are empty, 1 x 1 black at (0, 0): for runs that render
-    their own placement, ``placed_observations``), None = all."""
+    their own placement, ``placed_observations``), None = all; ``renderer`` / ``render_options``: the renderer
+    kind and its options (``TrackingConfig.render_options``)."""
     centres, normals, radii = holes_to_arrays(holes)
     T = np.asarray(T_cam_part, dtype=float)
     keep = np.arange(len(T)) if frames is None else np.unique(np.asarray(frames, dtype=int))
-    clean = render_sequence(shape, holes, camera, T[keep])
+    clean = render_sequence(shape, holes, camera, T[keep], renderer, **dict(render_options or {}))
     kernels = optics_kernels(camera, T, centres, sensor, screws)
     some, some_offsets = _regions(camera, clean, apply_optics(clean, [kernels[k] for k in keep]))
     optical = [np.zeros((1, 1), np.float32) for _ in range(len(T))]
@@ -169,7 +191,7 @@ def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.nd
 
     gap = hole_geometry(camera, T, centres, normals, radii).rim_gap_px(hidden)
     return Observation(optical, offsets, predicted, centres, normals, radii, names, hidden,
-                       (shape, list(holes), sensor, screws), gap, camera)
+                       (shape, list(holes), sensor, screws), gap, camera, renderer, dict(render_options or {}))
 
 
 def _regions(camera: Camera, clean: np.ndarray, blurred: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
@@ -214,17 +236,17 @@ def illumination_gains(config: TrackingConfig, runs: int) -> np.ndarray:
 def placed_observations(camera: Camera, obs: Observation, T_runs: np.ndarray) -> list[Observation]:
     """``obs`` rendered again at each run's true poses T_runs (R, F, 4, 4) (one renderer for all runs). The
     predicted ellipses and rim occlusion stay those of the nominal placement: the robot does not know δ_r."""
-    from cadfeat.render import CameraViewRenderer  # lazy: would import scipy.optimize at module load
+    from cadfeat.render import camera_renderer  # lazy: would import scipy.optimize at module load
 
     if obs.scene is None:
         raise ValueError("placement jitter needs an Observation made by observe() (it keeps the part to render)")
     shape, holes, sensor, screws = obs.scene
     out = []
-    with CameraViewRenderer(shape, holes, camera) as renderer:
+    with camera_renderer(obs.renderer, shape, holes, camera, **obs.render_options) as renderer:
         for T in np.asarray(T_runs, dtype=float):
             clean = np.empty((len(T), camera.height, camera.width), dtype=np.float32)
             for k, pose in enumerate(T):
-                clean[k] = grey(renderer.render(pose))
+                clean[k] = renderer.render_grey(pose)
             blurred = apply_optics(clean, optics_kernels(camera, T, obs.centres, sensor, screws))
             optical, offsets = _regions(camera, clean, blurred)
             out.append(replace(obs, optical=optical, offsets=offsets))
@@ -439,7 +461,11 @@ class BeforeAfter:
                          "tau": c.tuning.tau, "settle_frames": c.settle_frames, "frames": len(self.frame_indices),
                          "frame_step": c.frame_step, "rim_model": c.rim_model, "seed": c.seed,
                          "alpha": c.alpha, "min_change": c.min_change, "placement_mm": c.placement_mm,
-                         "placement_deg": c.placement_deg, "gain_sigma": c.gain_sigma},
+                         "placement_deg": c.placement_deg, "gain_sigma": c.gain_sigma, "gate_px": c.gate_px,
+                         "detector": c.detector, "renderer": c.renderer,
+                         **({"spp": c.spp, "light": getattr(c.light, "kind", None),
+                             "material": getattr(c.material, "name", None), "hole_ends": c.hole_ends}
+                            if c.renderer == "pbr" else {})},
             "designs": {name: design_json(d) for name, d in self.designs.items()},
             "verdicts": self.verdicts,
             "timings_s": {k: round(v, 3) for k, v in self.timings_s.items()},
@@ -470,7 +496,8 @@ def track_one(camera: Camera, T: np.ndarray, t: np.ndarray, sc: np.ndarray | Non
     shape, holes = design
     start = time.perf_counter()
     # with placement jitter every run renders its own placement: the nominal images are the report's frames
-    obs = observe(shape, holes, camera, T, config.sensor, sc, frames=report_frames(len(T)) if _placed(config) else None)
+    obs = observe(shape, holes, camera, T, config.sensor, sc, frames=report_frames(len(T)) if _placed(config) else None,
+                  renderer=config.renderer, render_options=config.render_options())
     mid = time.perf_counter()
     tracked = track_design(camera, obs, T, t, config, estimator_camera)
     return tracked, obs, {"render": mid - start, "track": time.perf_counter() - mid}

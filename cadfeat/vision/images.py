@@ -50,15 +50,18 @@ class SensorModel:
     blur_scale: float = 1.0
 
 
-def render_sequence(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray) -> np.ndarray:
-    """Noiseless grey images (F, H, W) float32 (0..255) of the part at poses T_cam_part (F, 4, 4), mm."""
-    from cadfeat.render import CameraViewRenderer  # lazy: would import scipy.optimize at module load
+def render_sequence(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray,
+                    renderer: str = "raster", **options: Any) -> np.ndarray:
+    """Noiseless grey images (F, H, W) float32 (0..255) of the part at poses T_cam_part (F, 4, 4), mm, by the
+    ``renderer`` kind (``render.camera_renderer``: "raster" VTK, "pbr" Mitsuba 3 with the cell's ``options``:
+    light, material, spp, hole_ends, sensor)."""
+    from cadfeat.render import camera_renderer  # lazy: would import scipy.optimize at module load
 
     T = np.asarray(T_cam_part, dtype=float)
     out = np.empty((len(T), camera.height, camera.width), dtype=np.float32)
-    with CameraViewRenderer(shape, holes, camera) as renderer:
+    with camera_renderer(renderer, shape, holes, camera, **options) as r:
         for k, pose in enumerate(T):
-            out[k] = grey(renderer.render(pose))
+            out[k] = r.render_grey(pose)
     return out
 
 

@@ -150,3 +150,24 @@ def test_the_lower_layers_default_to_the_default_cell():
     assert PoseModels().for_cell(cell) == PoseModels()
     assert Uncertainty() == Uncertainty.from_settings(RobustnessSettings(), cell)
     assert inspect.signature(pose_information).parameters["noise_grey"].default == cell.noise_sigma_grey
+
+
+def test_the_cell_light_and_material_are_sub_tables_with_one_line_errors(tmp_path):
+    """``[cell.light]`` / ``[cell.material]``: validated as their models, errors keyed ``cell.light.kind``; they
+    reach the physically based closed loop's renderer options."""
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.settings import TrackingSettings
+    from cadfeat.study.tracking import tracking_config
+
+    config = load_study(study(tmp_path, cell={"light": {"kind": "dome", "intensity": 2.0},
+                                              "material": {"name": "grey_plastic"}, "hole_ends": "drilled"}))
+    options = tracking_config(TrackingSettings(renderer="pbr", spp=4), config.cell).render_options()
+    assert (options["light"].kind, options["light"].intensity, options["material"].name, options["hole_ends"],
+            options["spp"]) == ("dome", 2.0, "grey_plastic", "drilled", 4)
+    assert tracking_config(TrackingSettings(), config.cell).render_options() == {}  # the raster loop takes none
+    for cell, where in (({"light": {"kind": "laser"}}, "cell.light.kind: 'laser' is not allowed; allowed: ring"),
+                        ({"material": {"name": "oak"}}, "cell.material.name: 'oak' is not allowed; allowed: "),
+                        ({"light": {"colour": 1}}, "cell.light.colour: unknown key; allowed: keys of [cell.light]")):
+        with pytest.raises(StudyError) as err:
+            load_study(study(tmp_path, cell=cell))
+        assert where in str(err.value) and "\n" not in str(err.value)

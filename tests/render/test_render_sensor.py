@@ -49,3 +49,18 @@ def test_bad_settings_are_refused():
         Sensor(bits=10)
     with pytest.raises(CadfeatError, match="sensor.exposure"):
         Sensor(exposure="manual")
+
+
+def test_metered_exposure_follows_the_part_not_a_hole_highlight():
+    """``exposure="meter"``: the part's median radiance lands at ``meter_fraction`` of full scale whatever a small
+    highlight does (a mirror-bright blind hole saturates instead of darkening the part); the black background is
+    not metered."""
+    from cadfeat.render.sensor import Sensor, expose
+
+    frame = np.zeros((100, 100), np.float32)
+    frame[20:80, 20:80] = 0.04                      # a dim machined face
+    plain = expose(frame, Sensor(exposure="meter"))
+    frame[45:50, 45:50] = 40.0                       # a blind hole's floor mirroring the ring light
+    lit = expose(frame, Sensor(exposure="meter"))
+    assert plain[30, 30] == pytest.approx(0.45 * 255, rel=1e-6) and lit[30, 30] == pytest.approx(0.45 * 255, rel=1e-6)
+    assert lit[47, 47] == 255.0 and lit[0, 0] == 0.0

@@ -11,6 +11,7 @@ from typing import Any, ClassVar, Literal
 from pydantic import ValidationInfo, field_validator, model_validator
 
 from cadfeat.cell import PER_AXIS, per_axis
+from cadfeat.cell.defaults import RENDERERS
 from cadfeat.design.shop import HOLE_SIZE_TABLES, hole_sizes
 from cadfeat.study.settings._base import (
     Settings,
@@ -144,6 +145,8 @@ class TrackingSettings(Settings):
     ``check``: the closed loop inside ``cadfeat run`` — "fast" (PnP and IEKF, few runs and frames), "full" (these
     settings) or "off"; unset: full when the study has a ``[tracking]`` table, else fast
     (``cadfeat.study.closed_loop_check``).
+    ``renderer``: "raster" (VTK: holes painted dark, a headlight) or "pbr" (Mitsuba 3: the ``[cell]``'s light,
+    material and hole ends; ``spp`` samples per pixel).
     The cell it runs in is the study's ``[cell]`` (``cadfeat.cell.Cell``): each run's part placement (σ = 0.4 t of the
     placement tolerance), the sensor noise σ, the light's gain σ, the detector and its gate; the initial error's
     direction is drawn per run too. Keys that moved to ``[cell]`` are refused with where to (``moved``).
@@ -180,6 +183,9 @@ class TrackingSettings(Settings):
     rim_model: bool = boolean(_CL.rim_model)
     alpha: float = number(_CL.alpha, 0.0, 0.5, lo_open=True)
     min_change_percent: float = number(100.0 * _CL.min_change, 0.0, 100.0)
+    renderer: Literal["raster", "pbr"] = choice(_CL.renderer, RENDERERS, description="raster: VTK, holes painted "
+                                                "dark; pbr: Mitsuba 3 path tracer with the [cell] light and material")
+    spp: int = integer(_CL.spp, 1, 4096, description="pbr: samples per pixel")
     check: Literal["fast", "full", "off"] | None = choice(
         None, f"one of {', '.join(CHECK_MODES)}", description="the closed loop inside cadfeat run (unset: full "
         "with a [tracking] table, else fast)")
