@@ -8,9 +8,10 @@ A camera turns it into grey levels:
    the ``auto_percentile``-th percentile of the frame's radiance (the brightest lit faces; specular highlights
    above it saturate, as in a real auto-exposed frame) at ``auto_fraction`` of full scale. ``exposure="meter"``:
    the median radiance of the part (the pixels above ``METER_FLOOR`` of the median of the lit pixels: the
-   cell's background is black; under a dome or ambient light it is metered too) at ``meter_fraction`` of full scale — an averaging meter on the part, as an engineer sets
-   a cell's exposure: it follows the faces, which fill the part's image, not a hole's highlight (a small bright
-   blind hole saturates instead of darkening the part), so two designs of one part get the same exposure.
+   cell's background is black; under a dome or ambient light it is metered too) at ``meter_fraction`` of full
+   scale — an averaging meter on the part, as an engineer sets a cell's exposure: it follows the faces, which
+   fill the part's image, not a hole's highlight (a small bright blind hole saturates instead of darkening the
+   part), so two designs of one part get the same exposure.
 2. **saturation**: the well holds at most full scale: clip to 0 … 255.
 3. **shot noise**: the signal in electrons, ``grey / 255 · full_well_e``, is Poisson distributed (none when
    ``full_well_e`` = 0); **read noise**: additive Gaussian of σ ``read_noise_grey`` grey levels (8-bit scale).
