@@ -25,9 +25,9 @@ def _run_args(parser: argparse.ArgumentParser) -> None:
 
 def _track_arg(parser: argparse.ArgumentParser) -> None:
     group = parser.add_mutually_exclusive_group()
-    group.add_argument("--track", choices=("fast", "full", "off"), default=None,
+    group.add_argument("--track", choices=("fast", "full", "off", "pbr"), default=None,
                        help="closed-loop check of the recommended design (default: the study's [tracking] check; "
-                            "fast: PnP + IEKF, 8 runs, <= 20 frames)")
+                            "fast: PnP + IEKF, 8 runs, <= 20 frames; pbr: the fast check rendered physically)")
     group.add_argument("--no-track", dest="track", action="store_const", const="off",
                        help="no closed-loop check (same as --track off)")
 

@@ -16,6 +16,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from cadfeat.cell.defaults import DETECTORS, RENDERERS
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError
 
@@ -28,6 +29,11 @@ def _track_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--runs", type=int, metavar="N", help="Monte-Carlo runs (overrides tracking.runs)")
     parser.add_argument("--sweep", choices=SWEEP_KINDS, help="thesis §6.3.3 sensitivity: vary one setting")
     parser.add_argument("--values", metavar="V,V,...", help="the sweep's values (default: a thesis-like range)")
+    parser.add_argument("--renderer", choices=RENDERERS, help="raster (VTK, holes painted dark) or pbr (Mitsuba 3 "
+                        "path tracer with the [cell] light and material); overrides tracking.renderer")
+    parser.add_argument("--detector", choices=DETECTORS, help="cadfeat (rim edges), edcircles (OpenCV contrib) or "
+                        "blob (SimpleBlobDetector); overrides cell.detector")
+    parser.add_argument("--spp", type=int, metavar="N", help="pbr: samples per pixel (overrides tracking.spp)")
 
 
 def _write_json(path: Path, data: dict[str, Any]) -> None:
@@ -71,6 +77,7 @@ def track(args: argparse.Namespace) -> int:
         if args.runs < 1:
             raise CadfeatError(f"--runs: {args.runs} is not allowed; allowed: an integer >= 1")
         spec = spec.replace(runs=args.runs)
+    config, spec = _with_overrides(config, spec, args)
     values = None
     if args.values:
         try:
@@ -95,6 +102,10 @@ def track(args: argparse.Namespace) -> int:
             print(f"  {row['value']:g}: " + "; ".join(parts))
         print(f"  outputs: {folder / f'sweep_{args.sweep}.json'}, {folder / f'sweep_{args.sweep}.png'}")
         return 0
+    if spec.renderer == "pbr":
+        from cadfeat.study.tracking import pbr_announcement  # lazy: Mitsuba
+
+        print(pbr_announcement(config, spec, designs))
     section = run_tracking(config, designs, out, spec)
     _write_json(folder / "tracking.json", section)
     results_path = out / "results.json"
@@ -112,6 +123,19 @@ def track(args: argparse.Namespace) -> int:
         print(f"  warning: {w}")
     print(f"  outputs: {folder / 'tracking.json'}" + (f", {results_path} (tracking)" if results_path.is_file() else ""))
     return 0
+
+
+def _with_overrides(config: Any, spec: Any, args: argparse.Namespace) -> tuple[Any, Any]:
+    """The study and its ``[tracking]`` with the command line's ``--renderer``, ``--spp`` and ``--detector``."""
+    import dataclasses
+
+    if args.spp is not None and args.spp < 1:
+        raise CadfeatError(f"--spp: {args.spp} is not allowed; allowed: an integer >= 1")
+    changes = {k: v for k, v in (("renderer", args.renderer), ("spp", args.spp)) if v is not None}
+    spec = spec.replace(**changes) if changes else spec
+    if args.detector is not None:
+        config = dataclasses.replace(config, cell=config.cell.replace(detector=args.detector))
+    return config, spec
 
 
 COMMANDS = (Command("track", _track_args, track),)

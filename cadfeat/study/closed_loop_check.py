@@ -15,6 +15,8 @@ Modes (``[tracking] check``, ``cadfeat run --track MODE`` / ``--no-track``):
   (2/2⁸ = 0.0078).
 - ``full``: the study's ``[tracking]`` settings as they are (the default when the study has that table; what
   ``cadfeat track`` runs).
+- ``pbr``: the fast check rendered physically (``[tracking] renderer = "pbr"``: Mitsuba 3 with the ``[cell]``'s
+  light, material and hole ends; the time it takes is announced before it starts).
 - ``off``: no closed loop (the verdict then rests on the proxies).
 
 Precedence: the command line, then the study's ``check``, then the environment variable ``CADFEAT_TRACKING_CHECK``
@@ -119,6 +121,8 @@ def check_spec(config: StudyConfig, n_samples: int) -> tuple[str, TrackingSpec |
         return mode, None
     if mode == "full":
         return mode, config.tracking or TrackingSpec(seed=config.study.seed)
+    if mode == "pbr":
+        return mode, fast_spec(config, n_samples).replace(renderer="pbr")
     return mode, fast_spec(config, n_samples)
 
 
@@ -192,16 +196,20 @@ def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Pat
     if spec is None:
         cancel(shapes)
         return None, None
-    if mode == "fast" and few < MIN_HOLES:
+    if mode in ("fast", "pbr") and few < MIN_HOLES:
         cancel(shapes)
         return None, f"{SKIPPED}: the part has {few} hole(s); a pose needs at least {MIN_HOLES}"
+    if spec.renderer == "pbr" and progress is not None:
+        from cadfeat.study.tracking import pbr_announcement  # lazy: Mitsuba
+
+        progress.log(pbr_announcement(config, spec, designs))
     t0, c0 = time.perf_counter(), time.process_time()
     pending = {name: shapes.get(key) for name, key in BACKGROUND_KEYS.items()}
     try:
         with _phase(progress):
             section = run_tracking(config, designs, stage, spec, tracked=_collect(pending, progress))
     except (CadfeatError, ImportError, RuntimeError, OSError, ValueError) as exc:
-        if mode == "full":
+        if mode in ("full", "pbr"):  # asked for by name: fail loudly
             raise
         return None, f"{SKIPPED}: the part could not be rendered and tracked ({type(exc).__name__}: {exc})"
     section["check"] = {"mode": mode, "runs": spec.runs, "frames": section["settings"]["frames"],

@@ -282,3 +282,28 @@ def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,
         row["verdicts"] = {m: v["verdict"] for m, v in section["verdicts"].items()}
         rows.append(row)
     return {"kind": kind, "values": [float(v) for v in (values or SWEEPS[kind])], "rows": rows}
+
+
+def pbr_seconds(config: StudyConfig, spec: TrackingSpec, design: Design) -> tuple[float, int]:
+    """(seconds per frame, frames to render) of the physically based closed loop of one design: a frame at the
+    middle tracked pose timed by ``PbrRenderer.estimate_seconds``; every run renders its own placement when the
+    cell has a placement tolerance (``Cell.placement_sigma``)."""
+    from cadfeat.render.pbr import PbrRenderer
+    from cadfeat.vision.closed_loop import placed, tracked_frames
+
+    camera, T_cam_part, times, screws = _scene(config)
+    _, T, _, _ = tracked_frames(T_cam_part, times, screws, spec.frame_step)
+    tc = tracking_config(spec.replace(renderer="pbr"), config.cell)
+    with PbrRenderer(design[0], list(design[1]), camera, **tc.render_options()) as renderer:
+        seconds = renderer.estimate_seconds(T[len(T) // 2])
+    return seconds, len(T) * (spec.runs if placed(tc) else 1)
+
+
+def pbr_announcement(config: StudyConfig, spec: TrackingSpec, designs: Mapping[str, Design]) -> str:
+    """The expected time of a physically based closed loop on ``designs`` (one frame of the first design timed,
+    ``pbr_seconds``), said before it starts."""
+    per_frame, frames = pbr_seconds(config, spec, next(iter(designs.values())))
+    n = len(designs)
+    return (f"physically based closed loop (Mitsuba 3, {spec.spp} spp, {config.cell.light.kind} light, "
+            f"{config.cell.material.name}): about {per_frame:.2g} s per frame x {frames} frames x {n} designs = "
+            f"about {n * per_frame * frames / 60:.1f} min")

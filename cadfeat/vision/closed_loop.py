@@ -222,7 +222,7 @@ def placement_errors(config: TrackingConfig, runs: int) -> np.ndarray:
     return out
 
 
-def _placed(config: TrackingConfig) -> bool:
+def placed(config: TrackingConfig) -> bool:
     """Does every run render its own placement (``placement_mm`` or ``placement_deg`` > 0)?"""
     return bool(np.any(np.asarray(config.placement_mm) > 0) or np.any(np.asarray(config.placement_deg) > 0))
 
@@ -370,8 +370,7 @@ def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: 
     first: list[Detections] = []
     T_runs = np.broadcast_to(T_true, (R_,) + T_true.shape)                        # (R, F, 4, 4) each run's truth
     runs_obs = [obs] * R_
-    placed = _placed(config)
-    if placed and obs.scene is not None:
+    if placed(config) and obs.scene is not None:
         T_runs = T_true[None] @ placement_errors(config, R_)[:, None]
         runs_obs = placed_observations(camera, obs, T_runs)
     gains = illumination_gains(config, R_)
@@ -496,7 +495,7 @@ def track_one(camera: Camera, T: np.ndarray, t: np.ndarray, sc: np.ndarray | Non
     shape, holes = design
     start = time.perf_counter()
     # with placement jitter every run renders its own placement: the nominal images are the report's frames
-    obs = observe(shape, holes, camera, T, config.sensor, sc, frames=report_frames(len(T)) if _placed(config) else None,
+    obs = observe(shape, holes, camera, T, config.sensor, sc, frames=report_frames(len(T)) if placed(config) else None,
                   renderer=config.renderer, render_options=config.render_options())
     mid = time.perf_counter()
     tracked = track_design(camera, obs, T, t, config, estimator_camera)

@@ -32,7 +32,7 @@ __all__ = ["CHECK_MODES", "ROBUST_STATISTICS", "SYMMETRIES", "TRACKING_ESTIMATOR
 
 SYMMETRIES = ("none", "x", "y", "xy")
 TRACKING_ESTIMATORS = ("ekf", "iekf", "pnp")
-CHECK_MODES = ("fast", "full", "off")
+CHECK_MODES = ("fast", "full", "off", "pbr")
 """``[tracking] check``: the closed loop inside ``cadfeat run`` (``cadfeat.study.closed_loop_check``)."""
 
 
@@ -186,7 +186,7 @@ class TrackingSettings(Settings):
     renderer: Literal["raster", "pbr"] = choice(_CL.renderer, RENDERERS, description="raster: VTK, holes painted "
                                                 "dark; pbr: Mitsuba 3 path tracer with the [cell] light and material")
     spp: int = integer(_CL.spp, 1, 4096, description="pbr: samples per pixel")
-    check: Literal["fast", "full", "off"] | None = choice(
+    check: Literal["fast", "full", "off", "pbr"] | None = choice(
         None, f"one of {', '.join(CHECK_MODES)}", description="the closed loop inside cadfeat run (unset: full "
         "with a [tracking] table, else fast)")
 
