@@ -15,9 +15,10 @@ Method (``detect_rims``), per hole with a prior ellipse (the closed loop's predi
    bilinearly in the image smoothed by a Gaussian of ``smooth_sigma_px``; all holes and rays in one array.
 2. The profile's derivative along the ray (grey levels per px, outwards positive). Edge candidates are its
    local maxima of |derivative| above a threshold: ``min_gradient`` grey/px, ``noise_factor`` × the robust
-   spread of the image's derivative (``gradient_noise``: mostly flat face), and ``rel_gradient`` × the median over the hole's rays of
-   their strongest edge. On each ray the **outermost** candidate is the rim point, refined to sub-pixel by a
-   parabola through the |derivative| samples around its peak (the gradient maximum of a blurred step).
+   spread of the image's derivative (``gradient_noise``: mostly flat face), and ``rel_gradient`` × the median
+   over the hole's rays of their strongest edge. On each ray the **outermost** candidate is the rim point,
+   refined to sub-pixel by a parabola through the |derivative| samples around its peak (the gradient maximum
+   of a blurred step).
 3. A robust ellipse fit (``cv2.fitEllipse``, then ``FIT_ROUNDS`` rounds dropping points farther than
    max(``MAD_FACTOR`` × MAD, ``min_inlier_px``) from the fit, measured as |ρ − 1| × semi-minor with ρ the
    normalised elliptic radius), accepted when the inliers cover ≥ ``min_coverage`` of the rays, their largest
