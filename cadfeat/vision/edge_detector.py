@@ -16,7 +16,11 @@ Method (``detect_rims``), per hole with a prior ellipse (the closed loop's predi
 2. The profile's derivative along the ray (grey levels per px, outwards positive). Edge candidates are its
    local maxima of |derivative| above a threshold: ``min_gradient`` grey/px, ``noise_factor`` × the robust
    spread of the image's derivative (``gradient_noise``: mostly flat face), and ``rel_gradient`` × the median
-   over the hole's rays of their strongest edge. On each ray the **outermost** candidate is the rim point,
+   over the hole's rays of their strongest edge. A candidate must have the **face** outside it: the level
+   ``FACE_OFFSET_PX`` outside within ``face_tolerance`` × its step (+ 2 × noise) of the face's grey (the
+   median of all samples ≥ ``FACE_OFFSET_PX`` outside the prior rim) — an edge between the face and a
+   neighbouring face, shadow or silhouette within the reach is not the rim. On each ray the **outermost**
+   remaining candidate is the rim point,
    refined to sub-pixel by a parabola through the |derivative| samples around its peak (the gradient maximum
    of a blurred step).
 3. A robust ellipse fit (``cv2.fitEllipse``, then ``FIT_ROUNDS`` rounds dropping points farther than
@@ -60,6 +64,8 @@ STEP_PX = 0.25
 INNER_FRACTION = 0.7
 #: Rounds of the iterated fit with outlier rejection.
 FIT_ROUNDS = 4
+#: The face's and the inside's grey levels are read this far outside / inside an edge candidate, px.
+FACE_OFFSET_PX = 1.5
 #: Outlier threshold in units of the residuals' median absolute deviation.
 MAD_FACTOR = 3.5
 
@@ -75,6 +81,7 @@ class RimSettings:
     min_gradient: float = 3.0
     noise_factor: float = 6.0
     rel_gradient: float = 0.2
+    face_tolerance: float = 0.3
     min_coverage: float = 0.7
     min_inlier_px: float = 0.35
     max_residual_px: float = 1.0
@@ -149,6 +156,12 @@ def _outermost_edges(img: np.ndarray, rays: _Rays, noise: float, cfg: RimSetting
     peak[..., 1:-1] = (g[..., 1:-1] >= g[..., :-2]) & (g[..., 1:-1] > g[..., 2:])
     peak &= g >= level[:, None, None]
     S = len(rays.s)
+    off = int(round(FACE_OFFSET_PX / STEP_PX))
+    out_v = np.concatenate([prof[..., off:], np.repeat(prof[..., -1:], off, axis=-1)], axis=-1)   # at s + offset
+    in_v = np.concatenate([np.repeat(prof[..., :1], off, axis=-1), prof[..., :-off]], axis=-1)    # at s − offset
+    outside = rays.s[None, None, :] >= FACE_OFFSET_PX
+    face = np.nanmedian(np.where(outside, prof, np.nan).reshape(len(prof), -1), axis=-1)         # (K,)
+    peak &= np.abs(out_v - face[:, None, None]) <= cfg.face_tolerance * np.abs(out_v - in_v) + 2 * noise
     last = S - 1 - np.argmax(peak[..., ::-1], axis=-1)                                     # outermost peak
     found = peak.any(axis=-1) & (last > 0) & (last < S - 1)
     k = np.clip(last, 1, S - 2)
@@ -157,11 +170,8 @@ def _outermost_edges(img: np.ndarray, rays: _Rays, noise: float, cfg: RimSetting
     frac = np.where(den < 0, 0.5 * (gm - gp) / np.where(den < 0, den, -1.0), 0.0)
     dist = rays.s[k] + np.clip(frac, -0.5, 0.5) * STEP_PX
     point = rays.origin + dist[..., None] * rays.normal
-    # the grey step across the edge: face level 1 px outside minus the level 1 px inside
-    off = int(round(1.0 / STEP_PX))
-    out_v = np.take_along_axis(prof, np.clip(k + off, 0, S - 1)[..., None], axis=-1)[..., 0]
-    in_v = np.take_along_axis(prof, np.clip(k - off, 0, S - 1)[..., None], axis=-1)[..., 0]
-    return _Edges(np.where(found[..., None], point, np.nan), np.where(found, np.abs(out_v - in_v), np.nan))
+    step = np.abs(np.take_along_axis(out_v - in_v, k[..., None], axis=-1)[..., 0])
+    return _Edges(np.where(found[..., None], point, np.nan), np.where(found, step, np.nan))
 
 
 def _fit(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
