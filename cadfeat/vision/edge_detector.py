@@ -23,17 +23,21 @@ Method (``detect_rims``), per hole with a prior ellipse (the closed loop's predi
    remaining candidate is the rim point,
    refined to sub-pixel by a parabola through the |derivative| samples around its peak (the gradient maximum
    of a blurred step).
-3. A robust ellipse fit (``cv2.fitEllipse``, then ``FIT_ROUNDS`` rounds dropping points farther than
-   max(``MAD_FACTOR`` × MAD, ``min_inlier_px``) from the fit, measured as |ρ − 1| × semi-minor with ρ the
+3. A robust ellipse fit: the first inliers are the points within ``SEED_INLIER_PX`` of an M-estimate (Cauchy
+   loss, ``_m_estimate``) started at the prior; then ``cv2.fitEllipse`` on them and ``FIT_ROUNDS`` rounds keeping
+   the points (all of them, re-admitted or not) within
+   max(``MAD_FACTOR`` × MAD, ``min_inlier_px``) of the fit, measured as |ρ − 1| × semi-minor with ρ the
    normalised elliptic radius), accepted when the inliers cover ≥ ``min_coverage`` of the rays, their largest
    deviation is ≤ ``max_residual_px``, the fitted axes are within ``size_ratio`` of the prior's and its centre
    moved less than ``reach_px``.
 4. The fit is repeated once on rays of the first fit with the short reach ``refine_reach_px`` (rays normal to
    the true rim; neighbouring edges outside the reach are no longer seen).
 5. The **surround test** (as ``detection``'s, sign-free): the grey levels on the ellipse grown by
-   ``ring_gap_px`` (the face just outside the rim) must be one homogeneous face — their spread (98th − 2nd
-   percentile) at most ``max_surround`` × the rim's contrast (median over inlier rays of |face − inside| just
-   across the edge). A rim crossed by another edge, the silhouette, a shadow or another hole fails.
+   ``ring_gap_px`` (the face just outside the rim) must be one homogeneous face — the spread (98th − 2nd
+   percentile) of the levels minus their first harmonic (the light's smooth fall-off across the hole,
+   ``surround_spread``) at most max(``max_surround`` × the rim's contrast (median over inlier rays of
+   |face − inside| just across the edge), ``surround_noise`` × the ring's pixel noise (``ring_noise``)). A
+   rim crossed by another edge, the silhouette, a shadow or another hole fails.
 6. With a distorting ``camera`` the centre is ``detection.undistorted_centre`` of the inlier edge points (the
    quantity ``measures.rim_centre`` predicts); axes and angle stay those of the fit in the distorted image.
 
@@ -66,6 +70,9 @@ INNER_FRACTION = 0.7
 FIT_ROUNDS = 4
 #: The face's and the inside's grey levels are read this far outside / inside an edge candidate, px.
 FACE_OFFSET_PX = 1.5
+#: Scale (px) of the Cauchy loss of the robust seed fit, and the seed's inlier distance (px).
+CAUCHY_SCALE_PX = 0.25
+SEED_INLIER_PX = 0.75
 #: Outlier threshold in units of the residuals' median absolute deviation.
 MAD_FACTOR = 3.5
 
@@ -89,6 +96,7 @@ class RimSettings:
     min_minor_px: float = 4.0
     ring_gap_px: float = 2.0
     max_surround: float = 0.35
+    surround_noise: float = 6.0
 
 
 @dataclass(frozen=True)
@@ -192,11 +200,34 @@ def _deviation_px(pts: np.ndarray, centre: np.ndarray, axes: np.ndarray, angle: 
     return np.abs(rho - 1.0) * axes[1] / 2
 
 
-def robust_ellipse(pts: np.ndarray, min_inlier_px: float) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+def _m_estimate(pts: np.ndarray, centre: np.ndarray, axes: np.ndarray, angle: float) -> np.ndarray:
+    """Deviations (M,) px of points (M, 2) from the ellipse fitted robustly from the start (centre, full axes,
+    angle): ``scipy.optimize.least_squares`` on (ρ − 1) × semi-minor with a Cauchy loss of scale
+    ``CAUCHY_SCALE_PX`` — a contiguous arc of wrong edges (a lit wall's inner boundary) weighs little."""
+    from scipy.optimize import least_squares
+
+    def resid(q: np.ndarray) -> np.ndarray:
+        d = pts - q[:2]
+        c, s = np.cos(q[4]), np.sin(q[4])
+        x, y = d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c
+        return (np.hypot(x / q[2], y / q[3]) - 1.0) * min(q[2], q[3])
+
+    q0 = np.array([centre[0], centre[1], axes[0] / 2, axes[1] / 2, angle])
+    q = least_squares(resid, q0, loss="cauchy", f_scale=CAUCHY_SCALE_PX, max_nfev=50).x
+    return np.abs(resid(q))
+
+
+def robust_ellipse(pts: np.ndarray, min_inlier_px: float, start: tuple[np.ndarray, np.ndarray, float] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """Iterated ``cv2.fitEllipse`` with outlier rejection (module docstring, step 3) of points (M, 2) px:
-    centre (2,), full axes (2,) major first, angle rad in [−π/2, π/2), inlier mask (M,)."""
+    centre (2,), full axes (2,) major first, angle rad in [−π/2, π/2), inlier mask (M,). ``start`` (centre,
+    full axes, angle): the first inliers are the points within ``SEED_INLIER_PX`` of a robust (Cauchy) fit
+    from there (``_m_estimate``); None: all points."""
     inl = np.ones(len(pts), dtype=bool)
-    centre, axes, angle = _fit(pts)
+    if start is not None:
+        seed = _m_estimate(pts, *start) <= SEED_INLIER_PX
+        inl = seed if seed.sum() >= 6 else inl
+    centre, axes, angle = _fit(pts[inl])
     for _ in range(FIT_ROUNDS):
         dev = _deviation_px(pts, centre, axes, angle)
         mad = 1.4826 * np.median(np.abs(dev[inl] - np.median(dev[inl])))
@@ -234,7 +265,7 @@ def _fit_rims(img: np.ndarray, noise: float, centre: np.ndarray, axes: np.ndarra
             out.append(None)
             continue
         pts = edges.point[j, ok]
-        c, ax, ang, inl = robust_ellipse(pts, cfg.min_inlier_px)
+        c, ax, ang, inl = robust_ellipse(pts, cfg.min_inlier_px, (centre[j], axes[j], float(angle[j])))
         res = float(_deviation_px(pts[inl], c, ax, ang).max())
         out.append(_Rim(c, ax, ang, pts[inl], inl.sum() / cfg.rays, res,
                         float(np.median(edges.step[j, ok][inl]))))
@@ -254,8 +285,28 @@ def _accepted(rim: _Rim | None, prior_centre: np.ndarray, prior_axes: np.ndarray
     ring = _ring_levels(img, rim.centre, rim.axes, rim.angle, cfg.ring_gap_px)
     if np.isnan(ring).any() or not rim.contrast > 0:
         return False
-    lo, hi = np.percentile(ring, [2, 98])
-    return bool(hi - lo <= cfg.max_surround * rim.contrast)
+    return surround_spread(ring) <= max(cfg.max_surround * rim.contrast, cfg.surround_noise * ring_noise(ring))
+
+
+def _detrended(ring: np.ndarray) -> np.ndarray:
+    """Ring grey levels (T,) (equal steps of the ellipse parameter) minus their least-squares a + b cos t +
+    c sin t: the face's smooth illumination gradient across the hole removed."""
+    t = 2 * np.pi * np.arange(len(ring)) / len(ring)
+    A = np.stack([np.ones_like(t), np.cos(t), np.sin(t)], axis=-1)
+    return ring - A @ np.linalg.lstsq(A, ring, rcond=None)[0]
+
+
+def surround_spread(ring: np.ndarray) -> float:
+    """98th − 2nd percentile (grey) of the detrended ring levels: an edge crossing the ring shows as a step."""
+    lo, hi = np.percentile(_detrended(ring), [2, 98])
+    return float(hi - lo)
+
+
+def ring_noise(ring: np.ndarray) -> float:
+    """Robust σ (grey) of the ring's pixel noise from successive differences (MAD / 0.6745 / √2): one step
+    where an edge crosses the ring does not move it."""
+    d = np.diff(ring)
+    return float(np.median(np.abs(d - np.median(d))) / 0.6745 / np.sqrt(2.0))
 
 
 def _prior(predicted: Ellipse, origin_px: np.ndarray, cfg: RimSettings) -> tuple[np.ndarray, ...]:
