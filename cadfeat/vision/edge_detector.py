@@ -23,15 +23,15 @@ Method (``detect_rims``), per hole with a prior ellipse (the closed loop's predi
    remaining candidate is the rim point,
    refined to sub-pixel by a parabola through the |derivative| samples around its peak (the gradient maximum
    of a blurred step).
-3. A robust ellipse fit: the first inliers are the points within ``SEED_INLIER_PX`` of an M-estimate (Cauchy
-   loss, ``_m_estimate``) started at the prior; then ``cv2.fitEllipse`` on them and ``FIT_ROUNDS`` rounds keeping
-   the points (all of them, re-admitted or not) within
+3. A robust ellipse fit: the first inliers are the points within ``SEED_INLIER_PX`` of the prior's shape moved
+   and scaled by an M-estimate (Cauchy loss, ``_m_estimate``); then ``cv2.fitEllipse`` on them and
+   ``FIT_ROUNDS`` rounds keeping the points (all of them, re-admitted or not) within
    max(``MAD_FACTOR`` × MAD, ``min_inlier_px``) of the fit, measured as |ρ − 1| × semi-minor with ρ the
    normalised elliptic radius), accepted when the inliers cover ≥ ``min_coverage`` of the rays, their largest
    deviation is ≤ ``max_residual_px``, the fitted axes are within ``size_ratio`` of the prior's and its centre
    moved less than ``reach_px``.
 4. The fit is repeated once on rays of the first fit with the short reach ``refine_reach_px`` (rays normal to
-   the true rim; neighbouring edges outside the reach are no longer seen).
+   the true rim; neighbouring edges outside the reach are no longer seen); its seed keeps the prior's shape.
 5. The **surround test** (as ``detection``'s, sign-free): the grey levels on the ellipse grown by
    ``ring_gap_px`` (the face just outside the rim) must be one homogeneous face — the spread (98th − 2nd
    percentile) of the levels minus their first harmonic (the light's smooth fall-off across the hole,
@@ -89,7 +89,7 @@ class RimSettings:
     noise_factor: float = 6.0
     rel_gradient: float = 0.2
     face_tolerance: float = 0.3
-    min_coverage: float = 0.7
+    min_coverage: float = 0.65
     min_inlier_px: float = 0.35
     max_residual_px: float = 1.0
     size_ratio: float = 1.4
@@ -201,19 +201,23 @@ def _deviation_px(pts: np.ndarray, centre: np.ndarray, axes: np.ndarray, angle: 
 
 
 def _m_estimate(pts: np.ndarray, centre: np.ndarray, axes: np.ndarray, angle: float) -> np.ndarray:
-    """Deviations (M,) px of points (M, 2) from the ellipse fitted robustly from the start (centre, full axes,
-    angle): ``scipy.optimize.least_squares`` on (ρ − 1) × semi-minor with a Cauchy loss of scale
-    ``CAUCHY_SCALE_PX`` — a contiguous arc of wrong edges (a lit wall's inner boundary) weighs little."""
+    """Deviations (M,) px of points (M, 2) from the prior's ellipse (full ``axes``, ``angle``) moved to the
+    centre and scaled by the factor that fit them robustly: ``scipy.optimize.least_squares`` on
+    (ρ − scale) × semi-minor with a Cauchy loss of scale ``CAUCHY_SCALE_PX``. The shape stays the prior's (3
+    parameters, not 5), so a contiguous arc of wrong edges (a lit wall's inner boundary, a thin far wall of the
+    face's grey) cannot be absorbed by the shape and weighs little."""
     from scipy.optimize import least_squares
+
+    c, s = np.cos(angle), np.sin(angle)
+    a, b = axes[0] / 2, axes[1] / 2
 
     def resid(q: np.ndarray) -> np.ndarray:
         d = pts - q[:2]
-        c, s = np.cos(q[4]), np.sin(q[4])
         x, y = d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c
-        return (np.hypot(x / q[2], y / q[3]) - 1.0) * min(q[2], q[3])
+        return (np.hypot(x / a, y / b) - q[2]) * b
 
-    q0 = np.array([centre[0], centre[1], axes[0] / 2, axes[1] / 2, angle])
-    q = least_squares(resid, q0, loss="cauchy", f_scale=CAUCHY_SCALE_PX, max_nfev=50).x
+    q = least_squares(resid, np.array([centre[0], centre[1], 1.0]), loss="cauchy", f_scale=CAUCHY_SCALE_PX,
+                      max_nfev=50).x
     return np.abs(resid(q))
 
 
@@ -254,8 +258,11 @@ class _Rim:
 
 
 def _fit_rims(img: np.ndarray, noise: float, centre: np.ndarray, axes: np.ndarray, angle: np.ndarray,
-              reach_px: float, cfg: RimSettings) -> list[_Rim | None]:
-    """Steps 1–3 for K prior ellipses; None where a hole has too few edge points."""
+              reach_px: float, cfg: RimSettings, shape: tuple[np.ndarray, np.ndarray] | None = None
+              ) -> list[_Rim | None]:
+    """Steps 1–3 for K ellipses (rays around them); ``shape`` (full axes (K, 2), angles (K,)): the shape the
+    robust seed fit keeps (None: these ellipses'); None where a hole has too few edge points."""
+    seed_axes, seed_angle = (axes, angle) if shape is None else shape
     rays = _rays(centre, axes, angle, cfg.rays, reach_px)
     edges = _outermost_edges(img, rays, noise, cfg)
     out: list[_Rim | None] = []
@@ -265,7 +272,7 @@ def _fit_rims(img: np.ndarray, noise: float, centre: np.ndarray, axes: np.ndarra
             out.append(None)
             continue
         pts = edges.point[j, ok]
-        c, ax, ang, inl = robust_ellipse(pts, cfg.min_inlier_px, (centre[j], axes[j], float(angle[j])))
+        c, ax, ang, inl = robust_ellipse(pts, cfg.min_inlier_px, (centre[j], seed_axes[j], float(seed_angle[j])))
         res = float(_deviation_px(pts[inl], c, ax, ang).max())
         out.append(_Rim(c, ax, ang, pts[inl], inl.sum() / cfg.rays, res,
                         float(np.median(edges.step[j, ok][inl]))))
@@ -354,7 +361,8 @@ def detect_rims(image: np.ndarray, predicted: Ellipse | None, *, camera: Camera 
     coarse = [first[j] for j in keep]
     fine = _fit_rims(img, noise, np.array([r.centre for r in coarse if r is not None]),
                      np.array([r.axes for r in coarse if r is not None]),
-                     np.array([r.angle for r in coarse if r is not None]), cfg.refine_reach_px, cfg)
+                     np.array([r.angle for r in coarse if r is not None]), cfg.refine_reach_px, cfg,
+                     shape=(ax[keep], ang[keep]))
     rows = []
     for j, rim in zip(keep, fine, strict=True):
         if rim is None or not _accepted(rim, c[j], ax[j], img, cfg):

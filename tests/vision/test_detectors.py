@@ -240,3 +240,37 @@ def test_region_of_interest_and_distortion() -> None:
     u0, v0 = (int(q) - 20 for q in fixed.centre_px[0])
     roi = detect("cadfeat", img[v0:, u0:], camera=cam, origin_px=(u0, v0), predicted=prior)
     np.testing.assert_allclose(roi.centre_px[0] + (u0, v0), fixed.centre_px[0], atol=1e-6)
+
+
+def test_cadfeat_detector_on_raster_renders_of_a_part() -> None:
+    """Real raster frames (the closed loop's renderer, as test_vision_closed_loop.py): a plate with four plain
+    holes and a counterbore, four views, 2 grey levels of noise. With the predicted rim ellipses shifted by
+    (1.5, −1) px as the prior, the rim detector finds every hole the threshold detector finds, within 0.3 px
+    of the exact rim-ellipse centres (``measures.hole_ellipse``)."""
+    cq = pytest.importorskip("cadquery")
+    from cadfeat.cad.features import extract_holes, holes_to_arrays
+    from cadfeat.measures import hole_ellipse
+    from cadfeat.poses import invert_T, look_at
+    from cadfeat.vision.images import render_sequence, sensor_images
+
+    camera = Camera(fx=420.0, fy=420.0, cx=160.0, cy=120.0, width=320, height=240,
+                    dist=(-0.12, 0.02, 0.0, 0.0, 0.0), focus_distance_mm=300.0)
+    wp = cq.Workplane("XY").box(100, 80, 5).faces(">Z").workplane().pushPoints(
+        [(-30, -20), (25, -15), (-10, 22), (30, 25)]).hole(8)
+    wp = wp.faces(">Z").workplane().pushPoints([(0, 0)]).cboreHole(6, 12, 2)
+    holes = extract_holes(wp)
+    eyes = [(0, 0, 300), (60, -80, 260), (-90, 50, 250), (110, 40, 240)]
+    T = np.stack([invert_T(look_at(np.array(e, float), np.array([0.0, 0.0, 2.5]), up=(0, 1, 0))) for e in eyes])
+    images = sensor_images(render_sequence(wp.val(), holes, camera, T), 2.0, 3)
+    centres, axes, radii = holes_to_arrays(holes)
+    found, worst = {"cadfeat": 0, "threshold": 0}, 0.0
+    for k in range(len(T)):
+        e = hole_ellipse(camera, centres @ T[k, :3, :3].T + T[k, :3, 3], axes @ T[k, :3, :3].T, radii)
+        prior = Ellipse(e.centre_px + np.array([1.5, -1.0]), e.axes_px, e.angle_rad, e.valid)
+        ours = associate(e, detect("cadfeat", images[k], camera=camera, predicted=prior))
+        theirs = associate(e, detect_holes(images[k], camera=camera))
+        found["cadfeat"] += int(np.all(np.isfinite(ours), axis=1).sum())
+        found["threshold"] += int(np.all(np.isfinite(theirs), axis=1).sum())
+        worst = max(worst, float(np.nanmax(np.linalg.norm(ours - e.centre_px, axis=1))))
+    assert found["cadfeat"] >= found["threshold"] and found["cadfeat"] >= 0.9 * len(T) * len(holes), found
+    assert worst < 0.3, worst
