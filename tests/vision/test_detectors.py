@@ -120,7 +120,9 @@ def test_edcircles_output_layout(angle_deg: float, semi: tuple[float, float]) ->
 @pytest.mark.parametrize("name", CASES)
 def test_cadfeat_detector_finds_the_outer_rim(name: str) -> None:
     errs = [_error_px("cadfeat", _case(name, seed)) for seed in range(3)]
-    tol = 0.2 if name == "crescent_similar" else 0.1    # b': the rim's edge is only a 12-grey step on the lit side
+    # (b), (b'): on the lit side the rim is a 35- (12-) grey step beside the wall's edge to the dark crescent;
+    # measured worst of 3 seeds 0.09 (0.14) px, the other cases ≤ 0.06 px
+    tol = {"crescent": 0.15, "crescent_similar": 0.2}.get(name, 0.1)
     assert max(errs) < tol, errs
 
 
@@ -150,11 +152,11 @@ def test_other_detectors_measured() -> None:
     ================ ============ ============ ====== =========
     case             cadfeat      edcircles    blob   threshold
     ================ ============ ============ ====== =========
-    dark             0.03 (0.04)  0.05         0.01   0.00
-    crescent         0.01 (0.04)  0.87 (0.96)  NaN    NaN
+    dark             0.02 (0.04)  0.05         0.01   0.00
+    crescent         0.09         0.87 (0.96)  NaN    NaN
     crescent_similar 0.14         0.21 (0.89)  NaN    NaN
-    mirror           0.03 (0.04)  0.99 (1.01)  NaN    NaN
-    chamfer          0.05 (0.06)  0.09 (0.12)  0.69   0.04
+    mirror           0.03         0.99 (1.01)  NaN    NaN
+    chamfer          0.04 (0.06)  0.09 (0.12)  0.69   0.04
     chamfer_bright   0.03 (0.04)  1.56 (1.59)  1.12   1.49
     plastic          0.03         0.06         0.01   0.01
     ================ ============ ============ ====== =========
@@ -197,6 +199,11 @@ def test_rejections() -> None:
     assert len(detect("cadfeat", _case("dark"), predicted=_prior(dc=(9.0, 0.0)))) == 0
     assert len(detect("cadfeat", _compose(130, []), predicted=_prior())) == 0
     assert len(detect("cadfeat", _case("dark"), predicted=_prior(scale=1.6))) == 0
+    p = _prior()
+    hidden = Ellipse(p.centre_px, p.axes_px, p.angle_rad, np.array([False]))        # not in front of the camera
+    assert len(detect("cadfeat", _case("dark"), predicted=hidden)) == 0
+    none = Ellipse(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
+    assert len(detect("cadfeat", _case("dark"), predicted=none)) == 0
 
 
 def test_without_a_prior_cadfeat_is_the_threshold_detector() -> None:
