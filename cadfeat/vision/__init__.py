@@ -2,10 +2,13 @@
 
 Modules (one concept each, DESIGN.md "Closed loop"): ``images`` (render along a trajectory, thin-lens
 defocus, motion blur, grey-level noise, 8-bit quantisation), ``detection`` (threshold + contours +
-``cv2.fitEllipse``; association by prediction with a gate), ``measurement`` (the rim ellipse-centre
-measurement and its analytic Jacobian), ``motion`` (12-state constant-velocity model on SE(3), thesis
-eq. 6.1), ``estimate`` (``estimate_poses``: EKF, IEKF, solvePnP; thesis §6.3.1–6.3.2), ``metrics``
-(errors, Monte-Carlo intervals, paired test), ``closed_loop`` (one design, before vs after).
+``cv2.fitEllipse``; association by prediction with a gate), ``detectors`` (``detect(kind, ...)`` over
+``DETECTORS``: ``edge_detector`` — cadfeat's rim edges around the predicted ellipses, for physically lit
+images —, ``edcircles`` — OpenCV contrib's EDCircles — and ``blob`` — ``cv2.SimpleBlobDetector``),
+``measurement`` (the rim ellipse-centre measurement and its analytic Jacobian), ``motion`` (12-state
+constant-velocity model on SE(3), thesis eq. 6.1), ``estimate`` (``estimate_poses``: EKF, IEKF, solvePnP;
+thesis §6.3.1–6.3.2), ``metrics`` (errors, Monte-Carlo intervals, paired test), ``closed_loop`` (one design,
+before vs after).
 OpenCV, SciPy and the renderer are imported where used.
 """
 
