@@ -38,7 +38,8 @@ from cadfeat.measures.ellipse import Ellipse as _E
 from cadfeat.measures.pose_models import RIM_GAP_MIN_PX as _RIM_GAP_MIN_PX
 from cadfeat.measures.pose_models import hole_geometry
 from cadfeat.measures.rim_occlusion import rim_occlusion
-from cadfeat.vision.detection import Detections, associate, detect_holes
+from cadfeat.vision.detection import Detections, associate
+from cadfeat.vision.detectors import detect
 from cadfeat.vision.estimate import FilterTuning, estimate_poses
 from cadfeat.vision.images import SensorModel, apply_optics, optics_kernels, render_sequence, sensor_images
 from cadfeat.vision.metrics import aggregate_runs, hold_last, paired_verdict, pose_errors, run_summary
@@ -324,15 +325,17 @@ def draw_frame(image: np.ndarray, predicted: Ellipse, detections: Detections, pi
 
 
 def detect_sequence(obs: Observation, noise_grey: float, seed: int, gate_px: float,
-                    gain: float = 1.0) -> tuple[np.ndarray, list]:
+                    gain: float = 1.0, detector: str = "cadfeat") -> tuple[np.ndarray, list]:
     """Pixels (F, N, 2) of one Monte-Carlo run (NaN = missing) and the raw detections per frame; ``gain``
-    scales the optical image (the run's illumination) before the noise."""
+    scales the optical image (the run's illumination) before the noise; ``detector``: ``vision.detectors``'s
+    kind (cadfeat's rim-edge detector takes the nominal predicted rims as its prior; the others see the image
+    alone)."""
     F_, N = len(obs.optical), len(obs.centres)
     pixels = np.full((F_, N, 2), np.nan)
     dets = []
     for k, img in enumerate(obs.optical):
         frame = sensor_images(img[None] * np.float32(gain), noise_grey, frame_seed(seed, k))[0]
-        d = detect_holes(frame, camera=obs.camera, origin_px=obs.offsets[k])
+        d = detect(detector, frame, camera=obs.camera, origin_px=obs.offsets[k], predicted=obs.predicted[k])
         d = Detections(d.centre_px + obs.offsets[k], d.axes_px, d.angle_rad, d.residual_px)
         dets.append(d)
         pixels[k] = associate(obs.predicted[k], d, gate_px)
@@ -376,7 +379,7 @@ def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: 
     gains = illumination_gains(config, R_)
     for run in range(R_):
         pixels[run], dets = detect_sequence(runs_obs[run], config.sensor.noise_grey, config.seed * 1000 + run,
-                                            config.gate_px, float(gains[run]))
+                                            config.gate_px, float(gains[run]), config.detector)
         if run == 0:
             first = dets
     T0 = np.stack([initial_pose(T_runs[run, 0], config.initial_error_mm, config.initial_error_deg,
