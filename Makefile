@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY      = $(VENV)/bin/python
 STAMP   = $(VENV)/.cadfeat-installed
 
-.PHONY: setup demo test test-kernels lint bench clean
+.PHONY: setup demo test test-kernels lint docs bench clean
 
 setup: $(STAMP)
 
@@ -29,6 +29,7 @@ test: $(STAMP)
 	tools/ensure_system.sh
 	CADFEAT_CHROMIUM="$$(tools/ensure_chromium.sh)" && export CADFEAT_CHROMIUM && \
 	$(MAKE) --no-print-directory lint && \
+	$(MAKE) --no-print-directory docs && \
 	$(PY) -m pytest -q $(PYTEST_PARALLEL) && \
 	$(MAKE) --no-print-directory test-kernels
 
@@ -51,6 +52,12 @@ lint: $(STAMP)
 	$(VENV)/bin/pyright --pythonpath $(PY) -p pyright-strict.json > $$log 2>&1 & strict=$$!; \
 	$(VENV)/bin/pyright --pythonpath $(PY); basic=$$?; \
 	wait $$strict; status=$$?; cat $$log; rm -f $$log; test $$basic -eq 0 && test $$status -eq 0
+
+# The documentation (mkdocs.yml, docs/): MkDocs + mkdocstrings, --strict so that a broken link or anchor, a page
+# outside the nav or an API reference to a name that no longer exists fails the build (and `make test`). No
+# --quiet: it hides the warnings from the count that --strict aborts on (a broken link would pass).
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict --site-dir build/docs
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py

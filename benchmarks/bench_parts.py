@@ -2,7 +2,7 @@
 
 Per part of ``parts/``: median time of ``Part.build`` (CadQuery build of the default design) and of
 ``extract_holes`` on it; the baseline, measured in the same run, is the build itself (ratio = extraction /
-build: how much the feature read-out adds to a CAD rebuild). Then the design map (DESIGN.md "CAD in the
+build: how much the feature read-out adds to a CAD rebuild). Then the design map (docs/design.md "CAD in the
 outer loop") of every non-integer parameter of a few parts: time, number of builds, time per build, and the
 time of one ``predict_batch`` of 1000 designs (what the optimiser's inner loop pays instead of a rebuild).
 Finally the worker-process build (``build_shape``) against the in-process build.

@@ -63,7 +63,7 @@ def main(corpus: Path | None = None, quick: bool = False) -> str:
                     f"{'; '.join(notes) or ''} |")
     default = corpus == ROOT / "tests" / "data" / "corner_cases"
     where = ("the committed corner-case fixtures (tests/data/corner_cases)" if default else
-             "a local corpus of real third-party parts (not committed; sources and licences listed in the README)")
+             "a local corpus of real third-party parts (not committed; sources and licences listed in docs/results.md)")
     lines = [
         f"## STEP parts{'' if default else ' (real, third-party)'}: load_step vs plain import, re-drill per hole "
         f"({'bench_step_corpus' if default else 'bench_step_corpus, real corpus'})",

@@ -4,7 +4,7 @@ Runs ``run_study`` on the flagship into a temporary folder (with the report unle
 each phase's wall time (results.json ``timings_s``). Baseline, measured in the same run: one CAD rebuild +
 hole extraction of the part at a design; the table gives the time the optimiser would have spent if each
 of its evaluations had rebuilt the CAD model (n_evals × rebuild), and the ratio to the time it actually
-spent on features ("CAD in the outer loop, features in the inner loop", DESIGN.md).
+spent on features ("CAD in the outer loop, features in the inner loop", docs/design.md).
 
 The closed-loop check ``cadfeat run`` makes by default (``study.closed_loop_check``, fast mode: PnP + IEKF,
 8 paired runs, at most 20 frames, on the original and the recommended design) tracks each design in a worker

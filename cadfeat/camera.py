@@ -1,6 +1,6 @@
 """The camera: OpenCV intrinsics, lens distortion, thin-lens optics and named presets.
 
-Frames and units follow DESIGN.md: the OpenCV camera frame (x right, y down, z forward),
+Frames and units follow docs/design.md "Conventions": the OpenCV camera frame (x right, y down, z forward),
 millimetres in 3-D, pixels in the image. Projection is the OpenCV model (the same numbers as
 ``cv2.projectPoints``) with the distortion vector ``(k1, k2, p1, p2, k3)``; the thesis writes the
 same pinhole model as eq. A.1-A.7 and uses Bouguet's ``kc`` for the distortion (Table A.1).

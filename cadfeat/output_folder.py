@@ -1,6 +1,6 @@
 """Output folders cadfeat may write: ownership manifest, checks before any work, staged publishing.
 
-cadfeat deletes or replaces only what it created itself (DESIGN.md, "Trust rules"):
+cadfeat deletes or replaces only what it created itself (docs/design.md, "Trust rules"):
 
 - every folder cadfeat publishes holds a manifest, ``.cadfeat-output.json``, listing the entries it wrote;
 - a folder is *cadfeat's* when its manifest is valid and every entry in it is listed there: only such a

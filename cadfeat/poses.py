@@ -1,6 +1,6 @@
 """SE(3) helpers: homogeneous transforms, look-at camera poses, the exponential and logarithm, twists.
 
-Conventions (DESIGN.md): ``T_a_b`` is the 4x4 transform mapping coordinates in frame b to frame a,
+Conventions (docs/design.md "Conventions"): ``T_a_b`` is the 4x4 transform mapping coordinates in frame b to frame a,
 ``p_a = T_a_b @ p_b``; millimetres and radians; cameras use the OpenCV frame (x right, y down,
 z forward). Every function is batched over leading axes (``(..., 4, 4)``, ``(..., 3)``, ``(..., 6)``)
 and broadcasts like numpy; rotations go through ``scipy.spatial.transform.Rotation``.
@@ -159,7 +159,7 @@ def hat(w: ArrayLike) -> np.ndarray:
 
 def rotvec_matrix(w: ArrayLike) -> np.ndarray:
     """Rotation matrices (..., 3, 3) of rotation vectors w (..., 3) rad (scipy's Rotation: exact for small angles,
-    unlike ``cv2.Rodrigues`` — DESIGN.md pitfalls)."""
+    unlike ``cv2.Rodrigues`` — docs/design.md "Known pitfalls")."""
     w = np.asarray(w, dtype=float)
     return Rotation.from_rotvec(w.reshape(-1, 3)).as_matrix().reshape(w.shape[:-1] + (3, 3))
 

@@ -1,5 +1,5 @@
-"""The package layout (DESIGN.md "Layout"): no import circle among cadfeat's modules, public names importable
-at their homes, and the README layout table naming only paths that exist."""
+"""The package layout (docs/design.md "Layout"): no import circle among cadfeat's modules, public names importable
+at their homes, and the layout table of docs/design.md naming only paths that exist."""
 
 from __future__ import annotations
 
@@ -108,8 +108,8 @@ def test_subpackages_stay_light():
     assert out.split() == ["False", "False"]
 
 
-def test_readme_layout_table_names_existing_paths():
-    text = (ROOT / "README.md").read_text()
+def test_design_layout_table_names_existing_paths():
+    text = (ROOT / "docs" / "design.md").read_text()
     table = text[text.index("## Layout"):].split("\n## ")[0]
     rows = [line for line in table.splitlines() if line.startswith("| `")]
     assert rows
@@ -119,16 +119,16 @@ def test_readme_layout_table_names_existing_paths():
         folder = Path(paths[0]).parent if paths[0].endswith(".py") else Path(paths[0])
         for p in paths:
             cand = [ROOT / p, ROOT / folder / p, ROOT / "cadfeat" / p]
-            assert any(c.exists() for c in cand), f"README layout: {p} does not exist"
+            assert any(c.exists() for c in cand), f"docs/design.md layout: {p} does not exist"
         prefix = Path(paths[0]) if paths[0].endswith("/") else None
         for p in re.findall(r"`([\w/]+(?:\.py|/))`", what):
             if prefix is not None:
-                assert (ROOT / prefix / p).exists(), f"README layout: {prefix / p} does not exist"
+                assert (ROOT / prefix / p).exists(), f"docs/design.md layout: {prefix / p} does not exist"
     listed = {re.findall(r"`([^`]+)`", r.split("|")[1])[0].rstrip("/") for r in rows}
     subpackages = {f"cadfeat/{p.name}" for p in PACKAGE.iterdir() if (p / "__init__.py").is_file()}
     missing = {s for s in subpackages if not any(s == entry or s.startswith(entry + "/") or
                                                   s.split("/")[-1] + "/" in row for entry in listed for row in rows)}
-    assert not missing, f"README layout table misses {sorted(missing)}"
+    assert not missing, f"docs/design.md layout table misses {sorted(missing)}"
 
 
 def _floor(module: str) -> str:
@@ -139,7 +139,7 @@ def _floor(module: str) -> str:
 
 
 def test_no_import_circle_among_sub_packages():
-    """The floors of the layout (DESIGN.md "Layout") import downwards only: no loop between sub-packages (or root
+    """The floors of the layout (docs/design.md "Layout") import downwards only: no loop between sub-packages (or root
     modules), counting lazy imports — an arrow up a floor (e.g. cad importing study) makes one."""
     graph: dict[str, set[str]] = {}
     for module, targets in _graph().items():

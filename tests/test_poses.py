@@ -125,7 +125,7 @@ def test_log_matches_logm_and_is_batched():
 
 
 def test_tiny_rotations_are_not_zeroed():
-    """cv2.Rodrigues drops rotations below ~1e-5 rad (DESIGN.md pitfall); the exponential keeps them."""
+    """cv2.Rodrigues drops rotations below ~1e-5 rad (docs/design.md "Known pitfalls"); the exponential keeps them."""
     xi = np.array([0.3, -0.2, 0.1, 3e-9, -1e-8, 2e-9])
     T = se3_exp(xi)
     np.testing.assert_allclose(T, expm(_twist_matrix(xi)), atol=1e-15)
@@ -209,7 +209,8 @@ def test_look_at_screws_match_finite_differences():
 
 def test_cam_from_part_is_the_camera_frame_of_the_part_and_is_the_only_one():
     """``poses.cam_from_part`` maps part points into the camera frame (against ``np.linalg.inv``), and no module
-    of the package writes ``inv(T_task_cam) @ T_task_part`` again (DESIGN.md: the cell's frames declared once)."""
+    of the package writes ``inv(T_task_cam) @ T_task_part`` again (docs/design.md "Conventions": the cell's frames
+    declared once)."""
     import re
     from pathlib import Path
 

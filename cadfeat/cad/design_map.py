@@ -1,6 +1,6 @@
 """The geometric design matrix ∂F/∂P of a part script: how each parameter moves and resizes the holes.
 
-DESIGN.md ("CAD in the outer loop, features in the inner loop"): the map parameters → hole features is
+docs/design.md ("CAD in the outer loop, features in the inner loop"): the map parameters → hole features is
 read from the CAD model itself — build at the design point, extract the holes, and take central finite
 differences of the extracted features per parameter (one-sided where a step would leave the bounds).
 This is the geometric level of the axiomatic design matrix of eq. 2.2 (thesis §2.2.4). Holes are matched

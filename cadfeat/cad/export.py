@@ -1,7 +1,7 @@
 """STEP/STL export, re-import and verification; staged (all-or-nothing) output folders.
 
 The final answer of a study is a real CAD rebuild written to disk; this module makes sure what is on
-disk is what was designed (DESIGN.md, "Errors and bad input" and the STEP-units pitfall):
+disk is what was designed (docs/design.md, "Errors and bad input" and the STEP-units pitfall):
 
 - ``export_step`` writes STEP AP214 with the length unit set explicitly to millimetres and checks the
   written file's ``SI_UNIT`` line; ``import_step`` reads a STEP file into millimetres.

@@ -16,7 +16,7 @@ A part script is a plain Python file (``parts/*.py``) that also runs unchanged i
 
 An integer parameter has an ``int`` default (and int bounds). ``load_part(path) -> Part`` validates the
 script; ``Part.build(**overrides)`` validates the values and returns one ``cadquery.Solid`` (mm);
-``build_shape(part, params, timeout_s)`` runs a build in a worker process with a time limit (DESIGN.md,
+``build_shape(part, params, timeout_s)`` runs a build in a worker process with a time limit (docs/design.md,
 "Known pitfalls": a CAD rebuild may hang), raising ``PartBuildError``; ``load_part(path,
 time_limit_s)`` runs the script's import and every ``Part.build`` that way (the ``cadfeat`` commands pass
 ``[study] build_timeout_s`` or ``--build-timeout``; None: in this process).

@@ -1,6 +1,6 @@
 """The sandbox of part-script code and CAD work: captured output, a time limit, worker processes.
 
-A part script is Python run with the user's rights and a CAD rebuild may hang (DESIGN.md, "Known pitfalls"):
+A part script is Python run with the user's rights and a CAD rebuild may hang (docs/design.md, "Known pitfalls"):
 ``contained`` runs script code with its output captured and ``sys.exit`` refused; ``run_worker`` runs a
 function in a worker process (forkserver with CadQuery preloaded) killed after a time limit;
 ``call_with_time_limit`` is the public form. The limit is always passed explicitly (``load_part(path,

@@ -1,6 +1,6 @@
 """Parts given as STEP files: import, hole selection, and re-drilling holes at new places and sizes.
 
-A STEP part has no parameters, so a redesign changes it directly on the B-rep (DESIGN.md, "Data flow"):
+A STEP part has no parameters, so a redesign changes it directly on the B-rep (docs/design.md, "Data flow"):
 each chosen hole is FILLED with the solid of revolution of its own profile (read from the hole's faces:
 plain bore, counterbore steps, countersink cones, drill points), the filled faces are merged back into
 their neighbours (``ShapeUpgrade_UnifySameDomain``), and the hole is CUT again at its new centre on the

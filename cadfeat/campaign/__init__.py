@@ -6,7 +6,7 @@
 - ``store``: the campaign folder (records, resume, atomic writes); ``summary``: campaign.csv / .html / .json;
 - ``runner``: ``run_campaign`` — LocalCluster or an existing scheduler, faults, Ctrl-C, progress.
 
-``cadfeat campaign CAMPAIGN.toml`` on the command line; README, "Campaigns".
+``cadfeat campaign CAMPAIGN.toml`` on the command line; docs/guide/campaigns.md.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Campaign files: the TOML format and its pydantic v2 model (``extra="forbid"``), with one-line errors.
 
-A campaign is a base study plus axes to sweep (README, "Campaigns")::
+A campaign is a base study plus axes to sweep (docs/guide/campaigns.md)::
 
     [campaign]   name, study (the base study file, relative to the campaign file), description,
                  timeout_s (wall-time limit of one case, s), retries (re-runs of a case whose worker died)
@@ -34,7 +34,7 @@ AXIS_SECTIONS = ("trajectory", "objective", "optimizer")
 _SINGLE_AXES = ("part", "camera", "study.seed")
 _NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
 _AXIS_TEXT = ("part, camera, study.seed, trajectory.<argument>, objective.<setting>, optimizer.<setting> "
-              "(see README, \"Campaigns\")")
+              "(see docs/guide/campaigns.md)")
 
 
 class CampaignError(CadfeatError):
@@ -109,7 +109,7 @@ def _allowed(err: dict[str, Any]) -> str:
     field = CampaignInfo.model_fields.get(loc[-1]) if loc[:1] == ["campaign"] else None
     if field is not None and field.description:
         return field.description
-    return "see README, \"Campaigns\""
+    return "see docs/guide/campaigns.md"
 
 
 def _dotted(loc: tuple[Any, ...]) -> str:
@@ -138,8 +138,8 @@ def parse_campaign(path: str | Path) -> CampaignFile:
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise CampaignError(f"{label}: not valid TOML: {exc}; allowed: a TOML campaign file (README, "
-                            "\"Campaigns\")") from None
+        raise CampaignError(f"{label}: not valid TOML: {exc}; allowed: a TOML campaign file "
+                            "(docs/guide/campaigns.md)") from None
     try:
         return CampaignFile.model_validate(data)
     except ValidationError as exc:

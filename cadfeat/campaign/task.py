@@ -104,7 +104,7 @@ def run_case(payload: Mapping[str, Any]) -> dict[str, Any]:
     problem = _check_files(payload.get("files", {}))
     if problem is None and _daemonic():
         problem = ("this Dask worker is a daemonic process, which may not start the CAD build processes a study "
-                   "needs; start workers with DASK_DISTRIBUTED__WORKER__DAEMON=False (README, \"Campaigns\")")
+                   "needs; start workers with DASK_DISTRIBUTED__WORKER__DAEMON=False (docs/guide/campaigns.md)")
     if problem is not None:
         return {**out, "status": "failed", "error": problem, "wall_s": time.perf_counter() - t0}
     try:

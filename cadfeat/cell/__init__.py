@@ -1,4 +1,4 @@
-"""The robot cell as one model (DESIGN.md "The cell is one model").
+"""The robot cell as one model (docs/design.md "The cell is one model").
 
 The camera's mount tolerance, the part's placement tolerance, the light and the sensor, the part's material and
 finish, how its holes are made, and the detector with its gate: declared once, each number saying whether it is a

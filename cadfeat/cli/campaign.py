@@ -9,7 +9,7 @@ from cadfeat.errors import CadfeatError
 
 
 def _args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("campaign", metavar="CAMPAIGN", help="campaign file (TOML), see README 'Campaigns'")
+    parser.add_argument("campaign", metavar="CAMPAIGN", help="campaign file (TOML), see docs/guide/campaigns.md")
     parser.add_argument("--out", metavar="DIR", help="output folder (default: exports/<campaign name>/); re-running "
                                                      "into it skips the cases already finished")
     parser.add_argument("--scheduler", metavar="ADDRESS",

@@ -11,7 +11,7 @@ from cadfeat.errors import CadfeatError
 
 
 def _study_arg(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("study", metavar="STUDY", help="study file (TOML), see README 'Study files'")
+    parser.add_argument("study", metavar="STUDY", help="study file (TOML), see docs/guide/study-files.md")
 
 
 def _run_args(parser: argparse.ArgumentParser) -> None:
@@ -127,7 +127,7 @@ def _schema_args(parser: argparse.ArgumentParser) -> None:
 
 
 def schema(args: argparse.Namespace) -> int:
-    """Write the JSON Schema of a study file (editor completion and checking: README, "Study files"), or with
+    """Write the JSON Schema of a study file (editor completion and checking: docs/guide/study-files.md), or with
     ``--results`` of results.json (``cadfeat.results.StudyResults``)."""
     if args.results:
         from cadfeat.results import results_json_schema as make

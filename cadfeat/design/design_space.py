@@ -1,6 +1,6 @@
 """Design space and feature models: the map from design variables to hole features.
 
-The optimiser never rebuilds CAD in its inner loop (DESIGN.md, "CAD in the outer loop, features in the
+The optimiser never rebuilds CAD in its inner loop (docs/design.md, "CAD in the outer loop, features in the
 inner loop"). It works on a *feature model* — a map ``x (P,) -> (centres (N,3) mm, axes (N,3), radii (N,)
 mm)`` — obtained from the CAD model:
 

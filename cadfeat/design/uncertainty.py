@@ -79,7 +79,7 @@ class Uncertainty:
 
 def rigid(rotvec_rad: np.ndarray, translation_mm: np.ndarray) -> np.ndarray:
     """(S, 4, 4) rigid transforms of rotation vectors (S, 3) rad and translations (S, 3) mm (scipy Rotation:
-    exact for small angles, DESIGN.md pitfalls)."""
+    exact for small angles, docs/design.md "Known pitfalls")."""
     S = len(rotvec_rad)
     T = np.tile(np.eye(4), (S, 1, 1))
     if S:

@@ -3,7 +3,7 @@
 Modules: ``fov`` (eq. 3.1–3.3 cone, rectangular sensor), ``focus`` (eq. 3.4–3.6), ``ellipse``
 (exact rim conic, sphere conic eq. 3.13–3.18), ``resolution`` (§3.3.3, eq. 3.7, 3.22), ``jacobian``
 (eq. 4.9–4.15, 4.20–4.21), ``resolvability`` (eq. 4.27–4.32), ``visibility`` (facing, occlusion),
-``evaluate`` (everything at once), ``pose_information`` (Fisher information of the pose, CRLB, bias; DESIGN.md
+``evaluate`` (everything at once), ``pose_information`` (Fisher information of the pose, CRLB, bias; docs/design.md
 "Pose accuracy"; the filter's posterior CRLB is ``cadfeat.vision.posterior_crlb``) with ``pose_models``
 (calibrated detection / measurement models), ``rim_centre`` (the measured point of a hole: its rim ellipse's
 centre and that centre's 2×6 pose Jacobian) and ``rim_occlusion`` (hidden fraction of each rim). All margins:

@@ -1,11 +1,11 @@
-"""Image ellipses of hole rims (exact conic, DESIGN.md §Resolution) and of spheres (thesis eq. 3.13–3.18).
+"""Image ellipses of hole rims (exact conic, docs/design.md "The measures") and of spheres (thesis eq. 3.13–3.18).
 
 Rim circle: centre c, unit normal n (camera frame, mm), radius R. A ray m = (x, y, 1) (normalised
 coordinates) meets the rim plane at t = (n·c)/(n·m); ‖t m − c‖² = R² multiplied by (n·m)² is the conic
 
     mᵀ C m = 0,   C = (n·c)² I − (n·c)(n cᵀ + c nᵀ) + (‖c‖² − R²) n nᵀ,
 
-the same conic as H⁻ᵀ diag(1, 1, −R²) H⁻¹ with H = [u v c] for the rim plane (DESIGN.md), written
+the same conic as H⁻ᵀ diag(1, 1, −R²) H⁻¹ with H = [u v c] for the rim plane (docs/design.md "The measures"), written
 without the inverse. Sphere (thesis): the tangent cone of a sphere (centre c, radius R) is
 C = c cᵀ − (‖c‖² − R²) I (eq. 3.17 with f_C = 1, up to sign and scale).
 
@@ -199,7 +199,7 @@ def rim_min_depth_mm(centre_cam: ArrayLike, normal_cam: ArrayLike, radius_mm: Ar
 def hole_ellipse(camera: Camera, centre_cam: ArrayLike, normal_cam: ArrayLike, radius_mm: ArrayLike) -> Ellipse:
     """Image ellipse of a hole's rim circle (centre (..., 3), normal (..., 3), radius (...) mm, camera frame).
 
-    Exact conic of the circle (DESIGN.md, §3.3.3 done on the circle instead of the thesis's sphere);
+    Exact conic of the circle (docs/design.md "The measures", §3.3.3 done on the circle instead of the thesis's sphere);
     distortion by the local affine map at the centre (module docstring). Batched over leading axes.
     """
     c = np.asarray(centre_cam, dtype=float)

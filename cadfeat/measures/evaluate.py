@@ -12,7 +12,7 @@ where it is in front of the camera, facing it, its rim inside the image and insi
 (``Camera.fold_radius``: past it rays fold back into the image), else 0: 1 for a feature seen whole (h = 0
 without a mesh), 0 for one the part hides whole — the estimator could not measure it.
 
-Hidden, partly hidden and folded feature-poses (DESIGN.md trust rules; the rule is ``measures.unseen``'s): a
+Hidden, partly hidden and folded feature-poses (docs/design.md "Trust rules"; the rule is ``measures.unseen``'s): a
 hole past the lens's fold radius, or facing away with its centre hidden, scores each measure's floor
 (``unseen_floors``: the value of a feature behind the camera, a constant independent of the hole's size and
 position) in FOV (cone and image), focus and resolution; a hole facing the camera scores
@@ -51,7 +51,7 @@ from cadfeat.measures.visibility import occluded
 #: Feature-poses per slab in ``evaluate`` (temporaries of 16k doubles = 128 kB stay in the L2 cache).
 BLOCK_ELEMENTS = 16384
 
-#: Hole models of the resolution measure (DESIGN.md): the exact rim circle, or the thesis's sphere.
+#: Hole models of the resolution measure (docs/design.md "The measures"): the exact rim circle, or the thesis's sphere.
 RESOLUTION_MODELS = ("circle", "sphere")
 
 

@@ -1,4 +1,4 @@
-"""Field-of-view margins: the thesis's cone (eq. 3.1–3.3) and the rectangular sensor (DESIGN.md).
+"""Field-of-view margins: the thesis's cone (eq. 3.1–3.3) and the rectangular sensor (docs/design.md "The measures").
 
 Margins are positive inside, 0 on the limit. Points at or behind the camera give finite, strongly
 negative values: the cone margin is then ≤ −cos(α/2), the image margin ``BEHIND_PX``.
@@ -55,6 +55,6 @@ def image_margin_from_ellipse(camera: Camera, ellipse: Ellipse) -> np.ndarray:
 def fov_image_margin_px(camera: Camera, centre_cam: ArrayLike, normal_cam: ArrayLike,
                         radius_mm: ArrayLike) -> np.ndarray:
     """Rectangular-sensor margin (...) px of a hole rim: the rim's image ellipse (``hole_ellipse``) must lie
-    inside the image; the margin is the distance of its bounding box to the nearest border (DESIGN.md's
-    "centre distance minus semi-major axis", made exact for tilted ellipses)."""
+    inside the image; the margin is the distance of its bounding box to the nearest border (docs/design.md
+    "The measures": "centre distance minus semi-major axis", made exact for tilted ellipses)."""
     return image_margin_from_ellipse(camera, hole_ellipse(camera, centre_cam, normal_cam, radius_mm))

@@ -1,6 +1,7 @@
 """Image Jacobian of point features and its diagnostics (thesis eq. 4.9–4.15, 4.20–4.21).
 
-Convention (DESIGN.md, the same as ViSP's and the Machine Vision Toolbox's interaction matrix): a point
+Convention (docs/design.md "Conventions", the same as ViSP's and the Machine Vision Toolbox's interaction
+matrix): a point
 fixed in the task frame seen from a camera moving with the velocity screw γ̇ = (v, ω) (mm/s, rad/s,
 camera frame) moves as Ṗ = −v − ω × P (eq. 4.3), and its pixel image moves as ṗ = J γ̇ with
 ``J = D(x, y) · L(x, y, Z)``: L the normalised-coordinate interaction matrix (eq. 4.10–4.11 with

@@ -1,4 +1,4 @@
-"""Pose accuracy: Fisher information of the part's pose from its holes' image measurements (DESIGN.md "Pose
+"""Pose accuracy: Fisher information of the part's pose from its holes' image measurements (docs/design.md "Pose
 accuracy"), the Cramér–Rao bound, the detection offsets propagated to a pose bias, and the filter's posterior bound.
 
 **Parametrisation of the pose error** (the filters' error state, ``cadfeat.vision.motion``): δ = (δp, δθ) ∈ R⁶,
@@ -17,7 +17,8 @@ centre), with the 2×6 Jacobian J_jk = ∂z_jk/∂δ of ``cadfeat.measures.rim_c
 gives z = h(δ) + b_jk + ε, ε ~ N(0, σ_jk² I), b_jk a systematic offset of the detector (px), σ_jk its noise
 (``pose_models.measurement_model``), detected with probability p_jk (``pose_models.detection_probability``).
 
-**Fisher information** (per pose, eq. of DESIGN.md; the detection probability as the expected weight):
+**Fisher information** (per pose, eq. of docs/design.md "Pose accuracy"; the detection probability as the expected
+weight):
 
     I_k = Σ_j p_jk J_jkᵀ J_jk / σ_jk²          (6×6, units 1/mm², 1/(mm·rad), 1/rad²)
 

@@ -32,7 +32,8 @@ def margin_from_ellipse(camera: Camera, ellipse: Ellipse, min_axis_px: float) ->
 
 def resolution_margin_px(camera: Camera, centre_cam: ArrayLike, normal_cam: ArrayLike, radius_mm: ArrayLike,
                          min_axis_px: float = 5.0) -> np.ndarray:
-    """Minor full axis of the rim's exact image ellipse minus ``min_axis_px`` (...), px (DESIGN.md)."""
+    """Minor full axis of the rim's exact image ellipse minus ``min_axis_px`` (...), px (docs/design.md, "The
+    measures")."""
     return margin_from_ellipse(camera, hole_ellipse(camera, centre_cam, normal_cam, radius_mm), min_axis_px)
 
 

@@ -1,6 +1,6 @@
 """Unseen and partly seen holes in the thesis proxies: the rule, and the smooth visibility term (issue 17).
 
-The rule (DESIGN.md trust rules), per feature-pose, for each of the FOV cone margin (eq. 3.3), the FOV image
+The rule (docs/design.md "Trust rules"), per feature-pose, for each of the FOV cone margin (eq. 3.3), the FOV image
 margin (px), the focus margin (eq. 3.6) and the resolution margin (px, §3.3.3) — v the measure's value as if
 the hole were seen, f its floor (``unseen_floors``: the value of a feature behind the camera, below any seen
 one):

@@ -1,6 +1,6 @@
 """Synthetic camera images: what the study's camera sees, with its real intrinsics and pose.
 
-The VTK camera is set from the OpenCV model (DESIGN.md frames, eq. A.1–A.7 of the thesis):
+The VTK camera is set from the OpenCV model (docs/design.md "Conventions", eq. A.1–A.7 of the thesis):
 
 - pose: ``T_part_cam = inv(T_cam_part)``; position = its translation, focal point one unit along the
   camera's +z column, view-up = −y column (OpenCV y points down in the image);

@@ -2,7 +2,7 @@
 Model)``; plain data, as read or built by hand, is validated section by section).
 
 Each function returns an HTML fragment, or "" when its data is absent. Numbers keep their exact value in
-``data-value`` (see ``html.num``). Margins follow DESIGN.md: positive = satisfied, larger = better.
+``data-value`` (see ``html.num``). Margins follow docs/design.md "Conventions": positive = satisfied, larger = better.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ while the run goes on — the original from the end of the set-up, beside the op
 optimiser has the other core), the recommended design from the end of its CAD rebuild, beside the analysis,
 the export and the report's renders; ``closed_loop_check`` then only collects them (a worker that failed leaves
 its design to this process). The numbers are those of the check run here (``CADFEAT_TRACKING_BACKGROUND=0``);
-the cost on the flagship is in README ("Time budget") and ``benchmarks/bench_study.py``.
+the cost on the flagship is in docs/guide/closed-loop.md ("Time budget") and ``benchmarks/bench_study.py``.
 
 "Whenever the part can be rendered": the fast check is skipped — with a warning in results.json and the
 printout, never an error after the optimisation — when fewer than ``MIN_HOLES`` holes exist (a pose needs at

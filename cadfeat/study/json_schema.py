@@ -7,8 +7,8 @@ Every section comes from its one declaration: the ``Settings`` models (``cadfeat
 ``calibration`` file) and ``[trajectory]`` one form per library kind (its arguments, ``kind_arguments``) or a
 ``csv`` file. ``load_study``
 remains the full check (files, the part's parameters and their bounds, what depends on the part's kind). Use it
-with taplo / Even Better TOML by a first line ``#:schema ./study.schema.json`` in the study file (README, "Study
-files").
+with taplo / Even Better TOML by a first line ``#:schema ./study.schema.json`` in the study file
+(docs/guide/study-files.md).
 """
 
 from __future__ import annotations

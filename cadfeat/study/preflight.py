@@ -1,5 +1,5 @@
 """Pre-flight checks of a study: refuse, before any optimisation, a study that cannot mean anything
-(DESIGN.md, "Trust rules"), with one line naming the likely cause and the key to change.
+(docs/design.md, "Trust rules"), with one line naming the likely cause and the key to change.
 
 ``preflight(config, camera, trajectory, T_task_part, part_points, holes, scored)`` checks, in this order:
 

@@ -16,7 +16,7 @@ Two steps, each attached to the pipeline (``cadfeat.study.pipeline.compute``) by
   ``samples`` draws of a held-out seed (study seed + 1); the in-sample vs out-of-sample robust statistic of each
   design; which source the recommended design is most sensitive to (one-at-a-time 5th-percentile drops).
 
-The rule (DESIGN.md "Uncertainty"): a design whose combined objective's 5th percentile is below the original's,
+The rule (docs/design.md "Uncertainty"): a design whose combined objective's 5th percentile is below the original's,
 under the whole cell, the camera mounting error or the shop's tolerances (``design.robust.BLOCKS``, the sources
 the robust optimiser holds to the original's in sample), is never recommended; the original is then
 (``recommended = "original"``). The other sources alone are diagnostics ("where the robustness comes from").

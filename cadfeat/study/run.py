@@ -1,4 +1,4 @@
-"""Run a redesign study end to end (DESIGN.md data flow) and score designs without optimising.
+"""Run a redesign study end to end (docs/design.md "Data flow") and score designs without optimising.
 
 ``run_study(study)``:
 

@@ -1,7 +1,7 @@
 """Study files: the TOML format, its validation, and the frozen ``StudyConfig`` it becomes.
 
 A study says which part to redesign, with which camera moving along which trajectory, what may change,
-what must be kept, what to optimise and how (README, "Study files", has a full annotated example)::
+what must be kept, what to optimise and how (docs/guide/study-files.md has a full annotated example)::
 
     [study]        name, part (script .py or .step/.stp, relative to the study file), seed, description
     [camera]       preset = "dalsa-cad1-128a" | explicit fx fy cx cy width height dist + optics |
@@ -186,8 +186,8 @@ def _read(path_or_dict: StudySource, base_dir: str | Path | None) -> tuple[dict[
         with open(path, "rb") as fh:
             data = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
-        raise StudyError(f"{label}: not valid TOML: {exc}; allowed: a TOML study file (see README, "
-                         "\"Study files\")") from exc
+        raise StudyError(f"{label}: not valid TOML: {exc}; allowed: a TOML study file (see "
+                         "docs/guide/study-files.md)") from exc
     except UnicodeDecodeError as exc:
         raise StudyError(f"{label}: not a UTF-8 text file; allowed: a TOML study file") from exc
     return data, path, (Path(base_dir) if base_dir is not None else path.parent).resolve(), label

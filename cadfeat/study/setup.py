@@ -1,4 +1,4 @@
-"""From a validated ``StudyConfig`` to everything the optimiser and the exporter need (DESIGN.md data flow).
+"""From a validated ``StudyConfig`` to everything the optimiser and the exporter need (docs/design.md "Data flow").
 
 ``setup_study(config)`` loads the part (a CadQuery script via ``cadfeat.cad.parts.load_part`` or a STEP file via
 ``cadfeat.cad.step_parts.load_step``), the camera, the trajectory and the part pose, then builds the design

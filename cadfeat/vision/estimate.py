@@ -1,7 +1,7 @@
 """Pose tracking from hole measurements: EKF and IEKF (thesis §6.3.1–6.3.2) and OpenCV solvePnP per frame.
 
 ``estimate_poses(camera, points_part, pixels, times_s, method=...)`` is the public entry point
-(DESIGN.md "Closed loop"). All three use the same measurement model (``cadfeat.measures.rim_centre``):
+(docs/design.md "Closed loop"). All three use the same measurement model (``cadfeat.measures.rim_centre``):
 the image positions of the holes through the full camera model with distortion, and — when the holes'
 normals and radii are given — the centre of each rim's image ellipse rather than the projected centre.
 
@@ -259,7 +259,8 @@ def _update(camera: Camera, prior: PoseState, P: np.ndarray, zk: np.ndarray, ok:
 
 # ---------------------------------------------------------------------------------------------- PnP
 def _rvec_of(R: np.ndarray) -> np.ndarray:
-    return so3_log(R).reshape(3, 1)  # scipy, exact near 0 (DESIGN.md: cv2.Rodrigues zeroes tiny rotations)
+    # scipy, exact near 0 (docs/design.md "Known pitfalls": cv2.Rodrigues zeroes tiny rotations)
+    return so3_log(R).reshape(3, 1)
 
 
 def _pnp_candidates(obj: np.ndarray, img: np.ndarray, camera: Camera, guess: np.ndarray | None) -> list[np.ndarray]:

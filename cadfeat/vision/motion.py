@@ -47,7 +47,7 @@ def _series(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def so3_exp(w: np.ndarray) -> np.ndarray:
     """Rotation matrices (..., 3, 3) of rotation vectors w (..., 3): Rodrigues I + A W + B W², series near 0
-    (exact for tiny angles, unlike cv2.Rodrigues — DESIGN.md pitfalls)."""
+    (exact for tiny angles, unlike cv2.Rodrigues — docs/design.md "Known pitfalls")."""
     w = np.asarray(w, dtype=float)
     A, B, _ = _series(np.linalg.norm(w, axis=-1))
     W = hat(w)

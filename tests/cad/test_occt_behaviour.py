@@ -2,7 +2,7 @@
 upgrade that changes one is noticed here, not as a wrong answer elsewhere (as build123d's test_occt_bugs.py).
 
 Each test states the kernel's behaviour on exact geometry, then that cadfeat's workaround still gives the
-right hole (DESIGN.md, "Known pitfalls"): the cylinder axis points INTO the material for a drilled hole
+right hole (docs/design.md, "Known pitfalls"): the cylinder axis points INTO the material for a drilled hole
 (cadfeat orients it out of the material); STEP files written by other CAD programs keep a hole wall split into
 two half-cylinder faces (cadfeat joins coaxial faces into one hole); a STEP round trip keeps millimetres and the
 geometry to double precision with OCCT's default vertex tolerance (Precision::Confusion, 1e-7 mm); the BRep

@@ -1,7 +1,7 @@
 """STEP parts as other CAD systems write them: one test per real-export trait (issue 11).
 
 Each fixture in tests/data/corner_cases/ (made by tests/data/make_step_corner_cases.py with cadfeat's own CAD
-code) reproduces one trait measured on a local corpus of 26 real third-party parts (README "Real STEP
+code) reproduces one trait measured on a local corpus of 26 real third-party parts (docs/results.md "Real STEP
 parts"): split 180° walls (SolidWorks, Creo), faces of one hole 3e-6 mm / 5e-7 rad apart, filleted and
 chamfered rims, 3-D-printing teardrops and D-bores, through holes seen from the far side, B-spline faces
 that make whole-solid volumes inaccurate, parts far from the origin, a hole another feature cuts into.

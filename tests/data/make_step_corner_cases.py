@@ -1,7 +1,7 @@
 """Write the STEP corner-case fixtures (tests/data/corner_cases/*.step): parts made by cadfeat's own CAD code
 that reproduce, one trait each, what real exports from other CAD systems look like (measured on a local
 corpus of 26 third-party parts from SolidWorks, Fusion 360, Onshape, FreeCAD, Creo, Inventor, NX; see the
-README "Real STEP parts"). Run: ``python tests/data/make_step_corner_cases.py``.
+docs/results.md "Real STEP parts"). Run: ``python tests/data/make_step_corner_cases.py``.
 
 Every part is a 60 × 40 × 8 mm plate (top face z = 8) unless said otherwise; construction values are the
 module constants, which the tests use as their independent reference.

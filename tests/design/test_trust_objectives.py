@@ -47,7 +47,7 @@ def test_thesis_combined_optimum_does_not_depend_on_the_start(combined_setup):
     for f in found[1:]:  # and the same normalisation
         np.testing.assert_allclose(f[2], found[0][2], rtol=1e-9)
         np.testing.assert_allclose(f[3], found[0][3], rtol=1e-9, atol=1e-12)
-    assert 2.0 + 1e-3 < xs[0] < 6.0 - 1e-3  # not at a bound; the README states the value
+    assert 2.0 + 1e-3 < xs[0] < 6.0 - 1e-3  # not at a bound; docs/results.md states the value
 
 
 def test_initial_normalisation_stays_start_dependent(combined_setup):

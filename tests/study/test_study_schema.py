@@ -372,14 +372,15 @@ def test_dict_study_label():
     fails(data, "<study dict>", "objective.aggregate", "sum, mean, min, smoothmin")
 
 
-def test_readme_example_is_a_valid_study():
-    """The annotated example of README "Study files" loads (relative to studies/, like the flagship)."""
+def test_docs_example_is_a_valid_study():
+    """The annotated example of docs/guide/study-files.md ("An annotated study") loads (relative to studies/,
+    like the flagship)."""
     import re
     import tomllib
 
     root = DATA.parents[1]
-    text = (root / "README.md").read_text()
-    section = text[text.index("## Study files"):]
+    text = (root / "docs" / "guide" / "study-files.md").read_text()
+    section = text[text.index("## An annotated study"):]
     block = re.search(r"```toml\n(.*?)```", section, re.S).group(1)
     cfg = load_study(tomllib.loads(block), base_dir=root / "studies")
     assert cfg.study.name == "nema17_mount" and cfg.objective.combine == "maxmin"

@@ -1,8 +1,8 @@
 """Study settings as pydantic models and the JSON Schema of a study file (``cadfeat schema``).
 
-Independent references: the ``jsonschema`` library validates every study of studies/ (and the README's
-example) against the written schema and refuses planted mistakes; the vision layer's own defaults
-(``FilterTuning``) are what a study without ``[tracking]`` keys gets.
+Independent references: the ``jsonschema`` library validates every study of studies/ (tests/test_docs.py: the
+annotated example of docs/guide/study-files.md) against the written schema and refuses planted mistakes; the vision
+layer's own defaults (``FilterTuning``) are what a study without ``[tracking]`` keys gets.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ part. This module reads them from the CAD model itself:
   material, its depth, and the outline of the planar host face (for edge-distance constraints).
 - ``extract_points(shape) -> (M, 3)``: the vertices of the solid (the thesis's point objects).
 - ``holes_to_arrays`` / ``match_holes``: batch arrays for the measures and geometric matching of
-  holes across CAD rebuilds (face indices are not stable, DESIGN.md "Known pitfalls").
+  holes across CAD rebuilds (face indices are not stable, docs/design.md "Known pitfalls").
 
 Units: millimetres, part frame. CadQuery/OCP are imported inside functions only, so that
 ``import cadfeat.cad.features`` stays light.

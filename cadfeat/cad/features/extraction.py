@@ -2,7 +2,7 @@
 primitives (topology, surfaces of revolution, sampling, areas, tolerances) are the private ``_brep`` module,
 re-exported here.
 
-Algorithm (DESIGN.md "Known pitfalls"):
+Algorithm (docs/design.md "Known pitfalls"):
 
 1. Classify every face: cylinders and cones are *concave* when the material lies outside them, i.e.
    the orientation-aware face normal (``BRepGProp_Face``, pointing out of the material) points towards

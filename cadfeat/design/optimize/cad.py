@@ -1,4 +1,4 @@
-"""CAD in the outer loop: the trust-region loop around the feature-model optimiser (DESIGN.md).
+"""CAD in the outer loop: the trust-region loop around the feature-model optimiser (docs/design.md "Data flow").
 
 Round k: optimise on the current feature model inside the trust region (the whole box in round 1),
 rebuild the candidate in CAD and re-extract its holes, match them to the prediction by geometry, and
