@@ -106,8 +106,23 @@ def _allowed(p: dict[str, Any]) -> str:
     return "; ".join(dict.fromkeys(out))
 
 
+def _resolve(node: Any, defs: dict[str, Any]) -> Any:
+    """The schema with every ``{"$ref": "#/$defs/X", ...}`` replaced by X (the ref's sibling keys kept over X's)."""
+    if isinstance(node, list):
+        return [_resolve(v, defs) for v in node]
+    if not isinstance(node, dict):
+        return node
+    if "$ref" in node:
+        target = _resolve(defs[node["$ref"].rsplit("/", 1)[-1]], defs)
+        return {**target, **{k: _resolve(v, defs) for k, v in node.items() if k != "$ref"}}
+    return {k: _resolve(v, defs) for k, v in node.items() if k != "$defs"}
+
+
 def _nested(p: dict[str, Any]) -> dict[str, Any] | None:
-    """The object schema nested in a property (items of an array, values of a table), if it has properties."""
+    """The object schema nested in a property (a sub-table, items of an array, values of a table), if it has
+    properties."""
+    if "properties" in p:
+        return p
     for q in [p, *p.get("anyOf", [])]:
         if "properties" in q and q is not p:
             return q
@@ -138,11 +153,17 @@ def _table(schema: dict[str, Any], prefix: str) -> list[str]:
         if sub is not None:
             nested.append((key, sub))
     for key, sub in nested:
-        lines += ["", f"Entries of `{prefix}{key}`:", "", *_table(sub, f"{prefix}{key}.")]
+        if "properties" in schema["properties"][key]:
+            what = f": {_text(sub['description'])}" if sub.get("description") else ":"
+            head = f"Sub-table `[{prefix}{key}]`{what}"
+        else:
+            head = f"Entries of `{prefix}{key}`:"
+        lines += ["", head, "", *_table(sub, f"{prefix}{key}.")]
     return lines
 
 
 def render(schema: dict[str, Any]) -> str:
+    schema = _resolve(schema, schema.get("$defs", {}))
     lines = [HEADER]
     required = set(schema.get("required", []))
     for section, sec in schema["properties"].items():

@@ -1,4 +1,4 @@
-"""The cell's light (DESIGN.md "The cell is one model"): its kind, placement and strength.
+"""The cell's light (docs/design.md "The cell is one model"): its kind, placement and strength.
 
 ``Light(kind=...)``:
 

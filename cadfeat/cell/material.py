@@ -1,4 +1,4 @@
-"""The part's material and finish, by name, as Mitsuba 3 BSDFs (DESIGN.md "The cell is one model").
+"""The part's material and finish, by name, as Mitsuba 3 BSDFs (docs/design.md "The cell is one model").
 
 ``Material(name="machined_aluminium", roughness=None)`` is the user-facing setting (``roughness`` None: the
 named finish's default GGX α); ``bsdf_dict(material)`` is its Mitsuba 3 BSDF as a ``mi.load_dict`` table.

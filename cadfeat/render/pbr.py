@@ -1,4 +1,4 @@
-"""Physically based camera images (Mitsuba 3 path tracer): the referee of DESIGN.md "Closed loop".
+"""Physically based camera images (Mitsuba 3 path tracer): the referee of docs/design.md "Closed loop".
 
 ``PbrRenderer(shape, holes, camera, light=..., material=..., spp=16)`` is the counterpart of the raster
 ``CameraViewRenderer``: ``render(T_cam_part)`` returns linear radiance (H, W) float32, scaled so that a white

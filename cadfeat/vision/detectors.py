@@ -1,4 +1,4 @@
-"""The hole detectors of the closed loop behind one call (DESIGN.md "Closed loop": the referee must not be the
+"""The hole detectors of the closed loop behind one call (docs/design.md "Closed loop": the referee must not be the
 defendant).
 
 - ``"cadfeat"``: ``edge_detector.detect_rims`` — the rim's outermost step edge around each predicted rim

@@ -2,7 +2,7 @@
 
 Written elsewhere (Akinlar & Topal 2013; the ED edge segments, arcs joined into circles and ellipses, each
 validated by the a-contrario Number of False Alarms), it knows nothing of cadfeat's rims, renderer or prior:
-the referee that is not the defendant (DESIGN.md "Closed loop"). It finds every ellipse in the image — with a
+the referee that is not the defendant (docs/design.md "Closed loop"). It finds every ellipse in the image — with a
 chamfer both the bore's and the chamfer's edges; association by prediction (``detection.associate``) then keeps
 the one nearest each predicted rim centre, which is how a practitioner would use it.
 

@@ -3,7 +3,7 @@
 Reference, independent of the detectors: ellipses drawn by ``cv2.ellipse`` at 1/16 px (16× canvas, 4 shift
 bits, pixel centres at integer coordinates) and area-averaged back (``cv2.resize`` INTER_AREA), as a sensor
 integrates each pixel; the rim centre is the drawn ellipse's centre. Faces and holes of the physical cases
-cadfeat's threshold detector fails on (DESIGN.md "Closed loop"), each with 2 grey levels of Gaussian noise:
+cadfeat's threshold detector fails on (docs/design.md "Closed loop"), each with 2 grey levels of Gaussian noise:
 
 (a) ``dark``: a dark bore (face 130, bore 25);
 (b) ``crescent``: the far wall lit brighter than the face (165) with a dark crescent (30) on one side — the
