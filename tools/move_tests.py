@@ -7,7 +7,7 @@ Re-runnable: after merging branches that edited or added tests in the flat ``tes
 commit the result as one pure move. For each ``tests/test_*.py`` it picks a folder (``folder_of``: an explicit
 table, then name prefixes; unknown names stay in ``tests/``), ``git mv``s the file, and rewrites the one thing a
 move changes inside a test: paths computed from ``Path(__file__)`` (one folder deeper: ``.parent`` →
-``.parents[1]``, ``.parents[1]`` → ``.parents[2]``). Mentions of moved tests (``tests/test_x.py``) in README.md,
+``.parents[1]``, ``.parents[1]`` → ``.parents[2]``). Mentions of moved tests (``tests/test_x.py``) in README.md, docs/,
 the package's docstrings, benchmarks and the tests themselves are updated. The shared helpers and ``data/`` stay
 in ``tests/`` (``tests/conftest.py`` puts that folder on ``sys.path``).
 """
@@ -73,7 +73,7 @@ def plan() -> dict[Path, Path]:
 
 def _mentions() -> list[Path]:
     """The files that may name a test module by its path."""
-    files = [ROOT / "README.md", *sorted((ROOT / "cadfeat").rglob("*.py")),
+    files = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")), *sorted((ROOT / "cadfeat").rglob("*.py")),
              *sorted((ROOT / "benchmarks").rglob("*.py")), *sorted(TESTS.rglob("*.py"))]
     return [f for f in files if f.is_file()]
 
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
         new = pattern.sub(lambda m: names[m.group(0)], text)
         if new != text:
             f.write_text(new, encoding="utf-8")
-    subprocess.run(["git", "add", "-A", "tests", "README.md", "cadfeat", "benchmarks"], cwd=ROOT, check=True)
+    subprocess.run(["git", "add", "-A", "tests", "README.md", "docs", "cadfeat", "benchmarks"], cwd=ROOT, check=True)
     print(f"{len(moves)} test modules moved; commit them as one pure move")
     return 0
 
