@@ -109,3 +109,13 @@ def test_pairing_by_axis_line_and_radius():
         pair_holes(ref, [_hole((-30, 15, -3), (0, 0, -1), 3.5), flipped[0]], 0.5, along_axis=True)
     with pytest.raises(CadfeatError, match="axis line and radius"):
         pair_holes(ref, [_hole((-29, 15, -3), (0, 0, -1)), flipped[0]], 0.5, along_axis=True)
+
+
+def test_parts_listing_enters_on_the_given_view(capsys):
+    """``cadfeat parts SCRIPT --holes --view 0,0,1`` lists the holes as a study seen from above extracts them."""
+    from cadfeat.cli import main
+
+    assert main(["parts", str(DATA / "dowel_plate.py"), "--holes", "--view", "0,0,1"]) == 0
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if "r 2.750 mm" in ln]
+    assert len(lines) == 2 and all("3.000) mm, axis (0.000, 0.000, 1.000)" in ln for ln in lines)
+    assert {ln.split("centre (")[1].split(", 3.000")[0] for ln in lines} == {"-30.000, -15.000", "-30.000, 15.000"}
