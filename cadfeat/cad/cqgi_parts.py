@@ -11,9 +11,14 @@ A CadQuery user's script has top-level constants and passes its result to ``show
     result = cq.Workplane("XY").box(length, 60, 10).faces(">Z").workplane().hole(hole_dia)
     show_object(result)
 
-It loads through CadQuery's own gateway interface (``cadquery.cqgi.parse(source).build(build_parameters=...)``,
-as cq-editor and cq-cli run it), so the script is never imported as a module. Its parameters are the
-NUMERIC constants CQGI finds (``int`` / ``float``; strings, booleans and tuples stay as the script sets them):
+It loads through CadQuery's own gateway interface (``cadquery.cqgi.parse(source).build()``, as cq-editor and
+cq-cli run it), so the script is never imported as a module. Its constants are read from the script's own
+syntax tree (``script_constants``): every top-level ``name = literal`` or ``name: type = literal`` whose literal
+is an int, float (a leading ``-`` / ``+`` included), bool, str or a tuple of those. CQGI's own finder misses
+negative numbers (``-12.0`` is a unary minus, not a constant) and annotated assignments, and its
+``build(build_parameters=...)`` substitutes only what it found; here a build writes every value into a copy of
+the syntax tree (the constant's assignment, ``_substituted``) and hands that tree to CQGI. The part's parameters
+are the NUMERIC constants (``int`` / ``float``; strings, booleans and tuples stay as the script sets them):
 
 - description: ``describe_parameter(name, "text")`` where given, else the constant's line comment (without the
   bounds);
@@ -30,18 +35,22 @@ geometry to the default build, ``Part.name_holes``) and every study path work un
 dispatches here when ``is_cqgi_script(path)``. The result shown must hold exactly one solid: a CadQuery
 Workplane / Shape, or a build123d ``Part`` / ``Solid`` (any object whose ``wrapped`` is an OCP shape).
 
-``getparams(path)`` is cq-cli's ``--getparams`` listing (the same JSON objects, from the same CQGI metadata).
+``getparams(path)`` is cq-cli's ``--getparams`` listing (the same JSON objects) of every constant, each with its
+value (``initial``, also when it is 0 or False, which cq-cli drops).
 """
 
 from __future__ import annotations
 
 import ast
 import contextlib
+import copy
+import io
 import math
 import re
 import sys
 import types
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -49,8 +58,8 @@ import numpy as np
 
 from cadfeat.errors import CadfeatError
 
-__all__ = ["BOUNDS_COMMENT", "cad_shapes", "cqgi_parameters", "getparams", "is_cqgi_script", "load_cqgi_part",
-           "unit_view_direction"]
+__all__ = ["BOUNDS_COMMENT", "ScriptConstant", "cad_shapes", "cqgi_parameters", "getparams", "is_cqgi_script",
+           "load_cqgi_part", "script_constants", "unit_view_direction"]
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 #: The bounds comment on a constant's line: ``# [lower, upper] unit  description``.
@@ -88,34 +97,145 @@ def is_cqgi_script(path: str | Path) -> bool:
                for n in top for c in ast.walk(n))
 
 
+@dataclass(frozen=True)
+class ScriptConstant:
+    """One top-level constant of a CQGI script: ``name = value`` (or ``name: type = value``, or one name of
+    ``a, b = 1.0, 2.0``) with a literal value (int, float, bool, str or a tuple of those; a leading ``-`` / ``+``
+    included). ``statement`` is its statement's index in the module body, ``element`` its index in a tuple
+    unpacking (None for one name), ``lineno`` its 1-based line."""
+
+    name: str
+    value: Any
+    statement: int
+    element: int | None
+    lineno: int
+
+
+def _literal(node: ast.expr) -> tuple[bool, Any]:
+    """``(True, value)`` if ``node`` is a literal int / float / bool / str, a signed number (``-12.0``) or a
+    tuple of those; else ``(False, None)``."""
+    if isinstance(node, ast.Constant) and isinstance(node.value, int | float | str):  # bool is an int
+        return True, node.value
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub | ast.UAdd) \
+            and isinstance(node.operand, ast.Constant) and isinstance(node.operand.value, int | float) \
+            and not isinstance(node.operand.value, bool):
+        return True, -node.operand.value if isinstance(node.op, ast.USub) else node.operand.value
+    if isinstance(node, ast.Tuple):
+        items = [_literal(e) for e in node.elts]
+        if all(ok for ok, _ in items):
+            return True, tuple(v for _, v in items)
+    return False, None
+
+
+def script_constants(tree: ast.Module) -> dict[str, ScriptConstant]:
+    """The top-level constants of a script's syntax tree, by name in the order of their first assignment (a
+    name assigned a literal again keeps its last literal, as CQGI does; one later assigned anything else is no
+    constant)."""
+    out: dict[str, ScriptConstant] = {}
+    for i, node in enumerate(tree.body):
+        if isinstance(node, ast.AnnAssign) and node.value is not None:
+            targets, value = [node.target], node.value
+        elif isinstance(node, ast.Assign) and len(node.targets) == 1:
+            targets, value = node.targets, node.value
+        else:
+            if isinstance(node, ast.Assign | ast.AugAssign | ast.AnnAssign):  # a = b = 1.0, a += 1, a: int
+                for t in node.targets if isinstance(node, ast.Assign) else [node.target]:
+                    for n in ast.walk(t):
+                        if isinstance(n, ast.Name):
+                            out.pop(n.id, None)
+            continue
+        target = targets[0]
+        if isinstance(target, ast.Name):
+            ok, literal = _literal(value)
+            if ok:
+                out[target.id] = ScriptConstant(target.id, literal, i, None, node.lineno)
+            else:
+                out.pop(target.id, None)
+        elif isinstance(target, ast.Tuple) and isinstance(value, ast.Tuple) and len(target.elts) == len(value.elts):
+            for k, (t, v) in enumerate(zip(target.elts, value.elts, strict=True)):
+                if isinstance(t, ast.Name):
+                    ok, literal = _literal(v)
+                    if ok:
+                        out[t.id] = ScriptConstant(t.id, literal, i, k, node.lineno)
+                    else:
+                        out.pop(t.id, None)
+    return out
+
+
+def _descriptions(tree: ast.Module) -> dict[str, str]:
+    """``describe_parameter(name, "text")`` calls anywhere in the script, by name (CQGI's own convention)."""
+    out = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "describe_parameter" \
+                and len(node.args) >= 2 and isinstance(node.args[0], ast.Name) \
+                and isinstance(node.args[1], ast.Constant) and isinstance(node.args[1].value, str):
+            out[node.args[0].id] = node.args[1].value
+    return out
+
+
+def _substituted(tree: ast.Module, constants: dict[str, ScriptConstant], values: dict[str, Any]) -> ast.Module:
+    """A copy of ``tree`` with each constant named in ``values`` assigned that value (a literal in place of
+    the script's own: ``-12.0`` and ``x: float = 90.0`` are written like any other constant)."""
+    out = copy.deepcopy(tree)
+    for name, value in values.items():
+        c = constants[name]
+        node = out.body[c.statement]
+        assert isinstance(node, ast.Assign | ast.AnnAssign) and node.value is not None
+        old = node.value if c.element is None else node.value.elts[c.element]  # type: ignore[attr-defined]
+        new = ast.copy_location(ast.Constant(value=value), old)
+        if c.element is None:
+            node.value = new
+        else:
+            node.value.elts[c.element] = new  # type: ignore[attr-defined]
+    return ast.fix_missing_locations(out)
+
+
+@dataclass(frozen=True)
+class _Script:
+    """A parsed CQGI script: its syntax tree, its constants and their descriptions."""
+
+    path: Path
+    tree: ast.Module
+    constants: dict[str, ScriptConstant]
+    descriptions: dict[str, str]
+
+
+def _script(path: Path) -> _Script:
+    tree = _tree(path)
+    return _Script(path, tree, script_constants(tree), _descriptions(tree))
+
+
 def _model(path: Path) -> Any:
-    """CQGI's model of the script (parsing only: nothing of the script runs)."""
+    """CQGI's model of the script (parsing only: nothing of the script runs). CQGI prints, to stdout, an
+    assignment it cannot read (a tuple with a negative number): that text is dropped (the constants are read
+    here, ``script_constants``), so ``cadfeat parts --params`` prints JSON only."""
     from cadquery import cqgi
 
     _tree(path)  # a syntax error names the file and line
-    return cqgi.parse(path.read_text(encoding="utf-8"))
+    with contextlib.redirect_stdout(io.StringIO()):
+        return cqgi.parse(path.read_text(encoding="utf-8"))
 
 
-def cqgi_parameters(path: str | Path, parameter_cls: Callable[..., Any], model: Any = None) -> dict[str, Any]:
-    """The numeric constants CQGI finds in the script, as ``parameter_cls`` (``cadfeat.cad.parts.Parameter``,
-    passed in so that this module does not import ``parts``, which dispatches here) by name, in the script's
-    order; bounds and unit from the ``# [lower, upper] unit`` comment (else ±inf)."""
-    from cadquery import cqgi
-
+def cqgi_parameters(path: str | Path, parameter_cls: Callable[..., Any], script: _Script | None = None
+                    ) -> dict[str, Any]:
+    """The numeric constants of the script (``script_constants``: negative and annotated ones included), as
+    ``parameter_cls`` (``cadfeat.cad.parts.Parameter``, passed in so that this module does not import ``parts``,
+    which dispatches here) by name, in the script's order; bounds and unit from the ``# [lower, upper] unit``
+    comment (else ±inf)."""
     path = Path(path)
-    model = model if model is not None else _model(path)
+    script = script if script is not None else _script(path)
     lines = path.read_text(encoding="utf-8").splitlines()
     out = {}
-    for name, p in model.metadata.parameters.items():
-        if p.varType is not cqgi.NumberParameterType or name in _TEXT_CONSTANTS:
+    for name, c in script.constants.items():
+        default = c.value
+        if isinstance(default, bool) or not isinstance(default, int | float) or name in _TEXT_CONSTANTS:
             continue
-        default = p.default_value
-        is_int = isinstance(default, int) and not isinstance(default, bool)
-        line = lines[p.ast_node.lineno - 1] if getattr(p.ast_node, "lineno", None) else ""
+        is_int = isinstance(default, int)
+        line = lines[c.lineno - 1]
         comment = line.split("#", 1)[1].strip() if "#" in line else ""
         lower, upper, unit = -math.inf, math.inf, ""
         match = BOUNDS_COMMENT.search(comment)
-        where = f"{path}:{getattr(p.ast_node, 'lineno', '?')}"
+        where = f"{path}:{c.lineno}"
         if match:
             lower, upper = float(match.group(1)), float(match.group(2))
             unit = match.group(3) or ""
@@ -128,23 +248,22 @@ def cqgi_parameters(path: str | Path, parameter_cls: Callable[..., Any], model: 
             if not lower <= default <= upper:
                 raise CadfeatError(f"{where}: {name} = {default!r} is outside its bounds comment "
                                    f"[{match.group(1)}, {match.group(2)}]; allowed: lower <= value <= upper")
-        description = p.desc if isinstance(p.desc, str) and p.desc else comment
+        description = script.descriptions.get(name) or comment
         out[name] = parameter_cls(name, default, lower, upper, unit, description, is_int)
     return out
 
 
-def _text_constants(model: Any, path: Path) -> dict[str, Any]:
-    params = model.metadata.parameters
+def _text_constants(script: _Script) -> dict[str, Any]:
+    path, consts = script.path, script.constants
     out: dict[str, Any] = {}
     for key in ("DESCRIPTION", "FIXED_HOLES"):
-        value = params[key].default_value if key in params else ""
+        value = consts[key].value if key in consts else ""
         if not isinstance(value, str):
             raise CadfeatError(f"{path}: {key} must be a string, got {type(value).__name__}")
         out[key] = value.strip()
-    view = params["VIEW_DIRECTION"].default_value if "VIEW_DIRECTION" in params else None
+    view = consts["VIEW_DIRECTION"].value if "VIEW_DIRECTION" in consts else None
     out["VIEW_DIRECTION"] = unit_view_direction(view, str(path))
     return out
-
 
 
 def unit_view_direction(view: Any, where: str) -> np.ndarray | None:
@@ -228,17 +347,20 @@ def _script_dir_on_path(path: Path) -> Iterator[None]:
             sys.path.remove(folder)
 
 
-def _builder(path: Path, model: Any, names: list[str]) -> Any:
+def _builder(script: _Script, model: Any, names: list[str]) -> Any:
     """``build(**params)``: run the script through CQGI with ``params`` and return its one solid."""
+    path = script.path
 
     def build(**params: Any) -> Any:
         unknown = sorted(set(params) - set(names))
         if unknown:
             raise CadfeatError(f"{path}: unknown parameter(s) {', '.join(unknown)}; allowed: {', '.join(names)}")
-        # CQGI writes the values into its syntax tree: every build passes every parameter, so none keeps a
-        # value of an earlier build.
+        # The values are written into a fresh copy of the script's syntax tree (CQGI's own substitution knows
+        # only the constants its finder saw, and writes into its one tree): no build keeps an earlier value.
+        values = {k: int(v) if isinstance(v, int) else float(v) for k, v in params.items()}
+        model.ast_tree = _substituted(script.tree, script.constants, values)
         with _two_argument_describe(), _script_dir_on_path(path):
-            result = model.build(build_parameters={k: params[k] for k in names if k in params})
+            result = model.build()
         if not result.success:
             exc = result.exception
             raise CadfeatError(f"{path}: CQGI build raised {type(exc).__name__}: {exc}")
@@ -252,12 +374,13 @@ def load_cqgi_part(path: str | Path, part_cls: Callable[..., Any], parameter_cls
     here and passes its classes in; nothing of the script runs here: CQGI only parses it; ``Part.build`` runs
     it). Raises ``CadfeatError`` naming the file for a syntax error or a bad bounds comment."""
     path = Path(path).resolve()
+    script = _script(path)
     model = _model(path)
-    parameters = cqgi_parameters(path, parameter_cls, model)
-    text = _text_constants(model, path)
+    parameters = cqgi_parameters(path, parameter_cls, script)
+    text = _text_constants(script)
     module = types.ModuleType(f"cadfeat_cqgi_{path.stem}")
     module.__file__ = str(path)
-    module.build = _builder(path, model, list(parameters))  # type: ignore[attr-defined]
+    module.build = _builder(script, model, list(parameters))  # type: ignore[attr-defined]
     module.PARAMETERS = {n: {"default": p.default, "bounds": (p.lower, p.upper), "unit": p.unit,  # type: ignore
                              "description": p.description} for n, p in parameters.items()}
     module.CQGI_MODEL = model  # type: ignore[attr-defined]
@@ -266,24 +389,29 @@ def load_cqgi_part(path: str | Path, part_cls: Callable[..., Any], parameter_cls
 
 
 def getparams(path: str | Path) -> list[dict[str, Any]]:
-    """cq-cli's ``--getparams`` listing of a CQGI script: one object per constant CQGI finds, with ``type``
-    (number | string | boolean; none for tuples), ``name``, ``caption`` (the ``describe_parameter`` text),
-    ``initial`` (the default when it is truthy) and ``min`` / ``max`` / ``step`` from CQGI's valid values —
-    the fields and rules of cq-cli's ``main.py``."""
-    model = _model(Path(path))
-    kinds = {"NumberParameterType": "number", "StringParameterType": "string", "BooleanParameterType": "boolean"}
+    """cq-cli's ``--getparams`` listing of a CQGI script: one object per top-level constant
+    (``script_constants``: negative and annotated ones too, which CQGI's own finder misses), in the script's
+    order, with ``type`` (number | string | boolean; none for tuples), ``name``, ``caption`` (the
+    ``describe_parameter`` text), ``initial`` (the value: always, also 0 / False / "", which cq-cli's
+    ``main.py`` drops) and ``min`` / ``max`` / ``step`` from CQGI's valid values where CQGI has any — the
+    fields of cq-cli's ``main.py``. Only the numeric ones are design parameters (``cqgi_parameters``)."""
+    path = Path(path)
+    script = _script(path)
+    cqgi_meta = _model(path).metadata.parameters
     out = []
-    for p in model.metadata.parameters.values():
+    for name, c in script.constants.items():
         entry: dict[str, Any] = {}
-        if p.varType.__name__ in kinds:
-            entry["type"] = kinds[p.varType.__name__]
-        entry["name"] = p.name
-        if p.desc:
-            entry["caption"] = p.desc
-        if p.default_value:
-            entry["initial"] = p.default_value
-        if p.valid_values:
-            entry["min"], entry["max"] = p.valid_values[0], p.valid_values[-1]
+        kind = "boolean" if isinstance(c.value, bool) else "number" if isinstance(c.value, int | float) \
+            else "string" if isinstance(c.value, str) else None
+        if kind:
+            entry["type"] = kind
+        entry["name"] = name
+        if script.descriptions.get(name):
+            entry["caption"] = script.descriptions[name]
+        entry["initial"] = list(c.value) if isinstance(c.value, tuple) else c.value
+        valid = getattr(cqgi_meta.get(name), "valid_values", None)
+        if valid:
+            entry["min"], entry["max"] = valid[0], valid[-1]
             entry["step"] = entry["max"] - entry["min"] if entry["max"] - entry["min"] > 0 else 1
         out.append(entry)
     return out

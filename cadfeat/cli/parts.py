@@ -1,23 +1,32 @@
-"""``cadfeat parts [DIR | SCRIPT | PART.step] [--holes] [--params]``: list the part scripts with their parameters,
-or a STEP part's holes (the names a study's ``design.holes`` selectors use); ``--params``: one script's
-parameters as cq-cli's ``--getparams`` JSON."""
+"""``cadfeat parts [DIR | SCRIPT | PART.step] [--holes] [--view X,Y,Z] [--params]``: list the part scripts with their
+parameters, or a STEP part's holes (the names a study's ``design.holes`` selectors use); ``--view``: the side the
+camera looks from (a through hole's entrance is the end on that side, as a study with that view extracts it;
+default: the script's ``VIEW_DIRECTION``); ``--params``: one script's parameters as cq-cli's ``--getparams``
+JSON."""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.cad.sandbox import DEFAULT_BUILD_TIMEOUT_S, start_workers
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    import numpy as np
 
 
 def _arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("directory", nargs="?", default=None,
                         help="folder of part scripts, one script, or a STEP part (default: the parts/ library)")
     parser.add_argument("--holes", action="store_true", help="also build each part and list its holes at the defaults")
+    parser.add_argument("--view", default=None, metavar="X,Y,Z",
+                        help="direction towards the camera (part frame): a through hole's entrance is the end on "
+                             "that side, as in a study seen from there (default: the script's VIEW_DIRECTION)")
     parser.add_argument("--params", action="store_true",
                         help="print one script's parameters as cq-cli --getparams JSON (CQGI scripts: as cq-cli)")
     build_timeout_arg(parser)
@@ -42,11 +51,14 @@ def _list_parts(args: argparse.Namespace) -> int:
     target = Path(args.directory) if args.directory else None
     if getattr(args, "params", False):
         return _params_json(target, args.build_timeout)
+    view = _view(getattr(args, "view", None))
     if target is not None and target.suffix.lower() in (".step", ".stp"):
-        return _step_part(target, args.holes)
+        return _step_part(target, args.holes, view)
     paths = [target] if target is not None and target.is_file() else find_parts(target)
     for path in paths:
         part = load_part(path, args.build_timeout)
+        if view is not None:
+            part = dataclasses.replace(part, view_direction=view)
         print(f"{part.name}: {part.description}")
         print(f"    file: {part.path}")
         if part.view_direction is not None:
@@ -88,11 +100,26 @@ def parameter_listing(path: Path, time_limit_s: float | None = None) -> list[dic
              "initial": p.default, "min": p.lower, "max": p.upper} for p in part.parameters.values()]
 
 
-def _step_part(path: object, holes: bool) -> int:
+def _view(text: str | None) -> np.ndarray | None:
+    """``--view X,Y,Z`` as a unit vector (part frame), or None; ``CadfeatError`` for anything else."""
+    if text is None:
+        return None
+    from cadfeat.cad.cqgi_parts import unit_view_direction
+
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 3:
+        raise CadfeatError(f"--view: expected three numbers X,Y,Z (towards the camera, part frame), got {text!r}")
+    return unit_view_direction(values, "--view")
+
+
+def _step_part(path: object, holes: bool, view: np.ndarray | None = None) -> int:
     """A STEP part: its holes (names, kind, entrance, host face) and the near-round openings it skips."""
     from cadfeat.cad.step_parts import load_step  # lazy: keeps `cadfeat --help` fast
 
-    part = load_step(path)  # type: ignore[arg-type]
+    part = load_step(path, prefer_direction=view)  # type: ignore[arg-type]
     print(f"{part.name}: STEP part, {len(part.holes)} hole(s), {len(part.skipped)} skipped opening(s)")
     print(f"    file: {part.path}")
     print(f"    tolerances: {part.tolerance.describe()}")

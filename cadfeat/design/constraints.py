@@ -401,10 +401,13 @@ def _check(name: str, holes: list[str], required: float, value: float, unit: str
 
 def verify_on_brep(shape: Any, design_holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool],
                    reference: Sequence[Hole] | None = None, *, match_tol_mm: float = 1e-3,
-                   reference_shape: Any = None, tol_mm: float = 1e-6) -> list[ConstraintCheck]:
+                   reference_shape: Any = None, tol_mm: float = 1e-6,
+                   prefer_direction: Sequence[float] | np.ndarray | None = None) -> list[ConstraintCheck]:
     """Measure the kept requirements on the real solid ``shape`` (independent of the 2-D form).
 
-    Holes are re-extracted from ``shape`` and matched to ``design_holes`` by geometry (``match_tol_mm``).
+    Holes are re-extracted from ``shape`` (a through hole entering on the side of ``prefer_direction``, the
+    study's view, as ``design_holes`` were extracted) and matched to ``design_holes`` by geometry
+    (``match_tol_mm``).
     Per moving hole: ``edge`` — OCCT distance from its rim circle edge(s) to its host face's outer wire,
     ≥ edge_distance_mm (a hole that breaks out of the face gets 0); ``keepout`` — to the face's inner
     wires that are not hole rims. Per pair on one face (one moving): ``ligament`` — rim-to-rim distance
@@ -417,7 +420,7 @@ def verify_on_brep(shape: Any, design_holes: Sequence[Hole], config: ConstraintC
     design_holes = list(design_holes)
     fixed = np.asarray(fixed_mask, dtype=bool)
     names = [_label(design_holes, i) for i in range(len(design_holes))]
-    real = extract_holes(solid)
+    real = extract_holes(solid, prefer_direction=prefer_direction)
     try:
         idx = match_holes(design_holes, real, tol_mm=match_tol_mm)
     except CadfeatError as exc:

@@ -242,6 +242,8 @@ class LinearFeatureModel:
             x = x0.copy()
             x[k] += steps[k]
             moved = list(rebuild(x))
+            if len(moved) != len(holes0):  # a step that adds or merges holes has no derivative
+                raise CadfeatError(f"CAD rebuild for the map: {len(moved)} holes found, {len(holes0)} designed")
             idx = match_holes(holes0, moved, tol_mm=tol)
             c, _, r = holes_to_arrays([moved[i] for i in idx])
             dC[:, :, k] = (c - c0) / steps[k]

@@ -276,7 +276,7 @@ class ExploreSession:
         stage = Path(tempfile.mkdtemp(prefix=".explore-", dir=base))
         try:
             export_step(shape, stage / "design.step")
-            view = getattr(self.setup.part, "view_direction", None)
+            view = self.setup.view_direction  # the study's view: through holes enter as in its set-up
             holes = extract_holes(shape, prefer_direction=view)
             export_glb(shape, self._named(holes, self.design(values)), stage / "design.glb")
             stage.replace(target)

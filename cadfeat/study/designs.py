@@ -16,7 +16,8 @@ part script, its integer parameters; a variable not given keeps the study's star
 
 Bad input (an unknown variable, a value outside its bounds, an unknown ``[tracking]`` key) is one
 ``StudyError`` naming the key and the allowed values, before any CAD work (a STEP part's variables, its holes',
-once its set-up has read them).
+once its set-up has read them). A design at which the part's holes change in number (a moved hole broke into an
+edge or into another hole) is one ``CadfeatError`` line naming the design and both hole counts.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -117,7 +119,7 @@ def _design(study: StudySource, values: Mapping[str, float] | None, seed: int | 
     holes') are known once its set-up has read them."""
     from cadfeat.study.run import _resolve
     from cadfeat.study.setup import setup_study
-    from cadfeat.study.verify import rebuild
+    from cadfeat.study.verify import HoleCountError, rebuild
 
     config = _resolve(study, seed)
     values = dict(values or {})
@@ -133,7 +135,13 @@ def _design(study: StudySource, values: Mapping[str, float] | None, seed: int | 
     x = np.array(space.x0, dtype=float)
     for k, v in values.items():
         x[list(space.names).index(k)] = float(v)
-    return config, setup, x, rebuild(setup, x)
+    try:
+        return config, setup, x, rebuild(setup, x)
+    except HoleCountError as exc:
+        design = ", ".join(f"{k}={v:g}" for k, v in {**space.as_dict(x), **int_values}.items())
+        raise CadfeatError(f"{config.label}: the design {design} has {exc.found} holes, the study's design "
+                           f"{exc.designed}: a moved hole broke into an edge or into another hole; allowed: a "
+                           "design at which every hole of the part stays a hole of its own") from None
 
 
 def _int_value(config: StudyConfig, parameter: Any, value: Any) -> int:

@@ -9,7 +9,7 @@ function of its own below, in run order.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -44,6 +44,7 @@ from cadfeat.study.setup import int_grid, load_scene, occlusion_mesh, score_rule
 from cadfeat.study.trust import objective_changes
 from cadfeat.study.verify import (
     AnchoredModel,
+    HoleCountError,
     outlines_differ,
     rebuild,
     requirement_checks,
@@ -104,8 +105,7 @@ def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tu
         if setup.linear:
             res = optimize.optimise(setup.problem, oc, progress=progress.iteration)
         else:
-            res = optimize.solve_with_cad(setup.problem, lambda x: setup.rebuild_holes(setup.rebuild_shape(x)), oc,
-                                 progress=progress.iteration)
+            res = optimize.solve_with_cad(setup.problem, cad_holes(setup), oc, progress=progress.iteration)
     except KeyboardInterrupt:
         if progress.best_x is None:
             raise
@@ -117,8 +117,23 @@ def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tu
 
 def _with_cad(setup: StudySetup, progress: StudyProgress) -> OptimResult:
     """``solve_with_cad`` on ``setup`` (a rebuild that raises or times out is an infeasible point)."""
-    return optimize.solve_with_cad(setup.problem, lambda x: setup.rebuild_holes(setup.rebuild_shape(x)),
-                                   setup.config.optimizer, progress=progress.iteration)
+    return optimize.solve_with_cad(setup.problem, cad_holes(setup), setup.config.optimizer,
+                                   progress=progress.iteration)
+
+
+def cad_holes(setup: StudySetup) -> Callable[[np.ndarray], list[Hole]]:
+    """``rebuild(x) -> holes`` of the CAD-in-the-loop search: the part rebuilt at design ``x`` and its holes
+    extracted (``StudySetup.rebuild_holes``); a design whose holes differ in number from the study's (a moved hole
+    broke into an edge or into another hole) raises ``HoleCountError``, an infeasible point for the optimiser."""
+
+    def holes_at(x: np.ndarray) -> list[Hole]:
+        holes = setup.rebuild_holes(setup.rebuild_shape(x))
+        if len(holes) != len(setup.holes0):
+            raise HoleCountError(f"CAD rebuild at {setup.space.as_dict(np.asarray(x, float))}: {len(holes)} holes "
+                                 f"found, {len(setup.holes0)} designed", len(holes), len(setup.holes0))
+        return holes
+
+    return holes_at
 
 
 @dataclass

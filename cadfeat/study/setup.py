@@ -95,6 +95,9 @@ class StudySetup:
     part: Part | StepPart | None = None
     time_limit_s: float | None = None
     """The time limit of each CAD rebuild (s, a worker process); None: in this process (``setup_study``)."""
+    view_direction: np.ndarray | None = None
+    """(3,) unit vector, part frame, from the part towards the camera (``study_view_direction``): the end of a
+    through hole that is its entrance, in set-up, rebuilds and every check alike; None: extraction's own rule."""
 
     @property
     def hole_names(self) -> list[str]:
@@ -240,6 +243,8 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
         return out
 
     shape0 = part.build(**at)
+    view = study_view_direction(config, shape0, trajectory, T_task_part, part)
+    part = dataclasses.replace(part, view_direction=view)  # every extraction of the part enters on the camera's side
     if not names:  # only integer parameters vary: nothing continuous to optimise at this combination
         raise StudyError(f"{config.label}: design.parameters: only integer parameters "
                          f"({', '.join(ints)}) vary; allowed: at least one continuous parameter of {config.study.part}")
@@ -280,9 +285,9 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part, shape0=shape0,
                       holes0=holes0, fixed_mask=fixed, movable_mask=moved, space=space, model=model,
                       problem=problem, constraints=cc, rebuild_shape=lambda x: part.build(**values(x)),
-                      rebuild_holes=lambda shape: _extract(shape, part.view_direction), values=values,
+                      rebuild_holes=lambda shape: _extract(shape, view), values=values,
                       linear=bool(getattr(dm, "linear", True)), int_values=ints, part=part,
-                      time_limit_s=time_limit_s)
+                      time_limit_s=time_limit_s, view_direction=view)
 
 
 def _extract(shape: Shape, prefer_direction: Sequence[float] | np.ndarray | None = None,
@@ -340,7 +345,7 @@ def setup_step(config: StudyConfig, scene: Scene | None = None,
                       model=model, problem=problem, constraints=cc,
                       rebuild_shape=lambda x: _timed_redrill(config, step, model.hole_moves(x), time_limit_s),
                       rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step,
-                      time_limit_s=time_limit_s)
+                      time_limit_s=time_limit_s, view_direction=None if view is None else np.asarray(view, float))
 
 
 def _timed_redrill(config: StudyConfig, step: StepPart, moves: Sequence[HoleMove], time_limit_s: float | None
@@ -350,10 +355,24 @@ def _timed_redrill(config: StudyConfig, step: StepPart, moves: Sequence[HoleMove
                                 f"{config.study.part_path}: re-drilling {len(moves)} hole(s)", time_limit_s)
 
 
-def camera_direction(part_path: Path, trajectory: Trajectory, T_task_part: np.ndarray) -> np.ndarray | None:
-    """Unit direction (part frame) from the part towards the camera: the mean of the directions from the
-    part's bounding-box centre to the trajectory's camera positions (None if they cancel out)."""
-    box = import_step(part_path).BoundingBox()
+def study_view_direction(config: StudyConfig, shape: Shape, trajectory: Trajectory, T_task_part: np.ndarray,
+                         part: Any = None) -> np.ndarray | None:
+    """The study's view (unit vector, part frame, towards the camera) that decides which end of a through hole is
+    its entrance: ``design.view_direction`` (STEP studies), else the part script's ``VIEW_DIRECTION``, else the
+    mean direction from ``shape``'s bounding-box centre to the trajectory's cameras (``camera_direction``)."""
+    if config.design.view_direction is not None:
+        return np.asarray(config.design.view_direction, float)
+    own = getattr(part, "view_direction", None)
+    if own is not None:
+        return np.asarray(own, float)
+    return camera_direction(shape, trajectory, T_task_part)
+
+
+def camera_direction(part: Path | Shape, trajectory: Trajectory, T_task_part: np.ndarray) -> np.ndarray | None:
+    """Unit direction (part frame) from the part (a STEP file or a solid) towards the camera: the mean of the
+    directions from the part's bounding-box centre to the trajectory's camera positions (None if they cancel
+    out)."""
+    box = (import_step(part) if isinstance(part, str | Path) else part).BoundingBox()
     centre = np.array([box.center.x, box.center.y, box.center.z])
     T_part_task = np.linalg.inv(np.asarray(T_task_part, float))
     cams = np.asarray(trajectory.T_task_cam, float)[:, :, 3] @ T_part_task.T

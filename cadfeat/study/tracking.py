@@ -211,7 +211,11 @@ def _view_direction(config: StudyConfig, original_step: Path) -> np.ndarray | No
         _, traj, T_task_part = load_scene(config)
         return camera_direction(original_step, traj, T_task_part)
 
-    return load_part(config.study.part_path, config.study.build_timeout_s).view_direction
+    own = load_part(config.study.part_path, config.study.build_timeout_s).view_direction
+    if own is not None:
+        return own
+    _, traj, T_task_part = load_scene(config)  # as the study's set-up: towards the trajectory's cameras
+    return camera_direction(original_step, traj, T_task_part)
 
 
 def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Path | None = None,

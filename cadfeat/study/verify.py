@@ -1,11 +1,15 @@
 """Verification of a study's answer on real CAD: rebuild, pair, check, export.
 
 The answer of a study is the CAD model rebuilt at the optimum, never the surrogate: ``rebuild`` builds it and
-pairs its holes with the design (``order_like``: nearest centres, one to one, each taking the design hole's
-name); ``requirement_checks`` measures every kept requirement on a solid (``verify_on_brep``), pairing the
+pairs its holes with the design (``order_like``: by axis line and radius, one to one, each taking the design
+hole's name); ``requirement_checks`` measures every kept requirement on a solid (``verify_on_brep``), pairing the
 re-extracted holes by their axis lines (``pair_by_axis``); ``export_and_verify`` writes original.step,
 optimised.step and optimised.stl into the staging folder, re-imports the STEP, matches its holes to the design
 to ``ROUNDTRIP_TOL_MM`` and checks every requirement again on the re-imported solid.
+
+Every extraction here enters a through hole on the study's side (``StudySetup.view_direction``, the end the
+camera sees), as the set-up did: a through hole's identity never depends on which end extraction calls its
+entrance, and its entrance is the same in set-up, rebuild, checks and the re-imported STEP.
 """
 
 from __future__ import annotations
@@ -37,11 +41,21 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import StudySetup
 
-__all__ = ["PREDICTION_TOL_MM", "ROUNDTRIP_TOL_MM", "AnchoredModel", "export_and_verify", "extract_plain", "fail_on",
-           "order_like", "outlines_differ", "pair_by_axis", "predicted_holes", "rebuild", "requirement_checks"]
+__all__ = ["PREDICTION_TOL_MM", "ROUNDTRIP_TOL_MM", "AnchoredModel", "HoleCountError", "export_and_verify",
+           "extract_plain", "extract_viewed", "fail_on", "order_like", "outlines_differ", "pair_by_axis",
+           "predicted_holes", "rebuild", "requirement_checks"]
 
 ROUNDTRIP_TOL_MM = 1e-6
 PREDICTION_TOL_MM = 1e-6
+
+
+class HoleCountError(CadfeatError):
+    """A rebuilt design has another number of holes than the design (a moved hole broke into an edge or into
+    another hole): ``found`` and ``designed`` holes. An infeasible point for the optimiser."""
+
+    def __init__(self, message: str, found: int, designed: int) -> None:
+        super().__init__(message)
+        self.found, self.designed = found, designed
 
 
 def outlines_differ(a: Sequence[Hole], b: Sequence[Hole], tol_mm: float = 1e-6) -> bool:
@@ -64,12 +78,15 @@ def outlines_differ(a: Sequence[Hole], b: Sequence[Hole], tol_mm: float = 1e-6) 
 
 
 def order_like(reference: Sequence[Hole], holes: Sequence[Hole], tol_mm: float, what: str) -> list[Hole]:
-    """``holes`` reordered to pair with ``reference`` by geometry (``identity.pair_holes``), each taking its
-    reference's name."""
+    """``holes`` reordered to pair with ``reference`` by axis line and radius (``identity.pair_holes`` with
+    ``along_axis``: parallel axes of either sign, within ``tol_mm`` of the reference's axis line, radii within
+    ``tol_mm``, nearest centre first), each taking its reference's name. Raises ``HoleCountError`` when the counts
+    differ, ``CadfeatError`` when a hole has no partner."""
     if len(holes) != len(reference):
-        raise CadfeatError(f"{what}: {len(holes)} holes found, {len(reference)} designed")
+        raise HoleCountError(f"{what}: {len(holes)} holes found, {len(reference)} designed", len(holes),
+                             len(reference))
     try:
-        idx = pair_holes(list(reference), list(holes), tol_mm=tol_mm)
+        idx = pair_holes(list(reference), list(holes), tol_mm=tol_mm, along_axis=True)
     except CadfeatError as exc:
         raise CadfeatError(f"{what}: holes do not match the design: {exc}") from exc
     return take_names(reference, holes, idx)
@@ -98,13 +115,14 @@ def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = 
 def requirement_checks(setup: StudySetup, shape: Any, holes: Sequence[Hole], where: str) -> list[dict[str, Any]]:
     """Every kept requirement measured on the solid ``shape`` whose holes are ``holes`` (design order).
 
-    ``verify_on_brep`` re-extracts holes without a preferred direction (a through hole may then be reported
-    from its other end), so the design and reference holes are given to it in that same convention, paired
-    with the design order by their axis lines."""
-    design = pair_by_axis(holes, extract_plain(shape), f"{where} holes")
-    reference = pair_by_axis(setup.holes0, extract_plain(setup.shape0), "original holes")
+    ``verify_on_brep`` re-extracts the holes with the study's view (``StudySetup.view_direction``: a through
+    hole enters on the camera's side, as in the set-up); the design and reference holes are extracted the same
+    way and paired with the design order by their axis lines."""
+    view = setup.view_direction
+    design = pair_by_axis(holes, extract_viewed(shape, view), f"{where} holes")
+    reference = pair_by_axis(setup.holes0, extract_viewed(setup.shape0, view), "original holes")
     checks = verify_on_brep(shape, design, setup.constraints, setup.fixed_mask, reference=reference,
-                            reference_shape=setup.shape0)
+                            reference_shape=setup.shape0, prefer_direction=view)
     return [{**c.to_dict(), "checked_on": where} for c in checks]
 
 
@@ -113,7 +131,8 @@ def pair_by_axis(reference: Sequence[Hole], holes: Sequence[Hole], what: str, to
     with ``along_axis``: parallel axes of either sign, centre within ``tol_mm`` of the reference's axis line,
     nearest first); each paired hole takes its reference's name."""
     if len(holes) != len(reference):
-        raise CadfeatError(f"{what}: {len(holes)} holes found, {len(reference)} designed")
+        raise HoleCountError(f"{what}: {len(holes)} holes found, {len(reference)} designed", len(holes),
+                             len(reference))
     return take_names(reference, holes, pair_holes(list(reference), list(holes), tol_mm, along_axis=True,
                                                    what=what))
 
@@ -127,7 +146,14 @@ def fail_on(checks: Sequence[Mapping[str, Any]], label: str) -> None:
 
 
 def extract_plain(shape: Any) -> list[Hole]:
+    """The holes of ``shape`` by extraction's own entrance rule (no view)."""
     return extract_holes(shape)
+
+
+def extract_viewed(shape: Any, view: Sequence[float] | np.ndarray | None) -> list[Hole]:
+    """The holes of ``shape``, each through hole entering on the side of ``view`` (towards the camera, part
+    frame; None: extraction's own rule)."""
+    return extract_holes(shape, prefer_direction=view)
 
 
 class AnchoredModel:
@@ -170,10 +196,10 @@ def export_and_verify(config: StudyConfig, stage: Path, shapes: Mapping[str, Any
         normalise_step_header(stage / name, f"{config.study.name} {name[:-5]}")
     from cadfeat.cad.export import verify_step_roundtrip  # lazy: looked up per call (tests replace it)
 
-    # (the rebuild's holes extracted the way verify_step_roundtrip extracts them: no preferred direction)
-    trip = verify_step_roundtrip(stage / "optimised.step", extract_plain(shapes["shape1"]),
+    view = setup.view_direction  # (the rebuild's holes extracted as verify_step_roundtrip extracts them)
+    trip = verify_step_roundtrip(stage / "optimised.step", extract_viewed(shapes["shape1"], view),
                                  tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=shape_volume_mm3(shapes["shape1"]),
-                                 volume_rtol=1e-7)
+                                 volume_rtol=1e-7, prefer_direction=view)
     reimported = import_step(stage / "optimised.step")
     step_holes = order_like(shapes["holes1"], setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
     checks = constraints + requirement_checks(setup, reimported, step_holes, "step")

@@ -28,7 +28,8 @@ EX002 = DATA / "Ex002_Block_With_Bored_Center_Hole.py"
 EX003 = DATA / "Ex003_Pillow_Block_With_Counterbored_Holes.py"
 EX007 = DATA / "Ex007_Using_Point_Lists.py"
 VESA = DATA / "vesa_plate.py"
-SCRIPTS = [EX002, EX003, EX007, VESA]
+OFFSET = DATA / "offset_bracket.py"
+SCRIPTS = [EX002, EX003, EX007, VESA, OFFSET]
 
 
 def test_scripts_are_detected_and_library_parts_are_not():
@@ -39,15 +40,66 @@ def test_scripts_are_detected_and_library_parts_are_not():
 
 
 @pytest.mark.parametrize("path", SCRIPTS, ids=lambda p: p.stem)
-def test_parameters_are_the_constants_cqgi_finds(path):
+def test_parameters_include_the_constants_cqgi_finds(path):
     from cadquery import cqgi
 
     part = load_part(path)
     meta = cqgi.parse(path.read_text()).metadata.parameters
     numeric = [n for n, p in meta.items() if p.varType is cqgi.NumberParameterType]
-    assert list(part.parameters) == numeric
-    for name, p in part.parameters.items():
+    assert [n for n in part.parameters if n in numeric] == numeric
+    for name in numeric:
+        p = part.parameters[name]
         assert p.default == meta[name].default_value and type(p.default) is type(meta[name].default_value)
+
+
+OFFSET_CONSTANTS = {"length": 120.0, "width": 90.0, "thickness": 6.0, "offset_y": -12.0, "bolt_circle": 50.0,
+                    "phase_deg": -15.0, "shift_x": 0.0, "bolt_count": 3, "bolt_dia": 5.5}
+"""offset_bracket.py's numeric constants as its text sets them (negative, annotated, zero, int)."""
+
+
+def test_every_numeric_constant_is_a_parameter_with_its_value():
+    """Issue 32.1: CQGI's finder misses ``offset_y = -12.0``, ``phase_deg = -15.0`` and ``bolt_circle: float =
+    50.0``; here every top-level numeric constant is a parameter with the script's value and bounds comment."""
+    p = load_part(OFFSET).parameters
+    assert {n: q.default for n, q in p.items()} == OFFSET_CONSTANTS
+    assert [type(q.default) for q in p.values()] == [type(v) for v in OFFSET_CONSTANTS.values()]
+    assert (p["offset_y"].lower, p["offset_y"].upper, p["offset_y"].unit) == (-12.0, 0.0, "mm")
+    assert p["offset_y"].description == "centre of the bolt circle below the plate's middle"
+    assert (p["phase_deg"].lower, p["phase_deg"].upper, p["phase_deg"].unit) == (-45.0, 45.0, "deg")
+    assert (p["bolt_circle"].lower, p["bolt_circle"].upper) == (40.0, 56.0)
+    assert p["bolt_count"].is_int
+
+
+def _bolt_centres(offset_y: float, phase_deg: float, bolt_circle: float, shift_x: float = 0.0) -> np.ndarray:
+    """offset_bracket.py's drawing: three holes on the bolt circle, the first at ``phase_deg``, top face z = 3."""
+    a = np.radians(phase_deg + np.arange(3) * 120.0)
+    return np.column_stack([shift_x + bolt_circle / 2 * np.cos(a), offset_y + bolt_circle / 2 * np.sin(a),
+                            np.full(3, 3.0)])
+
+
+@pytest.mark.parametrize("values", [{}, {"offset_y": -10.0, "phase_deg": 30.0, "bolt_circle": 56.0},
+                                    {"offset_y": 0.0, "phase_deg": -40.0, "bolt_circle": 42.0, "shift_x": -7.5}])
+def test_negative_and_annotated_constants_build(values):
+    """Each value reaches the build (holes where the script's drawing puts them), in process and in a
+    time-limited worker, and an earlier build's values do not stick."""
+    part = load_part(OFFSET)
+    full = {k: OFFSET_CONSTANTS[k] for k in ("offset_y", "phase_deg", "bolt_circle", "shift_x")} | values
+    got = np.array(sorted(tuple(h.centre) for h in part.holes(**values)))
+    want = np.array(sorted(map(tuple, _bolt_centres(**full))))
+    np.testing.assert_allclose(got, want, atol=1e-6)
+    timed = load_part(OFFSET, 60.0).build(**values)
+    assert timed.Volume() == pytest.approx(part.build(**values).Volume(), rel=1e-9)
+    np.testing.assert_allclose(sorted(tuple(h.centre) for h in part.holes()),
+                               sorted(map(tuple, _bolt_centres(-12.0, -15.0, 50.0))), atol=1e-6)
+
+
+def test_cqgi_misses_negative_and_annotated_constants_upstream():
+    """Why cadfeat reads the constants itself: CQGI's finder (cadquery 2.5-2.8) lists neither ``-12.0`` nor an
+    annotated assignment. If an upgrade finds them, the two lists agree and this pin says so."""
+    from cadquery import cqgi
+
+    meta = cqgi.parse(OFFSET.read_text()).metadata.parameters
+    assert not {"offset_y", "phase_deg", "bolt_circle", "bolt_count"} & set(meta)
 
 
 def test_bounds_units_and_descriptions_from_the_script():
@@ -66,8 +118,8 @@ def test_bounds_units_and_descriptions_from_the_script():
 
 
 def test_getparams_is_cq_clis_listing(capsys):
-    """cq-cli main.py: type number|string|boolean, name, caption from describe_parameter, initial only when truthy
-    (cable_x = 0.0 has none), no min/max without CQGI valid values."""
+    """cq-cli main.py's fields: type number|string|boolean, name, caption from describe_parameter, initial (here
+    always: cable_x = 0.0 has its 0.0, which cq-cli drops), no min/max without CQGI valid values."""
     from cadfeat.cli import main
 
     assert main(["parts", str(VESA), "--params"]) == 0
@@ -78,13 +130,19 @@ def test_getparams_is_cq_clis_listing(capsys):
         {"type": "number", "name": "pattern", "initial": 100.0},
         {"type": "number", "name": "bolt_diameter", "caption": "clearance hole for the M4 mounting screws",
          "initial": 4.5},
-        {"type": "number", "name": "cable_x"},
+        {"type": "number", "name": "cable_x", "initial": 0.0},
         {"type": "number", "name": "cable_diameter", "initial": 20.0},
         {"type": "number", "name": "hole_count", "initial": 4},
     ]
     assert [d["name"] for d in getparams(EX003)] == ["length", "width", "thickness", "center_hole_dia",
                                                     "cbore_hole_diameter", "cbore_inset", "cbore_diameter",
                                                     "cbore_depth"]
+    assert main(["parts", str(OFFSET), "--params"]) == 0  # issue 32.1: every constant with its value
+    listed = json.loads(capsys.readouterr().out)
+    assert [(d["name"], d["initial"]) for d in listed] == [*OFFSET_CONSTANTS.items(), ("chamfered", False),
+                                                           ("label", "bracket")]
+    assert [d["type"] for d in listed] == ["number"] * 9 + ["boolean", "string"]
+    assert listed[3]["caption"] == "centre of the bolt circle below the plate's middle"
     assert main(["parts", "parts/thesis_hub.py", "--params"]) == 0  # a cadfeat script: same fields + bounds
     hub = json.loads(capsys.readouterr().out)
     assert hub[0]["name"] == "bolt_circle_radius_mm" and (hub[0]["min"], hub[0]["max"]) == (8.5, 16.0)
@@ -164,7 +222,7 @@ def test_study_needs_bounds_for_an_unbounded_constant(tmp_path):
         load_study(path)
 
 
-@pytest.mark.parametrize("study", ["ex002", "ex003", "ex007", "vesa"])
+@pytest.mark.parametrize("study", ["ex002", "ex003", "ex007", "vesa", "offset"])
 def test_a_study_runs_on_each_script(study, tmp_path, monkeypatch):
     """A small study on each script; the optimised STEP re-imported has the holes of CQGI's own build of the
     script at the reported optimum (and a source script that is never changed)."""

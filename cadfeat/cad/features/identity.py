@@ -9,10 +9,11 @@ One home for "which hole is which" across rebuilds, re-extractions and STEP roun
       cost_ij = ‖c_i − c_j‖ + |r_i − r_j| + tol_mm · angle(a_i, a_j) / axis_tol_rad
 
   admissible when each term is within its tolerance; an optimal one-to-one assignment (Hungarian,
-  ``scipy.optimize.linear_sum_assignment``) minimises the summed cost. ``along_axis=True`` pairs holes
-  re-extracted without a preferred direction (a through hole may be reported from its other end): the axes
-  may point either way, the centre-offset term is the distance of c_j from the reference's axis line
-  (admissible within ``tol_mm``), and ‖c_i − c_j‖ breaks ties (nearest on the line first);
+  ``scipy.optimize.linear_sum_assignment``) minimises the summed cost. ``along_axis=True`` pairs holes by
+  their axis lines and radii, whichever end extraction called a through hole's entrance: the axes may point
+  either way (parallel within ``axis_tol_rad``), the distance of c_j from the reference's axis line and the
+  radius difference are each admissible within ``tol_mm``, and the cost is
+  ``‖c_i − c_j‖ + |r_i − r_j| + line distance`` (nearest on the line first);
   ``bounded=False`` pairs holes of two designs of a part (a parameter may move a hole any distance; this is
   how ``Part.name_holes`` ties names to the default build): every pair is admissible, the axis term is
   sign-free, and holes left over on either side stay unpaired::
@@ -74,11 +75,11 @@ def _costs(reference: Sequence[Hole], candidates: Sequence[Hole], tol_mm: float,
     d = c_can[None, :, :] - c_ref[:, None, :]
     d_centre = np.linalg.norm(d, axis=-1)
     cos = np.clip(np.einsum("ik,jk->ij", a_ref, a_can), -1.0, 1.0)
+    d_radius = np.abs(r_ref[:, None] - r_can[None, :])
     if along_axis:
         off_line = np.linalg.norm(d - np.einsum("ijk,ik->ij", d, a_ref)[..., None] * a_ref[:, None, :], axis=-1)
-        admissible = (np.abs(cos) > 1 - 1e-9) & (off_line <= tol_mm)
-        return d_centre, admissible
-    d_radius = np.abs(r_ref[:, None] - r_can[None, :])
+        admissible = (np.arccos(np.abs(cos)) <= axis_tol_rad) & (off_line <= tol_mm) & (d_radius <= tol_mm)
+        return d_centre + d_radius + off_line, admissible
     d_angle = np.arccos(cos)
     admissible = (d_centre <= tol_mm) & (d_radius <= tol_mm) & (d_angle <= axis_tol_rad)
     return d_centre + d_radius + tol_mm * d_angle / axis_tol_rad, admissible
@@ -107,7 +108,7 @@ def pair_holes(reference: Sequence[Hole], candidates: Sequence[Hole], tol_mm: fl
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         label = reference[i].name or f"#{i}"
-        within = f"tol_mm={tol_mm} mm of its axis line" if along_axis else \
+        within = f"tol_mm={tol_mm} mm of its axis line and radius" if along_axis else \
             f"tol_mm={tol_mm} mm and axis_tol_rad={axis_tol_rad}"
         raise CadfeatError(f"{what}: reference hole {label} at {np.round(reference[i].centre, 6).tolist()} "
                            f"has no candidate within {within}")

@@ -9,7 +9,8 @@ Otherwise the map is refreshed (linearised again) at the rebuilt point, which be
 unless its true (re-extracted) combined objective is worse than the centre's — then the region shrinks
 around the centre. The best CAD-evaluated design (feasible first) is kept throughout and returned
 if no round agrees within ``max_rounds``. A rebuild that raises (or times out, in the caller's
-``rebuild``), also one of the map refresh's, is an infeasible point: the region shrinks around the centre.
+``rebuild``), also one of the map refresh's, is an infeasible point: the region shrinks around the centre. So is
+a rebuild whose holes differ in number from the model's (a moved hole broke into an edge or into another hole).
 The first centre is the feature model's anchor (``model.x0``), not the part's current values; the anchor,
 built at set-up (the model's reference holes), also counts as a CAD-evaluated design, so it is returned when
 no round's design builds or beats it; without such an anchor and with no successful rebuild,
@@ -43,6 +44,8 @@ def _ordered(model: Any, x: np.ndarray, holes: list[Hole], match_tol_mm: float) 
     """Extracted ``holes`` in the model's order (matched to the prediction at x) and the largest error
     ‖Δcentre‖ + |Δradius| (mm)."""
     predicted = _predicted_holes(model, x)
+    if len(holes) != len(predicted):  # (match_holes would pair a subset of extra holes)
+        raise CadfeatError(f"CAD rebuild: {len(holes)} holes found, {len(predicted)} designed")
     idx = match_holes(predicted, holes, tol_mm=match_tol_mm, axis_tol_rad=1e-3)
     ordered = [holes[i] for i in idx]
     c_p, _, r_p = holes_to_arrays(predicted)
