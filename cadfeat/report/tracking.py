@@ -179,7 +179,7 @@ def tracking_section(results: Results, out_dir: Path, rel: Callable[[Path], str]
             parts.append(note(f"no error plot: {exc}"))
     frames = [f for f in tracking.frames if (Path(out_dir) / f.path).is_file()]
     if frames:
-        figs = "".join(figure(f.path, f"{f.design}, frame {f.frame} (t = {fmt(f.time_s, 3)} s): "
+        figs = "".join(figure(rel(Path(out_dir) / f.path), f"{f.design}, frame {f.frame} (t = {fmt(f.time_s, 3)} s): "
                                       f"{f.detected} of {f.holes} holes detected", f"{f.design} frame")
                        for f in frames)
         parts.append("<h3>Camera frames: detected ellipses (green) over the predicted rims (red), associated "

@@ -529,3 +529,22 @@ def test_verdict_says_when_every_hole_is_out_of_focus(case):
     holes = next(f for f in decide(r).findings if f.rule == "holes")
     n = len(r["measures"]["after"]["per_feature"])
     assert f"focus margin ({n} of {n} holes)" in holes.detail
+
+
+def test_tracking_frames_are_embedded_too(case, tmp_path):
+    """The closed loop's camera frames (``tracking/*.png`` beside results.json) are embedded as data URIs like
+    every other image: a report mailed alone shows them (issue 32 item 8)."""
+    import base64
+
+    _, results, _ = case
+    (tmp_path / "tracking").mkdir()
+    frame = tmp_path / "tracking" / "before_frame_000.png"
+    Image.fromarray(np.full((24, 32, 3), 90, np.uint8)).save(frame)
+    data = _lean(results)
+    data["tracking"] = {"settings": {"estimators": ["pnp"], "frames": 1, "runs": 1},
+                        "frames": [{"path": "tracking/before_frame_000.png", "design": "before", "frame": 0,
+                                    "time_s": 0.0, "detected": 3, "holes": 4}]}
+    page = parse_report(build_report(tmp_path, data, None).path)
+    embedded = [d for s, d in zip(page.images, page.image_srcs, strict=True) if s.endswith("before_frame_000.png")]
+    assert len(embedded) == 1 and embedded[0].startswith("data:image/png;base64,")
+    assert base64.b64decode(embedded[0].split(",", 1)[1]) == frame.read_bytes()
