@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from cadfeat.report.html import esc, figure, fmt, note, table
-from cadfeat.results import Interval, Results, Tracking, present, section
+from cadfeat.results import Interval, PhysicalViews, Results, Tracking, present, section
 
 COLOURS = {"before": "#d95f02", "after": "#1b9e77"}
 VERDICT_TEXT = {"better": "tracks better after the redesign", "worse": "tracks WORSE after the redesign",
@@ -187,4 +187,29 @@ def tracking_section(results: Results, out_dir: Path, rel: Callable[[Path], str]
     elif tracking.frames:
         parts.append(note("The tracking frames are in the study's output folder (tracking/), not beside this "
                           "report."))
+    return "".join(parts)
+
+
+def physical_views_section(results: Results, out_dir: Path, rel: Callable[[Path], Any]) -> str:
+    """"What the robot's camera will see": results.json ``physical_views`` (both designs rendered physically at
+    three poses, the cell's detector's detections drawn, the misses named); '' when absent."""
+    views = section(results, "physical_views", PhysicalViews)
+    if views is None or not views.frames:
+        return ""
+    parts = [f"<p>Both designs rendered physically (Mitsuba 3 path tracer, {esc(views.spp)} samples per pixel) in "
+             f"the study's cell: {esc(views.light)} light, {esc(views.material)}, blind holes "
+             f"{esc(views.hole_ends)}, sensor noise σ = {fmt(views.noise_grey, 3)} grey levels; holes found by the "
+             f"{esc(views.detector)} detector. Predicted rims red, detections green, associated centres yellow; a "
+             "hole the closed loop expects but the detector missed is named in red.</p>"]
+    figs = []
+    for f in views.frames:
+        missed = f"; missed: {', '.join(f.missed)}" if f.missed else "; none missed"
+        caption = (f"{f.design}, sample {f.frame} (t = {fmt(f.time_s, 3)} s): {len(f.detected)} of "
+                   f"{len(f.expected)} expected holes found{missed}")
+        if f.path and (Path(out_dir) / f.path).is_file():
+            figs.append(figure(rel(Path(out_dir) / f.path), caption, f"{f.design} physical frame"))
+        else:
+            parts.append(f"<p>{esc(caption)}</p>")
+    if figs:
+        parts.append(f"<div class=\"pair\">{''.join(figs)}</div>")
     return "".join(parts)

@@ -34,7 +34,7 @@ from cadfeat.report.renders import Renders, make_renders
 from cadfeat.report.requirements import requirements_table
 from cadfeat.report.robust_designs import robust_designs_section
 from cadfeat.report.robustness import robustness_section
-from cadfeat.report.tracking import tracking_section
+from cadfeat.report.tracking import physical_views_section, tracking_section
 from cadfeat.report.verdict import verdict_section
 from cadfeat.report.view3d import view3d_section
 from cadfeat.results import StudyRecord, value
@@ -251,6 +251,7 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
                                            for p in plots)),
         ("pose", "How well will the robot know the part's pose?", lambda: pose_section(results, out_dir, rel)),
         ("tracking", "Does the new design track better?", lambda: tracking_section(results, out_dir, rel)),
+        ("camera", "What the robot's camera will see", lambda: physical_views_section(results, out_dir, rel)),
         ("appendix", "Appendix: design matrix and normalisation", lambda: _appendix(results)),
         ("files", "Exported files", lambda: tables.files_table(results) + tables.verification_table(results)),
         ("provenance", "Versions and timings", lambda: _provenance(results, timings)),

@@ -33,6 +33,8 @@ from cadfeat.results._closed_loop import (
     HelpMostBest,
     Interval,
     PairedTest,
+    PhysicalFrame,
+    PhysicalViews,
     PoseAccuracy,
     PoseDesign,
     PoseErrors,
@@ -55,12 +57,12 @@ from cadfeat.results._robustness import (
     Spread,
 )
 
-__all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "DesignDraws", "DesignMatrix", "EstimatorErrors", "FeatureSummary",
-           "FileEntry", "Finding", "HelpMost", "HelpMostBest", "HistoryPoint", "HoleRecord", "Holes", "Interval",
-           "Json", "MeasureSummary", "Measures", "Normalisation", "ObjectiveChange", "Objectives",
-           "OptimizerRecord", "OutOfSample", "PairedTest", "Pareto", "Pattern", "PoseAccuracy", "PoseDesign",
-           "PoseErrors", "Record", "RequirementCheck", "RequirementUsed", "Results", "RobustObjective",
-           "Robustness", "SampleShift", "Sensitivity", "Shop", "Spread", "StudyRecord", "StudyResults", "Sweep",
+__all__ = ["DesignDraws", "DesignMatrix", "EstimatorErrors", "FeatureSummary", "FileEntry", "Finding", "HelpMost",
+           "HelpMostBest", "HistoryPoint", "HoleRecord", "Holes", "Interval", "Json", "MeasureSummary", "Measures",
+           "Normalisation", "ObjectiveChange", "Objectives", "OptimizerRecord", "OutOfSample", "PairedTest",
+           "Pareto", "Pattern", "PhysicalFrame", "PhysicalViews", "PoseAccuracy", "PoseDesign", "PoseErrors",
+           "Record", "RequirementCheck", "RequirementUsed", "Results", "RobustObjective", "Robustness", "SCHEMA_ID",
+           "SCHEMA_VERSION", "SampleShift", "Sensitivity", "Shop", "Spread", "StudyRecord", "StudyResults", "Sweep",
            "Tracking", "TrackingCheck", "TrackingDesign", "TrackingFrame", "TrackingSettings", "TrackingVerdict",
            "TrajectoryRecord", "Variable", "Verdict", "Verification", "WeakestPhase", "partial_model", "present",
            "results_json_schema", "section", "value"]
@@ -394,6 +396,7 @@ class StudyResults(Record):
     timings_s: dict[str, Number] | None = None
     versions: dict[str, str] | None = None
     tracking: Tracking | None = None
+    physical_views: PhysicalViews | None = None
     verdict: Verdict | None = None
 
     file_name: ClassVar[str] = "results.json"

@@ -156,6 +156,34 @@ class TrackingFrame(Record):
     holes: int
 
 
+class PhysicalFrame(Record):
+    """A physically rendered camera frame of one design (``study.physical_views``): the holes the closed loop
+    expects there, those the cell's detector found and those it missed (by name); the PNG's path relative to the
+    output folder (absent when no frame was written)."""
+
+    design: str
+    frame: int
+    time_s: Number
+    expected: list[str] = []
+    detected: list[str] = []
+    missed: list[str] = []
+    path: str | None = None
+
+
+class PhysicalViews(Record):
+    """``physical_views``: what the robot's camera will see — both designs rendered physically (Mitsuba 3) in the
+    study's cell at three poses, with the cell's detector's detections and misses."""
+
+    light: str | None = None
+    material: str | None = None
+    hole_ends: str | None = None
+    detector: str | None = None
+    spp: int | None = None
+    noise_grey: Number | None = None
+    frames: list[PhysicalFrame] = []
+    seconds: Number | None = None
+
+
 class TrackingSettings(Record):
     """``tracking.settings``: the simulation's settings (``[tracking]``; noise in grey levels, times in s)."""
 

@@ -112,6 +112,31 @@ def attach(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, An
         results["tracking"] = section
     if skipped:
         results.setdefault("warnings", []).append(skipped)
+    views, why = camera_views(config, shapes, stage, progress)
+    if views is not None:
+        results["physical_views"] = views
+    if why:
+        results.setdefault("warnings", []).append(why)
+
+
+def camera_views(config: StudyConfig, shapes: Mapping[str, Any], stage: Path | None,
+                 progress: Any = None) -> tuple[dict[str, Any] | None, str | None]:
+    """(results.json ``physical_views``: both designs rendered physically at three poses, detections drawn and
+    misses named — ``study.physical_views`` —, or None; why they are missing, or None). Made whenever the check
+    is on; a renderer that fails leaves a warning (an error in mode ``pbr``, which asked for physics by name)."""
+    from cadfeat.study.physical_views import physical_views  # lazy: Mitsuba
+
+    mode, spec = check_spec(config, len(shapes["setup"].trajectory.times_s))
+    if spec is None or min(len(shapes["holes0"]), len(shapes["holes1"])) < MIN_HOLES:
+        return None, None
+    designs = {"before": (shapes["shape0"], shapes["holes0"]), "after": (shapes["shape1"], shapes["holes1"])}
+    try:
+        with progress.phase("camera views") if progress is not None else contextlib.nullcontext():
+            return physical_views(config, designs, stage, spec), None
+    except (CadfeatError, ImportError, RuntimeError, OSError, ValueError) as exc:
+        if mode == "pbr":
+            raise
+        return None, f"no physically rendered camera views ({type(exc).__name__}: {exc})"
 
 
 def check_spec(config: StudyConfig, n_samples: int) -> tuple[str, TrackingSpec | None]:

@@ -262,7 +262,7 @@ def _rim_hidden(shape: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.nd
                          depth_mm=[h.depth_mm for h in holes])
 
 
-def _expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.ndarray:
+def expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.ndarray:
     """(F, N): a hole counts as expected when its ellipse is valid, inside the image with its whole extent,
     facing the camera, its minor axis ≥ 3 px and (when predicted) its rim not hidden by the part."""
     c_cam = np.einsum("fij,nj->fni", T[:, :3, :3], obs.centres) + T[:, None, :3, 3]
@@ -392,7 +392,7 @@ def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: 
         errors[m] = (et, er)
         summaries[m] = [run_summary(et[run], er[run], times_s, config.settle_frames, config.converged_mm,
                                     config.converged_deg, lost[run]) for run in range(R_)]
-    return DesignTracking(errors, summaries, pixels, _expected_visible(camera, obs, T_true), obs.names,
+    return DesignTracking(errors, summaries, pixels, expected_visible(camera, obs, T_true), obs.names,
                           np.asarray(times_s, dtype=float), first)
 
 

@@ -548,3 +548,26 @@ def test_tracking_frames_are_embedded_too(case, tmp_path):
     embedded = [d for s, d in zip(page.images, page.image_srcs, strict=True) if s.endswith("before_frame_000.png")]
     assert len(embedded) == 1 and embedded[0].startswith("data:image/png;base64,")
     assert base64.b64decode(embedded[0].split(",", 1)[1]) == frame.read_bytes()
+
+
+def test_physical_views_section_embeds_the_frames_and_names_the_misses(case, tmp_path):
+    """"What the robot's camera will see": each physically rendered frame embedded, its caption naming the missed
+    holes; absent without a ``physical_views`` section."""
+    _, results, _ = case
+    (tmp_path / "camera").mkdir()
+    Image.fromarray(np.full((24, 32, 3), 120, np.uint8)).save(tmp_path / "camera" / "after_frame_009.png")
+    data = _lean(results)
+    data["physical_views"] = {"light": "ring", "material": "machined_aluminium", "hole_ends": "drilled",
+                              "detector": "edcircles", "spp": 16, "noise_grey": 2.0,
+                              "frames": [{"design": "after", "frame": 9, "time_s": 1.5, "expected": ["H1", "H2", "H7"],
+                                          "detected": ["H1", "H2"], "missed": ["H7"],
+                                          "path": "camera/after_frame_009.png"}]}
+    built = build_report(tmp_path, data, None)
+    text = built.path.read_text(encoding="utf-8")
+    page = parse_report(built.path)
+    assert "What the robot&#x27;s camera will see" in text or "What the robot's camera will see" in text
+    assert "2 of 3 expected holes found; missed: H7" in text and "edcircles detector" in text
+    src = [d for s, d in zip(page.images, page.image_srcs, strict=True) if s.endswith("after_frame_009.png")]
+    assert len(src) == 1 and src[0].startswith("data:image/png;base64,")
+    data.pop("physical_views")
+    assert "camera will see" not in build_report(tmp_path / "none", data, None).path.read_text(encoding="utf-8")
