@@ -54,18 +54,9 @@ def generate() -> str:
 
 
 def main(argv: list[str]) -> int:
-    text = generate()
-    if "--stdout" in argv:
-        print(text, end="")
-    elif "--check" in argv:
-        if not PAGE.is_file() or PAGE.read_text(encoding="utf-8") != text:
-            print(f"{PAGE.relative_to(ROOT)} is out of date: run python tools/gen_cli_reference.py")
-            return 1
-    else:
-        PAGE.parent.mkdir(parents=True, exist_ok=True)
-        PAGE.write_text(text, encoding="utf-8")
-        print(PAGE.relative_to(ROOT))
-    return 0
+    from generated_page import page_main
+
+    return page_main(argv, generate, PAGE, ROOT, "gen_cli_reference.py")
 
 
 if __name__ == "__main__":

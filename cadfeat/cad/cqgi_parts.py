@@ -146,20 +146,23 @@ def script_constants(tree: ast.Module) -> dict[str, ScriptConstant]:
             continue
         target = targets[0]
         if isinstance(target, ast.Name):
-            ok, literal = _literal(value)
-            if ok:
-                out[target.id] = ScriptConstant(target.id, literal, i, None, node.lineno)
-            else:
-                out.pop(target.id, None)
+            _record(out, target.id, value, i, None, node.lineno)
         elif isinstance(target, ast.Tuple) and isinstance(value, ast.Tuple) and len(target.elts) == len(value.elts):
             for k, (t, v) in enumerate(zip(target.elts, value.elts, strict=True)):
                 if isinstance(t, ast.Name):
-                    ok, literal = _literal(v)
-                    if ok:
-                        out[t.id] = ScriptConstant(t.id, literal, i, k, node.lineno)
-                    else:
-                        out.pop(t.id, None)
+                    _record(out, t.id, v, i, k, node.lineno)
     return out
+
+
+def _record(out: dict[str, ScriptConstant], name: str, value: ast.expr, index: int, element: int | None,
+            lineno: int) -> None:
+    """``name = value`` (element ``element`` of a tuple assignment, statement ``index``): a constant when the value
+    is a literal, else a name that is no constant (a later computed assignment replaces an earlier literal)."""
+    ok, literal = _literal(value)
+    if ok:
+        out[name] = ScriptConstant(name, literal, index, element, lineno)
+    else:
+        out.pop(name, None)
 
 
 def _descriptions(tree: ast.Module) -> dict[str, str]:
