@@ -158,13 +158,17 @@ def point_polygon_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray,
 
 
 def _same_face(h1: Hole, h2: Hole, tol: float = 1e-6) -> bool:
+    """The two holes are on one host face: the same face index, or coplanar outlines with the same outer
+    boundary (outlines of different faces may have any number of points: a 6-point tongue and a 316-point
+    plate of one plane are two faces, not an error)."""
     if h1.host_face == h2.host_face:
         return True
     if h1.outline is None or h2.outline is None:
         return False
     n1, n2 = h1.outline.normal, h2.outline.normal
+    o1, o2 = np.asarray(h1.outline.outer), np.asarray(h2.outline.outer)
     return bool(np.dot(n1, n2) > 1 - 1e-9 and abs(np.dot(h2.outline.origin - h1.outline.origin, n1)) < tol
-                and np.allclose(h1.outline.outer, h2.outline.outer))
+                and o1.shape == o2.shape and np.allclose(o1, o2))
 
 
 def _label(holes: Sequence[Hole], i: int) -> str:

@@ -74,6 +74,10 @@ __all__ = ["ANGLE_TOL_RAD", "AREA_RTOL", "CHAMFER_MAX_MM", "CHAMFER_MAX_RATIO", 
            "SAMPLE_DEFLECTION_MM", "SkippedHole", "extract_holes", "extract_holes_and_skipped"]
 
 
+STEP_WALL_MIN_RAD = np.radians(300.0)
+"""Least angle the wider wall of a counterbore must close round the axis for its floor to be a step of the hole."""
+
+
 @dataclass(frozen=True)
 class SkippedHole:
     """A hole-like opening that is not extracted (mm): a concave partial cylinder of ``span_deg`` < 360°
@@ -163,18 +167,19 @@ class _Extractor:
         if (np.linalg.norm(np.cross(normal, revs[0].d)) > self.ang
                 or not all(revs[0].coaxial(r, self.lin, self.ang) for r in revs[1:])):
             return
-        if not self._outer_wall_closes(revs):
+        if not self._outer_wall_closes(revs, concave, uf):
             return
         for r in revs:
             uf.union(f, r.face)
         for g in halves:
             uf.union(f, g)
 
-    def _outer_wall_closes(self, revs: list[_Revolution]) -> bool:
-        """A step between cylinders of two radii is a counterbore floor only if the wider wall closes 360° round
-        the axis. A seat or pocket whose wall is open (it breaks out of a side face, or is notched: a Ø5.9
-        seat closing 266°, a bearing seat with notches) is another feature the hole opens into: the plane is
-        then the hole's end, not a step of it (so the hole reads as through, as deep as its own bore)."""
+    def _outer_wall_closes(self, revs: list[_Revolution], concave: dict[int, _Revolution], uf: _UnionFind) -> bool:
+        """A step between cylinders of two radii is a counterbore floor only if the wider wall closes at least
+        ``STEP_WALL_MIN_RAD`` round the axis (a slot cutting a narrow gap into a counterbore leaves it one). A
+        seat whose wall is open over more (it breaks out of a side face: a Ø5.9 seat closing 266°; a bearing
+        seat with twelve notches closing 272°) is another feature the hole opens into: the plane is then the
+        hole's end, not a step of it, and the hole reads as through, as deep as its own bore."""
         cylinders = [r for r in revs if not r.is_cone]
         if len(cylinders) < 2:
             return True
@@ -182,8 +187,11 @@ class _Extractor:
         r_max = max(c.r0 for c in cylinders)
         if r_max <= r_min + self.lin:
             return True
-        wide = [c for c in cylinders if c.r0 >= r_max - self.lin]
-        return _covered_angle(wide, wide[0].d, self.ang) >= 2 * np.pi - 2 * self.ang
+        # the whole wall: the plane may be one half of a split annulus, touching one half of a split wall
+        roots = {uf.find(c.face) for c in cylinders if c.r0 >= r_max - self.lin}
+        wide = [r for f, r in concave.items() if not r.is_cone and abs(r.r0 - r_max) <= self.lin
+                and uf.find(f) in roots]
+        return _covered_angle(wide, wide[0].d, self.ang) >= STEP_WALL_MIN_RAD
 
     def _is_step_between(self, f: int, p: np.ndarray, normal: np.ndarray, revs: list[_Revolution]) -> bool:
         """A plane that also meets other features is still the step of a stepped bore if it meets coaxial
@@ -409,7 +417,7 @@ class _Extractor:
         return ref.loc + t_rim * ref.d
 
     def _entrance(self, ends: list[_End]) -> _End:
-        """The entrance rim: not inside another bore, then larger radius, then prefer_direction, then larger host
+        """The entrance rim: larger radius, then prefer_direction, then not inside another bore, then larger host
         area, then (z, y, x)."""
         best = ends[0]
         for other in ends[1:]:
@@ -424,14 +432,14 @@ class _Extractor:
         return rev is not None and rev.concave
 
     def _better(self, a: _End, b: _End) -> bool:
-        if (inside_a := self._inside_a_bore(a)) != self._inside_a_bore(b):
-            return not inside_a
         if abs(a.radius - b.radius) > self.lin:
             return a.radius > b.radius
         if self.prefer is not None:
             da, db = float(a.axis @ self.prefer), float(b.axis @ self.prefer)
             if abs(da - db) > self.ang:
                 return da > db
+        if (inside_a := self._inside_a_bore(a)) != self._inside_a_bore(b):
+            return not inside_a  # before the host area: a shaft bore's wall is larger than a nut-slot face
         if abs(a.area - b.area) > AREA_RTOL * max(a.area, b.area):
             return a.area > b.area
         ka = tuple(np.round(a.axis[::-1], _ORDER))
