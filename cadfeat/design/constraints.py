@@ -374,11 +374,15 @@ def _min_distance(shapes_a: Sequence[Any], shapes_b: Sequence[Any]) -> float:
 
 
 def _axis_circle_edges(face: Any, hole: Hole, tol: float = 1e-5) -> list:
-    """Circular edges of ``face`` (OCP) of the hole's radius centred on its axis line: its rim on its host face,
-    or its exit rim on the far face of a through hole."""
+    """Circular edges of ``face`` (OCP) of the hole's radius centred on its axis line, between its entrance and
+    its depth: its rim on its host face, or its exit rim on the far face of a through hole (not the rim of a
+    coaxial hole in another wall further along the line: the two plates of a clevis)."""
     axis = np.asarray(hole.axis, float)
+    depth = float(getattr(hole, "depth_mm", np.inf))
+    slack = max(tol, 1e-3)
     return [e for e, c, r in _face_circles(face)
-            if np.linalg.norm(np.cross(c - hole.centre, axis)) < tol and abs(r - hole.radius_mm) < tol]
+            if np.linalg.norm(np.cross(c - hole.centre, axis)) < tol and abs(r - hole.radius_mm) < tol
+            and -depth - slack <= float((c - hole.centre) @ axis) <= slack]
 
 
 def _shared_face_distance(faces: Sequence[Any], a: Hole, b: Hole) -> float | None:
