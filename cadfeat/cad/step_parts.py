@@ -371,8 +371,9 @@ def dry_run(part: StepPart, holes: Sequence[Hole], resize: Sequence[bool] | None
     step in its host plane (1 % of its radius, at least 10× the model tolerance) — and, where ``resize``,
     with its entrance 2 % wider — so that a part that cannot be re-drilled is refused at once.
 
-    Each re-drilled solid is also meshed as the run's STL export will mesh it. Raises ``CadfeatError`` naming
-    the file, the hole and why (e.g. its wall is cut by another feature, a face cannot be triangulated).
+    Each re-drilled solid is also meshed as the run's STL export will mesh it, and written to STEP and checked
+    as the run's export is (``_step_round_trip``). Raises ``CadfeatError`` naming the file, the hole and why (e.g.
+    its wall is cut by another feature, a face cannot be triangulated, the re-read STEP differs).
     """
     resize = list(resize) if resize is not None else [False] * len(holes)
     for hole, grow in zip(holes, resize, strict=True):
@@ -387,9 +388,27 @@ def dry_run(part: StepPart, holes: Sequence[Hole], resize: Sequence[bool] | None
         try:
             result = redrill(part.shape, [move], part.tolerance, part.path)
             mesh_from_shape(result, tolerance=STL_TOLERANCE_MM)  # the run exports the re-drilled part as STL
+            _step_round_trip(part, result)  # and as STEP, re-read and checked
         except CadfeatError as exc:
             text = str(exc)
             where = f"{part.path}: "
             raise CadfeatError(f"{where}hole {hole.name} cannot be re-drilled (dry run: moved {step:.3g} mm"
                                f"{', entrance 2 % wider' if grow else ''}): "
                                f"{text[len(where):] if text.startswith(where) else text}") from None
+
+
+def _step_round_trip(part: StepPart, result: Any) -> None:
+    """Write the original part and the re-drilled ``result`` as STEP and check the re-read result as a run's export
+    does (``export.verify_step_roundtrip``: holes to 1e-6 mm, the volume against the re-read original's plus the
+    change, ``export.expected_step_volume_mm3``), so that a part whose export cannot be verified is refused now."""
+    import tempfile
+
+    from cadfeat.cad.export import expected_step_volume_mm3, export_step, verify_step_roundtrip
+
+    with tempfile.TemporaryDirectory(prefix="cadfeat-dry-run-") as tmp:
+        original, redrilled = Path(tmp) / "original.step", Path(tmp) / "optimised.step"
+        export_step(part.shape, original)
+        export_step(result, redrilled)
+        verify_step_roundtrip(redrilled, extract_holes(result), tol_mm=1e-6,  # study.verify.ROUNDTRIP_TOL_MM
+                              expected_volume_mm3=expected_step_volume_mm3(result, part.shape, original),
+                              volume_rtol=1e-7)
