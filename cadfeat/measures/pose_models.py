@@ -349,6 +349,10 @@ class PoseModels:
     alias_floor_px: float = 0.0
     gap0_px: float = RIM_GAP_MIN_PX
     w_g_px: float = 0.3
+    #: the flat-floor term (module docstring "Flat floors"): a blind hole is found once its wall shows,
+    #: q = depth/diameter · tan θ ≥ q₀ (width w_q); w_q = 0 turns it off (the raster world: painted floors)
+    floor_q0: float = 0.0
+    floor_w_q: float = 0.0
     #: association (module docstring): the closed loop's gate and the σ per axis of the part's placement error —
     #: the cell's (``for_cell``: ``[cell] gate_px`` and σ = 0.4 t of its placement tolerance; not fitted)
     gate_px: float = D.GATE_PX
@@ -356,8 +360,11 @@ class PoseModels:
     placement_deg: float = D.PLACEMENT_SIGMA_DEG
     source: str = "defaults (not calibrated)"
 
-    def detection_probability(self, geo: HoleGeometry, occlusion: np.ndarray) -> np.ndarray:
-        """p (L, N) in [0, 1] (module docstring); ``occlusion`` (L, N) hidden fraction of the rim (or bool)."""
+    def detection_probability(self, geo: HoleGeometry, occlusion: np.ndarray, *, depth_ratio: Any = None,
+                              through: Any = None) -> np.ndarray:
+        """p (L, N) in [0, 1] (module docstring); ``occlusion`` (L, N) hidden fraction of the rim (or bool);
+        ``depth_ratio`` / ``through`` (N,) or (L, N) the holes' depth/diameter and through flags for the
+        flat-floor term (None: plain through holes, no floor term)."""
         occ = np.asarray(occlusion, dtype=float)
         size = _sigmoid((geo.minor_px - self.kappa_blur * geo.blur_px - self.m0_px) / self.w_m_px)
         fov = _sigmoid(np.maximum(geo.margin_px, -50.0 * self.w_f_px) / self.w_f_px)
@@ -365,8 +372,21 @@ class PoseModels:
         occl = _sigmoid((self.o0 - occ) / self.w_o) / _sigmoid(self.o0 / self.w_o)
         gap = geo.rim_gap_px(occ)
         near = 1.0 if gap is None else _sigmoid((np.minimum(gap, 1e6) - self.gap0_px) / self.w_g_px)
+        floor = self.floor_term(geo, depth_ratio, through)
         return np.where(geo.valid & geo.in_front & (geo.facing > 0),
-                        size * fov * facing * occl * near * self.association(geo), 0.0)
+                        size * fov * facing * occl * near * floor * self.association(geo), 0.0)
+
+    def floor_term(self, geo: HoleGeometry, depth_ratio: Any, through: Any) -> np.ndarray | float:
+        """s((q − q₀)/w_q) for blind holes, q = depth/diameter · tan θ (module docstring "Flat floors"), (L, N);
+        1 for through holes, with no depth given, or when the term is off (w_q = 0)."""
+        if self.floor_w_q <= 0 or depth_ratio is None:
+            return 1.0
+        shape = geo.facing.shape
+        ratio = np.broadcast_to(np.asarray(depth_ratio, dtype=float), shape)
+        thr = np.zeros(shape, bool) if through is None else np.broadcast_to(np.asarray(through, bool), shape)
+        cos_t = np.clip(geo.facing, 1e-3, 1.0)
+        q = np.maximum(ratio, 0.0) * np.sqrt(1.0 - cos_t ** 2) / cos_t
+        return np.where(thr, 1.0, _sigmoid((q - self.floor_q0) / self.floor_w_q))
 
     def association(self, geo: HoleGeometry) -> np.ndarray | float:
         """a(G_j) = 1 − exp(−G_j²/(2σ̄²)) (module docstring): the chance that hole j's detection falls inside its
@@ -422,3 +442,95 @@ def default_models() -> PoseModels:
     except (FileNotFoundError, OSError):
         return PoseModels()
     return PoseModels(**json.loads(text))
+
+
+# --------------------------------------------------------------------------------------- per-cell calibrations
+#: The models calibrated per world (``tools/calibrate_detection.py --renderer … --detector …``): package data
+#: ``detection_model_<key>.json`` and its table ``detection_calibration_<key>.csv``, ``key`` = ``model_key``.
+MODEL_PREFIX = "detection_model_"
+#: Materials of one family (same base material) and of one finish class: ``models_for``'s nearness.
+MATERIAL_FAMILIES = {"machined_aluminium": "aluminium", "blasted_aluminium": "aluminium",
+                     "machined_steel": "steel", "blasted_steel": "steel", "grey_plastic": "dielectric",
+                     "black_anodised": "dielectric", "white_reference": "dielectric"}
+MATERIAL_FINISHES = {"machined_aluminium": "machined", "blasted_aluminium": "blasted",
+                     "machined_steel": "machined", "blasted_steel": "blasted", "grey_plastic": "dielectric",
+                     "black_anodised": "dielectric", "white_reference": "dielectric"}
+
+
+class ModelKey(NamedTuple):
+    """What a calibration was made in: detector, renderer and (pbr) material, light kind and hole ends."""
+
+    detector: str
+    renderer: str
+    material: str = "machined_aluminium"
+    light: str = "ring"
+    hole_ends: str = "as_modelled"
+
+    def text(self) -> str:
+        """The file key: ``<detector>-raster`` or ``<detector>-pbr-<material>-<light>-<hole_ends>``."""
+        if self.renderer == "raster":
+            return f"{self.detector}-raster"
+        return "-".join(self)
+
+    @classmethod
+    def parse(cls, text: str) -> ModelKey:
+        parts = text.split("-")
+        return cls(parts[0], parts[1]) if len(parts) == 2 else cls(*parts[:5])
+
+
+def model_key(detector: str, renderer: str, material: str = "machined_aluminium", light: str = "ring",
+              hole_ends: str = "as_modelled") -> str:
+    """The file key of a calibration (``ModelKey.text``)."""
+    return ModelKey(detector, renderer, material, light, hole_ends).text()
+
+
+def model_distance(want: ModelKey, have: ModelKey) -> float:
+    """How far calibration ``have`` is from the world ``want`` (0: the same; inf: another detector or renderer):
+    material 1 within its family (aluminium, steel, dielectric), 2 within its finish class (machined, blasted),
+    4 otherwise; light 2 when another kind; hole ends 1 when another, 0.25 between ``as_modelled`` and
+    ``milled`` (the calibration plate's blind holes have flat floors: as modelled is milled)."""
+    if want.detector != have.detector or want.renderer != have.renderer:
+        return float("inf")
+    if want.renderer == "raster":
+        return 0.0
+    fam, fin = MATERIAL_FAMILIES, MATERIAL_FINISHES
+    mat = 0.0 if want.material == have.material else 1.0 if fam.get(want.material) == fam.get(have.material) \
+        else 2.0 if fin.get(want.material) == fin.get(have.material) else 4.0
+    light = 0.0 if want.light == have.light else 2.0
+    flat = {"as_modelled", "milled"}
+    ends = 0.0 if want.hole_ends == have.hole_ends else 0.25 if {want.hole_ends, have.hole_ends} <= flat else 1.0
+    return mat + light + ends
+
+
+def calibrated_keys() -> tuple[str, ...]:
+    """The keys of the committed per-world calibrations (package data ``detection_model_<key>.json``)."""
+    folder = resources.files("cadfeat.measures").joinpath(DATA)
+    names = sorted(p.name for p in folder.iterdir() if p.name.startswith(MODEL_PREFIX) and p.name.endswith(".json"))
+    return tuple(n[len(MODEL_PREFIX):-len(".json")] for n in names)
+
+
+@lru_cache(maxsize=32)
+def load_models(key: str) -> PoseModels:
+    """The committed calibration ``key`` (``detection_model_<key>.json``)."""
+    text = resources.files("cadfeat.measures").joinpath(DATA, f"{MODEL_PREFIX}{key}.json").read_text()
+    return PoseModels(**json.loads(text))
+
+
+def models_for(cell: Cell, renderer: str = "pbr") -> PoseModels:
+    """The calibration of ``cell``'s world: its detector, and (``renderer`` "pbr", the physical world) its
+    material, light kind and hole ends; where none matches exactly the nearest of the same detector
+    (``model_distance``), the choice recorded in ``source``; none of the same detector and renderer:
+    ``default_models()`` (the threshold detector's raster calibration), said so in ``source``. The cell's gate
+    and placement σ are not applied here (``PoseModels.for_cell``)."""
+    want = ModelKey(str(cell.detector), renderer, str(cell.material.name), str(cell.light.kind),
+                    str(cell.hole_ends))
+    keys = calibrated_keys()
+    dist = [model_distance(want, ModelKey.parse(k)) for k in keys]
+    if not keys or not np.isfinite(min(dist)):
+        base = default_models()
+        return replace(base, source=f"{base.source}; models_for: no {want.detector}/{renderer} calibration for "
+                                    f"{want.text()}, the default models")
+    best = keys[int(np.argmin(dist))]
+    m = load_models(best)
+    how = "exact" if best == want.text() else f"nearest to {want.text()} (distance {min(dist):g})"
+    return replace(m, source=f"{m.source}; models_for: {best} ({how})")
