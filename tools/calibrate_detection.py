@@ -416,11 +416,30 @@ def fit(rows: list[dict], floor: bool | None = None) -> PoseModels:
     from cadfeat.vision.closed_loop import RIM_HIDDEN_MAX
 
     o0 = float(RIM_HIDDEN_MAX)
-    return replace(base, m0_px=float(m0), w_m_px=float(w_m), kappa_blur=float(kappa), c0=float(c0),
+    off_fit = np.zeros(len(rows))
+    off_fit[np.flatnonzero(ok)] = A @ np.array([k_b, k_w, k_d, k_i])
+    unexplained = offset_unexplained_px(a, ok & np.isfinite(a["offset_axis_px"]), off_fit)
+    return replace(base, offset_rms_px=unexplained, m0_px=float(m0), w_m_px=float(w_m), kappa_blur=float(kappa), c0=float(c0),
                    w_c=float(w_c), sigma0_px=float(s0), k_sigma=float(k_s), w0_px=float(w0), k_b=float(k_b),
                    k_d=float(k_d), k_w_px=float(k_w), k_i=float(k_i), k_alias_px=k_alias, alias_floor_px=alias_floor,
                    o0=o0, floor_q0=q0, floor_w_q=w_q,
                    source=f"tools/calibrate_detection.py: {len(rows)} rendered conditions, noise {NOISE_GREY} grey")
+
+
+def offset_unexplained_px(a: dict[str, np.ndarray], ok: np.ndarray, fitted_axis_px: np.ndarray) -> float:
+    """Per-axis RMS (px) of the rows' mean offsets that the fitted offset model (``fitted_axis_px``, along the
+    hole axis' image direction) leaves, less what each row's mean carries of the pixel-grid scatter and the
+    noise (alias²/placements + σ²/draws): the systematic offset the model cannot describe (``offset_rms_px``).
+    The residual is the measured offset less the model's along the axis, plus all of the across-axis part."""
+    if not ok.any():
+        return 0.0
+    total2 = a["offset_u_px"][ok] ** 2 + a["offset_v_px"][ok] ** 2
+    along = a["offset_axis_px"][ok]
+    res2 = (along - fitted_axis_px[ok]) ** 2 + np.maximum(total2 - along ** 2, 0.0)   # both axes
+    n_pl = np.maximum(np.nan_to_num(a["placements"][ok], nan=1.0), 1.0)
+    noise2 = 2.0 * (np.nan_to_num(a["alias_px"][ok], nan=0.0) ** 2 / n_pl
+                    + a["sigma_px"][ok] ** 2 / np.maximum(a["draws"][ok], 1.0))
+    return float(np.sqrt(max(0.5 * float(np.mean(res2 - noise2)), 0.0)))
 
 
 def _geo_p(m: PoseModels, a: dict[str, np.ndarray], sel: np.ndarray) -> np.ndarray:
@@ -431,6 +450,8 @@ def _geo_p(m: PoseModels, a: dict[str, np.ndarray], sel: np.ndarray) -> np.ndarr
     g = HoleGeometry(a["minor_px"][sel][None], a["minor_px"][sel][None], a["margin_px"][sel][None],
                      a["facing"][sel][None], a["blur_px"][sel][None], a["rim_px"][sel][None], np.zeros((1, k, 2)),
                      np.ones((1, k), bool), np.ones((1, k), bool))
+    if "depth_ratio" not in a or "through" not in a:   # a table without the hole's depth: no flat-floor term
+        return m.detection_probability(g, a["hidden"][sel][None])[0]
     return m.detection_probability(g, a["hidden"][sel][None], depth_ratio=a["depth_ratio"][sel][None],
                                    through=a["through"][sel][None] > 0)[0]
 
@@ -450,7 +471,7 @@ def residuals(rows: list[dict], model: PoseModels) -> dict[str, dict[str, float]
                      np.ones((1, n), bool))
     p = model.detection_probability(g, a["hidden"][None], depth_ratio=a["depth_ratio"][None],
                                     through=a["through"][None] > 0)[0]
-    noise, off = replace(model, k_alias_px=0.0, alias_floor_px=0.0).measurement_model(
+    noise, off = replace(model, k_alias_px=0.0, alias_floor_px=0.0, offset_rms_px=0.0).measurement_model(
         g, depth_ratio=a["depth_ratio"][None], through=a["through"][None] > 0, noise_grey=NOISE_GREY)
     alias = np.sqrt(model.alias_floor_px ** 2 + model.k_alias_px ** 2 / np.maximum(a["rim_px"], 1.0))
     cham = np.nan_to_num(a["chamfer_mm"], nan=0.0)
@@ -475,6 +496,101 @@ def residuals(rows: list[dict], model: PoseModels) -> dict[str, dict[str, float]
                      "alias_log_rms": float(np.sqrt(np.mean(np.log(alias[fin] / a["alias_px"][fin]) ** 2)))
                      if fin.any() else float("nan"),
                      "scale_median": float(np.nanmedian(a["scale"][ok])) if ok.any() else float("nan")}
+    return out
+
+
+#: Held-out conditions (none in a grid: bore radius mm, kind, depth/diameter, chamfer mm, view angle deg, distance
+#: mm, blur px) for ``validate`` (``--validate``): the committed model of the world against fresh renders.
+HELD_OUT = ((2.2, "blind", 0.6, 0.0, 35.0, 400.0, 1.0), (2.2, "through", 1.0, 0.0, 35.0, 400.0, 1.0),
+            (1.2, "blind", 0.8, 0.5, 40.0, 350.0, 0.0), (2.0, "blind", 0.5, 0.7, 15.0, 380.0, 2.0),
+            (4.0, "through", 1.0, 0.0, 55.0, 260.0, 1.0), (2.5, "blind", 0.4, 0.0, 10.0, 330.0, 0.0),
+            (1.8, "blind", 1.2, 0.0, 20.0, 280.0, 1.0), (2.8, "blind", 0.25, 0.4, 55.0, 420.0, 1.0))
+
+
+#: Hole positions (mm, plate frame) of ``multi_plate``: 28 mm apart, so no rim comes near another's surround.
+MULTI_POSITIONS = ((-14.0, -14.0), (14.0, -14.0), (-14.0, 14.0), (14.0, 14.0))
+
+
+def multi_plate(specs):
+    """The test plate with up to four holes (``MULTI_POSITIONS``), ``specs`` of (bore radius mm, kind,
+    depth/diameter, chamfer mm): several held-out conditions in one render. Returns (workplane, holes) in the
+    specs' order."""
+    import cadquery as cq
+
+    from cadfeat.cad.features import extract_holes
+
+    wp = cq.Workplane("XY").box(60, 60, 5).translate((0, 0, -2.5))
+    for (radius, kind, ratio, chamfer), (x, y) in zip(specs, MULTI_POSITIONS, strict=False):
+        top = wp.faces(">Z").workplane(centerOption="CenterOfBoundBox").center(x, y)
+        wp = top.hole(2 * radius) if kind == "through" else top.hole(2 * radius, ratio * 2 * radius)
+        if chamfer > 0:
+            wp = wp.cut(cq.Solid.makeCone(radius + chamfer + 0.1, radius, chamfer + 0.1, cq.Vector(x, y, 0.1),
+                                          cq.Vector(0, 0, -1)))
+    found = [h for h in extract_holes(wp) if abs(h.centre[2]) < 1e-6]
+    holes = [min(found, key=lambda h: float(np.hypot(h.centre[0] - x, h.centre[1] - y)))
+             for (x, y) in MULTI_POSITIONS[:len(specs)]]
+    return wp, holes
+
+
+def measure_holes(image: np.ndarray, holes, T: np.ndarray, blur: float, seeds: int) -> list[dict[str, float]]:
+    """Per hole of one clean render (1, H, W) at pose ``T``: the detection rate over ``seeds`` noise draws and
+    the mean axis offset (px), all holes detected at once with their rims at ``T`` as the prior (the closed
+    loop's call)."""
+    from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.measures import hole_ellipse
+    from cadfeat.vision.detection import associate
+    from cadfeat.vision.detectors import detect
+    from cadfeat.vision.images import _disk_kernel, apply_optics, sensor_images
+
+    c, n, r = holes_to_arrays(holes)
+    e = hole_ellipse(CAMERA, c @ T[:3, :3].T + T[:3, 3], n @ T[:3, :3].T, r)
+    geo = hole_geometry(CAMERA, T[None], c, n, r)
+    optical = apply_optics(image, [_disk_kernel(blur)])
+    z = np.array([associate(e, detect(WORLD.detector, sensor_images(optical, NOISE_GREY, 1000 + s)[0],
+                                      camera=CAMERA, predicted=e), GATE_PX) for s in range(seeds)])
+    found = np.all(np.isfinite(z), axis=-1)                                          # (seeds, N)
+    d = np.where(found[..., None], z - np.asarray(e.centre_px)[None], np.nan)
+    mean = np.nanmean(np.where(found.any(axis=0)[None, :, None], d, 0.0), axis=0)    # (N, 2)
+    return [{"rate": float(found[:, j].mean()),
+             "offset_axis_px": float(mean[j] @ geo.axis_dir_px[0, j]) if found[:, j].any() else float("nan")}
+            for j in range(len(holes))]
+
+
+def predict(model: PoseModels, hole, T: np.ndarray, blur: float) -> dict[str, float]:
+    """The model's detection probability, axis offset (px) and σ (px, with the pixel-grid term) for ``hole`` at
+    pose ``T`` under ``blur`` px (the blur applied to the render, not the focus's)."""
+    from cadfeat.cad.features import holes_to_arrays
+
+    c, n, r = holes_to_arrays([hole])
+    geo = hole_geometry(CAMERA, T[None], c, n, r)
+    geo = geo._replace(blur_px=np.full((1, 1), blur))
+    ratio, thr = [float(hole.depth_mm) / (2 * float(hole.radius_mm))], [bool(hole.through)]
+    p = float(model.detection_probability(geo, np.zeros((1, 1)), depth_ratio=ratio, through=thr)[0, 0])
+    sig, off = model.measurement_model(geo, depth_ratio=ratio, through=thr, noise_grey=NOISE_GREY)
+    return {"p": p, "offset_axis_px": float(off[0, 0] @ geo.axis_dir_px[0, 0]), "sigma_px": float(sig[0, 0])}
+
+
+def validate(model: PoseModels, conditions=HELD_OUT) -> list[dict[str, float]]:
+    """The held-out ``conditions`` rendered in ``WORLD`` (``PLACEMENTS`` placements, prior at the nominal pose)
+    against ``model``: per condition the measured rate and mean axis offset, the model's p and offset, and the
+    offset's uncertainty (pixel-grid scatter over the placements and noise over the draws, px)."""
+    from cadfeat.cad.features import extract_holes
+
+    out = []
+    for k, (radius, kind, ratio, chamfer, angle, dist, blur) in enumerate(conditions):
+        wp = plate(radius, kind, ratio, chamfer=chamfer)
+        holes = [h for h in extract_holes(wp) if np.linalg.norm(h.centre[:2]) < 1e-6]
+        T0 = pose(angle, dist)
+        Ts = placements(T0, seed=5000 + k)
+        m = measure_placements(render_many(wp.val(), holes, Ts, seed=5000 + k), holes[0], Ts, blur,
+                               SEEDS_PER_PLACEMENT, T0)
+        pred = predict(model, holes[0], T0, blur)
+        unc = np.sqrt(np.nan_to_num(m.get("alias_px", np.nan), nan=0.0) ** 2 / max(m["placements"], 1)
+                      + np.nan_to_num(m["sigma_px"], nan=0.0) ** 2 / m["draws"])
+        out.append({"radius_mm": float(holes[0].radius_mm), "kind": kind, "chamfer_mm": chamfer, "angle_deg": angle,
+                    "distance_mm": dist, "blur_px": blur, "rate": m["rate"], "p": pred["p"],
+                    "offset_axis_px": m["offset_axis_px"], "predicted_axis_px": pred["offset_axis_px"],
+                    "uncertainty_px": float(unc), "sigma_px": m["sigma_px"], "scale": m["scale"]})
     return out
 
 
@@ -556,6 +672,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--material", choices=tuple(MATERIALS), default="machined_aluminium", help="pbr: material")
     ap.add_argument("--light", choices=LIGHT_KINDS, default="ring", help="pbr: the light's kind")
     ap.add_argument("--hole-ends", choices=HOLE_ENDS, default="as_modelled", help="pbr: blind holes' ends")
+    ap.add_argument("--validate", action="store_true",
+                    help="render the held-out conditions (HELD_OUT) and compare with the world's committed model")
     ap.add_argument("--spp", type=int, default=16,
                     help="pbr: samples per pixel (16: the closed loop's; 8 loses glossy faces in path-tracing noise)")
     args = ap.parse_args(argv)
@@ -579,6 +697,13 @@ def main(argv: list[str] | None = None) -> int:
         return _write_to(args.out, rows, f"--study {args.study.name}: {len(rows)} rendered conditions with the "
                          "study's camera", start)
     table, name = model_files(key)
+    if args.validate:
+        global PLACEMENTS
+        PLACEMENTS = PBR_PLACEMENTS
+        model = PoseModels(**json.loads((DATA / name).read_text()))
+        res = validate(model)
+        print(json.dumps({"key": key, "seconds": round(time.perf_counter() - start), "held_out": res}, indent=1))
+        return 0
     if args.add_contrast:
         rows = list(csv.DictReader((DATA / table).open()))
         rows = [r for r in rows if float(r["angle_deg"]) not in CONTRAST_ANGLES_DEG] + contrast_grid()

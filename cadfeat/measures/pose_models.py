@@ -353,6 +353,9 @@ class PoseModels:
     #: q = depth/diameter · tan θ ≥ q₀ (width w_q); w_q = 0 turns it off (the raster world: painted floors)
     floor_q0: float = 0.0
     floor_w_q: float = 0.0
+    #: per-axis RMS (px) of the systematic offset the offset model leaves unexplained on its table (module
+    #: docstring "Per-world calibrations"): added to σ in quadrature, like the pixel-grid term; 0 = none
+    offset_rms_px: float = 0.0
     #: association (module docstring): the closed loop's gate and the σ per axis of the part's placement error —
     #: the cell's (``for_cell``: ``[cell] gate_px`` and σ = 0.4 t of its placement tolerance; not fitted)
     gate_px: float = D.GATE_PX
@@ -403,7 +406,8 @@ class PoseModels:
         """Centre noise σ (L, N) px and systematic offset b (L, N, 2) px (module docstring)."""
         rho = np.maximum(geo.rim_px, 1.0)
         edge = self.k_sigma * (noise_grey / 2.0) * np.sqrt(self.w0_px ** 2 + geo.blur_px ** 2)
-        sigma = np.sqrt(self.sigma0_px ** 2 + self.alias_floor_px ** 2 + (edge ** 2 + self.k_alias_px ** 2) / rho)
+        sigma = np.sqrt(self.sigma0_px ** 2 + self.alias_floor_px ** 2 + self.offset_rms_px ** 2
+                        + (edge ** 2 + self.k_alias_px ** 2) / rho)
         shape = geo.minor_px.shape  # (L, N); per-hole (N,) or per-pose (L, N) inputs
         ratio = np.zeros(shape) if depth_ratio is None else np.broadcast_to(np.asarray(depth_ratio, float), shape)
         thr = np.zeros(shape, bool) if through is None else np.broadcast_to(np.asarray(through, bool), shape)
