@@ -1,15 +1,25 @@
-"""Calibrate the detection and measurement models (``cadfeat.measures.pose_models``) on cadfeat's own detector.
+"""Calibrate the detection and measurement models (``cadfeat.measures.pose_models``) on the closed loop's detector.
 
-Renders a 60×60×5 mm plate with one hole (cadfeat's renderer, ``vision.images``) over a grid of causes, adds
-the thin-lens blur (a pillbox of the given diameter) and the sensor noise (2 grey levels) over several noise
-seeds, runs ``vision.detection.detect_holes`` + ``associate`` against the exact rim ellipse, and writes one
-row per condition: detection rate, mean offset (px, and its component along the image direction of the hole
-axis), centre noise σ (px, per axis), and the causes (view angle, minor axis, rim length, blur, depth/diameter,
-through, hidden fraction of the rim). The models are then fitted to the table (least squares on the rate, on
-log σ and on the offset) and both are written as package data:
+Renders a 60×60×5 mm plate with one hole over a grid of causes — with the raster renderer (``vision.images``,
+holes painted dark) or the physically based one (``render.pbr``, Mitsuba 3: the cell's ``--material``,
+``--light`` and ``--hole-ends``, ``--spp`` samples per pixel, metered exposure as
+``TrackingConfig.render_options``) — adds the thin-lens blur (a pillbox of the given diameter) and the sensor
+noise (2 grey levels) over several noise seeds, runs ``vision.detectors.detect`` (``--detector``: cadfeat's
+rim-edge detector by default, the closed loop's; its prior the exact rim ellipse at the NOMINAL pose, as the loop
+predicts it, while the plate sits at a placement off it) + ``associate`` against that predicted rim, and writes
+one row per condition: detection rate, mean offset (px, from the rim at the placed pose, and its component along
+the image direction of the hole axis), centre noise σ (px, per axis), the found ellipse's size over the rim's
+(``scale``: a chamfered rim's bore edge would give bore / rim) and the causes (view angle, minor axis, rim
+length, blur, depth/diameter, through, chamfer, hidden fraction of the rim). The models are then fitted to the
+table (least squares on the rate, on log σ and on the offset; in the physically based world also the flat-floor
+term and the unexplained offset ``offset_rms_px``, ``pose_models``' docstring) and both are written as package
+data, one pair per world (``pose_models.model_key``):
 
-    cadfeat/measures/data/detection_calibration.csv   the measured table
-    cadfeat/measures/data/detection_model.json        the fitted ``PoseModels``
+    cadfeat/measures/data/detection_calibration_<key>.csv   the measured table
+    cadfeat/measures/data/detection_model_<key>.json        the fitted ``PoseModels``
+
+``--detector threshold`` (``detection.detect_holes``, raster) rewrites the original pair
+``detection_calibration.csv`` / ``detection_model.json`` (``default_models()``).
 
 Grid (coarse, a few minutes on one core): 3 radii × 3 hole kinds (blind shallow, blind deep, through) × 5 view
 angles × 2 distances = 90 conditions, each rendered at ``PLACEMENTS`` = 6 placements of the plate (shifted and
@@ -20,8 +30,21 @@ jitter (``vision.closed_loop``) draws the same; plus 5 partial-occlusion renders
 of the rim; one placement, 12 seeds) and a large-rim band (``LARGE_RADII`` through holes, 48 conditions: rims of
 90–450 px, where the systematic offset of an oblique rim stands out of the pixel-grid scatter). The offset fit
 weights each row by the uncertainty of its mean offset (pixel-grid scatter over the placements, noise over the
-draws). Run: ``python tools/calibrate_detection.py`` (``--quick`` for a
-smaller grid, no files written).
+draws). Rim-edge detectors on the raster add the two chamfered kinds of the PBR grid (551 conditions).
+
+PBR grid (``PBR_RADII`` …, 401 conditions): 2 bore radii × 5 kinds (blind d/D 0.3 and 1.0, through, and blind
+d/D 0.5 with a 45° rim chamfer of 0.3 or 1.0 mm) × the same 5 angles × 2 distances, at ``PBR_PLACEMENTS`` = 4
+placements (cut from 6: each is a path-traced frame), 3 blurs × 3 noise seeds per placement; the occlusion,
+large-rim and contrast bands as the raster's (their 6 / 10 / 16 mm rims at 4 placements). 16 spp is the closed
+loop's: at 8 spp the glossy face's path-tracing noise alone fails the detector (a Ø 12 through hole at 15° on
+machined aluminium: 0 of 6 found at 8 spp, 5 of 6 at 16, 6 of 6 at 64), and at 16 spp one frame's render
+noise still flips marginal conditions (a Ø 3.6 blind hole, d/D 1.2, at 20°: found in frames of seed 0 and 5,
+not 77) — a rate is worth about one bit per placement. Measured run times on the shared, loaded 2-core machine:
+raster 76 s; PBR 96 s at 8 spp alone, 337–527 s at 16 spp with two calibrations at once (load 6–10).
+
+Run: ``python tools/calibrate_detection.py [--renderer pbr --material NAME --light KIND --hole-ends ENDS]``
+(``--quick`` for a smaller grid, no files written; ``--refit`` refits the world's committed table;
+``--validate`` renders the held-out conditions ``HELD_OUT`` and compares them with the world's committed model).
 """
 
 from __future__ import annotations
@@ -419,9 +442,10 @@ def fit(rows: list[dict], floor: bool | None = None) -> PoseModels:
     off_fit = np.zeros(len(rows))
     off_fit[np.flatnonzero(ok)] = A @ np.array([k_b, k_w, k_d, k_i])
     unexplained = offset_unexplained_px(a, ok & np.isfinite(a["offset_axis_px"]), off_fit)
-    return replace(base, offset_rms_px=unexplained, m0_px=float(m0), w_m_px=float(w_m), kappa_blur=float(kappa), c0=float(c0),
-                   w_c=float(w_c), sigma0_px=float(s0), k_sigma=float(k_s), w0_px=float(w0), k_b=float(k_b),
-                   k_d=float(k_d), k_w_px=float(k_w), k_i=float(k_i), k_alias_px=k_alias, alias_floor_px=alias_floor,
+    return replace(base, offset_rms_px=unexplained, m0_px=float(m0), w_m_px=float(w_m), kappa_blur=float(kappa),
+                   c0=float(c0), w_c=float(w_c), sigma0_px=float(s0), k_sigma=float(k_s), w0_px=float(w0),
+                   k_b=float(k_b), k_d=float(k_d), k_w_px=float(k_w), k_i=float(k_i),
+                   k_alias_px=k_alias, alias_floor_px=alias_floor,
                    o0=o0, floor_q0=q0, floor_w_q=w_q,
                    source=f"tools/calibrate_detection.py: {len(rows)} rendered conditions, noise {NOISE_GREY} grey")
 

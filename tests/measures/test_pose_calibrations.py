@@ -107,7 +107,8 @@ def test_model_distance_orders_the_worlds():
 
 #: Held-out conditions (none in the PBR grid): bore radius mm, kind, depth/diameter, chamfer mm — four holes on one
 #: plate (``calibrate_detection.multi_plate``), one render per world and view.
-HELD_OUT_HOLES = [(2.2, "blind", 0.6, 0.0), (1.8, "blind", 1.2, 0.0), (2.0, "blind", 0.5, 0.7), (2.5, "through", 1.0, 0.0)]
+HELD_OUT_HOLES = [(2.2, "blind", 0.6, 0.0), (1.8, "blind", 1.2, 0.0), (2.0, "blind", 0.5, 0.7),
+                  (2.5, "through", 1.0, 0.0)]
 HELD_OUT = [(AL, 35.0, 380.0), (PLASTIC, 20.0, 300.0)]   # world, view angle deg, distance mm (not in the grid)
 
 
