@@ -40,7 +40,9 @@ DATA = ROOT / "cadfeat" / "measures" / "data"
 AL = "cadfeat-pbr-machined_aluminium-ring-as_modelled"
 PLASTIC = "cadfeat-pbr-grey_plastic-ring-as_modelled"
 #: (rate MAE, axis-offset residual RMS px, RMS log σ ratio) bounds per world: the measured residuals rounded up.
-BOUNDS = {"cadfeat-raster": (0.04, 0.035, 0.55), AL: (0.27, 0.25, 0.65), PLASTIC: (0.22, 0.33, 0.75)}
+BOUNDS = {"cadfeat-raster": (0.04, 0.035, 0.55), AL: (0.27, 0.25, 0.65), PLASTIC: (0.22, 0.33, 0.75),
+          "cadfeat-pbr-blasted_aluminium-ring-as_modelled": (0.22, 0.17, 0.6),
+          "cadfeat-pbr-machined_aluminium-ring-drilled": (0.25, 0.17, 0.65)}
 HELD_RATE = 0.3
 
 
@@ -78,6 +80,10 @@ def test_models_for_picks_the_cells_calibration():
     # machined steel: no calibration; the nearest of its finish class (machined aluminium), recorded
     steel = models_for(Cell(material=Material(name="machined_steel")))
     assert steel.m0_px == load_models(AL).m0_px and "nearest to cadfeat-pbr-machined_steel" in steel.source
+    drilled = models_for(Cell(hole_ends="drilled"))
+    assert drilled.source.endswith("cadfeat-pbr-machined_aluminium-ring-drilled (exact)")
+    # milled ends (flat floors): the as-modelled calibration is the nearest (the plate's floors are flat)
+    assert "cadfeat-pbr-machined_aluminium-ring-as_modelled (nearest" in models_for(Cell(hole_ends="milled")).source
     # another light: the same material under the calibrated light, recorded as nearest
     dome = models_for(Cell(light=Light(kind="dome")))
     assert "nearest" in dome.source
