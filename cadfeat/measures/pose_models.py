@@ -114,6 +114,8 @@ cadfeat, pbr machined_aluminium ring as_modelled 396   0.244   0.228     3.95   
 cadfeat, pbr blasted_aluminium ring as_modelled  396   0.197   0.144     4.08    0.16  0.097
 cadfeat, pbr machined_aluminium ring drilled     396   0.231   0.141     3.98    −0.19 0.094
 cadfeat, pbr grey_plastic ring as_modelled       396   0.196   0.299     4.28    −0.11 0.210
+cadfeat, pbr machined_aluminium coaxial          396   0.242   0.218     3.92    0.11  0.151
+cadfeat, pbr grey_plastic ring drilled           396   0.183   0.207     4.12    −0.50 0.145
 ================================================ ===== ======= ========= ======= ===== ===============
 
 Against the threshold detector the rim-edge detector needs a larger rim (m₀ 2.4 → 4.0 px), does not mind blur
@@ -127,15 +129,19 @@ angle, bores 1.5 and 3 mm at 300 and 520 mm; machined aluminium under the ring l
 - *Flat-floored blind holes seen head-on are not found* (0°: rate 0.00–0.17 in aluminium and plastic; the
   floor mirrors or diffuses the light like the face) — the flat-floor term describes it; drilled ends (a 118°
   point) are found head-on (0.99–1.00): ``hole_ends`` is a first-order cause.
-- *A 45° rim chamfer* (0.3 or 1.0 mm) is found by its OUTER edge (found size / rim 1.00–1.20, never the bore's
-  0.6–0.9), and makes a flat-floored blind hole visible head-on (0°: 0.92–1.00 vs 0.00–0.17), but its rim is off
-  along the axis by +0.3 to +0.8 px at 25° (aluminium +0.54 to +0.59, plastic +0.41 to +0.66; the plain
-  model's offset there ≈ 0). The model sees a chamfered rim as a plain hole of the rim's radius (it cannot tell
-  the chamfer from the bore: the batched objective has no bore radius), so it neither credits the head-on
-  detection nor charges the offset (the chamfered rows' residual RMS 0.25 px aluminium, 0.44 px plastic, against
-  0.16 / 0.21 in ``offset_rms_px``). **Constrain** the chamfer design variable (flagship ``target_chamfer_mm``)
-  to 0 in physically based cells until a chamfer-aware offset term exists, or require its views to stay off
-  15–35°.
+- *A 45° rim chamfer* (0.3 or 1.0 mm) is found by its OUTER edge on machined aluminium (ring, coaxial: the found
+  ellipse's size never more than 0.4 of the way from the rim to the bore); a narrow one (0.3 mm, ~1 px at
+  300 mm) on grey plastic or blasted aluminium is found at or inside the BORE edge at 45–72° (9 of ~34 rows
+  each; held out, a 0.4 mm chamfer at 55° on plastic: size 0.85 of the rim, bore/rim 0.875, offset −0.80 px);
+  a 1.0 mm one keeps the outer edge (2 plastic rows at 60° excepted). A chamfer makes a flat-floored blind
+  hole visible head-on (0°: 0.92–1.00 vs 0.00–0.17), but its rim is off along the axis by +0.3 to +0.8 px at
+  25° (aluminium +0.54 to +0.59, plastic +0.41 to +0.66; the plain model's offset there ≈ 0). The models see a
+  chamfered rim as a plain hole of the rim's radius (they take no bore radius; ``design.hole_form.design_bores``
+  has it per design, the chamfer width being rim − bore: the input a chamfer term would need), so they neither
+  credit the head-on detection nor charge the offset (the chamfered rows' residual RMS 0.25 px aluminium,
+  0.44 px plastic, against 0.16 / 0.21 in ``offset_rms_px``); through the rim radius a chamfer lowers q and
+  the PBR models penalise it slightly. **Constrain** the chamfer design variable (flagship
+  ``target_chamfer_mm``) to 0 in physically based cells until a chamfer-aware term exists.
 - *Shallow blind holes seen at 45–60°* are off by −0.5 to −0.7 px (d/D 0.3: aluminium −0.60 at 45°, plastic
   −0.68 at 60°; held-out d/D 0.6 at 35° on aluminium −0.22 and −0.36; d/D 1.0 flat-floored within ±0.25, drilled
   −0.42 at 25°): the wall/floor boundary pulls the fit. **Constrain** blind targets to depth/diameter ≥ 0.5
