@@ -116,6 +116,7 @@ cadfeat, pbr machined_aluminium ring drilled     396   0.231   0.141     3.98   
 cadfeat, pbr grey_plastic ring as_modelled       396   0.196   0.299     4.28    −0.11 0.210
 cadfeat, pbr machined_aluminium coaxial          396   0.242   0.218     3.92    0.11  0.151
 cadfeat, pbr grey_plastic ring drilled           396   0.183   0.207     4.12    −0.50 0.145
+cadfeat, pbr machined_steel ring as_modelled     396   0.262   0.262     4.01    0.15  0.182
 ================================================ ===== ======= ========= ======= ===== ===============
 
 Against the threshold detector the rim-edge detector needs a larger rim (m₀ 2.4 → 4.0 px), does not mind blur

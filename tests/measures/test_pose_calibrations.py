@@ -77,9 +77,13 @@ def test_models_for_picks_the_cells_calibration():
     assert plastic.m0_px == load_models(PLASTIC).m0_px and "(exact)" in plastic.source
     raster = models_for(Cell(), renderer="raster")
     assert raster.m0_px == load_models("cadfeat-raster").m0_px
-    # machined steel: no calibration; the nearest of its finish class (machined aluminium), recorded
-    steel = models_for(Cell(material=Material(name="machined_steel")))
-    assert steel.m0_px == load_models(AL).m0_px and "nearest to cadfeat-pbr-machined_steel" in steel.source
+    # blasted steel: no calibration; the nearest of its family (machined steel), recorded; black anodised: the
+    # dielectric family's grey plastic
+    steel = models_for(Cell(material=Material(name="blasted_steel")))
+    assert steel.source.endswith("cadfeat-pbr-machined_steel-ring-as_modelled (nearest to "
+                                 "cadfeat-pbr-blasted_steel-ring-as_modelled (distance 1))")
+    black = models_for(Cell(material=Material(name="black_anodised")))
+    assert black.m0_px == load_models(PLASTIC).m0_px and "nearest" in black.source
     drilled = models_for(Cell(hole_ends="drilled"))
     assert drilled.source.endswith("cadfeat-pbr-machined_aluminium-ring-drilled (exact)")
     # milled ends (flat floors): the as-modelled calibration is the nearest (the plate's floors are flat)
