@@ -57,12 +57,16 @@ def test_the_required_worlds_are_calibrated():
     assert {"cadfeat-raster", AL, PLASTIC} <= set(calibrated_keys())
 
 
-@pytest.mark.parametrize("key", sorted(BOUNDS))
+#: Any other committed calibration: the loosest measured (machined steel: 0.262, 0.262 px, 0.60) rounded up.
+OTHER_BOUNDS = (0.3, 0.3, 0.8)
+
+
+@pytest.mark.parametrize("key", calibrated_keys())
 def test_each_calibration_reproduces_its_table(key):
     C = _calibrate()
     rows = list(csv.DictReader((DATA / f"detection_calibration_{key}.csv").open()))
     res = C.residuals(rows, load_models(key))["all"]
-    rate, offset, sigma = BOUNDS[key]
+    rate, offset, sigma = BOUNDS.get(key, OTHER_BOUNDS)
     assert res["rows"] >= 300
     assert res["rate_mae"] <= rate, res
     assert res["offset_rms_px"] <= offset, res
