@@ -117,6 +117,7 @@ cadfeat, pbr grey_plastic ring as_modelled       396   0.196   0.299     4.28   
 cadfeat, pbr machined_aluminium coaxial          396   0.242   0.218     3.92    0.11  0.151
 cadfeat, pbr grey_plastic ring drilled           396   0.183   0.207     4.12    −0.50 0.145
 cadfeat, pbr machined_steel ring as_modelled     396   0.262   0.262     4.01    0.15  0.182
+cadfeat, pbr machined_aluminium dome             396   0.223   0.206     4.46    0.32  0.142
 ================================================ ===== ======= ========= ======= ===== ===============
 
 Against the threshold detector the rim-edge detector needs a larger rim (m₀ 2.4 → 4.0 px), does not mind blur
@@ -152,6 +153,9 @@ angle, bores 1.5 and 3 mm at 300 and 520 mm; machined aluminium under the ring l
 - *A marginal detection (rate 0.5–0.6) can be off by 1–2 px* (it takes another edge): held-out, a Ø 4.4 blind
   hole d/D 0.6 at 20° on aluminium −2.1 px, at 35° on plastic −1.0 px — far outside σ; the model weights such a
   hole by p ≈ 0.6 as if its centre were good.
+- *A dome on machined aluminium* hides the holes (mean rate 0.14; through holes at 0–25°: 0.00 — the polished
+  face mirrors the same uniform dome the bore shows): its model (p mostly 0) is a fit to near-failure, a cell
+  to avoid rather than a part to design for.
 - *Path-tracing noise* at 16 spp flips marginal conditions between frames (the rates are per-placement
   averages of 4 frames): the PBR rates are coarse, and the rate residuals (12–18 % of the rows off by > 0.5)
   reflect it as much as the model's form.

@@ -93,8 +93,8 @@ def test_models_for_picks_the_cells_calibration():
     # milled ends (flat floors): the as-modelled calibration is the nearest (the plate's floors are flat)
     assert "cadfeat-pbr-machined_aluminium-ring-as_modelled (nearest" in models_for(Cell(hole_ends="milled")).source
     # another light: the same material under the calibrated light, recorded as nearest
-    dome = models_for(Cell(light=Light(kind="dome")))
-    assert "nearest" in dome.source
+    spot = models_for(Cell(light=Light(kind="spot")))
+    assert "nearest to cadfeat-pbr-machined_aluminium-spot-as_modelled" in spot.source
     # a detector without a calibration: the default models, said so
     none = models_for(Cell(detector="blob"))
     assert none.m0_px == default_models().m0_px and "no blob/pbr calibration" in none.source
