@@ -391,7 +391,7 @@ def fit(rows: list[dict], floor: bool | None = None) -> PoseModels:
     r = least_squares(lambda x: p_model(x, sel) - a["rate"][sel], x0, bounds=(lo, hi))
     m0, w_m, kappa, c0, w_c = r.x[:5]
     q0, w_q = (float(r.x[5]), float(r.x[6])) if floor else (0.0, 0.0)
-    ok = clean & np.isfinite(a["sigma_px"]) & (a["rate"] >= 0.5)
+    ok = clean & np.isfinite(a["sigma_px"]) & (a["sigma_px"] > 0) & (a["rate"] >= 0.5)   # σ = 0: quantised centres
     rho, blur, sig = a["rim_px"][ok], a["blur_px"][ok], a["sigma_px"][ok]
 
     def s_model(x):
@@ -510,13 +510,14 @@ def residuals(rows: list[dict], model: PoseModels) -> dict[str, dict[str, float]
         ok = clean & np.isfinite(a["offset_axis_px"]) & (a["rate"] >= 0.5)
         res = a["offset_axis_px"][ok] - off[0, ok, 0]
         fin = ok & np.isfinite(a["alias_px"]) & (a["alias_px"] > 0)
+        pos = ok & (a["sigma_px"] > 0)   # σ = 0: a detector with quantised centres (EDCircles on the raster)
         out[name] = {"rows": int(clean.sum()), "rate_mae": float(np.mean(np.abs(p[clean] - a["rate"][clean]))),
                      "rate_max": float(np.max(np.abs(p[clean] - a["rate"][clean]))),
                      "mean_rate": float(np.mean(a["rate"][clean])),
                      "offset_rms_px": float(np.sqrt(np.mean(res ** 2))) if ok.any() else float("nan"),
                      "offset_z_rms": float(np.sqrt(np.mean((res / unc[ok]) ** 2))) if ok.any() else float("nan"),
-                     "sigma_log_rms": float(np.sqrt(np.mean(np.log(noise[0, ok] / a["sigma_px"][ok]) ** 2)))
-                     if ok.any() else float("nan"),
+                     "sigma_log_rms": float(np.sqrt(np.mean(np.log(noise[0, pos] / a["sigma_px"][pos]) ** 2)))
+                     if pos.any() else float("nan"),
                      "alias_log_rms": float(np.sqrt(np.mean(np.log(alias[fin] / a["alias_px"][fin]) ** 2)))
                      if fin.any() else float("nan"),
                      "scale_median": float(np.nanmedian(a["scale"][ok])) if ok.any() else float("nan")}

@@ -118,6 +118,8 @@ cadfeat, pbr machined_aluminium coaxial          396   0.242   0.218     3.92   
 cadfeat, pbr grey_plastic ring drilled           396   0.183   0.207     4.12    −0.50 0.145
 cadfeat, pbr machined_steel ring as_modelled     396   0.262   0.262     4.01    0.15  0.182
 cadfeat, pbr machined_aluminium dome             396   0.223   0.206     4.46    0.32  0.142
+edcircles, raster                                546   0.112   0.046     7.56    —     0.021
+edcircles, pbr machined_aluminium ring           396   0.199   1.403     8.36    −0.30 0.977
 ================================================ ===== ======= ========= ======= ===== ===============
 
 Against the threshold detector the rim-edge detector needs a larger rim (m₀ 2.4 → 4.0 px), does not mind blur
