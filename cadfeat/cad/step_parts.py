@@ -400,15 +400,15 @@ def dry_run(part: StepPart, holes: Sequence[Hole], resize: Sequence[bool] | None
 def _step_round_trip(part: StepPart, result: Any) -> None:
     """Write the original part and the re-drilled ``result`` as STEP and check the re-read result as a run's export
     does (``export.verify_step_roundtrip``: holes to 1e-6 mm, the volume against the re-read original's plus the
-    change, ``export.expected_step_volume_mm3``), so that a part whose export cannot be verified is refused now."""
+    change, ``export.expected_step_volume``), so that a part whose export cannot be verified is refused now."""
     import tempfile
 
-    from cadfeat.cad.export import expected_step_volume_mm3, export_step, verify_step_roundtrip
+    from cadfeat.cad.export import expected_step_volume, export_step, verify_step_roundtrip
 
     with tempfile.TemporaryDirectory(prefix="cadfeat-dry-run-") as tmp:
         original, redrilled = Path(tmp) / "original.step", Path(tmp) / "optimised.step"
         export_step(part.shape, original)
         export_step(result, redrilled)
+        volume, uncertainty = expected_step_volume(result, part.shape, original)
         verify_step_roundtrip(redrilled, extract_holes(result), tol_mm=1e-6,  # study.verify.ROUNDTRIP_TOL_MM
-                              expected_volume_mm3=expected_step_volume_mm3(result, part.shape, original),
-                              volume_rtol=1e-7)
+                              expected_volume_mm3=volume, volume_rtol=1e-7, volume_uncertainty_mm3=uncertainty)

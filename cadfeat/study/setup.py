@@ -309,6 +309,7 @@ def setup_step(config: StudyConfig, scene: Scene | None = None,
         raise StudyError(f"{config.label}: design.holes: two selectors name the same hole; allowed: each hole once")
     step_dry_run(config, step, movable)
     model, space = step_design(config, step, movable)
+    check_start_requirements(config, step, movable, model, space)  # as validate: refused before optimising
     movable_mask = np.zeros(len(holes0), bool)
     movable_mask[movable] = True
     fixed = ~movable_mask

@@ -122,3 +122,17 @@ def test_a_study_on_the_fusion_link_runs_past_the_step_volume_check(tmp_path, mo
     checks = result.results["constraints"]
     assert checks and all(c["ok"] for c in checks), [c for c in checks if not c["ok"]]
     assert {"brep", "step"} <= {c.get("checked_on") for c in checks}
+
+
+def test_run_refuses_the_same_study_at_set_up_not_after_optimising(tmp_path):
+    """``cadfeat run`` on the motor-holder study stops at set-up with validate's reason (it used to optimise and end
+    "no design meets ... keepout (H3) by 0.82"); nothing is written."""
+    from cadfeat.study.run import run_study
+    from cadfeat.study.schema import StudyError
+
+    path = STUDIES / "t5_motor_holder_a.toml"
+    if not path.is_file():
+        pytest.skip("no t5_motor_holder_a.toml in shared/real_step/studies")
+    with pytest.raises(StudyError, match=r"the start design already breaks .*keepout \(H3\).*H3 cannot move"):
+        run_study(path, tmp_path / "out", quiet=True)
+    assert not (tmp_path / "out").exists()
