@@ -114,4 +114,46 @@ def plan_recording(args: argparse.Namespace) -> int:
     return 0
 
 
+def track_recorded(config: Any, spec: Any, out: Path, args: argparse.Namespace) -> int:
+    """``cadfeat track STUDY --images DIR --poses CSV``: replay a recording (``study.recorded``); writes
+    ``tracking/recorded_<design>.json`` in the study's output folder and prints the summary."""
+    from cadfeat.errors import CadfeatError
+    from cadfeat.study.outputs import write_json
+    from cadfeat.study.recorded import track_recording
+
+    if not (args.images and args.poses):
+        raise CadfeatError("--images and --poses go together; allowed: both (a folder of frame images and the CSV of "
+                           "the robot's poses per image)")
+    section = track_recording(config, out, Path(args.images), Path(args.poses),
+                              Path(args.hand_eye) if args.hand_eye else None, args.design, spec)
+    folder = out / "tracking"
+    folder.mkdir(parents=True, exist_ok=True)
+    path = write_json(folder / f"recorded_{args.design}.json", section)
+    print("\n".join(recorded_lines(section)))
+    print(f"  outputs: {path}")
+    return 0
+
+
+def recorded_lines(section: dict[str, Any]) -> list[str]:
+    """Console summary of a replayed recording: measured vs predicted, NEES, detection rates, problems."""
+    p = section["predicted"]
+    lines = [f"recorded {section['design']} design: {section['frames_used']} of {section['frames_recorded']} frames "
+             f"used; reference: {section['reference']}",
+             f"  predicted (cadfeat, these poses): translation RMS {_g(p['trans_mm_rms'])} mm, rotation RMS "
+             f"{_g(p['rot_deg_rms'])} deg"]
+    for m, s in section["measured"].items():
+        lines.append(f"  measured {m:<4}: translation RMS {_g(s['trans_mm_rms'])} mm, rotation RMS "
+                     f"{_g(s['rot_deg_rms'])} deg, {s['frames_lost']} lost; NEES {_g(s['nees_mean'])} (6 expected, "
+                     f"95 % [{s['nees_95'][0]:.2f}, {s['nees_95'][1]:.2f}]: "
+                     f"{'consistent' if s['consistent'] else 'not consistent'})")
+    for name, rate in section["detection_rate"].items():
+        lines.append(f"  {name}: detected {_g(rate)} (predicted {_g(section['predicted_detection'][name])})")
+    lines += [f"  problem: {q}" for q in section["problems"]]
+    return lines
+
+
+def _g(x: Any) -> str:
+    return "n/a" if x is None else f"{x:.3g}"
+
+
 COMMANDS = (Command("plan-recording", _plan_args, plan_recording),)
