@@ -137,15 +137,15 @@ def track_recorded(config: Any, spec: Any, out: Path, args: argparse.Namespace) 
 def recorded_lines(section: dict[str, Any]) -> list[str]:
     """Console summary of a replayed recording: measured vs predicted, NEES, detection rates, problems."""
     p = section["predicted"]
-    lines = [f"recorded {section['design']} design: {section['frames_used']} of {section['frames_recorded']} frames "
-             f"used; reference: {section['reference']}",
+    lines = [f"recorded {section['design']} design: {section['frames_used']} of {section['poses_parsed']} poses "
+             f"with an image used; reference: {section['reference']}",
              f"  predicted (cadfeat, these poses): translation RMS {_g(p['trans_mm_rms'])} mm, rotation RMS "
              f"{_g(p['rot_deg_rms'])} deg"]
     for m, s in section["measured"].items():
         lines.append(f"  measured {m:<4}: translation RMS {_g(s['trans_mm_rms'])} mm, rotation RMS "
                      f"{_g(s['rot_deg_rms'])} deg, {s['frames_lost']} lost; NEES {_g(s['nees_mean'])} (6 expected, "
-                     f"95 % [{s['nees_95'][0]:.2f}, {s['nees_95'][1]:.2f}]: "
-                     f"{'consistent' if s['consistent'] else 'not consistent'})")
+                     f"95 % [{s['nees_95'][0]:.2f}, {s['nees_95'][1]:.2f}]: {s['consistency']}; "
+                     f"{_g(s['nees_filter_only_mean'])} with the reference taken as exact)")
     for name, rate in section["detection_rate"].items():
         lines.append(f"  {name}: detected {_g(rate)} (predicted {_g(section['predicted_detection'][name])})")
     lines += [f"  problem: {q}" for q in section["problems"]]

@@ -183,7 +183,8 @@ def match_images(folder: str | Path, rows: Sequence[int]) -> tuple[list[Path | N
 class Replay:
     """A replayed sequence: ``pixels`` (F, N, 2) associated hole centres (NaN = not found), ``expected`` (F, N)
     holes predicted visible, ``used`` (F,) frames with an image, per estimator ``T_est`` (F, 4, 4), ``errors``
-    (trans mm (F,), rot deg (F,)) against the reference and ``nees`` (F,), and ``problems`` (sentences)."""
+    (trans mm (F,), rot deg (F,)) against the reference, ``nees`` (F,) with the reference's assumed covariance added
+    and ``nees_filter`` (F,) with the filter's alone (the reference taken as exact), and ``problems``."""
 
     pixels: np.ndarray
     expected: np.ndarray
@@ -191,6 +192,7 @@ class Replay:
     T_est: dict[str, np.ndarray]
     errors: dict[str, tuple[np.ndarray, np.ndarray]]
     nees: dict[str, np.ndarray]
+    nees_filter: dict[str, np.ndarray]
     problems: list[str]
 
     @property
@@ -273,7 +275,7 @@ def replay(camera: Camera, centres: np.ndarray, normals: np.ndarray, radii: np.n
         raise CadfeatError(f"--images: {len(frames)} usable image(s) matched to poses; needs >= 2 "
                            f"({'; '.join(problems)})")
     ref_cov = np.zeros((6, 6)) if ref_cov is None else ref_cov
-    T_est, errors, nees_out = {}, {}, {}
+    T_est, errors, nees_out, nees_filter = {}, {}, {}, {}
     for m in estimators:
         track = estimate_poses(camera, centres, pixels[frames], times_s[frames], m, T_ref[frames[0]],
                                normals_part=normals if rim_model else None, radii_mm=radii if rim_model else None,
@@ -285,4 +287,5 @@ def replay(camera: Camera, centres: np.ndarray, normals: np.ndarray, radii: np.n
         cov = np.full((len(T_ref), 6, 6), np.nan)
         cov[frames] = track.pose_covariance
         nees_out[m] = nees(T_full, cov, T_ref, ref_cov)
-    return Replay(pixels, expected, used, T_est, errors, nees_out, problems)
+        nees_filter[m] = nees(T_full, cov, T_ref, np.zeros((6, 6)))
+    return Replay(pixels, expected, used, T_est, errors, nees_out, nees_filter, problems)

@@ -163,3 +163,4 @@ def test_a_damaged_recording_finishes_and_names_each_problem(recording: dict,
     assert "snapshot.png: unmatched (no number in the name)" in problems
     assert section["frames_used"] == len(rec["frames"]) - 4
     assert "problem: frame_0005.png" in capsys.readouterr().out
+    assert section["poses_parsed"] == len(rec["frames"]) - 1
