@@ -64,11 +64,11 @@ def board_images(tmp_path_factory: pytest.TempPathFactory, rays: np.ndarray) -> 
 
 @pytest.mark.parametrize("kind", sorted(BOARDS))
 def test_recovers_the_known_camera(kind: str, board_images: dict[str, list[Path]], tmp_path: Path) -> None:
-    """fx, fy within 0.3 %, the principal point within 1.5 px, and the distortion's displacement at the image border
-    within 0.5 px wherever the boards' corners reached (85-88 % of the way to the image corners in these 20
-    views), with k3 free (OpenCV's default) and held at 0 (the thesis's Bouguet model, kc(1..4), which the true lens
-    obeys). In the image corners themselves the distortion is extrapolated: measured 0.62 (chessboard) and 0.69 px
-    (ChArUco) off with k3 held, 0.8-1.8 px with k3 free, and the tool warns about it (bound here: 1 px, k3 held)."""
+    """fx, fy within 0.3 %, the principal point within 1.5 px, and the distortion's displacement along the whole
+    image border within 0.5 px with k3 held at 0 (the thesis's Bouguet model, kc(1..4), which the true lens obeys;
+    measured 0.38 px chessboard, 0.23 px ChArUco). With k3 free (OpenCV's default) the same holds where the boards'
+    corners reached (78-88 % of the way to the image corners in these 20 views); beyond, k3 is extrapolated
+    (measured 1.0 px chessboard, 0.46 px ChArUco in the image corners) and the tool warns."""
     board = BOARDS[kind]
     args = ["calibrate", *map(str, board_images[kind]), "--board", kind,
             "--inner-corners", f"{board.cols}x{board.rows}",
@@ -87,7 +87,7 @@ def test_recovers_the_known_camera(kind: str, board_images: dict[str, list[Path]
         reach = report["coverage"]["radius_fraction"] * np.hypot(TRUE.width - TRUE.cx, TRUE.height - TRUE.cy)
         covered = np.hypot(border[:, 0] - TRUE.cx, border[:, 1] - TRUE.cy) <= reach
         assert covered.mean() > 0.25 and edge[covered].max() < 0.5, f"{stem}: {edge[covered].max():.2f} px"
-        assert stem == "free" or edge.max() < 1.0
+        assert stem == "free" or edge.max() < 0.5, f"{stem}: {edge.max():.2f} px"
         assert ("extrapolated" in " ".join(report["warnings"])) == (stem == "free")
     assert cam.f_number == 2.8  # the optics node, read back by read_camera
     assert read_ros(tmp_path / "camera_info.yaml").K == pytest.approx(read_camera(tmp_path / "camera.yaml").K)
