@@ -15,7 +15,8 @@ import numpy as np
 
 SUB = 3  # sub-pixels per pixel side
 BLACK, WHITE, PAPER, BACKGROUND = 35.0, 215.0, 215.0, 95.0
-BLUR_PX = 0.8  # σ of the Gaussian point spread, px (a real lens's; it also helps the corner refinement: 0.070 px RMS vs 0.088 sharp)
+#: σ of the Gaussian point spread, px: a real lens's; it also helps the corner refinement (0.070 px RMS vs 0.088 sharp).
+BLUR_PX = 0.8
 #: Where the views put the board's centre, as fractions of the image (corners first: the distortion is largest there).
 ANCHORS = ((0.12, 0.12), (0.88, 0.12), (0.12, 0.88), (0.88, 0.88), (0.5, 0.12), (0.5, 0.88), (0.12, 0.5),
            (0.88, 0.5), (0.5, 0.5))
