@@ -142,17 +142,19 @@ def _volume_mm3(added: AddedHole) -> float:
 
 
 def drill_targets(shape: Any, added: Sequence[AddedHole], holes_before: Sequence[Hole] | None = None,
-                  tol: ModelTolerance | None = None, label: str = "the part") -> tuple[Any, list[Hole]]:
+                  tol: ModelTolerance | None = None, label: str = "the part",
+                  prefer_direction: Sequence[float] | None = None) -> tuple[Any, list[Hole]]:
     """``shape`` (a cadquery Shape holding one solid) with the ``added`` blind holes cut, verified (module
     docstring); returns (the solid, its holes: the part's holes as before, in their order and names, then
-    the added ones named as ``added``). ``holes_before``: the part's holes (default: extracted from ``shape``).
+    the added ones named as ``added``). ``holes_before``: the part's holes (default: extracted from ``shape``);
+    ``prefer_direction``: the side through holes enter from (the study's view), as ``holes_before`` were extracted.
     Raises ``CadfeatError`` naming ``label`` and the hole when a check fails."""
     from cadfeat.cad.export import check_solid
     from cadfeat.cad.step_parts import _material_in, _single_solid, _unify  # pyright: ignore[reportPrivateUsage]
 
     tol = tol or ModelTolerance.of_shape(shape)
     solid = _single_solid(shape, label)
-    before = list(holes_before) if holes_before is not None else extract_holes(solid)
+    before = list(holes_before) if holes_before is not None else extract_holes(solid, prefer_direction)
     if not added:
         return solid, before
     tools = [_tool(a) for a in added]
@@ -168,7 +170,7 @@ def drill_targets(shape: Any, added: Sequence[AddedHole], holes_before: Sequence
                            f"(allowed ±{allowed:.3g}): an added hole breaks out of the part or into another feature")
     if (problems := check_solid(result)) and not check_solid(solid):
         raise CadfeatError(f"{label}: drilling {names} gave an invalid solid: {'; '.join(problems[:3])}")
-    return result, verify_drilled(result, before, added, tol, label)
+    return result, verify_drilled(result, before, added, tol, label, prefer_direction)
 
 
 def verify_drilled(shape: Any, before: Sequence[Hole], added: Sequence[AddedHole], tol: ModelTolerance | None = None,

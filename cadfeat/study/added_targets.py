@@ -368,7 +368,8 @@ def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tupl
     mesh1 = part_mesh(config, shape1)
     choice = choose(config, setup, shape1, holes1, mesh1)
     added = added_holes(config, choice, holes1)
-    shape2, holes2 = drill_targets(shape1, added, list(holes1), label=f"{config.label}: [add_targets]")
+    shape2, holes2 = drill_targets(shape1, added, list(holes1), label=f"{config.label}: [add_targets]",
+                                   prefer_direction=setup.view_direction)
     checks = brep_checks(config, setup, shape2, holes2, len(holes1), "brep")
     mesh2 = part_mesh(config, shape2)
     predicted = {"original": _predicted(config, setup, designs["before"][1], part_mesh(config, designs["before"][0])),
@@ -444,3 +445,35 @@ def _as_added(h: Hole) -> AddedHole:
     return AddedHole(np.asarray(h.centre, float), np.asarray(h.axis, float), float(h.bore_radius_mm),
                      float(h.depth_mm), float(h.radius_mm - h.bore_radius_mm), h.name)
 
+
+
+def confirm(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, Any], progress: Any = None) -> None:
+    """The closed loop of the added design against the move-only optimum (the study's check, its mode and
+    settings: ``closed_loop_check.check_spec``); the block gains ``tracking`` {"mode", "verdicts" per estimator,
+    "designs": per design and estimator the RMS translation (mm) and rotation (deg) errors}. The study's own check
+    compares the original with the move-only optimum. Nothing when the check is off."""
+    from cadfeat.study.closed_loop_check import check_spec
+    from cadfeat.study.outputs import plain
+    from cadfeat.study.tracking import run_tracking
+
+    block = results.get("added_targets")
+    if block is None or shapes.get("shape_added") is None:
+        return
+    mode, spec = check_spec(config, len(shapes["setup"].trajectory.times_s))
+    if spec is None:
+        return
+    designs = {"before": (shapes["shape1"], shapes["holes1"]), "after": (shapes["shape_added"], shapes["holes_added"])}
+    try:
+        section = plain(run_tracking(config, designs, None, spec))
+    except (CadfeatError, ImportError, RuntimeError, OSError, ValueError) as exc:
+        block["tracking"] = {"mode": mode, "skipped": f"{type(exc).__name__}: {exc}"}
+        return
+    names = {"before": "move_only", "after": "added"}
+    block["tracking"] = {
+        "mode": mode, "compared": "the move-only optimum (before) and the added design (after)",
+        "verdicts": {m: v.get("verdict") for m, v in section.get("verdicts", {}).items()},
+        "designs": {names[d]: {m: {"trans_mm_rms": e.get("trans_mm_rms"), "rot_deg_rms": e.get("rot_deg_rms")}
+                               for m, e in v.get("estimators", {}).items()}
+                    for d, v in section.get("designs", {}).items() if d in names}}
+    if progress is not None:
+        progress.log(f"added targets, closed loop against the move-only optimum: {block['tracking']['verdicts']}")
