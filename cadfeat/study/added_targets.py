@@ -11,7 +11,9 @@ allowed faces of that design:
    ``study.pose_accuracy.predict``), up to ``max_added`` holes: the curve of the predicted error against the
    number added. The recommended number is the first at which ``target_error_mm`` is reached, else the last
    whose hole lowered the error by at least ``min_gain_percent``.
-3. **Refinement** (``design.added_targets.refine``): the recommended holes moved continuously in their faces.
+3. **Joint refinement** (``design.added_targets.refine``): the recommended holes moved continuously in their faces
+   together with the study's position variables (``movable``: the movable holes through the feature model); when
+   a variable moved, the part is rebuilt at the refined design (``_base_design``).
 4. **CAD** (``cad.drill_targets``): the holes cut into the delivered solid (a part script's after ``build``, a STEP
    part's B-rep), verified (volume, valid solid, every hole found where it was put, every old hole unchanged),
    every kept requirement measured on the B-rep (``constraints.verify_on_brep``: edge, keep-out, ligament) and,
@@ -40,6 +42,7 @@ from cadfeat.cad.features import holes_to_arrays
 from cadfeat.cad.features.identity import hole_names
 from cadfeat.design.added_targets import (
     FaceRules,
+    Movable,
     PoseScene,
     Sites,
     TargetObjective,
@@ -67,6 +70,9 @@ __all__ = ["Allowed", "STEP_NAME", "allowed_sites", "choose", "export_added", "p
 STEP_NAME = "added_targets.step"
 """The added-target design's STEP file in the output folder."""
 _AXES = {"x": 0, "y": 1, "z": 2}
+REFINE_MIN_STEP_MM = 0.5
+"""The refinement's last step (mm): the added holes stay on a 0.5 mm grid (the sites' grid is even), a drawing
+dimension the shop's 0.1 mm grid holds."""
 
 
 @dataclass
@@ -214,15 +220,15 @@ def pose_scene(config: StudyConfig, setup: StudySetup) -> PoseScene:
                      float(config.cell.noise_sigma_grey))
 
 
-def _hidden(mesh: Any, T: np.ndarray, rim_radius_mm: float, depth_mm: float) -> Any:
-    """Rim hidden fraction (L, n) of added holes at centres (n, 3), axes (n, 3) (the exact ray test)."""
+def _occlude(mesh: Any, T: np.ndarray) -> Any:
+    """Rim hidden fraction (L, n) of n holes (centres, axes (n, 3), rim radii, through, depth (n,)) against the
+    part's ``mesh`` (the exact ray test, as ``pose_accuracy.predict``)."""
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
-    def hidden(centres: np.ndarray, axes: np.ndarray) -> np.ndarray:
-        n = len(centres)
-        return rim_occlusion(mesh, T, centres, axes, np.full(n, rim_radius_mm), samples=16,
-                             through=np.zeros(n, bool), depth_mm=np.full(n, depth_mm))
-    return hidden
+    def occlude(centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, through: np.ndarray,
+                depth: np.ndarray) -> np.ndarray:
+        return rim_occlusion(mesh, T, centres, axes, radii, samples=16, through=through, depth_mm=depth)
+    return occlude
 
 
 def target_objective(config: StudyConfig, scene: PoseScene, holes: Sequence[Hole], mesh: Any,
@@ -236,7 +242,9 @@ def target_objective(config: StudyConfig, scene: PoseScene, holes: Sequence[Hole
     through = np.array([bool(h.through) for h in holes])
     depth = np.array([float(h.depth_mm) for h in holes])
     occ0 = rim_occlusion(mesh, scene.T_cam_part, c, a, r, samples=16, through=through, depth_mm=depth)
-    occ_sites = _hidden(mesh, scene.T_cam_part, spec.rim_radius_mm, spec.depth_mm)(sites.centres, sites.axes)
+    m = len(sites)
+    occ_sites = _occlude(mesh, scene.T_cam_part)(sites.centres, sites.axes, np.full(m, spec.rim_radius_mm),
+                                                 np.zeros(m, bool), np.full(m, spec.depth_mm))
     kind = "plain, chamfered rim" if spec.chamfer_mm > 0 else "plain"
     return TargetObjective(scene, (c, a, r, through, depth), hole_kinds(holes), occ0, spec.rim_radius_mm,
                            spec.depth_mm, kind, sites.centres, sites.axes, occ_sites)
@@ -281,9 +289,32 @@ class Choice:
     seconds: float
 
 
-def choose(config: StudyConfig, setup: StudySetup, shape: Any, holes: Sequence[Hole], mesh: Any) -> Choice:
+def movable(setup: StudySetup, x: np.ndarray, holes: Sequence[Hole]) -> Movable | None:
+    """The study's movable holes as functions of its position variables around the delivered design ``x`` whose
+    holes are ``holes`` (the feature model anchored on them: ``verify.AnchoredModel``), for the joint refinement;
+    None when the study has no position variable."""
+    from cadfeat.study.verify import AnchoredModel
+
+    index = np.array([i for i, v in enumerate(setup.space.variables) if v.kind == "position"], int)
+    if not index.size or len(holes) != len(setup.holes0):
+        return None
+    model = AnchoredModel(setup.model, np.asarray(x, float), list(holes))
+    lower, upper = np.asarray(setup.space.lower, float), np.asarray(setup.space.upper, float)
+
+    def feasible(X: np.ndarray) -> np.ndarray:
+        c, _, r = setup.model.features_batch(X)
+        inside = np.all((X >= lower - 1e-9) & (X <= upper + 1e-9), axis=1)
+        margins = np.asarray(setup.problem.cset.stacked(c, r, X), float).reshape(len(X), -1)
+        return inside & np.all(margins >= -1e-9, axis=1)
+    return Movable(np.asarray(x, float), index, model.features_batch, feasible,
+                   np.asarray(setup.movable_mask, bool))
+
+
+def choose(config: StudyConfig, setup: StudySetup, shape: Any, holes: Sequence[Hole], mesh: Any,
+           x: np.ndarray | None = None) -> Choice:
     """Sites, lazy greedy up to ``max_added``, the recommended number and its refinement on the design
-    (``shape``, ``holes``) with its occlusion ``mesh`` (module docstring)."""
+    (``shape``, ``holes``; ``x`` its design vector: the study's position variables are refined with the added
+    holes) with its occlusion ``mesh`` (module docstring)."""
     import time
 
     t0 = time.perf_counter()
@@ -298,9 +329,9 @@ def choose(config: StudyConfig, setup: StudySetup, shape: Any, holes: Sequence[H
     refined = None
     if k and spec.refine:
         idx = np.asarray(res.order[:k])
-        hidden = _hidden(mesh, scene.T_cam_part, spec.rim_radius_mm, spec.depth_mm)
-        refined = refine(objective, allowed.rules, allowed.sites.face[idx], allowed.sites.uv[idx], hidden,
-                         step_mm=spec.pitch_mm / 2)
+        refined = refine(objective, allowed.rules, allowed.sites.face[idx], allowed.sites.uv[idx],
+                         _occlude(mesh, scene.T_cam_part), step_mm=spec.pitch_mm / 2, min_step_mm=REFINE_MIN_STEP_MM,
+                         movable=None if x is None else movable(setup, x, holes))
     return Choice(allowed, res.order, errors, k, why, refined, objective.evaluations, time.perf_counter() - t0)
 
 
@@ -325,17 +356,25 @@ def added_holes(config: StudyConfig, choice: Choice, holes: Sequence[Hole]) -> l
 # ------------------------------------------------------------------------------------------------- phase
 def brep_checks(config: StudyConfig, setup: StudySetup, shape: Any, holes: Sequence[Hole], n_old: int,
                 where: str) -> list[dict[str, Any]]:
-    """Every kept requirement of the added holes measured on the solid ``shape`` (its holes ``holes``: the
-    old ``n_old`` then the added): OCCT edge, keep-out and ligament distances (``verify_on_brep``; the old holes
-    count as fixed) and the keep-out boxes (distance of each re-extracted rim to each box)."""
+    """Every kept requirement of the added design measured on the solid ``shape`` (its holes ``holes``: the
+    part's ``n_old`` then the added): OCCT edge, keep-out and ligament distances of the movable and added holes,
+    the fixed holes unchanged from the original (``verify_on_brep``), and the keep-out boxes (distance of each
+    added rim to each box)."""
+    from cadfeat.cad.drill_targets import added_hole
     from cadfeat.design.constraints import verify_on_brep
 
     spec = _spec(config)
-    fixed = np.arange(len(holes)) < n_old
+    holes = list(holes)
+    k = len(holes) - n_old
+    same = n_old == len(setup.holes0)
+    fixed = np.concatenate([np.asarray(setup.fixed_mask, bool), np.zeros(k, bool)]) if same else \
+        np.arange(len(holes)) < n_old
+    reference = list(setup.holes0) + [added_hole(_as_added(h)) for h in holes[n_old:]] if same else None
     checks = [{**c.to_dict(), "checked_on": where}
-              for c in verify_on_brep(shape, holes, setup.constraints, fixed, prefer_direction=setup.view_direction)]
+              for c in verify_on_brep(shape, holes, setup.constraints, fixed, reference=reference,
+                                      prefer_direction=setup.view_direction)]
     boxes = np.array(spec.keepout_boxes, float).reshape(-1, 6)
-    for h in list(holes)[n_old:]:
+    for h in holes[n_old:]:
         if len(boxes):
             gap = float(np.min(box_distance(np.asarray(h.centre, float), boxes))) - h.radius_mm
             need = config.constraints.ligament_mm
@@ -356,30 +395,48 @@ def _predicted(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], me
             "rotation_deg": rms(info.error_rotation_deg)}
 
 
+def _base_design(setup: StudySetup, x: np.ndarray | None, choice: Choice, shape1: Any,
+                 holes1: Sequence[Hole]) -> tuple[Any, list[Hole], dict[str, float] | None]:
+    """The design the added holes are drilled into: the move-only optimum, or — when the joint refinement moved
+    the study's position variables — its CAD rebuild at the refined x (with x as named values)."""
+    from cadfeat.study.verify import rebuild
+
+    ref = choice.refined
+    if x is None or ref is None or ref.x is None or np.allclose(ref.x, x, atol=1e-12):
+        return shape1, list(holes1), None
+    shape, holes, _ = rebuild(setup, ref.x)
+    return shape, list(holes), setup.space.as_dict(ref.x)
+
+
 def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tuple[Any, Sequence[Hole]]],
-              progress: Any = None) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The added-target phase on the move-only optimum ``designs["after"]`` (``designs["before"]``: the
-    original, for the comparison): returns (results.json ``added_targets``, shapes {"shape_added", "holes_added",
-    "n_old"})."""
+              progress: Any = None, x: np.ndarray | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The added-target phase on the move-only optimum ``designs["after"]`` (its design vector ``x``;
+    ``designs["before"]``: the original, for the comparison): returns (results.json ``added_targets``, shapes
+    {"shape_added", "holes_added", "n_old"})."""
     from cadfeat.study.pose_accuracy import part_mesh
 
-    spec = _spec(config)
     shape1, holes1 = designs["after"]
     mesh1 = part_mesh(config, shape1)
-    choice = choose(config, setup, shape1, holes1, mesh1)
-    added = added_holes(config, choice, holes1)
-    shape2, holes2 = drill_targets(shape1, added, list(holes1), label=f"{config.label}: [add_targets]",
+    choice = choose(config, setup, shape1, holes1, mesh1, x)
+    base_shape, base_holes, moved_x = _base_design(setup, x, choice, shape1, holes1)
+    added = added_holes(config, choice, base_holes)
+    shape2, holes2 = drill_targets(base_shape, added, base_holes, label=f"{config.label}: [add_targets]",
                                    prefer_direction=setup.view_direction)
-    checks = brep_checks(config, setup, shape2, holes2, len(holes1), "brep")
+    checks = brep_checks(config, setup, shape2, holes2, len(base_holes), "brep")
     mesh2 = part_mesh(config, shape2)
     predicted = {"original": _predicted(config, setup, designs["before"][1], part_mesh(config, designs["before"][0])),
                  "move_only": _predicted(config, setup, holes1, mesh1),
                  "added": _predicted(config, setup, holes2, mesh2)}
-    block = _block(config, spec, choice, added, checks, predicted)
+    block = _block(config, _spec(config), choice, added, checks, predicted)
+    if moved_x is not None:
+        block["refinement"]["variables"] = moved_x
+        block["refinement"]["moved_holes"] = [
+            {"name": b.name, "before": np.asarray(a.centre).tolist(), "after": np.asarray(b.centre).tolist()}
+            for a, b in zip(holes1, base_holes, strict=True) if np.linalg.norm(np.asarray(a.centre) - b.centre) > 1e-9]
     if progress is not None:
         progress.log(f"added targets: {choice.k} recommended ({choice.why}); predicted RMS error "
                      f"{predicted['move_only']['error_mm']:.4g} → {predicted['added']['error_mm']:.4g} mm")
-    return block, {"shape_added": shape2, "holes_added": holes2, "n_old": len(holes1)}
+    return block, {"shape_added": shape2, "holes_added": holes2, "n_old": len(base_holes)}
 
 
 def _block(config: StudyConfig, spec: AddTargetsSettings, choice: Choice, added: Sequence[AddedHole],

@@ -362,7 +362,7 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
         with prog.phase("add targets"):
             results["added_targets"], extra = added_targets.run_phase(
                 config, setup, {"before": (start.base.shape0, start.base.holes0), "after": (done.shape1, done.holes1)},
-                prog)
+                prog, done.x1)
         shapes.update(extra)
     attach_robust(results, robust_designs(setup, robust_run, start.base.holes0, done.holes1))  # issue 18
     shapes.update({"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,

@@ -11,6 +11,7 @@ from cadfeat.camera import Camera
 from cadfeat.cell import Cell
 from cadfeat.design.added_targets import (
     FaceRules,
+    Movable,
     PoseScene,
     TargetObjective,
     conflicts,
@@ -150,8 +151,33 @@ def test_refinement_never_worsens_and_keeps_requirements(scene: PoseScene) -> No
     res = lazy_greedy(obj.of_sets, clash, 2)
     idx = np.array(res.order)
     L = len(scene.T_cam_part)
-    out = refine(obj, [_rules()], sites.face[idx], sites.uv[idx], lambda c, a: np.zeros((L, len(c))), step_mm=3.0)
+    out = refine(obj, [_rules()], sites.face[idx], sites.uv[idx], lambda c, *_: np.zeros((L, len(c))), step_mm=3.0)
     assert out.value >= out.value_before == pytest.approx(res.values[-1])
     m = site_margins(out.uv, _rules())
     assert all(np.all(v >= -1e-9) for v in m.values())
     assert np.linalg.norm(out.uv[0] - out.uv[1]) >= 2 * R_RIM + 3.0
+
+
+def test_joint_refinement_moves_a_movable_hole_within_its_requirements(scene: PoseScene) -> None:
+    """With the study's movable hole H1 (x = its centre's x, bounds [-30, -10] mm) refined jointly: the value
+    never worsens, x stays in bounds, and every added hole keeps its requirements against H1 where it ends."""
+    obj, sites = _objective(scene, 6.0)
+    res = lazy_greedy(obj.of_sets, conflicts(sites, R_RIM, 3.0), 2)
+    idx = np.array(res.order)
+    c0 = np.array([h.centre for h in HOLES])
+    a0 = np.array([h.axis for h in HOLES])
+    r0 = np.array([h.radius_mm for h in HOLES])
+
+    def holes(X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        c = np.repeat(c0[None], len(X), axis=0)
+        c[:, 0, 0] = X[:, 0]
+        return c, np.repeat(a0[None], len(X), axis=0), np.repeat(r0[None], len(X), axis=0)
+    movable = Movable(np.array([-25.0]), np.array([0]), holes, lambda X: (X[:, 0] >= -30) & (X[:, 0] <= -10),
+                      np.array([True, False, False]))
+    L = len(scene.T_cam_part)
+    out = refine(obj, [_rules()], sites.face[idx], sites.uv[idx], lambda c, *_: np.zeros((L, len(c))), step_mm=3.0,
+                 movable=movable)
+    assert out.value >= out.value_before and out.x is not None and -30 <= out.x[0] <= -10
+    c = holes(out.x[None])[0][0]
+    gap = np.linalg.norm(out.centres[:, None, :2] - c[None, :, :2], axis=-1) - r0[None] - R_RIM
+    assert np.all(gap >= 3.0 - 1e-9)

@@ -65,41 +65,55 @@ class TargetObjective:
         return self.at(self.site_centres[sets], self.site_axes[sets],
                        np.moveaxis(self.site_occlusion[:, sets], 0, 1))
 
-    def at(self, centres: np.ndarray, axes: np.ndarray, occlusion: np.ndarray) -> np.ndarray:
+    def at(self, centres: np.ndarray, axes: np.ndarray, occlusion: np.ndarray,
+           base: Sequence[np.ndarray] | None = None) -> np.ndarray:
         """g_POSE (B,) of B designs whose added holes are at ``centres``, ``axes`` (B, k, 3) with hidden fractions
-        ``occlusion`` (B, L, k); evaluated ``CHUNK`` designs per call."""
+        ``occlusion`` (B, L, k); ``base``: the part's holes per design (centres (B, N0, 3), axes (B, N0, 3), rim
+        radii (B, N0), hidden fractions (B, L, N0)) when they move too (default: ``self.base``, as built);
+        evaluated ``CHUNK`` designs per call."""
         B = len(centres)
         out = np.empty(B)
         for s in range(0, B, CHUNK):
             e = slice(s, min(B, s + CHUNK))
-            out[e] = self._chunk(centres[e], axes[e], occlusion[e])
+            part = None if base is None else tuple(np.asarray(b)[e] for b in base)
+            out[e] = self._chunk(centres[e], axes[e], occlusion[e], part)
         self.evaluations += B
         return out
 
-    def errors(self, centres: np.ndarray, axes: np.ndarray, occlusion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _base(self, B: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The part's holes as built, for B designs: centres, axes, radii, hidden fractions."""
+        c0, a0, r0 = self.base[:3]
+        L = len(self.scene.T_cam_part)
+        return (np.broadcast_to(c0, (B,) + c0.shape), np.broadcast_to(a0, (B,) + a0.shape),
+                np.broadcast_to(r0, (B,) + r0.shape), np.broadcast_to(self.base_occlusion, (B, L, len(c0))))
+
+    def errors(self, centres: np.ndarray, axes: np.ndarray, occlusion: np.ndarray,
+               base: Sequence[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(per-pose error (B, L) mm, information (B, L, 6, 6)) of B designs (arguments as ``at``)."""
         from cadfeat.measures import pose_information  # lazy: would import scipy.spatial at module load
 
-        c0, a0, r0, through0, depth0 = self.base
+        through0, depth0 = self.base[3], self.base[4]
         B, k = centres.shape[:2]
+        c0, a0, r0, occ0 = self._base(B) if base is None else base
         L = len(self.scene.T_cam_part)
-        N = len(c0) + k
-        c = np.concatenate([np.broadcast_to(c0, (B, len(c0), 3)), centres], axis=1)
-        a = np.concatenate([np.broadcast_to(a0, (B, len(c0), 3)), axes], axis=1)
-        r = np.concatenate([r0, np.full(k, self.rim_radius_mm)])
+        N = c0.shape[1] + k
+        c = np.concatenate([c0, centres], axis=1)
+        a = np.concatenate([a0, axes], axis=1)
+        r = np.concatenate([r0, np.full((B, k), self.rim_radius_mm)], axis=1)
         depth = np.concatenate([depth0, np.full(k, self.depth_mm)])
-        occ = np.concatenate([np.broadcast_to(self.base_occlusion, (B, L, len(c0))), occlusion], axis=2)
+        occ = np.concatenate([occ0, occlusion], axis=2)
         sc = self.scene
         info = pose_information(sc.camera, np.tile(sc.T_cam_part, (B, 1, 1)), np.repeat(c, L, axis=0),
-                                np.repeat(a, L, axis=0), np.broadcast_to(r, (B * L, N)),
+                                np.repeat(a, L, axis=0), np.repeat(r, L, axis=0),
                                 occlusion=occ.reshape(B * L, N), through=np.concatenate([through0, np.zeros(k, bool)]),
                                 kinds=self.base_kinds + [self.kind] * k,
-                                depth_ratio=np.broadcast_to(depth / (2.0 * np.maximum(r, 1e-9)), (B * L, N)),
+                                depth_ratio=np.repeat(depth / (2.0 * np.maximum(r, 1e-9)), L, axis=0),
                                 rotation_length_mm=sc.rotation_length_mm, model=sc.models, noise_grey=sc.noise_grey)
         return info.error_mm(sc.rotation_length_mm).reshape(B, L), info.information.reshape(B, L, 6, 6)
 
-    def _chunk(self, centres: np.ndarray, axes: np.ndarray, occlusion: np.ndarray) -> np.ndarray:
+    def _chunk(self, centres: np.ndarray, axes: np.ndarray, occlusion: np.ndarray,
+               base: Sequence[np.ndarray] | None) -> np.ndarray:
         from cadfeat.design.pose_terms import pose_aggregate_batch
 
-        errors, information = self.errors(centres, axes, occlusion)
+        errors, information = self.errors(centres, axes, occlusion, base)
         return pose_aggregate_batch(errors, information, self.scene.aggregate, self.scene.rotation_length_mm)
