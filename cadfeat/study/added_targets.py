@@ -204,9 +204,23 @@ def _blocking(rules: Sequence[FaceRules], spec: AddTargetsSettings) -> str:
 
 def preflight(config: StudyConfig, setup: StudySetup) -> dict[str, Any]:
     """Before any optimisation: the allowed faces, the drill and a feasible site on the original part (raises
-    ``StudyError``); returns {"faces", "sites"} for the progress log."""
+    ``StudyError``), and a dry run of the drilling (the most central site of the first face drilled into the
+    original and verified: what fails at the end is tried at the start); returns {"faces", "sites"}."""
+    spec = _spec(config)
     found = allowed_sites(config, setup.shape0, setup.holes0)
-    return {"faces": [f.describe() for f in found.faces], "sites": len(found.sites)}
+    sites = found.sites
+    i = int(np.argmax(sites.margin))
+    names = _next_names(setup.holes0, 1)
+    trial = AddedHole(sites.centres[i], sites.axes[i], 0.5 * spec.diameter_mm, spec.depth_mm, spec.chamfer_mm,
+                      names[0])
+    try:
+        drill_targets(setup.shape0, [trial], list(setup.holes0), label=f"{config.label}: [add_targets] dry run",
+                      prefer_direction=setup.view_direction)
+    except CadfeatError as exc:
+        raise StudyError(f"{config.label}: add_targets: a hole cannot be drilled into the part (dry run at "
+                         f"{np.round(sites.centres[i], 3).tolist()} mm): {exc}; allowed: other faces, a shallower "
+                         "depth_mm or a smaller diameter_mm") from None
+    return {"faces": [f.describe() for f in found.faces], "sites": len(sites)}
 
 
 # ---------------------------------------------------------------------------------------------- choice

@@ -79,6 +79,18 @@ def test_no_feasible_site(plate: Any) -> None:
         allowed_sites(_config(keepout_boxes=[[-40, -30, 0, 40, 30, 10]]), shape, holes)
 
 
+def test_a_hole_deeper_than_the_part_fails_in_the_dry_run(plate: Any) -> None:
+    """What fails at the end is tried at the start: a blind hole deeper than the 6 mm plate breaks out."""
+    from cadfeat.study.added_targets import preflight
+
+    shape, holes = plate
+    setup = SimpleNamespace(shape0=shape, holes0=holes, view_direction=(0.0, 0.0, 1.0))
+    with pytest.raises(StudyError, match=r"add_targets: a hole cannot be drilled into the part \(dry run at .*\): .*"
+                                         r"breaks out of the part.*; allowed: other faces, a shallower depth_mm"):
+        preflight(_config(depth_mm=8.0), setup)
+    assert preflight(_config(), setup)["sites"] > 10
+
+
 def test_a_drill_not_in_the_shop_table(plate: Any) -> None:
     shape, holes = plate
     with pytest.raises(StudyError, match=r"add_targets\.diameter_mm: 5 is not a size of the shop's table "
