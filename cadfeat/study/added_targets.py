@@ -282,7 +282,7 @@ def recommend(errors_mm: Sequence[float], target_error_mm: float | None, min_gai
     if k < len(gains):
         why += f"; hole {k + 1} would gain only {gains[k]:.1f} %"
     else:
-        why += f" (the most allowed, max_added = {len(gains)})"
+        why += f" (the most the curve reaches: {len(gains)}, max_added or every feasible site used)"
     if target_error_mm is not None:
         why += f"; the target {target_error_mm:g} mm is not reached with up to {len(gains)}"
     return k, why
