@@ -34,7 +34,8 @@ def curve_plot(block: AddedTargets, path: Path) -> Path:
     if added is not None and r:
         ax.plot([r], [float(added["error_mm"])], "*", color="#7570b3", ms=11, label="refined, drilled in CAD")
     ax.set_xlabel("added target holes")
-    ax.set_ylabel("predicted RMS pose error (mm)")
+    what = {"rms": "RMS", "worst": "worst"}.get(curve.aggregate, curve.aggregate)
+    ax.set_ylabel(f"predicted {what} pose error (mm)")
     ax.set_xticks(k)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)

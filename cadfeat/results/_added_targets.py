@@ -8,10 +8,12 @@ __all__ = ["AddedTargetCurve", "AddedTargetHole", "AddedTargets"]
 
 
 class AddedTargetCurve(Record):
-    """The greedy curve: the predicted RMS pose error (mm) with 0, 1, … added holes and each step's site (mm)."""
+    """The greedy curve: minus g_POSE (mm: the predicted pose error aggregated over the path as the study's
+    ``pose_aggregate`` says, rms by default) with 0, 1, … added holes, and each step's site (mm)."""
 
     added: list[int] = []
     error_mm: list[Number] = []
+    aggregate: str = "rms"
     sites: list[list[Number]] = []
 
 

@@ -463,6 +463,7 @@ def _block(config: StudyConfig, spec: AddTargetsSettings, choice: Choice, added:
         "faces": [f.describe() for f in choice.allowed.faces],
         "candidate_sites": len(sites),
         "curve": {"added": list(range(len(choice.errors_mm))), "error_mm": [float(e) for e in choice.errors_mm],
+                  "aggregate": config.objective.pose_aggregate,
                   "sites": [sites.centres[i].tolist() for i in choice.order]},
         "recommended": choice.k, "reason": choice.why,
         "refinement": None if ref is None else {"error_before_mm": -ref.value_before, "error_mm": -ref.value,
