@@ -34,13 +34,15 @@ test: $(STAMP)
 	$(MAKE) --no-print-directory test-kernels
 
 # The numerical tests again under another OpenBLAS kernel family that every x86-64 CPU has (Prescott; the
-# first pass runs whatever the CPU picks, e.g. SkylakeX with AVX-512): a tolerance that holds on one kernel's
-# round-off only shows here. Add KERNELS="Prescott Haswell" to try more.
+# first pass runs whatever the CPU picks, e.g. SkylakeX with AVX-512): a tolerance, or a decision (a tie, a
+# stopping test, a derivative-free solver's path), that holds on one kernel's round-off only shows here. The
+# numerical tests: those marked `numerics`, and every test under tests/measures, tests/design, tests/vision and
+# tests/cell (tests/conftest.py). In parallel like the first pass. Add KERNELS="Prescott Haswell" to try more.
 KERNELS ?= Prescott
 test-kernels: $(STAMP)
 	for k in $(KERNELS); do \
 	  echo "numerical tests under OPENBLAS_CORETYPE=$$k"; \
-	  OPENBLAS_CORETYPE=$$k $(PY) -m pytest -q -m numerics || exit 1; \
+	  OPENBLAS_CORETYPE=$$k $(PY) -m pytest -q $(PYTEST_PARALLEL) -m numerics || exit 1; \
 	done
 
 # ruff; pyright basic on the package (pyrightconfig.json: the rules that fail on the CadQuery/OCP/numpy stubs

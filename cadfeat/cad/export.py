@@ -52,6 +52,7 @@ __all__ = [
     "import_step",
     "mesh_from_shape",
     "sha256_file",
+    "expected_step_volume",
     "shape_volume_mm3",
     "step_length_unit",
     "verify_step_roundtrip",
@@ -333,6 +334,38 @@ def _triangulate(occ: Any, tolerance_mm: float, angular_tolerance_rad: float) ->
         BRepMesh_IncrementalMesh(occ, params)
         if not _untriangulated_faces(occ):
             return
+    _triangulate_as_nurbs(occ, tolerance_mm, angular_tolerance_rad)
+
+
+def _triangulate_as_nurbs(occ: Any, tolerance_mm: float, angular_tolerance_rad: float) -> None:
+    """Last resort of ``_triangulate``: mesh a copy of the shape with every surface converted to NURBS (exact for
+    planes, cylinders, cones: ``BRepBuilderAPI_NurbsConvert``) and give each face of ``occ`` its converted twin's
+    triangulation. BRepMesh leaves some analytic faces of real exports empty at any tolerance (a Fusion 360 45°
+    cone whose u-range is [π, 3π], pinned in tests/cad/test_occt_bugs.py) but meshes their NURBS form; all the
+    faces come from one meshing of the copy, so their shared edges agree and a closed solid stays watertight.
+    Faces are left as they were if the copy cannot be meshed either."""
+    from OCP.BRep import BRep_Builder, BRep_Tool
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_NurbsConvert
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.TopoDS import TopoDS
+
+    convert = BRepBuilderAPI_NurbsConvert(occ, True)
+    if not convert.IsDone():
+        return
+    copy = convert.Shape()
+    BRepMesh_IncrementalMesh(copy, tolerance_mm, False, angular_tolerance_rad, False)
+    if _untriangulated_faces(copy):
+        return
+    builder = BRep_Builder()
+    explorer = TopExp_Explorer(occ, TopAbs_FACE)
+    while explorer.More():
+        face = TopoDS.Face_s(explorer.Current())
+        explorer.Next()
+        twin = TopoDS.Face_s(convert.ModifiedShape(face))
+        builder.UpdateFace(face, BRep_Tool.Triangulation_s(twin, TopLoc_Location()))
 
 
 def face_meshes(shape: Any, tolerance_mm: float = 0.01,
@@ -470,18 +503,19 @@ def _hole_label(hole: Hole, index: int) -> str:
 
 def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Sequence[Hole], tol_mm: float = 1e-6,
                           expected_volume_mm3: float | None = None, volume_rtol: float = 1e-9,
-                          prefer_direction: Sequence[float] | None = None) -> RoundTrip:
+                          prefer_direction: Sequence[float] | None = None,
+                          volume_uncertainty_mm3: float = 0.0) -> RoundTrip:
     """Re-import a written STEP file and prove it holds the designed part.
 
-    Checks, raising ``ExportError`` on the first failure (naming the file, the hole and the error):
-    the declared length unit is mm; the solid is valid (``check_solid``); the volume equals
-    ``expected_volume_mm3`` to ``volume_rtol`` relative plus the surface area times the B-rep tolerance
-    (at most ``tolerance.LINEAR_FLOOR_MM``) (if given); the re-extracted holes match
+    Checks, raising ``ExportError`` on the first failure (naming the file, the hole and the error): the declared
+    length unit is mm; the solid is valid (``check_solid``); the volume equals ``expected_volume_mm3`` to
+    ``volume_rtol`` relative plus the surface area times the B-rep tolerance (at most ``tolerance.LINEAR_FLOOR_MM``)
+    plus ``volume_uncertainty_mm3`` (``expected_step_volume``) (if given); the re-extracted holes match
     ``expected_holes`` one-to-one by geometry (``features.match_holes``) with centre distance, radius and
-    bore-radius differences, depth difference and the axis tilt times the hole depth (how far the tilt
-    moves the far end) all ≤ ``tol_mm``; ``kind`` and ``through`` equal. ``prefer_direction`` is passed to
-    ``extract_holes`` (give the one the expected holes were extracted with, e.g. a part's view direction,
-    or through holes may be re-extracted from their other end).
+    bore-radius differences, depth difference and the axis tilt times the hole depth (how far the tilt moves the far
+    end) all ≤ ``tol_mm``; ``kind`` and ``through`` equal. ``prefer_direction`` is passed to ``extract_holes`` (give
+    the one the expected holes were extracted with, e.g. a part's view direction, or through holes may be
+    re-extracted from their other end).
     """
     step_path = Path(step_path)
     unit = step_length_unit(step_path)
@@ -498,11 +532,12 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
         # relative): the surface may move by its own B-rep tolerance, at most the model tolerance floor
         # (an exact CadQuery part keeps 1e-7 mm, so the check stays as tight as before there)
         shell = min(LINEAR_FLOOR_MM, ModelTolerance.of_shape(shape).brep_tol_mm)
-        allowed = volume_rtol * abs(expected_volume_mm3) + shell * _shape_area_mm2(shape)
+        allowed = volume_rtol * abs(expected_volume_mm3) + shell * _shape_area_mm2(shape) + volume_uncertainty_mm3
         if abs(volume - expected_volume_mm3) > allowed:
             raise ExportError(f"{step_path}: volume {volume:.9f} mm^3 differs from the design's "
                               f"{expected_volume_mm3:.9f} mm^3 (relative {rel:.2e}; allowed {allowed:.3g} mm^3: "
-                              f"{volume_rtol:.0e} relative plus {shell:.2g} mm over the surface)")
+                              f"{volume_rtol:.0e} relative plus {shell:.2g} mm over the surface plus "
+                              f"{volume_uncertainty_mm3:.3g} mm^3 the original's own volume error)")
 
     expected = list(expected_holes)
     found = extract_holes(shape, prefer_direction=prefer_direction)
@@ -529,6 +564,24 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
                      max_centre_error_mm=float(errors["centre"].max()), max_axis_error_rad=float(angle.max()),
                      max_radius_error_mm=float(max(errors["radius"].max(), errors["bore radius"].max())),
                      max_depth_error_mm=float(errors["depth"].max()), volume_mm3=volume, volume_rel_error=rel)
+
+
+def expected_step_volume(design: Any, original: Any, original_step: str | os.PathLike[str]) -> tuple[float, float]:
+    """(volume, uncertainty) in mm³ that a STEP file of ``design`` should have when re-read: the re-read volume of
+    the original part's own STEP file (``original_step``, written by the same writer) plus the design's change
+    ``V(design) − V(original)`` measured on the in-memory solids; the uncertainty is the original's own volume
+    error ``|V(re-read original) − V(original)|``.
+
+    Why: OCCT's volume of a solid read from another CAD system's STEP can be off by 1.5e-5 relative (an Inventor
+    ring, a Fusion 360 link: faces bounded by B-spline edges whose p-curves lie up to the edge tolerance, 7e-3 mm,
+    off the 3-D curves; ``GProp`` integrates along the p-curves, a mesh of the same face agrees with the re-read file
+    instead; pinned in tests/cad/test_occt_bugs.py). Where the design keeps those faces the error cancels in the
+    difference; where it removes one (a re-drilled countersink whose cone was such a face) its share is not known
+    face by face, and at most about the whole part's error. On an exact part (CadQuery) the uncertainty is ~1e-9
+    mm³ and the check as tight as before."""
+    reread = shape_volume_mm3(import_step(original_step))
+    v0 = shape_volume_mm3(original)
+    return reread + shape_volume_mm3(design) - v0, abs(reread - v0)
 
 
 def _hole_errors(expected: Sequence[Hole], matched: Sequence[Hole],

@@ -328,7 +328,30 @@ class _Reader:
             return None  # another coaxial feature (e.g. a boss on the far side, a cavity the hole opens into)
         if other:
             raise self._oblique()
+        depth = self.hole.depth_mm
+        if (typ != FILLET and self.hole.through and t1 > depth + self.lin
+                and any(abs(t - depth) <= self.lin for t, _ in levels)):
+            # the face runs on past the hole's exit plane (a sliver of the same cylinder above a plate, where
+            # another wall is tangent to it): the hole's wall is the part of the face within its depth
+            r1 = r0 + (r1 - r0) * (depth - t0) / (t1 - t0)
+            return t0, depth, r0, r1, typ, self._area_within(face, t0, depth, max(r0, r1))
         return t0, t1, r0, r1, typ, _face_area(face)
+
+    def _area_within(self, face: Any, t0: float, t1: float, radius: float) -> float:
+        """Area (mm²) of the part of ``face`` between depths ``t0`` and ``t1`` (a Boolean common with a coaxial
+        cylinder a little wider than the face)."""
+        from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
+        from OCP.BRepPrimAPI import BRepPrimAPI_MakeCylinder
+        from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+
+        base = self.centre - t1 * self.axis  # the slab's far end; it grows back towards the entrance
+        slab = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(*map(float, base)), gp_Dir(*map(float, self.axis))),
+                                        2.0 * radius + 1.0, t1 - t0).Shape()
+        common = BRepAlgoAPI_Common(face, slab)
+        common.Build()
+        if not common.IsDone():
+            raise CadfeatError(f"{self.label}: could not cut its wall face at depth {t1:.6g} mm (OCCT Boolean failed)")
+        return _face_area(common.Shape())
 
 
 def _face_area(face: Any) -> float:

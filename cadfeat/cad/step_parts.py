@@ -371,10 +371,12 @@ def dry_run(part: StepPart, holes: Sequence[Hole], resize: Sequence[bool] | None
     step in its host plane (1 % of its radius, at least 10× the model tolerance) — and, where ``resize``,
     with its entrance 2 % wider — so that a part that cannot be re-drilled is refused at once.
 
-    Each re-drilled solid is also meshed as the run's STL export will mesh it. Raises ``CadfeatError`` naming
-    the file, the hole and why (e.g. its wall is cut by another feature, a face cannot be triangulated).
+    Each re-drilled solid is also meshed as the run's STL export will mesh it, and written to STEP and checked
+    as the run's export is (``_step_round_trip``). Raises ``CadfeatError`` naming the file, the hole and why (e.g.
+    its wall is cut by another feature, a face cannot be triangulated, the re-read STEP differs).
     """
     resize = list(resize) if resize is not None else [False] * len(holes)
+    originals: dict[str, float] = {}  # the original's STEP written and re-read once for all the holes
     for hole, grow in zip(holes, resize, strict=True):
         step = max(0.01 * hole.radius_mm, 10 * part.tolerance.linear_mm)
         if hole.outline is not None:
@@ -387,9 +389,32 @@ def dry_run(part: StepPart, holes: Sequence[Hole], resize: Sequence[bool] | None
         try:
             result = redrill(part.shape, [move], part.tolerance, part.path)
             mesh_from_shape(result, tolerance=STL_TOLERANCE_MM)  # the run exports the re-drilled part as STL
+            _step_round_trip(part, result, originals)  # and as STEP, re-read and checked
         except CadfeatError as exc:
             text = str(exc)
             where = f"{part.path}: "
             raise CadfeatError(f"{where}hole {hole.name} cannot be re-drilled (dry run: moved {step:.3g} mm"
                                f"{', entrance 2 % wider' if grow else ''}): "
                                f"{text[len(where):] if text.startswith(where) else text}") from None
+
+
+def _step_round_trip(part: StepPart, result: Any, originals: dict[str, float]) -> None:
+    """Write the re-drilled ``result`` as STEP and check the re-read file as a run's export does
+    (``export.verify_step_roundtrip``: holes to 1e-6 mm, the volume against the re-read original's plus the change,
+    ``export.expected_step_volume``), so that a part whose export cannot be verified is refused now. ``originals``
+    caches the re-read original's volume (``"volume"``) between the holes of one dry run."""
+    import tempfile
+
+    from cadfeat.cad.export import export_step, import_step, verify_step_roundtrip
+
+    with tempfile.TemporaryDirectory(prefix="cadfeat-dry-run-") as tmp:
+        if "volume" not in originals:
+            export_step(part.shape, Path(tmp) / "original.step")
+            originals["volume"] = shape_volume_mm3(import_step(Path(tmp) / "original.step"))
+        reread, v0 = originals["volume"], shape_volume_mm3(part.shape)
+        redrilled = Path(tmp) / "optimised.step"
+        export_step(result, redrilled)
+        # as export.expected_step_volume, with the re-read original's volume kept
+        verify_step_roundtrip(redrilled, extract_holes(result), tol_mm=1e-6,  # study.verify.ROUNDTRIP_TOL_MM
+                              expected_volume_mm3=reread + shape_volume_mm3(result) - v0, volume_rtol=1e-7,
+                              volume_uncertainty_mm3=abs(reread - v0))

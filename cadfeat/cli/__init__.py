@@ -1,4 +1,5 @@
-"""Command line: ``cadfeat run | evaluate | validate | track | parts | render | report | cameras | trajectories``.
+"""Command line: ``cadfeat run | evaluate | validate | track | parts | render | report | cameras | trajectories |
+calibrate | plan-recording``.
 
 One module per command group (``study``, ``track``, ``parts``, ``render``, ``report``, ``listing``), each with a
 ``COMMANDS`` table of ``Command`` entries; the parser is built from those tables. The command modules import
@@ -16,7 +17,7 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 
 from cadfeat._version import __version__
-from cadfeat.cli import campaign, explore, listing, parts, render, report, study, track
+from cadfeat.cli import calibrate, campaign, explore, listing, parts, recording, render, report, study, track
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError, Terminated
 
@@ -25,7 +26,7 @@ __all__ = ["COMMANDS", "build_parser", "main", "run_guarded"]
 #: Every sub-command, in the order ``cadfeat --help`` lists them.
 COMMANDS: tuple[Command, ...] = (*listing.COMMANDS, *parts.COMMANDS, *render.COMMANDS, *report.COMMANDS,
                                  *study.COMMANDS, *track.COMMANDS, *explore.COMMANDS,
-                                 *campaign.COMMANDS)
+                                 *campaign.COMMANDS, *calibrate.COMMANDS, *recording.COMMANDS)
 
 
 def build_parser() -> argparse.ArgumentParser:

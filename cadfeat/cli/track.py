@@ -34,6 +34,14 @@ def _track_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--detector", choices=DETECTORS, help="cadfeat (rim edges), edcircles (OpenCV contrib) or "
                         "blob (SimpleBlobDetector); overrides cell.detector")
     parser.add_argument("--spp", type=int, metavar="N", help="pbr: samples per pixel (overrides tracking.spp)")
+    parser.add_argument("--images", metavar="DIR", help="replay recorded images of the real part (frame_NNNN.png ...) "
+                        "instead of rendering; needs --poses (cadfeat.vision.replay)")
+    parser.add_argument("--poses", metavar="CSV", help="with --images: the robot's reported camera pose per image "
+                        "(time_s,x,y,z mm,qx,qy,qz,qw or time_s and a 3x4 matrix per line)")
+    parser.add_argument("--hand-eye", metavar="YAML", help="with --images: T_flange_cam (OpenCV FileStorage node T) "
+                        "when the poses are the robot's flange")
+    parser.add_argument("--design", choices=("original", "optimised"), default="optimised",
+                        help="with --images: the design the recorded part has (default optimised)")
 
 
 def _write_json(path: Path, data: dict[str, Any]) -> None:
@@ -86,6 +94,10 @@ def track(args: argparse.Namespace) -> int:
             raise CadfeatError(f"--values: {args.values!r} is not allowed; allowed: numbers separated by commas") \
                 from None
     out = Path(args.out) if args.out else default_out_dir(config)
+    if args.images or args.poses:
+        from cadfeat.cli.recording import track_recorded  # lazy: keeps `cadfeat --help` fast
+
+        return track_recorded(config, spec, out, args)
     designs = exported_designs(config, out)
     folder = out / "tracking"
     folder.mkdir(parents=True, exist_ok=True)

@@ -158,13 +158,17 @@ def point_polygon_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray,
 
 
 def _same_face(h1: Hole, h2: Hole, tol: float = 1e-6) -> bool:
+    """The two holes are on one host face: the same face index, or coplanar outlines with the same outer
+    boundary (outlines of different faces may have any number of points: a 6-point tongue and a 316-point
+    plate of one plane are two faces, not an error)."""
     if h1.host_face == h2.host_face:
         return True
     if h1.outline is None or h2.outline is None:
         return False
     n1, n2 = h1.outline.normal, h2.outline.normal
+    o1, o2 = np.asarray(h1.outline.outer), np.asarray(h2.outline.outer)
     return bool(np.dot(n1, n2) > 1 - 1e-9 and abs(np.dot(h2.outline.origin - h1.outline.origin, n1)) < tol
-                and np.allclose(h1.outline.outer, h2.outline.outer))
+                and o1.shape == o2.shape and np.allclose(o1, o2))
 
 
 def _label(holes: Sequence[Hole], i: int) -> str:
@@ -370,11 +374,15 @@ def _min_distance(shapes_a: Sequence[Any], shapes_b: Sequence[Any]) -> float:
 
 
 def _axis_circle_edges(face: Any, hole: Hole, tol: float = 1e-5) -> list:
-    """Circular edges of ``face`` (OCP) of the hole's radius centred on its axis line: its rim on its host face,
-    or its exit rim on the far face of a through hole."""
+    """Circular edges of ``face`` (OCP) of the hole's radius centred on its axis line, between its entrance and
+    its depth: its rim on its host face, or its exit rim on the far face of a through hole (not the rim of a
+    coaxial hole in another wall further along the line: the two plates of a clevis)."""
     axis = np.asarray(hole.axis, float)
+    depth = float(getattr(hole, "depth_mm", np.inf))
+    slack = max(tol, 1e-3)
     return [e for e, c, r in _face_circles(face)
-            if np.linalg.norm(np.cross(c - hole.centre, axis)) < tol and abs(r - hole.radius_mm) < tol]
+            if np.linalg.norm(np.cross(c - hole.centre, axis)) < tol and abs(r - hole.radius_mm) < tol
+            and -depth - slack <= float((c - hole.centre) @ axis) <= slack]
 
 
 def _shared_face_distance(faces: Sequence[Any], a: Hole, b: Hole) -> float | None:

@@ -73,10 +73,13 @@ def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii:
 
 
 def cell_models(cell: Any) -> Any:
-    """g_POSE's detection and measurement models (``measures.pose_models``) in the study's cell (``Cell``)."""
+    """g_POSE's detection and measurement models (``measures.pose_models``) in the study's cell (``Cell``): the
+    calibration of the cell's detector under its light, material and hole ends in the physical world
+    (``pose_models.models_for``; the nearest one where none matches, said in ``source``), with the cell's gate
+    and placement σ (``PoseModels.for_cell``)."""
     from cadfeat.measures import pose_models  # lazy: would import scipy.spatial at module load
 
-    return pose_models.default_models().for_cell(cell)
+    return pose_models.models_for(cell).for_cell(cell)
 
 
 def pose_aggregate_batch(errors_mm: np.ndarray, information: np.ndarray, how: str,
@@ -155,9 +158,10 @@ def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, rad
     geo, J, occ = _assemble(parts, B * L, N)
     models = cell_models(problem.cell)
     # measures.pose_information's steps (detection=True, the measurement model's σ and offsets, no prior)
-    p = models.detection_probability(geo, occ)
+    ratio_bl = np.broadcast_to(ratio, (B, N)).repeat(L, axis=0)
+    p = models.detection_probability(geo, occ, depth_ratio=ratio_bl, through=through)
     kw = {"noise_grey": float(noise) if noise.ndim == 0 else np.tile(noise.reshape(L, 1), (B, 1))}
-    sig, off = models.measurement_model(geo, depth_ratio=np.broadcast_to(ratio, (B, N)).repeat(L, axis=0),
+    sig, off = models.measurement_model(geo, depth_ratio=ratio_bl,
                                         kinds=hole_kinds(problem.model.holes), through=through, **kw)
     from cadfeat.measures.pose_information import weighted_information  # lazy: as pose_models above
 

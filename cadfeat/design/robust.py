@@ -23,7 +23,10 @@ With ``floor_x`` (the original design), each source's combined 5th percentile ma
 The draws are fixed (common random numbers), so the optimisers see a deterministic function of the design and
 the same seed gives the same robust optimum bit for bit. Works with every measure, g_POSE included (its pixel
 noise draws enter through the σ model). ``robust_optimise`` runs local solves of the robust problem from given
-starts (the nominal optimum, the best end-points of the nominal multi-start, the initial design).
+starts (the nominal optimum, the best end-points of the nominal multi-start, the initial design); among the designs
+they evaluate whose statistic is within its resolution of the best (``TIE_TOL``), it delivers the one with the most
+margin to the original's floors (``tie_break``), so that round-off in a solver's path does not pick the more
+fragile of two equally good designs.
 """
 
 from __future__ import annotations
@@ -43,8 +46,8 @@ from cadfeat.design.robustness import cell_objectives, shop_objectives
 from cadfeat.design.uncertainty import Draws
 from cadfeat.errors import CadfeatError
 
-__all__ = ["BLOCKS", "FLOOR_PERCENTILE", "STATISTICS", "RobustObjective", "RobustProblem", "robust_optimise",
-           "statistic"]
+__all__ = ["BLOCKS", "FLOOR_PERCENTILE", "STATISTICS", "TIE_TOL", "RobustObjective", "RobustProblem",
+           "robust_optimise", "statistic", "tie_break"]
 
 STATISTICS = ("percentile", "mean", "chance")
 
@@ -205,6 +208,20 @@ class RobustProblem:
         self.n_evals += len(X)
         return value[:, None], C
 
+    @property
+    def n_robust_margins(self) -> int:
+        """How many of ``evaluate_batch``'s margins are the robust problem's own (the last ones: the chance
+        constraint's, then the original's floors, one per source of ``BLOCKS``)."""
+        return int(self._chance is not None) + (len(BLOCKS) if self.floor is not None else 0)
+
+    def fragility_margin(self, C: np.ndarray) -> np.ndarray:
+        """The smallest of the robust margins (``n_robust_margins``) of margins C (..., M): how far a design is from
+        being more fragile than the original under its weakest source (or from breaking the chance constraint);
+        +inf without such margins."""
+        C = np.asarray(C, float)
+        n = self.n_robust_margins
+        return C[..., C.shape[-1] - n:].min(axis=-1) if n else np.full(C.shape[:-1], np.inf)
+
 
 ROBUST_EVALS_PER_VARIABLE = 30
 """Evaluations of each robust local solve per free design variable (COBYLA's ``maxiter``)."""
@@ -219,6 +236,12 @@ STALL_TOL = 1e-3
 """The rise (relative, at least 1e-3 absolute) that counts as progress: well below the statistic's sampling
 error over the draws (benchmarks/RESULTS.md, bench_robust: the 10th percentile's bootstrap standard error over
 64 draws), so a solve is not stopped while it still gains anything the draws can resolve."""
+
+
+TIE_TOL = STALL_TOL
+"""Feasible designs whose robust statistic is within this (relative, at least absolute) of the best one are equally
+good: the rise the local solves count as progress (``STALL_TOL``), below the statistic's sampling error. Among them
+``robust_optimise`` delivers the one with the largest ``RobustProblem.fragility_margin`` (``tie_break``)."""
 
 
 class _Stalled(Exception):
@@ -265,18 +288,66 @@ def _local(ev: Any, u0: np.ndarray, maxiter: int) -> None:
             pass
 
 
+class _PoolEvaluator(Evaluator):
+    """An ``Evaluator`` that also keeps every feasible design it evaluates (in ``pool``, shared with the evaluators
+    of ``sub``): the candidates of ``tie_break``."""
+
+    def __init__(self, *args: Any, pool: list[dict[str, Any]] | None = None, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.pool: list[dict[str, Any]] = [] if pool is None else pool
+
+    def sub(self, x_base: np.ndarray, free: np.ndarray) -> _PoolEvaluator:
+        return _PoolEvaluator(self.problem, x_base, free, self.progress, self.t0, self.history, self.bounds,
+                              pool=self.pool)
+
+    def _consider(self, x: np.ndarray, g: np.ndarray, c: np.ndarray) -> None:
+        super()._consider(x, g, c)
+        violation = float(max(0.0, -c.min(initial=0.0)))
+        if violation <= FEAS_TOL:
+            self.pool.append({"x": x.copy(), "combined": float(self.problem.combined_from(g)), "G": g.copy(),
+                              "C": c.copy(), "feasible": True, "violation": violation})
+
+
+def tie_break(problem: RobustProblem, best: dict[str, Any] | None, pool: Sequence[dict[str, Any]]) -> \
+        dict[str, Any] | None:
+    """Among the feasible designs of ``pool`` whose statistic is within ``TIE_TOL`` of ``best``'s (equally good:
+    the statistic cannot tell them apart), the one with the largest ``fragility_margin``; equal margins (to 1e-12)
+    go to the higher statistic, then to the earlier design. ``best`` itself when it is not feasible or the problem
+    has no robust margins.
+
+    Why: the robust statistic is piecewise smooth with steps (a hole leaving the view in one draw), and its maximum
+    often lies next to a step of another source's 5th percentile. Two designs a few hundredths of a millimetre apart,
+    on either side of such a step, can then have statistics equal to 1e-4 while one has half the other's margin to
+    the original's floor — and which one COBYLA's path ends on is decided by round-off (issue 32 item 8: the razor
+    edge, under the Prescott BLAS kernels, ended past the step and was more fragile than the original on held-out
+    draws). Preferring the margin makes the choice a property of the designs, not of the path."""
+    if best is None or not best["feasible"] or not problem.n_robust_margins or not pool:
+        return best
+    top = float(best["combined"])
+    tol = TIE_TOL * max(1.0, abs(top))
+    ties = [d for d in pool if d["feasible"] and d["combined"] >= top - tol]
+    if not ties:
+        return best
+    margins = [float(problem.fragility_margin(d["C"])) for d in ties]
+    widest = max(margins)
+    chosen = [d for d, m in zip(ties, margins, strict=True) if m >= widest - 1e-12]
+    return max(chosen, key=lambda d: d["combined"])  # (max keeps the first of equal values: the earlier design)
+
+
 def robust_optimise(problem: RobustProblem, config: Any, starts: Sequence[np.ndarray],
                     progress: Any = None) -> Any:
     """Local solves of ``problem`` (COBYLA, ``ROBUST_EVALS_PER_VARIABLE`` evaluations per free variable) from
     each of ``starts`` in turn, one evaluator keeping the best feasible design (ties: the earlier); standard-size
-    variables (``snap_standard_sizes``) stay at each start's (snapped) sizes. An ``optimize.OptimResult``."""
+    variables (``snap_standard_sizes``) stay at each start's (snapped) sizes. The delivered design: among the
+    evaluated feasible designs as good as the best to ``TIE_TOL``, the one with the most margin to the original's
+    floors (``tie_break``). An ``optimize.OptimResult``."""
     if not len(starts):
         raise CadfeatError("robust optimisation: no start given")
     space = problem.space
     discrete = np.asarray(space.discrete, bool) if config.snap_standard_sizes else np.zeros(space.size, bool)
     free = np.flatnonzero(~discrete)
     t0, n0 = time.perf_counter(), problem.n_evals
-    ev = Evaluator(problem, np.asarray(starts[0], float), free, progress=progress, t0=t0)
+    ev = _PoolEvaluator(problem, np.asarray(starts[0], float), free, progress=progress, t0=t0)
     ev.phase = "robust"
     interrupted, summaries = False, []
     try:
@@ -292,4 +363,5 @@ def robust_optimise(problem: RobustProblem, config: Any, starts: Sequence[np.nda
                               "combined": None if sub.best is None else float(sub.best["combined"])})
     except KeyboardInterrupt:
         interrupted = True
+    ev.best = tie_break(problem, ev.best, ev.pool)
     return _result(ev, problem, t0, interrupted, n0, starts=summaries)

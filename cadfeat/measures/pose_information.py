@@ -223,7 +223,7 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     assert J is not None  # (measure with jacobian=True)
     occ = np.zeros((L, N)) if occlusion is None else np.broadcast_to(np.asarray(occlusion, dtype=float), (L, N))
     if detection:
-        p = models.detection_probability(geo, occ)
+        p = models.detection_probability(geo, occ, depth_ratio=depth_ratio, through=through)
     else:
         p = (geo.in_front & (geo.facing > 0) & (occ <= models.o0)).astype(float)
     sig, off = _noise_and_offsets(models, geo, (L, N), sigma_px, depth_ratio, kinds, through, noise_grey, offsets,

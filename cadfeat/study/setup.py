@@ -307,8 +307,34 @@ def setup_step(config: StudyConfig, scene: Scene | None = None,
     movable = [_select(config, holes0, h.select, f"design.holes[{i}].select") for i, h in enumerate(design.holes)]
     if len(set(movable)) != len(movable):
         raise StudyError(f"{config.label}: design.holes: two selectors name the same hole; allowed: each hole once")
-    max_offsets = step_offset_limits(config, step, movable)
     step_dry_run(config, step, movable)
+    model, space = step_design(config, step, movable)
+    check_start_requirements(config, step, movable, model, space)  # as validate: refused before optimising
+    movable_mask = np.zeros(len(holes0), bool)
+    movable_mask[movable] = True
+    fixed = ~movable_mask
+    args = dict(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
+                fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
+    problem, cc = _problem(args, config)
+
+    def rebuild_holes(shape: Shape) -> list[Hole]:  # as the part was read: the same entrance side and tolerances
+        holes = _extract(shape, view, step.tolerance)
+        return [dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(holes)]
+
+    return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
+                      shape0=step.shape, holes0=holes0, fixed_mask=fixed, movable_mask=movable_mask, space=space,
+                      model=model, problem=problem, constraints=cc,
+                      rebuild_shape=lambda x: _timed_redrill(config, step, model.hole_moves(x), time_limit_s),
+                      rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step,
+                      time_limit_s=time_limit_s, view_direction=None if view is None else np.asarray(view, float))
+
+
+def step_design(config: StudyConfig, step: StepPart, movable: Sequence[int]) -> tuple[HoleMoveModel, DesignSpace]:
+    """The hole-move model and design space of a STEP study: fixed holes, patterns, mirror pairs, ``[shop]
+    keep_patterns`` (a movable hole of a pattern whose other holes are fixed is pinned) and the offset limits."""
+    holes0 = list(step.holes)
+    design = config.design
+    max_offsets = step_offset_limits(config, step, movable)
     fixed_idx = [_select(config, holes0, s, f"design.fixed[{i}]") for i, s in enumerate(design.fixed)]
     for i, j in enumerate(fixed_idx):
         if j in movable:
@@ -329,23 +355,7 @@ def setup_step(config: StudyConfig, scene: Scene | None = None,
     model = HoleMoveModel(holes0, movable, diameter=resized, patterns=patterns, mirrors=mirrors)
     space = model.design_space(standard_sizes=design.standard_diameters_mm, max_offsets_mm=max_offsets)
     space = _limit_offsets(space, holes0, design, movable, pinned)
-    movable_mask = np.zeros(len(holes0), bool)
-    movable_mask[movable] = True
-    fixed = ~movable_mask
-    args = dict(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
-                fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
-    problem, cc = _problem(args, config)
-
-    def rebuild_holes(shape: Shape) -> list[Hole]:  # as the part was read: the same entrance side and tolerances
-        holes = _extract(shape, view, step.tolerance)
-        return [dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(holes)]
-
-    return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
-                      shape0=step.shape, holes0=holes0, fixed_mask=fixed, movable_mask=movable_mask, space=space,
-                      model=model, problem=problem, constraints=cc,
-                      rebuild_shape=lambda x: _timed_redrill(config, step, model.hole_moves(x), time_limit_s),
-                      rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step,
-                      time_limit_s=time_limit_s, view_direction=None if view is None else np.asarray(view, float))
+    return model, space
 
 
 def _timed_redrill(config: StudyConfig, step: StepPart, moves: Sequence[HoleMove], time_limit_s: float | None
@@ -410,10 +420,63 @@ def check_step_study(config: StudyConfig) -> str:
     if len(set(movable)) != len(movable):
         raise StudyError(f"{config.label}: design.holes: two selectors name the same hole; allowed: each hole once")
     step_offset_limits(config, step, movable)
+    model, space = step_design(config, step, movable)  # before the dry run: bad selectors fail fast
     step_dry_run(config, step, movable)
     occlusion_mesh(config, step.shape)  # as run's set-up does: a part BRepMesh cannot mesh is refused now
+    start = check_start_requirements(config, step, movable, model, space)
     names = ", ".join(holes[j].name for j in movable)
-    return f"dry run re-drilled {names} of {step.path.name} (moved and, where asked, resized)"
+    return f"dry run re-drilled {names} of {step.path.name} (moved and, where asked, resized)" + start
+
+
+START_SAMPLES = 4096
+"""Designs drawn in the design box when the start breaks a kept requirement, to tell whether any meets it."""
+PINNED_MM = 1e-2
+"""A hole whose offset bounds are narrower than this (``move = false``, pinned to its pattern) does not move."""
+
+
+def check_start_requirements(config: StudyConfig, step: StepPart, movable: Sequence[int], model: HoleMoveModel,
+                             space: DesignSpace) -> str:
+    """The kept 2-D requirements (edge distance, keep-outs, ligaments, symmetry, volume) at the start design,
+    for ``cadfeat validate``: "" if the start meets them. If it breaks one, the design box is sampled
+    (``START_SAMPLES`` seeded draws): ``StudyError`` naming the requirement, the holes and by how much if no
+    draw meets them all (e.g. the hole is pinned: ``move = false``, or ``[shop] keep_patterns`` keeps it on its
+    pattern), else a note for the summary that the optimiser has to move it."""
+    from cadfeat.design.constraints import ConstraintSet
+
+    holes = list(step.holes)
+    fixed = np.ones(len(holes), bool)
+    fixed[list(movable)] = False
+    tol = max(1e-6, 10 * step.tolerance.linear_mm)
+    cc = constraint_config(config, holes, list(movable), shape_volume_mm3(step.shape), mirror_tol_mm=tol)
+    cset = ConstraintSet(holes, cc, fixed)
+    x0 = np.asarray(space.x0, float)
+    c0, _, r0 = model.features(x0)
+    margins = cset.margins(c0, r0)
+    labels = cset.labels()
+    broken = sorted(((float(v), kind, names) for kind, values in margins.items()
+                     for v, names in zip(np.asarray(values).reshape(-1), labels.get(kind, []), strict=False)
+                     if v < 0), key=lambda b: b[0])
+    if not broken:
+        return ""
+    text = "; ".join(f"{kind} ({', '.join(names) or '-'}) by {-v:.4g} mm" for v, kind, names in broken[:5])
+    lower = np.array([v.lower for v in space.variables], float)
+    upper = np.array([v.upper for v in space.variables], float)
+    rng = np.random.default_rng(config.study.seed)
+    X = np.concatenate([x0[None], lower + (upper - lower) * rng.random((START_SAMPLES, x0.size))])
+    C, _, R = model.features_batch(X)
+    worst = np.min(cset.stacked(C, R), axis=-1)
+    if np.max(worst) >= 0:
+        return f"; the start breaks {text}: the optimiser has to move the holes (designs within the bounds meet it)"
+    width = upper - lower
+    stuck = sorted({v.name.rsplit(".", 1)[0] for v, w in zip(space.variables, width, strict=True)
+                    if v.kind == "position" and w < PINNED_MM})
+    why = (f"; {', '.join(stuck)} cannot move (design.holes move = false, or [shop] keep_patterns keeps a hole on "
+           "its pattern while the pattern's other holes are fixed)") if stuck else ""
+    raise StudyError(f"{config.label}: the start design already breaks the kept requirements: {text}{why}; no "
+                     f"design within the bounds meets them (the start and {START_SAMPLES} designs drawn in the design "
+                     "box tried); allowed: relax constraints.edge_distance_mm / ligament_mm, widen "
+                     "design.holes max_offset_mm, or let the pattern move ([shop] keep_patterns = false or all its "
+                     "holes in design.holes)")
 
 
 def step_dry_run(config: StudyConfig, step: StepPart, movable: Sequence[int]) -> None:

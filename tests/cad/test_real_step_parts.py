@@ -30,8 +30,9 @@ PARTS = sorted(rs.truth())
 # Holes that cannot be re-drilled as a hole of revolution between planes perpendicular to its axis, and must be
 # refused with the reason (truth.json's notes): the oblique Ø4 passage of the screen-leg mount (both ends oblique)
 # and the Ø6 bore it breaks into; the PS2 counterbores whose rim straddles the rail top and the ledge 2 mm lower;
-# the Tinymovr Ø21 bore whose wall the four radial slots cut into. Filling any of them would change the feature
-# that cuts into it.
+# the Tinymovr Ø21 bore whose wall the four radial slots cut into; the Thor gear's Ø5 shaft bore, which the radial
+# set-screw hole cuts into, and that set-screw hole's inner segment, whose far end is a saddle on the bore. Filling
+# any of them would change the feature that cuts into it (or that it opens into).
 CUT_INTO = "not perpendicular to its axis|not a full circle"
 REFUSED = {
     ("poseidon_screen_leg_mount.step", "H1"): CUT_INTO,
@@ -40,6 +41,9 @@ REFUSED = {
     ("ps2_lower_display_mount.step", "H2"): CUT_INTO,
     ("ps2_lower_display_mount.step", "H3"): CUT_INTO,
     ("tinymovr_gimbal_bracket.step", "H5"): CUT_INTO,
+    ("thor_gear_motor.step", "H1"): CUT_INTO,
+    ("thor_gear_motor.step", "H2"): CUT_INTO,
+    ("thor_gear_motor.step", "H3"): CUT_INTO,
 }
 
 

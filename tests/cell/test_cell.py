@@ -66,7 +66,7 @@ def test_the_study_cell_reaches_g_pose(celled):
     from cadfeat.cad.export import mesh_from_shape
     from cadfeat.design.objectives import pose_objective
     from cadfeat.measures import pose_information
-    from cadfeat.measures.pose_models import default_models
+    from cadfeat.measures.pose_models import models_for
     from cadfeat.measures.rim_occlusion import rim_occlusion
     from cadfeat.poses import invert_T
     from cadfeat.study.pipeline import score
@@ -86,9 +86,9 @@ def test_the_study_cell_reaches_g_pose(celled):
                                 rotation_length_mm=20.0, model=model, noise_grey=noise)
         return pose_objective(info, "rms", 20.0)
 
-    by_hand = replace(default_models(), gate_px=3.0, placement_mm=0.8, placement_deg=0.4)
+    by_hand = replace(models_for(config.cell), gate_px=3.0, placement_mm=0.8, placement_deg=0.4)
     assert values["g_POSE"] == pytest.approx(g(by_hand, 3.0), rel=1e-9)
-    assert abs(values["g_POSE"] - g(default_models(), 2.0)) > 1e-3 * abs(values["g_POSE"])
+    assert abs(values["g_POSE"] - g(models_for(Cell()), 2.0)) > 1e-3 * abs(values["g_POSE"])
 
 
 def test_the_study_cell_reaches_the_robust_draws(celled):

@@ -10,17 +10,20 @@ import pytest
 from cadfeat.design.objectives import pose_objective
 from cadfeat.design.pose_terms import pose_aggregate_batch
 from cadfeat.measures import pose_information
+from cadfeat.measures.pose_models import models_for
 from cadfeat.poses import invert_T
 from tests.optim_helpers import two_hole_problem
 
 
 def _direct(problem, x, how):
-    """Independent assembly: the camera poses from the trajectory, the holes from the model, no occlusion mesh."""
+    """Independent assembly: the camera poses from the trajectory, the holes from the model, no occlusion mesh,
+    the models of the problem's cell (``pose_models.models_for``, with its gate and placement)."""
     c, a, r = problem.model.features(x)
     T = invert_T(np.asarray(problem.trajectory.T_task_cam)) @ np.eye(4)
     ell = problem.objective_config.pose_rotation_length_mm
     holes = problem.model.holes
     info = pose_information(problem.camera, T, c, a, r, rotation_length_mm=ell,
+                            model=models_for(problem.cell).for_cell(problem.cell),
                             through=[h.through for h in holes],
                             depth_ratio=[h.depth_mm / (2 * ri) for h, ri in zip(holes, r, strict=True)])
     return pose_objective(info, how, ell), info

@@ -191,3 +191,32 @@ def test_a_stalled_robust_solve_stops_early_with_the_full_solves_optimum(razor, 
     assert value["early"] >= value["full"] - robust_module.STALL_TOL * max(1.0, abs(value["full"])), value
     span = float(razor.space.upper[0] - razor.space.lower[0])
     assert abs(early.x_best[0] - full.x_best[0]) < 0.02 * span, (early.x_best, full.x_best)
+
+
+def test_equally_good_robust_designs_go_to_the_one_with_the_most_margin_to_the_original():
+    """Designs whose statistic is within ``TIE_TOL`` of the best are equally good; the delivered one is the one with
+    the most margin to the original's floors (issue 32 item 8: past a step of the camera source's 5th percentile the
+    statistic was 2e-4 lower but the margin half, and round-off in COBYLA's path picked it under Prescott), whatever
+    order the solves found them in; a design better by more than ``TIE_TOL`` still wins, margin or not."""
+    from cadfeat.design.robust import TIE_TOL, tie_break
+
+    class _Stub:
+        n_robust_margins = 2
+
+        @staticmethod
+        def fragility_margin(C):
+            return np.asarray(C, float)[..., -2:].min(axis=-1)
+
+    def design(x, value, floors):
+        return {"x": np.array([x]), "combined": value, "G": np.array([value]), "C": np.array([1.0, *floors]),
+                "feasible": True, "violation": 0.0}
+
+    fragile = design(94.46, 0.96064, (0.52, 0.23))
+    safe = design(94.41, 0.96058, (0.52, 0.51))
+    far = design(90.0, 0.96064 - 2 * TIE_TOL, (0.9, 0.9))
+    for pool in ([fragile, safe, far], [far, safe, fragile]):
+        assert tie_break(_Stub(), fragile, pool) is safe
+    better = design(94.0, 0.96064 + 2 * TIE_TOL, (0.1, 0.1))
+    assert tie_break(_Stub(), better, [fragile, safe, better]) is better
+    infeasible = {**fragile, "feasible": False}
+    assert tie_break(_Stub(), infeasible, [safe]) is infeasible

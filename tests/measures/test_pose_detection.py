@@ -1,5 +1,10 @@
 """The detection and measurement models (``measures.pose_models``) against cadfeat's own detector on renders.
 
+These check the committed default calibration (``detection_model.json``: the threshold detector
+``detection.detect_holes`` on raster renders), so the calibration script's world is set to it
+(``calibrate_detection.World(detector="threshold")``); the per-world calibrations (the closed loop's rim-edge
+detector, raster and physically based) are tests/measures/test_pose_calibrations.py's.
+
 - On held-out render conditions (radii, depths, view angles, distances and blurs not in the calibration grid
   of ``tools/calibrate_detection.py``): the detection rate within ±0.25 of the model's probability, the
   measured centre noise within a factor 3 of the model's noise term (12 noise draws: the estimate itself is
@@ -39,6 +44,11 @@ HELD_OUT = [  # radius, kind, depth/diameter, angle, distance, blur
     (0.9, "blind", 0.5, 50.0, 650.0, 0.0),
     (8.0, "through", 5.0 / 16.0, 40.0, 240.0, 1.0),   # a large rim (~190 px): the offset of an oblique rim shows
 ]
+
+
+@pytest.fixture(autouse=True)
+def _threshold_world(monkeypatch):
+    monkeypatch.setattr(C, "WORLD", C.World(detector="threshold"))
 
 
 def _hole(wp):

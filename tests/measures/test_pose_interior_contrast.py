@@ -9,7 +9,10 @@ cadfeat's own detector.
   axis over 6 placements, against the model's systematic offset. A blind hole (its lit floor shows past the rim)
   and a counterbore (its step's floor: a rule, not fitted) are offset against the axis direction, a through hole
   (black background past the rim) along it; each within 3 × the uncertainty of the measured mean (its pixel-grid
-  scatter over the placements and noise over the draws) + 0.01 px.
+  scatter over the placements and noise over the draws) + 0.01 px. These check the committed default
+  calibration (``detection_model.json``: the threshold detector ``detection.detect_holes``), so the script's
+  world is set to it; the closed loop's rim-edge detector has almost no interior-contrast offset (its raster
+  calibration: k_i 0.04 against 0.27), tests/measures/test_pose_calibrations.py.
 """
 
 from __future__ import annotations
@@ -37,6 +40,11 @@ from cadfeat.measures.pose_models import (  # noqa: E402
     hole_geometry,
 )
 from cadfeat.vision.images import render_sequence  # noqa: E402
+
+
+@pytest.fixture(autouse=True)
+def _threshold_world(monkeypatch):
+    monkeypatch.setattr(C, "WORLD", C.World(detector="threshold"))
 
 
 def _hole(wp):

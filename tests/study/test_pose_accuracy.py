@@ -9,6 +9,8 @@ import pytest
 
 from cadfeat.cad.features import Hole
 from cadfeat.camera import Camera
+from cadfeat.cell import Cell
+from cadfeat.design.pose_terms import cell_models
 from cadfeat.measures import pose_information
 from cadfeat.poses import invert_T
 from cadfeat.study.pose_accuracy import PHASES, design_pose_accuracy
@@ -42,12 +44,13 @@ def scene():
 
 
 def _direct(camera, T, holes):
+    """``pose_information`` with the default cell's models (``design.pose_terms.cell_models``: its calibration)."""
     c = np.array([h.centre for h in holes])
     a = np.array([h.axis for h in holes])
     r = np.array([h.radius_mm for h in holes])
     ratio = np.array([h.depth_mm / (2 * h.radius_mm) for h in holes])
     return pose_information(camera, T, c, a, r, through=[h.through for h in holes], depth_ratio=ratio,
-                            rotation_length_mm=50.0)
+                            rotation_length_mm=50.0, model=cell_models(Cell()))
 
 
 def _rms(v):
@@ -114,7 +117,7 @@ def test_g_pose_of_a_study_equals_a_direct_assembly(tmp_path):
     depth = np.array([h.depth_mm for h in holes])
     occ = rim_occlusion(mesh_from_shape(setup.shape0, tolerance=0.05), T, c, a, r, through=through, depth_mm=depth)
     info = pose_information(setup.camera, T, c, a, r, occlusion=occ, through=through, depth_ratio=depth / (2 * r),
-                            rotation_length_mm=20.0)
+                            rotation_length_mm=20.0, model=cell_models(setup.problem.cell))
     assert values["g_POSE"] == pytest.approx(pose_objective(info, "worst", 20.0), rel=1e-9)
 
 
@@ -180,9 +183,9 @@ def test_help_most_says_move_a_hidden_hole_out_of_hiding():
     c2[-1] = moved
     ratio = 3.0 / (2 * r)                                                     # depth / diameter
     before = pose_information(CAMERA_PRESET, T, c, a, r, occlusion=occ, through=[False] * 5, depth_ratio=ratio,
-                              rotation_length_mm=50.0)
+                              rotation_length_mm=50.0, model=cell_models(Cell()))
     after = pose_information(CAMERA_PRESET, T, c2, a, r, occlusion=occ2, through=[False] * 5, depth_ratio=ratio,
-                             rotation_length_mm=50.0)
+                             rotation_length_mm=50.0, model=cell_models(Cell()))
     drop = _rms(after.error_translation_mm) - _rms(before.error_translation_mm)
     assert drop < 0 and drop == pytest.approx(probe["d_error_mm"], rel=0.2)
     assert probe["d_rotation_deg"] == pytest.approx(_rms(after.error_rotation_deg) - _rms(before.error_rotation_deg),

@@ -68,3 +68,71 @@ def test_a_study_on_a_real_export_runs_and_writes_the_true_holes(tmp_path, monke
         # max_offset_mm bounds each of the two in-plane offsets: the moved hole is within √2 of it
         limit = LIMIT_MM * np.sqrt(2) + 1e-6 if any(np.allclose(e, MOVED, atol=1e-3) for e in ends) else 1e-4
         assert gaps and min(gaps) <= limit, (t["id"], gaps)
+
+
+# ------------------------------------------------------------------------- the studies of 2026-11-28 (issue 32)
+STUDIES = FOLDER / "studies"
+START_BROKEN = [  # study, the requirement it breaks at the start, the hole that cannot move
+    ("t5_motor_holder_a.toml", "keepout (H3) by 0.82", "H3"),  # 0.68 mm from the opening, ligament 1.5
+    ("new_pan_mount.toml", "keepout (H6) by 0.1", "H6"),  # 1.83 mm from the opening, ligament 2 (crashed set-up)
+    ("t5_shoulder_to_elbow_h6.toml", "edge (H6)", "H6"),  # the countersink cuts its host face's edge
+    ("t3_gripper_moving.toml", "edge (H5)", "H5"),  # after the dry run meshed the part (BRepMesh's empty cone)
+]
+
+
+@pytest.mark.parametrize(("study", "broken", "hole"), START_BROKEN)
+def test_validate_says_when_the_start_breaks_a_requirement_no_design_can_meet(study, broken, hole):
+    """Each of these studies moves one hole of a pattern whose other holes stay, so ``[shop] keep_patterns`` pins
+    it; its start already breaks a kept requirement, so ``run`` could only end "no design meets ..." after the
+    optimisation: ``validate`` (``check_step_study``) says so, naming the requirement, the hole and why."""
+    from cadfeat.study.schema import StudyError, load_study
+    from cadfeat.study.setup import check_step_study
+
+    if not (STUDIES / study).is_file():
+        pytest.skip(f"no {study} in shared/real_step/studies")
+    with pytest.raises(StudyError) as err:
+        check_step_study(load_study(STUDIES / study))
+    text = str(err.value)
+    assert "the start design already breaks" in text and broken in text, text
+    assert f"{hole} cannot move" in text and "keep_patterns" in text
+    assert "triangulated" not in text
+
+
+def test_a_study_on_the_fusion_link_runs_past_the_step_volume_check(tmp_path, monkeypatch):
+    """``studies/t4_shoulder_to_elbow.toml`` kept cheap (6 poses, one start): it used to end at the STEP write/re-read
+    volume check (the part alone is off by 7e-6 relative) and then at a B-rep ligament of 0 mm to the coaxial hole
+    in the other plate; now every kept requirement holds on the B-rep and on the re-imported STEP."""
+    import tomllib
+
+    import cadfeat.study.run as study_mod
+    from cadfeat.study.run import run_study
+
+    path = STUDIES / "t4_shoulder_to_elbow.toml"
+    if not path.is_file():
+        pytest.skip("no t4_shoulder_to_elbow.toml in shared/real_step/studies")
+    monkeypatch.setattr(study_mod, "_report", lambda *a, **k: None)
+    data = tomllib.loads(path.read_text())
+    data["study"]["part"] = str((path.parent / data["study"]["part"]).resolve())
+    data["trajectory"]["n"] = 6
+    data["optimizer"].update(starts=1, maxiter=10)
+    data["robustness"] = {"robust": False}
+    result = run_study(data, tmp_path / "out", quiet=True)
+    assert result.results["verification"]["brep_valid"] is True
+    assert (tmp_path / "out" / "optimised.step").is_file()
+    checks = result.results["constraints"]
+    assert checks and all(c["ok"] for c in checks), [c for c in checks if not c["ok"]]
+    assert {"brep", "step"} <= {c.get("checked_on") for c in checks}
+
+
+def test_run_refuses_the_same_study_at_set_up_not_after_optimising(tmp_path):
+    """``cadfeat run`` on the motor-holder study stops at set-up with validate's reason (it used to optimise and end
+    "no design meets ... keepout (H3) by 0.82"); nothing is written."""
+    from cadfeat.study.run import run_study
+    from cadfeat.study.schema import StudyError
+
+    path = STUDIES / "t5_motor_holder_a.toml"
+    if not path.is_file():
+        pytest.skip("no t5_motor_holder_a.toml in shared/real_step/studies")
+    with pytest.raises(StudyError, match=r"the start design already breaks .*keepout \(H3\).*H3 cannot move"):
+        run_study(path, tmp_path / "out", quiet=True)
+    assert not (tmp_path / "out").exists()

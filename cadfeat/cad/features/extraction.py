@@ -74,6 +74,10 @@ __all__ = ["ANGLE_TOL_RAD", "AREA_RTOL", "CHAMFER_MAX_MM", "CHAMFER_MAX_RATIO", 
            "SAMPLE_DEFLECTION_MM", "SkippedHole", "extract_holes", "extract_holes_and_skipped"]
 
 
+STEP_WALL_MIN_RAD = np.radians(300.0)
+"""Least angle the wider wall of a counterbore must close round the axis for its floor to be a step of the hole."""
+
+
 @dataclass(frozen=True)
 class SkippedHole:
     """A hole-like opening that is not extracted (mm): a concave partial cylinder of ``span_deg`` < 360°
@@ -163,10 +167,31 @@ class _Extractor:
         if (np.linalg.norm(np.cross(normal, revs[0].d)) > self.ang
                 or not all(revs[0].coaxial(r, self.lin, self.ang) for r in revs[1:])):
             return
+        if not self._outer_wall_closes(revs, concave, uf):
+            return
         for r in revs:
             uf.union(f, r.face)
         for g in halves:
             uf.union(f, g)
+
+    def _outer_wall_closes(self, revs: list[_Revolution], concave: dict[int, _Revolution], uf: _UnionFind) -> bool:
+        """A step between cylinders of two radii is a counterbore floor only if the wider wall closes at least
+        ``STEP_WALL_MIN_RAD`` round the axis (a slot cutting a narrow gap into a counterbore leaves it one). A
+        seat whose wall is open over more (it breaks out of a side face: a Ø5.9 seat closing 266°; a bearing
+        seat with twelve notches closing 272°) is another feature the hole opens into: the plane is then the
+        hole's end, not a step of it, and the hole reads as through, as deep as its own bore."""
+        cylinders = [r for r in revs if not r.is_cone]
+        if len(cylinders) < 2:
+            return True
+        r_min = min(c.r0 for c in cylinders)
+        r_max = max(c.r0 for c in cylinders)
+        if r_max <= r_min + self.lin:
+            return True
+        # the whole wall: the plane may be one half of a split annulus, touching one half of a split wall
+        roots = {uf.find(c.face) for c in cylinders if c.r0 >= r_max - self.lin}
+        wide = [r for f, r in concave.items() if not r.is_cone and abs(r.r0 - r_max) <= self.lin
+                and uf.find(f) in roots]
+        return _covered_angle(wide, wide[0].d, self.ang) >= STEP_WALL_MIN_RAD
 
     def _is_step_between(self, f: int, p: np.ndarray, normal: np.ndarray, revs: list[_Revolution]) -> bool:
         """A plane that also meets other features is still the step of a stepped bore if it meets coaxial
@@ -392,12 +417,19 @@ class _Extractor:
         return ref.loc + t_rim * ref.d
 
     def _entrance(self, ends: list[_End]) -> _End:
-        """The entrance rim: larger radius, then prefer_direction, then larger host area, then (z, y, x)."""
+        """The entrance rim: larger radius, then prefer_direction, then not inside another bore, then larger host
+        area, then (z, y, x)."""
         best = ends[0]
         for other in ends[1:]:
             if self._better(other, best):
                 best = other
         return best
+
+    def _inside_a_bore(self, end: _End) -> bool:
+        """The end opens into another hole's bore or a concave cavity (its host is a concave cylinder or cone,
+        e.g. a radial set-screw hole's inner end on the shaft bore): no drill or camera enters there."""
+        rev = self.revs.get(end.host)
+        return rev is not None and rev.concave
 
     def _better(self, a: _End, b: _End) -> bool:
         if abs(a.radius - b.radius) > self.lin:
@@ -406,20 +438,35 @@ class _Extractor:
             da, db = float(a.axis @ self.prefer), float(b.axis @ self.prefer)
             if abs(da - db) > self.ang:
                 return da > db
+        if (inside_a := self._inside_a_bore(a)) != self._inside_a_bore(b):
+            return not inside_a  # before the host area: a shaft bore's wall is larger than a nut-slot face
         if abs(a.area - b.area) > AREA_RTOL * max(a.area, b.area):
             return a.area > b.area
         ka = tuple(np.round(a.axis[::-1], _ORDER))
         kb = tuple(np.round(b.axis[::-1], _ORDER))
         return ka > kb
 
-    @staticmethod
-    def _depth(entrance: _End, exits: list[_End], ref: _Revolution, all_pts: np.ndarray) -> float:
+    def _depth(self, entrance: _End, exits: list[_End], ref: _Revolution, all_pts: np.ndarray) -> float:
         """Along the axis from the entrance centre to the farthest point of the wall: the exit plane of a
         through hole with a perpendicular exit, where the wall ends at an oblique or saddle exit (the axial
-        length of the wall), the deepest point of a blind hole."""
+        length of the wall), the deepest point of a blind hole.
+
+        A wall face that runs on past a perpendicular planar exit (a sliver of the same cylinder continuing
+        above a plate where another wall is tangent to it) is not the hole: its depth stops at the exit plane."""
         t_c = float(ref.t(entrance.centre))
+        planes = [abs(t_c - float(ref.t(e.centre))) for e in exits]  # an exit fillet's plane
+        if exits and all(self._perpendicular_plane(e.host, ref) for e in exits):
+            return max(planes)
         wall = float(np.max(entrance.sense * (t_c - ref.t(all_pts))))
-        return max([wall] + [abs(t_c - float(ref.t(e.centre))) for e in exits])  # an exit fillet's plane
+        return max([wall] + planes)
+
+    def _perpendicular_plane(self, f: int, ref: _Revolution) -> bool:
+        """Face f is a plane perpendicular to the axis of ``ref``."""
+        face = self.topo.faces[f]
+        if BRepAdaptor_Surface(face).GetType() != GeomAbs_Plane:
+            return False
+        _, n, _ = _face_normal_at_mid(face)
+        return float(np.linalg.norm(np.cross(n, ref.d))) <= self.ang
 
     # ------------------------------------------------------------------------------------- outlines
     def outline(self, f: int, rim_edges: set[int]) -> FaceOutline | None:
