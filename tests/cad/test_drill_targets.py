@@ -95,12 +95,12 @@ def test_a_real_step_part_with_added_targets(tmp_path: Path) -> None:
     if folder is None or not (folder / "ptm_support_leg.step").is_file():
         pytest.skip("the real STEP corpus is not here")
     part = load_step(folder / "ptm_support_leg.step")
-    config = SimpleNamespace(label="leg", add_targets=AddTargetsSettings(faces=["+z"], diameter_mm=3.4, depth_mm=1.5,
+    config = SimpleNamespace(label="leg", add_targets=AddTargetsSettings(faces=["+z"], diameter_mm=3.4, depth_mm=2.0,
                                                                          chamfer_mm=0.2, pitch_mm=4.0),
                              constraints=ConstraintSettings(edge_distance_mm=2.0, ligament_mm=2.0), shop=ShopSettings())
     sites = allowed_sites(config, part.shape, list(part.holes)).sites
     far = int(np.argmax(np.linalg.norm(sites.centres - sites.centres[0], axis=1)))
-    added = [AddedHole(sites.centres[i], sites.axes[i], 1.7, 1.5, 0.2, f"H{15 + j}") for j, i in enumerate((0, far))]
+    added = [AddedHole(sites.centres[i], sites.axes[i], 1.7, 2.0, 0.2, f"H{15 + j}") for j, i in enumerate((0, far))]
     result, found = drill_targets(part.shape, added, list(part.holes), part.tolerance, label="leg")
     export_step(result, tmp_path / "leg.step")
     back = verify_drilled(import_step(tmp_path / "leg.step"), list(part.holes), added, part.tolerance, "leg.step")

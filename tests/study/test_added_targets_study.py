@@ -139,8 +139,14 @@ def test_recommendation_rule(errors: list[float], target: float | None, gain: fl
 
 def test_chamfer_must_be_shallower_than_the_depth() -> None:
     with pytest.raises(CadfeatError, match=r"add_targets\.chamfer_mm: 3 is not allowed; allowed: a chamfer "
-                                           r"shallower than depth_mm = 2 mm"):
+                                           r"shallower than depth_mm = 3 mm"):
         AddTargetsSettings(faces=["+z"], chamfer_mm=3.0)
+
+
+def test_a_shallow_hole_is_outside_what_the_models_describe() -> None:
+    with pytest.raises(CadfeatError, match=r"add_targets\.depth_mm: 2 is not allowed; allowed: a depth ≥ 0\.5 × "
+                                           r"diameter_mm = 2\.75 mm"):
+        AddTargetsSettings(faces=["+z"], diameter_mm=5.5, depth_mm=2.0)
 
 
 @pytest.mark.slow
@@ -164,7 +170,7 @@ def test_step_study_with_added_targets(tmp_path: Path) -> None:
         "objective": {"measures": ["pose"]},
         "optimizer": {"method": "multistart", "starts": 2, "maxiter": 20},
         "robustness": {"robust": False},
-        "add_targets": {"faces": ["+z"], "diameter_mm": 4.5, "depth_mm": 2.0, "chamfer_mm": 0.3, "max_added": 2,
+        "add_targets": {"faces": ["+z"], "diameter_mm": 4.5, "depth_mm": 2.5, "chamfer_mm": 0.3, "max_added": 2,
                         "min_gain_percent": 0.0, "pitch_mm": 6.0},
     }
     result = run_study(data, tmp_path / "out", quiet=True, track="off")
