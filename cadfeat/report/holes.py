@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from cadfeat.report.html import esc, fmt, num, table, text
-from cadfeat.results import Holes, Shop, StudyResults, present, section
+from cadfeat.results import AddedTargets, Holes, Shop, StudyResults, present, section
 
 HOLE_COLUMNS = ("name", "face", "x_mm", "y_mm", "z_mm", "diameter_mm", "depth_mm", "kind", "moved")
 POSITION_DECIMALS = 3
@@ -64,6 +64,17 @@ def write_holes_csv(path: str | Path, results: dict) -> Path:
     return path
 
 
+def _added_cells(results: StudyResults | Mapping[str, Any]) -> list[str]:
+    """Rows of the added target holes (results.json ``added_targets``), changed = "added"."""
+    block = section(results, "added_targets", AddedTargets)
+    if block is None:
+        return []
+    return ["".join([text(h.name), text(face_label(h.axis)), num(h.centre[0], digits=7), num(h.centre[1], digits=7),
+                     num(h.centre[2], digits=7), num(h.diameter_mm, digits=6), num(h.depth_mm, digits=6),
+                     text("plain blind" + (f", {fmt(h.chamfer_mm)} mm chamfer" if h.chamfer_mm else "")),
+                     text(h.status)]) for h in block.holes]
+
+
 def hole_table(results: StudyResults | Mapping[str, Any]) -> str:
     """The hole table as HTML (id ``hole-table``) with a note on the rounding that produced it."""
     rows = hole_rows(results)
@@ -72,6 +83,7 @@ def hole_table(results: StudyResults | Mapping[str, Any]) -> str:
     cells = ["".join([text(r["name"]), text(r["face"]), num(r["x_mm"], digits=7), num(r["y_mm"], digits=7),
                       num(r["z_mm"], digits=7), num(r["diameter_mm"], digits=6), num(r["depth_mm"], digits=6),
                       text(r["kind"]), text("yes" if r["moved"] else "")]) for r in rows]
+    cells += _added_cells(results)  # issue 31: the recommended added target holes
     shop = section(results, "shop", Shop)
     head = ""
     if shop is not None and present(shop):
@@ -86,4 +98,6 @@ def hole_table(results: StudyResults | Mapping[str, Any]) -> str:
             head += (f"<p>Combined objective (model): optimum {esc(fmt(shop.combined_optimum))}, shop-ready "
                      f"{esc(fmt(shop.combined_shop))}.</p>")
     return head + table(["hole", "face", "x (mm)", "y (mm)", "z (mm)", "Ø (mm)", "depth (mm)", "kind", "changed"],
-                        cells, "hole-table") + "<p>Also written as <code>holes.csv</code>.</p>"
+                        cells, "hole-table") + "<p>Also written as <code>holes.csv</code>" + (
+        " (the delivered design; the rows changed \"added\" are the recommended added target holes of "
+        "<code>added_targets.step</code>)" if _added_cells(results) else "") + ".</p>"

@@ -24,6 +24,7 @@ from typing import Any
 
 from cadfeat.errors import CadfeatError
 from cadfeat.report import tables, trust
+from cadfeat.report.added_targets import added_targets_section
 from cadfeat.report.context import ReportContext
 from cadfeat.report.holes import hole_table
 from cadfeat.report.html import data_uri, esc, figure, fmt, note, page, section
@@ -251,6 +252,8 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
                                            for p in plots)),
         ("pose", "How well will the robot know the part's pose?", lambda: pose_section(results, out_dir, rel)),
         ("tracking", "Does the new design track better?", lambda: tracking_section(results, out_dir, rel)),
+        ("added_targets", "Where would new target holes help?",
+         lambda: added_targets_section(results, out_dir, rel)),  # issue 31
         ("camera", "What the robot's camera will see", lambda: physical_views_section(results, out_dir, rel)),
         ("appendix", "Appendix: design matrix and normalisation", lambda: _appendix(results)),
         ("files", "Exported files", lambda: tables.files_table(results) + tables.verification_table(results)),

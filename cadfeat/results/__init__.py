@@ -27,6 +27,7 @@ from typing import Any, ClassVar, Optional, TypeAlias, TypeVar
 
 from pydantic import create_model
 
+from cadfeat.results._added_targets import AddedTargetCurve, AddedTargetHole, AddedTargets
 from cadfeat.results._closed_loop import (
     EstimatorErrors,
     HelpMost,
@@ -57,7 +58,8 @@ from cadfeat.results._robustness import (
     Spread,
 )
 
-__all__ = ["DesignDraws", "DesignMatrix", "EstimatorErrors", "FeatureSummary", "FileEntry", "Finding", "HelpMost",
+__all__ = ["AddedTargetCurve", "AddedTargetHole", "AddedTargets", "DesignDraws", "DesignMatrix", "EstimatorErrors",
+           "FeatureSummary", "FileEntry", "Finding", "HelpMost",
            "HelpMostBest", "HistoryPoint", "HoleRecord", "Holes", "Interval", "Json", "MeasureSummary", "Measures",
            "Normalisation", "ObjectiveChange", "Objectives", "OptimizerRecord", "OutOfSample", "PairedTest",
            "Pareto", "Pattern", "PhysicalFrame", "PhysicalViews", "PoseAccuracy", "PoseDesign", "PoseErrors",
@@ -397,6 +399,7 @@ class StudyResults(Record):
     versions: dict[str, str] | None = None
     tracking: Tracking | None = None
     physical_views: PhysicalViews | None = None
+    added_targets: AddedTargets | None = None
     verdict: Verdict | None = None
 
     file_name: ClassVar[str] = "results.json"

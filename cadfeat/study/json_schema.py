@@ -26,6 +26,7 @@ from cadfeat.study.settings import (
     ShopSettings,
     TrackingSettings,
 )
+from cadfeat.study.settings.add_targets import AddTargetsSettings
 from cadfeat.study.settings.camera import CameraSettings
 from cadfeat.study.settings.design import DesignSpec
 from cadfeat.study.settings.scene import PartPose, StudyInfo
@@ -40,6 +41,7 @@ _MODELS: dict[str, type[Settings]] = {
     "study": StudyInfo, "camera": CameraSettings, "part_pose": PartPose, "design": DesignSpec,
     "constraints": ConstraintSettings, "objective": ObjectiveSettings, "optimizer": OptimizerSettings,
     "shop": ShopSettings, "robustness": RobustnessSettings, "tracking": TrackingSettings, "cell": Cell,
+    "add_targets": AddTargetsSettings,
 }
 
 

@@ -27,7 +27,7 @@ from cadfeat.design.robustness import robustness
 from cadfeat.design.shop import hole_sizes, refine_on_rebuild, shop_design
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
-from cadfeat.study import closed_loop_check
+from cadfeat.study import added_targets, closed_loop_check
 from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
@@ -358,6 +358,12 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
         pose = _pose_accuracy(config, start, setup, done, mesh1)
     results = _results(config, start, opt, done, (m1, obj1, comb1, checks), (sweep, dmat, robust))
     results["pose_accuracy"] = pose
+    if config.add_targets is not None and not opt.interrupted:  # issue 31: new target holes on the delivered design
+        with prog.phase("add targets"):
+            results["added_targets"], extra = added_targets.run_phase(
+                config, setup, {"before": (start.base.shape0, start.base.holes0), "after": (done.shape1, done.holes1)},
+                prog, done.x1)
+        shapes.update(extra)
     attach_robust(results, robust_designs(setup, robust_run, start.base.holes0, done.holes1))  # issue 18
     shapes.update({"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,
                    "holes1": done.holes1, "setup": setup, "base": start.base})
@@ -394,6 +400,8 @@ def _set_up(config: StudyConfig, time_limit_s: float | None) -> _Start:
                                                     time_limit_s=time_limit_s) for c in combos if c != defaults]
         if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
             setups = setups[1:]
+    if config.add_targets is not None:  # issue 31: faces, drill and a feasible site, before any optimisation
+        added_targets.preflight(config, base)
     obj0, comb0 = score(base, base.holes0)
     return _Start(scene, base, setups, m0, pre, obj0, comb0)
 

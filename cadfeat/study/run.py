@@ -45,7 +45,7 @@ from cadfeat.poses import cam_from_part
 from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
 from cadfeat.results import StudyResults
-from cadfeat.study import closed_loop_check
+from cadfeat.study import added_targets, closed_loop_check
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
     file_entry,
@@ -215,13 +215,16 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
     t0 = time.perf_counter()
     results["constraints"], results["verification"] = export_and_verify(config, stage, shapes,
                                                                         results["constraints"])
+    added_targets.export_added(config, stage, results, shapes)  # issue 31: added_targets.step, verified
     write_holes_csv(stage / "holes.csv", plain(results))
     results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl",
-                                                                 "holes.csv")]
+                                                                 "holes.csv", added_targets.STEP_NAME)
+                        if (stage / n).exists()]
     results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
     results["versions"] = versions()
     finish_report = _report(stage, results, shapes, prog)
     closed_loop_check.attach(config, results, shapes, stage, prog)  # the closed loop confirms (issue 17)
+    added_targets.confirm(config, results, shapes, prog)  # issue 31: the added design against the move-only optimum
     results["verdict"] = verdict_json(plain(results))
     write_results(stage / "results.json", results)
     if finish_report is not None:

@@ -19,6 +19,8 @@ what must be kept, what to optimise and how (docs/guide/study-files.md has a ful
     [optimizer]    method, starts, maxiter, seed, local_solver, snap_standard_sizes
     [robustness]   the robust objective and its draws; path and shop tolerances
     [tracking]     optional closed-loop check (``cadfeat track``, cadfeat.vision): ``TRACKING_KEYS``
+    [add_targets]  optional new target holes (``cadfeat.study.added_targets``): faces, keepout_boxes, the drill
+                   (diameter_mm, depth_mm, chamfer_mm), max_added, target_error_mm, min_gain_percent, pitch_mm
     [cell]         the robot cell, declared once (``cadfeat.cell.Cell``): camera mount and part placement
                    tolerances (± bounds), sensor noise and light gain (σ), the detector and its gate, hole ends
 
@@ -59,6 +61,7 @@ from cadfeat.study.settings import (
     TrackingSettings,
     validate_section,
 )
+from cadfeat.study.settings.add_targets import AddTargetsSettings
 from cadfeat.study.settings.camera import CameraSettings
 from cadfeat.study.settings.design import DesignSpec, HoleSpec, ParameterSpec, Selector
 from cadfeat.study.settings.scene import (
@@ -108,7 +111,7 @@ StudySource = str | Path | Mapping[str, Any]
 """A study: a TOML file's path, or a dict with the same tables."""
 
 SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer", "shop",
-            "robustness", "tracking", "cell")
+            "robustness", "tracking", "cell", "add_targets")
 SHOP_KEYS = tuple(ShopSettings.model_fields)
 ROBUSTNESS_KEYS = tuple(RobustnessSettings.model_fields)
 REQUIRED_SECTIONS = ("study", "camera", "trajectory", "design")
@@ -151,6 +154,8 @@ class StudyConfig:
     tracking: TrackingSpec | None = None
     cell: Cell = field(default_factory=Cell)
     """``[cell]``: the robot cell, declared once (``cadfeat.cell``)."""
+    add_targets: AddTargetsSettings | None = None
+    """``[add_targets]``: new target holes cadfeat may propose (``cadfeat.study.added_targets``); None: none."""
 
     @property
     def label(self) -> str:
@@ -231,6 +236,9 @@ def load_study(path_or_dict: StudySource, base_dir: str | Path | None = None) ->
     if "tracking" in data:
         tracking = validate_section(TrackingSettings, top.raw("tracking"), "tracking", label, {"seed": info.seed})
     cell = validate_section(Cell, top.raw("cell", {}), "cell", label)
+    add_targets = None
+    if "add_targets" in data:
+        add_targets = validate_section(AddTargetsSettings, top.raw("add_targets"), "add_targets", label)
     echo = {
         "study": info.study_dump(),
         "camera": dict(top.raw("camera")),
@@ -246,9 +254,11 @@ def load_study(path_or_dict: StudySource, base_dir: str | Path | None = None) ->
     }
     if tracking is not None:
         echo["tracking"] = tracking.model_dump(mode="json")
+    if add_targets is not None:
+        echo["add_targets"] = add_targets.model_dump(mode="json")
     return StudyConfig(path, base, info, camera, pose, trajectory, design, constraints, objective, optimizer,
                        params, _drop_none(echo), shop=shop, robustness=robustness, tracking=tracking,
-                       cell=cell)
+                       cell=cell, add_targets=add_targets)
 
 
 def _drop_none(value: Any) -> Any:

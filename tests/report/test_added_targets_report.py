@@ -1,0 +1,34 @@
+"""Report section "Where would new target holes help?" (issue 31): the curve, the recommendation, the holes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from cadfeat.report.added_targets import added_targets_section
+
+
+def _block() -> dict[str, Any]:
+    hole = {"name": "H10", "centre": [-29.0, 0.0, 52.0], "axis": [0.0, -1.0, 0.0], "diameter_mm": 5.5,
+            "depth_mm": 2.0, "chamfer_mm": 0.0, "rim_radius_mm": 2.75, "face": "face 1", "status": "added"}
+    return {"faces": ["face 1"], "candidate_sites": 40, "recommended": 1, "reason": "hole 2 would gain only 3 %",
+            "curve": {"added": [0, 1, 2], "error_mm": [0.036, 0.028, 0.027], "sites": [[0, 0, 0], [1, 0, 0]]},
+            "holes": [hole], "drop_vs_move_only": 0.25,
+            "predicted": {k: {"error_mm": e, "translation_mm": e, "rotation_deg": 0.01}
+                          for k, e in (("original", 0.04), ("move_only", 0.036), ("added", 0.027))},
+            "constraints": [{"name": "edge", "holes": ["H10"], "ok": True, "checked_on": "brep"},
+                            {"name": "edge", "holes": ["H10"], "ok": True, "checked_on": "step"}],
+            "requirements_hold": True, "step": {"file": "added_targets.step", "max_error_mm": 1e-12}}
+
+
+def test_section_shows_the_curve_and_the_recommendation(tmp_path: Path) -> None:
+    html = added_targets_section({"added_targets": _block()}, tmp_path, lambda p: p.name)
+    assert (tmp_path / "img" / "added_targets.png").is_file()
+    assert "Recommended: 1 added hole(s)" in html and "hole 2 would gain only 3 %" in html
+    assert "25 % below the move-only optimum" in html
+    assert ">H10<" in html and ">added<" in html and "brep and step" in html
+    assert "not run" in html  # no closed loop in these results
+
+
+def test_no_section_without_added_targets(tmp_path: Path) -> None:
+    assert added_targets_section({}, tmp_path, lambda p: p.name) == ""
