@@ -125,8 +125,13 @@ def main(quick: bool = False) -> str:
         + ", ".join(f"{k}: {e:.4f}" for k, e in zip(block["curve"]["added"], block["curve"]["error_mm"], strict=True))
         + f". Requirements hold on the B-rep and the STEP: {block['requirements_hold']}.",
     ]
-    if block.get("tracking"):
-        lines.append(f"Closed loop, added design against the move-only optimum: {block['tracking'].get('verdicts')}.")
+    tr = block.get("tracking") or {}
+    if tr.get("verdicts"):
+        designs = tr.get("designs", {})
+        cells = [f"{m} {designs['move_only'][m]['trans_mm_rms']['median']:.4f} → "
+                 f"{designs['added'][m]['trans_mm_rms']['median']:.4f} mm ({v})" for m, v in tr["verdicts"].items()]
+        lines.append(f"Closed loop ({tr.get('mode')} check), added design against the move-only optimum, median RMS "
+                     f"translation error over the runs: {'; '.join(cells)}.")
     return save_section("bench_add_targets", "\n".join(lines))
 
 
