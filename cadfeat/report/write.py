@@ -73,6 +73,22 @@ def report_renders(out_dir: str | Path, results: dict, context: ReportContext | 
     return make_renders(context, results, Path(out_dir) / IMG_DIR)
 
 
+def problem_line(exc: Exception) -> str:
+    """One line saying what is wrong with a results.json section: for a pydantic ``ValidationError`` the first
+    error's dotted key (the section's record, then the keys inside it), the value found and what was expected (not
+    pydantic's multi-line dump with its link); otherwise the exception's type and first line."""
+    from pydantic import ValidationError
+
+    if isinstance(exc, ValidationError) and exc.errors():
+        err = exc.errors()[0]
+        key = ".".join([exc.title, *(str(x) for x in err["loc"])])
+        value = repr(err.get("input"))
+        value = value if len(value) <= 60 else value[:57] + "..."
+        expected = str(err["msg"]).removeprefix("Input should be ")
+        return f"{key}: {value} is not allowed; expected: {expected}"
+    return f"{type(exc).__name__}: {exc}".splitlines()[0]
+
+
 def read_results(path: str | Path) -> dict:
     """Read a results.json; a missing or malformed file raises CadfeatError naming it."""
     path = Path(path)
@@ -263,10 +279,11 @@ def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot],
     for sid, heading, build in builders:
         try:
             body = build()
-        except Exception as exc:  # malformed results: say so, keep the rest of the report
-            log.warning("report: section %s failed: %s", sid, exc)
-            notes.append(f"section '{heading}' could not be built: {type(exc).__name__}: {exc}")
-            body = note(f"This section could not be built: {type(exc).__name__}: {exc}", "warning")
+        except Exception as exc:  # malformed results: say so in one line, keep the rest of the report
+            why = problem_line(exc)
+            log.warning("report: section %s failed: %s", sid, why)
+            notes.append(f"section '{heading}' could not be built: {why}")
+            body = note(f"This section could not be built: {why}", "warning")
         if body:
             sections.append(section(heading, body, sid))
     if notes:

@@ -571,3 +571,17 @@ def test_physical_views_section_embeds_the_frames_and_names_the_misses(case, tmp
     assert len(src) == 1 and src[0].startswith("data:image/png;base64,")
     data.pop("physical_views")
     assert "camera will see" not in build_report(tmp_path / "none", data, None).path.read_text(encoding="utf-8")
+
+
+def test_a_malformed_section_is_one_line_naming_the_key(case, tmp_path, caplog):
+    """A hand-edited results.json (a section of the wrong type inside another) gives one line naming the record and
+    key, the value and what was expected — not pydantic's multi-line dump with its link (issue 32 item 8)."""
+    _, results, _ = case
+    data = _lean(results)
+    data["pose_accuracy"] = {"before": "x"}
+    with caplog.at_level(logging.WARNING):
+        built = build_report(tmp_path, data, None)
+    lines = [n for n in built.notes if "could not be built" in n]
+    assert lines == ["section 'How well will the robot know the part's pose?' could not be built: "
+                     "PoseAccuracy.before: 'x' is not allowed; expected: a valid dictionary or instance of PoseDesign"]
+    assert all("\n" not in r.getMessage() and "errors.pydantic.dev" not in r.getMessage() for r in caplog.records)
