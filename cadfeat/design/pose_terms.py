@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 from collections import OrderedDict
 from collections.abc import Sequence
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -72,11 +73,13 @@ def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii:
                             noise_grey=problem.cell.noise_sigma_grey)
 
 
+@lru_cache(maxsize=16)
 def cell_models(cell: Any) -> Any:
     """g_POSE's detection and measurement models (``measures.pose_models``) in the study's cell (``Cell``): the
     calibration of the cell's detector under its light, material and hole ends in the physical world
     (``pose_models.models_for``; the nearest one where none matches, said in ``source``), with the cell's gate
-    and placement σ (``PoseModels.for_cell``)."""
+    and placement σ (``PoseModels.for_cell``). Cached per cell (a frozen, hashable model): every g_POSE evaluation
+    asks, and choosing the calibration reads the package's data folder (~1 ms)."""
     from cadfeat.measures import pose_models  # lazy: would import scipy.spatial at module load
 
     return pose_models.models_for(cell).for_cell(cell)

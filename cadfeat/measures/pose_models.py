@@ -581,6 +581,7 @@ def model_distance(want: ModelKey, have: ModelKey) -> float:
     return mat + light + ends
 
 
+@lru_cache(maxsize=1)
 def calibrated_keys() -> tuple[str, ...]:
     """The keys of the committed per-world calibrations (package data ``detection_model_<key>.json``)."""
     folder = resources.files("cadfeat.measures").joinpath(DATA)
