@@ -24,8 +24,6 @@ from typing import Any
 
 import numpy as np
 
-from cadfeat.errors import CadfeatError
-
 __all__ = ["FOLDER", "physical_views"]
 
 FOLDER = "camera"
@@ -58,6 +56,7 @@ def physical_views(config: Any, designs: Mapping[str, Any], out_dir: Path | None
 def _design_frames(name: str, shape: Any, holes: Any, camera: Any, T: np.ndarray, times: np.ndarray,
                    idx: list[int], tc: Any, out_dir: Path | None) -> list[dict[str, Any]]:
     """One design's frames: rendered, detected, drawn and written (module docstring)."""
+    from cadfeat.study.tracking import write_frame
     from cadfeat.vision.closed_loop import detect_sequence, expected_visible, frame_image, observe
 
     obs = observe(shape, holes, camera, T, tc.sensor, None, renderer="pbr", render_options=tc.render_options())
@@ -75,7 +74,7 @@ def _design_frames(name: str, shape: Any, holes: Any, camera: Any, T: np.ndarray
         if out_dir is not None:
             image = frame_image(camera, obs, j, tc.sensor.noise_grey, seed)
             drawn = _drawn(image, obs.predicted[j], obs.names, dets[j], pixels[j], expected[j] & ~found[j])
-            entry["path"] = _write(out_dir, f"{name}_frame_{k:03d}.png", drawn)
+            entry["path"] = write_frame(out_dir, FOLDER, f"{name}_frame_{k:03d}.png", drawn)
         out.append(entry)
     return out
 
@@ -95,15 +94,3 @@ def _drawn(image: np.ndarray, predicted: Any, names: list[str], detections: Any,
         cv2.putText(rgb, f"{names[j]} missed", (int(u) + 8, int(v) - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
                     (230, 40, 40), 1, cv2.LINE_AA)
     return rgb
-
-
-def _write(out_dir: Path, name: str, rgb: np.ndarray) -> str:
-    """Write ``rgb`` as ``out_dir/camera/name``; its path relative to the output folder."""
-    import cv2
-
-    folder = Path(out_dir) / FOLDER
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / name
-    if not cv2.imwrite(str(path), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
-        raise CadfeatError(f"cannot write {path}")
-    return f"{FOLDER}/{name}"

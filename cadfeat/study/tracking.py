@@ -126,10 +126,6 @@ def _frames(result: BeforeAfter, camera: Camera, out_dir: Path | None, count: in
     """Frames (first, middle, last) of run 0 of each design, drawn with detections and predictions, as PNGs."""
     if out_dir is None:
         return []
-    import cv2
-
-    folder = Path(out_dir) / "tracking"
-    folder.mkdir(parents=True, exist_ok=True)
     entries = []
     for name, d in result.designs.items():
         obs = result.observations[name]
@@ -137,14 +133,23 @@ def _frames(result: BeforeAfter, camera: Camera, out_dir: Path | None, count: in
         for k in report_frames(n, count):
             img = frame_image(camera, obs, k, result.config.sensor.noise_grey, result.config.seed * 1000)
             rgb = draw_frame(img, obs.predicted[k], d.first_detections[k], d.pixels[0, k])
-            path = folder / f"{name}_frame_{k:03d}.png"
-            if not cv2.imwrite(str(path), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
-                raise CadfeatError(f"cannot write {path}")
             entries.append({"design": name, "frame": int(k), "time_s": float(d.times_s[k]),
-                            "path": f"tracking/{path.name}",
+                            "path": write_frame(out_dir, "tracking", f"{name}_frame_{k:03d}.png", rgb),
                             "detected": int(np.all(np.isfinite(d.pixels[0, k]), axis=-1).sum()),
                             "holes": int(d.pixels.shape[2])})
     return entries
+
+
+def write_frame(out_dir: Path, folder: str, name: str, rgb: np.ndarray) -> str:
+    """Write the RGB frame ``rgb`` as ``out_dir/folder/name`` (PNG); its path relative to ``out_dir`` (what
+    results.json lists and the report embeds)."""
+    import cv2
+
+    path = Path(out_dir) / folder / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(path), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
+        raise CadfeatError(f"cannot write {path}")
+    return f"{folder}/{name}"
 
 
 def _named(holes: Sequence[Hole]) -> list[Hole]:
