@@ -30,47 +30,33 @@ from cadfeat.study.closed_loop_check import fast_spec  # noqa: E402
 from cadfeat.study.schema import load_study  # noqa: E402
 from cadfeat.study.tracking import _named, _scene, exported_designs, tracking_config  # noqa: E402
 from cadfeat.vision import closed_loop as cl  # noqa: E402
-from cadfeat.vision.estimate import estimate_poses  # noqa: E402
-from cadfeat.vision.metrics import hold_last, pose_errors, run_summary  # noqa: E402
 
 DETECTORS = ("cadfeat", "edcircles", "blob")
 
 
-def track_runs(camera, obs, runs_obs, T_runs, t, tc, detector: str) -> dict:
-    """Holes found per frame and the per-run RMS errors of PnP and the IEKF with one detector."""
-    R, F = T_runs.shape[:2]
-    gains = cl.illumination_gains(tc, R)
-    pixels = np.full((R, F, len(obs.centres), 2), np.nan)
-    for r in range(R):
-        pixels[r], _ = cl.detect_sequence(runs_obs[r], tc.sensor.noise_grey, tc.seed * 1000 + r, tc.gate_px,
-                                          float(gains[r]), detector)
-    expected = cl.expected_visible(camera, obs, T_runs[0])
-    found = np.all(np.isfinite(pixels), -1) & expected
-    T0 = np.stack([cl.initial_pose(T_runs[r, 0], tc.initial_error_mm, tc.initial_error_deg, tc.seed * 1000 + r)
-                   for r in range(R)])
-    out: dict = {"found_per_frame": float(found.sum(-1).mean()), "expected_per_frame": float(expected.sum(-1).mean())}
-    for m in ("pnp", "iekf"):
-        track = estimate_poses(camera, obs.centres, pixels, t, m, T0, normals_part=obs.normals, radii_mm=obs.radii,
-                               tuning=tc.tuning)
-        held, lost = hold_last(track.T_cam_part, T0)
-        et, er = pose_errors(held, T_runs)
-        s = [run_summary(et[r], er[r], t, tc.settle_frames, tc.converged_mm, tc.converged_deg, lost[r])
-             for r in range(R)]
-        out[m] = {"trans": [x["trans_mm_rms"] for x in s], "rot": [x["rot_deg_rms"] for x in s]}
-    return out
-
-
-def design_runs(config, name: str, design, spec) -> dict:
-    """One design rendered along the fast check's frames, every run at its placement; all detectors."""
+def design_runs(config, design, spec) -> dict:
+    """One design rendered along the fast check's frames, every run at its placement (``closed_loop.
+    run_observations``), then per detector on the same images: holes found per frame and the per-run RMS errors of
+    PnP and the IEKF (``closed_loop.detect_runs``, ``estimate_runs``)."""
     camera, T_all, times, screws = _scene(config)
     tc = tracking_config(spec, config.cell)
     _, T, t, sc = cl.tracked_frames(T_all, times, screws, tc.frame_step)
     shape, holes = design
     obs = cl.observe(shape, _named(holes), camera, T, tc.sensor, sc, frames=cl.report_frames(len(T)),
                      renderer="pbr", render_options=tc.render_options())
-    T_runs = T[None] @ cl.placement_errors(tc, tc.runs)[:, None]
-    runs_obs = cl.placed_observations(camera, obs, T_runs)
-    return {d: track_runs(camera, obs, runs_obs, T_runs, t, tc, d) for d in DETECTORS}
+    T_runs, runs_obs = cl.run_observations(camera, obs, T, tc)
+    expected = cl.expected_visible(camera, obs, T)
+    out = {}
+    for detector in DETECTORS:
+        config_d = tc.with_changes(detector=detector)
+        pixels, _ = cl.detect_runs(runs_obs, config_d)
+        _, summaries = cl.estimate_runs(camera, obs, pixels, T_runs, t, config_d)
+        found = np.all(np.isfinite(pixels), -1) & expected
+        out[detector] = {"found_per_frame": float(found.sum(-1).mean()),
+                         "expected_per_frame": float(expected.sum(-1).mean()),
+                         **{m: {"trans": [x["trans_mm_rms"] for x in s], "rot": [x["rot_deg_rms"] for x in s]}
+                            for m, s in summaries.items()}}
+    return out
 
 
 def summary(before: dict, after: dict) -> list[str]:
@@ -102,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.material:
         config = replace(config, cell=config.cell.replace(material=Material(name=args.material)))
     spec = fast_spec(config, len(_scene(config)[1])).replace(renderer="pbr", spp=args.spp)
-    runs = {name: design_runs(config, name, d, spec) for name, d in exported_designs(config, args.out).items()}
+    runs = {name: design_runs(config, d, spec) for name, d in exported_designs(config, args.out).items()}
     print(f"{config.study.name}: {config.cell.material.name}, {config.cell.light.kind} light, {args.spp} spp, "
           f"{spec.runs} paired runs")
     print("\n".join(summary(runs["before"], runs["after"])))

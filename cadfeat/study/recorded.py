@@ -36,18 +36,15 @@ def reference_sigma(cell: Cell) -> tuple[np.ndarray, np.ndarray]:
 
 def _exclusions(shape: Any, holes: list[Any], camera: Any, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, Any]:
     """(exclude (F, N), rim hidden (F, N), mesh): the closed loop's rules at the reference poses."""
-    from cadfeat.cad.export import mesh_from_shape
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.measures.pose_models import hole_geometry
-    from cadfeat.measures.rim_occlusion import rim_occlusion
-    from cadfeat.vision.closed_loop import RIM_GAP_MIN_PX, RIM_HIDDEN_MAX
+    from cadfeat.vision.closed_loop import not_associated, part_mesh, rim_hidden
 
     c, n, r = holes_to_arrays(holes)
-    mesh = mesh_from_shape(shape, tolerance=0.05)
-    hidden = rim_occlusion(mesh, T, c, n, r, samples=12, through=[h.through for h in holes],
-                           depth_mm=[h.depth_mm for h in holes])
+    mesh = part_mesh(shape)
+    hidden = rim_hidden(mesh, holes, T, c, n, r)
     gap = hole_geometry(camera, T, c, n, r).rim_gap_px(hidden)
-    return (hidden > RIM_HIDDEN_MAX) | (gap < RIM_GAP_MIN_PX), hidden, mesh
+    return not_associated(hidden, gap), hidden, mesh
 
 
 def track_recording(config: StudyConfig, out: Path, images: Path, poses: Path, hand_eye: Path | None,

@@ -257,9 +257,25 @@ def placed_observations(camera: Camera, obs: Observation, T_runs: np.ndarray) ->
 def _rim_hidden(shape: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
                 radii: np.ndarray) -> np.ndarray:
     """(F, N) hidden fraction of each rim (ray test against the part's mesh, ``measures.rim_occlusion``)."""
-    mesh = mesh_from_shape(shape, tolerance=0.05)
+    return rim_hidden(part_mesh(shape), holes, T, centres, normals, radii)
+
+
+def part_mesh(shape: Any) -> Any:
+    """The part's triangle mesh the closed loop's rim test uses (0.05 mm chord)."""
+    return mesh_from_shape(shape, tolerance=0.05)
+
+
+def rim_hidden(mesh: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
+               radii: np.ndarray) -> np.ndarray:
+    """(F, N) hidden fraction of each rim at the poses T (F, 4, 4) on the part's ``mesh`` (``part_mesh``)."""
     return rim_occlusion(mesh, T, centres, normals, radii, samples=12, through=[h.through for h in holes],
                          depth_mm=[h.depth_mm for h in holes])
+
+
+def not_associated(hidden: np.ndarray, gap: np.ndarray) -> np.ndarray:
+    """(F, N) the holes the closed loop never associates: rim hidden by more than ``RIM_HIDDEN_MAX`` or closer than
+    ``RIM_GAP_MIN_PX`` to another rim (at the predicted pose)."""
+    return (np.asarray(hidden) > RIM_HIDDEN_MAX) | (np.asarray(gap) < RIM_GAP_MIN_PX)
 
 
 def expected_visible(camera: Camera, obs: Observation, T: np.ndarray) -> np.ndarray:
@@ -364,27 +380,47 @@ def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: 
     the estimators assume, when it differs from the one that made the images (calibration error, thesis
     Figs. 6.10–6.11)."""
     T_true = np.asarray(T_true, dtype=float)
-    R_, F_ = config.runs, len(T_true)
-    pixels = np.full((R_, F_, len(obs.centres), 2), np.nan)
-    errors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    summaries: dict[str, list[dict[str, float]]] = {m: [] for m in config.estimators}
-    normals = obs.normals if config.rim_model else None
-    radii = obs.radii if config.rim_model else None
-    first: list[Detections] = []
-    T_runs = np.broadcast_to(T_true, (R_,) + T_true.shape)                        # (R, F, 4, 4) each run's truth
-    runs_obs = [obs] * R_
+    T_runs, runs_obs = run_observations(camera, obs, T_true, config)
+    pixels, first = detect_runs(runs_obs, config)
+    errors, summaries = estimate_runs(camera, obs, pixels, T_runs, times_s, config, estimator_camera)
+    return DesignTracking(errors, summaries, pixels, expected_visible(camera, obs, T_true), obs.names,
+                          np.asarray(times_s, dtype=float), first)
+
+
+def run_observations(camera: Camera, obs: Observation, T_true: np.ndarray, config: TrackingConfig
+                     ) -> tuple[np.ndarray, list[Observation]]:
+    """(each run's true poses (R, F, 4, 4), each run's observation): the part placed by ``placement_errors`` and
+    rendered again per run when the config has a placement error and ``obs`` keeps its scene, else ``obs``."""
+    R_ = config.runs
     if placed(config) and obs.scene is not None:
         T_runs = T_true[None] @ placement_errors(config, R_)[:, None]
-        runs_obs = placed_observations(camera, obs, T_runs)
-    gains = illumination_gains(config, R_)
-    for run in range(R_):
-        pixels[run], dets = detect_sequence(runs_obs[run], config.sensor.noise_grey, config.seed * 1000 + run,
-                                            config.gate_px, float(gains[run]), config.detector)
-        if run == 0:
-            first = dets
+        return T_runs, placed_observations(camera, obs, T_runs)
+    return np.broadcast_to(T_true, (R_,) + T_true.shape), [obs] * R_
+
+
+def detect_runs(runs_obs: Sequence[Observation], config: TrackingConfig) -> tuple[np.ndarray, list[Detections]]:
+    """(pixels (R, F, N, 2), NaN = missing; run 0's raw detections per frame): each run's images with its noise
+    seed and illumination gain, searched by ``config.detector`` and associated (``detect_sequence``)."""
+    gains = illumination_gains(config, len(runs_obs))
+    found = [detect_sequence(o, config.sensor.noise_grey, config.seed * 1000 + run, config.gate_px,
+                             float(gains[run]), config.detector) for run, o in enumerate(runs_obs)]
+    return np.stack([f[0] for f in found]), found[0][1]
+
+
+def estimate_runs(camera: Camera, obs: Observation, pixels: np.ndarray, T_runs: np.ndarray, times_s: np.ndarray,
+                  config: TrackingConfig, estimator_camera: Camera | None = None
+                  ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, list[dict[str, float]]]]:
+    """Per estimator of ``config``: the errors (translation mm (R, F), rotation deg (R, F)) against each run's truth
+    ``T_runs`` — a lost frame at the last estimate's error (``metrics.hold_last``) — and the per-run summaries; every
+    run from its perturbed initial pose (``initial_pose``), all runs at once (the filters are batched)."""
+    R_ = len(T_runs)
+    normals = obs.normals if config.rim_model else None
+    radii = obs.radii if config.rim_model else None
     T0 = np.stack([initial_pose(T_runs[run, 0], config.initial_error_mm, config.initial_error_deg,
                                 config.seed * 1000 + run) for run in range(R_)])
-    for m in config.estimators:  # all runs at once (the filters are batched over runs)
+    errors: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    summaries: dict[str, list[dict[str, float]]] = {}
+    for m in config.estimators:
         track = estimate_poses(estimator_camera or camera, obs.centres, pixels, times_s, m, T0,
                                normals_part=normals, radii_mm=radii, tuning=config.tuning)
         held, lost = hold_last(track.T_cam_part, T0)  # a lost frame counts at the last estimate's error
@@ -392,8 +428,7 @@ def track_design(camera: Camera, obs: Observation, T_true: np.ndarray, times_s: 
         errors[m] = (et, er)
         summaries[m] = [run_summary(et[run], er[run], times_s, config.settle_frames, config.converged_mm,
                                     config.converged_deg, lost[run]) for run in range(R_)]
-    return DesignTracking(errors, summaries, pixels, expected_visible(camera, obs, T_true), obs.names,
-                          np.asarray(times_s, dtype=float), first)
+    return errors, summaries
 
 
 def design_json(result: DesignTracking) -> dict[str, Any]:
