@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import pytest
 
@@ -18,17 +19,8 @@ from cadfeat.cli import main  # noqa: E402
 from cadfeat.study.schema import StudyError, TrackingSpec, load_study  # noqa: E402
 from tests.study_helpers import write_toml  # noqa: E402
 
-PART = '''PARAMETERS = {"spread_mm": {"default": 8.0, "bounds": (6.0, 38.0), "unit": "mm",
-                             "description": "half spread"}}
-
-
-def build(spread_mm=8.0):
-    import cadquery as cq
-
-    s = spread_mm
-    pts = [(-s, -0.75 * s), (s, -0.75 * s), (s, 0.75 * s), (-s, 0.75 * s)]
-    return cq.Workplane("XY").box(100, 80, 5).faces(">Z").workplane().pushPoints(pts).hole(8)
-'''
+PART = (Path(__file__).parents[1] / "data" / "spread_plate.py").read_text()
+"""The test's part script (a spread of four through holes), written beside each study."""
 
 STUDY = {
     "study": {"name": "spread", "part": "spread_plate.py", "seed": 2},
