@@ -119,13 +119,38 @@ def score(setup, x, T, times, tuning, model=None) -> dict:
             "bias_t": rms(pi.bias_translation_mm), "noise_t": rms(pi.sigma_translation_mm),
             "holes_seen": float(pi.detected.sum(axis=1).mean()),
             "model_px": np.sqrt(pi.sigma_px ** 2 + np.sum(pi.offset_px ** 2, axis=-1) / 2),   # (L, N) per axis
-            "model_detected": pi.detected}
+            "model_detected": pi.detected, "model_probability": pi.probability}
 
 
 def _optimum(path: Path, space) -> np.ndarray:
     """The design vector of a ``cadfeat run`` output's results.json (``variables[*].after`` by name)."""
     after = {v["name"]: v["after"] for v in json.loads(path.read_text())["variables"]}
     return np.array([float(after[v.name]) for v in space.variables])
+
+
+def pbr_cell(args: argparse.Namespace, study: Path, setup):
+    """``--renderer pbr``: the closed loop of ``cadfeat run --track pbr`` in the study's ``[cell]`` (its light, its
+    placement and noise; ``--material`` overrides the finish) — the fast check's frames, ``--runs`` runs, ``--spp``
+    samples — and the prediction with that cell's calibrated models (``design.pose_terms.cell_models``).
+    Returns (TrackingConfig, T (F, 4, 4), times (F,), models)."""
+    from dataclasses import replace
+
+    from cadfeat.cell.material import Material
+    from cadfeat.design.pose_terms import cell_models
+    from cadfeat.poses import invert_T
+    from cadfeat.study.closed_loop_check import fast_spec
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.tracking import tracking_config
+    from cadfeat.vision.closed_loop import tracked_frames
+
+    cfg = load_study(study)
+    cell = cfg.cell if args.material is None else cfg.cell.replace(material=Material(name=args.material))
+    traj = setup.trajectory
+    T_all = invert_T(np.asarray(traj.T_task_cam)) @ setup.T_task_part
+    spec = fast_spec(cfg, len(T_all)).replace(renderer="pbr", spp=args.spp, runs=args.runs, seed=args.seed)
+    config = replace(tracking_config(spec, cell), estimators=("pnp", "iekf"))
+    _, T, times, _ = tracked_frames(T_all, np.asarray(traj.times_s), None, config.frame_step)
+    return config, T, times, cell_models(cell)
 
 
 def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> dict:
@@ -136,7 +161,14 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     from cadfeat.measures.rim_centre import measure
     from cadfeat.poses import invert_T
     from cadfeat.vision import FilterTuning, SensorModel
-    from cadfeat.vision.closed_loop import TrackingConfig, compare, observe, placement_errors, track_design
+    from cadfeat.vision.closed_loop import (
+        TrackingConfig,
+        compare,
+        observe,
+        placement_errors,
+        report_frames,
+        track_design,
+    )
 
     setup = pose_setup(study)
     traj = setup.trajectory
@@ -152,6 +184,9 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     config = TrackingConfig(estimators=("pnp", "iekf"), runs=args.runs, sensor=SensorModel(noise_grey=2.0),
                             tuning=tuning, placement_mm=args.placement_mm, placement_deg=args.placement_deg,
                             gain_sigma=args.gain_sigma, seed=args.seed)
+    if args.renderer == "pbr":
+        config, T, times, model = pbr_cell(args, study, setup)
+        tuning = config.tuning
     T_runs = T[None] @ placement_errors(config, config.runs)[:, None]
     xs, names, spread = designs(setup, args.designs, extremes=args.extremes, candidates=args.candidates)
     print(json.dumps({"design_space": spread}), flush=True)
@@ -162,7 +197,9 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     for i, (name, x) in enumerate(zip(names, xs, strict=True)):
         start = time.perf_counter()
         s = score(setup, x, T, times, tuning, model)
-        obs = observe(s["shape"], s["holes"], setup.camera, T, config.sensor)
+        frames = report_frames(len(T)) if config.renderer == "pbr" else None  # the runs render their placements
+        obs = observe(s["shape"], s["holes"], setup.camera, T, config.sensor, frames=frames,
+                      renderer=config.renderer, render_options=config.render_options())
         res = track_design(setup.camera, obs, T, times, config)
         tracks[name] = res
         ms = lambda v: float(np.sqrt(np.nanmean(np.square(v))))  # noqa: E731  RMS over runs of per-run RMS
@@ -482,6 +519,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--supersample", type=int, default=1,
                     help="the closed loop renders with k x k sub-pixels per pixel (render.camera_views."
                          "DEFAULT_SUPERSAMPLE; pair with a --model calibrated at the same k)")
+    ap.add_argument("--renderer", choices=("raster", "pbr"), default="raster",
+                    help="pbr: the closed loop of `cadfeat run --track pbr` in the study's [cell] (pbr_cell)")
+    ap.add_argument("--spp", type=int, default=16, help="with --renderer pbr: samples per pixel")
+    ap.add_argument("--material", default=None, help="with --renderer pbr: the finish (cell.material name)")
     ap.add_argument("--model", type=Path, default=None,
                     help="a detection_model.json (calibrate_detection.py --study); default: the committed one")
     args = ap.parse_args(argv)

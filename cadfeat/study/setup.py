@@ -137,7 +137,25 @@ def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Normalise
                       occlusion_mesh=occlusion_mesh(config, args["shape0"]),
                       feature_mask=score_mask(config, args["holes"], ~np.asarray(args["fixed_mask"], bool)),
                       cell=config.cell)
+    glare = glare_maps_for(config, args["shape0"], args["holes"], args["camera"], problem.T_cam_part)
+    if glare is not None:
+        problem.set_glare(glare)
     return problem, cc
+
+
+def glare_maps_for(config: StudyConfig, shape: Shape, holes: Sequence[Hole], camera: Any,
+                   T_cam_part: np.ndarray) -> Any:
+    """g_POSE's glare maps (``measures.glare``; ``render.glare.glare_maps``: the part rendered physically in the
+    study's cell at its poses) when the study predicts the pose (``pose`` among the measures), its ``[cell]`` asks
+    (``glare``, default on) and the part's material returns light from its bores (a metal); else None."""
+    from cadfeat.cell.material import bores_return_light
+
+    cell = config.cell
+    if "pose" not in config.objective.measures or not cell.glare or not bores_return_light(cell.material):
+        return None
+    from cadfeat.render.glare import glare_maps  # lazy: Mitsuba
+
+    return glare_maps(shape, holes, camera, T_cam_part, cell)
 
 
 def occlusion_mesh(config: StudyConfig, shape: Shape) -> trimesh.Trimesh | None:
