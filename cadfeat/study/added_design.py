@@ -85,14 +85,15 @@ def _objectives(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], m
 
 
 def deliver(config: StudyConfig, setup: StudySetup, base: StudySetup, results: dict[str, Any],
-            shapes: dict[str, Any], extra: Mapping[str, Any], patterns: Callable[[Sequence[Hole]], Any]) -> None:
+            shapes: dict[str, Any], extra: Mapping[str, Any], measure: Callable[[Sequence[Hole], Any], Any],
+            patterns: Callable[[Sequence[Hole]], Any]) -> None:
     """Make the added design (``extra``: ``added_targets.run_phase``'s shapes) the delivered one: ``results``'
     after-sections describe it (module docstring; the move-only optimum's go to ``added_targets.move_only``) and
     ``shapes`` gains it as "shape1"/"holes1", the move-only optimum as "shape_move_only"/"holes_move_only" and the
-    number of the part's holes "n_old". ``patterns``: the original's patterns checked on the part's holes."""
-    from cadfeat.study.pipeline import half_image, measure_holes  # lazy: pipeline imports this module
+    number of the part's holes "n_old". ``measure(holes, shape)``: the study's measures of a design's holes
+    along its trajectory, occlusion by that design's solid (``pipeline.measure_holes``); ``patterns``: the
+    original's patterns checked on the part's holes."""
     from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy
-    from cadfeat.study.setup import occlusion_mesh
     from cadfeat.study.trust import objective_changes
 
     shape2, holes2, n_old = extra["shape_added"], list(extra["holes_added"]), int(extra["n_old"])
@@ -105,14 +106,15 @@ def deliver(config: StudyConfig, setup: StudySetup, base: StudySetup, results: d
         "constraints": list(results["constraints"]),
         "predicted_error_mm": block["predicted"]["move_only"]["error_mm"]}
     mesh2 = part_mesh(config, shape2)
-    m2 = measure_holes(setup, holes2, mesh=occlusion_mesh(config, shape2))
+    m2 = measure(holes2, shape2)
     after, combined = _objectives(config, setup, holes2, m2, mesh2)
     changes = objective_changes(setup.problem, obj["before"], after)
     obj.update({"after": after, "combined_after": combined, "limiting": changes["limiting"],
                 "changes": changes["changes"]})
     results["holes"]["after"] = _hole_records(setup, holes2, n_old)
     results["measures"]["after"] = measures_summary(m2, hole_names(holes2), setup.trajectory.times_s,
-                                                    config.objective.min_axis_px, half_image(setup.camera))
+                                                    config.objective.min_axis_px,
+                                                    0.5 * min(setup.camera.width, setup.camera.height))
     results["constraints"] = [c for c in block["constraints"] if c.get("checked_on") == "brep"]
     results["pose_accuracy"] = pose_accuracy(config, base, base.holes0,
                                              part_mesh(config, base.shape0, base.problem.occlusion_mesh), setup,

@@ -384,6 +384,8 @@ def _add_targets(config: StudyConfig, prog: StudyProgress, start: _Start, opt: _
             recommended = int(results["added_targets"]["recommended"])
             if recommended:
                 added_design.deliver(config, opt.setup, base, results, shapes, extra,
+                                     lambda holes, shape: measure_holes(opt.setup, holes,
+                                                                        mesh=occlusion_mesh(config, shape)),
                                      lambda holes: _patterns(base, holes))
     if recommended:
         shapes["tracking_after"] = closed_loop_check.start_design(config, "after", shapes["shape1"],
