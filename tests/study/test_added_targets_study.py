@@ -147,3 +147,42 @@ def test_a_shallow_hole_is_outside_what_the_models_describe() -> None:
     with pytest.raises(CadfeatError, match=r"add_targets\.depth_mm: 2 is not allowed; allowed: a depth ≥ 0\.5 × "
                                            r"diameter_mm = 2\.75 mm"):
         AddTargetsSettings(faces=["+z"], diameter_mm=5.5, depth_mm=2.0)
+
+
+def _most_at_once(clash: np.ndarray) -> int:
+    """The largest set of sites without a conflict (exact, branch and bound; a few dozen sites)."""
+    n = len(clash)
+    best = 0
+
+    def grow(free: np.ndarray, size: int) -> None:
+        nonlocal best
+        idx = np.flatnonzero(free)
+        if size + len(idx) <= best:
+            return
+        if not len(idx):
+            best = max(best, size)
+            return
+        i = idx[0]
+        grow(free & ~clash[i], size + 1)  # take site i (its conflicts, itself included, leave)
+        rest = free.copy()
+        rest[i] = False
+        grow(rest, size)
+    grow(np.ones(n, bool), 0)
+    return best
+
+
+@pytest.mark.parametrize(("pitch", "ligament"), [(8.0, 3.0), (6.0, 0.5), (5.0, 6.0)])
+def test_most_that_fit_bounds_the_largest_conflict_free_set(plate: Any, pitch: float, ligament: float) -> None:
+    """The count check refuses only what is impossible: ``most_that_fit`` is never below the largest set of sites
+    that can be drilled together (computed exactly here on coarse grids of the plate's top face)."""
+    from cadfeat.design.added_targets import conflicts
+    from cadfeat.study.added_targets import most_that_fit
+
+    shape, holes = plate
+    config = _config(pitch_mm=pitch)
+    config.constraints = ConstraintSettings(edge_distance_mm=3.0, ligament_mm=ligament)
+    sites = allowed_sites(config, shape, holes).sites
+    assert 5 <= len(sites) <= 60
+    exact = _most_at_once(conflicts(sites, 2.75, ligament))
+    bound = most_that_fit(sites, 2.75, ligament)
+    assert exact <= bound <= 2 * exact + 2, (exact, bound)
