@@ -110,6 +110,7 @@ def main(quick: bool = False, out: Path | None = None) -> str:
     from cadfeat.study.setup import setup_study
 
     machine = _load("run_all", HERE / "run_all.py").machine_description()
+    load0 = os.getloadavg()
     config = load_study(STUDY)
     setup = setup_study(config)
     n_sites, t_sites, t_obj, rows = _choice_rows(config, setup)
@@ -146,7 +147,8 @@ def main(quick: bool = False, out: Path | None = None) -> str:
     lines += [
         "",
         f"Whole study (`cadfeat run studies/nema17_add_targets.toml`{', check off' if quick else ''}): "
-        f"{total:.1f} s wall.",
+        f"{total:.1f} s wall (load average at the benchmark's start {load0[0]:.1f}, at the end "
+        f"{os.getloadavg()[0]:.1f}: other jobs on the 2 cores lengthen every wall time here).",
         "",
         "| phase | wall time (s) |",
         "|---|---:|",

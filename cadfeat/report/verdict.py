@@ -28,7 +28,9 @@ MIN_GAIN_FRAC = 0.01
 #: The rules, as printed in the report (the order of ``decide``'s checks).
 RULES = (
     ("combined", f"The combined objective must improve by at least {100 * MIN_GAIN_FRAC:g} % of its original "
-                 "value (a robust study: its robust statistic on held-out draws); otherwise: do not adopt."),
+                 "value (a robust study: its robust statistic on held-out draws; a delivered design with added target "
+                 "holes: its nominal value, the robust draws holding the move-only optimum); otherwise: do not "
+                 "adopt."),
     ("requirements", "Every kept requirement must hold on the rebuilt B-rep and the re-imported STEP; a violated "
                      "or unverified one: do not adopt. An active one (margin below "
                      f"{ACTIVE_MARGIN_MM:g} mm, the position tolerance): adopt with care."),
@@ -132,7 +134,8 @@ def decide(results: StudyResults | Mapping[str, Any]) -> Verdict:
     obj = section(results, "objectives", Objectives)
     cb, ca = (obj.combined_before, obj.combined_after) if obj is not None else (None, None)
     robust = _robust_combined(results)
-    if robust is not None:  # a robust study: its statistic out of sample (issue 18), not the nominal value
+    k = _added(results)
+    if robust is not None and not k:  # a robust study: its statistic out of sample (issue 18), not the nominal value
         nb, na = cb, ca
         cb, ca, what = robust
         gain = ca - cb
@@ -145,11 +148,13 @@ def decide(results: StudyResults | Mapping[str, Any]) -> Verdict:
         gain = ca - cb
         rel = gain / abs(cb) if cb else float("inf") if gain > 0 else 0.0
         ok = rel >= MIN_GAIN_FRAC
-        k = _added(results)
-        findings.append(Finding("combined", ADOPT if ok else REJECT,
-                                f"combined objective {fmt(cb)} → {fmt(ca)} ({'+' if gain >= 0 else '−'}"
-                                f"{fmt(abs(100 * rel), 3)} %)"
-                                + (f", the delivered design with {k} added target holes" if k else "")))
+        detail = f"combined objective {fmt(cb)} → {fmt(ca)} ({'+' if gain >= 0 else '−'}{fmt(abs(100 * rel), 3)} %)"
+        if k:  # the delivered design has added holes: its nominal value (the robust draws hold the move-only optimum)
+            detail += f", the delivered design with {k} added target holes"
+            if robust is not None:
+                detail += (f"; {robust[2]} of the move-only optimum {fmt(robust[0])} → {fmt(robust[1])} (the added "
+                           "holes are not in the robust draws)")
+        findings.append(Finding("combined", ADOPT if ok else REJECT, detail))
     reqs = requirement_rows(results)
     bad = [r for r in reqs if r.status in ("VIOLATED", "not verified")]
     active = [r for r in reqs if r.status == "active"]

@@ -53,3 +53,26 @@ def test_delivered_design_and_its_closed_loop(tmp_path: Path) -> None:
                  "the delivered design vs the move-only optimum"):
         assert what in html
     assert html.count(">better<") == 2 and ">no significant difference<" in html
+
+
+def test_verdict_of_a_delivered_added_design_uses_its_own_combined_value() -> None:
+    """A robust study whose delivered design has added holes: the combined rule reads the delivered design's
+    (nominal) value — the robust draws hold the move-only optimum, said beside it — and the tracking rule names
+    the delivered design."""
+    from cadfeat.report.verdict import decide
+
+    results = {
+        "objectives": {"names": ["g_POSE"], "before": {"g_POSE": -0.143}, "after": {"g_POSE": -0.0875},
+                       "combined_before": 0.70, "combined_after": 5.9, "combine": "maxmin", "aggregate": "sum"},
+        "robustness": {"delivered": "robust", "out_of_sample": {
+            "statistic": "p10", "designs": {"original": {"out_of_sample": 0.38}, "robust": {"out_of_sample": 0.3801}}}},
+        "added_targets": {**_block(), "delivered": {"design": "added"}},
+        "tracking": {"verdicts": {"pnp": {"verdict": "better"}}},
+    }
+    v = decide(results)
+    found = {f.rule: f for f in v.findings}
+    assert found["combined"].outcome == "adopt"  # the robust statistic alone (+0.03 %) would say "do not adopt"
+    assert found["combined"].detail.startswith("combined objective 0.7 → 5.9")
+    assert "of the move-only optimum 0.38 → 0.3801 (the added holes are not in the robust draws)" in \
+        found["combined"].detail
+    assert "the delivered design (with 1 added target holes) vs the original" in found["tracking"].detail
