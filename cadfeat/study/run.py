@@ -206,28 +206,31 @@ def preflight_study(path_or_dict: StudySource | StudyConfig, time_limit_s: float
     config = _resolve(path_or_dict, None)
     camera, traj, T_task_part = load_scene(config)
     shape, holes, _, names = _current_design(config, time_limit_s)
+    added = None
     if config.add_targets is not None:  # issue 31: faces, keep-in, drill, count, a site, a dry run: before any work
-        _preflight_added(config, shape, holes, traj, T_task_part, time_limit_s)
+        added = _preflight_added(config, shape, holes, traj, T_task_part, time_limit_s)
     mesh = occlusion_mesh(config, shape)
     o = config.objective
     T_cam_part = cam_from_part(traj.T_task_cam, T_task_part)
     m = measures.evaluate(camera, T_cam_part, traj.velocity_screws(), *holes_to_arrays(list(holes)),
                           min_axis_px=o.min_axis_px, rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
-    return preflight(config, camera, traj, T_task_part, part_points(shape, mesh), m, np.ones(len(holes), bool),
-                     names)
+    pre = preflight(config, camera, traj, T_task_part, part_points(shape, mesh), m, np.ones(len(holes), bool), names)
+    if added is not None:
+        pre.numbers["add_targets"] = added
+    return pre
 
 
 def _preflight_added(config: StudyConfig, shape: Shape, holes: list[Hole], traj: Trajectory, T_task_part: np.ndarray,
-                     time_limit_s: float | None) -> None:
+                     time_limit_s: float | None) -> dict[str, Any]:
     """``added_targets.preflight_part`` on the part as it is, its holes extracted with the study's view (the
-    through holes' entrance as ``run`` extracts them; names kept)."""
+    through holes' entrance as ``run`` extracts them; names kept): {"faces", "sites", "most_that_fit"}."""
     from cadfeat.study.setup import study_view_direction
     from cadfeat.study.verify import extract_viewed, pair_by_axis
 
     part = load_part(config.study.part_path, time_limit_s) if config.study.part_kind == "script" else None
     view = study_view_direction(config, shape, traj, T_task_part, part)
     viewed = pair_by_axis(holes, extract_viewed(shape, view), f"{config.label}: the part's holes")
-    added_targets.preflight_part(config, shape, viewed, view)
+    return added_targets.preflight_part(config, shape, viewed, view)
 
 
 def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], shapes: Mapping[str, Any],

@@ -52,7 +52,8 @@ def _one_error(status: int, err: str, path: Path, *needles: str) -> str:
 def test_a_valid_section_passes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     status, out, err, _ = _validate(tmp_path, capsys)
     assert status == 0, err
-    assert "ok" in out
+    assert "ok" in out and "add_targets: " in out and "candidate sites on face" in out
+    assert "a dry-run hole drilled and verified" in out
 
 
 def test_a_face_the_part_does_not_have(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
