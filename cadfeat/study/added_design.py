@@ -111,6 +111,8 @@ def deliver(config: StudyConfig, setup: StudySetup, base: StudySetup, results: d
     changes = objective_changes(setup.problem, obj["before"], after)
     obj.update({"after": after, "combined_after": combined, "limiting": changes["limiting"],
                 "changes": changes["changes"]})
+    if isinstance(obj.get("score"), str):
+        obj["score"] += f"; after: the added target holes ({', '.join(hole_names(holes2[n_old:]))}) too"
     results["holes"]["after"] = _hole_records(setup, holes2, n_old)
     results["measures"]["after"] = measures_summary(m2, hole_names(holes2), setup.trajectory.times_s,
                                                     config.objective.min_axis_px,
