@@ -27,7 +27,7 @@ from cadfeat.design.robustness import robustness
 from cadfeat.design.shop import hole_sizes, refine_on_rebuild, shop_design
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
-from cadfeat.study import added_targets, closed_loop_check
+from cadfeat.study import added_design, added_targets, closed_loop_check
 from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
@@ -349,8 +349,11 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
         m1 = measure_holes(setup, done.holes1, mesh=mesh1)
         obj1, comb1 = score(setup, done.holes1)
         checks = requirement_checks(setup, done.shape1, done.holes1, "brep")
-    shapes["tracking_after"] = closed_loop_check.start_design(config, "after", done.shape1, done.holes1,
-                                                              len(setup.trajectory.times_s))
+    n_samples = len(setup.trajectory.times_s)
+    # with [add_targets] the move-only optimum may not be the delivered design: tracked as "move_only" until known
+    key = "tracking_move_only" if config.add_targets is not None else "tracking_after"
+    shapes[key] = closed_loop_check.start_design(config, key.removeprefix("tracking_"), done.shape1, done.holes1,
+                                                 n_samples)
     with prog.phase("analyse"):
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, done.x1)
@@ -358,16 +361,37 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
         pose = _pose_accuracy(config, start, setup, done, mesh1)
     results = _results(config, start, opt, done, (m1, obj1, comb1, checks), (sweep, dmat, robust))
     results["pose_accuracy"] = pose
-    if config.add_targets is not None and not opt.interrupted:  # issue 31: new target holes on the delivered design
-        with prog.phase("add targets"):
-            results["added_targets"], extra = added_targets.run_phase(
-                config, setup, {"before": (start.base.shape0, start.base.holes0), "after": (done.shape1, done.holes1)},
-                prog, done.x1)
-        shapes.update(extra)
     attach_robust(results, robust_designs(setup, robust_run, start.base.holes0, done.holes1))  # issue 18
     shapes.update({"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,
                    "holes1": done.holes1, "setup": setup, "base": start.base})
+    if config.add_targets is not None:  # issue 31: new target holes on the move-only optimum
+        _add_targets(config, prog, start, opt, done, results, shapes)
     return results, shapes
+
+
+def _add_targets(config: StudyConfig, prog: StudyProgress, start: _Start, opt: _Optimum, done: _Delivered,
+                 results: dict[str, Any], shapes: dict[str, Any]) -> None:
+    """The added-target phase (``study.added_targets``) on the move-only optimum; when it recommends holes, that
+    design is delivered (``study.added_design.deliver``) and its closed loop starts in a worker; otherwise the
+    move-only optimum's worker is the delivered design's."""
+    base = start.base
+    recommended = 0
+    if not opt.interrupted:
+        with prog.phase("add targets"):
+            results["added_targets"], extra = added_targets.run_phase(
+                config, opt.setup, {"before": (base.shape0, base.holes0), "after": (done.shape1, done.holes1)},
+                prog, done.x1)
+            recommended = int(results["added_targets"]["recommended"])
+            if recommended:
+                added_design.deliver(config, opt.setup, base, results, shapes, extra,
+                                     lambda holes, shape: measure_holes(opt.setup, holes,
+                                                                        mesh=occlusion_mesh(config, shape)),
+                                     lambda holes: _patterns(base, holes))
+    if recommended:
+        shapes["tracking_after"] = closed_loop_check.start_design(config, "after", shapes["shape1"],
+                                                                  shapes["holes1"], len(opt.setup.trajectory.times_s))
+    else:
+        shapes["tracking_after"] = shapes.pop("tracking_move_only", None)
 
 
 def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: _Delivered,
