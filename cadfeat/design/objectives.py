@@ -50,7 +50,6 @@ from typing import Any, ClassVar, cast
 import numpy as np
 from pydantic import ValidationInfo, field_validator, model_validator
 
-from cadfeat.design.unseen import is_scored, scored_arrays
 from cadfeat.errors import CadfeatError
 from cadfeat.settings import Settings, Tuple, boolean, choice, context_of, number, reject
 
@@ -248,9 +247,11 @@ def _reduce_features(values: np.ndarray, how: str) -> np.ndarray:
 def _scored(measures: Any, config: ObjectiveConfig, camera: Any) -> dict[str, np.ndarray] | None:
     """The scored margins (``unseen.scored_arrays``) of ``evaluate``'s measures, or None when ``measures`` are scored
     already, carry no unseen flags (arrays of another origin) or no chosen measure is ruled (module docstring)."""
-    if is_scored(measures) or getattr(measures, "rim_hidden", None) is None \
-            or not set(config.measures) & {"fov", "focus", "resolution"}:
+    if getattr(measures, "scored", False) or getattr(measures, "rim_hidden", None) is None \
+            or not set(config.measures) & {"fov", "focus", "resolution"}:  # ``unseen.is_scored``
         return None
+    from cadfeat.design.unseen import scored_arrays  # lazy: the measures package stays out of the settings' import
+
     if camera is None:
         raise CadfeatError("objective values of measures.evaluate's measures need the camera, for the unseen-hole "
                            "rule (design.unseen): pass camera=..., or score them first with "
