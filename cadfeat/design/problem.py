@@ -36,6 +36,7 @@ from cadfeat.design.objectives import (
 from cadfeat.design.optimize import OptimizerConfig, optimise
 from cadfeat.design.optimize.solvers import sobol_starts
 from cadfeat.design.pose_terms import pose_aggregate_batch, pose_values, stacked_information
+from cadfeat.design.unseen import scored_measures
 from cadfeat.errors import CadfeatError
 from cadfeat.measures.depth import DepthMaps
 from cadfeat.measures.jacobian import diagnostics_from_gram
@@ -279,14 +280,16 @@ class Problem:
 
     def measures_from_features(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                                exact_occlusion: bool = False) -> Any:
-        """``measures.evaluate`` of hole features (part frame) along the trajectory; occlusion by the
-        optimiser's depth maps, or by the exact ray test against the mesh with ``exact_occlusion``."""
+        """``measures.evaluate`` of hole features (part frame) along the trajectory, as the objectives score them
+        (``design.unseen.scored_measures``: the unseen-hole rule applied); occlusion by the optimiser's depth maps,
+        or by the exact ray test against the mesh with ``exact_occlusion``."""
         cfg = self.objective_config
         if np.any(np.asarray(radii) <= 0):
             raise CadfeatError(f"a design gives a hole radius ≤ 0 mm: {np.asarray(radii).tolist()}")
-        return measures.evaluate(self.camera, self.T_cam_part, self.screws, centres, axes, radii,
-                                 min_axis_px=cfg.min_axis_px, rotation_length_mm=cfg.rotation_length_mm,
-                                 occlusion_mesh=self.occlusion_mesh if exact_occlusion else self.occlusion)
+        m = measures.evaluate(self.camera, self.T_cam_part, self.screws, centres, axes, radii,
+                              min_axis_px=cfg.min_axis_px, rotation_length_mm=cfg.rotation_length_mm,
+                              occlusion_mesh=self.occlusion_mesh if exact_occlusion else self.occlusion)
+        return scored_measures(m, self.camera, cfg.min_axis_px)
 
     @property
     def occlusion(self) -> Any:

@@ -25,6 +25,7 @@ from cadfeat.design.memory import check_fits
 from cadfeat.design.patterns import check_patterns, find_patterns
 from cadfeat.design.robustness import robustness
 from cadfeat.design.shop import hole_sizes, refine_on_rebuild, shop_design
+from cadfeat.design.unseen import scored_measures
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
 from cadfeat.study import added_design, added_targets, closed_loop_check
@@ -74,15 +75,18 @@ SWEEP_SAMPLES = 41
 def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Trajectory | None = None, *,
                   mesh: trimesh.Trimesh | None = None) -> Measures:
     """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
-    the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off)."""
+    the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off), as
+    the objectives score them (``design.unseen.scored_measures``: results.json's measures, the pre-flight and the
+    explorer show the values the objectives aggregate; ``measures.evaluate`` alone gives the thesis's)."""
     traj = trajectory if trajectory is not None else setup.trajectory
     o = setup.config.objective
     if mesh is None:
         mesh = getattr(getattr(setup, "problem", None), "occlusion_mesh", None)
     T_cam_part = cam_from_part(traj.T_task_cam, setup.T_task_part)
     c, a, r = holes_to_arrays(list(holes))
-    return measures.evaluate(setup.camera, T_cam_part, traj.velocity_screws(), c, a, r, min_axis_px=o.min_axis_px,
-                             rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
+    m = measures.evaluate(setup.camera, T_cam_part, traj.velocity_screws(), c, a, r, min_axis_px=o.min_axis_px,
+                          rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
+    return scored_measures(m, setup.camera, o.min_axis_px)
 
 
 def score(setup: StudySetup, holes: Sequence[Hole]) -> tuple[dict[str, float], float | None]:

@@ -39,6 +39,7 @@ from cadfeat.cad.parts import load_part
 from cadfeat.cad.sandbox import start_workers
 from cadfeat.cad.step_parts import load_step
 from cadfeat.design.objectives import objective_values
+from cadfeat.design.unseen import scored_measures
 from cadfeat.errors import CadfeatError
 from cadfeat.output_folder import staged_output
 from cadfeat.poses import cam_from_part
@@ -214,6 +215,7 @@ def preflight_study(path_or_dict: StudySource | StudyConfig, time_limit_s: float
     T_cam_part = cam_from_part(traj.T_task_cam, T_task_part)
     m = measures.evaluate(camera, T_cam_part, traj.velocity_screws(), *holes_to_arrays(list(holes)),
                           min_axis_px=o.min_axis_px, rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
+    m = scored_measures(m, camera, o.min_axis_px)  # as the objectives score them (``design.unseen``)
     pre = preflight(config, camera, traj, T_task_part, part_points(shape, mesh), m, np.ones(len(holes), bool), names)
     if added is not None:
         pre.numbers["add_targets"] = added
