@@ -6,6 +6,7 @@ from pathlib import Path
 def cqgi_solid(path: Path, params: dict):
     """The script built by CQGI directly (no cadfeat code): its one solid. A parameter CQGI's finder misses (a
     negative or annotated constant) is written into the script's text, on its own line, as a user would edit it."""
+    import cadquery as cq
     from cadquery import cqgi
 
     src = path.read_text().replace("describe_parameter(", "(lambda *a: None)(")  # (upstream bug: test_cqgi_parts)
@@ -16,4 +17,7 @@ def cqgi_solid(path: Path, params: dict):
             assert n == 1, f"{name} is not one line of {path}"
     result = cqgi.parse(src).build(build_parameters={k: v for k, v in params.items() if k in known})
     assert result.success, result.exception
-    return result.results[0].shape.val()
+    shown = result.results[0].shape
+    if not isinstance(shown, cq.Workplane | cq.Shape):  # a build123d-like object: its OCP shape is .wrapped
+        return cq.Shape.cast(shown.wrapped)
+    return shown.val() if isinstance(shown, cq.Workplane) else shown

@@ -93,6 +93,29 @@ def test_negative_and_annotated_constants_build(values):
                                sorted(map(tuple, _bolt_centres(-12.0, -15.0, 50.0))), atol=1e-6)
 
 
+@pytest.mark.parametrize("values", [{}, {"phase_deg": 20.0, "offset_y": -4.0}])
+def test_score_design_on_a_bolt_circle_turned_by_its_phase(values):
+    """A bolt circle's phase moves its holes on an arc (the map is not linear; it is linearised at the middle of
+    the design box, phase 0): ``score_design`` at the start (phase -15) and at another phase rebuilds the part and
+    finds its holes where the drawing puts them. (Before: the rebuild paired the CAD holes with the linear map's
+    prediction within 0.5 mm, and the prediction at phase -15 is 0.87 mm off: "holes do not match the design".)"""
+    from cadfeat.study.designs import score_design
+
+    study = {**_toml(DATA / "offset_study.toml"), "optimizer": {"method": "multistart", "starts": 1, "maxiter": 1}}
+    study["study"]["part"] = str(OFFSET)
+    scored = score_design(study, values)
+    full = {"offset_y": -12.0, "phase_deg": -15.0, "bolt_circle": 50.0} | values
+    got = sorted(tuple(h["centre_mm"]) for h in scored["holes"])
+    np.testing.assert_allclose(got, sorted(map(tuple, _bolt_centres(**full))), atol=1e-6)
+    assert scored["requirements_hold"] and 0.0 < scored["rebuild_deviation_mm"] < 5.0  # the linear map's own error
+
+
+def _toml(path: Path) -> dict:
+    import tomllib
+
+    return tomllib.loads(path.read_text())
+
+
 def test_cqgi_misses_negative_and_annotated_constants_upstream():
     """Why cadfeat reads the constants itself: CQGI's finder (cadquery 2.5-2.8) lists neither ``-12.0`` nor an
     annotated assignment. If an upgrade finds them, the two lists agree and this pin says so."""

@@ -1,0 +1,233 @@
+"""Issue 32 item 4: a corpus of CadQuery scripts written by others, in their styles (tests/data/cqgi/SOURCES.md says
+where each comes from, its licence and what was changed).
+
+For every script of the corpus: ``cadfeat parts SCRIPT --params`` lists every top-level constant with its value,
+``cadfeat validate`` passes on its study, ``score_design`` at the study's start succeeds, a short study succeeds,
+and the holes the study keeps fixed come back where the script put them.
+
+References, none of them cadfeat code: the constants are read from the script's text by regular expressions
+(``_text_constants``); the holes the script's geometry defines are the cylinders and cones of CadQuery's own CQGI
+build of the script (``cqgi_helpers.cqgi_solid``) and of the exported STEP, read through OCP (``_surfaces``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from cqgi_helpers import cqgi_solid
+
+DATA = Path(__file__).parents[1] / "data" / "cqgi"
+
+#: script, its study, the number of holes the study keeps fixed (by the script's drawing: holes no varied
+#: constant moves or resizes).
+CORPUS = [
+    ("Ex002_Block_With_Bored_Center_Hole.py", "ex002", 0),
+    ("Ex003_Pillow_Block_With_Counterbored_Holes.py", "ex003", 0),
+    ("Ex007_Using_Point_Lists.py", "ex007", 0),
+    ("Ex019_Counter_Sunk_Holes.py", "ex019", 0),
+    ("doc_bearing_pillow_block.py", "pillow", 1),          # the bearing bore
+    ("doc_parametric_enclosure.py", "enclosure", 0),
+    ("vesa_plate.py", "vesa", 0),
+    ("offset_bracket.py", "offset", 0),
+    ("dowel_plate.py", "dowel", 2),                        # the two dowel holes
+    ("manifold_block.py", "manifold", 4),                  # two side ports, two mounting holes
+    ("warehouse_flange.py", "flange", 2),                  # the bore and the radial set-screw hole
+    ("algebra_bracket.py", "bracket", 2),                  # the two counterbored base holes
+]
+IDS = [s for _, s, _ in CORPUS]
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_LITERAL = rf"{_NUMBER}|True|False|\"[^\"\n]*\"|'[^'\n]*'"
+
+
+def _value(text: str) -> Any:
+    if text in ("True", "False"):
+        return text == "True"
+    if text[0] in "\"'":
+        return text[1:-1]
+    return float(text) if re.search(r"[.eE]", text) else int(text)
+
+
+def _text_constants(path: Path) -> list[tuple[str, str, Any]]:
+    """(name, type, value) of each top-level constant as the script's text sets it: ``name = literal``,
+    ``name: type = literal``, ``name = (\\n literal  # comment\\n)`` and ``(a, b) = (1.0, 2.0)`` / ``a, b = 1.0, 2.0``
+    at column 0; a name later assigned anything else at column 0 is no constant. Read with regular expressions,
+    independently of cadfeat's syntax-tree reader."""
+    text = path.read_text()
+    found: dict[str, Any] = {}
+    for m in re.finditer(rf"^([A-Za-z_]\w*)\s*(?::\s*\w+)?\s*=\s*(?:\(\s*)?({_LITERAL})\s*(?:#[^\n]*)?(?:\n\s*\))?$",
+                         text, re.M):
+        found.setdefault(m.group(1), (m.start(), _value(m.group(2))))
+    for m in re.finditer(r"^\(?\s*([A-Za-z_][\w\s,]*?)\s*\)?\s*=\s*\(?([^=\n()]*,[^=\n()]*)\)?\s*(?:#[^\n]*)?$",
+                         text, re.M):
+        names = [n.strip() for n in m.group(1).split(",")]
+        values = [v.strip() for v in m.group(2).split(",")]
+        if len(names) == len(values) and all(re.fullmatch(_LITERAL, v) for v in values):
+            for n, v in zip(names, values, strict=True):
+                found.setdefault(n, (m.start(), _value(v)))
+    out = []
+    for name, (start, value) in sorted(found.items(), key=lambda kv: kv[1][0]):
+        later = [m for m in re.finditer(rf"^{name}\s*(?::\s*\w+)?\s*[-+*/]?=\s*(.*)$", text[start:], re.M)][1:]
+        if any(not re.fullmatch(rf"(?:{_LITERAL})\s*(?:#.*)?", m.group(1).strip()) for m in later):
+            continue
+        kind = "boolean" if isinstance(value, bool) else "string" if isinstance(value, str) else "number"
+        out.append((name, kind, value))
+    return out
+
+
+def test_the_corpus_is_the_folder():
+    """Every script in tests/data/cqgi is in the corpus (a script added there is tested here), each with its
+    study and an entry in SOURCES.md; at least 12 scripts."""
+    scripts = sorted(p.name for p in DATA.glob("*.py"))
+    assert scripts == sorted(s for s, _, _ in CORPUS) and len(scripts) >= 12
+    sources = (DATA / "SOURCES.md").read_text()
+    for script, study, _ in CORPUS:
+        assert f"`{script}`" in sources, script
+        assert (DATA / f"{study}_study.toml").is_file()
+
+
+@pytest.mark.parametrize(("script", "study", "n_fixed"), CORPUS, ids=IDS)
+def test_params_lists_every_constant(script, study, n_fixed, capsys):
+    from cadfeat.cli import main
+
+    path = DATA / script
+    assert main(["parts", str(path), "--params"]) == 0
+    listed = json.loads(capsys.readouterr().out)
+    expected = _text_constants(path)
+    assert [(d["name"], d.get("type"), d["initial"]) for d in listed] == expected
+    assert [type(d["initial"]) for d in listed] == [type(v) for _, _, v in expected]  # 3 stays an int, 3.0 a float
+    assert any(k == "number" for _, k, _ in expected)
+
+
+def _study_file(study: str, folder: Path, **optimizer: int) -> Path:
+    """The corpus study with its part's absolute path and the optimiser's ``starts`` / ``maxiter`` replaced."""
+    text = (DATA / f"{study}_study.toml").read_text().replace('part = "', f'part = "{DATA}/')
+    for key, value in optimizer.items():
+        text, n = re.subn(rf"^{key} = \d+$", f"{key} = {value}", text, flags=re.M)
+        assert n == 1, key
+    path = folder / f"{study}_study.toml"
+    path.write_text(text)
+    return path
+
+
+def _surfaces(solid: Any) -> list[tuple[str, Any]]:
+    """(kind, OCP surface) of each face of ``solid``: 'cylinder' / 'cone' (gp_Cylinder / gp_Cone), or 'other'
+    (the face's Geom surface)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+    from OCP.GeomAbs import GeomAbs_Cone, GeomAbs_Cylinder
+
+    out = []
+    for face in solid.Faces():
+        s = BRepAdaptor_Surface(face.wrapped)
+        kind = s.GetType()
+        if kind == GeomAbs_Cylinder:
+            out.append(("cylinder", s.Cylinder()))
+        elif kind == GeomAbs_Cone:
+            out.append(("cone", s.Cone()))
+        else:
+            out.append(("other", BRep_Tool.Surface_s(face.wrapped)))
+    return out
+
+
+def _axis_line(surface: Any) -> tuple[np.ndarray, np.ndarray]:
+    ax = surface.Axis()
+    p, d = ax.Location(), ax.Direction()
+    return np.array([p.X(), p.Y(), p.Z()]), np.array([d.X(), d.Y(), d.Z()])
+
+
+def _on_line(centre: np.ndarray, axis: np.ndarray, surface: Any, tol: float = 1e-6) -> bool:
+    p, d = _axis_line(surface)
+    return abs(abs(float(np.dot(d, axis))) - 1.0) < 1e-9 and float(np.linalg.norm(np.cross(centre - p, d))) < tol
+
+
+def _on_a_face(centre: np.ndarray, surfaces: list[tuple[str, Any]]) -> bool:
+    """The centre lies on the (untrimmed) surface of a face of the solid: the host face the hole opens in."""
+    from OCP.GeomAPI import GeomAPI_ProjectPointOnSurf
+    from OCP.gp import gp_Pnt
+
+    point = gp_Pnt(*map(float, centre))
+    for kind, s in surfaces:
+        if kind == "other":
+            proj = GeomAPI_ProjectPointOnSurf(point, s)
+            if proj.NbPoints() and proj.LowerDistance() < 1e-6:
+                return True
+        elif kind == "cylinder":  # a hole opening in a curved face (the flange's set screw, into the hub)
+            p, d = _axis_line(s)
+            if abs(float(np.linalg.norm(np.cross(centre - p, d))) - s.Radius()) < 1e-6:
+                return True
+    return False
+
+
+def _is_the_scripts_hole(hole: dict, surfaces: list[tuple[str, Any]]) -> bool:
+    """``hole`` (results.json) is a hole of the solid with ``surfaces``: a concentric cylinder of its radius (a
+    countersink's or chamfered rim's entrance radius is its cone's: then a concentric cone and a narrower
+    concentric cylinder), and its centre on a face of the solid."""
+    c, a, r = np.asarray(hole["centre_mm"]), np.asarray(hole["axis"]), float(hole["radius_mm"])
+    cylinders = [s for k, s in surfaces if k == "cylinder" and _on_line(c, a, s)]
+    if hole["kind"].startswith("countersink") or "chamfered" in hole["kind"]:
+        coaxial = any(_on_line(c, a, s) for k, s in surfaces if k == "cone")
+        found = coaxial and any(s.Radius() < r - 1e-9 for s in cylinders)
+    else:
+        found = any(abs(s.Radius() - r) < 1e-6 for s in cylinders)
+    return found and _on_a_face(c, surfaces)
+
+
+@pytest.mark.parametrize(("script", "study", "n_fixed"), CORPUS, ids=IDS)
+def test_validate_score_and_a_short_study(script, study, n_fixed, tmp_path, monkeypatch, capsys):
+    """``cadfeat validate``; ``score_design`` at the start (every kept requirement holds, the holes are the
+    script's); a one-iteration study whose optimised STEP has the holes of CQGI's own build at the reported
+    optimum, the fixed holes where the script's default build has them, and a source script never changed."""
+    import cadquery as cq
+
+    from cadfeat.cad.features import extract_holes
+    from cadfeat.cli import main
+    from cadfeat.study import run as study_mod
+    from cadfeat.study.designs import score_design
+
+    part_path = DATA / script
+    before_text = part_path.read_bytes()
+    config = _study_file(study, tmp_path, starts=1, maxiter=1)
+    assert main(["validate", str(config)]) == 0
+    assert ": ok — study" in capsys.readouterr().out
+
+    original = cqgi_solid(part_path, {})
+    surfaces0 = _surfaces(original)
+    start = score_design(config)
+    assert start["requirements_hold"], [c for c in start["requirements"] if not c["ok"]]
+    assert start["combined"] is not None and math.isfinite(start["combined"])
+    assert all(_is_the_scripts_hole(h, surfaces0) for h in start["holes"])
+    assert len(start["holes"]) == len(extract_holes(original))
+
+    monkeypatch.setattr(study_mod, "_report", lambda *a, **k: None)  # the report is tested elsewhere
+    with contextlib.redirect_stdout(io.StringIO()):
+        study_mod.run_study(config, tmp_path / "out", quiet=True, progress=False)
+    results = json.loads((tmp_path / "out" / "results.json").read_text())
+    params = {v["name"]: v["after"] for v in results["variables"]}
+    assert params and all(v["lower"] - 1e-9 <= v["after"] <= v["upper"] + 1e-9 for v in results["variables"])
+    exported = cq.importers.importStep(str(tmp_path / "out" / "optimised.step")).val()
+    got = sorted((tuple(np.round(h.centre, 4)), round(h.radius_mm, 4)) for h in extract_holes(exported))
+    want = sorted((tuple(np.round(h.centre, 4)), round(h.radius_mm, 4))
+                  for h in extract_holes(cqgi_solid(part_path, params)))
+    assert got == want
+
+    before = {h["name"]: h for h in results["holes"]["before"]}
+    fixed = [h for h in results["holes"]["after"] if h["fixed"]]
+    assert len(fixed) == n_fixed
+    assert all(c["ok"] for c in results["constraints"] if c["name"] == "fixed")
+    surfaces1 = _surfaces(exported)
+    for h in fixed:
+        h0 = before[h["name"]]
+        np.testing.assert_allclose(h["centre_mm"], h0["centre_mm"], atol=1e-6)
+        assert h["radius_mm"] == pytest.approx(h0["radius_mm"], abs=1e-9)
+        assert _is_the_scripts_hole(h0, surfaces0), h0  # where the script's own build has it
+        assert _is_the_scripts_hole(h, surfaces1), h    # and there again in the optimised STEP
+    assert part_path.read_bytes() == before_text
