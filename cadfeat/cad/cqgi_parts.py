@@ -76,8 +76,9 @@ def _tree(path: Path) -> ast.Module:
 
 def is_cqgi_script(path: str | Path) -> bool:
     """Whether ``path`` is a cq-editor / CQGI script rather than a cadfeat part script: it calls
-    ``show_object`` at module level and defines neither ``build`` nor ``PARAMETERS`` at the top level.
-    A file that does not parse is not (``load_part`` then reports the syntax error)."""
+    ``show_object`` (at module level, or in a function of its own that it calls: ``def main(): ...
+    show_object(part)``) and defines neither ``build`` nor ``PARAMETERS`` at the top level. A file that does
+    not parse is not (``load_part`` then reports the syntax error)."""
     path = Path(path)
     if path.suffix != ".py" or not path.is_file():
         return False
@@ -92,9 +93,8 @@ def is_cqgi_script(path: str | Path) -> bool:
             if isinstance(node, ast.AnnAssign) else []
         if any(isinstance(t, ast.Name) and t.id == "PARAMETERS" for t in targets):
             return False
-    top = [n for n in tree.body if not isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef)]
     return any(isinstance(c, ast.Call) and isinstance(c.func, ast.Name) and c.func.id == "show_object"
-               for n in top for c in ast.walk(n))
+               for c in ast.walk(tree))
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ import io
 import json
 import math
 import re
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -27,22 +28,24 @@ from cqgi_helpers import cqgi_solid
 DATA = Path(__file__).parents[1] / "data" / "cqgi"
 
 #: script, its study, the number of holes the study keeps fixed (by the script's drawing: holes no varied
-#: constant moves or resizes).
+#: constant moves or resizes), the kinds of its holes (by the script's drawing).
 CORPUS = [
-    ("Ex002_Block_With_Bored_Center_Hole.py", "ex002", 0),
-    ("Ex003_Pillow_Block_With_Counterbored_Holes.py", "ex003", 0),
-    ("Ex007_Using_Point_Lists.py", "ex007", 0),
-    ("Ex019_Counter_Sunk_Holes.py", "ex019", 0),
-    ("doc_bearing_pillow_block.py", "pillow", 1),          # the bearing bore
-    ("doc_parametric_enclosure.py", "enclosure", 0),
-    ("vesa_plate.py", "vesa", 0),
-    ("offset_bracket.py", "offset", 0),
-    ("dowel_plate.py", "dowel", 2),                        # the two dowel holes
-    ("manifold_block.py", "manifold", 4),                  # two side ports, two mounting holes
-    ("warehouse_flange.py", "flange", 2),                  # the bore and the radial set-screw hole
-    ("algebra_bracket.py", "bracket", 2),                  # the two counterbored base holes
+    ("Ex002_Block_With_Bored_Center_Hole.py", "ex002", 0, {"plain": 1}),
+    ("Ex003_Pillow_Block_With_Counterbored_Holes.py", "ex003", 0, {"counterbore": 4, "plain": 1}),
+    ("Ex007_Using_Point_Lists.py", "ex007", 0, {"plain": 4}),
+    ("Ex019_Counter_Sunk_Holes.py", "ex019", 0, {"countersink": 4}),
+    ("doc_bearing_pillow_block.py", "pillow", 1, {"counterbore": 4, "plain": 1}),   # fixed: the bearing bore
+    # the lid's screw holes: the bottom's posts left a Ø10 x 1 recess round each (seen first from the flipped
+    # lid's top), the counterbore at the far end
+    ("doc_parametric_enclosure.py", "enclosure", 0, {"counterbore": 4}),
+    ("vesa_plate.py", "vesa", 0, {"plain": 5}),
+    ("offset_bracket.py", "offset", 0, {"plain": 3}),
+    ("dowel_plate.py", "dowel", 2, {"plain": 3}),                                    # the two dowel holes
+    ("manifold_block.py", "manifold", 4, {"plain": 4, "counterbore": 2}),            # side ports, mounting holes
+    ("warehouse_flange.py", "flange", 2, {"plain": 8}),                              # bore, radial set screw
+    ("algebra_bracket.py", "bracket", 2, {"plain": 3, "counterbore": 2}),           # the counterbored base holes
 ]
-IDS = [s for _, s, _ in CORPUS]
+IDS = [s for _, s, _, _ in CORPUS]
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _LITERAL = rf"{_NUMBER}|True|False|\"[^\"\n]*\"|'[^'\n]*'"
@@ -87,15 +90,15 @@ def test_the_corpus_is_the_folder():
     """Every script in tests/data/cqgi is in the corpus (a script added there is tested here), each with its
     study and an entry in SOURCES.md; at least 12 scripts."""
     scripts = sorted(p.name for p in DATA.glob("*.py"))
-    assert scripts == sorted(s for s, _, _ in CORPUS) and len(scripts) >= 12
+    assert scripts == sorted(s for s, _, _, _ in CORPUS) and len(scripts) >= 12
     sources = (DATA / "SOURCES.md").read_text()
-    for script, study, _ in CORPUS:
+    for script, study, _, _ in CORPUS:
         assert f"`{script}`" in sources, script
         assert (DATA / f"{study}_study.toml").is_file()
 
 
-@pytest.mark.parametrize(("script", "study", "n_fixed"), CORPUS, ids=IDS)
-def test_params_lists_every_constant(script, study, n_fixed, capsys):
+@pytest.mark.parametrize(("script", "study", "n_fixed", "kinds"), CORPUS, ids=IDS)
+def test_params_lists_every_constant(script, study, n_fixed, kinds, capsys):
     from cadfeat.cli import main
 
     path = DATA / script
@@ -181,8 +184,8 @@ def _is_the_scripts_hole(hole: dict, surfaces: list[tuple[str, Any]]) -> bool:
     return found and _on_a_face(c, surfaces)
 
 
-@pytest.mark.parametrize(("script", "study", "n_fixed"), CORPUS, ids=IDS)
-def test_validate_score_and_a_short_study(script, study, n_fixed, tmp_path, monkeypatch, capsys):
+@pytest.mark.parametrize(("script", "study", "n_fixed", "kinds"), CORPUS, ids=IDS)
+def test_validate_score_and_a_short_study(script, study, n_fixed, kinds, tmp_path, monkeypatch, capsys):
     """``cadfeat validate``; ``score_design`` at the start (every kept requirement holds, the holes are the
     script's); a one-iteration study whose optimised STEP has the holes of CQGI's own build at the reported
     optimum, the fixed holes where the script's default build has them, and a source script never changed."""
@@ -206,6 +209,7 @@ def test_validate_score_and_a_short_study(script, study, n_fixed, tmp_path, monk
     assert start["combined"] is not None and math.isfinite(start["combined"])
     assert all(_is_the_scripts_hole(h, surfaces0) for h in start["holes"])
     assert len(start["holes"]) == len(extract_holes(original))
+    assert Counter(h["kind"] for h in start["holes"]) == kinds
 
     monkeypatch.setattr(study_mod, "_report", lambda *a, **k: None)  # the report is tested elsewhere
     with contextlib.redirect_stdout(io.StringIO()):

@@ -233,6 +233,29 @@ def test_bad_scripts(tmp_path):
     assert load_part(helped).build(h=2.0).Volume() == pytest.approx(18.0)
 
 
+def test_show_object_inside_the_scripts_own_function(tmp_path, capsys):
+    """A cq-editor script may show its part from a function it calls at the top (``def main(): ...
+    show_object(part)``, ``main()``): it is a CQGI script (before: taken for a cadfeat part script and imported,
+    "NameError: name 'show_object' is not defined"). A cadfeat part script that shows its build in cq-editor stays
+    one (it defines ``build``)."""
+    from cadfeat.cli import main
+
+    script = tmp_path / "shown_in_main.py"
+    script.write_text("import cadquery as cq\n\nwidth = 40.0\nhole = 6.0  # [3, 9] mm\n\n\n"
+                      "def make(w, h):\n    return cq.Workplane('XY').box(w, w, 5).faces('>Z').workplane()"
+                      ".hole(h)\n\n\n"
+                      "def main():\n    show_object(make(width, hole), name='plate', options={'color': 'red'})\n\n\n"
+                      "main()\n")
+    assert is_cqgi_script(script)
+    part = load_part(script)
+    assert list(part.parameters) == ["width", "hole"]
+    (h,) = part.holes(hole=8.0)
+    assert h.radius_mm == pytest.approx(4.0) and h.centre == pytest.approx([0.0, 0.0, 2.5])
+    assert main(["parts", str(script), "--params"]) == 0
+    assert [d["name"] for d in json.loads(capsys.readouterr().out)] == ["width", "hole"]
+    assert not is_cqgi_script(Path("parts/l_bracket.py"))  # build + PARAMETERS, show_object under an if
+
+
 def test_study_needs_bounds_for_an_unbounded_constant(tmp_path):
     from cadfeat.study.schema import StudyError, load_study
 
