@@ -11,14 +11,15 @@ A CadQuery user's script has top-level constants and passes its result to ``show
     result = cq.Workplane("XY").box(length, 60, 10).faces(">Z").workplane().hole(hole_dia)
     show_object(result)
 
-It loads through CadQuery's own gateway interface (``cadquery.cqgi.parse(source).build()``, as cq-editor and
-cq-cli run it), so the script is never imported as a module. Its constants are read from the script's own
-syntax tree (``script_constants``): every top-level ``name = literal`` or ``name: type = literal`` whose literal
-is an int, float (a leading ``-`` / ``+`` included), bool, str or a tuple of those. CQGI's own finder misses
-negative numbers (``-12.0`` is a unary minus, not a constant) and annotated assignments, and its
-``build(build_parameters=...)`` substitutes only what it found; here a build writes every value into a copy of
-the syntax tree (the constant's assignment, ``_substituted``) and hands that tree to CQGI. The part's parameters
-are the NUMERIC constants (``int`` / ``float``; strings, booleans and tuples stay as the script sets them):
+It loads through CadQuery's own gateway interface (``cadquery.cqgi.parse(source).build()``, as cq-editor and cq-cli
+run it), so the script is never imported as a module. A script that names cq-editor's ``__name__`` (``if __name__ ==
+"__cq_main__": show_object(result)``) runs with that ``__name__``, as cq-editor runs it. Its constants are read from
+the script's own syntax tree (``script_constants``): every top-level ``name = literal`` or ``name: type = literal``
+whose literal is an int, float (a leading ``-`` / ``+`` included), bool, str or a tuple of those. CQGI's own finder
+misses negative numbers (``-12.0`` is a unary minus, not a constant) and annotated assignments, and its
+``build(build_parameters=...)`` substitutes only what it found; here a build writes every value into a copy of the
+syntax tree (the constant's assignment, ``_substituted``) and hands that tree to CQGI. The part's parameters are the
+NUMERIC constants (``int`` / ``float``; strings, booleans and tuples stay as the script sets them):
 
 - description: ``describe_parameter(name, "text")`` where given, else the constant's line comment (without the
   bounds);
@@ -350,9 +351,29 @@ def _script_dir_on_path(path: Path) -> Iterator[None]:
             sys.path.remove(folder)
 
 
+#: ``__name__`` of a script run by cq-editor (CQGI runs it as ``"__cqgi__"``).
+CQ_EDITOR_NAME = "__cq_main__"
+
+
+def _written_for_cq_editor(tree: ast.Module) -> bool:
+    """Whether the script names cq-editor's ``__name__`` (``if __name__ == "__cq_main__": show_object(...)``, a
+    common guard): then it runs as cq-editor runs it, else as CQGI does."""
+    return any(isinstance(n, ast.Constant) and n.value == CQ_EDITOR_NAME for n in ast.walk(tree))
+
+
+def _as_cq_editor_runs_it(tree: ast.Module) -> ast.Module:
+    """``tree`` with ``__name__ = "__cq_main__"`` first (CQGI's own ``__name__`` is ``"__cqgi__"``)."""
+    first = tree.body[0] if tree.body else None
+    name = ast.Assign(targets=[ast.Name(id="__name__", ctx=ast.Store())], value=ast.Constant(value=CQ_EDITOR_NAME))
+    tree.body.insert(0, ast.copy_location(name, first) if first is not None else name)
+    return ast.fix_missing_locations(tree)
+
+
 def _builder(script: _Script, model: Any, names: list[str]) -> Any:
-    """``build(**params)``: run the script through CQGI with ``params`` and return its one solid."""
+    """``build(**params)``: run the script through CQGI with ``params`` and return its one solid (a script written
+    for cq-editor, ``_written_for_cq_editor``, with cq-editor's ``__name__``)."""
     path = script.path
+    cq_editor = _written_for_cq_editor(script.tree)
 
     def build(**params: Any) -> Any:
         unknown = sorted(set(params) - set(names))
@@ -362,6 +383,8 @@ def _builder(script: _Script, model: Any, names: list[str]) -> Any:
         # only the constants its finder saw, and writes into its one tree): no build keeps an earlier value.
         values = {k: int(v) if isinstance(v, int) else float(v) for k, v in params.items()}
         model.ast_tree = _substituted(script.tree, script.constants, values)
+        if cq_editor:
+            model.ast_tree = _as_cq_editor_runs_it(model.ast_tree)
         with _two_argument_describe(), _script_dir_on_path(path):
             result = model.build()
         if not result.success:

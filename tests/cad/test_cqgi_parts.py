@@ -256,6 +256,24 @@ def test_show_object_inside_the_scripts_own_function(tmp_path, capsys):
     assert not is_cqgi_script(Path("parts/l_bracket.py"))  # build + PARAMETERS, show_object under an if
 
 
+@pytest.mark.parametrize("guard", ['__name__ == "__cq_main__"', "__name__ in ('__cq_main__', 'temp')",
+                                   '__name__ == "__cqgi__"'])
+def test_a_script_guarded_for_cq_editor_shows_its_part(guard, tmp_path):
+    """cq-editor runs a script with ``__name__ == "__cq_main__"`` and many scripts show their part only then
+    (``if __name__ == "__cq_main__": show_object(result)``, or ``main()`` under that guard); CQGI runs it as
+    ``"__cqgi__"``, so such a script showed nothing (before: "the script showed 0 object(s)"). A script that names
+    ``__cq_main__`` runs as cq-editor runs it; one guarded for CQGI as CQGI runs it."""
+    script = tmp_path / "guarded.py"
+    script.write_text("import cadquery as cq\n\nwidth = 40.0\nhole_x = -6.0  # [-10, 10] mm\n\n\n"
+                      "def main():\n    plate = cq.Workplane('XY').box(width, width, 5)\n"
+                      "    show_object(plate.faces('>Z').workplane().center(hole_x, 0).hole(6.0))\n\n\n"
+                      f"if {guard}:\n    main()\n")
+    part = load_part(script)
+    (h,) = part.holes(hole_x=4.0)
+    assert h.centre == pytest.approx([4.0, 0.0, 2.5]) and h.radius_mm == pytest.approx(3.0)
+    assert load_part(script, 60.0).build().Volume() == pytest.approx(40 * 40 * 5 - math.pi * 9 * 5)
+
+
 def test_study_needs_bounds_for_an_unbounded_constant(tmp_path):
     from cadfeat.study.schema import StudyError, load_study
 
