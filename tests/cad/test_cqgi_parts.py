@@ -274,6 +274,23 @@ def test_a_script_guarded_for_cq_editor_shows_its_part(guard, tmp_path):
     assert load_part(script, 60.0).build().Volume() == pytest.approx(40 * 40 * 5 - math.pi * 9 * 5)
 
 
+def test_cq_editors_log(tmp_path, caplog):
+    """cq-editor gives a script ``log(x)`` (its log viewer), CQGI does not (before: NameError): a script that calls it
+    logs to ``cadfeat.cqgi``; one that imports its own ``log`` keeps it."""
+    import logging
+
+    script = tmp_path / "logs.py"
+    script.write_text("import cadquery as cq\n\nwidth = 40.0\nlog(f'width {width}')\n"
+                      "show_object(cq.Workplane('XY').box(width, width, 5).faces('>Z').workplane().hole(6.0))\n")
+    with caplog.at_level(logging.INFO, logger="cadfeat.cqgi"):
+        assert load_part(script).build(width=30.0).Volume() == pytest.approx(30 * 30 * 5 - math.pi * 9 * 5)
+    assert "width 30.0" in caplog.text
+    own = tmp_path / "own_log.py"
+    own.write_text("import cadquery as cq\nfrom math import exp, log\n\nwidth = 40.0  # [20, 60] mm\n"
+                   "show_object(cq.Workplane('XY').box(width, width, log(exp(5.0))))\n")  # math's log
+    assert load_part(own).build().Volume() == pytest.approx(40 * 40 * 5, rel=1e-9)
+
+
 def test_study_needs_bounds_for_an_unbounded_constant(tmp_path):
     from cadfeat.study.schema import StudyError, load_study
 
