@@ -79,8 +79,9 @@ def _tree(path: Path) -> ast.Module:
 def is_cqgi_script(path: str | Path) -> bool:
     """Whether ``path`` is a cq-editor / CQGI script rather than a cadfeat part script: it calls
     ``show_object`` (at module level, or in a function of its own that it calls: ``def main(): ...
-    show_object(part)``) and defines neither ``build`` nor ``PARAMETERS`` at the top level. A file that does
-    not parse is not (``load_part`` then reports the syntax error)."""
+    show_object(part)``) and does not define ``PARAMETERS`` at the top level (cadfeat's protocol: ``PARAMETERS``
+    and ``build``; a cq-editor script may have a helper named ``build`` of its own). A file that does not parse
+    is not (``load_part`` then reports the syntax error)."""
     path = Path(path)
     if path.suffix != ".py" or not path.is_file():
         return False
@@ -89,8 +90,6 @@ def is_cqgi_script(path: str | Path) -> bool:
     except (SyntaxError, UnicodeDecodeError, ValueError):
         return False
     for node in tree.body:
-        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.name == "build":
-            return False
         targets = node.targets if isinstance(node, ast.Assign) else [node.target] \
             if isinstance(node, ast.AnnAssign) else []
         if any(isinstance(t, ast.Name) and t.id == "PARAMETERS" for t in targets):

@@ -235,16 +235,16 @@ def test_bad_scripts(tmp_path):
 
 def test_show_object_inside_the_scripts_own_function(tmp_path, capsys):
     """A cq-editor script may show its part from a function it calls at the top (``def main(): ...
-    show_object(part)``, ``main()``): it is a CQGI script (before: taken for a cadfeat part script and imported,
-    "NameError: name 'show_object' is not defined"). A cadfeat part script that shows its build in cq-editor stays
-    one (it defines ``build``)."""
+    show_object(part)``, ``main()``), and may have a helper named ``build``: it is a CQGI script (before: taken for
+    a cadfeat part script and imported, "NameError: name 'show_object' is not defined"). A cadfeat part script that
+    shows its build in cq-editor stays one (it defines ``PARAMETERS``)."""
     from cadfeat.cli import main
 
-    script = tmp_path / "shown_in_main.py"
+    script = tmp_path / "shown_in_main.py"  # (its helper is called build: no PARAMETERS, not cadfeat's protocol)
     script.write_text("import cadquery as cq\n\nwidth = 40.0\nhole = 6.0  # [3, 9] mm\n\n\n"
-                      "def make(w, h):\n    return cq.Workplane('XY').box(w, w, 5).faces('>Z').workplane()"
+                      "def build(w, h):\n    return cq.Workplane('XY').box(w, w, 5).faces('>Z').workplane()"
                       ".hole(h)\n\n\n"
-                      "def main():\n    show_object(make(width, hole), name='plate', options={'color': 'red'})\n\n\n"
+                      "def main():\n    show_object(build(width, hole), name='plate', options={'color': 'red'})\n\n\n"
                       "main()\n")
     assert is_cqgi_script(script)
     part = load_part(script)
