@@ -74,30 +74,68 @@ def _value(text: str) -> Any:
     return float(text) if re.search(r"[.eE]", text) else int(text)
 
 
-def _text_constants(path: Path) -> list[tuple[str, str, Any]]:
-    """(name, type, value) of each top-level constant as the script's text sets it: ``name = literal``,
-    ``name: type = literal``, ``name = (\\n literal  # comment\\n)`` and ``(a, b) = (1.0, 2.0)`` / ``a, b = 1.0, 2.0``
-    at column 0; a name later assigned anything else at column 0 is no constant. Read with regular expressions,
-    independently of cadfeat's syntax-tree reader."""
-    text = path.read_text()
+def _literal(text: str) -> tuple[bool, Any]:
+    """(True, value) for a literal (a number, bool, string, or a tuple of them, parenthesised or not)."""
+    text = text.strip()
+    if re.fullmatch(_LITERAL, text):
+        return True, _value(text)
+    inner = text[1:-1] if text.startswith("(") and text.endswith(")") else text
+    items = [v.strip() for v in inner.split(",")]
+    if "," in inner and all(re.fullmatch(_LITERAL, v) for v in items if v) and items[0]:
+        return True, tuple(_value(v) for v in items if v)
+    return False, None
+
+
+def _without_comment(line: str) -> str:
+    """``line`` without its ``# comment`` (a ``#`` inside a string literal is no comment)."""
+    quote = None
+    for i, ch in enumerate(line):
+        if quote:
+            quote = None if ch == quote else quote
+        elif ch in "\"'":
+            quote = ch
+        elif ch == "#":
+            return line[:i].rstrip()
+    return line.rstrip()
+
+
+def _text_constants(path: Path) -> list[tuple[str, str | None, Any]]:
+    """(name, type, value) of each top-level constant as the script's text sets it, read line by line with regular
+    expressions, independently of cadfeat's syntax-tree reader: statements at column 0 ``name = literal``,
+    ``name: type = literal``, ``name = (\\n literal  # comment\\n)``, ``a, b = 1.0, 2.0`` / ``(a, b) = (...)``
+    (each name whose value is a literal), a literal being a number, bool, string or a tuple of them (type None,
+    value a list). A name assigned a literal again keeps its last value at its first place; one assigned anything
+    else (or augmented, ``+=``, or chained, ``a = b = 1``) is no constant."""
+    text = re.sub(rf"=[ \t]*\([ \t]*\n[ \t]*({_LITERAL})[ \t]*(?:#[^\n]*)?\n[ \t]*\)", r"= \1", path.read_text())
     found: dict[str, Any] = {}
-    for m in re.finditer(rf"^([A-Za-z_]\w*)\s*(?::\s*\w+)?\s*=\s*(?:\(\s*)?({_LITERAL})\s*(?:#[^\n]*)?(?:\n\s*\))?$",
-                         text, re.M):
-        found.setdefault(m.group(1), (m.start(), _value(m.group(2))))
-    for m in re.finditer(r"^\(?\s*([A-Za-z_][\w\s,]*?)\s*\)?\s*=\s*\(?([^=\n()]*,[^=\n()]*)\)?\s*(?:#[^\n]*)?$",
-                         text, re.M):
-        names = [n.strip() for n in m.group(1).split(",")]
-        values = [v.strip() for v in m.group(2).split(",")]
-        if len(names) == len(values) and all(re.fullmatch(_LITERAL, v) for v in values):
-            for n, v in zip(names, values, strict=True):
-                found.setdefault(n, (m.start(), _value(v)))
-    out = []
-    for name, (start, value) in sorted(found.items(), key=lambda kv: kv[1][0]):
-        later = [m for m in re.finditer(rf"^{name}\s*(?::\s*\w+)?\s*[-+*/]?=\s*(.*)$", text[start:], re.M)][1:]
-        if any(not re.fullmatch(rf"(?:{_LITERAL})\s*(?:#.*)?", m.group(1).strip()) for m in later):
-            continue
-        kind = "boolean" if isinstance(value, bool) else "string" if isinstance(value, str) else "number"
-        out.append((name, kind, value))
+    for line in text.splitlines():
+        code = _without_comment(line)
+        if m := re.match(r"^([A-Za-z_]\w*)\s*(?:[-+*/%@&|^]|//|\*\*|<<|>>)=", code):   # augmented
+            found.pop(m.group(1), None)
+        elif m := re.match(r"^([A-Za-z_]\w*)\s*=\s*([A-Za-z_]\w*)\s*=[^=]", code):      # chained
+            found.pop(m.group(1), None)
+            found.pop(m.group(2), None)
+        elif m := re.match(r"^\(?\s*([A-Za-z_]\w*(?:\s*,\s*[A-Za-z_]\w*)+)\s*,?\s*\)?\s*=(?!=)\s*(.*)$", code):
+            names = [n.strip() for n in m.group(1).split(",")]
+            rhs = m.group(2).strip()
+            values = [v.strip() for v in (rhs[1:-1] if rhs.startswith("(") and rhs.endswith(")") else rhs).split(",")]
+            for name, value in zip(names, values if len(values) == len(names) else [""] * len(names), strict=True):
+                ok, v = _literal(value)
+                if ok:
+                    found[name] = v
+                else:
+                    found.pop(name, None)
+        elif m := re.match(r"^([A-Za-z_]\w*)\s*(?::\s*[\w.\[\], ]+)?\s*=(?!=)\s*(.*)$", code):
+            ok, v = _literal(m.group(2))
+            if ok:
+                found[m.group(1)] = v
+            else:
+                found.pop(m.group(1), None)
+    out: list[tuple[str, str | None, Any]] = []
+    for name, value in found.items():
+        kind = "boolean" if isinstance(value, bool) else "string" if isinstance(value, str) else \
+            None if isinstance(value, tuple) else "number"
+        out.append((name, kind, list(value) if isinstance(value, tuple) else value))
     return out
 
 
@@ -121,6 +159,45 @@ def test_params_lists_every_constant(script, capsys):
     assert [(d["name"], d.get("type"), d["initial"]) for d in listed] == expected
     assert [type(d["initial"]) for d in listed] == [type(v) for _, _, v in expected]  # 3 stays an int, 3.0 a float
     assert any(k == "number" for _, k, _ in expected)
+
+
+TRICKY = """import cadquery as cq
+from math import pi
+
+SIZE = (40.0, 30.0)          # a tuple: listed, no design parameter
+width, depth = 40.0, pi      # depth is computed: no constant
+(rows, cols) = (2, 3)
+thickness = (
+    6.0  # a parenthesised literal on its own line
+)
+hole = 5.0
+hole = 6.0                   # assigned again: its last value
+scale = 1.0
+scale *= 2                   # augmented: no constant
+a = b = 3.0                  # chained: neither
+label = "plate # 1"          # a '#' in a string
+flag: bool = True
+count: int = +4
+tiny = .5e-1
+result = cq.Workplane("XY").box(width, SIZE[1], thickness).faces(">Z").workplane().hole(hole)
+show_object(result)
+"""
+
+
+def test_params_of_tricky_constants(tmp_path, capsys):
+    """``--params`` on constants written every way a script writes them, against a hand-written list and against
+    the text reader the corpus tests use."""
+    from cadfeat.cli import main
+
+    path = tmp_path / "tricky.py"
+    path.write_text(TRICKY)
+    expected = [("SIZE", None, [40.0, 30.0]), ("width", "number", 40.0), ("rows", "number", 2),
+                ("cols", "number", 3), ("thickness", "number", 6.0), ("hole", "number", 6.0),
+                ("label", "string", "plate # 1"), ("flag", "boolean", True), ("count", "number", 4),
+                ("tiny", "number", 0.05)]
+    assert _text_constants(path) == expected
+    assert main(["parts", str(path), "--params"]) == 0
+    assert [(d["name"], d.get("type"), d["initial"]) for d in json.loads(capsys.readouterr().out)] == expected
 
 
 def _study_file(study: Path, folder: Path, **optimizer: int) -> Path:
