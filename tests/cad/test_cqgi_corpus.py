@@ -202,7 +202,10 @@ def test_params_of_tricky_constants(tmp_path, capsys):
 
 def _study_file(study: Path, folder: Path, **optimizer: int) -> Path:
     """The corpus study with its part's absolute path and the optimiser's ``starts`` / ``maxiter`` set."""
-    text = study.read_text().replace('part = "', f'part = "{DATA}/')
+    text = re.sub(r"""^(part\s*=\s*)["']([^"'/][^"']*)["']""", lambda m: f'{m.group(1)}"{DATA / m.group(2)}"',
+                  study.read_text(), count=1, flags=re.M)
+    if not re.search(r"^\[optimizer\]$", text, flags=re.M):
+        text += "\n[optimizer]\n"
     for key, value in optimizer.items():
         text, n = re.subn(rf"^{key} = \d+$", f"{key} = {value}", text, flags=re.M)
         if not n:
