@@ -33,6 +33,7 @@ from cadfeat.cad.export import (
 from cadfeat.cad.features import extract_holes, holes_to_arrays
 from cadfeat.cad.features.identity import holes_at, pair_holes, take_names
 from cadfeat.design.constraints import verify_on_brep
+from cadfeat.design.optimize.cad import MATCH_TOL_MM
 from cadfeat.errors import CadfeatError
 from cadfeat.study.outputs import normalise_step_header
 
@@ -100,12 +101,17 @@ def predicted_holes(setup: StudySetup, x: np.ndarray) -> list[Hole]:
 def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = None) -> tuple[Any, list[Hole], float]:
     """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
     deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
-    loop extracted at ``x``, in model order) when given."""
+    loop extracted at ``x``, in model order) when given. The rebuilt holes pair with the prediction within
+    0.5 mm of its axis lines and radii; with the feature model of a part whose map is not linear (``setup.linear``
+    false: a bolt circle turned by its phase, predicted by the map linearised at the middle of the design box),
+    within the CAD trust-region loop's ``MATCH_TOL_MM``, as that loop pairs them."""
     shape = setup.rebuild_shape(x)
     predicted = predicted_holes(setup, x)
+    tol_mm = 0.5 if setup.linear else MATCH_TOL_MM
     if verified is not None and len(verified) == len(predicted):
         predicted = [dataclasses.replace(v, name=p.name) for v, p in zip(verified, predicted, strict=True)]
-    holes = order_like(predicted, setup.rebuild_holes(shape), 0.5, "CAD rebuild of the optimum")
+        tol_mm = 0.5
+    holes = order_like(predicted, setup.rebuild_holes(shape), tol_mm, "CAD rebuild of the optimum")
     c0, _, r0 = holes_to_arrays(predicted)
     c1, _, r1 = holes_to_arrays(holes)
     err = float(max(np.linalg.norm(c1 - c0, axis=1).max(initial=0.0), np.abs(r1 - r0).max(initial=0.0)))
