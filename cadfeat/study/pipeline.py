@@ -41,6 +41,7 @@ from cadfeat.study.progress import StudyProgress
 from cadfeat.study.robust_study import attach_robust, check_robust, robust_designs, robust_phase
 from cadfeat.study.schema import StudyConfig, StudyError
 from cadfeat.study.setup import int_grid, load_scene, occlusion_mesh, score_rule
+from cadfeat.study.setup_cache import cached_setup, save
 from cadfeat.study.trust import objective_changes
 from cadfeat.study.verify import (
     AnchoredModel,
@@ -62,6 +63,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.measures.evaluate import Measures
     from cadfeat.study.preflight import Preflight
     from cadfeat.study.setup import Scene, StudySetup
+    from cadfeat.study.setup_cache import SetupCache
     from cadfeat.trajectory import Trajectory
 
 
@@ -306,15 +308,15 @@ class _Delivered:
     rebuild_failure: str | None
 
 
-def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None = None
-            ) -> tuple[dict[str, Any], dict[str, Any]]:
+def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None = None,
+            cache: SetupCache | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
     """The study's phases in order: set up, optimise, deliver (shop rounding, CAD rebuild, scores and
     requirement checks on the B-rep), analyse; returns (results, shapes) for the export and the report.
     ``time_limit_s``: every part-script import and CAD build in a worker process within it (``run_study``:
-    ``[study] build_timeout_s``); None: in this process."""
+    ``[study] build_timeout_s``); None: in this process. ``cache``: the set-up cache (``study.setup_cache``)."""
     check_robust(config)  # issue 18: a chance constraint names a measure of the study, before any work
     with prog.phase("setup"):
-        start = _set_up(config, time_limit_s)
+        start = _set_up(config, time_limit_s, cache)
     base = start.base  # issue 17: the closed-loop check tracks the original on another core meanwhile
     shapes: dict[str, Any] = {"tracking_before": closed_loop_check.start_design(
         config, "before", base.shape0, base.holes0, len(base.trajectory.times_s))}
@@ -379,30 +381,32 @@ def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: 
                          setup, done.holes1, part_mesh(config, done.shape1, mesh1))
 
 
-def _set_up(config: StudyConfig, time_limit_s: float | None) -> _Start:
+def _set_up(config: StudyConfig, time_limit_s: float | None, cache: SetupCache | None = None) -> _Start:
     """The part as it is and every set-up to optimise; the pre-flight refuses a study that cannot mean
-    anything before any optimisation."""
+    anything before any optimisation. ``cache``: the set-ups are read from it when these inputs were set up before
+    and kept in it once their normaliser is built (``study.setup_cache``)."""
     scene = load_scene(config)
     check_fits(len(scene[1]), occlusion=config.objective.occlusion, robustness_samples=config.robustness.samples,
                what=config.label)  # issue 16: refuse what cannot fit in memory, before any CAD work
     combos = int_grid(config) if config.study.part_kind == "script" else [{}]
     if config.study.part_kind == "step":
-        base = study_setup.setup_study(config, time_limit_s=time_limit_s)
+        base = cached_setup(config, time_limit_s=time_limit_s, cache=cache)
         setups = [base]
         m0 = measure_holes(base, base.holes0)
         pre = preflight_setup(config, base, m0)  # refuses a study that cannot mean anything, before any work
     else:  # "before" = the part's own integer values; the others share its objective scales
         defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
-        base = study_setup.setup_script(config, defaults, scene, time_limit_s=time_limit_s)
+        base = cached_setup(config, defaults, scene=scene, time_limit_s=time_limit_s, cache=cache)
         m0 = measure_holes(base, base.holes0)
         pre = preflight_setup(config, base, m0)  # before the other combinations (and before any optimisation)
-        setups = [base] + [study_setup.setup_script(config, c, scene, base.problem.normaliser,
-                                                    time_limit_s=time_limit_s) for c in combos if c != defaults]
+        setups = [base] + [cached_setup(config, c, scene=scene, normaliser=base.problem.normaliser,
+                                        time_limit_s=time_limit_s, cache=cache) for c in combos if c != defaults]
         if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
             setups = setups[1:]
     if config.add_targets is not None:  # issue 31: faces, drill and a feasible site, before any optimisation
         added_targets.preflight(config, base)
     obj0, comb0 = score(base, base.holes0)
+    save([base, *setups])  # (the base's normaliser is built by now: kept with it)
     return _Start(scene, base, setups, m0, pre, obj0, comb0)
 
 
@@ -531,7 +535,7 @@ def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered
     }
 
 
-def part_points(shape: Shape, mesh: trimesh.Trimesh | None = None, most: int = 4000) -> np.ndarray:
+def part_points(shape: Shape | None, mesh: trimesh.Trimesh | None = None, most: int = 4000) -> np.ndarray:
     """Points of the part (V, 3) mm, part frame, for the pre-flight: the occlusion mesh's vertices (or a coarse
     mesh of ``shape``), at most ``most`` of them (evenly strided)."""
     if mesh is None:
@@ -542,7 +546,8 @@ def part_points(shape: Shape, mesh: trimesh.Trimesh | None = None, most: int = 4
 
 def preflight_setup(config: StudyConfig, setup: StudySetup, m: Measures) -> Preflight:
     """``preflight.preflight`` of a set-up study with the measures ``m`` of its holes along the trajectory."""
-    pts = part_points(setup.shape0, getattr(setup.problem, "occlusion_mesh", None))
+    mesh = getattr(setup.problem, "occlusion_mesh", None)
+    pts = part_points(setup.shape0 if mesh is None else None, mesh)  # (a cached set-up's solid: only if needed)
     return preflight(config, setup.camera, setup.trajectory, setup.T_task_part, pts, m, scored_mask(setup),
                      setup.hole_names)
 
