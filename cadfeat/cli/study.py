@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from cadfeat.cli.command import Command
@@ -64,6 +65,10 @@ def run(args: argparse.Namespace) -> int:
     result = run_study(args.study, args.out, seed=args.seed, quiet=args.quiet, progress=not args.quiet,
                        force=args.force, track=args.track, cache=args.cache)
     print(result.summary())
+    if result.results.get("interrupted"):  # Ctrl-C: the best design so far was written (study.interrupts)
+        print(f"cadfeat: interrupted; the best design so far is in {result.out_dir} (results.json: "
+              '"interrupted": true)', file=sys.stderr)
+        return 130
     return 0
 
 

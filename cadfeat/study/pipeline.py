@@ -29,6 +29,7 @@ from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
 from cadfeat.study import added_targets, closed_loop_check
 from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
+from cadfeat.study.interrupts import RunInterrupts
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
     hole_dict,
@@ -104,10 +105,11 @@ def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tu
     """Optimise one setup; returns (OptimResult-like, interrupted)."""
     oc = setup.config.optimizer
     try:
-        if setup.linear:
-            res = optimize.optimise(setup.problem, oc, progress=progress.iteration)
-        else:
-            res = optimize.solve_with_cad(setup.problem, cad_holes(setup), oc, progress=progress.iteration)
+        with progress.interrupts.keeping():  # Ctrl-C: the optimiser returns its best design so far
+            if setup.linear:
+                res = optimize.optimise(setup.problem, oc, progress=progress.iteration)
+            else:
+                res = optimize.solve_with_cad(setup.problem, cad_holes(setup), oc, progress=progress.iteration)
     except KeyboardInterrupt:
         if progress.best_x is None:
             raise
@@ -170,14 +172,15 @@ def _refresh_outlines(setup: StudySetup, res: OptimResult, scene: Scene, normali
     for k in range(OUTLINE_ROUNDS):
         x = np.asarray(res.x_best, float)
         try:
-            _, holes, _ = rebuild(setup, x)
-            if not outlines_differ(setup.model.holes_at(x) if hasattr(setup.model, "holes_at") else setup.model.holes,
-                                   holes):  # the outlines the model predicts at x (they may move with x)
-                break
-            names = setup.space.names
-            new = study_setup.setup_script(setup.config, setup.int_values, scene, normaliser,
-                                           at=dict(zip(names, x, strict=True)), time_limit_s=setup.time_limit_s)
-            res2, stopped = _optimise(new, prog, label)
+            with prog.interrupts.keeping():  # Ctrl-C: the previous round's design is kept
+                _, holes, _ = rebuild(setup, x)
+                if not outlines_differ(setup.model.holes_at(x) if hasattr(setup.model, "holes_at")
+                                       else setup.model.holes, holes):  # the outlines the model predicts at x
+                    break
+                names = setup.space.names
+                new = study_setup.setup_script(setup.config, setup.int_values, scene, normaliser,
+                                               at=dict(zip(names, x, strict=True)), time_limit_s=setup.time_limit_s)
+                res2, stopped = _optimise(new, prog, label)
         except CadfeatError:
             break
         except KeyboardInterrupt:  # keep the design of the previous round
@@ -331,9 +334,11 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
                   ) -> tuple[dict[str, Any], dict[str, Any]]:
     """``compute``'s phases after the set-up: optimise, deliver, analyse; ``shapes`` gains the designs (and the
     recommended design's closed loop in a worker, ``closed_loop_check.start_design``, before the analysis)."""
+    interrupts = prog.interrupts
     with prog.phase("optimise"):
         opt = _optimise_all(config, start, prog)
         robust_run = robust_phase(config, opt, prog, _history)  # issue 18: the robust optimum (opt.res if delivered)
+    opt.interrupted = opt.interrupted or interrupts.requested  # (from here on, Ctrl-C finishes: study.interrupts)
     setup = opt.setup
     x1 = np.asarray(opt.res.x_best, float)
     if not opt.interrupted and getattr(opt.res, "feasible", True) is False:
@@ -351,25 +356,42 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
         m1 = measure_holes(setup, done.holes1, mesh=mesh1)
         obj1, comb1 = score(setup, done.holes1)
         checks = requirement_checks(setup, done.shape1, done.holes1, "brep")
-    shapes["tracking_after"] = closed_loop_check.start_design(config, "after", done.shape1, done.holes1,
-                                                              len(setup.trajectory.times_s))
+    if not interrupts.requested:
+        shapes["tracking_after"] = closed_loop_check.start_design(config, "after", done.shape1, done.holes1,
+                                                                  len(setup.trajectory.times_s))
     with prog.phase("analyse"):
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, done.x1)
-        robust = _robustness(setup, start.base.holes0, done.holes1, start.comb0)
-        pose = _pose_accuracy(config, start, setup, done, mesh1)
+        robust = _optional(interrupts, _robustness, setup, start.base.holes0, done.holes1, start.comb0)
+        pose = _optional(interrupts, _pose_accuracy, config, start, setup, done, mesh1)
+    opt.interrupted = opt.interrupted or interrupts.requested
     results = _results(config, start, opt, done, (m1, obj1, comb1, checks), (sweep, dmat, robust))
-    results["pose_accuracy"] = pose
+    if pose is not None:
+        results["pose_accuracy"] = pose
     if config.add_targets is not None and not opt.interrupted:  # issue 31: new target holes on the delivered design
         with prog.phase("add targets"):
-            results["added_targets"], extra = added_targets.run_phase(
-                config, setup, {"before": (start.base.shape0, start.base.holes0), "after": (done.shape1, done.holes1)},
-                prog, done.x1)
-        shapes.update(extra)
-    attach_robust(results, robust_designs(setup, robust_run, start.base.holes0, done.holes1))  # issue 18
+            added = _optional(interrupts, added_targets.run_phase, config, setup, {
+                "before": (start.base.shape0, start.base.holes0), "after": (done.shape1, done.holes1)}, prog, done.x1)
+        if added is not None:
+            results["added_targets"], extra = added
+            shapes.update(extra)
+    designs = _optional(interrupts, robust_designs, setup, robust_run, start.base.holes0, done.holes1)
+    if designs is not None:
+        attach_robust(results, designs)  # issue 18
+    results["interrupted"] = bool(opt.interrupted or interrupts.requested)
     shapes.update({"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,
                    "holes1": done.holes1, "setup": setup, "base": start.base})
     return results, shapes
+
+
+def _optional(interrupts: RunInterrupts, func: Callable[..., Any], *args: Any) -> Any:
+    """``func(*args)``, an optional part of the run after the optimiser; None when the run is interrupted before
+    or during it (``RunInterrupts.skippable``: the run finishes without it)."""
+    try:
+        with interrupts.skippable():
+            return func(*args)
+    except KeyboardInterrupt:
+        return None
 
 
 def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: _Delivered,
@@ -417,6 +439,9 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
     history: list[dict[str, Any]] = []
     setups = start.setups
     for s in setups:
+        if best is not None and prog.interrupts.requested:  # interrupted: the combinations left are not tried
+            interrupted = True
+            break
         label = ", ".join(f"{k}={v}" for k, v in s.int_values.items()) if len(setups) > 1 else ""
         prog.best_x, prog.best_f = None, np.inf
         try:
@@ -426,6 +451,7 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
                 raise
             interrupted = True
             break
+        prog.interrupts.designing()  # a design exists: from now on Ctrl-C finishes with the best one
         history += _history(res, label)
         if not stopped and config.study.part_kind == "script":
             s, res, extra, stopped = _refresh_outlines(s, res, start.scene, start.base.problem.normaliser, prog,
@@ -437,7 +463,7 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
             interrupted = True
             break
     assert best is not None  # (an interrupt before the first result re-raises above)
-    return _Optimum(best[0], best[1], history, interrupted)
+    return _Optimum(best[0], best[1], history, interrupted or prog.interrupts.requested)
 
 
 def _rebuild_delivered(setup: StudySetup, x1: np.ndarray, x_opt: np.ndarray, verified: Sequence[Hole] | None,
@@ -479,7 +505,7 @@ def _deliver(setup: StudySetup, opt: _Optimum, prog: StudyProgress, shopped: tup
         model = AnchoredModel(setup.model, x_opt, verified)
         x1, shop, targets = _shop(setup, x_opt, model)
         x1, targets, (shape1, holes1, pred_err) = _rebuild_delivered(setup, x1, x_opt, verified, model, shop, targets)
-    if targets is not None:
+    if targets is not None and not prog.interrupts.requested:  # (interrupted: the first rebuild is delivered)
         x1, shape1, holes1, pred_err = _shop_refine(setup, x1, (shape1, holes1, pred_err), targets, shop, model)
     return _Delivered(x1, shape1, holes1, pred_err, shop, res, rebuild_failure)
 

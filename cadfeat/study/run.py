@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import shutil
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -46,6 +47,7 @@ from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
 from cadfeat.results import StudyResults
 from cadfeat.study import added_targets, closed_loop_check
+from cadfeat.study.interrupts import RunInterrupts
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
     file_entry,
@@ -184,8 +186,9 @@ def run_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | Non
     config = closed_loop_check.with_mode(_resolve(path_or_dict, seed), track)
     out = out_dir if out_dir is not None else default_out_dir(config)
     start_workers()  # (CadQuery loads in the worker server meanwhile)
-    with staged_output(out, force) as stage, \
-            StudyProgress(config.study.name, enabled=progress and not quiet) as prog:
+    interrupts = RunInterrupts()  # Ctrl-C keeps the best design so far (study.interrupts)
+    with interrupts.installed(), staged_output(out, force) as stage, \
+            StudyProgress(config.study.name, enabled=progress and not quiet, interrupts=interrupts) as prog:
         results, shapes = compute(config, prog, config.study.build_timeout_s, open_cache(cache))
         try:
             with prog.phase("export"):
@@ -226,12 +229,35 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
     results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
     results["versions"] = versions()
     finish_report = _report(stage, results, shapes, prog)
-    closed_loop_check.attach(config, results, shapes, stage, prog)  # the closed loop confirms (issue 17)
-    added_targets.confirm(config, results, shapes, prog)  # issue 31: the added design against the move-only optimum
+    _closed_loop(config, results, shapes, stage, prog)  # the closed loop confirms (issue 17)
+    results["interrupted"] = bool(results.get("interrupted") or prog.interrupts.requested)
     results["verdict"] = verdict_json(plain(results))
     write_results(stage / "results.json", results)
     if finish_report is not None:
         finish_report(results)
+
+
+def _closed_loop(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, Any], stage: Path,
+                 prog: StudyProgress) -> None:
+    """The closed-loop check (``closed_loop_check.attach``) and the added targets' confirmation; skipped — its
+    workers stopped, whatever it had written into the stage removed, a warning saying so — when the run is
+    interrupted before or during it (``study.interrupts``: the run finishes with the design found)."""
+    try:
+        with prog.interrupts.skippable():
+            closed_loop_check.attach(config, results, shapes, stage, prog)
+            added_targets.confirm(config, results, shapes, prog)  # issue 31: against the move-only optimum
+    except KeyboardInterrupt:
+        from cadfeat.study.physical_views import FOLDER as VIEWS  # lazy: Mitsuba
+
+        closed_loop_check.cancel(shapes)
+        for key in ("tracking", "physical_views"):
+            results.pop(key, None)
+        for name in ("tracking", VIEWS):  # (the frames and views drawn so far: no half-written folder)
+            if (stage / name).is_dir():
+                shutil.rmtree(stage / name)
+        results.setdefault("warnings", []).append(
+            f"{closed_loop_check.SKIPPED}: the run was interrupted (`cadfeat track` on this study confirms the "
+            "design in the closed loop)")
 
 
 def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], prog: StudyProgress
