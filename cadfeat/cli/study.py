@@ -163,8 +163,10 @@ def _cache_args(parser: argparse.ArgumentParser) -> None:
 
 
 def cache(args: argparse.Namespace) -> int:
-    """Show where the study set-up cache is and its size (run, evaluate and explore read the set-up of unchanged
-    inputs from it); ``--clear`` deletes its entries."""
+    """Show where the study set-up cache is and how big it is (--clear: delete its entries).
+
+    ``run``, ``evaluate`` and ``explore`` keep a study's set-up there (CAD builds, design map, normaliser,
+    occlusion mesh) and read it back when the same inputs come again; see docs/guide/commands.md."""
     from cadfeat.study.setup_cache import CACHE_DIR_ENV, CACHE_ENV, SetupCache, cache_enabled, cache_root
 
     root = cache_root()

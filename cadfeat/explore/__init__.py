@@ -16,7 +16,13 @@ with the predicted rim ellipses; current vs optimum; write the design as a study
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.explore.loader import SessionLoader
+    from cadfeat.explore.server import ExploreServer, serve
+    from cadfeat.explore.session import ExploreSession
+    from cadfeat.explore.status import SetupStatus
 
 __all__ = ["ExploreServer", "ExploreSession", "SessionLoader", "SetupStatus", "serve"]
 _HOMES = {"ExploreServer": "server", "serve": "server", "ExploreSession": "session", "SessionLoader": "loader",

@@ -21,7 +21,7 @@ Off: ``CADFEAT_CACHE=off`` (also 0 / no / false), or ``--no-cache`` on ``run``, 
 The key (``input_key``) is the SHA-256 of: the entry format, cadfeat's version and a digest of its own source and
 data files (a changed cadfeat misses), the versions of Python and of the libraries the set-up's numbers come from
 (CadQuery, OCP, numpy, SciPy, trimesh, numba, Embree), the resolved study (``StudyConfig.to_dict()``: defaults
-filled in, as a campaign's input hash) and its folder, the bytes of the part file — and of the modules beside a
+filled in, hashed as a campaign's input hash is: ``study.inputs``) and its folder, the bytes of the part file — and of the modules beside a
 part script that it imports —, the camera as built (a calibration file's values), the trajectory's poses and
 times as built (a CSV's), the part pose and the integer parameters' values. A changed input misses. What a part
 script reads some other way (a data file it opens) is not in the key: ``--no-cache`` after changing it.
@@ -39,7 +39,6 @@ import contextlib
 import dataclasses
 import hashlib
 import io
-import json
 import os
 import pickle
 import platform
@@ -58,6 +57,7 @@ import numpy as np
 
 from cadfeat._version import __version__
 from cadfeat.errors import CadfeatError, CadfeatWarning
+from cadfeat.study.inputs import canonical_json, sha256_file
 from cadfeat.study.setup import StudySetup
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -96,20 +96,6 @@ def _warn(message: str) -> None:
 
 
 # ----------------------------------------------------------------------------------------------- the key
-def sha256_file(path: str | os.PathLike[str]) -> str:
-    """SHA-256 of a file's bytes (hex)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
-def canonical_json(data: Any) -> bytes:
-    """``data`` as canonical JSON bytes (sorted keys, no blanks; paths and the like as their ``str``)."""
-    return json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False, default=str).encode()
-
-
 @lru_cache(maxsize=1)
 def source_digest() -> str:
     """SHA-256 of cadfeat's own source and data files (names and bytes): a changed cadfeat misses every entry,

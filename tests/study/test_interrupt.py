@@ -24,7 +24,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 SLEEP_S = "0.6"
 
-PART = '''"""Two 4 mm holes on a 20 mm circle at phase_deg and phase_deg + 120 deg in a 60 x 60 x 6 mm plate, a fixed one."""
+PART = '''"""Two 4 mm holes on a 20 mm circle at phase_deg and phase_deg + 120 deg in a 60 x 60 x 6 mm plate."""
 import math
 import os
 import time
@@ -115,7 +115,8 @@ def _run_and_interrupt(study: Path, out: Path, after_builds: int, signals: int =
     been built ``after_builds`` times; (exit status, stderr, the builds' phases)."""
     log = out.parent / f"{out.name}.log"
     env = {**os.environ, "CADFEAT_TEST_BUILD_LOG": str(log), "CADFEAT_TEST_BUILD_SLEEP_S": SLEEP_S,
-           "CADFEAT_CACHE": "off", "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+           "CADFEAT_CACHE": "off",
+           "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
     proc = subprocess.Popen([sys.executable, "-m", "cadfeat", "run", str(study), "--out", str(out), "--quiet"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=study.parent,
                             start_new_session=True,  # its own process group, as a terminal's job
