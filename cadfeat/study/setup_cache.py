@@ -21,10 +21,11 @@ Off: ``CADFEAT_CACHE=off`` (also 0 / no / false), or ``--no-cache`` on ``run``, 
 The key (``input_key``) is the SHA-256 of: the entry format, cadfeat's version and a digest of its own source and
 data files (a changed cadfeat misses), the versions of Python and of the libraries the set-up's numbers come from
 (CadQuery, OCP, numpy, SciPy, trimesh, numba, Embree), the resolved study (``StudyConfig.to_dict()``: defaults
-filled in, hashed as a campaign's input hash is: ``study.inputs``) and its folder, the bytes of the part file — and of the modules beside a
-part script that it imports —, the camera as built (a calibration file's values), the trajectory's poses and
-times as built (a CSV's), the part pose and the integer parameters' values. A changed input misses. What a part
-script reads some other way (a data file it opens) is not in the key: ``--no-cache`` after changing it.
+filled in, hashed as a campaign's input hash is: ``study.inputs``) and its folder, the bytes of the part file —
+and of the modules beside a part script that it imports —, the camera as built (a calibration file's values), the
+trajectory's poses and times as built (a CSV's), the part pose and the integer parameters' values. A changed
+input misses. What a part script reads some other way (a data file it opens) is not in the key: ``--no-cache``
+after changing it.
 
 An entry is a pickle (``FORMAT``) read only from cadfeat's own cache folder, and used only if its format and key
 match; one that cannot be read is ignored with a ``CacheWarning`` and replaced by a fresh set-up. Entries are
