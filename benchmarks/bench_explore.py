@@ -179,7 +179,9 @@ Start, seconds from launching the command, median (minimum) of {REPEATS} starts 
 The page is served {base['ready'] / max(base['url'], 1e-9):.0f}x sooner than the study is ready without the cache (it
 shows the set-up's progress meanwhile); the warm start is ready in {warm['ready'] / base['ready']:.2f}x the baseline's
 time ({base['ready'] / warm['ready']:.1f}x faster; target, issue 32 item 6: under 3 s). The cold start against the
-baseline (its extra work: the display mesh, writing the entry): {cold['ready'] - base['ready']:+.1f} s (median).
+baseline: {cold['ready'] - base['ready']:+.1f} s (median) — its extra work (the display mesh, writing the entry) plus
+this machine's start-to-start spread (the baseline's starts: {low['base']['ready']:.1f} to
+{max(t['ready'] for t in times['base']):.1f} s).
 
 {n_moves} slider moves on the warm explorer (each variable dragged across its range in {STEPS} steps):
 
