@@ -101,6 +101,10 @@ def validate(args: argparse.Namespace) -> int:
     for line in ([] if pre is None else [f"ASSUMED: {a}" for a in pre.assumptions] +
                  [f"WARNING: {w}" for w in pre.warnings]):
         print(f"  {line}")
+    added = None if pre is None else pre.numbers.get("add_targets")  # type: ignore[attr-defined]
+    if added:
+        print(f"  add_targets: {added['sites']} candidate sites on {'; '.join(added['faces'])}; at most "
+              f"{added['most_that_fit']} holes fit at once; a dry-run hole drilled and verified")
     return 0
 
 

@@ -65,7 +65,10 @@ TRACKED_MIN = 0.5
 BACKGROUND_ENV = "CADFEAT_TRACKING_BACKGROUND"
 BACKGROUND_WAIT_S = 3600.0
 #: Where ``pipeline.compute`` keeps the workers of ``start_design`` in its shapes, per design name.
-BACKGROUND_KEYS = {"before": "tracking_before", "after": "tracking_after"}
+BACKGROUND_KEYS = {"before": "tracking_before", "after": "tracking_after", "move_only": "tracking_move_only"}
+#: With added target holes (``[add_targets]``, issue 31) the delivered design ("after") is the move-only optimum
+#: with the holes drilled; the move-only optimum is tracked too, in the same paired runs, and compared both ways.
+ADDED_PAIRS = {"move_only_vs_original": ("before", "move_only"), "added_vs_move_only": ("move_only", "after")}
 
 
 def with_mode(config: StudyConfig, mode: str | None) -> StudyConfig:
@@ -151,6 +154,15 @@ def check_spec(config: StudyConfig, n_samples: int) -> tuple[str, TrackingSpec |
     return mode, fast_spec(config, n_samples)
 
 
+def designs_of(shapes: Mapping[str, Any]) -> dict[str, tuple[Any, Any]]:
+    """The designs the check tracks: "before" (the original) and "after" (the delivered design), and
+    "move_only" (the move-only optimum) when the delivered design has added target holes."""
+    designs = {"before": (shapes["shape0"], shapes["holes0"]), "after": (shapes["shape1"], shapes["holes1"])}
+    if shapes.get("shape_move_only") is not None:
+        designs["move_only"] = (shapes["shape_move_only"], shapes["holes_move_only"])
+    return designs
+
+
 def start_design(config: StudyConfig, name: str, shape: Any, holes: Any, n_samples: int) -> BackgroundCall | None:
     """Start tracking one design (``shape``, ``holes``; ``name`` "before" or "after") in a worker process, so
     that the check runs on another core while this process goes on: the original while the optimiser runs,
@@ -167,8 +179,9 @@ def start_design(config: StudyConfig, name: str, shape: Any, holes: Any, n_sampl
         return None
     threads = 1 if name == "before" else None  # beside the optimiser (one core): the renderer and OpenCV on one
     try:
+        what = {"before": "original", "move_only": "move-only"}.get(name, "recommended")
         return BackgroundCall(_track_design, (threads, track_arguments(config, spec, (shape, list(holes)))),
-                              f"the closed loop of the {'original' if name == 'before' else 'recommended'} design")
+                              f"the closed loop of the {what} design")
     except Exception:  # noqa: BLE001 - an optimisation: the check then runs here, where errors are reported
         return None
 
@@ -216,8 +229,8 @@ def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Pat
     from cadfeat.study.tracking import run_tracking  # lazy: would import scipy.optimize at module load
 
     mode, spec = check_spec(config, len(shapes["setup"].trajectory.times_s))
-    designs = {"before": (shapes["shape0"], shapes["holes0"]), "after": (shapes["shape1"], shapes["holes1"])}
-    few = min(len(shapes["holes0"]), len(shapes["holes1"]))
+    designs = designs_of(shapes)
+    few = min(len(holes) for _, holes in designs.values())
     if spec is None:
         cancel(shapes)
         return None, None
@@ -229,10 +242,11 @@ def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Pat
 
         progress.log(pbr_announcement(config, spec, designs))
     t0, c0 = time.perf_counter(), time.process_time()
-    pending = {name: shapes.get(key) for name, key in BACKGROUND_KEYS.items()}
+    pending = {name: shapes.get(key) for name, key in BACKGROUND_KEYS.items() if name in designs}
     try:
         with _phase(progress):
-            section = run_tracking(config, designs, stage, spec, tracked=_collect(pending, progress))
+            section = run_tracking(config, designs, stage, spec, tracked=_collect(pending, progress),
+                                   pairs=ADDED_PAIRS if "move_only" in designs else None)
     except (CadfeatError, ImportError, RuntimeError, OSError, ValueError) as exc:
         if mode in ("full", "pbr"):  # asked for by name: fail loudly
             raise
@@ -255,6 +269,8 @@ def _inconclusive(section: dict[str, Any]) -> None:
     if tracked and max(tracked.values()) < TRACKED_MIN and section.get("verdicts"):
         section["check"]["verdicts_not_used"] = section["verdicts"]
         section["verdicts"] = {}
+        for c in (section.get("comparisons") or {}).values():
+            c["verdicts_not_used"], c["verdicts"] = c["verdicts"], {}
         share = ", ".join(f"{k} {100 * v:.0f} %" for k, v in tracked.items())
         section.setdefault("warnings", []).append(
             f"the closed loop detects 3 or more holes in too few frames of either design (frames tracked: {share}; "
@@ -277,13 +293,26 @@ def summary_lines(results: Mapping[str, Any]) -> list[str]:
                 "or `cadfeat track` confirms it)"]
     check = tr.get("check") or {}
     head = (f"  closed loop ({check.get('mode', 'full')}: {check.get('runs', '?')} paired runs, "
-            f"{check.get('frames', '?')} frames, {check.get('seconds', '?')} s), after vs before:")
+            f"{check.get('frames', '?')} frames, {check.get('seconds', '?')} s), "
+            + ("the delivered design (with the added holes) vs the original:" if tr.get("comparisons")
+               else "after vs before:"))
     lines = [head] + [f"    WARNING: {w}" for w in tr.get("warnings", []) if "no tracking verdict" in str(w)]
     for m, v in (tr.get("verdicts") or {}).items():
         t, r = v.get("translation", {}), v.get("rotation", {})
         rms = _rms(tr, m)
         lines.append(f"    {m.upper():<5} {v.get('verdict')} (translation p = {_p(t)}, rotation p = {_p(r)}){rms}")
+    for label, c in (tr.get("comparisons") or {}).items():
+        lines.append(f"  closed loop, {COMPARISON_TEXT.get(label, label)}:")
+        for m, v in (c.get("verdicts") or {}).items():
+            t, r = v.get("translation", {}), v.get("rotation", {})
+            lines.append(f"    {m.upper():<5} {v.get('verdict')} (translation p = {_p(t)}, rotation p = {_p(r)})"
+                         f"{_rms(tr, m, c.get('before', 'before'), c.get('after', 'after'))}")
     return lines
+
+
+#: How the printout and the report name the comparisons of ``ADDED_PAIRS``.
+COMPARISON_TEXT = {"move_only_vs_original": "the move-only optimum vs the original",
+                   "added_vs_move_only": "the delivered design (with the added holes) vs the move-only optimum"}
 
 
 def _p(v: Mapping[str, Any]) -> str:
@@ -295,10 +324,10 @@ def _p(v: Mapping[str, Any]) -> str:
     return f"{p:.2g}" + (f" (change under {100 * v.get('min_change', 0.0):.0f} %)" if small else "")
 
 
-def _rms(tr: Mapping[str, Any], m: str) -> str:
+def _rms(tr: Mapping[str, Any], m: str, before: str = "before", after: str = "after") -> str:
     """'; RMS 0.039 → 0.034 mm, 0.027° → 0.027°' from the designs' Monte-Carlo means."""
     try:
-        b, a = (tr["designs"][k]["estimators"][m] for k in ("before", "after"))
+        b, a = (tr["designs"][k]["estimators"][m] for k in (before, after))
         return (f"; RMS {b['trans_mm_rms']['mean']:.4f} → {a['trans_mm_rms']['mean']:.4f} mm, "
                 f"{b['rot_deg_rms']['mean']:.4f}° → {a['rot_deg_rms']['mean']:.4f}°")
     except (KeyError, TypeError):

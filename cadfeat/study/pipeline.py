@@ -25,9 +25,10 @@ from cadfeat.design.memory import check_fits
 from cadfeat.design.patterns import check_patterns, find_patterns
 from cadfeat.design.robustness import robustness
 from cadfeat.design.shop import hole_sizes, refine_on_rebuild, shop_design
+from cadfeat.design.unseen import scored_measures
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
-from cadfeat.study import added_targets, closed_loop_check
+from cadfeat.study import added_design, added_targets, closed_loop_check
 from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
 from cadfeat.study.interrupts import RunInterrupts
 from cadfeat.study.outputs import (
@@ -77,15 +78,18 @@ SWEEP_SAMPLES = 41
 def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Trajectory | None = None, *,
                   mesh: trimesh.Trimesh | None = None) -> Measures:
     """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
-    the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off)."""
+    the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off), as
+    the objectives score them (``design.unseen.scored_measures``: results.json's measures, the pre-flight and the
+    explorer show the values the objectives aggregate; ``measures.evaluate`` alone gives the thesis's)."""
     traj = trajectory if trajectory is not None else setup.trajectory
     o = setup.config.objective
     if mesh is None:
         mesh = getattr(getattr(setup, "problem", None), "occlusion_mesh", None)
     T_cam_part = cam_from_part(traj.T_task_cam, setup.T_task_part)
     c, a, r = holes_to_arrays(list(holes))
-    return measures.evaluate(setup.camera, T_cam_part, traj.velocity_screws(), c, a, r, min_axis_px=o.min_axis_px,
-                             rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
+    m = measures.evaluate(setup.camera, T_cam_part, traj.velocity_screws(), c, a, r, min_axis_px=o.min_axis_px,
+                          rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
+    return scored_measures(m, setup.camera, o.min_axis_px)
 
 
 def score(setup: StudySetup, holes: Sequence[Hole]) -> tuple[dict[str, float], float | None]:
@@ -356,9 +360,12 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
         m1 = measure_holes(setup, done.holes1, mesh=mesh1)
         obj1, comb1 = score(setup, done.holes1)
         checks = requirement_checks(setup, done.shape1, done.holes1, "brep")
-    if not interrupts.requested:
-        shapes["tracking_after"] = closed_loop_check.start_design(config, "after", done.shape1, done.holes1,
-                                                                  len(setup.trajectory.times_s))
+    n_samples = len(setup.trajectory.times_s)
+    # with [add_targets] the move-only optimum may not be the delivered design: tracked as "move_only" until known
+    key = "tracking_move_only" if config.add_targets is not None else "tracking_after"
+    if not interrupts.requested:  # (interrupted: no closed loop, study.interrupts)
+        shapes[key] = closed_loop_check.start_design(config, key.removeprefix("tracking_"), done.shape1, done.holes1,
+                                                     n_samples)
     with prog.phase("analyse"):
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, done.x1)
@@ -368,19 +375,14 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
     results = _results(config, start, opt, done, (m1, obj1, comb1, checks), (sweep, dmat, robust))
     if pose is not None:
         results["pose_accuracy"] = pose
-    if config.add_targets is not None and not opt.interrupted:  # issue 31: new target holes on the delivered design
-        with prog.phase("add targets"):
-            added = _optional(interrupts, added_targets.run_phase, config, setup, {
-                "before": (start.base.shape0, start.base.holes0), "after": (done.shape1, done.holes1)}, prog, done.x1)
-        if added is not None:
-            results["added_targets"], extra = added
-            shapes.update(extra)
     designs = _optional(interrupts, robust_designs, setup, robust_run, start.base.holes0, done.holes1)
     if designs is not None:
         attach_robust(results, designs)  # issue 18
-    results["interrupted"] = bool(opt.interrupted or interrupts.requested)
     shapes.update({"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,
                    "holes1": done.holes1, "setup": setup, "base": start.base})
+    if config.add_targets is not None:  # issue 31: new target holes on the move-only optimum
+        _add_targets(config, prog, start, opt, done, results, shapes)
+    results["interrupted"] = bool(opt.interrupted or interrupts.requested)
     return results, shapes
 
 
@@ -392,6 +394,36 @@ def _optional(interrupts: RunInterrupts, func: Callable[..., Any], *args: Any) -
             return func(*args)
     except KeyboardInterrupt:
         return None
+
+
+def _add_targets(config: StudyConfig, prog: StudyProgress, start: _Start, opt: _Optimum, done: _Delivered,
+                 results: dict[str, Any], shapes: dict[str, Any]) -> None:
+    """The added-target phase (``study.added_targets``) on the move-only optimum; when it recommends holes, that
+    design is delivered (``study.added_design.deliver``) and its closed loop starts in a worker; otherwise the
+    move-only optimum's worker is the delivered design's. An interrupted run (``study.interrupts``) delivers the
+    move-only optimum: the phase is skipped, or abandoned when Ctrl-C comes during it."""
+    base = start.base
+    recommended = 0
+    interrupts = prog.interrupts
+    found = None
+    if not opt.interrupted and not interrupts.requested:
+        with prog.phase("add targets"):
+            found = _optional(interrupts, added_targets.run_phase, config, opt.setup, {
+                "before": (base.shape0, base.holes0), "after": (done.shape1, done.holes1)}, prog, done.x1)
+    if found is not None:
+        results["added_targets"], extra = found
+        recommended = int(results["added_targets"]["recommended"])
+        if recommended:  # (from here on Ctrl-C is noted, not raised: the results are not left half-changed)
+            with prog.phase("add targets"):
+                added_design.deliver(config, opt.setup, base, results, shapes, extra,
+                                     lambda holes, shape: measure_holes(opt.setup, holes,
+                                                                        mesh=occlusion_mesh(config, shape)),
+                                     lambda holes: _patterns(base, holes))
+    if recommended:
+        shapes["tracking_after"] = closed_loop_check.start_design(config, "after", shapes["shape1"],
+                                                                  shapes["holes1"], len(opt.setup.trajectory.times_s))
+    else:
+        shapes["tracking_after"] = shapes.pop("tracking_move_only", None)
 
 
 def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: _Delivered,

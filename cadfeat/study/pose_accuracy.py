@@ -60,10 +60,11 @@ def _arrays(holes: Sequence[Any]) -> tuple[np.ndarray, ...]:
 
 def predict(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], mesh: Any, rotation_length_mm: float,
             occlusion: np.ndarray | None = None, arrays: tuple[np.ndarray, ...] | None = None,
-            cell: Cell | None = None) -> tuple[Any, Any]:
+            cell: Cell | None = None, glare: Any = None) -> tuple[Any, Any]:
     """(``PoseInformation``, rim hidden fraction (L, N)) of ``holes`` at the poses, exact rim test on ``mesh``
     (None: nothing hidden) unless ``occlusion`` is given; ``arrays`` replaces the holes' (c, a, r, through, depth);
-    ``cell``: the robot cell (its gate, placement and sensor noise; default ``Cell()``) — g_POSE's own."""
+    ``cell``: the robot cell (its gate, placement and sensor noise; default ``Cell()``) — g_POSE's own;
+    ``glare``: g_POSE's glare maps at these poses (``Problem.glare``, ``measures.glare``), None: none."""
     from cadfeat.measures import pose_information  # lazy: would import scipy.spatial at module load
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
@@ -75,8 +76,22 @@ def predict(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], mesh: Any
     info = pose_information(camera, T_cam_part, c, a, r, occlusion=occlusion, through=through,
                             kinds=hole_kinds(holes) if len(holes) == len(c) else None,
                             depth_ratio=depth / (2.0 * np.maximum(r, 1e-9)), rotation_length_mm=rotation_length_mm,
-                            model=cell_models(cell), noise_grey=cell.noise_sigma_grey)
+                            model=cell_models(cell), noise_grey=cell.noise_sigma_grey,
+                            contrast_rate=_contrast_rate(glare, cell, T_cam_part, c, a, r, through))
     return info, occlusion
+
+
+def _contrast_rate(glare: Any, cell: Cell, T: np.ndarray, c: np.ndarray, a: np.ndarray, r: np.ndarray,
+                   through: np.ndarray) -> np.ndarray | None:
+    """(L, N) g_POSE's factor from the part's own light (``design.pose_terms.glare_rate``'s rule) when ``glare``
+    holds maps of these L poses and the cell's material returns light from its bores; else None."""
+    from cadfeat.cell.material import bores_return_light
+
+    if glare is None or glare.n_poses != len(T) or not bores_return_light(cell.material):
+        return None
+    from cadfeat.measures.glare import contrast_rate  # lazy: as pose_information
+
+    return np.where(through, 1.0, contrast_rate(glare, T, c, a, r, cell.noise_sigma_grey))
 
 
 def _rms(v: np.ndarray) -> float:
@@ -220,11 +235,12 @@ def _finite(v: np.ndarray) -> list[float | None]:
 
 def design_pose_accuracy(camera: Any, T_cam_part: np.ndarray, times_s: np.ndarray, holes: Sequence[Any],
                          names: Sequence[str], movable: Sequence[str], mesh: Any, tuning: Any,
-                         rotation_length_mm: float, cell: Cell | None = None) -> dict[str, Any]:
-    """The ``pose_accuracy`` block of one design (module docstring) in the robot cell ``cell``."""
+                         rotation_length_mm: float, cell: Cell | None = None, glare: Any = None) -> dict[str, Any]:
+    """The ``pose_accuracy`` block of one design (module docstring) in the robot cell ``cell`` (``glare``: g_POSE's
+    glare maps, ``predict``)."""
     from cadfeat.vision import posterior_crlb  # lazy: would import scipy.spatial at module load
 
-    info, occ = predict(camera, T_cam_part, holes, mesh, rotation_length_mm, cell=cell)
+    info, occ = predict(camera, T_cam_part, holes, mesh, rotation_length_mm, cell=cell, glare=glare)
     _, crlb = posterior_crlb(info.information, times_s, tuning)
     per_pose = {"error_translation_mm": info.error_translation_mm, "error_rotation_deg": info.error_rotation_deg,
                 "bias_translation_mm": info.bias_translation_mm, "bias_rotation_deg": info.bias_rotation_deg,
@@ -264,7 +280,8 @@ def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, set
     for key, s, holes, mesh in designs:
         T = cam_from_part(s.trajectory.T_task_cam, s.T_task_part)
         out[key] = design_pose_accuracy(s.camera, T, np.asarray(s.trajectory.times_s, float), holes,
-                                        hole_names(list(holes)), movable, mesh, tuning, ell, config.cell)
+                                        hole_names(list(holes)), movable, mesh, tuning, ell, config.cell,
+                                        getattr(getattr(s, "problem", None), "glare", None))
     return out
 
 

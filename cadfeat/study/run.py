@@ -40,13 +40,14 @@ from cadfeat.cad.parts import load_part
 from cadfeat.cad.sandbox import start_workers
 from cadfeat.cad.step_parts import load_step
 from cadfeat.design.objectives import objective_values
+from cadfeat.design.unseen import scored_measures
 from cadfeat.errors import CadfeatError
 from cadfeat.output_folder import staged_output
 from cadfeat.poses import cam_from_part
 from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
 from cadfeat.results import StudyResults
-from cadfeat.study import added_targets, closed_loop_check
+from cadfeat.study import added_design, added_targets, closed_loop_check
 from cadfeat.study.interrupts import RunInterrupts
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
@@ -92,7 +93,7 @@ __all__ = ["EXPORTS_DIR", "StudyResult", "evaluate_study", "run_study"]
 
 EXPORTS_DIR = Path("exports")
 """Default parent of a study's output folder: ``exports/<study name>/`` (relative to the current folder)."""
-OUTPUT_FILES = ("original.step", "optimised.step", "optimised.stl", "holes.csv", "results.json")
+OUTPUT_FILES = ("original.step", "optimised.step", "optimised.stl", "holes.csv", "results.json", "move_only.step")
 
 
 @dataclass(frozen=True)
@@ -141,9 +142,16 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
         lines.append(f"  verdict: {verdict['decision']}" + "".join(
             f"\n    {f['rule']}: {f['outcome']} ({f['detail']})" for f in verdict["findings"]
             if f["outcome"] != "adopt"))
+    added = results.get("added_targets") or {}
+    if added.get("delivered"):
+        names = ", ".join(h["name"] for h in added.get("holes", []))
+        p = added.get("predicted") or {}
+        lines.append(f"  delivered: the move-only optimum with {added['recommended']} added target hole(s) ({names}); "
+                     "predicted RMS pose error (mm) original {0} -> move-only {1} -> delivered {2}".format(
+                         *(_num((p.get(k) or {}).get("error_mm")) for k in ("original", "move_only", "added"))))
     if out_dir is not None:
         lines.append(f"  outputs: {out_dir}")
-        for name in ("optimised.step", "optimised.stl", "report.html"):
+        for name in ("optimised.step", "optimised.stl", "move_only.step", "report.html"):
             if (out_dir / name).exists():
                 lines.append(f"    {out_dir / name}")
     return "\n".join(lines)
@@ -205,13 +213,32 @@ def preflight_study(path_or_dict: StudySource | StudyConfig, time_limit_s: float
     config = _resolve(path_or_dict, None)
     camera, traj, T_task_part = load_scene(config)
     shape, holes, _, names = _current_design(config, time_limit_s)
+    added = None
+    if config.add_targets is not None:  # issue 31: faces, keep-in, drill, count, a site, a dry run: before any work
+        added = _preflight_added(config, shape, holes, traj, T_task_part, time_limit_s)
     mesh = occlusion_mesh(config, shape)
     o = config.objective
     T_cam_part = cam_from_part(traj.T_task_cam, T_task_part)
     m = measures.evaluate(camera, T_cam_part, traj.velocity_screws(), *holes_to_arrays(list(holes)),
                           min_axis_px=o.min_axis_px, rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
-    return preflight(config, camera, traj, T_task_part, part_points(shape, mesh), m, np.ones(len(holes), bool),
-                     names)
+    m = scored_measures(m, camera, o.min_axis_px)  # as the objectives score them (``design.unseen``)
+    pre = preflight(config, camera, traj, T_task_part, part_points(shape, mesh), m, np.ones(len(holes), bool), names)
+    if added is not None:
+        pre.numbers["add_targets"] = added
+    return pre
+
+
+def _preflight_added(config: StudyConfig, shape: Shape, holes: list[Hole], traj: Trajectory, T_task_part: np.ndarray,
+                     time_limit_s: float | None) -> dict[str, Any]:
+    """``added_targets.preflight_part`` on the part as it is, its holes extracted with the study's view (the
+    through holes' entrance as ``run`` extracts them; names kept): {"faces", "sites", "most_that_fit"}."""
+    from cadfeat.study.setup import study_view_direction
+    from cadfeat.study.verify import extract_viewed, pair_by_axis
+
+    part = load_part(config.study.part_path, time_limit_s) if config.study.part_kind == "script" else None
+    view = study_view_direction(config, shape, traj, T_task_part, part)
+    viewed = pair_by_axis(holes, extract_viewed(shape, view), f"{config.label}: the part's holes")
+    return added_targets.preflight_part(config, shape, viewed, view)
 
 
 def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], shapes: Mapping[str, Any],
@@ -219,17 +246,20 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
     """Write and verify the outputs into the staging folder ``stage`` (published by the caller). The report's
     renders are made before the closed-loop check collects its workers' tracking (they run meanwhile)."""
     t0 = time.perf_counter()
-    results["constraints"], results["verification"] = export_and_verify(config, stage, shapes,
-                                                                        results["constraints"])
-    added_targets.export_added(config, stage, results, shapes)  # issue 31: added_targets.step, verified
+    added = added_design.delivered(shapes)  # issue 31: the delivered design has added target holes
+    results["constraints"], results["verification"] = export_and_verify(
+        config, stage, shapes, results["constraints"],
+        step_checks=added_design.step_checks(config, shapes, f"{config.label}: optimised.step") if added else None)
+    added_design.export_move_only(config, stage, results, shapes)  # issue 31: move_only.step beside it, verified
     write_holes_csv(stage / "holes.csv", plain(results))
     results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl",
-                                                                 "holes.csv", added_targets.STEP_NAME)
+                                                                 "holes.csv", added_design.MOVE_ONLY_STEP)
                         if (stage / n).exists()]
     results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
     results["versions"] = versions()
     finish_report = _report(stage, results, shapes, prog)
     _closed_loop(config, results, shapes, stage, prog)  # the closed loop confirms (issue 17)
+    added_design.tracking_summary(results)  # issue 31: the three designs' closed loop, summed up
     results["interrupted"] = bool(results.get("interrupted") or prog.interrupts.requested)
     results["verdict"] = verdict_json(plain(results))
     write_results(stage / "results.json", results)
@@ -239,13 +269,12 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
 
 def _closed_loop(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, Any], stage: Path,
                  prog: StudyProgress) -> None:
-    """The closed-loop check (``closed_loop_check.attach``) and the added targets' confirmation; skipped — its
-    workers stopped, whatever it had written into the stage removed, a warning saying so — when the run is
-    interrupted before or during it (``study.interrupts``: the run finishes with the design found)."""
+    """The closed-loop check (``closed_loop_check.attach``); skipped — its workers stopped, whatever it had written
+    into the stage removed, a warning saying so — when the run is interrupted before or during it
+    (``study.interrupts``: the run finishes with the design found)."""
     try:
         with prog.interrupts.skippable():
             closed_loop_check.attach(config, results, shapes, stage, prog)
-            added_targets.confirm(config, results, shapes, prog)  # issue 31: against the move-only optimum
     except KeyboardInterrupt:
         from cadfeat.study.physical_views import FOLDER as VIEWS  # lazy: Mitsuba
 

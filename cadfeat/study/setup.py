@@ -137,16 +137,35 @@ def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Normalise
     cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]), mirror_tol_mm=tol)
     problem = build_problem(config, args, cc, occlusion_mesh(config, args["shape0"]),
                             score_mask(config, args["holes"], ~np.asarray(args["fixed_mask"], bool)), normaliser)
+    glare = glare_maps_for(config, args["shape0"], args["holes"], args["camera"], problem.T_cam_part)
+    if glare is not None:
+        problem.set_glare(glare)
     return problem, cc
 
 
 def build_problem(config: StudyConfig, args: Mapping[str, Any], cc: ConstraintConfig, mesh: trimesh.Trimesh | None,
                   feature_mask: np.ndarray | None, normaliser: Normaliser | None = None) -> Problem:
     """The set-up's ``Problem`` from its pieces (``args``: space, model, camera, trajectory, T_task_part,
-    fixed_mask): the one constructor of a fresh set-up and of one read from the set-up cache."""
+    fixed_mask): the one constructor of a fresh set-up and of one read from the set-up cache (which sets the glare
+    maps it kept, ``glare_maps_for``'s)."""
     return Problem(args["space"], args["model"], args["camera"], args["trajectory"], args["T_task_part"],
                    config.objective, cc, args["fixed_mask"], normaliser=normaliser, occlusion_mesh=mesh,
                    feature_mask=feature_mask, cell=config.cell)
+
+
+def glare_maps_for(config: StudyConfig, shape: Shape, holes: Sequence[Hole], camera: Any,
+                   T_cam_part: np.ndarray) -> Any:
+    """g_POSE's glare maps (``measures.glare``; ``render.glare.glare_maps``: the part rendered physically in the
+    study's cell at its poses) when the study predicts the pose (``pose`` among the measures), its ``[cell]`` asks
+    (``glare``, default on) and the part's material returns light from its bores (a metal); else None."""
+    from cadfeat.cell.material import bores_return_light
+
+    cell = config.cell
+    if "pose" not in config.objective.measures or not cell.glare or not bores_return_light(cell.material):
+        return None
+    from cadfeat.render.glare import glare_maps  # lazy: Mitsuba
+
+    return glare_maps(shape, holes, camera, T_cam_part, cell)
 
 
 def occlusion_mesh(config: StudyConfig, shape: Shape) -> trimesh.Trimesh | None:

@@ -1,13 +1,14 @@
 """The set-up cache (issue 32 item 6): a study's set-up kept on disk, keyed by the hash of everything it reads.
 
 Setting a study up is the slow part of ``cadfeat explore``, ``run`` and ``evaluate``: the part's CAD builds, the
-design map ∂F/∂P (a build per finite difference), the objective normaliser (the payoff table) and the part's
-occlusion mesh. ``cached_setup`` returns the set-up from the cache when the same inputs were set up before, and
-sets it up (``study.setup``) otherwise; ``save`` keeps a fresh set-up's products once its consumer has built the
-normaliser. A set-up read from the cache is a ``CachedSetup``: the same numbers, bit for bit (the arrays are
-pickled, not recomputed), and its CAD side — the part script or STEP file, and the original solid — is loaded
-only when something asks for it (a rebuild, an export, a render), so a warm ``cadfeat explore`` imports no CAD
-kernel at all.
+design map ∂F/∂P (a build per finite difference), the objective normaliser (the payoff table), the part's
+occlusion mesh and, for g_POSE in a metal part, its glare maps (a physically based render per pose).
+``cached_setup`` returns the set-up from the cache when the same inputs were set up before, and sets it up
+(``study.setup``) otherwise; ``save`` keeps a fresh set-up's products once its consumer has built the normaliser.
+A set-up read from the cache is a ``CachedSetup``: the same numbers, bit for bit (the arrays are pickled, not
+recomputed), and its CAD side — the part script or STEP file, and the original solid — is loaded only when
+something asks for it (a rebuild, an export, a render), so a warm ``cadfeat explore`` imports no CAD kernel (nor
+the renderer) at all.
 
 Where (``cache_root``): ``$CADFEAT_CACHE_DIR``, else ``$XDG_CACHE_HOME/cadfeat``, else ``~/.cache/cadfeat``; the
 entries are ``setups/<key>.pkl``. cadfeat creates that folder with a marker (``.cadfeat-cache.json`` and the
@@ -470,6 +471,7 @@ def _products(setup: StudySetup, entry: CacheEntry) -> dict[str, Any]:
         "values": setup.values if setup.config.study.part_kind == "script" else None,
         "mesh": None if mesh is None else (np.asarray(mesh.vertices), np.asarray(mesh.faces)),
         "normaliser": setup.problem.normaliser_built if entry.own_normaliser else None,
+        "glare": setup.problem.glare,  # g_POSE's glare maps (a physically based render per pose), or None
         "brep": brep, "extras": {"display_mesh": mesh_arrays(setup.shape0), **entry.extras}, "setup_s": entry.setup_s,
     }
 
@@ -490,6 +492,8 @@ def _from_products(config: StudyConfig, scene: Scene, p: Mapping[str, Any], norm
             "T_task_part": T_task_part, "fixed_mask": p["fixed_mask"]}
     problem = build_problem(config, args, p["constraints"], mesh, p["feature_mask"],
                             normaliser if normaliser is not None else p["normaliser"])
+    if p["glare"] is not None:
+        problem.set_glare(p["glare"])
     cad = _LazyCad(config, p["view_direction"], p["brep"], time_limit_s)
     view = p["view_direction"]
     if config.study.part_kind == "step":

@@ -215,10 +215,28 @@ def test_a_warm_set_up_imports_no_cad_kernel(tmp_path):
     _set_up(path, open_cache(True, tmp_path / "cache"))
     code = ("import sys\nfrom cadfeat.explore.session import ExploreSession\n"
             f"s = ExploreSession({str(path)!r}, cache=True)\ns.scene()\n"
-            "print(s.status.cache, 'cadquery' in sys.modules, 'OCP' in sys.modules)\n")
+            "print(s.status.cache, 'cadquery' in sys.modules, 'OCP' in sys.modules, 'mitsuba' in sys.modules)\n")
     env = {**os.environ, "CADFEAT_CACHE_DIR": str(tmp_path / "cache"),
            "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path,
                          timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.split() == ["hit", "False", "False"]
+    assert out.stdout.split() == ["hit", "False", "False", "False"]
+
+
+def test_the_glare_maps_are_kept(tmp_path):
+    """g_POSE in a metal part: the set-up renders the part's glare maps (Mitsuba, one per pose); the cache keeps
+    them, so a hit predicts the same pose error without rendering (and without the renderer)."""
+    path = _study(tmp_path, objective={"measures": ["pose"]})
+    cache = open_cache(True, tmp_path / "cache")
+    fresh = _set_up(path, cache)
+    if fresh.problem.glare is None:
+        pytest.skip("the study's cell renders no glare maps")
+    hit = _set_up(path, cache)
+    assert hit.cache_entry.hit
+    for name in ("grey", "holes_centre", "holes_radius"):
+        np.testing.assert_array_equal(getattr(hit.problem.glare, name), getattr(fresh.problem.glare, name))
+    assert hit.problem.glare.camera == fresh.problem.glare.camera
+    X = np.random.default_rng(1).uniform(fresh.space.lower, fresh.space.upper, (5, fresh.space.size))
+    for got, want in zip(hit.problem.evaluate_batch(X), fresh.problem.evaluate_batch(X), strict=True):
+        np.testing.assert_array_equal(got, want)
