@@ -153,6 +153,11 @@ class Problem:
         return self._normaliser
 
     @property
+    def normaliser_built(self) -> Normaliser | None:
+        """The objective scales if they are built (given, or ``normaliser`` asked for), else None: never builds."""
+        return self._normaliser
+
+    @property
     def scales(self) -> np.ndarray:
         return np.array([self.normaliser.reference[n] for n in self.names])
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import shutil
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -47,6 +48,7 @@ from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
 from cadfeat.results import StudyResults
 from cadfeat.study import added_design, added_targets, closed_loop_check
+from cadfeat.study.interrupts import RunInterrupts
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
     file_entry,
@@ -70,7 +72,8 @@ from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy, with_pose
 from cadfeat.study.preflight import preflight
 from cadfeat.study.progress import StudyProgress
 from cadfeat.study.schema import StudyConfig, StudyError, StudySource, load_study
-from cadfeat.study.setup import load_scene, occlusion_mesh, score_rule, setup_study
+from cadfeat.study.setup import load_scene, occlusion_mesh, score_rule
+from cadfeat.study.setup_cache import SetupCache, cached_setup, open_cache, save
 from cadfeat.study.trust import objective_changes
 from cadfeat.study.verify import (
     export_and_verify,
@@ -173,8 +176,8 @@ def default_out_dir(config: StudyConfig) -> Path:
 
 
 def run_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | None = None, *, seed: int | None = None,
-              quiet: bool = False, progress: bool = True, force: bool = False, track: str | None = None
-              ) -> StudyResult:
+              quiet: bool = False, progress: bool = True, force: bool = False, track: str | None = None,
+              cache: bool | None = None) -> StudyResult:
     """Run a study (a TOML path, a dict or a ``StudyConfig``) and write its outputs to ``out_dir``
     (default ``exports/<study name>/``): original.step, optimised.step, optimised.stl, results.json and the
     report. ``seed`` overrides the study's seeds. Raises ``CadfeatError`` (nothing written) on bad input or a
@@ -184,14 +187,17 @@ def run_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | Non
     did not create is refused unless ``force`` (then cadfeat's files are added, other files untouched).
     ``track``: the closed-loop check's mode, fast | full | off (default: the study's; ``study.closed_loop_check``).
     Every part-script import and CAD build runs in a worker process within ``[study] build_timeout_s``.
+    ``cache``: the set-up cache (``study.setup_cache``: the set-up of unchanged inputs is read from it); None: on
+    unless ``CADFEAT_CACHE=off``.
     """
 
     config = closed_loop_check.with_mode(_resolve(path_or_dict, seed), track)
     out = out_dir if out_dir is not None else default_out_dir(config)
     start_workers()  # (CadQuery loads in the worker server meanwhile)
-    with staged_output(out, force) as stage, \
-            StudyProgress(config.study.name, enabled=progress and not quiet) as prog:
-        results, shapes = compute(config, prog, config.study.build_timeout_s)
+    interrupts = RunInterrupts()  # Ctrl-C keeps the best design so far (study.interrupts)
+    with interrupts.installed(), staged_output(out, force) as stage, \
+            StudyProgress(config.study.name, enabled=progress and not quiet, interrupts=interrupts) as prog:
+        results, shapes = compute(config, prog, config.study.build_timeout_s, open_cache(cache))
         try:
             with prog.phase("export"):
                 _write_outputs(config, stage, results, shapes, prog)
@@ -252,12 +258,35 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
     results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
     results["versions"] = versions()
     finish_report = _report(stage, results, shapes, prog)
-    closed_loop_check.attach(config, results, shapes, stage, prog)  # the closed loop confirms (issue 17)
+    _closed_loop(config, results, shapes, stage, prog)  # the closed loop confirms (issue 17)
     added_design.tracking_summary(results)  # issue 31: the three designs' closed loop, summed up
+    results["interrupted"] = bool(results.get("interrupted") or prog.interrupts.requested)
     results["verdict"] = verdict_json(plain(results))
     write_results(stage / "results.json", results)
     if finish_report is not None:
         finish_report(results)
+
+
+def _closed_loop(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, Any], stage: Path,
+                 prog: StudyProgress) -> None:
+    """The closed-loop check (``closed_loop_check.attach``); skipped — its workers stopped, whatever it had written
+    into the stage removed, a warning saying so — when the run is interrupted before or during it
+    (``study.interrupts``: the run finishes with the design found)."""
+    try:
+        with prog.interrupts.skippable():
+            closed_loop_check.attach(config, results, shapes, stage, prog)
+    except KeyboardInterrupt:
+        from cadfeat.study.physical_views import FOLDER as VIEWS  # lazy: Mitsuba
+
+        closed_loop_check.cancel(shapes)
+        for key in ("tracking", "physical_views"):
+            results.pop(key, None)
+        for name in ("tracking", VIEWS):  # (the frames and views drawn so far: no half-written folder)
+            if (stage / name).is_dir():
+                shutil.rmtree(stage / name)
+        results.setdefault("warnings", []).append(
+            f"{closed_loop_check.SKIPPED}: the run was interrupted (`cadfeat track` on this study confirms the "
+            "design in the closed loop)")
 
 
 def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], prog: StudyProgress
@@ -287,22 +316,23 @@ def _report_context(shapes: Mapping[str, Any]) -> report.ReportContext:
 # ------------------------------------------------------------------------------------------ evaluate
 def evaluate_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | None = None, *,
                    pose: int | None = None, quiet: bool = True, echo: bool = False, seed: int | None = None,
-                   force: bool = False) -> dict[str, Any]:
+                   force: bool = False, cache: bool | None = None) -> dict[str, Any]:
     """Score the study's current design without optimising (the thesis GUI's single-pose mode when ``pose``
     is given: one trajectory sample). Returns the results dict; prints the per-feature table (thesis
     Table 5.1: FOV, focus, resolution margins, visibility, worst pose) and a per-pose summary when ``echo``;
     writes results.json (+ report) into ``out_dir`` if given (checked before any work, as by ``run_study``;
-    ``force``: add the files to a folder cadfeat did not create)."""
+    ``force``: add the files to a folder cadfeat did not create; ``cache``: as ``run_study``'s)."""
 
     config = _resolve(path_or_dict, seed)
     with contextlib.ExitStack() as stack:
         stage = stack.enter_context(staged_output(out_dir, force)) if out_dir is not None else None
         start_workers()
-        results = _evaluate(config, stage, pose, quiet, echo)
+        results = _evaluate(config, stage, pose, quiet, echo, open_cache(cache))
     return results
 
 
-def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: bool, echo: bool) -> dict[str, Any]:
+def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: bool, echo: bool,
+              cache: SetupCache | None = None) -> dict[str, Any]:
     with StudyProgress(config.study.name, enabled=not quiet) as prog:
         with prog.phase("setup"):
             camera, traj, T_task_part = load_scene(config)
@@ -310,8 +340,8 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
                 raise StudyError(f"{config.label}: --pose {pose}: allowed: 0..{len(traj) - 1} "
                                  f"(the trajectory has {len(traj)} samples)")
             # the same holes, names, scored holes and occlusion mesh as ``run``
-            setup = setup_study(config, time_limit_s=config.study.build_timeout_s)
-            shape, holes, fixed, names = setup.shape0, setup.holes0, setup.fixed_mask, setup.hole_names
+            setup = cached_setup(config, time_limit_s=config.study.build_timeout_s, cache=cache)
+            holes, fixed, names = setup.holes0, setup.fixed_mask, setup.hole_names
         full_traj = traj
         if pose is not None:
             traj = _single_pose(traj, pose)
@@ -325,11 +355,14 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
             trust = objective_changes(setup.problem, values, None) if pose is None else {}
             combined = float(setup.problem.combined_from(np.array([values[n] for n in setup.problem.names]))) \
                 if pose is None and config.objective.combine != "pareto" else None
+            save(setup)  # (its normaliser built above, when the evaluation needs one)
         summary = measures_summary(m, names, traj.times_s, config.objective.min_axis_px, half_image(camera))
         pose_block = None
         if pose is None:  # the predicted pose error of the design as it is (``study.pose_accuracy``)
 
-            pose_block = pose_accuracy(config, setup, holes, part_mesh(config, shape, setup.problem.occlusion_mesh))
+            mesh = setup.problem.occlusion_mesh  # (a cached set-up's solid is loaded only without one)
+            pose_block = pose_accuracy(config, setup, holes, mesh if mesh is not None else part_mesh(config,
+                                                                                                    setup.shape0))
         if pose is not None:  # pose indices of the full trajectory
             for f in summary["per_feature"]:
                 f["worst_pose"] = pose
@@ -359,7 +392,7 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
                 "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
                 "measures": {"before": summary, "after": summary},
                 "objectives": {**results["objectives"], "after": values}}
-        shapes = {"shape0": shape, "shape1": shape, "holes0": holes, "holes1": holes,
+        shapes = {"shape0": setup.shape0, "shape1": setup.shape0, "holes0": holes, "holes1": holes,
                   "setup": _EvalSetup(config, camera, full_traj, T_task_part, holes, fixed)}
         finish_report = _report(stage, same, shapes, prog)
         if finish_report is not None:
