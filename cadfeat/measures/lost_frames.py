@@ -34,8 +34,9 @@ def lost_share(probability: np.ndarray, min_holes: int = MIN_HOLES) -> np.ndarra
     """(L,) P(fewer than ``min_holes`` of the N holes detected) per frame, from independent detection
     probabilities (L, N) (module docstring)."""
     p = np.clip(np.nan_to_num(np.asarray(probability, float)), 0.0, 1.0)
-    N = p.shape[1]
-    z = np.exp(2j * np.pi * np.arange(N + 1) / (N + 1))                                # (N + 1,)
+    N = int(p.shape[1])
+    phase: np.ndarray = 2.0 * np.pi * np.arange(N + 1) / (N + 1)
+    z: np.ndarray = np.cos(phase) + 1j * np.sin(phase)                                 # (N + 1,) roots of unity
     g = np.prod(1.0 - p[:, :, None] + p[:, :, None] * z[None, None, :], axis=1)       # (L, N + 1)
     pmf = np.clip(np.real(np.fft.fft(g, axis=1)) / (N + 1), 0.0, 1.0)                 # P(n = 0 … N)
     return np.clip(pmf[:, :min_holes].sum(axis=1), 0.0, 1.0)
