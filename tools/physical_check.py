@@ -9,6 +9,8 @@ per-run RMS errors with the paired Wilcoxon p-values. Run:
 
     python tools/physical_check.py studies/nema17_mount.toml exports/nema17_mount --material grey_plastic
 
+(docs/results.md's second-session table: ``--runs 16 --seed 7``, each material.)
+
 (~10-20 min on 2 cores: 2 designs x 8 runs x 20 frames of 1280 x 1024 at 16 spp). ``--json OUT`` keeps the runs.
 """
 
@@ -82,12 +84,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("out", type=Path, help="the study's output folder (original.step, optimised.step, results.json)")
     ap.add_argument("--material", default=None, help="cadfeat.cell.material name (default: the study's [cell])")
     ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--runs", type=int, default=None, help="paired runs (default: the fast check's 8)")
+    ap.add_argument("--seed", type=int, default=None, help="the runs' base seed (default: the study's)")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
     config = load_study(args.study)
     if args.material:
         config = replace(config, cell=config.cell.replace(material=Material(name=args.material)))
     spec = fast_spec(config, len(_scene(config)[1])).replace(renderer="pbr", spp=args.spp)
+    if args.runs is not None:
+        spec = spec.replace(runs=args.runs)
+    if args.seed is not None:
+        spec = spec.replace(seed=args.seed)
     runs = {name: design_runs(config, d, spec) for name, d in exported_designs(config, args.out).items()}
     print(f"{config.study.name}: {config.cell.material.name}, {config.cell.light.kind} light, {args.spp} spp, "
           f"{spec.runs} paired runs")
