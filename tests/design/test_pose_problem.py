@@ -129,3 +129,40 @@ def test_fixed_holes_kept_between_calls_give_pose_informations_numbers(tmp_path)
     # the close moving hole changes the fixed neighbour's detection probability (the coupling is exercised)
     near, far = (pose_of_features(problem, X[b], A[b], R[b]) for b in (2, 0))
     assert np.abs(near.probability[:, 1] - far.probability[:, 1]).max() > 1e-3
+
+
+def _glare(problem, grey):
+    """Uniform glare maps at the problem's poses: a face of ``grey`` everywhere (measures.glare)."""
+    from cadfeat.measures.glare import GlareMaps
+
+    cam = problem.camera
+    image = np.full((len(problem.T_cam_part), cam.height // 4, cam.width // 4), grey, np.float32)
+    small = cam.replace(width=cam.width // 4, height=cam.height // 4, fx=cam.fx / 4, fy=cam.fy / 4,
+                        cx=(cam.cx + 0.5) / 4 - 0.5, cy=(cam.cy + 0.5) / 4 - 0.5)
+    return GlareMaps(image, small, np.zeros((0, 3)), np.zeros(0))
+
+
+def test_glare_takes_blind_rims_against_a_bright_face_away_and_both_paths_agree():
+    """A face at full scale leaves a clipped bore no edge: with such maps the blind holes' detection rate and
+    information vanish; a dark face (c ≫ 21.5 σ) changes nothing. The batched optimiser path and
+    ``pose_of_features`` give the same numbers with the maps."""
+    import dataclasses
+
+    from cadfeat.design.pose_terms import pose_of_features, stacked_information
+
+    problem = two_hole_problem(measures=("pose",), normalisation="natural")
+    c, a, r = (np.asarray(v, float) for v in problem.model.features(problem.space.x0))
+    through = pose_of_features(problem, c, a, r)
+    problem.set_glare(_glare(problem, 255.0))       # the plate's through holes show the background: no change
+    np.testing.assert_array_equal(pose_of_features(problem, c, a, r).information, through.information)
+    problem.set_glare(None)
+    problem.model.holes = [dataclasses.replace(h, through=False, depth_mm=3.0) for h in problem.model.holes]
+    ref0 = pose_of_features(problem, c, a, r)
+    assert ref0.probability.max() > 0.5
+    problem.set_glare(_glare(problem, 60.0))
+    np.testing.assert_allclose(pose_of_features(problem, c, a, r).information, ref0.information, rtol=1e-6)
+    problem.set_glare(_glare(problem, 255.0))
+    ref = pose_of_features(problem, c, a, r)
+    assert ref.probability.max() < 0.01 * ref0.probability.max()   # s(−21.5/4) ≈ 0.005 of the rate
+    got = stacked_information(problem, c[None], a[None], r[None])
+    np.testing.assert_allclose(got.information, ref.information, rtol=1e-9, atol=1e-12)
