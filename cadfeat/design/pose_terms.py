@@ -25,7 +25,8 @@ import numpy as np
 from cadfeat.design.memory import budget_bytes
 from cadfeat.design.objectives import POSE_AGGREGATES, POSE_UNOBSERVABLE_MM, _choice
 
-__all__ = ["StackedPose", "glare_rate", "hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_values",
+__all__ = ["StackedPose", "designs_glare_rate", "glare_rate", "hole_attributes", "pose_aggregate_batch",
+           "pose_of_features", "pose_values",
            "stacked_information"]
 
 #: rim samples of the occlusion test (``rim_occlusion``)
@@ -76,22 +77,29 @@ def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii:
 
 def glare_rate(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, through: np.ndarray,
                noise_grey: Any) -> np.ndarray | None:
+    """(B·L, N) the detection rate's factor from the part's own light of B designs' holes (B, N, …) at the
+    problem's L poses (``designs_glare_rate`` with the problem's glare maps, poses and cell)."""
+    return designs_glare_rate(problem.glare, problem.cell, problem.T_cam_part, centres, axes, radii, through,
+                              noise_grey)
+
+
+def designs_glare_rate(glare: Any, cell: Any, T_cam_part: np.ndarray, centres: np.ndarray, axes: np.ndarray,
+                       radii: np.ndarray, through: np.ndarray, noise_grey: Any) -> np.ndarray | None:
     """(B·L, N) the detection rate's factor from the part's own light (``measures.glare.contrast_rate``) of B
-    designs' holes (B, N, …) at the problem's L poses, design-major; 1 for through holes; None when the problem
-    has no glare maps or the cell's material does not return light from its bores
+    designs' holes (B, N, …) at the L poses ``T_cam_part`` (those of the ``glare`` maps), design-major; 1 for
+    through holes; None without maps or when the cell's material does not return light from its bores
     (``cell.material.bores_return_light``). ``noise_grey``: σ, a number or (L, 1) per pose."""
     from cadfeat.cell.material import bores_return_light
 
-    glare = problem.glare
-    if glare is None or not bores_return_light(problem.cell.material):
+    if glare is None or not bores_return_light(cell.material):
         return None
     from cadfeat.measures.glare import contrast_rate  # lazy: as the other measures
 
     B, N = np.shape(radii)
-    L = len(problem.T_cam_part)
+    L = len(T_cam_part)
     noise = np.asarray(noise_grey, float)
-    rate = contrast_rate(glare, problem.T_cam_part, centres.reshape(B * N, 3), axes.reshape(B * N, 3),
-                         radii.reshape(B * N), noise if noise.ndim == 0 else noise.reshape(L, 1))
+    rate = contrast_rate(glare, T_cam_part, np.reshape(centres, (B * N, 3)), np.reshape(axes, (B * N, 3)),
+                         np.reshape(radii, B * N), noise if noise.ndim == 0 else noise.reshape(L, 1))
     rate = np.moveaxis(rate.reshape(L, B, N), 1, 0).reshape(B * L, N)
     return np.where(np.asarray(through, bool), 1.0, rate)
 

@@ -298,7 +298,7 @@ def pose_scene(config: StudyConfig, setup: StudySetup) -> PoseScene:
     T = cam_from_part(setup.trajectory.T_task_cam, setup.T_task_part)
     o = config.objective
     return PoseScene(setup.camera, T, float(o.pose_rotation_length_mm), o.pose_aggregate, cell_models(config.cell),
-                     float(config.cell.noise_sigma_grey))
+                     float(config.cell.noise_sigma_grey), setup.problem.glare, config.cell)
 
 
 def _occlude(mesh: Any, T: np.ndarray) -> Any:
@@ -476,7 +476,7 @@ def _predicted(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], me
 
     T = cam_from_part(setup.trajectory.T_task_cam, setup.T_task_part)
     ell = float(config.objective.pose_rotation_length_mm)
-    info, _ = predict(setup.camera, T, holes, mesh, ell, cell=config.cell)
+    info, _ = predict(setup.camera, T, holes, mesh, ell, cell=config.cell, glare=setup.problem.glare)
     rms = lambda v: float(np.sqrt(np.mean(np.square(np.minimum(v, 1e6)))))  # noqa: E731
     return {"error_mm": rms(info.error_mm(ell)), "translation_mm": rms(info.error_translation_mm),
             "rotation_deg": rms(info.error_rotation_deg)}

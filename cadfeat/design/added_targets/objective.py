@@ -28,7 +28,8 @@ CHUNK = 48
 @dataclass(frozen=True)
 class PoseScene:
     """What the prediction needs besides the holes: the camera, the poses T_cam_part (L, 4, 4) mm, the
-    rotation length ℓ (mm), the aggregate ("rms", "worst", "logdet"), the cell's models and grey-level noise."""
+    rotation length ℓ (mm), the aggregate ("rms", "worst", "logdet"), the cell's models and grey-level noise, and
+    g_POSE's glare maps with the cell (``design.pose_terms.designs_glare_rate``)."""
 
     camera: Any
     T_cam_part: np.ndarray
@@ -36,6 +37,8 @@ class PoseScene:
     aggregate: str
     models: Any
     noise_grey: float
+    glare: Any = None   # g_POSE's glare maps at these poses (measures.glare), None: none
+    cell: Any = None    # the cell (its material decides whether the glare counts)
 
 
 class TargetObjective:
@@ -103,9 +106,15 @@ class TargetObjective:
         depth = np.concatenate([depth0, np.full(k, self.depth_mm)])
         occ = np.concatenate([occ0, occlusion], axis=2)
         sc = self.scene
+        through = np.concatenate([through0, np.zeros(k, bool)])
+        rate = None
+        if sc.glare is not None and sc.cell is not None:
+            from cadfeat.design.pose_terms import designs_glare_rate
+
+            rate = designs_glare_rate(sc.glare, sc.cell, sc.T_cam_part, c, a, r, through, sc.noise_grey)
         info = pose_information(sc.camera, np.tile(sc.T_cam_part, (B, 1, 1)), np.repeat(c, L, axis=0),
                                 np.repeat(a, L, axis=0), np.repeat(r, L, axis=0),
-                                occlusion=occ.reshape(B * L, N), through=np.concatenate([through0, np.zeros(k, bool)]),
+                                occlusion=occ.reshape(B * L, N), through=through, contrast_rate=rate,
                                 kinds=self.base_kinds + [self.kind] * k,
                                 depth_ratio=np.repeat(depth / (2.0 * np.maximum(r, 1e-9)), L, axis=0),
                                 rotation_length_mm=sc.rotation_length_mm, model=sc.models, noise_grey=sc.noise_grey)
