@@ -318,7 +318,8 @@ class Camera:
 
         Reads ``camera_matrix`` (or ``K``/``cameraMatrix``), ``distortion_coefficients`` (or ``D``/
         ``dist_coeffs``/``distCoeffs``) and ``image_width``/``image_height`` (or ``width``/``height``,
-        or an ``image_size`` pair). Optics (``focal_length_mm``, ``f_number``, ...) are keyword arguments.
+        or an ``image_size`` pair), and the optics nodes ``focal_length_mm``, ``f_number``, ``focus_distance_mm``
+        when present (``cadfeat calibrate`` writes them); optics given as keyword arguments win.
         """
         return cls(**{**read_opencv_calibration(path), **optics})
 
@@ -332,7 +333,8 @@ def read_opencv_calibration(path: str | Path) -> dict[str, Any]:
 
     Reads what ``cv2.FileStorage`` reads (YAML, XML, JSON): matrices stored by OpenCV
     (``!!opencv-matrix``), ROS ``camera_calibration`` files (``{rows, cols, data}`` maps) or plain
-    (nested) lists. Raises ``CameraError`` naming the file and the expected keys.
+    (nested) lists; the optics nodes (``OPTICS_NODES``) when present. Raises ``CameraError`` naming the file and
+    the expected keys.
     """
     import cv2
 
@@ -357,11 +359,31 @@ def read_opencv_calibration(path: str | Path) -> dict[str, Any]:
             raise CameraError(f"{path}: distortion must have 4 or 5 values (k1, k2, p1, p2[, k3]); "
                               f"got {dist.size}")
         width, height = _image_size(fs, path)
+        optics = _optics_nodes(fs, path)
     finally:
         fs.release()
     return dict(fx=float(K[0, 0]), fy=float(K[1, 1]), cx=float(K[0, 2]), cy=float(K[1, 2]),
                 width=width, height=height, dist=tuple(float(v) for v in dist), name=path.stem,
-                source=str(path))
+                source=str(path), **optics)
+
+
+#: The lens's optics a calibration file may carry as extra scalar nodes (``cadfeat calibrate --focal-length-mm
+#: --f-number --focus-mm`` writes them): ``Camera`` fields of the focus measure (eq. 3.4-3.6).
+OPTICS_NODES = ("focal_length_mm", "f_number", "focus_distance_mm")
+
+
+def _optics_nodes(fs: Any, path: Path) -> dict[str, float]:
+    """The ``OPTICS_NODES`` present in the file, each a positive number (else ``CameraError`` naming it)."""
+    out = {}
+    for key in OPTICS_NODES:
+        node = fs.getNode(key)
+        if node.empty():
+            continue
+        value = float(node.real()) if (node.isReal() or node.isInt()) else float("nan")
+        if not (np.isfinite(value) and value > 0):
+            raise CameraError(f"{path}: {key}: not a positive number", key, "a number > 0")
+        out[key] = value
+    return out
 
 
 def _first_matrix(fs: Any, keys: tuple[str, ...], path: Path) -> np.ndarray | None:

@@ -202,6 +202,10 @@ def test_calibration_fixtures():
     ('{"K": [[500, 0, 320], [0, 500, 240], [0, 0, 1]], "D": [1, 2, 3], "image_size": [640, 480]}', "json",
      "4 or 5 values"),
     ('{"K": [[500, 0, 320], [0, 500, 240], [0, 0, 1]]}', "json", "needs image_width and image_height"),
+    ('{"K": [[500, 0, 320], [0, 500, 240], [0, 0, 1]], "image_size": [640, 480], "f_number": -2.8}', "json",
+     "f_number: not a positive number"),
+    ('{"K": [[500, 0, 320], [0, 500, 240], [0, 0, 1]], "image_size": [640, 480], "focus_distance_mm": "far"}',
+     "json", "focus_distance_mm: not a positive number"),
     ("this is : not : yaml : [", "yaml", "not a readable OpenCV FileStorage file"),
 ])
 def test_bad_calibration_files(tmp_path, content, suffix, fragment):

@@ -114,16 +114,19 @@ class BoardSpec:
         return self._detect_charuco(grey) if self.kind == "charuco" else self._detect_chessboard(grey)
 
     def _detect_chessboard(self, grey: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
-        """``cv2.findChessboardCornersSB`` finds the board (robustly; the classic detector as fallback), then
-        ``cv2.cornerSubPix`` refines each corner in a window of ~0.3 square (measured on rendered tilted views:
-        0.095 px RMS and 0.26 px worst against 0.115 / 0.78 for the SB detector's own refinement)."""
+        """The classic ``cv2.findChessboardCorners`` finds the board (``cv2.findChessboardCornersSB``, more robust
+        to blur and clutter, as fallback), then ``cv2.cornerSubPix`` refines each corner in a window of ~0.3
+        square (measured on rendered tilted views: 0.095 px RMS and 0.26 px worst against 0.115 / 0.78 for the
+        SB detector's own refinement). The refinement sets the accuracy, so the finder is only the start: the
+        classic one takes 2-6 ms on a 1280x1024 board image, SB 0.12 s, and SB with ``CALIB_CB_ACCURACY`` 0.55 s
+        (benchmarks/bench_real_cell.py)."""
         import cv2
 
         size = (self.cols, self.rows)
-        found, corners = cv2.findChessboardCornersSB(grey, size, flags=cv2.CALIB_CB_ACCURACY)
+        found, corners = cv2.findChessboardCorners(grey, size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH
+                                                   | cv2.CALIB_CB_NORMALIZE_IMAGE)
         if not found:
-            found, corners = cv2.findChessboardCorners(grey, size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH
-                                                       | cv2.CALIB_CB_NORMALIZE_IMAGE)
+            found, corners = cv2.findChessboardCornersSB(grey, size)
         if not found:
             return f"no {self.cols}x{self.rows} chessboard found (all inner corners must be visible)"
         px = np.asarray(corners, np.float32).reshape(self.rows, self.cols, 2)

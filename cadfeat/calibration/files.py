@@ -2,11 +2,12 @@
 
 ``write_opencv`` writes the nodes OpenCV's calibration sample writes — ``image_width``, ``image_height``,
 ``camera_matrix``, ``distortion_coefficients`` — which ``Camera.from_opencv_file`` (and so a study's
-``[camera] calibration = "camera.yaml"``) reads back to the same camera, plus extra nodes it ignores: the error
-analysis (``avg_reprojection_error`` px, ``per_view_reprojection_errors`` px, ``std_deviations`` in the order of
-``solve.PARAMETERS``, ``nr_of_frames``, the board) and, when given, the lens's optics (``focal_length_mm``,
-``f_number``, ``focus_distance_mm``). ``Camera.from_opencv_file`` does not read the optics: give them in the
-study's ``[camera]`` table beside ``calibration`` (or read the file with ``read_camera``, which does).
+``[camera] calibration = "camera.yaml"``) reads back to the same camera, plus extra nodes: the error analysis
+(``avg_reprojection_error`` px, ``per_view_reprojection_errors`` px, ``std_deviations`` in the order of
+``solve.PARAMETERS``, ``nr_of_frames``, the board; ignored by the readers) and, when given, the lens's optics
+(``focal_length_mm``, ``f_number``, ``focus_distance_mm``), which ``Camera.from_opencv_file`` and a study's
+``[camera] calibration`` read into the ``Camera`` (a key of the study's ``[camera]`` beside ``calibration``
+wins).
 """
 
 from __future__ import annotations
@@ -18,10 +19,7 @@ from typing import Any
 import numpy as np
 
 from cadfeat.calibration.solve import PARAMETERS, CalibrationResult
-from cadfeat.camera import Camera, CameraError, read_opencv_calibration
-
-#: The lens optics nodes written when known (``Camera`` fields of the focus measure, eq. 3.4-3.6).
-OPTICS_NODES = ("focal_length_mm", "f_number", "focus_distance_mm")
+from cadfeat.camera import OPTICS_NODES, Camera, CameraError
 
 
 def write_opencv(result: CalibrationResult, path: str | Path, optics: dict[str, float] | None = None) -> None:
@@ -54,19 +52,8 @@ def write_opencv(result: CalibrationResult, path: str | Path, optics: dict[str, 
 
 def read_camera(path: str | Path, **overrides: Any) -> Camera:
     """A ``Camera`` from an OpenCV or ROS calibration file, with the optics nodes ``write_opencv`` adds (when
-    present) and ``overrides`` (``Camera`` fields) over them."""
-    import cv2
-
-    fields = read_opencv_calibration(path)
-    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-    try:
-        for key in OPTICS_NODES:
-            node = fs.getNode(key)
-            if not node.empty() and (node.isReal() or node.isInt()):
-                fields[key] = float(node.real())
-    finally:
-        fs.release()
-    return Camera(**{**fields, **overrides})
+    present) and ``overrides`` (``Camera`` fields) over them: ``Camera.from_opencv_file``."""
+    return Camera.from_opencv_file(path, **overrides)
 
 
 def write_ros(camera: Camera, path: str | Path, camera_name: str = "camera") -> None:

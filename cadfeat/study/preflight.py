@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from cadfeat.camera import MIN_DEPTH_MM, PRESETS
+from cadfeat.camera import MIN_DEPTH_MM, PRESETS, CameraError, read_opencv_calibration
 from cadfeat.poses import cam_from_part
 from cadfeat.study.schema import StudyError
 
@@ -67,6 +67,11 @@ def optics_assumptions(camera_table: Mapping[str, Any], camera: Camera) -> list[
     given = set(camera_table)
     if "preset" in camera_table:
         given |= set(PRESETS.get(str(camera_table["preset"]).strip().lower(), {}))
+    if camera_table.get("calibration") is not None:  # its optics nodes, when it has them (cadfeat calibrate)
+        try:
+            given |= set(read_opencv_calibration(camera_table["calibration"]))
+        except CameraError:
+            pass
     if "aperture_mm" in given:
         given.add("f_number")
     out = []
