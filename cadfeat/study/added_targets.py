@@ -56,10 +56,14 @@ from cadfeat.design.added_targets.sites import box_distance, face_grid
 from cadfeat.design.shop import hole_sizes
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
+from cadfeat.study.delivery import AddedDesign, Delivery
 from cadfeat.study.schema import StudyError
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
+    from cadfeat.study.progress import StudyProgress
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.settings.add_targets import AddTargetsSettings
     from cadfeat.study.setup import StudySetup
@@ -422,11 +426,12 @@ def _base_design(setup: StudySetup, x: np.ndarray | None, choice: Choice, shape1
     return shape, list(holes), setup.space.as_dict(ref.x)
 
 
-def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tuple[Any, Sequence[Hole]]],
-              progress: Any = None, x: np.ndarray | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tuple[Shape, Sequence[Hole]]],
+              progress: StudyProgress | None = None, x: np.ndarray | None = None
+              ) -> tuple[dict[str, Any], AddedDesign]:
     """The added-target phase on the move-only optimum ``designs["after"]`` (its design vector ``x``;
-    ``designs["before"]``: the original, for the comparison): returns (results.json ``added_targets``, shapes
-    {"shape_added", "holes_added", "n_old"})."""
+    ``designs["before"]``: the original, for the comparison): returns (results.json ``added_targets``, the added
+    design)."""
     from cadfeat.study.pose_accuracy import part_mesh
 
     shape1, holes1 = designs["after"]
@@ -450,7 +455,7 @@ def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tupl
     if progress is not None:
         progress.log(f"added targets: {choice.k} recommended ({choice.why}); predicted RMS error "
                      f"{predicted['move_only']['error_mm']:.4g} → {predicted['added']['error_mm']:.4g} mm")
-    return block, {"shape_added": shape2, "holes_added": holes2, "n_old": len(base_holes)}
+    return block, AddedDesign(shape2, holes2, len(base_holes))
 
 
 def _block(config: StudyConfig, spec: AddTargetsSettings, choice: Choice, added: Sequence[AddedHole],
@@ -480,7 +485,7 @@ def _block(config: StudyConfig, spec: AddTargetsSettings, choice: Choice, added:
     }
 
 
-def export_added(config: StudyConfig, stage: Path, results: dict[str, Any], shapes: Mapping[str, Any]) -> None:
+def export_added(config: StudyConfig, stage: Path, results: dict[str, Any], delivery: Delivery) -> None:
     """Write ``added_targets.step``, re-import it, find every hole where it was put and measure every kept
     requirement again on the re-imported solid (``CadfeatError`` naming the violated one); the block gains
     ``step`` (the round trip's errors) and the STEP checks."""
@@ -488,19 +493,20 @@ def export_added(config: StudyConfig, stage: Path, results: dict[str, Any], shap
     from cadfeat.study.verify import extract_viewed, fail_on
 
     block = results.get("added_targets")
-    if block is None or shapes.get("shape_added") is None:
+    added = delivery.added
+    if block is None or added is None:
         return
-    setup = shapes["setup"]
+    setup = delivery.setup
     path = stage / STEP_NAME
-    export_step(shapes["shape_added"], path)
+    export_step(added.shape, path)
     view = setup.view_direction
-    trip = verify_step_roundtrip(path, extract_viewed(shapes["shape_added"], view), tol_mm=1e-6,
-                                 expected_volume_mm3=shape_volume_mm3(shapes["shape_added"]), volume_rtol=1e-7,
+    trip = verify_step_roundtrip(path, extract_viewed(added.shape, view), tol_mm=1e-6,
+                                 expected_volume_mm3=shape_volume_mm3(added.shape), volume_rtol=1e-7,
                                  prefer_direction=view)
     from cadfeat.cad.drill_targets import verify_drilled
 
-    holes = list(shapes["holes_added"])
-    n_old = int(shapes["n_old"])
+    holes = list(added.holes)
+    n_old = int(added.n_old)
     reimported = import_step(path)
     found = verify_drilled(reimported, holes[:n_old], [_as_added(h) for h in holes[n_old:]],
                            label=str(path), prefer_direction=view)
@@ -519,7 +525,8 @@ def _as_added(h: Hole) -> AddedHole:
 
 
 
-def confirm(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, Any], progress: Any = None) -> None:
+def confirm(config: StudyConfig, results: dict[str, Any], delivery: Delivery,
+            progress: StudyProgress | None = None) -> None:
     """The closed loop of the added design against the move-only optimum (the study's check, its mode and
     settings: ``closed_loop_check.check_spec``); the block gains ``tracking`` {"mode", "verdicts" per estimator,
     "designs": per design and estimator the RMS translation (mm) and rotation (deg) errors}. The study's own check
@@ -529,12 +536,13 @@ def confirm(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, A
     from cadfeat.study.tracking import run_tracking
 
     block = results.get("added_targets")
-    if block is None or shapes.get("shape_added") is None:
+    added = delivery.added
+    if block is None or added is None:
         return
-    mode, spec = check_spec(config, len(shapes["setup"].trajectory.times_s))
+    mode, spec = check_spec(config, len(delivery.setup.trajectory.times_s))
     if spec is None:
         return
-    designs = {"before": (shapes["shape1"], shapes["holes1"]), "after": (shapes["shape_added"], shapes["holes_added"])}
+    designs = {"before": (delivery.shape1, delivery.holes1), "after": (added.shape, added.holes)}
     try:
         section = plain(run_tracking(config, designs, None, spec))
     except (CadfeatError, ImportError, RuntimeError, OSError, ValueError) as exc:

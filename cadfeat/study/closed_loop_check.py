@@ -43,7 +43,7 @@ import dataclasses
 import math
 import os
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -52,7 +52,13 @@ from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 from cadfeat.study.settings.sections import CHECK_MODES
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
+    from cadfeat.cad.features import Hole
     from cadfeat.cad.sandbox import BackgroundCall
+    from cadfeat.study.delivery import Delivery
+    from cadfeat.study.progress import StudyProgress
+    from cadfeat.study.tracking import Design
 
 ENV = "CADFEAT_TRACKING_CHECK"
 FAST_ESTIMATORS = ("pnp", "iekf")
@@ -64,8 +70,6 @@ SKIPPED = "closed-loop check skipped"
 TRACKED_MIN = 0.5
 BACKGROUND_ENV = "CADFEAT_TRACKING_BACKGROUND"
 BACKGROUND_WAIT_S = 3600.0
-#: Where ``pipeline.compute`` keeps the workers of ``start_design`` in its shapes, per design name.
-BACKGROUND_KEYS = {"before": "tracking_before", "after": "tracking_after"}
 
 
 def with_mode(config: StudyConfig, mode: str | None) -> StudyConfig:
@@ -101,35 +105,35 @@ def fast_spec(config: StudyConfig, n_samples: int) -> TrackingSpec:
                         settle_frames=max(0, min(base.settle_frames, FAST_SETTLE, frames - 3)))
 
 
-def attach(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, Any], stage: Path | None,
-           progress: Any = None) -> None:
+def attach(config: StudyConfig, results: dict[str, Any], delivery: Delivery, stage: Path | None,
+           progress: StudyProgress | None = None) -> None:
     """Run this study's closed-loop check and put it into ``results``: the ``tracking`` section (with a ``check``
     block: mode, runs, frames, estimators, seconds), nothing when the mode is ``off``, or a ``warnings`` line
-    saying why it was skipped. ``shapes``: ``pipeline.compute``'s (shape0/holes0 the original, shape1/holes1 the
-    recommended design, setup); ``stage``: the output folder (the frames' PNGs)."""
-    section, skipped = closed_loop_check(config, shapes, stage, progress)
+    saying why it was skipped. ``delivery``: ``pipeline.compute``'s (shape0/holes0 the original, shape1/holes1 the
+    recommended design, setup, the workers); ``stage``: the output folder (the frames' PNGs)."""
+    section, skipped = closed_loop_check(config, delivery, stage, progress)
     if section is not None:
         results["tracking"] = section
     if skipped:
         results.setdefault("warnings", []).append(skipped)
-    views, why = camera_views(config, shapes, stage, progress)
+    views, why = camera_views(config, delivery, stage, progress)
     if views is not None:
         results["physical_views"] = views
     if why:
         results.setdefault("warnings", []).append(why)
 
 
-def camera_views(config: StudyConfig, shapes: Mapping[str, Any], stage: Path | None,
-                 progress: Any = None) -> tuple[dict[str, Any] | None, str | None]:
+def camera_views(config: StudyConfig, delivery: Delivery, stage: Path | None,
+                 progress: StudyProgress | None = None) -> tuple[dict[str, Any] | None, str | None]:
     """(results.json ``physical_views``: both designs rendered physically at three poses, detections drawn and
     misses named — ``study.physical_views`` —, or None; why they are missing, or None). Made whenever the check
     is on; a renderer that fails leaves a warning (an error in mode ``pbr``, which asked for physics by name)."""
     from cadfeat.study.physical_views import physical_views  # lazy: Mitsuba
 
-    mode, spec = check_spec(config, len(shapes["setup"].trajectory.times_s))
-    if spec is None or min(len(shapes["holes0"]), len(shapes["holes1"])) < MIN_HOLES:
+    mode, spec = check_spec(config, len(delivery.setup.trajectory.times_s))
+    if spec is None or min(len(delivery.holes0), len(delivery.holes1)) < MIN_HOLES:
         return None, None
-    designs = {"before": (shapes["shape0"], shapes["holes0"]), "after": (shapes["shape1"], shapes["holes1"])}
+    designs = _designs(delivery)
     try:
         with progress.phase("camera views") if progress is not None else contextlib.nullcontext():
             return physical_views(config, designs, stage, spec), None
@@ -151,7 +155,8 @@ def check_spec(config: StudyConfig, n_samples: int) -> tuple[str, TrackingSpec |
     return mode, fast_spec(config, n_samples)
 
 
-def start_design(config: StudyConfig, name: str, shape: Any, holes: Any, n_samples: int) -> BackgroundCall | None:
+def start_design(config: StudyConfig, name: str, shape: Shape, holes: Sequence[Hole], n_samples: int
+                 ) -> BackgroundCall | None:
     """Start tracking one design (``shape``, ``holes``; ``name`` "before" or "after") in a worker process, so
     that the check runs on another core while this process goes on: the original while the optimiser runs,
     the recommended design during the analysis, export and the report's renders (neither depends on what this
@@ -187,7 +192,7 @@ def _track_design(threads: int | None, arguments: tuple[Any, ...]) -> Any:
     return track_one(*arguments)
 
 
-def _collect(pending: Mapping[str, BackgroundCall | None], progress: Any) -> dict[str, Any]:
+def _collect(pending: Mapping[str, BackgroundCall | None], progress: StudyProgress | None) -> dict[str, Any]:
     """{design name: its worker's tracking} for the workers ``start_design`` started that delivered (a design
     whose worker failed is tracked here by the check, where a failure is reported as the check reports it)."""
     out = {}
@@ -202,34 +207,33 @@ def _collect(pending: Mapping[str, BackgroundCall | None], progress: Any) -> dic
     return out
 
 
-def cancel(shapes: Mapping[str, Any]) -> None:
-    """Stop the workers ``start_design`` started for ``shapes`` (keys "tracking_before"/"tracking_after")."""
-    for key in BACKGROUND_KEYS.values():
-        if shapes.get(key) is not None:
-            shapes[key].cancel()
+def _designs(delivery: Delivery) -> dict[str, Design]:
+    """{"before": the original (shape, holes), "after": the recommended design}."""
+    return {"before": (delivery.shape0, delivery.holes0), "after": (delivery.shape1, delivery.holes1)}
 
 
-def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Path | None,
-                      progress: Any = None) -> tuple[dict[str, Any] | None, str | None]:
-    """(the results.json ``tracking`` section or None, why it was skipped or None) — ``attach``. ``shapes`` may
-    hold ``start_design``'s workers under ``BACKGROUND_KEYS`` (their designs are not tracked again here)."""
+def closed_loop_check(config: StudyConfig, delivery: Delivery, stage: Path | None,
+                      progress: StudyProgress | None = None) -> tuple[dict[str, Any] | None, str | None]:
+    """(the results.json ``tracking`` section or None, why it was skipped or None) — ``attach``. The designs
+    ``delivery.workers`` track are not tracked again here (a worker that failed leaves its design to this
+    process); the workers are collected or cancelled."""
     from cadfeat.study.tracking import run_tracking  # lazy: would import scipy.optimize at module load
 
-    mode, spec = check_spec(config, len(shapes["setup"].trajectory.times_s))
-    designs = {"before": (shapes["shape0"], shapes["holes0"]), "after": (shapes["shape1"], shapes["holes1"])}
-    few = min(len(shapes["holes0"]), len(shapes["holes1"]))
+    mode, spec = check_spec(config, len(delivery.setup.trajectory.times_s))
+    designs = _designs(delivery)
+    few = min(len(delivery.holes0), len(delivery.holes1))
     if spec is None:
-        cancel(shapes)
+        delivery.workers.cancel()
         return None, None
     if mode in ("fast", "pbr") and few < MIN_HOLES:
-        cancel(shapes)
+        delivery.workers.cancel()
         return None, f"{SKIPPED}: the part has {few} hole(s); a pose needs at least {MIN_HOLES}"
     if spec.renderer == "pbr" and progress is not None:
         from cadfeat.study.tracking import pbr_announcement  # lazy: Mitsuba
 
         progress.log(pbr_announcement(config, spec, designs))
     t0, c0 = time.perf_counter(), time.process_time()
-    pending = {name: shapes.get(key) for name, key in BACKGROUND_KEYS.items()}
+    pending = delivery.workers.pending()
     try:
         with _phase(progress):
             section = run_tracking(config, designs, stage, spec, tracked=_collect(pending, progress))

@@ -1,9 +1,9 @@
 """The phases of a study run: set up, optimise, deliver (shop rounding and CAD rebuild), analyse, and the
 results they give (``compute``).
 
-``compute(config, progress)`` returns the results.json content (before export) and the shapes the export and
-the report need; ``cadfeat.study.run`` stages, exports (``cadfeat.study.verify``) and publishes. Each phase is a
-function of its own below, in run order.
+``compute(config, progress)`` returns the results.json content (before export) and the designs the export, the
+report and the closed-loop check need (``delivery.Delivery``); ``cadfeat.study.run`` stages, exports
+(``cadfeat.study.verify``) and publishes. Each phase is a function of its own below, in run order.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
 from cadfeat.study import added_targets, closed_loop_check
 from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
+from cadfeat.study.delivery import Delivery, TrackingWorkers
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
     hole_dict,
@@ -307,28 +308,29 @@ class _Delivered:
 
 
 def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None = None
-            ) -> tuple[dict[str, Any], dict[str, Any]]:
+            ) -> tuple[dict[str, Any], Delivery]:
     """The study's phases in order: set up, optimise, deliver (shop rounding, CAD rebuild, scores and
-    requirement checks on the B-rep), analyse; returns (results, shapes) for the export and the report.
+    requirement checks on the B-rep), analyse; returns (results, the designs for the export, the report and the
+    closed-loop check).
     ``time_limit_s``: every part-script import and CAD build in a worker process within it (``run_study``:
     ``[study] build_timeout_s``); None: in this process."""
     check_robust(config)  # issue 18: a chance constraint names a measure of the study, before any work
     with prog.phase("setup"):
         start = _set_up(config, time_limit_s)
     base = start.base  # issue 17: the closed-loop check tracks the original on another core meanwhile
-    shapes: dict[str, Any] = {"tracking_before": closed_loop_check.start_design(
-        config, "before", base.shape0, base.holes0, len(base.trajectory.times_s))}
+    workers = TrackingWorkers(before=closed_loop_check.start_design(
+        config, "before", base.shape0, base.holes0, len(base.trajectory.times_s)))
     try:
-        return _after_set_up(config, prog, start, shapes)
+        return _after_set_up(config, prog, start, workers)
     except BaseException:
-        closed_loop_check.cancel(shapes)
+        workers.cancel()
         raise
 
 
-def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shapes: dict[str, Any]
-                  ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """``compute``'s phases after the set-up: optimise, deliver, analyse; ``shapes`` gains the designs (and the
-    recommended design's closed loop in a worker, ``closed_loop_check.start_design``, before the analysis)."""
+def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, workers: TrackingWorkers
+                  ) -> tuple[dict[str, Any], Delivery]:
+    """``compute``'s phases after the set-up: optimise, deliver, analyse; ``workers`` gains the recommended
+    design's closed loop (``closed_loop_check.start_design``, before the analysis)."""
     with prog.phase("optimise"):
         opt = _optimise_all(config, start, prog)
         robust_run = robust_phase(config, opt, prog, _history)  # issue 18: the robust optimum (opt.res if delivered)
@@ -349,8 +351,8 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
         m1 = measure_holes(setup, done.holes1, mesh=mesh1)
         obj1, comb1 = score(setup, done.holes1)
         checks = requirement_checks(setup, done.shape1, done.holes1, "brep")
-    shapes["tracking_after"] = closed_loop_check.start_design(config, "after", done.shape1, done.holes1,
-                                                              len(setup.trajectory.times_s))
+    workers.after = closed_loop_check.start_design(config, "after", done.shape1, done.holes1,
+                                                   len(setup.trajectory.times_s))
     with prog.phase("analyse"):
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, done.x1)
@@ -358,16 +360,15 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
         pose = _pose_accuracy(config, start, setup, done, mesh1)
     results = _results(config, start, opt, done, (m1, obj1, comb1, checks), (sweep, dmat, robust))
     results["pose_accuracy"] = pose
+    added = None
     if config.add_targets is not None and not opt.interrupted:  # issue 31: new target holes on the delivered design
         with prog.phase("add targets"):
-            results["added_targets"], extra = added_targets.run_phase(
+            results["added_targets"], added = added_targets.run_phase(
                 config, setup, {"before": (start.base.shape0, start.base.holes0), "after": (done.shape1, done.holes1)},
                 prog, done.x1)
-        shapes.update(extra)
     attach_robust(results, robust_designs(setup, robust_run, start.base.holes0, done.holes1))  # issue 18
-    shapes.update({"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,
-                   "holes1": done.holes1, "setup": setup, "base": start.base})
-    return results, shapes
+    return results, Delivery(start.base.shape0, start.base.holes0, done.shape1, done.holes1, setup, start.base,
+                             added, workers)
 
 
 def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: _Delivered,
@@ -383,8 +384,9 @@ def _set_up(config: StudyConfig, time_limit_s: float | None) -> _Start:
     """The part as it is and every set-up to optimise; the pre-flight refuses a study that cannot mean
     anything before any optimisation."""
     scene = load_scene(config)
-    check_fits(len(scene[1]), occlusion=config.objective.occlusion, robustness_samples=config.robustness.samples,
-               what=config.label)  # issue 16: refuse what cannot fit in memory, before any CAD work
+    # issue 16: refuse what cannot fit in memory, before any CAD work
+    check_fits(len(scene.trajectory), occlusion=config.objective.occlusion,
+               robustness_samples=config.robustness.samples, what=config.label)
     combos = int_grid(config) if config.study.part_kind == "script" else [{}]
     if config.study.part_kind == "step":
         base = study_setup.setup_study(config, time_limit_s=time_limit_s)

@@ -79,9 +79,9 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape
 
     from cadfeat.cad.features import Hole
-    from cadfeat.camera import Camera
     from cadfeat.design.problem import Problem
     from cadfeat.measures.evaluate import Measures
+    from cadfeat.study.delivery import Delivery
     from cadfeat.study.preflight import Preflight
     from cadfeat.trajectory import Trajectory
 
@@ -183,12 +183,12 @@ def run_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | Non
     start_workers()  # (CadQuery loads in the worker server meanwhile)
     with staged_output(out, force) as stage, \
             StudyProgress(config.study.name, enabled=progress and not quiet) as prog:
-        results, shapes = compute(config, prog, config.study.build_timeout_s)
+        results, delivery = compute(config, prog, config.study.build_timeout_s)
         try:
             with prog.phase("export"):
-                _write_outputs(config, stage, results, shapes, prog)
+                _write_outputs(config, stage, results, delivery, prog)
         finally:  # the closed loop's workers (``closed_loop_check.start_design``), if not collected
-            closed_loop_check.cancel(shapes)
+            delivery.workers.cancel()
     return StudyResult(Path(out), results)
 
 
@@ -208,34 +208,33 @@ def preflight_study(path_or_dict: StudySource | StudyConfig, time_limit_s: float
                      names)
 
 
-def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], shapes: Mapping[str, Any],
+def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], delivery: Delivery,
                    prog: StudyProgress) -> None:
     """Write and verify the outputs into the staging folder ``stage`` (published by the caller). The report's
     renders are made before the closed-loop check collects its workers' tracking (they run meanwhile)."""
     t0 = time.perf_counter()
-    results["constraints"], results["verification"] = export_and_verify(config, stage, shapes,
+    results["constraints"], results["verification"] = export_and_verify(config, stage, delivery,
                                                                         results["constraints"])
-    added_targets.export_added(config, stage, results, shapes)  # issue 31: added_targets.step, verified
+    added_targets.export_added(config, stage, results, delivery)  # issue 31: added_targets.step, verified
     write_holes_csv(stage / "holes.csv", plain(results))
     results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl",
                                                                  "holes.csv", added_targets.STEP_NAME)
                         if (stage / n).exists()]
     results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
     results["versions"] = versions()
-    finish_report = _report(stage, results, shapes, prog)
-    closed_loop_check.attach(config, results, shapes, stage, prog)  # the closed loop confirms (issue 17)
-    added_targets.confirm(config, results, shapes, prog)  # issue 31: the added design against the move-only optimum
+    finish_report = _report(stage, results, _report_context(delivery), prog)
+    closed_loop_check.attach(config, results, delivery, stage, prog)  # the closed loop confirms (issue 17)
+    added_targets.confirm(config, results, delivery, prog)  # issue 31: the added design against the move-only optimum
     results["verdict"] = verdict_json(plain(results))
     write_results(stage / "results.json", results)
     if finish_report is not None:
         finish_report(results)
 
 
-def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], prog: StudyProgress
+def _report(stage: Path, results: dict[str, Any], context: report.ReportContext, prog: StudyProgress
             ) -> Callable[[dict[str, Any]], None]:
     """The report's renders now (they need the designs and their measures, not the closed loop, whose workers
     run meanwhile); returns what writes the report from the final results (``report.build_report``)."""
-    context = _report_context(shapes)
     with prog.phase("report"):
         renders = report.report_renders(stage, plain(results), context)
 
@@ -245,13 +244,12 @@ def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], pro
     return finish
 
 
-def _report_context(shapes: Mapping[str, Any]) -> report.ReportContext:
+def _report_context(delivery: Delivery) -> report.ReportContext:
     """The report's designs, camera and trajectory (camera views at each hole's worst pose, its default)."""
-    setup = shapes["setup"]
-    fixed = getattr(setup, "fixed_mask", None)
+    setup = delivery.setup
     return report.ReportContext(
-        shape_before=shapes["shape0"], shape_after=shapes["shape1"], holes_before=shapes["holes0"],
-        holes_after=shapes["holes1"], fixed_mask=np.asarray(fixed, bool), camera=setup.camera,
+        shape_before=delivery.shape0, shape_after=delivery.shape1, holes_before=delivery.holes0,
+        holes_after=delivery.holes1, fixed_mask=np.asarray(setup.fixed_mask, bool), camera=setup.camera,
         trajectory=setup.trajectory, T_task_part=setup.T_task_part)
 
 
@@ -330,22 +328,13 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
                 "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
                 "measures": {"before": summary, "after": summary},
                 "objectives": {**results["objectives"], "after": values}}
-        shapes = {"shape0": shape, "shape1": shape, "holes0": holes, "holes1": holes,
-                  "setup": _EvalSetup(config, camera, full_traj, T_task_part, holes, fixed)}
-        finish_report = _report(stage, same, shapes, prog)
+        context = report.ReportContext(shape_before=shape, shape_after=shape, holes_before=holes, holes_after=holes,
+                                       fixed_mask=np.asarray(fixed, bool), camera=camera, trajectory=full_traj,
+                                       T_task_part=T_task_part)
+        finish_report = _report(stage, same, context, prog)
         if finish_report is not None:
             finish_report(same)
     return plain(results)
-
-
-@dataclass
-class _EvalSetup:
-    config: StudyConfig
-    camera: Camera
-    trajectory: Trajectory
-    T_task_part: np.ndarray
-    holes0: list[Hole]
-    fixed_mask: np.ndarray
 
 
 def _current_design(config: StudyConfig, time_limit_s: float | None

@@ -22,7 +22,7 @@ import itertools
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -62,9 +62,16 @@ __all__ = ["MAX_INT_COMBINATIONS", "Scene", "StudySetup", "int_grid", "setup_stu
 
 MAX_INT_COMBINATIONS = 64
 """Largest number of integer-parameter combinations a study enumerates."""
-Scene = tuple["Camera", "Trajectory", np.ndarray]
-"""(camera, trajectory T_task_cam, T_task_part): a study's scene (``load_scene``)."""
 SYMMETRY_NORMALS = {"x": [(1.0, 0.0, 0.0)], "y": [(0.0, 1.0, 0.0)], "xy": [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]}
+
+
+class Scene(NamedTuple):
+    """A study's scene (``load_scene``): its camera, the trajectory (``T_task_cam``) and where the part sits in the
+    task frame (``T_task_part`` (4, 4), mm); unpacks as the (camera, trajectory, T_task_part) it replaces."""
+
+    camera: Camera
+    trajectory: Trajectory
+    T_task_part: np.ndarray
 
 
 @dataclass
@@ -107,7 +114,7 @@ class StudySetup:
 # ----------------------------------------------------------------------------------------- common
 def load_scene(config: StudyConfig) -> Scene:
     """Camera, trajectory (T_task_cam) and T_task_part of a study."""
-    return config.camera.build(), config.trajectory.build(), config.part_pose.T_task_part
+    return Scene(config.camera.build(), config.trajectory.build(), config.part_pose.T_task_part)
 
 
 def constraint_config(config: StudyConfig, holes: Sequence[Hole] = (), movable: Sequence[int] = (),

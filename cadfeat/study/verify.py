@@ -38,6 +38,7 @@ from cadfeat.study.outputs import normalise_step_header
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
+    from cadfeat.study.delivery import Delivery
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import StudySetup
 
@@ -181,17 +182,17 @@ class AnchoredModel:
         return holes_at(self, x)
 
 
-def export_and_verify(config: StudyConfig, stage: Path, shapes: Mapping[str, Any],
+def export_and_verify(config: StudyConfig, stage: Path, delivery: Delivery,
                       constraints: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Write original.step, optimised.step and optimised.stl into ``stage`` and verify them: a valid solid, the
     re-imported STEP's holes equal to the design's within ``ROUNDTRIP_TOL_MM`` (and its volume), every kept
     requirement again on the re-imported solid (raises ``CadfeatError`` naming a violated one), a watertight
     STL. Returns (the B-rep and STEP requirement checks, the results.json ``verification`` block)."""
-    setup = shapes["setup"]
-    problems = check_solid(shapes["shape1"])
+    setup = delivery.setup
+    problems = check_solid(delivery.shape1)
     if problems:
         raise CadfeatError(f"{config.label}: the rebuilt optimum is not a valid solid: {'; '.join(problems[:3])}")
-    for name, shape in (("original.step", shapes["shape0"]), ("optimised.step", shapes["shape1"])):
+    for name, shape in (("original.step", delivery.shape0), ("optimised.step", delivery.shape1)):
         export_step(shape, stage / name)
         normalise_step_header(stage / name, f"{config.study.name} {name[:-5]}")
     from cadfeat.cad.export import verify_step_roundtrip  # lazy: looked up per call (tests replace it)
@@ -199,17 +200,17 @@ def export_and_verify(config: StudyConfig, stage: Path, shapes: Mapping[str, Any
     view = setup.view_direction  # (the rebuild's holes extracted as verify_step_roundtrip extracts them)
     # the volume expected of the re-read file: the re-read original's plus the design's change (an imported
     # part's own volume is off by up to 1.5e-5 relative before any change: export.expected_step_volume)
-    volume, uncertainty = expected_step_volume(shapes["shape1"], shapes["shape0"], stage / "original.step")
-    trip = verify_step_roundtrip(stage / "optimised.step", extract_viewed(shapes["shape1"], view),
+    volume, uncertainty = expected_step_volume(delivery.shape1, delivery.shape0, stage / "original.step")
+    trip = verify_step_roundtrip(stage / "optimised.step", extract_viewed(delivery.shape1, view),
                                  tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=volume, volume_rtol=1e-7,
                                  prefer_direction=view, volume_uncertainty_mm3=uncertainty)
     reimported = import_step(stage / "optimised.step")
-    step_holes = order_like(shapes["holes1"], setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
+    step_holes = order_like(delivery.holes1, setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
     checks = constraints + requirement_checks(setup, reimported, step_holes, "step")
     fail_on(checks, config.label)
-    export_stl(shapes["shape1"], stage / "optimised.stl")
-    stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"],
-                             original=shapes["shape0"] if config.study.part_kind == "step" else None)
+    export_stl(delivery.shape1, stage / "optimised.stl")
+    stl_problems = check_stl(stage / "optimised.stl", delivery.shape1,
+                             original=delivery.shape0 if config.study.part_kind == "step" else None)
     if stl_problems:
         raise CadfeatError(f"{config.label}: optimised.stl: {'; '.join(stl_problems[:3])}")
     verification = {
