@@ -76,11 +76,11 @@ def _f(x: Any) -> str:
 def track(args: argparse.Namespace) -> int:
     """Does the new design track better? Images → OpenCV detection → EKF/IEKF/PnP pose, before vs after."""
     from cadfeat.study.run import default_out_dir  # lazy: keeps `cadfeat --help` fast
-    from cadfeat.study.schema import TrackingSpec, load_study
+    from cadfeat.study.schema import load_study
     from cadfeat.study.tracking import exported_designs, run_tracking, sweep
 
     config = load_study(args.study)
-    spec = config.tracking or TrackingSpec(seed=config.study.seed)
+    spec = config.tracking_settings()
     if args.runs is not None:
         if args.runs < 1:
             raise CadfeatError(f"--runs: {args.runs} is not allowed; allowed: an integer >= 1")

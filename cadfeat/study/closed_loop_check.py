@@ -78,8 +78,7 @@ def with_mode(config: StudyConfig, mode: str | None) -> StudyConfig:
         return config
     if mode not in CHECK_MODES:
         raise StudyError(f"{config.label}: --track {mode!r} is not allowed; allowed: {', '.join(CHECK_MODES)}")
-    spec = config.tracking or TrackingSpec(seed=config.study.seed)
-    return dataclasses.replace(config, tracking=spec.replace(check=mode))
+    return dataclasses.replace(config, tracking=config.tracking_settings().replace(check=mode))
 
 
 def check_mode(config: StudyConfig) -> str:
@@ -98,7 +97,7 @@ def check_mode(config: StudyConfig) -> str:
 def fast_spec(config: StudyConfig, n_samples: int) -> TrackingSpec:
     """The fast check's settings: the study's sensor/tuning with PnP + IEKF, ``FAST_RUNS`` runs, at most
     ``FAST_FRAMES`` frames and ``FAST_SETTLE`` settling frames (fewer when the trajectory is short)."""
-    base = config.tracking or TrackingSpec(seed=config.study.seed)
+    base = config.tracking_settings()
     step = max(base.frame_step, math.ceil(n_samples / FAST_FRAMES))
     frames = len(range(0, n_samples, step))
     return base.replace(estimators=FAST_ESTIMATORS, runs=FAST_RUNS, frame_step=step,
@@ -149,7 +148,7 @@ def check_spec(config: StudyConfig, n_samples: int) -> tuple[str, TrackingSpec |
     if mode == "off":
         return mode, None
     if mode == "full":
-        return mode, config.tracking or TrackingSpec(seed=config.study.seed)
+        return mode, config.tracking_settings()
     if mode == "pbr":
         return mode, fast_spec(config, n_samples).replace(renderer="pbr")
     return mode, fast_spec(config, n_samples)

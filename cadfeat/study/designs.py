@@ -87,7 +87,7 @@ def track_design(study: StudySource, values: Mapping[str, float] | None = None, 
     from cadfeat.study.run import _resolve
 
     config = _resolve(study, seed)
-    spec = _with_keys(config.tracking or TrackingSpec(seed=config.study.seed), tracking, config.label)
+    spec = _with_keys(config.tracking_settings(), tracking, config.label)
     if out_dir is not None:
         check_output_folder(out_dir, names=("tracking",))  # before any work
     _, setup, _, (shape, holes, _) = _design(config, values, None)

@@ -35,11 +35,10 @@ def physical_views(config: Any, designs: Mapping[str, Any], out_dir: Path | None
     """results.json ``physical_views`` for ``designs`` = {name: (shape, holes)} (module docstring); ``spec``: the
     ``[tracking]`` settings (its ``spp`` and seed; default the study's); ``out_dir``: where ``camera/`` goes (None:
     frames not written)."""
-    from cadfeat.study.schema import TrackingSpec
     from cadfeat.study.tracking import _named, _scene, tracking_config
     from cadfeat.vision.closed_loop import report_frames
 
-    spec = (spec or config.tracking or TrackingSpec(seed=config.study.seed)).replace(renderer="pbr")
+    spec = (spec or config.tracking_settings()).replace(renderer="pbr")
     tc = tracking_config(spec, config.cell)
     camera, T_cam_part, times, _ = _scene(config)
     idx = report_frames(len(T_cam_part), count)

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -37,18 +37,20 @@ from cadfeat.design.pose_terms import cell_models, hole_kinds
 from cadfeat.measures.raycache import cache_rays
 from cadfeat.poses import cam_from_part
 
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.study.schema import StudyConfig
+    from cadfeat.vision import FilterTuning
+
 __all__ = ["PHASES", "design_pose_accuracy", "help_most", "pose_accuracy", "predict", "with_pose"]
 
 PHASES = ("start", "middle", "end")
 STEP_MM = 0.25
 
 
-def _tuning(config: Any) -> Any:
-    from cadfeat.study.settings import TrackingSettings  # lazy: would import pydantic, scipy.spatial at module load
+def _tuning(config: StudyConfig) -> FilterTuning:
     from cadfeat.study.tracking import tracking_config
 
-    spec = config.tracking if getattr(config, "tracking", None) is not None else TrackingSettings()
-    return tracking_config(spec).tuning  # (the filter tuning only: no placement)
+    return tracking_config(config.tracking_settings()).tuning  # (the filter tuning only: no placement)
 
 
 def _arrays(holes: Sequence[Any]) -> tuple[np.ndarray, ...]:

@@ -161,6 +161,14 @@ class StudyConfig:
     def label(self) -> str:
         return str(self.file) if self.file is not None else "<study dict>"
 
+    def tracking_settings(self) -> TrackingSpec:
+        """The ``[tracking]`` settings every closed loop of this study runs with (``cadfeat run``'s check, ``cadfeat
+        track``, the physical views, ``track_design``, g_POSE's filter tuning): the study's ``[tracking]`` table, or
+        — what a study without one means, decided here only — the section's defaults with the study's seed (as a
+        ``[tracking]`` table that does not set ``seed``). Whether the check runs, and how, is
+        ``closed_loop_check.check_mode``'s."""
+        return self.tracking if self.tracking is not None else TrackingSpec(seed=self.study.seed)
+
     def to_dict(self) -> dict[str, Any]:
         """The validated study as plain data (defaults filled in, None left out), for echoing into results.json;
         ``load_study(config.to_dict(), base_dir=config.base_dir)`` gives the same study."""

@@ -233,7 +233,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     designs already tracked with ``spec`` (``closed_loop.track_one`` of ``track_arguments``, e.g. in a worker),
     not re-run.
     """
-    spec = spec or config.tracking or TrackingSpec()
+    spec = spec or config.tracking_settings()
     designs = {k: (shape, _named(holes)) for k, (shape, holes) in designs.items()}
     camera, T_cam_part, times, screws = _scene(config)
     _check_frames(config, spec, len(T_cam_part))
@@ -268,7 +268,7 @@ def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,
     """
     if kind not in SWEEPS:
         raise StudyError(f"{config.label}: --sweep {kind!r} is not allowed; allowed: {', '.join(SWEEPS)}")
-    base = spec or config.tracking or TrackingSpec()
+    base = spec or config.tracking_settings()
     rows = []
     camera = _scene(config)[0]
     for value in (values or SWEEPS[kind]):
