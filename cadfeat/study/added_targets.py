@@ -60,6 +60,7 @@ from cadfeat.study.delivery import AddedDesign, Delivery
 from cadfeat.study.schema import StudyError
 
 if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
     from cadquery import Shape
 
     from cadfeat.cad.features import Hole
@@ -122,7 +123,7 @@ def _select(selector: str, faces: Sequence[PlanarFace], names: Sequence[str], la
     return max(on, key=lambda f: f.area_mm2)
 
 
-def resolve_faces(config: StudyConfig, shape: Any, holes: Sequence[Hole]) -> list[PlanarFace]:
+def resolve_faces(config: StudyConfig, shape: Shape, holes: Sequence[Hole]) -> list[PlanarFace]:
     """The planar faces of ``shape`` the study's ``[add_targets] faces`` select, in their order; the part's holes
     ``holes`` (their names) for ``host:`` selectors. One ``StudyError`` for a face the part does not have."""
     spec = _spec(config)
@@ -173,7 +174,7 @@ def _check_fits(config: StudyConfig, face: PlanarFace, rules: FaceRules) -> None
                      "or other faces")
 
 
-def allowed_sites(config: StudyConfig, shape: Any, holes: Sequence[Hole]) -> Allowed:
+def allowed_sites(config: StudyConfig, shape: Shape, holes: Sequence[Hole]) -> Allowed:
     """The allowed faces of ``shape`` (whose holes are ``holes``), their rules and the feasible candidate sites;
     ``StudyError`` when a face does not exist, the drill does not fit a face or no site is feasible."""
     spec = _spec(config)
@@ -238,7 +239,7 @@ def pose_scene(config: StudyConfig, setup: StudySetup) -> PoseScene:
                      float(config.cell.noise_sigma_grey))
 
 
-def _occlude(mesh: Any, T: np.ndarray) -> Any:
+def _occlude(mesh: trimesh.Trimesh | None, T: np.ndarray) -> Any:
     """Rim hidden fraction (L, n) of n holes (centres, axes (n, 3), rim radii, through, depth (n,)) against the
     part's ``mesh`` (the exact ray test, as ``pose_accuracy.predict``)."""
     from cadfeat.measures.rim_occlusion import rim_occlusion
@@ -249,7 +250,7 @@ def _occlude(mesh: Any, T: np.ndarray) -> Any:
     return occlude
 
 
-def target_objective(config: StudyConfig, scene: PoseScene, holes: Sequence[Hole], mesh: Any,
+def target_objective(config: StudyConfig, scene: PoseScene, holes: Sequence[Hole], mesh: trimesh.Trimesh | None,
                      sites: Sites) -> TargetObjective:
     """g_POSE of ``holes`` plus added holes at ``sites``, each rim's hidden fraction against ``mesh``."""
     from cadfeat.design.pose_terms import hole_kinds
@@ -328,7 +329,7 @@ def movable(setup: StudySetup, x: np.ndarray, holes: Sequence[Hole]) -> Movable 
                    np.asarray(setup.movable_mask, bool))
 
 
-def choose(config: StudyConfig, setup: StudySetup, shape: Any, holes: Sequence[Hole], mesh: Any,
+def choose(config: StudyConfig, setup: StudySetup, shape: Shape, holes: Sequence[Hole], mesh: trimesh.Trimesh | None,
            x: np.ndarray | None = None) -> Choice:
     """Sites, lazy greedy up to ``max_added``, the recommended number and its refinement on the design
     (``shape``, ``holes``; ``x`` its design vector: the study's position variables are refined with the added
@@ -372,7 +373,7 @@ def added_holes(config: StudyConfig, choice: Choice, holes: Sequence[Hole]) -> l
 
 
 # ------------------------------------------------------------------------------------------------- phase
-def brep_checks(config: StudyConfig, setup: StudySetup, shape: Any, holes: Sequence[Hole], n_old: int,
+def brep_checks(config: StudyConfig, setup: StudySetup, shape: Shape, holes: Sequence[Hole], n_old: int,
                 where: str) -> list[dict[str, Any]]:
     """Every kept requirement of the added design measured on the solid ``shape`` (its holes ``holes``: the
     part's ``n_old`` then the added): OCCT edge, keep-out and ligament distances of the movable and added holes,
@@ -401,7 +402,8 @@ def brep_checks(config: StudyConfig, setup: StudySetup, shape: Any, holes: Seque
     return checks
 
 
-def _predicted(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], mesh: Any) -> dict[str, float]:
+def _predicted(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], mesh: trimesh.Trimesh | None
+               ) -> dict[str, float]:
     """RMS predicted errors (mm; translation mm, rotation deg) of a design with ``pose_accuracy.predict``."""
     from cadfeat.study.pose_accuracy import predict
 
@@ -413,7 +415,7 @@ def _predicted(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], me
             "rotation_deg": rms(info.error_rotation_deg)}
 
 
-def _base_design(setup: StudySetup, x: np.ndarray | None, choice: Choice, shape1: Any,
+def _base_design(setup: StudySetup, x: np.ndarray | None, choice: Choice, shape1: Shape,
                  holes1: Sequence[Hole]) -> tuple[Any, list[Hole], dict[str, float] | None]:
     """The design the added holes are drilled into: the move-only optimum, or — when the joint refinement moved
     the study's position variables — its CAD rebuild at the refined x (with x as named values)."""

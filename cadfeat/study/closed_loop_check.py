@@ -265,7 +265,7 @@ def _inconclusive(section: dict[str, Any]) -> None:
             "camera's images)")
 
 
-def _phase(progress: Any) -> Any:
+def _phase(progress: StudyProgress | None) -> Any:
     return progress.phase("tracking") if progress is not None else contextlib.nullcontext()
 
 

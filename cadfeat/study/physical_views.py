@@ -20,9 +20,18 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from collections.abc import Sequence
+
+    from cadquery import Shape
+
+    from cadfeat.cad.features import Hole
+    from cadfeat.camera import Camera
+    from cadfeat.study.schema import StudyConfig
 
 __all__ = ["FOLDER", "physical_views"]
 
@@ -30,7 +39,7 @@ FOLDER = "camera"
 """The frames' folder in the output folder."""
 
 
-def physical_views(config: Any, designs: Mapping[str, Any], out_dir: Path | None, spec: Any = None,
+def physical_views(config: StudyConfig, designs: Mapping[str, Any], out_dir: Path | None, spec: Any = None,
                    count: int = 3) -> dict[str, Any]:
     """results.json ``physical_views`` for ``designs`` = {name: (shape, holes)} (module docstring); ``spec``: the
     ``[tracking]`` settings (its ``spp`` and seed; default the study's); ``out_dir``: where ``camera/`` goes (None:
@@ -52,7 +61,7 @@ def physical_views(config: Any, designs: Mapping[str, Any], out_dir: Path | None
             "seconds": round(time.perf_counter() - t0, 2)}
 
 
-def _design_frames(name: str, shape: Any, holes: Any, camera: Any, T: np.ndarray, times: np.ndarray,
+def _design_frames(name: str, shape: Shape, holes: Sequence[Hole], camera: Camera, T: np.ndarray, times: np.ndarray,
                    idx: list[int], tc: Any, out_dir: Path | None) -> list[dict[str, Any]]:
     """One design's frames: rendered, detected, drawn and written (module docstring)."""
     from cadfeat.study.tracking import write_frame

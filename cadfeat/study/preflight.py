@@ -105,7 +105,7 @@ def check_visibility(measures: Measures, label: str, scored: np.ndarray | None =
                      f"the {L} trajectory samples; {cause}. Nothing was optimised.")
 
 
-def _in_image(camera: Any, P: np.ndarray) -> np.ndarray:
+def _in_image(camera: Camera, P: np.ndarray) -> np.ndarray:
     """(L, V) bool: points (L, V, 3) camera frame in front of the camera, within the lens's valid field, and
     projecting inside the image."""
     Z = P[..., 2]
@@ -117,7 +117,7 @@ def _in_image(camera: Any, P: np.ndarray) -> np.ndarray:
     return ok & inside
 
 
-def _share(camera: Any, T_cam_part: np.ndarray, pts: np.ndarray) -> float:
+def _share(camera: Camera, T_cam_part: np.ndarray, pts: np.ndarray) -> float:
     P = np.einsum("lij,vj->lvi", T_cam_part[:, :3, :3], pts) + T_cam_part[:, None, :3, 3]
     return float(_in_image(camera, P).any(axis=1).mean())
 

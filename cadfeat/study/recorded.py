@@ -10,7 +10,7 @@ study's ``[cell]`` — the camera mount and the part placement bounds, each take
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,6 +18,12 @@ from cadfeat.cell import Cell
 from cadfeat.poses import cam_from_part
 from cadfeat.study.schema import StudyConfig, TrackingSpec
 from cadfeat.study.setup import load_scene
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
+    from cadfeat.cad.features import Hole
+    from cadfeat.camera import Camera
 
 #: The designs a recording may be of, and their key in ``tracking.exported_designs``.
 DESIGN_KEYS = {"original": "before", "optimised": "after"}
@@ -34,7 +40,7 @@ def reference_sigma(cell: Cell) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(mm, float), np.radians(np.asarray(deg, float))
 
 
-def _exclusions(shape: Any, holes: list[Any], camera: Any, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, Any]:
+def _exclusions(shape: Shape, holes: list[Hole], camera: Camera, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, Any]:
     """(exclude (F, N), rim hidden (F, N), mesh): the closed loop's rules at the reference poses."""
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.measures.pose_models import hole_geometry

@@ -25,8 +25,9 @@ the robust optimiser holds to the original's in sample), is never recommended; t
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol, TypedDict
 
 import numpy as np
 
@@ -34,7 +35,15 @@ from cadfeat.cad.features import holes_to_arrays
 from cadfeat.design.hole_form import hole_depths
 from cadfeat.design.robust import BLOCKS, RobustObjective, RobustProblem, robust_optimise, statistic
 from cadfeat.design.robustness import cell_objectives, shop_objectives
-from cadfeat.design.uncertainty import CELL_KINDS, KINDS, Uncertainty, draws
+from cadfeat.design.uncertainty import CELL_KINDS, KINDS, Draws, Uncertainty, draws
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
+    from cadfeat.design.design_space import DesignSpace
+    from cadfeat.design.optimize import OptimResult
+    from cadfeat.study.progress import StudyProgress
+    from cadfeat.study.schema import StudyConfig
+    from cadfeat.study.setup import StudySetup
 
 __all__ = ["HELD_OUT_SEED_OFFSET", "SOURCES", "RobustDesigns", "RobustRun", "attach_robust", "check_robust",
            "design_statistics",
@@ -51,7 +60,7 @@ SOURCE_WORDS = {"camera": "the camera mounting error", "placement": "the part's 
                 "manufacturing": "the shop's hole tolerances", "cell": "the cell (all its sources together)"}
 
 
-def check_robust(config: Any) -> None:
+def check_robust(config: StudyConfig) -> None:
     """Refuse, before any work, a chance constraint on a measure the study does not optimise (one line)."""
     from cadfeat.study.schema import StudyError  # lazy: would import scipy.spatial at module load
 
@@ -66,19 +75,39 @@ class RobustRun:
     """The optimise phase's robust step: the nominal and robust optimisers' results, the problem and draws the
     robust one saw, which design goes to the shop (``delivered``: "robust" or "nominal") and why."""
 
-    nominal: Any
-    robust: Any
+    nominal: OptimResult
+    robust: OptimResult
     problem: RobustProblem
     delivered: str
     note: str = ""
 
 
-def _uncertainty(config: Any) -> tuple[Uncertainty, RobustObjective]:
+class Optimum(Protocol):
+    """What the robust step reads and updates of the optimise phase's outcome (``pipeline._Optimum``): the best
+    set-up, its optimiser result (replaced by the robust one when that is delivered), the history, interrupted?"""
+
+    setup: StudySetup
+    res: OptimResult
+    history: list[dict[str, Any]]
+    interrupted: bool
+
+
+class Spread(TypedDict):
+    """One objective's (or the combined value's) statistics over draws (``_block``)."""
+
+    nominal: float
+    mean: float
+    p05: float
+    p10: float
+    min: float
+
+
+def _uncertainty(config: StudyConfig) -> tuple[Uncertainty, RobustObjective]:
     spec = config.robustness
     return Uncertainty.from_settings(spec, config.cell), RobustObjective.from_settings(spec)
 
 
-def _starts(opt: Any, space: Any, most: int = 2) -> list[np.ndarray]:
+def _starts(opt: Optimum, space: DesignSpace, most: int = 2) -> list[np.ndarray]:
     """The nominal optimum, the ``most`` best other end-points of the nominal multi-start, the initial design
     (distinct, in that order)."""
     out = [np.asarray(opt.res.x_best, float)]
@@ -97,7 +126,8 @@ def _starts(opt: Any, space: Any, most: int = 2) -> list[np.ndarray]:
     return distinct
 
 
-def robust_phase(config: Any, opt: Any, progress: Any, history: Any) -> RobustRun | None:
+def robust_phase(config: StudyConfig, opt: Optimum, progress: StudyProgress,
+                 history: Callable[[OptimResult, str], list[dict[str, Any]]]) -> RobustRun | None:
     """The robust optimum of the best set-up (module docstring); ``opt.res`` becomes the delivered design's
     optimiser result and ``opt.history`` gains the robust solves (phase "robust") as ``history(result, label)``
     formats them (the pipeline's ``_history``)."""
@@ -128,7 +158,8 @@ def robust_phase(config: Any, opt: Any, progress: Any, history: Any) -> RobustRu
     return RobustRun(nominal, res, rp, delivered, note)
 
 
-def _choose(setup: Any, rp: RobustProblem, nominal: Any, robust: Any, held: Any) -> tuple[str, str]:
+def _choose(setup: StudySetup, rp: RobustProblem, nominal: OptimResult, robust: OptimResult, held: Draws
+            ) -> tuple[str, str]:
     """"robust" unless, on held-out draws, the robust optimum's 5th percentile falls below the original's under a
     source while the nominal optimum's does not, or the nominal optimum (its 5th percentiles not below the
     original's) has the higher robust statistic — the robust solve did not improve on it (then "nominal").
@@ -168,9 +199,9 @@ def _below(stats: dict[str, Any], original: dict[str, Any]) -> list[str]:
 
 
 def _block(G: np.ndarray, G0: np.ndarray, names: list[str], combined: np.ndarray | None,
-           c0: float | None) -> dict[str, Any]:
+           c0: float | None) -> dict[str, Spread]:
     """nominal/mean/p05/p10/min of each objective (S, K) and of the combined values (S,)."""
-    def st(v: np.ndarray, nom: float) -> dict[str, float]:
+    def st(v: np.ndarray, nom: float) -> Spread:
         return {"nominal": float(nom), "mean": float(v.mean()), "p05": float(np.percentile(v, 5)),
                 "p10": float(np.percentile(v, 10)), "min": float(v.min())}
     out = {n: st(G[:, k], G0[k]) for k, n in enumerate(names)}
@@ -182,7 +213,11 @@ def _block(G: np.ndarray, G0: np.ndarray, names: list[str], combined: np.ndarray
 Features = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
-def _design_depths(rp: RobustProblem, depths: Any, B: int) -> np.ndarray:
+Depths = np.ndarray | Sequence[np.ndarray | None] | None
+"""Hole depths (mm) of B designs: (B, N), a (N,) array or None per design, or None (the reference holes')."""
+
+
+def _design_depths(rp: RobustProblem, depths: Depths, B: int) -> np.ndarray:
     """(B, N) hole depths (mm) of B designs: ``depths`` (B, N), or a list of (N,) / None per design (None: the
     reference holes' depths, as ``design.pose_terms.hole_attributes`` takes them)."""
     ref = hole_depths(rp.inner.model.holes)
@@ -191,8 +226,8 @@ def _design_depths(rp: RobustProblem, depths: Any, B: int) -> np.ndarray:
     return np.stack([ref if d is None else np.asarray(d, float).reshape(-1) for d in depths])
 
 
-def source_objectives(rp: RobustProblem, features: Features, D: Any, sources: tuple[str, ...] = SOURCES,
-                      depths: Any = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def source_objectives(rp: RobustProblem, features: Features, D: Draws, sources: tuple[str, ...] = SOURCES,
+                      depths: Depths = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Raw objectives of B designs' features (B, N, 3), (B, N, 3), (B, N) with hole depths ``depths`` (B, N) mm
     (or a list of (N,)/None per design; None: the reference holes'): nominal (B, K) and, per source of
     ``sources``, (B, S, K) on the draws ``D`` with only that source (the cell sources together for "cell"); one
@@ -246,8 +281,8 @@ def statistics_of(rp: RobustProblem, G0: np.ndarray, G: dict[str, np.ndarray],
     return out
 
 
-def design_statistics(rp: RobustProblem, features: list[Features], D: Any, values: bool = False,
-                      sources: tuple[str, ...] = SOURCES, depths: list[Any] | None = None) -> list[dict[str, Any]]:
+def design_statistics(rp: RobustProblem, features: list[Features], D: Draws, values: bool = False,
+                      sources: tuple[str, ...] = SOURCES, depths: Depths = None) -> list[dict[str, Any]]:
     """Per design (features (N, 3), (N, 3), (N,) each; ``depths``: its hole depths (N,) mm or None for the
     reference holes'), per source of ``sources``: ``_block`` of the draws ``D`` with only that source (the cell
     sources together for "cell"); the designs evaluated as one batch per source (``source_objectives``).
@@ -257,7 +292,7 @@ def design_statistics(rp: RobustProblem, features: list[Features], D: Any, value
     return statistics_of(rp, G0, G, values)
 
 
-def _robust_value(rp: RobustProblem, features: list[Features], depths: list[Any] | None = None) -> list[float]:
+def _robust_value(rp: RobustProblem, features: list[Features], depths: Depths = None) -> list[float]:
     """The robust statistic of each design (hole depths ``depths``, as ``design_statistics``) on ``rp``'s draws,
     as the optimiser computes it (for "chance": the 10th percentile of the combined value, the default
     statistic)."""
@@ -291,7 +326,8 @@ class RobustDesigns:
         return dataclasses.asdict(self)
 
 
-def robust_designs(setup: Any, run: RobustRun | None, holes0: Any, holes1: Any) -> RobustDesigns | None:
+def robust_designs(setup: StudySetup, run: RobustRun | None, holes0: Sequence[Hole], holes1: Sequence[Hole]
+                   ) -> RobustDesigns | None:
     """The comparison of the original, the delivered and the other optimum (module docstring); None when the
     robust step did not run or the hole counts differ."""
     if run is None or len(holes0) != len(holes1) or len(holes1) != len(run.problem.changed):

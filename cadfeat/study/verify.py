@@ -37,6 +37,8 @@ from cadfeat.errors import CadfeatError
 from cadfeat.study.outputs import normalise_step_header
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
     from cadfeat.study.delivery import Delivery
     from cadfeat.study.schema import StudyConfig
@@ -113,7 +115,7 @@ def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = 
     return shape, holes, err
 
 
-def requirement_checks(setup: StudySetup, shape: Any, holes: Sequence[Hole], where: str) -> list[dict[str, Any]]:
+def requirement_checks(setup: StudySetup, shape: Shape, holes: Sequence[Hole], where: str) -> list[dict[str, Any]]:
     """Every kept requirement measured on the solid ``shape`` whose holes are ``holes`` (design order).
 
     ``verify_on_brep`` re-extracts the holes with the study's view (``StudySetup.view_direction``: a through
@@ -146,12 +148,12 @@ def fail_on(checks: Sequence[Mapping[str, Any]], label: str) -> None:
         raise CadfeatError(f"{label}: the optimised design violates kept requirement(s): {text}")
 
 
-def extract_plain(shape: Any) -> list[Hole]:
+def extract_plain(shape: Shape) -> list[Hole]:
     """The holes of ``shape`` by extraction's own entrance rule (no view)."""
     return extract_holes(shape)
 
 
-def extract_viewed(shape: Any, view: Sequence[float] | np.ndarray | None) -> list[Hole]:
+def extract_viewed(shape: Shape, view: Sequence[float] | np.ndarray | None) -> list[Hole]:
     """The holes of ``shape``, each through hole entering on the side of ``view`` (towards the camera, part
     frame; None: extraction's own rule)."""
     return extract_holes(shape, prefer_direction=view)
