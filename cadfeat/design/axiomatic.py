@@ -22,9 +22,12 @@ Verdict on the significant (binary) matrix, rows affected by nothing left out:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.problem import Problem
 
 __all__ = ["VERDICTS", "DesignMatrix", "classify", "design_matrix"]
 
@@ -80,7 +83,7 @@ def classify(binary: np.ndarray) -> tuple[str, str]:
                          f"{[c for _, c in order]} (column indices)")
 
 
-def design_matrix(problem: Any, x: np.ndarray, *, columns: str = "groups", rows: str = "all",
+def design_matrix(problem: Problem, x: np.ndarray, *, columns: str = "groups", rows: str = "all",
                   threshold_rel: float = 0.05, step: float = 1e-4) -> DesignMatrix:
     """The design matrix of ``problem`` at design ``x`` (module docstring). ``step``: finite-difference step
     as a fraction of each variable's range."""

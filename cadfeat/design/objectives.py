@@ -42,13 +42,16 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, cast
+from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import numpy as np
 from pydantic import ValidationInfo, field_validator, model_validator
 
 from cadfeat.errors import CadfeatError
 from cadfeat.settings import Settings, Tuple, boolean, choice, context_of, number, reject
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.camera import Camera
 
 __all__ = [
     "AGGREGATES",
@@ -335,7 +338,7 @@ def pose_objective(pose: Any, how: str = "rms", rotation_length_mm: float = 50.0
     return float(-np.sqrt(np.mean(e * e, axis=-1))) if how == "rms" else float(-np.max(e, axis=-1))
 
 
-def natural_units(config: ObjectiveConfig, camera: Any, n_poses: int, n_features: int,
+def natural_units(config: ObjectiveConfig, camera: Camera, n_poses: int, n_features: int,
                   median_depth_mm: float) -> dict[str, float]:
     """A natural unit of each aggregated objective (measure key → value), used when the initial value is tiny
     and for the smooth min: per pose —

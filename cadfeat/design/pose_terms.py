@@ -18,12 +18,23 @@ import hashlib
 from collections import OrderedDict
 from collections.abc import Sequence
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from cadfeat.design.memory import budget_bytes
 from cadfeat.design.objectives import POSE_AGGREGATES, POSE_UNOBSERVABLE_MM, _choice
+
+if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+
+    from cadfeat.camera import Camera
+    from cadfeat.cell import Cell
+    from cadfeat.design.design_space import FeatureModel
+    from cadfeat.design.objectives import ObjectiveConfig
+    from cadfeat.measures.depth import DepthMaps
+    from cadfeat.measures.pose_information import PoseInformation
+    from cadfeat.measures.pose_models import PoseModels
 
 __all__ = ["StackedPose", "hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_values",
            "stacked_information"]
@@ -32,7 +43,30 @@ __all__ = ["StackedPose", "hole_attributes", "pose_aggregate_batch", "pose_of_fe
 RIM_SAMPLES = 16
 
 
-def hole_attributes(problem: Any, radii: np.ndarray,
+class PoseProblem(Protocol):
+    """What g_POSE reads of the optimisation problem (``design.problem.Problem``; a protocol: ``problem`` imports
+    this module): the reference holes, the objective's settings, the poses ``T_cam_part`` (L, 4, 4), the part's
+    mesh (exact rim test) and the optimiser's depth maps, the camera, the cell and the fixed holes (N,) bool."""
+
+    @property
+    def model(self) -> FeatureModel: ...
+    @property
+    def objective_config(self) -> ObjectiveConfig: ...
+    @property
+    def T_cam_part(self) -> np.ndarray: ...
+    @property
+    def occlusion_mesh(self) -> trimesh.Trimesh | None: ...
+    @property
+    def occlusion(self) -> DepthMaps | None: ...
+    @property
+    def camera(self) -> Camera: ...
+    @property
+    def cell(self) -> Cell: ...
+    @property
+    def fixed_mask(self) -> np.ndarray: ...
+
+
+def hole_attributes(problem: PoseProblem, radii: np.ndarray,
                     depth_mm: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(through (N,) bool, depth (N,) or like ``radii`` mm, depth/diameter like ``radii``) of the problem's
     reference holes at ``radii``; ``depth_mm`` (the design's depths, ``design.hole_form``) replaces theirs."""
@@ -49,9 +83,9 @@ def hole_kinds(holes: Sequence[Any]) -> list[str]:
     return [str(getattr(h, "kind", "plain")) for h in holes]
 
 
-def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+def pose_of_features(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                      exact_occlusion: bool = False, occlusion: np.ndarray | None = None,
-                     depth_mm: np.ndarray | None = None) -> Any:
+                     depth_mm: np.ndarray | None = None) -> PoseInformation:
     """``measures.pose_information`` (L poses × N holes) of one design's features (module docstring).
 
     ``occlusion`` (L, N) overrides the rim test (e.g. held fixed for finite differences); ``depth_mm`` (N,) the
@@ -74,7 +108,7 @@ def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii:
 
 
 @lru_cache(maxsize=16)
-def cell_models(cell: Any) -> Any:
+def cell_models(cell: Cell) -> PoseModels:
     """g_POSE's detection and measurement models (``measures.pose_models``) in the study's cell (``Cell``): the
     calibration of the cell's detector under its light, material and hole ends in the physical world
     (``pose_models.models_for``; the nearest one where none matches, said in ``source``), with the cell's gate
@@ -102,7 +136,7 @@ def pose_aggregate_batch(errors_mm: np.ndarray, information: np.ndarray, how: st
     return -np.exp(-np.mean(logdet, axis=-1) / 12.0)
 
 
-def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+def pose_values(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                 exact_occlusion: bool = False, depth_mm: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(g_POSE (B,), per-pose value −e (B, L)) of B designs' features (B, N, 3), (B, N, 3), (B, N); ``depth_mm``
     (B, N) their hole depths (``design.hole_form.design_depths``; None: the reference holes').
@@ -129,8 +163,9 @@ def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     return g, per_pose
 
 
-def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                        noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> StackedPose:
+def stacked_information(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                        noise_grey: float | np.ndarray | None = None, depth_mm: np.ndarray | None = None
+                        ) -> StackedPose:
     """g_POSE's pose information of B designs as B·L poses (design-major), holes per pose; occlusion by the
     problem's depth maps (every design's rims at each of the L poses in one ``rim_occlusion`` call).
     ``noise_grey``: the sensor's grey-level noise, a number or (L, 1) per pose (a robustness draw's pixel noise);
@@ -237,7 +272,7 @@ def _pose_error(info: np.ndarray, rhs: np.ndarray, ell: float) -> StackedPose:
     return StackedPose(info, np.hypot(b_t, sig_t), np.hypot(b_r, sig_r), float(ell))
 
 
-def _hole_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
+def _hole_terms(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
     """What depends on each hole alone, for B designs' holes (B, n, …) at the problem's L poses as B·L stacked
     poses: ``pose_models.hole_geometry``, the measurement Jacobian (``rim_centre.measure``) (B·L, n, 2, 6) and
     the rims' hidden fraction (``rim_occlusion`` against the depth maps; 0 without them) (B·L, n)."""
@@ -271,7 +306,7 @@ CACHE_ENTRIES = 8
 CACHE_BUDGET_SHARE = 0.25
 
 
-def _fixed_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
+def _fixed_terms(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
     """``_hole_terms`` of one set of holes (n, …) at the problem's L poses, kept for the same poses, occlusion
     maps, camera and holes (a key of their bytes; the camera and maps objects are held with the entry so their
     ids stay theirs); at most ``CACHE_ENTRIES`` pose sets and ``CACHE_BUDGET_SHARE`` of the memory budget, the

@@ -11,7 +11,7 @@ objective and constraint configurations. Everything the solvers need comes from 
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,6 +41,10 @@ from cadfeat.measures.depth import DepthMaps
 from cadfeat.measures.jacobian import diagnostics_from_gram
 from cadfeat.measures.resolvability import resolvability_from_parts, scale_jacobian, scale_screws
 from cadfeat.poses import cam_from_part
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.camera import Camera
+    from cadfeat.trajectory import Trajectory
 
 __all__ = ["Problem"]
 
@@ -95,7 +99,7 @@ class Problem:
     ``Cell()``).
     """
 
-    def __init__(self, space: DesignSpace, model: FeatureModel, camera: Any, trajectory: Any,
+    def __init__(self, space: DesignSpace, model: FeatureModel, camera: Camera, trajectory: Trajectory,
                  T_task_part: np.ndarray, objective_config: ObjectiveConfig, constraint_config: ConstraintConfig,
                  fixed_mask: Any = None, *, occlusion_mesh: Any = None, normaliser: Normaliser | None = None,
                  feature_mask: Any = None, cell: Cell | None = None):

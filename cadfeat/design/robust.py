@@ -35,7 +35,7 @@ import time
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -45,6 +45,9 @@ from cadfeat.design.optimize.evaluator import FEAS_TOL, Evaluator
 from cadfeat.design.robustness import cell_objectives, shop_objectives
 from cadfeat.design.uncertainty import Draws
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.problem import Problem
 
 __all__ = ["BLOCKS", "FLOOR_PERCENTILE", "STATISTICS", "TIE_TOL", "RobustObjective", "RobustProblem",
            "robust_optimise", "statistic", "tie_break"]
@@ -109,7 +112,7 @@ class RobustProblem:
     original) whose combined 5th percentile under each source of ``BLOCKS`` is a constraint (margin ≥ 0): the
     robust optimum is never more fragile than it, in sample."""
 
-    def __init__(self, problem: Any, objective: RobustObjective, draws: Draws, changed: Any = None,
+    def __init__(self, problem: Problem, objective: RobustObjective, draws: Draws, changed: Any = None,
                  floor_x: Any = None):
         if problem.objective_config.combine == "pareto":
             raise CadfeatError("robustness.robust: a robust objective needs one combined value; allowed: "

@@ -24,12 +24,15 @@ from __future__ import annotations
 import copy
 import dataclasses
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.design.uncertainty import Draws
 from cadfeat.poses import rotvec_matrix
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.problem import Problem
 
 __all__ = ["RAZOR_KEEP", "camera_objectives", "cell_objectives", "cell_poses", "robustness", "shop_features",
            "shop_objectives"]
@@ -50,7 +53,7 @@ def _stats(G: np.ndarray, nominal: np.ndarray) -> dict[str, np.ndarray]:
     return {"nominal": nominal, "mean": G.mean(axis=0), "p05": np.percentile(G, 5, axis=0), "min": G.min(axis=0)}
 
 
-def camera_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+def camera_objectives(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                       dT: np.ndarray) -> np.ndarray:
     """Raw objectives (S, K) of one design seen by S displaced cameras ``dT`` (S, 4, 4) (camera frame):
     ``cell_objectives`` with only a camera mounting error."""
@@ -61,7 +64,7 @@ def camera_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii
                            np.asarray(radii, float)[None], draws)[0]
 
 
-def cell_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+def cell_objectives(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                     draws: Draws, depth_mm: np.ndarray | None = None) -> np.ndarray:
     """Raw objectives (B, S, K) of B designs' features (B, N, 3), (B, N, 3), (B, N) in S cells that differ from
     the nominal one by ``draws`` (camera mount, part placement, path offset, time scaling, pixel noise; the
@@ -80,7 +83,7 @@ def cell_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: 
     return np.moveaxis(out, 0, 1)
 
 
-def cell_poses(problem: Any, draws: Draws) -> tuple[np.ndarray, np.ndarray]:
+def cell_poses(problem: Problem, draws: Draws) -> tuple[np.ndarray, np.ndarray]:
     """The S·L poses ``T_cam_part`` (S·L, 4, 4) and camera screws (S·L, 6) of the S drawn cells (draw-major).
 
     Camera mount ``ΔC`` (camera frame, the same at every pose): ``T' = ΔC⁻¹ T`` and ``v' = Rᵀ (v − p × ω)``,
@@ -104,7 +107,7 @@ def cell_poses(problem: Any, draws: Draws) -> tuple[np.ndarray, np.ndarray]:
     return T, screws.reshape(S * L, 6)
 
 
-def _cell_chunk(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+def _cell_chunk(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                 draws: Draws, depth_mm: np.ndarray | None = None) -> np.ndarray:
     """``cell_objectives`` (B, S, K) of one chunk of draws, as one stack of S·L poses."""
     S, L = draws.size, len(problem.screws)
@@ -152,7 +155,7 @@ def shop_features(centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, chan
     return C, np.broadcast_to(a[:, None], C.shape), R
 
 
-def shop_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray,
+def shop_objectives(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray,
                     draws: Draws, depth_mm: np.ndarray | None = None) -> np.ndarray:
     """Raw objectives (B, S, K) of B designs made by the shop in S draws (``shop_features``), as B·S designs of
     ONE batched evaluation (``Problem.batch_objectives``, chunked to the memory budget)."""
@@ -164,7 +167,7 @@ def shop_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: 
     return G.reshape(B, S, -1)
 
 
-def robustness(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray, *,
+def robustness(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray, *,
                position_tol_mm: float = 0.1, size_steps: int = 1, sizes: Sequence[float] = (),
                camera_position_mm: Any = 2.0, camera_angle_deg: Any = 1.0, samples: int = 200,
                combined_before: float | None = None, seed: int = 0) -> dict[str, Any]:

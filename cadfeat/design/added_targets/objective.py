@@ -15,9 +15,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.camera import Camera
 
 __all__ = ["CHUNK", "PoseScene", "TargetObjective"]
 
@@ -30,7 +33,7 @@ class PoseScene:
     """What the prediction needs besides the holes: the camera, the poses T_cam_part (L, 4, 4) mm, the
     rotation length ℓ (mm), the aggregate ("rms", "worst", "logdet"), the cell's models and grey-level noise."""
 
-    camera: Any
+    camera: Camera
     T_cam_part: np.ndarray
     rotation_length_mm: float
     aggregate: str

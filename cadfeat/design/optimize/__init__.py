@@ -26,7 +26,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, cast
+from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
@@ -41,6 +41,9 @@ from cadfeat.design.optimize.solvers import (
     snap_candidates,
 )
 from cadfeat.settings import Settings, boolean, choice, context_of, integer, number, reject, seed_from_context
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.optimize.evaluator import OptimProblem
 
 __all__ = ["FEAS_TOL", "METHODS", "OptimResult", "OptimizerConfig", "optimise", "solve_with_cad"]
 
@@ -120,7 +123,7 @@ class OptimResult:
     holes: list | None = None
 
 
-def _result(ev: Evaluator, problem: Any, t0: float, interrupted: bool, n0: int, pareto: dict | None = None,
+def _result(ev: Evaluator, problem: OptimProblem, t0: float, interrupted: bool, n0: int, pareto: dict | None = None,
             starts: list | None = None, message: str = "") -> OptimResult:
     best = ev.best
     if best is None:  # interrupted before any evaluation
@@ -138,7 +141,7 @@ def _result(ev: Evaluator, problem: Any, t0: float, interrupted: bool, n0: int, 
                        float(best["violation"]), message, starts or [])
 
 
-def optimise(problem: Any, config: OptimizerConfig | None = None,
+def optimise(problem: OptimProblem, config: OptimizerConfig | None = None,
              progress: Callable[[dict], None] | None = None, *, x_start: np.ndarray | None = None,
              bounds: tuple[np.ndarray, np.ndarray] | None = None) -> OptimResult:
     """Optimise ``problem`` (module docstring). ``x_start`` replaces the initial design; ``bounds`` (lower,
@@ -172,7 +175,7 @@ def optimise(problem: Any, config: OptimizerConfig | None = None,
     return _result(ev, problem, t0, interrupted, n0, pareto, starts)
 
 
-def _snap(ev: Evaluator, problem: Any, config: OptimizerConfig) -> None:
+def _snap(ev: Evaluator, problem: OptimProblem, config: OptimizerConfig) -> None:
     """Snap standard-size variables of the best design and re-solve the others with them fixed."""
     space = problem.space
     x_cont = ev.best["x"].copy()

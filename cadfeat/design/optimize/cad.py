@@ -25,22 +25,25 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.cad.features import Hole, holes_to_arrays, match_holes
-from cadfeat.design.design_space import LinearFeatureModel
+from cadfeat.design.design_space import FeatureModel, LinearFeatureModel
 from cadfeat.design.optimize import FEAS_TOL, OptimizerConfig, OptimResult, optimise
 from cadfeat.errors import CadfeatError
 
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.optimize.evaluator import CadProblem
 
-def _predicted_holes(model: Any, x: np.ndarray) -> list[Hole]:
+
+def _predicted_holes(model: FeatureModel, x: np.ndarray) -> list[Hole]:
     c, a, r = model.features(x)
     return [dataclasses.replace(h, centre=c[i], axis=a[i], radius_mm=float(r[i])) for i, h in enumerate(model.holes)]
 
 
-def _ordered(model: Any, x: np.ndarray, holes: list[Hole], match_tol_mm: float) -> tuple[list[Hole], float]:
+def _ordered(model: FeatureModel, x: np.ndarray, holes: list[Hole], match_tol_mm: float) -> tuple[list[Hole], float]:
     """Extracted ``holes`` in the model's order (matched to the prediction at x) and the largest error
     ‖Δcentre‖ + |Δradius| (mm)."""
     predicted = _predicted_holes(model, x)
@@ -54,7 +57,7 @@ def _ordered(model: Any, x: np.ndarray, holes: list[Hole], match_tol_mm: float) 
     return ordered, err
 
 
-def _candidate(problem: Any, x: np.ndarray, holes: list[Hole]) -> dict:
+def _candidate(problem: CadProblem, x: np.ndarray, holes: list[Hole]) -> dict:
     """A CAD-evaluated design: ``x`` with its extracted ``holes`` (model order), its true combined objective,
     objectives, feasibility and largest constraint violation."""
     c, a, r = holes_to_arrays(holes)
@@ -66,7 +69,7 @@ def _candidate(problem: Any, x: np.ndarray, holes: list[Hole]) -> dict:
             "violation": violation, "holes": holes}
 
 
-def _anchor_candidate(problem: Any, x: np.ndarray) -> dict | None:
+def _anchor_candidate(problem: CadProblem, x: np.ndarray) -> dict | None:
     """The feature model's anchor as a CAD-evaluated design: the set-up built it (the model's reference holes are
     its extracted holes), so it is the fallback when no round's design builds (issue 16: a failing region next to
     the anchor must not leave the loop without a buildable answer)."""
@@ -85,7 +88,7 @@ class _TrustRegionLoop:
     combined objective, the region's half-widths ``radius`` (None: the whole box), the feature model ``prob``
     (refreshed each round), the rounds so far and the best CAD-evaluated design ``verified``."""
 
-    def __init__(self, problem: Any, rebuild: Callable[[np.ndarray], list[Hole]], config: OptimizerConfig,
+    def __init__(self, problem: CadProblem, rebuild: Callable[[np.ndarray], list[Hole]], config: OptimizerConfig,
                  refresh: Callable[[np.ndarray, list[Hole]], Any] | None, *, max_rounds: int, tol_mm: float,
                  match_tol_mm: float, shrink: float, fd_rel_step: float,
                  progress: Callable[[dict], None] | None) -> None:
@@ -234,7 +237,8 @@ class _TrustRegionLoop:
         return None
 
 
-def solve_with_cad(problem: Any, rebuild: Callable[[np.ndarray], list[Hole]], config: OptimizerConfig | None = None,
+def solve_with_cad(problem: CadProblem, rebuild: Callable[[np.ndarray], list[Hole]],
+                   config: OptimizerConfig | None = None,
                    *, refresh: Callable[[np.ndarray, list[Hole]], Any] | None = None, max_rounds: int = 6,
                    tol_mm: float = 1e-6, match_tol_mm: float = 5.0, shrink: float = 0.5, fd_rel_step: float = 1e-4,
                    progress: Callable[[dict], None] | None = None) -> OptimResult:
