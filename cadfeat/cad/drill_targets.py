@@ -143,7 +143,7 @@ def _volume_mm3(added: AddedHole) -> float:
 
 def drill_targets(shape: Any, added: Sequence[AddedHole], holes_before: Sequence[Hole] | None = None,
                   tol: ModelTolerance | None = None, label: str = "the part",
-                  prefer_direction: Sequence[float] | None = None) -> tuple[Any, list[Hole]]:
+                  prefer_direction: Sequence[float] | np.ndarray | None = None) -> tuple[Any, list[Hole]]:
     """``shape`` (a cadquery Shape holding one solid) with the ``added`` blind holes cut, verified (module
     docstring); returns (the solid, its holes: the part's holes as before, in their order and names, then
     the added ones named as ``added``). ``holes_before``: the part's holes (default: extracted from ``shape``);
@@ -174,7 +174,7 @@ def drill_targets(shape: Any, added: Sequence[AddedHole], holes_before: Sequence
 
 
 def verify_drilled(shape: Any, before: Sequence[Hole], added: Sequence[AddedHole], tol: ModelTolerance | None = None,
-                   label: str = "the part", prefer_direction: Sequence[float] | None = None) -> list[Hole]:
+                   label: str = "the part", prefer_direction: Sequence[float] | np.ndarray | None = None) -> list[Hole]:
     """Re-extract the holes of ``shape`` and find each hole of ``before`` unchanged and each ``added`` hole where
     it was put (centre, axis, rim radius, depth within ``max(1e-3, 10 × tol)`` mm); returns the holes in that
     order (``before``'s names, then the added names). Raises ``CadfeatError`` naming the missing hole."""

@@ -503,7 +503,7 @@ def _hole_label(hole: Hole, index: int) -> str:
 
 def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Sequence[Hole], tol_mm: float = 1e-6,
                           expected_volume_mm3: float | None = None, volume_rtol: float = 1e-9,
-                          prefer_direction: Sequence[float] | None = None,
+                          prefer_direction: Sequence[float] | np.ndarray | None = None,
                           volume_uncertainty_mm3: float = 0.0) -> RoundTrip:
     """Re-import a written STEP file and prove it holds the designed part.
 

@@ -134,7 +134,7 @@ class StepPart:
         return lines
 
 
-def load_step(path: str | os.PathLike[str], prefer_direction: Sequence[float] | None = None) -> StepPart:
+def load_step(path: str | os.PathLike[str], prefer_direction: Sequence[float] | np.ndarray | None = None) -> StepPart:
     """Read a STEP part: exactly one solid, its holes extracted and named ``H1``, ``H2``... in the
     deterministic order of ``features.extract_holes``, with tolerances scaled to the model (its size, its
     B-rep tolerances and the file's STEP uncertainty). ``prefer_direction`` (the side the camera looks

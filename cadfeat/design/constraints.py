@@ -179,7 +179,7 @@ class ConstraintSet:
     """The 2-D constraints of one problem, compiled once (index arrays, padded polygons) and then evaluated
     batched: ``margins(centres (...,N,3), radii (...,N)) -> {name: (..., M_name)}``."""
 
-    def __init__(self, holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool],
+    def __init__(self, holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool] | np.ndarray,
                  radii0: Sequence[float] | None = None, outline_rates: Sequence[Any] | None = None,
                  x_anchor: Sequence[float] | None = None):
         """``holes``: the reference holes (host face outlines, depths, names); ``radii0`` (N,) mm: the original
@@ -302,7 +302,7 @@ class ConstraintSet:
 
 
 def constraint_margins(centres: np.ndarray, radii: np.ndarray, holes: Sequence[Hole], config: ConstraintConfig,
-                       fixed_mask: Sequence[bool]) -> dict[str, np.ndarray]:
+                       fixed_mask: Sequence[bool] | np.ndarray) -> dict[str, np.ndarray]:
     """The 2-D constraint margins (see module docstring) of a design: ``{kind: (..., M_kind)}``.
 
     ``holes`` are the reference holes (host face outlines, depths, names); ``centres`` (..., N, 3) mm and
@@ -407,7 +407,8 @@ def _check(name: str, holes: list[str], required: float, value: float, unit: str
     return ConstraintCheck(name, holes, float(required), float(value), float(margin), unit, bool(margin >= -tol))
 
 
-def verify_on_brep(shape: Any, design_holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool],
+def verify_on_brep(shape: Any, design_holes: Sequence[Hole], config: ConstraintConfig,
+                   fixed_mask: Sequence[bool] | np.ndarray,
                    reference: Sequence[Hole] | None = None, *, match_tol_mm: float = 1e-3,
                    reference_shape: Any = None, tol_mm: float = 1e-6,
                    prefer_direction: Sequence[float] | np.ndarray | None = None) -> list[ConstraintCheck]:

@@ -166,7 +166,10 @@ class DesignSpace:
 class FeatureModel(Protocol):
     """Design variables → hole features (part frame, mm)."""
 
-    holes: list[Hole]
+    @property
+    def holes(self) -> list[Hole]:
+        """The holes at the reference design (their order is the features' order)."""
+        ...
 
     def features(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """centres (N,3) mm, unit axes (N,3), radii (N,) mm at design ``x`` (P,)."""

@@ -66,8 +66,9 @@ def hole_depths(holes: Sequence[Any]) -> np.ndarray:
     return np.array([float(h.depth_mm) for h in holes])
 
 
-def variable_kind(dR: np.ndarray, dB: np.ndarray | None, dD: np.ndarray | None,
-                  through: np.ndarray | None = None, plain: np.ndarray | None = None) -> str:
+def variable_kind(dR: np.ndarray | None, dB: np.ndarray | None, dD: np.ndarray | None,
+                  through: Sequence[bool] | np.ndarray | None = None, plain: Sequence[bool] | np.ndarray | None = None
+                  ) -> str:
     """The ``Variable.kind`` of a parameter with per-hole rates (N,) of rim radius ``dR``, bore radius ``dB`` and
     depth ``dD`` (mm per unit; None: not known): "diameter" when it changes a bore (or, bore unknown, a rim);
     "other" when it changes only blind holes' depths or rims over unchanged bores (a chamfer); else "position".

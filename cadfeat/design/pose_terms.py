@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import hashlib
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 from functools import lru_cache
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 
@@ -107,16 +107,21 @@ def pose_of_features(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray
                             noise_grey=problem.cell.noise_sigma_grey)
 
 
-@lru_cache(maxsize=16)
 def cell_models(cell: Cell) -> PoseModels:
     """g_POSE's detection and measurement models (``measures.pose_models``) in the study's cell (``Cell``): the
     calibration of the cell's detector under its light, material and hole ends in the physical world
     (``pose_models.models_for``; the nearest one where none matches, said in ``source``), with the cell's gate
     and placement σ (``PoseModels.for_cell``). Cached per cell (a frozen, hashable model): every g_POSE evaluation
     asks, and choosing the calibration reads the package's data folder (~1 ms)."""
+    return _cell_models(cast("Hashable", cell))  # (frozen: pydantic hashes it; the checker cannot tell)
+
+
+@lru_cache(maxsize=16)
+def _cell_models(cell: Hashable) -> PoseModels:
     from cadfeat.measures import pose_models  # lazy: would import scipy.spatial at module load
 
-    return pose_models.models_for(cell).for_cell(cell)
+    c = cast("Cell", cell)
+    return pose_models.models_for(c).for_cell(c)
 
 
 def pose_aggregate_batch(errors_mm: np.ndarray, information: np.ndarray, how: str,

@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,6 +33,8 @@ from cadfeat.design.hole_form import drill_mask, drill_radii_batch
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
     from cadfeat.cad.features.identity import FeatureModel
     from cadfeat.design.design_space import DesignSpace
@@ -246,9 +248,9 @@ def off_target(holes: Sequence[Hole], design: ShopDesign) -> float:
 
 
 def refine_on_rebuild(space: DesignSpace, model: FeatureModel, problem: Problem, x: np.ndarray,
-                      rebuilt: tuple[Any, list[Hole], float],
-                      design: ShopDesign, rebuild: Callable[[np.ndarray, list[Hole]], tuple[Any, list[Hole], float]],
-                      rounds: int = 6) -> tuple[np.ndarray, tuple[Any, list[Hole], float], float]:
+                      rebuilt: tuple[Shape, list[Hole], float],
+                      design: ShopDesign, rebuild: Callable[[np.ndarray, list[Hole]], tuple[Shape, list[Hole], float]],
+                      rounds: int = 6) -> tuple[np.ndarray, tuple[Shape, list[Hole], float], float]:
     """Where the feature model is only a linearisation (a nonlinear part script), the rebuilt holes may miss the
     grid/table targets of ``design``: up to ``rounds`` Newton steps on the real CAD rebuild (the model's
     Jacobian, the rebuilt holes' error), each kept only if it gets closer and keeps the model's constraints.

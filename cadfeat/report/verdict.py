@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.report.html import esc, fmt, num, table, text
 from cadfeat.report.patterns import patterns
@@ -18,6 +18,9 @@ from cadfeat.report.requirements import ACTIVE_MARGIN_MM, requirement_rows
 from cadfeat.results import Finding as FindingRecord
 from cadfeat.results import Measures, Objectives, Robustness, StudyResults, Tracking, section, value
 from cadfeat.results import Verdict as VerdictRecord
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 ADOPT, CARE, REJECT = "adopt", "adopt with care", "do not adopt"
 _SEVERITY = {ADOPT: 0, CARE: 1, REJECT: 2}
@@ -273,7 +276,7 @@ def _patterns(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
 _CSS = {ADOPT: "adopt", CARE: "care", REJECT: "reject"}
 
 
-def verdict_section(results: dict) -> str:
+def verdict_section(results: JsonDict) -> str:
     """The decision banner, the rules with what each saw, and the per-hole gains and losses."""
     v = decide(results)
     rows = []

@@ -16,13 +16,17 @@ from __future__ import annotations
 import base64
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.cad.features import as_shape
 from cadfeat.report.context import ReportContext
 from cadfeat.results import FeatureSummary, Measures, Results, section, value
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape, Workplane
+
 
 VENDOR = Path(__file__).parent / "vendor" / "three-0.147.0"
 #: Number of camera frusta drawn along the path.
@@ -33,7 +37,7 @@ def _b64(a: np.ndarray, dtype: str) -> str:
     return base64.b64encode(np.ascontiguousarray(a, dtype=dtype).tobytes()).decode("ascii")
 
 
-def mesh_arrays(shape: Any) -> tuple[np.ndarray, np.ndarray]:
+def mesh_arrays(shape: Shape | Workplane) -> tuple[np.ndarray, np.ndarray]:
     """Triangulated B-rep: vertices (V, 3) mm and triangles (T, 3), tolerance 0.2 % of the bounding box."""
     s = as_shape(shape)
     bb = s.BoundingBox()

@@ -222,9 +222,9 @@ def preflight(config: StudyConfig, setup: StudySetup) -> dict[str, Any]:
         drill_targets(setup.shape0, [trial], list(setup.holes0), label=f"{config.label}: [add_targets] dry run",
                       prefer_direction=setup.view_direction)
     except CadfeatError as exc:
-        raise StudyError(f"{config.label}: add_targets: a hole cannot be drilled into the part (dry run at "
-                         f"{np.round(sites.centres[i], 3).tolist()} mm): {exc}; allowed: other faces, a shallower "
-                         "depth_mm or a smaller diameter_mm") from None
+        at = np.round(np.asarray(sites.centres[i], float), 3).tolist()
+        raise StudyError(f"{config.label}: add_targets: a hole cannot be drilled into the part (dry run at {at} mm): "
+                         f"{exc}; allowed: other faces, a shallower depth_mm or a smaller diameter_mm") from None
     return {"faces": [f.describe() for f in found.faces], "sites": len(sites)}
 
 
@@ -410,7 +410,9 @@ def _predicted(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], me
     T = cam_from_part(setup.trajectory.T_task_cam, setup.T_task_part)
     ell = float(config.objective.pose_rotation_length_mm)
     info, _ = predict(setup.camera, T, holes, mesh, ell, cell=config.cell)
-    rms = lambda v: float(np.sqrt(np.mean(np.square(np.minimum(v, 1e6)))))  # noqa: E731
+    def rms(v: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(np.square(np.minimum(v, 1e6)))))
+
     return {"error_mm": rms(info.error_mm(ell)), "translation_mm": rms(info.error_translation_mm),
             "rotation_deg": rms(info.error_rotation_deg)}
 

@@ -45,7 +45,7 @@ import os
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
@@ -56,6 +56,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cadfeat.cad.features import Hole
     from cadfeat.cad.sandbox import BackgroundCall
+    from cadfeat.results import JsonDict
     from cadfeat.study.delivery import Delivery
     from cadfeat.study.progress import StudyProgress
     from cadfeat.study.tracking import Design
@@ -194,7 +195,7 @@ def _track_design(threads: int | None, arguments: tuple[Any, ...]) -> Any:
 def _collect(pending: Mapping[str, BackgroundCall | None], progress: StudyProgress | None) -> dict[str, Any]:
     """{design name: its worker's tracking} for the workers ``start_design`` started that delivered (a design
     whose worker failed is tracked here by the check, where a failure is reported as the check reports it)."""
-    out = {}
+    out: dict[str, Any] = {}
     for name, call in pending.items():
         if call is None:
             continue
@@ -278,11 +279,13 @@ def summary_lines(results: Mapping[str, Any]) -> list[str]:
             return []  # the warning line says why
         return ["  closed loop: off (the verdict rests on the predicted objectives; `cadfeat run --track fast` "
                 "or `cadfeat track` confirms it)"]
-    check = tr.get("check") or {}
+    tr = cast("JsonDict", tr)
+    check: JsonDict = tr.get("check") or {}
     head = (f"  closed loop ({check.get('mode', 'full')}: {check.get('runs', '?')} paired runs, "
             f"{check.get('frames', '?')} frames, {check.get('seconds', '?')} s), after vs before:")
     lines = [head] + [f"    WARNING: {w}" for w in tr.get("warnings", []) if "no tracking verdict" in str(w)]
-    for m, v in (tr.get("verdicts") or {}).items():
+    verdicts: JsonDict = tr.get("verdicts") or {}
+    for m, v in verdicts.items():
         t, r = v.get("translation", {}), v.get("rotation", {})
         rms = _rms(tr, m)
         lines.append(f"    {m.upper():<5} {v.get('verdict')} (translation p = {_p(t)}, rotation p = {_p(r)}){rms}")

@@ -84,7 +84,7 @@ def track_design(study: StudySource, values: Mapping[str, float] | None = None, 
         raise StudyError(f"track_design: against={against!r} is not allowed; allowed: 'original' or None")
     if mode not in ("fast", "full"):
         raise StudyError(f"track_design: mode={mode!r} is not allowed; allowed: 'fast', 'full'")
-    from cadfeat.study.run import _resolve
+    from cadfeat.study.run import _resolve  # pyright: ignore[reportPrivateUsage] (the run's own resolution)
 
     config = _resolve(study, seed)
     spec = _with_keys(config.tracking_settings(), tracking, config.label)
@@ -117,7 +117,7 @@ def _design(study: StudySource, values: Mapping[str, float] | None, seed: int | 
     """(config, the set-up of the design's integer parameters, the design vector, ``verify.rebuild`` at it). A part
     script's values are checked against the study's parameters before any CAD work; a STEP part's variables (its
     holes') are known once its set-up has read them."""
-    from cadfeat.study.run import _resolve
+    from cadfeat.study.run import _resolve  # pyright: ignore[reportPrivateUsage] (the run's own resolution)
     from cadfeat.study.setup import setup_study
     from cadfeat.study.verify import HoleCountError, rebuild
 

@@ -17,13 +17,16 @@ import re
 from collections.abc import Mapping, Sequence
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from cadfeat.cad.export import sha256_file
 from cadfeat.cad.features.identity import hole_name
 from cadfeat.results import SCHEMA_VERSION, StudyResults
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.measures.evaluate import Measures
 
 __all__ = [
     "DIGITS",
@@ -50,17 +53,17 @@ def plain(value: Any, digits: int = DIGITS) -> Any:
     """JSON-ready copy: numpy → Python, floats rounded to ``digits`` significant digits, non-finite → None,
     tuples → lists, Paths → str. Integers stay integers."""
     if isinstance(value, Mapping):
-        return {str(k): plain(v, digits) for k, v in value.items()}
+        return {str(k): plain(v, digits) for k, v in cast("Mapping[object, object]", value).items()}
     if isinstance(value, list | tuple):
-        return [plain(v, digits) for v in value]
+        return [plain(v, digits) for v in cast("Sequence[object]", value)]
     if isinstance(value, np.ndarray):
         return plain(value.tolist(), digits)
     if isinstance(value, bool | np.bool_):
-        return bool(value)
+        return bool(cast(bool, value))
     if isinstance(value, int | np.integer):
-        return int(value)
+        return int(cast(int, value))
     if isinstance(value, float | np.floating):
-        x = float(value)
+        x = float(cast(float, value))
         if not math.isfinite(x):
             return None
         return 0.0 if x == 0 else float(f"{x:.{digits}g}")
@@ -97,12 +100,12 @@ def hole_dict(hole: Any, index: int, fixed: bool, movable: bool) -> dict[str, An
     }
 
 
-def _arr(m: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
+def _arr(m: Measures, name: str, shape: tuple[int, ...]) -> np.ndarray:
     value = getattr(m, name, None)
     return np.full(shape, np.nan) if value is None else np.asarray(value, dtype=float)
 
 
-def worst_poses(m: Any, min_axis_px: float, half_image_px: float) -> np.ndarray:
+def worst_poses(m: Measures, min_axis_px: float, half_image_px: float) -> np.ndarray:
     """(N,) index of each feature's worst pose: the smallest of its FOV image margin (in units of the half
     image size), focus margin and resolution margin (in units of ``min_axis_px``) — all dimensionless, 0 at
     the limit — with invisible samples counted as −∞."""
@@ -111,10 +114,11 @@ def worst_poses(m: Any, min_axis_px: float, half_image_px: float) -> np.ndarray:
     score = np.minimum.reduce([fov_px / max(half_image_px, 1.0), _arr(m, "focus", (L, N)),
                                _arr(m, "resolution_px", (L, N)) / max(min_axis_px, 1e-9)])
     score = np.where(np.asarray(m.visible, bool), np.nan_to_num(score, nan=-np.inf), -np.inf)
-    return np.argmin(score, axis=0) if L else np.zeros(N, int)
+    worst: np.ndarray = np.asarray(np.argmin(score, axis=0)) if L else np.zeros(N, np.int_)
+    return worst
 
 
-def measures_summary(m: Any, names: Sequence[str], times_s: np.ndarray, min_axis_px: float,
+def measures_summary(m: Measures, names: Sequence[str], times_s: np.ndarray, min_axis_px: float,
                      half_image_px: float) -> dict[str, Any]:
     """results.json ``M``: per-feature minima over the trajectory and per-pose series (contracts); per feature
     also ``hidden_frac`` (share of poses where the part hides it, occlusion ray test), ``hidden_worst_pose``

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, cast
 
 import numpy as np
 
@@ -24,9 +24,10 @@ from cadfeat.design import optimize  # (called through the module: tests replace
 from cadfeat.design.memory import check_fits
 from cadfeat.design.patterns import check_patterns, find_patterns
 from cadfeat.design.robustness import robustness
-from cadfeat.design.shop import hole_sizes, refine_on_rebuild, shop_design
+from cadfeat.design.shop import ShopDesign, hole_sizes, refine_on_rebuild, shop_design
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
+from cadfeat.results import JsonDict
 from cadfeat.study import added_targets, closed_loop_check
 from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
 from cadfeat.study.delivery import Delivery, TrackingWorkers
@@ -63,16 +64,33 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.measures.evaluate import Measures
     from cadfeat.study.preflight import Preflight
     from cadfeat.study.setup import Scene, StudySetup
-    from cadfeat.trajectory import Trajectory
 
 
 OUTLINE_ROUNDS = 4
 
 
+class Samples(Protocol):
+    """What the measures and results.json read of a trajectory: a ``Trajectory``, or ``cadfeat evaluate``'s view of
+    one of its samples (``run._OnePose``)."""
+
+    @property
+    def T_task_cam(self) -> np.ndarray: ...
+    @property
+    def times_s(self) -> np.ndarray: ...
+    @property
+    def duration_s(self) -> float: ...
+
+    def __len__(self) -> int: ...
+
+    def velocity_screws(self) -> np.ndarray:
+        """(L, 6) the camera's velocity screws (v mm/s, ω rad/s), camera frame."""
+        ...
+
+
 SWEEP_SAMPLES = 41
 
 
-def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Trajectory | None = None, *,
+def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Samples | None = None, *,
                   mesh: trimesh.Trimesh | None = None) -> Measures:
     """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
     the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off)."""
@@ -110,7 +128,8 @@ def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tu
     except KeyboardInterrupt:
         if progress.best_x is None:
             raise
-        res = _Interrupted(progress.best_x, progress.best_f)
+        # a stand-in with the fields the run reads of an optimiser's result
+        res = cast("OptimResult", _Interrupted(progress.best_x, progress.best_f))
     if getattr(res, "interrupted", False) and not getattr(res, "history", None) and progress.best_x is None:
         raise KeyboardInterrupt  # stopped before the optimiser evaluated any design: nothing to write
     return res, bool(getattr(res, "interrupted", False))
@@ -143,9 +162,9 @@ class _Interrupted:
 
     x_best: np.ndarray
     f_best: float
-    history: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    history: list[JsonDict] = dataclasses.field(default_factory=list[JsonDict])
     interrupted: bool = True
-    pareto: dict[str, Any] | None = None
+    pareto: JsonDict | None = None
     n_evals: int = 0
 
 
@@ -159,18 +178,19 @@ def _violations(setup: StudySetup, x: np.ndarray, most: int = 5) -> str:
 
 
 def _refresh_outlines(setup: StudySetup, res: OptimResult, scene: Scene, normaliser: Normaliser,
-                      prog: StudyProgress, label: str) -> tuple[StudySetup, OptimResult, list[dict[str, Any]], bool]:
+                      prog: StudyProgress, label: str) -> tuple[StudySetup, OptimResult, list[JsonDict], bool]:
     """The optimiser's 2-D constraints use the host-face outlines of the design it was linearised at; when a
     parameter also changes the faces (e.g. a block that grows with the hole spacing), rebuild at the
     optimum, linearise again there (new outlines) and re-optimise from it, until the outlines agree (at
     most ``OUTLINE_ROUNDS`` rounds; a round is kept only if it improves the objective)."""
-    history: list[dict[str, Any]] = []
+    history: list[JsonDict] = []
     stopped = False
     for k in range(OUTLINE_ROUNDS):
         x = np.asarray(res.x_best, float)
         try:
             _, holes, _ = rebuild(setup, x)
-            if not outlines_differ(setup.model.holes_at(x) if hasattr(setup.model, "holes_at") else setup.model.holes,
+            holes_at = getattr(setup.model, "holes_at", None)
+            if not outlines_differ(holes_at(x) if holes_at is not None else setup.model.holes,
                                    holes):  # the outlines the model predicts at x (they may move with x)
                 break
             names = setup.space.names
@@ -189,17 +209,18 @@ def _refresh_outlines(setup: StudySetup, res: OptimResult, scene: Scene, normali
     return setup, res, history, stopped
 
 
-def _history(res: OptimResult, label: str) -> list[dict[str, Any]]:
-    out = []
-    for i, h in enumerate(getattr(res, "history", None) or []):
-        h = dict(h) if isinstance(h, Mapping) else {"f": h}
+def _history(res: OptimResult, label: str) -> list[JsonDict]:
+    out: list[JsonDict] = []
+    entries: list[object] = getattr(res, "history", None) or []
+    for i, entry in enumerate(entries):
+        h: JsonDict = dict(cast("Mapping[str, Any]", entry)) if isinstance(entry, Mapping) else {"f": entry}
         out.append({"iteration": int(h.get("iteration", i)), "f": h.get("f"), "combined": h.get("combined"),
                     "feasible": bool(h.get("feasible", True)), "phase": (label + " " if label else "")
                     + str(h.get("phase", "")).strip()})
     return out
 
 
-def _sweep(setup: StudySetup) -> dict[str, Any] | None:
+def _sweep(setup: StudySetup) -> JsonDict | None:
     """For a one-variable study: the objectives over the variable's range (thesis Figs. 5.10/5.11)."""
     space = setup.space
     if space.size != 1:
@@ -207,7 +228,7 @@ def _sweep(setup: StudySetup) -> dict[str, Any] | None:
     v = space.variables[0]
     values = np.linspace(v.lower, v.upper, SWEEP_SAMPLES)
     objectives: dict[str, list[float]] = {}
-    combined = []
+    combined: list[float] = []
     for x in values:
         obj = setup.problem.objectives(np.array([x]))
         for k, g in obj.items():
@@ -217,8 +238,8 @@ def _sweep(setup: StudySetup) -> dict[str, Any] | None:
 
 
 def _variables(setup: StudySetup, x0: np.ndarray, x1: np.ndarray, ints0: Mapping[str, int],
-               ints1: Mapping[str, int]) -> list[dict[str, Any]]:
-    out = []
+               ints1: Mapping[str, int]) -> list[JsonDict]:
+    out: list[JsonDict] = []
     for v, a, b in zip(setup.space.variables, x0, x1, strict=True):
         out.append({"name": v.name, "unit": v.unit, "kind": v.kind, "lower": v.lower, "upper": v.upper,
                     "before": float(a), "after": float(b),
@@ -232,12 +253,12 @@ def _variables(setup: StudySetup, x0: np.ndarray, x1: np.ndarray, ints0: Mapping
 
 
 def _holes_block(setup0: StudySetup, holes0: Sequence[Hole], setup1: StudySetup,
-                 holes1: Sequence[Hole]) -> dict[str, Any]:
+                 holes1: Sequence[Hole]) -> JsonDict:
     return {"before": [hole_dict(h, i, setup0.fixed_mask[i], setup0.movable_mask[i]) for i, h in enumerate(holes0)],
             "after": [hole_dict(h, i, setup1.fixed_mask[i], setup1.movable_mask[i]) for i, h in enumerate(holes1)]}
 
 
-def _design_matrix(setup: StudySetup, x: np.ndarray) -> dict[str, Any] | None:
+def _design_matrix(setup: StudySetup, x: np.ndarray) -> JsonDict | None:
     try:
         from cadfeat.design.axiomatic import design_matrix
     except ImportError:
@@ -249,7 +270,7 @@ def _design_matrix(setup: StudySetup, x: np.ndarray) -> dict[str, Any] | None:
             "verdict": dm.verdict, "note": note}
 
 
-def _normalisation(setup: StudySetup) -> dict[str, Any]:
+def _normalisation(setup: StudySetup) -> JsonDict:
     normaliser = getattr(setup.problem, "normaliser", None)
     if normaliser is None:
         return {"method": "none", "reference": {}, "note": "objectives in their own units"}
@@ -258,7 +279,7 @@ def _normalisation(setup: StudySetup) -> dict[str, Any]:
             **({"sources": d["sources"]} if "sources" in d else {})}
 
 
-def trajectory_info(traj: Trajectory) -> dict[str, Any]:
+def trajectory_info(traj: Samples) -> JsonDict:
     """Kind, sample count, duration and the sampled camera poses (``T_task_cam`` (L, 4, 4), mm; ``time_s``)."""
     table_kind = getattr(traj, "name", "") or ""
     return {"kind": table_kind, "n_samples": len(traj), "duration_s": float(traj.duration_s),
@@ -289,7 +310,7 @@ class _Optimum:
 
     setup: StudySetup
     res: OptimResult
-    history: list[dict[str, Any]]
+    history: list[JsonDict]
     interrupted: bool
 
 
@@ -302,13 +323,13 @@ class _Delivered:
     shape1: Shape
     holes1: list[Hole]
     pred_err: float
-    shop: dict[str, Any]
+    shop: JsonDict
     res: OptimResult
     rebuild_failure: str | None
 
 
 def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None = None
-            ) -> tuple[dict[str, Any], Delivery]:
+            ) -> tuple[JsonDict, Delivery]:
     """The study's phases in order: set up, optimise, deliver (shop rounding, CAD rebuild, scores and
     requirement checks on the B-rep), analyse; returns (results, the designs for the export, the report and the
     closed-loop check).
@@ -328,7 +349,7 @@ def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None
 
 
 def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, workers: TrackingWorkers
-                  ) -> tuple[dict[str, Any], Delivery]:
+                  ) -> tuple[JsonDict, Delivery]:
     """``compute``'s phases after the set-up: optimise, deliver, analyse; ``workers`` gains the recommended
     design's closed loop (``closed_loop_check.start_design``, before the analysis)."""
     with prog.phase("optimise"):
@@ -372,7 +393,7 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, worke
 
 
 def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: _Delivered,
-                   mesh1: trimesh.Trimesh | None = None) -> dict[str, Any]:
+                   mesh1: trimesh.Trimesh | None = None) -> JsonDict:
     """results.json ``pose_accuracy`` (``study.pose_accuracy``): predicted pose error before and after;
     ``mesh1``: the delivered design's occlusion mesh when the study built one (else one is made here)."""
     base = start.base
@@ -387,7 +408,7 @@ def _set_up(config: StudyConfig, time_limit_s: float | None) -> _Start:
     # issue 16: refuse what cannot fit in memory, before any CAD work
     check_fits(len(scene.trajectory), occlusion=config.objective.occlusion,
                robustness_samples=config.robustness.samples, what=config.label)
-    combos = int_grid(config) if config.study.part_kind == "script" else [{}]
+    combos = int_grid(config) if config.study.part_kind == "script" else [dict[str, int]()]
     if config.study.part_kind == "step":
         base = study_setup.setup_study(config, time_limit_s=time_limit_s)
         setups = [base]
@@ -412,7 +433,7 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
     """One optimisation per set-up (integer combination), the best kept; Ctrl-C keeps the best so far."""
     best = None
     interrupted = False
-    history: list[dict[str, Any]] = []
+    history: list[JsonDict] = []
     setups = start.setups
     for s in setups:
         label = ", ".join(f"{k}={v}" for k, v in s.int_values.items()) if len(setups) > 1 else ""
@@ -439,8 +460,8 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
 
 
 def _rebuild_delivered(setup: StudySetup, x1: np.ndarray, x_opt: np.ndarray, verified: Sequence[Hole] | None,
-                       model: Any, shop: dict[str, Any], targets: Any) -> tuple[np.ndarray, Any, tuple[Any, list[Hole],
-                                                                                                        float]]:
+                       model: AnchoredModel, shop: JsonDict, targets: ShopDesign | None
+                       ) -> tuple[np.ndarray, ShopDesign | None, tuple[Shape, list[Hole], float]]:
     """The CAD rebuild of the delivered design: the shop-rounded ``x1``; when that does not build (a CAD failure
     is an infeasible point, issue 16), the optimum ``x_opt`` unrounded (``shop`` notes it). Returns (x, shop
     targets or None, ``rebuild``'s result); ``CadfeatError`` when neither builds."""
@@ -455,7 +476,12 @@ def _rebuild_delivered(setup: StudySetup, x1: np.ndarray, x_opt: np.ndarray, ver
     return x_opt, None, rebuild(setup, x_opt, verified)
 
 
-def _deliver(setup: StudySetup, opt: _Optimum, prog: StudyProgress, shopped: tuple[Any, ...]) -> _Delivered:
+Shopped: TypeAlias = "tuple[np.ndarray, np.ndarray, JsonDict, ShopDesign | None, AnchoredModel, Sequence[Hole] | None]"
+"""The shop phase's outcome: (the optimum, the shop-rounded design, the results.json ``shop`` block, the rounding's
+targets (None: not rounded), the anchored feature model, the holes the CAD loop verified at the optimum or None)."""
+
+
+def _deliver(setup: StudySetup, opt: _Optimum, prog: StudyProgress, shopped: Shopped) -> _Delivered:
     """The CAD rebuild of the shop-rounded optimum; when the linear feature model's optimum does not build,
     an infeasible point: search again with CAD in the loop, round that optimum for the shop, rebuild."""
     x_opt, x1, shop, targets, model, verified = shopped
@@ -482,8 +508,9 @@ def _deliver(setup: StudySetup, opt: _Optimum, prog: StudyProgress, shopped: tup
     return _Delivered(x1, shape1, holes1, pred_err, shop, res, rebuild_failure)
 
 
-def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered, after: tuple[Any, ...],
-             analysis: tuple[Any, ...]) -> dict[str, Any]:
+def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered,
+             after: tuple[Measures, dict[str, float], float | None, list[JsonDict]],
+             analysis: tuple[JsonDict | None, JsonDict | None, JsonDict | None]) -> JsonDict:
     """The results.json content of a run (before export: files, verification, timings and verdict follow)."""
     m1, obj1, comb1, checks = after
     sweep, dmat, robust = analysis
@@ -558,8 +585,8 @@ def scored_mask(setup: StudySetup) -> np.ndarray:
     return np.ones(len(setup.holes0), bool) if mask is None else np.asarray(mask, bool)
 
 
-def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Shape, list[Hole], float], targets: Any,
-                 info: dict[str, Any], model: FeatureModel) -> tuple[np.ndarray, Shape, list[Hole], float]:
+def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Shape, list[Hole], float], targets: ShopDesign,
+                 info: JsonDict, model: FeatureModel) -> tuple[np.ndarray, Shape, list[Hole], float]:
     """``shop.refine_on_rebuild`` on the study's CAD rebuild; ``info["rebuilt_off_target_mm"]``: what remains."""
     x, (shape, holes, err), off = refine_on_rebuild(setup.space, model, setup.problem, x, rebuilt, targets,
                                                     lambda x_new, guess: rebuild(setup, x_new, guess))
@@ -568,13 +595,14 @@ def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Shape, list[Ho
     return x, shape, holes, err
 
 
-def _shop(setup: StudySetup, x: np.ndarray, model: Any = None) -> tuple[np.ndarray, dict[str, Any], Any]:
+def _shop(setup: StudySetup, x: np.ndarray, model: FeatureModel | None = None
+          ) -> tuple[np.ndarray, JsonDict, ShopDesign | None]:
     """The shop-ready design near the optimum ``x`` (``cadfeat.design.shop``, study ``[shop]``) and its
     results.json block; the optimum itself when rounding would break a kept requirement of the model (the
     rebuilt design is verified on the B-rep and the STEP either way)."""
     spec = setup.config.shop
     sizes = hole_sizes(spec.hole_sizes)
-    info: dict[str, Any] = {"grid_mm": spec.grid_mm, "hole_sizes": spec.hole_sizes if isinstance(spec.hole_sizes, str)
+    info: JsonDict = {"grid_mm": spec.grid_mm, "hole_sizes": spec.hole_sizes if isinstance(spec.hole_sizes, str)
                             else list(spec.hole_sizes), "applied": False, "notes": []}
     if spec.grid_mm <= 0 and not sizes:
         info["notes"].append("rounding off ([shop] grid_mm = 0, hole_sizes = \"none\")")
@@ -602,7 +630,7 @@ def _shop(setup: StudySetup, x: np.ndarray, model: Any = None) -> tuple[np.ndarr
 
 
 def _robustness(setup: StudySetup, holes0: Sequence[Hole], holes1: Sequence[Hole],
-                combined_before: float | None) -> dict[str, Any] | None:
+                combined_before: float | None) -> JsonDict | None:
     """Objective drops of the delivered design under the study's ``[robustness]`` tolerances (sampled on
     features, ``cadfeat.design.robustness``); the holes the shop makes anew are the moved or resized ones."""
     spec = setup.config.robustness
@@ -618,14 +646,14 @@ def _robustness(setup: StudySetup, holes0: Sequence[Hole], holes1: Sequence[Hole
                       samples=spec.samples, combined_before=combined_before, seed=setup.config.study.seed)
 
 
-def _patterns(base: StudySetup, holes1: Sequence[Hole]) -> list[dict[str, Any]]:
+def _patterns(base: StudySetup, holes1: Sequence[Hole]) -> list[JsonDict]:
     """The original's hole patterns with a movable hole (``cadfeat.design.patterns``), each with ``broken``."""
     movable = np.asarray(base.movable_mask, bool)
     found = [p for p in find_patterns(base.holes0) if movable[list(p.holes)].any()]
     return check_patterns(found, list(holes1), base.hole_names) if len(holes1) == len(base.holes0) else []
 
 
-def _requirements_used(setup: StudySetup, x: np.ndarray) -> list[dict[str, Any]]:
+def _requirements_used(setup: StudySetup, x: np.ndarray) -> list[JsonDict]:
     """The kept requirements the optimiser's model used (kind, hole names, its 2-D margin at ``x``): the report
     checks that each one was verified on the rebuilt geometry."""
     labels = setup.problem.constraint_labels()

@@ -154,7 +154,7 @@ def help_most(camera: Camera, T_cam_part: np.ndarray, holes: Sequence[Hole], nam
         if name not in movable:
             continue
         u, v = _in_plane(a0[j])
-        grad = []
+        grad: list[tuple[float, float]] = []
         for d in (u, v):
             cp, cm = c0.copy(), c0.copy()
             cp[j] += STEP_MM * d
@@ -247,11 +247,11 @@ def _sentence(best: tuple[str, str, float, float], holes: Mapping[str, HoleHelp]
 
 def _phases(info: PoseInformation) -> list[dict[str, object]]:
     words = info.weakest_words
-    out = []
+    out: list[dict[str, object]] = []
     for phase, idx in zip(PHASES, np.array_split(np.arange(len(words)), len(PHASES)), strict=True):
         if len(idx) == 0:
             continue
-        top, count = Counter(words[i] for i in idx).most_common(1)[0]
+        top, count = Counter(words[int(i)] for i in idx).most_common(1)[0]
         sig = np.asarray(info.weakest_sigma, float)[idx]
         out.append({"phase": phase, "poses": [int(idx[0]), int(idx[-1])], "weakest": top,
                     "fraction": count / len(idx),

@@ -190,7 +190,7 @@ def _choose(setup: StudySetup, rp: RobustProblem, nominal: OptimResult, robust: 
 def _below(stats: dict[str, Any], original: dict[str, Any]) -> list[str]:
     """The sources the rule covers (``design.robust.BLOCKS``: the whole cell, the camera mount, the shop) under
     which a design's combined 5th percentile is below the original's."""
-    out = []
+    out: list[str] = []
     for src in BLOCKS:
         a, b = stats[src].get("combined", {}), original[src].get("combined", {})
         if a and b and a["p05"] < b["p05"] - TOL * max(1.0, abs(b["p05"])):
@@ -239,7 +239,7 @@ def source_objectives(rp: RobustProblem, features: Features, D: Draws, sources: 
     first, back = _distinct_designs(c, a, r, depth)  # the same design twice (e.g. robust = nominal) costs once
     c, a, r, depth = c[first], a[first], r[first], depth[first]
     G0 = p.batch_objectives(c, a, r, depth_mm=depth)
-    out = {}
+    out: dict[str, np.ndarray] = {}
     for src in sources:
         d = D.only(src)
         if src == "pixel_noise" and "pose" not in p.objective_config.measures:  # only g_POSE's σ model sees it
@@ -319,8 +319,8 @@ class RobustDesigns:
     reason: str
     out_of_sample: dict[str, Any]
     sensitivity: dict[str, Any]
-    flagged: list[str] = field(default_factory=list)
-    distributions: dict[str, Any] = field(default_factory=dict)
+    flagged: list[str] = field(default_factory=list[str])
+    distributions: dict[str, Any] = field(default_factory=dict[str, Any])
 
     def to_json(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -403,7 +403,7 @@ def attach_robust(results: dict[str, Any], designs: RobustDesigns | None) -> Non
 def sensitivity(stats: dict[str, Any]) -> dict[str, Any]:
     """Where a design's robustness comes from: per source, the combined value's one-at-a-time drop from nominal
     to the 5th percentile and its share of the sum of these drops; ``words``: the ranking in a sentence."""
-    drops = {}
+    drops: dict[str, float] = {}
     for src in KINDS:
         comb = stats.get(src, {}).get("combined")
         if comb:

@@ -44,7 +44,7 @@ from cadfeat.output_folder import staged_output
 from cadfeat.poses import cam_from_part
 from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
-from cadfeat.results import StudyResults
+from cadfeat.results import JsonDict, StudyResults
 from cadfeat.study import added_targets, closed_loop_check
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
@@ -97,7 +97,7 @@ class StudyResult:
     """Where a study wrote its outputs and the results (the content of results.json)."""
 
     out_dir: Path | None
-    results: dict[str, Any]
+    results: JsonDict
 
     @property
     def typed(self) -> StudyResults:
@@ -127,7 +127,8 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
         lines.append(f"  scored holes: {obj['score']}")
     for w in obj.get("warnings", []) + list(results.get("warnings", [])):
         lines.append(f"  WARNING: {w}")
-    for a in (results.get("preflight") or {}).get("assumptions", []):
+    preflight_block: JsonDict = results.get("preflight") or {}
+    for a in preflight_block.get("assumptions", []):
         lines.append(f"  ASSUMED: {a}")
     lines += closed_loop_check.summary_lines(results)
     failed = [c for c in results["constraints"] if not c["ok"]]
@@ -208,7 +209,7 @@ def preflight_study(path_or_dict: StudySource | StudyConfig, time_limit_s: float
                      names)
 
 
-def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], delivery: Delivery,
+def _write_outputs(config: StudyConfig, stage: Path, results: JsonDict, delivery: Delivery,
                    prog: StudyProgress) -> None:
     """Write and verify the outputs into the staging folder ``stage`` (published by the caller). The report's
     renders are made before the closed-loop check collects its workers' tracking (they run meanwhile)."""
@@ -231,14 +232,14 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], de
         finish_report(results)
 
 
-def _report(stage: Path, results: dict[str, Any], context: report.ReportContext, prog: StudyProgress
-            ) -> Callable[[dict[str, Any]], None]:
+def _report(stage: Path, results: JsonDict, context: report.ReportContext, prog: StudyProgress
+            ) -> Callable[[JsonDict], None]:
     """The report's renders now (they need the designs and their measures, not the closed loop, whose workers
     run meanwhile); returns what writes the report from the final results (``report.build_report``)."""
     with prog.phase("report"):
         renders = report.report_renders(stage, plain(results), context)
 
-    def finish(final: dict[str, Any]) -> None:
+    def finish(final: JsonDict) -> None:
         with prog.phase("report"):
             report.build_report(stage, plain(final), context, renders=renders)
     return finish
@@ -256,7 +257,7 @@ def _report_context(delivery: Delivery) -> report.ReportContext:
 # ------------------------------------------------------------------------------------------ evaluate
 def evaluate_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | None = None, *,
                    pose: int | None = None, quiet: bool = True, echo: bool = False, seed: int | None = None,
-                   force: bool = False) -> dict[str, Any]:
+                   force: bool = False) -> JsonDict:
     """Score the study's current design without optimising (the thesis GUI's single-pose mode when ``pose``
     is given: one trajectory sample). Returns the results dict; prints the per-feature table (thesis
     Table 5.1: FOV, focus, resolution margins, visibility, worst pose) and a per-pose summary when ``echo``;
@@ -271,7 +272,7 @@ def evaluate_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path 
     return results
 
 
-def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: bool, echo: bool) -> dict[str, Any]:
+def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: bool, echo: bool) -> JsonDict:
     with StudyProgress(config.study.name, enabled=not quiet) as prog:
         with prog.phase("setup"):
             camera, traj, T_task_part = load_scene(config)
@@ -302,7 +303,7 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
         if pose is not None:  # pose indices of the full trajectory
             for f in summary["per_feature"]:
                 f["worst_pose"] = pose
-        results = {
+        results: JsonDict = {
             "schema_version": SCHEMA_VERSION, "cadfeat_version": __version__, "created": now_iso(),
             "evaluation_only": True,
             "study": {"name": config.study.name, "file": str(config.file) if config.file else None,

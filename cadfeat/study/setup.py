@@ -98,7 +98,7 @@ class StudySetup:
     rebuild_holes: Callable[[Shape], list[Hole]]
     values: Callable[[np.ndarray], dict[str, Any]]
     linear: bool = True
-    int_values: dict[str, int] = field(default_factory=dict)
+    int_values: dict[str, int] = field(default_factory=dict[str, int])
     part: Part | StepPart | None = None
     time_limit_s: float | None = None
     """The time limit of each CAD rebuild (s, a worker process); None: in this process (``setup_study``)."""
@@ -117,7 +117,7 @@ def load_scene(config: StudyConfig) -> Scene:
     return Scene(config.camera.build(), config.trajectory.build(), config.part_pose.T_task_part)
 
 
-def constraint_config(config: StudyConfig, holes: Sequence[Hole] = (), movable: Sequence[int] = (),
+def constraint_config(config: StudyConfig, holes: Sequence[Hole] = (), movable: Sequence[int] | np.ndarray = (),
                       volume_mm3: float | None = None, mirror_tol_mm: float = 1e-6) -> ConstraintConfig:
     """``constraints.ConstraintConfig`` of a study; ``symmetry`` becomes the mirror pairs among the movable
     ``holes`` (about the part's x = 0 / y = 0 planes); ``volume_mm3`` is the original part volume."""
@@ -132,17 +132,32 @@ def constraint_config(config: StudyConfig, holes: Sequence[Hole] = (), movable: 
                             volume_change_max_frac=frac, part_volume_mm3=volume_mm3, symmetry=pairs)
 
 
-def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Normaliser | None = None
+@dataclass(frozen=True)
+class _ProblemParts:
+    """What ``_problem`` builds the ``Problem`` from (a script part's set-up or a STEP part's)."""
+
+    space: DesignSpace
+    model: FeatureModel
+    camera: Camera
+    trajectory: Trajectory
+    T_task_part: np.ndarray
+    fixed_mask: np.ndarray
+    holes: list[Hole]
+    shape0: Shape
+    part: StepPart | None = None
+
+
+def _problem(args: _ProblemParts, config: StudyConfig, normaliser: Normaliser | None = None
              ) -> tuple[Problem, ConstraintConfig]:
     """The ``Problem`` and its ``ConstraintConfig`` (``normaliser``: share another problem's scales)."""
-    movable = np.flatnonzero(~np.asarray(args["fixed_mask"], bool))
-    part = args.get("part")
-    tol = max(1e-6, 10 * part.tolerance.linear_mm) if hasattr(part, "tolerance") else 1e-6
-    cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]), mirror_tol_mm=tol)
-    problem = Problem(args["space"], args["model"], args["camera"], args["trajectory"], args["T_task_part"],
-                      config.objective, cc, args["fixed_mask"], normaliser=normaliser,
-                      occlusion_mesh=occlusion_mesh(config, args["shape0"]),
-                      feature_mask=score_mask(config, args["holes"], ~np.asarray(args["fixed_mask"], bool)),
+    movable = np.flatnonzero(~np.asarray(args.fixed_mask, bool))
+    part = args.part
+    tol = max(1e-6, 10 * part.tolerance.linear_mm) if part is not None else 1e-6
+    cc = constraint_config(config, args.holes, movable, shape_volume_mm3(args.shape0), mirror_tol_mm=tol)
+    problem = Problem(args.space, args.model, args.camera, args.trajectory, args.T_task_part,
+                      config.objective, cc, args.fixed_mask, normaliser=normaliser,
+                      occlusion_mesh=occlusion_mesh(config, args.shape0),
+                      feature_mask=score_mask(config, args.holes, ~np.asarray(args.fixed_mask, bool)),
                       cell=config.cell)
     return problem, cc
 
@@ -172,7 +187,7 @@ def score_mask(config: StudyConfig, holes: Sequence[Hole], movable: np.ndarray) 
     names = hole_names(holes)
     mask = np.zeros(n, bool)
     for name in rule:
-        hits = [i for i, h in enumerate(holes) if name in (names[i], f"H{i + 1}")]
+        hits = [i for i in range(len(holes)) if name in (names[i], f"H{i + 1}")]
         if not hits:
             raise StudyError(f"{config.label}: objective.score: no hole named {name!r} in {config.study.part}; "
                              f"allowed: \"movable\", \"all\" or names from {', '.join(names)}")
@@ -262,7 +277,7 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
         dm, holes0 = reference_design_map(part, names, at, [p.lower for p in specs], [p.upper for p in specs])
     x0 = np.array([float(at[n]) for n in names])
     model = LinearFeatureModel.from_design_map(dm, names, [float(dm.at[n]) for n in names])
-    variables = []
+    variables: list[Variable] = []
     for p in specs:
         j = names.index(p.name)
         kind = variable_kind(*(None if m is None else np.asarray(m)[:, j] for m in (dm.dR, dm.dB, dm.dD)),
@@ -286,8 +301,8 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
             raise StudyError(f"{config.label}: design.fixed[{i}]: hole {holes0[j].name or j + 1} is moved by the "
                              f"design parameter(s) {', '.join(movers)}; allowed: holes no design parameter moves")
         fixed[j] = True
-    args = dict(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
-                fixed_mask=fixed, holes=holes0, shape0=shape0)
+    args = _ProblemParts(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
+                         fixed_mask=fixed, holes=holes0, shape0=shape0)
     problem, cc = _problem(args, config, normaliser)
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part, shape0=shape0,
                       holes0=holes0, fixed_mask=fixed, movable_mask=moved, space=space, model=model,
@@ -320,8 +335,8 @@ def setup_step(config: StudyConfig, scene: Scene | None = None,
     movable_mask = np.zeros(len(holes0), bool)
     movable_mask[movable] = True
     fixed = ~movable_mask
-    args = dict(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
-                fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
+    args = _ProblemParts(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
+                         fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
     problem, cc = _problem(args, config)
 
     def rebuild_holes(shape: Shape) -> list[Hole]:  # as the part was read: the same entrance side and tolerances
@@ -498,14 +513,14 @@ def step_dry_run(config: StudyConfig, step: StepPart, movable: Sequence[int]) ->
 
 def _keep_patterns(holes: Sequence[Hole], movable: Sequence[int], patterns: list[list[int]],
                    mirrors: list[tuple[int, int, tuple[float, float, float]]]
-                   ) -> tuple[list[list[int]], list, list[int]]:
+                   ) -> tuple[list[list[int]], list[tuple[int, int, tuple[float, float, float]]], list[int]]:
     """``[shop] keep_patterns``: the bolt circles and grids of the original (``cadfeat.design.patterns``) whose
     holes are all movable move together (one shared offset: the pattern is translated); mirror pairs of movable
     holes move as mirror images; a movable hole of a pattern whose other holes are fixed is pinned (a single
     bolt moved off its circle breaks the circle). Explicit ``design.patterns`` and symmetry pairs come first."""
     mov = set(movable)
     taken = {i for p in patterns for i in p} | {i for m in mirrors for i in m[:2]}
-    patterns, mirrors, pinned = list(patterns), list(mirrors), []
+    patterns, mirrors, pinned = list(patterns), list(mirrors), list[int]()
     for p in find_patterns(holes):
         idx = list(p.holes)
         if taken & set(idx) or not mov & set(idx):
@@ -524,13 +539,13 @@ def _limit_offsets(space: DesignSpace, holes: Sequence[Hole], design: DesignSpec
                    pinned: Sequence[int] = ()) -> DesignSpace:
     """Per-hole ``max_offset_mm`` (and ``move = false`` or ``pinned`` to keep a pattern: position pinned to
     ±1 µm) applied to the (s, t) bounds of ``HoleMoveModel.design_space``."""
-    limits = {}
+    limits: dict[str, float] = {}
     for spec, j in zip(design.holes, movable, strict=True):
         label = hole_name(holes[j], j)
         limit = 1e-3 if not spec.move or j in pinned else spec.max_offset_mm
         if limit is not None:
             limits[f"{label}.s"] = limits[f"{label}.t"] = float(limit)
-    variables = []
+    variables: list[Variable] = []
     for v in space.variables:
         if v.name in limits:
             m = limits[v.name]
@@ -539,7 +554,7 @@ def _limit_offsets(space: DesignSpace, holes: Sequence[Hole], design: DesignSpec
     return DesignSpace(variables, space.x0)
 
 
-def _mirror_pairs(holes: Sequence[Hole], movable: Sequence[int], patterns: Sequence[Sequence[int]],
+def _mirror_pairs(holes: Sequence[Hole], movable: Sequence[int] | np.ndarray, patterns: Sequence[Sequence[int]],
                   symmetry: str, tol_mm: float = 1e-6) -> list[tuple[int, int, tuple[float, float, float]]]:
     """(leader, follower, plane normal) for movable holes that mirror each other about x = 0 / y = 0 (centres
     reflected onto each other, equal radii)."""

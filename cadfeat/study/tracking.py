@@ -37,6 +37,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
+    from cadfeat.results import JsonDict
     from cadfeat.vision.closed_loop import BeforeAfter, TrackingConfig
 
 Design = tuple["Shape", "Sequence[Hole]"]
@@ -122,11 +123,11 @@ def _curves(result: BeforeAfter) -> dict[str, Any]:
     return out
 
 
-def _frames(result: BeforeAfter, camera: Camera, out_dir: Path | None, count: int = 3) -> list[dict[str, Any]]:
+def _frames(result: BeforeAfter, camera: Camera, out_dir: Path | None, count: int = 3) -> list[JsonDict]:
     """Frames (first, middle, last) of run 0 of each design, drawn with detections and predictions, as PNGs."""
     if out_dir is None:
         return []
-    entries = []
+    entries: list[JsonDict] = []
     for name, d in result.designs.items():
         obs = result.observations[name]
         n = len(obs.optical)
@@ -179,10 +180,10 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
                                f"(run `cadfeat run {config.label}` first, or give --out DIR)")
         shapes[name] = import_step(path)
     results_path = Path(out) / "results.json"
-    holes = {}
+    holes: dict[str, list[Hole]] = {}
     if results_path.is_file():
         try:
-            block = json.loads(results_path.read_text(encoding="utf-8")).get("holes") or {}
+            block: JsonDict = json.loads(results_path.read_text(encoding="utf-8")).get("holes") or {}
         except (ValueError, AttributeError) as exc:
             raise CadfeatError(f"{results_path}: not a results.json of `cadfeat run` ({exc})") from None
         if all(isinstance(block.get(k), list) and block[k] for k in EXPORTED):
@@ -194,7 +195,7 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
     return {k: (shapes[k], _named(holes[k])) for k in EXPORTED}
 
 
-def _hole_from_json(h: Any, path: Path, key: str, i: int) -> Hole:
+def _hole_from_json(h: JsonDict, path: Path, key: str, i: int) -> Hole:
     """A ``Hole`` from a results.json hole entry (``study.outputs.hole_dict``). The closed loop uses the entrance
     rim only (centre, axis, radius, depth, through); the narrowest bore is not stored and is taken as the rim."""
     try:
@@ -269,7 +270,7 @@ def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,
     if kind not in SWEEPS:
         raise StudyError(f"{config.label}: --sweep {kind!r} is not allowed; allowed: {', '.join(SWEEPS)}")
     base = spec or config.tracking_settings()
-    rows = []
+    rows: list[JsonDict] = []
     camera = _scene(config)[0]
     for value in (values or SWEEPS[kind]):
         s, cam = base, None
@@ -284,7 +285,7 @@ def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,
         elif kind == "sample_time":
             s = base.replace(frame_step=int(value), settle_frames=min(base.settle_frames, 2))
         section = run_tracking(config, designs, None, s, camera_override=cam)
-        row: dict[str, Any] = {"value": float(value)}
+        row: JsonDict = {"value": float(value)}
         for name, d in section["designs"].items():
             row[name] = {m: {k: e[k]["mean"] for k in ("trans_mm_rms", "rot_deg_rms", "convergence_s")}
                          for m, e in d["estimators"].items()}

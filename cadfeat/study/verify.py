@@ -67,7 +67,7 @@ def outlines_differ(a: Sequence[Hole], b: Sequence[Hole], tol_mm: float = 1e-6) 
         oa, ob = h.outline, g.outline
         if (oa is None) != (ob is None):
             return True
-        if oa is None:
+        if oa is None or ob is None:  # (both None: the same)
             continue
         pa, pb = np.asarray(oa.outer, float), np.asarray(ob.outer, float)
         if pa.shape != pb.shape or np.abs(pa - pb).max(initial=0.0) > tol_mm:
@@ -100,7 +100,8 @@ def predicted_holes(setup: StudySetup, x: np.ndarray) -> list[Hole]:
     return holes_at(setup.model, x)
 
 
-def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = None) -> tuple[Any, list[Hole], float]:
+def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = None
+            ) -> tuple[Shape, list[Hole], float]:
     """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
     deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
     loop extracted at ``x``, in model order) when given."""

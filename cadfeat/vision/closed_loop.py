@@ -46,6 +46,8 @@ from cadfeat.vision.metrics import aggregate_runs, hold_last, paired_verdict, po
 from cadfeat.vision.motion import so3_exp
 
 if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+
     from cadfeat.cad.features import Hole
     from cadfeat.measures.ellipse import Ellipse
 
@@ -260,7 +262,7 @@ def _rim_hidden(shape: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.nd
     return rim_hidden(part_mesh(shape), holes, T, centres, normals, radii)
 
 
-def part_mesh(shape: Any) -> Any:
+def part_mesh(shape: Any) -> trimesh.Trimesh:
     """The part's triangle mesh the closed loop's rim test uses (0.05 mm chord)."""
     return mesh_from_shape(shape, tolerance=0.05)
 
@@ -341,14 +343,14 @@ def draw_frame(image: np.ndarray, predicted: Ellipse, detections: Detections, pi
 
 
 def detect_sequence(obs: Observation, noise_grey: float, seed: int, gate_px: float,
-                    gain: float = 1.0, detector: str = "cadfeat") -> tuple[np.ndarray, list]:
+                    gain: float = 1.0, detector: str = "cadfeat") -> tuple[np.ndarray, list[Detections]]:
     """Pixels (F, N, 2) of one Monte-Carlo run (NaN = missing) and the raw detections per frame; ``gain``
     scales the optical image (the run's illumination) before the noise; ``detector``: ``vision.detectors``'s
     kind (cadfeat's rim-edge detector takes the nominal predicted rims as its prior; the others see the image
     alone)."""
     F_, N = len(obs.optical), len(obs.centres)
     pixels = np.full((F_, N, 2), np.nan)
-    dets = []
+    dets: list[Detections] = []
     for k, img in enumerate(obs.optical):
         frame = sensor_images(img[None] * np.float32(gain), noise_grey, frame_seed(seed, k))[0]
         d = detect(detector, frame, camera=obs.camera, origin_px=obs.offsets[k], predicted=obs.predicted[k])

@@ -234,7 +234,8 @@ def extract_points(shape: Any, tol_mm: float = 1e-7) -> np.ndarray:
     return pts[np.lexsort((r[:, 2], r[:, 1], r[:, 0]))]
 
 
-def extract_holes(shape: Any, prefer_direction: Sequence[float] | None = None, tol: Any = None) -> list[Hole]:
+def extract_holes(shape: Any, prefer_direction: Sequence[float] | np.ndarray | None = None,
+                  tol: Any = None) -> list[Hole]:
     """All circular holes of ``shape`` (algorithm in ``cadfeat.cad.features.extraction``).
 
     A hole is a connected set of coaxial concave cylinders and cones (plus the annular steps and flat

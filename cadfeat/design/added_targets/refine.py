@@ -146,7 +146,7 @@ def _variable_trials(st: _State, step: float, movable: Movable, faces: np.ndarra
     return X, (c, a, r, occ)
 
 
-def refine(objective: TargetObjective, rules: Sequence[FaceRules], faces: Sequence[int], uv0: np.ndarray,
+def refine(objective: TargetObjective, rules: Sequence[FaceRules], faces: Sequence[int] | np.ndarray, uv0: np.ndarray,
            occlude: Occlude, step_mm: float, min_step_mm: float = 0.25, max_iterations: int = 40,
            movable: Movable | None = None) -> Refined:
     """Compass search of the added holes' face coordinates ``uv0`` (k, 2) on their faces (``faces`` (k,) indices
