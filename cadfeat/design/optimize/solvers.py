@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cadfeat.design.optimize.evaluator import Evaluator
+from cadfeat.results import JsonDict
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.design_space import DesignSpace
@@ -27,7 +28,7 @@ class _LocalFunctions:
         self.problem = ev.problem
         self.iteration = 0
 
-    def grads(self, z: np.ndarray) -> tuple:
+    def grads(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         return self.ev.gradients(z[:self.p], self.config.fd_step)
 
     def values(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -193,7 +194,7 @@ def sobol_starts(p: int, n: int, seed: int) -> np.ndarray:
     return qmc.Sobol(d=p, scramble=True, seed=seed).random_base2(m)[:n]
 
 
-def multistart(ev: Evaluator, config: OptimizerConfig) -> list[dict]:
+def multistart(ev: Evaluator, config: OptimizerConfig) -> list[JsonDict]:
     """Local solves from ``config.starts`` points of a seeded Sobol design of the search box (they cover it
     whatever the initial design), then from the initial design as one extra start; one summary per start.
 
@@ -202,7 +203,7 @@ def multistart(ev: Evaluator, config: OptimizerConfig) -> list[dict]:
     the answer does not depend on where the part's current values happen to be (issue 16)."""
     u0 = ev.to_u(ev.x_base)
     starts = np.vstack([sobol_starts(u0.size, config.starts, config.seed), u0[None]])
-    summaries = []
+    summaries: list[JsonDict] = []
     for k, u in enumerate(starts):
         ev.start = k
         u_end = local_solve(ev, u, config)
@@ -241,7 +242,7 @@ def global_solve(ev: Evaluator, config: OptimizerConfig) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------- Pareto
-def pareto_solve(ev: Evaluator, config: OptimizerConfig) -> dict:
+def pareto_solve(ev: Evaluator, config: OptimizerConfig) -> JsonDict:
     """NSGA-II (pymoo, seeded) on the normalised objectives; the front and its max-min point."""
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.callback import Callback
@@ -256,7 +257,7 @@ def pareto_solve(ev: Evaluator, config: OptimizerConfig) -> dict:
         def __init__(self) -> None:
             super().__init__(n_var=ev.free.size, n_obj=use.size, n_ieq_constr=n_cons, xl=0.0, xu=1.0)
 
-        def _evaluate(self, U: np.ndarray, out: dict, *args: Any, **kwargs: Any) -> None:
+        def _evaluate(self, U: np.ndarray, out: JsonDict, *args: Any, **kwargs: Any) -> None:
             G, C = ev.batch(U)
             out["F"] = -problem.normalised(G)[:, use]
             if n_cons:
@@ -291,14 +292,14 @@ def snap_candidates(space: DesignSpace, x: np.ndarray, max_combinations: int = 1
     """Designs with every standard-size variable at one of its two nearest sizes (all combinations when at
     most ``max_combinations``, else the nearest size only)."""
     disc = np.flatnonzero(space.discrete)
-    options = []
+    options: list[np.ndarray] = []
     for i in disc:
         sizes = np.asarray(space.variables[i].standard_sizes, dtype=float)
         order = np.argsort(np.abs(sizes - x[i]), kind="stable")
         options.append(sizes[order[:2]])
     if np.prod([len(o) for o in options]) > max_combinations:
         options = [o[:1] for o in options]
-    out = []
+    out: list[np.ndarray] = []
     for combo in itertools.product(*options):
         y = np.array(x, dtype=float)
         y[disc] = combo
