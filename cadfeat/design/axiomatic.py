@@ -68,7 +68,7 @@ def classify(binary: np.ndarray) -> tuple[str, str]:
     if np.all(A.sum(axis=1) == 1) and np.all(A.sum(axis=0) <= 1):
         return "uncoupled", "each requirement depends on one parameter group of its own (diagonal)"
     rows, cols = set(range(r)), set(range(c))
-    order = []
+    order: list[tuple[int, int]] = []
     while rows:
         pick = next(((i, j) for i in sorted(rows) for j in [np.flatnonzero(A[i, sorted(cols)])]
                      if len(j) == 1), None)
@@ -99,18 +99,19 @@ def design_matrix(problem: Problem, x: np.ndarray, *, columns: str = "groups", r
         groups = space.groups()
     cols = list(groups)
     row_names = list(problem.names)
-    S = [[np.linalg.norm(dG[i, idx]) for idx in groups.values()] for i in range(len(row_names))]
+    S: list[list[float]] = [[float(np.linalg.norm(dG[i, idx])) for idx in groups.values()]
+                            for i in range(len(row_names))]
     if rows == "all":
         kinds = problem.constraint_kinds()
         for kind in dict.fromkeys(kinds):
             sel = [k for k, name in enumerate(kinds) if name == kind]
             row_names.append(kind)
             S.append([float(np.max(np.linalg.norm(dC[sel][:, idx], axis=1))) for idx in groups.values()])
-    S = np.array(S, dtype=float).reshape(len(row_names), len(cols))
-    row_max = S.max(axis=1, keepdims=True)
-    binary = (S > threshold_rel * row_max) & (row_max > 1e-12)
+    A = np.array(S, dtype=float).reshape(len(row_names), len(cols))
+    row_max = A.max(axis=1, keepdims=True)
+    binary = (A > threshold_rel * row_max) & (row_max > 1e-12)
     verdict, note = classify(binary)
     zero = [row_names[i] for i in np.flatnonzero(~binary.any(axis=1))]
     if zero:
         note += f"; not affected by the parameters: {', '.join(zero)}"
-    return DesignMatrix(row_names, cols, S, binary, threshold_rel, verdict, note)
+    return DesignMatrix(row_names, cols, A, binary, threshold_rel, verdict, note)

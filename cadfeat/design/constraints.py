@@ -180,7 +180,7 @@ class ConstraintSet:
     batched: ``margins(centres (...,N,3), radii (...,N)) -> {name: (..., M_name)}``."""
 
     def __init__(self, holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool] | np.ndarray,
-                 radii0: Sequence[float] | None = None, outline_rates: Sequence[Any] | None = None,
+                 radii0: Sequence[float] | np.ndarray | None = None, outline_rates: Sequence[Any] | None = None,
                  x_anchor: Sequence[float] | None = None):
         """``holes``: the reference holes (host face outlines, depths, names); ``radii0`` (N,) mm: the original
         part's radii for the volume requirement (default: the reference holes'); ``outline_rates`` (per hole,

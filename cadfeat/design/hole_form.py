@@ -22,7 +22,7 @@ in the tests (``tests/design/test_hole_form.py``: the floor at the upper bound, 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -66,7 +66,7 @@ def hole_depths(holes: Sequence[Any]) -> np.ndarray:
     return np.array([float(h.depth_mm) for h in holes])
 
 
-def variable_kind(dR: np.ndarray | None, dB: np.ndarray | None, dD: np.ndarray | None,
+def variable_kind(dR: np.ndarray, dB: np.ndarray | None, dD: np.ndarray | None,
                   through: Sequence[bool] | np.ndarray | None = None, plain: Sequence[bool] | np.ndarray | None = None
                   ) -> str:
     """The ``Variable.kind`` of a parameter with per-hole rates (N,) of rim radius ``dR``, bore radius ``dB`` and
@@ -101,4 +101,4 @@ def drill_radii_batch(model: FeatureModel, X: np.ndarray) -> np.ndarray:
     mask = drill_mask(model)
     if not mask.any():
         return rim
-    return np.where(mask, design_bores(model, X), rim)
+    return np.where(mask, cast(np.ndarray, design_bores(model, X)), rim)

@@ -158,7 +158,7 @@ class ObjectiveConfig(Settings):
         """A study file (validation context ``study``) without ``measures`` optimises ``STUDY_MEASURES``."""
         if context_of(info).get("study") and isinstance(data, Mapping) and "measures" not in data:
             return {**cast("Mapping[str, object]", data), "measures": list(STUDY_MEASURES)}
-        return data
+        return cast(object, data)
 
     @field_validator("measures")
     @classmethod
@@ -248,7 +248,7 @@ def per_pose_values(measures: Any, config: ObjectiveConfig,
                     feature_mask: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Per-pose value (..., L) of each chosen measure: the features selected by ``feature_mask`` (N,) bool
     (default all) reduced by ``config.feature_reduce``; resolvability uses every feature (the Jacobian)."""
-    out = {}
+    out: dict[str, np.ndarray] = {}
     mask = None if feature_mask is None or not np.any(feature_mask) else np.asarray(feature_mask, dtype=bool)
     for m in config.measures:
         if m == "pose":
@@ -286,7 +286,7 @@ def objective_values(measures: Any, config: ObjectiveConfig, units: Mapping[str,
     (measure → natural unit, ``natural_units``) sets the smooth-min scale (1 if not given);
     ``feature_mask`` as in ``per_pose_values``."""
     units = units or {}
-    out = {}
+    out: dict[str, float] = {}
     for m, v in per_pose_values(measures, config, feature_mask).items():
         if m == "pose":
             out[MEASURES[m]] = pose_objective(_pose_of(measures), config.pose_aggregate,
@@ -330,9 +330,9 @@ def pose_objective(pose: Any, how: str = "rms", rotation_length_mm: float = 50.0
     if how == "logdet":
         s = np.array([1.0, 1.0, 1.0] + [1.0 / rotation_length_mm] * 3)
         info = np.asarray(pose.information, dtype=float) * s[:, None] * s[None, :]
-        sign, logdet = np.linalg.slogdet(info)
+        sign, raw = np.linalg.slogdet(info)
         floor = -12.0 * np.log(POSE_UNOBSERVABLE_MM)
-        logdet = np.where((sign > 0) & np.isfinite(logdet), np.maximum(logdet, floor), floor)
+        logdet = cast(np.ndarray, np.where((sign > 0) & np.isfinite(raw), np.maximum(raw, floor), floor))
         return float(-np.exp(-np.mean(logdet) / 12.0))
     e = _pose_errors(pose, rotation_length_mm)
     return float(-np.sqrt(np.mean(e * e, axis=-1))) if how == "rms" else float(-np.max(e, axis=-1))
@@ -390,7 +390,7 @@ class Normaliser:
     reference: dict[str, float]
     sources: dict[str, str]
     note: str = ""
-    offset: dict[str, float] = field(default_factory=dict)
+    offset: dict[str, float] = field(default_factory=dict[str, float])
     constant: tuple[str, ...] = ()
     payoff: dict[str, Any] | None = None
 
@@ -399,7 +399,8 @@ class Normaliser:
         """From the initial objective values and the natural units (both keyed by objective name); for
         ``"payoff"`` use ``from_payoff``."""
         _choice("normalisation", method, NORMALISATIONS)
-        ref, src = {}, {}
+        ref: dict[str, float] = {}
+        src: dict[str, str] = {}
         for name, g0 in initial.items():
             unit = float(natural[name])
             if method == "none":
@@ -428,7 +429,10 @@ class Normaliser:
         ideal = np.diag(table).copy()
         ideal = np.maximum(ideal, table.max(axis=0))
         nadir = table.min(axis=0)
-        ref, off, src, constant = {}, {}, {}, []
+        ref: dict[str, float] = {}
+        off: dict[str, float] = {}
+        src: dict[str, str] = {}
+        constant: list[str] = []
         for i, name in enumerate(names):
             unit = float(natural[name])
             spread = ideal[i] - nadir[i]
@@ -455,7 +459,7 @@ class Normaliser:
         return {k: (np.asarray(v) - self.offset.get(k, 0.0)) / self.reference[k] for k, v in values.items()}
 
     def to_dict(self) -> dict[str, Any]:
-        out = {"method": self.method, "reference": dict(self.reference), "sources": dict(self.sources),
+        out: dict[str, Any] = {"method": self.method, "reference": dict(self.reference), "sources": dict(self.sources),
                "note": self.note}
         if self.offset:
             out["offset"] = dict(self.offset)

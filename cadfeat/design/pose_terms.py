@@ -16,14 +16,18 @@ from __future__ import annotations
 
 import hashlib
 from collections import OrderedDict
-from collections.abc import Hashable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 
 from cadfeat.design.memory import budget_bytes
-from cadfeat.design.objectives import POSE_AGGREGATES, POSE_UNOBSERVABLE_MM, _choice
+from cadfeat.design.objectives import (
+    POSE_AGGREGATES,
+    POSE_UNOBSERVABLE_MM,
+    _choice,  # pyright: ignore[reportPrivateUsage] (the same refusal)
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     import trimesh
@@ -34,7 +38,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.objectives import ObjectiveConfig
     from cadfeat.measures.depth import DepthMaps
     from cadfeat.measures.pose_information import PoseInformation
-    from cadfeat.measures.pose_models import PoseModels
+    from cadfeat.measures.pose_models import HoleGeometry, PoseModels
 
 __all__ = ["StackedPose", "hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_values",
            "stacked_information"]
@@ -135,9 +139,9 @@ def pose_aggregate_batch(errors_mm: np.ndarray, information: np.ndarray, how: st
     if how == "worst":
         return -np.max(e, axis=-1)
     s = np.array([1.0, 1.0, 1.0] + [1.0 / rotation_length_mm] * 3)
-    sign, logdet = np.linalg.slogdet(np.asarray(information, float) * s[:, None] * s[None, :])
+    sign, raw = np.linalg.slogdet(np.asarray(information, float) * s[:, None] * s[None, :])
     floor = -12.0 * np.log(POSE_UNOBSERVABLE_MM)
-    logdet = np.where((sign > 0) & np.isfinite(logdet), np.maximum(logdet, floor), floor)
+    logdet = cast(np.ndarray, np.where((sign > 0) & np.isfinite(raw), np.maximum(raw, floor), floor))
     return -np.exp(-np.mean(logdet, axis=-1) / 12.0)
 
 
@@ -150,7 +154,7 @@ def pose_values(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, rad
     each with its own design's holes; the exact ray test (reported values) takes one design at a time."""
     cfg = problem.objective_config
     ell = cfg.pose_rotation_length_mm
-    B, N = np.shape(radii)
+    B, _ = np.shape(radii)
     L = len(problem.T_cam_part)
     if exact_occlusion and problem.occlusion_mesh is not None:
         depths = [None] * B if depth_mm is None else np.asarray(depth_mm, float)
@@ -190,7 +194,7 @@ def stacked_information(problem: PoseProblem, centres: np.ndarray, axes: np.ndar
     depth = np.broadcast_to(depth, (B, N))
     noise = np.asarray(problem.cell.noise_sigma_grey if noise_grey is None else noise_grey, float)
     fixed = np.asarray(problem.fixed_mask, bool) & _same_in_every_design(centres, axes, radii, depth)
-    parts = []
+    parts: list[tuple[np.ndarray, Terms]] = []
     if fixed.any():
         idx = np.flatnonzero(fixed)
         terms = _fixed_terms(problem, centres[0, idx], axes[0, idx], radii[0, idx])
@@ -205,7 +209,8 @@ def stacked_information(problem: PoseProblem, centres: np.ndarray, axes: np.ndar
     p = models.detection_probability(geo, occ, depth_ratio=ratio_bl, through=through)
     kw = {"noise_grey": float(noise) if noise.ndim == 0 else np.tile(noise.reshape(L, 1), (B, 1))}
     sig, off = models.measurement_model(geo, depth_ratio=ratio_bl,
-                                        kinds=hole_kinds(problem.model.holes), through=through, **kw)
+                                        kinds=hole_kinds(problem.model.holes), through=through,
+                                        **kw)  # pyright: ignore[reportArgumentType] (a (B·L, 1) noise per pose)
     from cadfeat.measures.pose_information import weighted_information  # lazy: as pose_models above
 
     _, per_hole, rhs = weighted_information(p, J, sig, off)
@@ -235,14 +240,19 @@ def _same_in_every_design(centres: np.ndarray, axes: np.ndarray, radii: np.ndarr
             & np.all(radii == radii[:1], axis=0) & np.all(depth == depth[:1], axis=0))
 
 
-def _map(fn: Any, terms: Any) -> Any:
+Terms = tuple["HoleGeometry", np.ndarray, np.ndarray]
+"""What depends on each hole alone: (``pose_models.HoleGeometry``, measurement Jacobian, rim hidden fraction)."""
+
+
+def _map(fn: Callable[[np.ndarray], np.ndarray], terms: Terms) -> Terms:
     """``fn`` applied to every array of (HoleGeometry, J, occlusion) (the geometry's ``rims`` tuple included)."""
     geo, J, occ = terms
-    fields = [tuple(fn(a) for a in v) if isinstance(v, tuple) else None if v is None else fn(v) for v in geo]
+    fields: list[Any] = [tuple(fn(a) for a in cast("tuple[np.ndarray, ...]", v)) if isinstance(v, tuple) else
+                         None if v is None else fn(v) for v in geo]
     return type(geo)(*fields), fn(J), fn(occ)
 
 
-def _assemble(parts: list[tuple[np.ndarray, Any]], M: int, N: int) -> Any:
+def _assemble(parts: list[tuple[np.ndarray, Terms]], M: int, N: int) -> Terms:
     """(HoleGeometry, J, occlusion) of all N holes (M, N, …) from parts (hole indices, the same of those holes)."""
     def put(pieces: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
         a0 = pieces[0][1]
@@ -251,15 +261,16 @@ def _assemble(parts: list[tuple[np.ndarray, Any]], M: int, N: int) -> Any:
             out[:, idx] = a
         return out
     geos = [t[0] for _, t in parts]
-    fields = []
+    fields: list[Any] = []
     for k, v in enumerate(geos[0]):
         if isinstance(v, tuple):
-            fields.append(tuple(put([(idx, g[k][j]) for (idx, _), g in zip(parts, geos, strict=True)])
+            fields.append(tuple(put([(idx, cast("tuple[np.ndarray, ...]", g[k])[j])
+                                     for (idx, _), g in zip(parts, geos, strict=True)])
                                 for j in range(len(v))))
         elif v is None:
             fields.append(None)
         else:
-            fields.append(put([(idx, g[k]) for (idx, _), g in zip(parts, geos, strict=True)]))
+            fields.append(put([(idx, cast(np.ndarray, g[k])) for (idx, _), g in zip(parts, geos, strict=True)]))
     return (type(geos[0])(*fields), put([(idx, t[1]) for idx, t in parts]),
             put([(idx, t[2]) for idx, t in parts]))
 
@@ -267,8 +278,8 @@ def _assemble(parts: list[tuple[np.ndarray, Any]], M: int, N: int) -> Any:
 def _pose_error(info: np.ndarray, rhs: np.ndarray, ell: float) -> StackedPose:
     """The predicted errors of ``measures.pose_information`` from the summed information and bias right-hand
     side (its steps): covariance (its ``_inverse``), bias δ_b = cov · rhs, √(bias² + σ²) per part."""
-    from cadfeat.measures.pose_information import (  # pyright: ignore[reportPrivateUsage]
-        _inverse,
+    from cadfeat.measures.pose_information import (
+        _inverse,  # pyright: ignore[reportPrivateUsage] (its steps, as the module docstring says)
         pose_errors,
     )
 
@@ -277,7 +288,7 @@ def _pose_error(info: np.ndarray, rhs: np.ndarray, ell: float) -> StackedPose:
     return StackedPose(info, np.hypot(b_t, sig_t), np.hypot(b_r, sig_r), float(ell))
 
 
-def _hole_terms(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
+def _hole_terms(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Terms:
     """What depends on each hole alone, for B designs' holes (B, n, …) at the problem's L poses as B·L stacked
     poses: ``pose_models.hole_geometry``, the measurement Jacobian (``rim_centre.measure``) (B·L, n, 2, 6) and
     the rims' hidden fraction (``rim_occlusion`` against the depth maps; 0 without them) (B·L, n)."""
@@ -304,14 +315,14 @@ def _hole_terms(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, rad
     return geo, J, occlusion
 
 
-_CACHE: OrderedDict[bytes, tuple[Any, Any, int]] = OrderedDict()
+_CACHE: OrderedDict[bytes, tuple[tuple[object, ...], Terms, int]] = OrderedDict()
 #: fixed holes' terms kept (one entry per pose set: the nominal poses, each robust source's and held-out draws)
 CACHE_ENTRIES = 8
 #: the most the kept terms may hold, as a share of the memory budget (``design.memory.budget_bytes``)
 CACHE_BUDGET_SHARE = 0.25
 
 
-def _fixed_terms(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
+def _fixed_terms(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Terms:
     """``_hole_terms`` of one set of holes (n, …) at the problem's L poses, kept for the same poses, occlusion
     maps, camera and holes (a key of their bytes; the camera and maps objects are held with the entry so their
     ids stay theirs); at most ``CACHE_ENTRIES`` pose sets and ``CACHE_BUDGET_SHARE`` of the memory budget, the
@@ -343,7 +354,7 @@ def _fixed_terms(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, ra
     return terms
 
 
-def _nbytes(terms: Any) -> int:
+def _nbytes(terms: Terms) -> int:
     """Bytes of the arrays of (HoleGeometry, J, occlusion)."""
     total = [0]
 

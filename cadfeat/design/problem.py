@@ -43,6 +43,8 @@ from cadfeat.measures.resolvability import resolvability_from_parts, scale_jacob
 from cadfeat.poses import cam_from_part
 
 if TYPE_CHECKING:  # pragma: no cover
+    from collections.abc import Sequence
+
     from cadfeat.camera import Camera
     from cadfeat.trajectory import Trajectory
 
@@ -182,7 +184,7 @@ class Problem:
         centre = 0.5 * (space.lower + space.upper)
         if len(cfg.measures) == 1:
             return self._sampled_normaliser(natural, samples)
-        table = []
+        table: list[np.ndarray] = []
         for m in cfg.measures:
             sub_cfg = cfg.replace(measures=(m,), combine="weighted", weights={}, thresholds={},
                               normalisation="natural")
@@ -200,6 +202,7 @@ class Problem:
         S = np.vstack([S, G])
         rng = np.ptp(S, axis=0)
         normaliser = Normaliser.from_payoff(self.names, G, natural.reference, rng, S.min(axis=0))
+        assert normaliser.payoff is not None  # (from_payoff sets it)
         normaliser.payoff["designs"] = X.tolist()
         return normaliser
 
@@ -293,7 +296,8 @@ class Problem:
         return self.measures_from_features(*self.model.features(np.asarray(x, dtype=float)))
 
     def features_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                            exact_occlusion: bool = False, depth_mm: np.ndarray | None = None) -> np.ndarray:
+                            exact_occlusion: bool = False, depth_mm: Sequence[float] | np.ndarray | None = None
+                            ) -> np.ndarray:
         """Raw aggregated objectives (K,) in ``names`` order from hole features (``exact_occlusion``: as
         ``measures_from_features``; the reported before/after values use it); ``depth_mm`` (N,) the holes'
         depths for g_POSE (None: the reference holes')."""
@@ -306,8 +310,9 @@ class Problem:
                                     None if depth_mm is None else np.asarray(depth_mm, float).reshape(1, -1))
             pose = _BatchPose(-e[0], g_pose[0])
         values = per_pose_values(_WithPose(m, pose), cfg, self.feature_mask)
-        return np.array([pose.g if k == "pose" else aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta,
-                                                                self.units[k]) for k in cfg.measures])
+        return np.array([pose.g if k == "pose" and pose is not None else
+                         aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k])
+                         for k in cfg.measures])
 
     def batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                          depth_mm: np.ndarray | None = None) -> np.ndarray:
@@ -357,7 +362,7 @@ class Problem:
             info = stacked_information(self, centres, axes, radii, noise_grey, depth_mm)
             arrays["pose"] = (info.error_mm(cfg.pose_rotation_length_mm).reshape(B, L),
                               info.information.reshape(B, L, 6, 6))
-        if "resolvability" in cfg.measures and B == 1:  # evaluate's own Λ is the design's
+        if "resolvability" in cfg.measures and B == 1 and m is not None:  # evaluate's own Λ is the design's
             arrays["resolvability"] = np.asarray(m.resolvability)[None]
         elif "resolvability" in cfg.measures:
             R, t = self.T_cam_part[:, :3, :3], self.T_cam_part[:, :3, 3]

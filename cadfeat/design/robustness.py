@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -117,7 +117,7 @@ def _cell_chunk(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: 
     maps = problem.occlusion
     if maps is not None:  # the nominal depth maps, looked up where each pose's nominal camera sees a point
         to_nominal = np.tile(problem.T_cam_part, (S, 1, 1)) @ _inverse(stacked.T_cam_part)
-        stacked._depth_maps = maps.tile(S, to_nominal)
+        stacked._depth_maps = maps.tile(S, to_nominal)  # pyright: ignore[reportPrivateUsage] (the problem's copy)
     noise = None
     if "pose" in problem.objective_config.measures and draws.noise_grey is not None:
         noise = np.repeat(draws.noise_grey, L)[:, None]
@@ -126,8 +126,8 @@ def _cell_chunk(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: 
 
     def per_draw(a: np.ndarray) -> np.ndarray:  # (B, S·L, …) → (B·S, L, …)
         return a.reshape((B * S, L) + a.shape[2:])
-    arrays = {k: tuple(map(per_draw, v)) if isinstance(v, tuple) else per_draw(np.asarray(v))
-              for k, v in arrays.items()}
+    arrays = {k: tuple(map(per_draw, cast("tuple[np.ndarray, ...]", v))) if isinstance(v, tuple) else
+              per_draw(np.asarray(v)) for k, v in arrays.items()}
     return problem.aggregate_arrays(arrays).reshape(B, S, -1)
 
 
@@ -180,7 +180,7 @@ def robustness(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: n
     names = list(problem.names)
     nominal = problem.features_objectives(c, a, r)
     pareto = problem.objective_config.combine == "pareto"
-    comb = (lambda G: problem.combined_from(G)) if not pareto else None  # noqa: E731
+    comb: Callable[[np.ndarray], np.ndarray] | None = problem.combined_from if not pareto else None
     out: dict[str, Any] = {"position_tol_mm": position_tol_mm, "size_steps": size_steps,
                            "camera_position_mm": cam_mm.tolist(), "camera_angle_deg": cam_deg.tolist(),
                            "samples": samples, "names": names, "razor_edge": []}

@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -36,8 +36,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape
 
     from cadfeat.cad.features import Hole
-    from cadfeat.cad.features.identity import FeatureModel
-    from cadfeat.design.design_space import DesignSpace
+    from cadfeat.design.design_space import DesignSpace, FeatureModel
     from cadfeat.design.problem import Problem
 
 __all__ = ["DEFAULT_GRID_MM", "HOLE_SIZE_TABLES", "ShopDesign", "hole_sizes", "model_jacobian", "off_target",
@@ -112,7 +111,7 @@ class ShopDesign:
     target_centres: np.ndarray
     target_diameters: np.ndarray
     residual_mm: float
-    notes: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list[str])
     drill_bore: np.ndarray | None = None
     """(N,) bool: the target diameter is the hole's bore (``hole_form.drill_mask``), else its entrance rim."""
 
@@ -149,7 +148,7 @@ def rounding_candidates(space: DesignSpace, x: np.ndarray, grid_mm: float) -> np
     out = [space.clip(nearest)]
     if 2 ** pos.size <= MAX_ROUNDINGS:
         lo, hi = np.floor(x[pos] / grid_mm) * grid_mm, np.ceil(x[pos] / grid_mm) * grid_mm
-        bits = (np.arange(2 ** pos.size)[:, None] >> np.arange(pos.size)) & 1
+        bits = cast(np.ndarray, (np.arange(2 ** pos.size)[:, None] >> np.arange(pos.size)) & 1)
         X = np.tile(x, (len(bits), 1))
         X[:, pos] = np.where(bits == 1, hi, lo)
         out += list(space.clip(X))
@@ -223,7 +222,7 @@ def _shop_from(space: DesignSpace, model: FeatureModel, x: np.ndarray, xr: np.nd
     xs = space.snap(space.clip(xr + step))
     cs, rs = model.features(xs)[0], drill_radii_batch(model, xs)[0]
     residual = float(np.max(np.abs(_flat(cs, rs) - target), initial=0.0))
-    notes = []
+    notes: list[str] = []
     if residual > 1e-6:
         notes.append(f"the design variables cannot put every moved hole on the {grid_mm:g} mm grid and every resized "
                      f"hole on a table size at once (largest remaining difference {residual:.3g} mm, feature model)")

@@ -114,7 +114,9 @@ def worst_poses(m: Measures, min_axis_px: float, half_image_px: float) -> np.nda
     score = np.minimum.reduce([fov_px / max(half_image_px, 1.0), _arr(m, "focus", (L, N)),
                                _arr(m, "resolution_px", (L, N)) / max(min_axis_px, 1e-9)])
     score = np.where(np.asarray(m.visible, bool), np.nan_to_num(score, nan=-np.inf), -np.inf)
-    worst: np.ndarray = np.asarray(np.argmin(score, axis=0)) if L else np.zeros(N, np.int_)
+    if not L:
+        return np.zeros(int(N), dtype=np.int_)
+    worst: np.ndarray = np.asarray(np.argmin(score, axis=0))
     return worst
 
 

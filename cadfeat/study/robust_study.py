@@ -41,6 +41,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
     from cadfeat.design.design_space import DesignSpace
     from cadfeat.design.optimize import OptimResult
+    from cadfeat.results import JsonDict
     from cadfeat.study.progress import StudyProgress
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import StudySetup
@@ -111,7 +112,8 @@ def _starts(opt: Optimum, space: DesignSpace, most: int = 2) -> list[np.ndarray]
     """The nominal optimum, the ``most`` best other end-points of the nominal multi-start, the initial design
     (distinct, in that order)."""
     out = [np.asarray(opt.res.x_best, float)]
-    ends = sorted((s for s in getattr(opt.res, "starts", None) or [] if s.get("max_violation", 0.0) <= 1e-6),
+    summaries: list[JsonDict] = getattr(opt.res, "starts", None) or []
+    ends = sorted((s for s in summaries if s.get("max_violation", 0.0) <= 1e-6),
                   key=lambda s: -float(s["combined"]))
     for s in ends:
         if len(out) > most:

@@ -280,8 +280,9 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     variables: list[Variable] = []
     for p in specs:
         j = names.index(p.name)
-        kind = variable_kind(*(None if m is None else np.asarray(m)[:, j] for m in (dm.dR, dm.dB, dm.dD)),
-                             through=[h.through for h in dm.holes0], plain=[h.base_kind == "plain" for h in dm.holes0])
+        dB, dD = (None if m is None else np.asarray(m)[:, j] for m in (dm.dB, dm.dD))
+        kind = variable_kind(np.asarray(dm.dR)[:, j], dB, dD, through=[h.through for h in dm.holes0],
+                             plain=[h.base_kind == "plain" for h in dm.holes0])
         variables.append(Variable(p.name, float(p.lower), float(p.upper), p.unit or "mm", kind, p.standard_sizes))
     space = DesignSpace(variables, np.clip(x0, [v.lower for v in variables], [v.upper for v in variables]))
     moved = np.zeros(len(holes0), bool)
