@@ -11,11 +11,14 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.cli.command import Command
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 #: Decimals of the poses written (mm and quaternion components; 1 µm, ~1e-6 rad: below any robot's repeatability).
 POSE_DECIMALS = 6
@@ -134,7 +137,7 @@ def track_recorded(config: Any, spec: Any, out: Path, args: argparse.Namespace) 
     return 0
 
 
-def recorded_lines(section: dict[str, Any]) -> list[str]:
+def recorded_lines(section: JsonDict) -> list[str]:
     """Console summary of a replayed recording: measured vs predicted, NEES, detection rates, problems."""
     p = section["predicted"]
     lines = [f"recorded {section['design']} design: {section['frames_used']} of {section['poses_parsed']} poses "

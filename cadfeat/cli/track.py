@@ -14,11 +14,14 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.cell.defaults import DETECTORS, RENDERERS
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 SWEEP_KINDS = ("initial_error", "q", "r", "focal_length", "sample_time")
 
@@ -44,7 +47,7 @@ def _track_args(parser: argparse.ArgumentParser) -> None:
                         help="with --images: the design the recorded part has (default optimised)")
 
 
-def _write_json(path: Path, data: dict[str, Any]) -> None:
+def _write_json(path: Path, data: JsonDict) -> None:
     from cadfeat.study.outputs import write_json  # lazy: keeps `cadfeat --help` fast
 
     tmp = path.with_name(path.name + ".tmp")
@@ -52,7 +55,7 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
     tmp.replace(path)
 
 
-def summary_lines(section: dict[str, Any]) -> list[str]:
+def summary_lines(section: JsonDict) -> list[str]:
     """Console table: per design and estimator, RMS errors with intervals; the verdict per estimator."""
     lines = []
     for name, d in section["designs"].items():
