@@ -22,12 +22,13 @@ Verdict on the significant (binary) matrix, rows affected by nothing left out:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.problem import Problem
+    from cadfeat.results import JsonDict
 
 __all__ = ["VERDICTS", "DesignMatrix", "classify", "design_matrix"]
 
@@ -47,7 +48,7 @@ class DesignMatrix:
     verdict: str
     note: str
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonDict:
         return {"rows": list(self.rows), "cols": list(self.cols), "matrix": self.matrix.tolist(),
                 "significant": self.binary.astype(int).tolist(), "threshold_rel": self.threshold_rel,
                 "verdict": self.verdict, "note": self.note}

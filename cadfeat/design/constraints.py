@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -34,6 +34,9 @@ from cadfeat.cad.export import shape_volume_mm3
 from cadfeat.cad.features import Hole, as_shape, extract_holes, holes_to_arrays, match_holes
 from cadfeat.cad.features.identity import hole_name
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = [
     "ConstraintCheck",
@@ -102,7 +105,7 @@ class ConstraintCheck:
     unit: str
     ok: bool
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonDict:
         return {"name": self.name, "holes": list(self.holes), "required": float(self.required),
                 "value": float(self.value), "margin": float(self.margin), "unit": self.unit, "ok": bool(self.ok)}
 

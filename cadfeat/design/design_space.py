@@ -20,7 +20,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, cast, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, cast, runtime_checkable
 
 import numpy as np
 
@@ -28,6 +28,9 @@ from cadfeat.cad.features import FaceOutline, Hole, holes_to_arrays, match_holes
 from cadfeat.cad.features.identity import hole_name
 from cadfeat.cad.step_parts import HoleMove
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = [
     "VARIABLE_KINDS",
@@ -72,7 +75,7 @@ class Variable:
     def span(self) -> float:
         return float(self.upper - self.lower)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonDict:
         return {"name": self.name, "unit": self.unit, "kind": self.kind, "lower": float(self.lower),
                 "upper": float(self.upper),
                 "standard_sizes": None if self.standard_sizes is None else list(self.standard_sizes)}

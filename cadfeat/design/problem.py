@@ -46,6 +46,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from collections.abc import Sequence
 
     from cadfeat.camera import Camera
+    from cadfeat.results import JsonDict
     from cadfeat.trajectory import Trajectory
 
 __all__ = ["Problem"]
@@ -333,7 +334,7 @@ class Problem:
         return self.aggregate_arrays(self.pose_arrays(centres, axes, radii, depth_mm=depth_mm))
 
     def pose_arrays(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                    noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> dict[str, Any]:
+                    noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> JsonDict:
         """Per-pose arrays of B designs at the problem's L poses: each chosen measure's (B, L, N) feature values
         (``seen``, the Jacobian rows' weights, for Λ), Λ as (B, L), and for g_POSE
         ``("pose", (errors (B, L) mm, information (B, L, 6, 6)))``.
@@ -356,7 +357,7 @@ class Problem:
             return np.moveaxis(a.reshape(L, B, N), 1, 0)
         attrs = {"fov": "fov" if cfg.fov_measure == "cone" else "fov_px", "focus": "focus",
                  "resolution": "resolution_px", "resolvability": "seen"}
-        arrays: dict[str, Any] = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
+        arrays: JsonDict = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
         if "pose" in cfg.measures:  # g_POSE: one pose_information on the B·L stacked poses (``design.pose_terms``)
 
             info = stacked_information(self, centres, axes, radii, noise_grey, depth_mm)
@@ -373,7 +374,7 @@ class Problem:
                                                      cfg.rotation_length_mm).reshape(B, L)
         return arrays
 
-    def aggregate_arrays(self, arrays: dict[str, Any]) -> np.ndarray:
+    def aggregate_arrays(self, arrays: JsonDict) -> np.ndarray:
         """Raw aggregated objectives (B, K) of ``pose_arrays`` (any leading batch shape B of the (B, L, …) arrays)."""
         cfg = self.objective_config
         arrays = dict(arrays)

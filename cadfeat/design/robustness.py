@@ -33,6 +33,7 @@ from cadfeat.poses import rotvec_matrix
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.problem import Problem
+    from cadfeat.results import JsonDict
 
 __all__ = ["RAZOR_KEEP", "camera_objectives", "cell_objectives", "cell_poses", "robustness", "shop_features",
            "shop_objectives"]
@@ -170,7 +171,7 @@ def shop_objectives(problem: Problem, centres: np.ndarray, axes: np.ndarray, rad
 def robustness(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray, *,
                position_tol_mm: float = 0.1, size_steps: int = 1, sizes: Sequence[float] = (),
                camera_position_mm: Any = 2.0, camera_angle_deg: Any = 1.0, samples: int = 200,
-               combined_before: float | None = None, seed: int = 0) -> dict[str, Any]:
+               combined_before: float | None = None, seed: int = 0) -> JsonDict:
     """The robustness block of results.json for the design with features (N,3), (N,3), (N,) (part frame, mm);
     ``changed`` (N,) bool: the holes the shop makes anew (moved or resized)."""
     rng = np.random.default_rng(seed)
@@ -181,7 +182,7 @@ def robustness(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: n
     nominal = problem.features_objectives(c, a, r)
     pareto = problem.objective_config.combine == "pareto"
     comb: Callable[[np.ndarray], np.ndarray] | None = problem.combined_from if not pareto else None
-    out: dict[str, Any] = {"position_tol_mm": position_tol_mm, "size_steps": size_steps,
+    out: JsonDict = {"position_tol_mm": position_tol_mm, "size_steps": size_steps,
                            "camera_position_mm": cam_mm.tolist(), "camera_angle_deg": cam_deg.tolist(),
                            "samples": samples, "names": names, "razor_edge": []}
     if samples <= 0:

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -32,6 +32,9 @@ from cadfeat.cell import Cell, triple
 from cadfeat.cell import defaults as D
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import rotvec_matrix
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = ["CELL_KINDS", "KINDS", "NOMINAL_NOISE_GREY", "SAMPLINGS", "Draws", "Uncertainty", "draws", "rigid"]
 
@@ -73,7 +76,7 @@ class Uncertainty:
                            float(spec.position_tol_mm), float(spec.diameter_tol_mm), str(spec.distribution),
                            float(cell.noise_sigma_grey))
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonDict:
         return {k: list(cast("tuple[float, ...]", v)) if isinstance(v, tuple) else v
                 for k, v in dataclasses.asdict(self).items()}
 

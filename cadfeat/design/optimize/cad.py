@@ -178,7 +178,7 @@ class _TrustRegionLoop:
             return self._finish(last, True, _BEST_VERIFIED)
         self.last = res
         x_new = res.x_best
-        entry: dict[str, Any] = {"round": k + 1, "x": x_new.tolist(), "predicted_combined": res.combined_best,
+        entry: JsonDict = {"round": k + 1, "x": x_new.tolist(), "predicted_combined": res.combined_best,
                                  "radius": None if radius is None else radius.tolist()}
         try:
             extracted = list(self.rebuild(x_new))
@@ -218,7 +218,7 @@ class _TrustRegionLoop:
         self._shrink_region()
         return None
 
-    def _move(self, res: OptimResult, combined: float, holes: list[Hole], entry: dict[str, Any]) -> OptimResult | None:
+    def _move(self, res: OptimResult, combined: float, holes: list[Hole], entry: JsonDict) -> OptimResult | None:
         """The rebuild differed from the model: move the centre there (or shrink the region if it is worse) and
         refresh the map at the rebuilt point; the result if interrupted, else None."""
         x_new = res.x_best
