@@ -34,7 +34,7 @@ def face_label(axis: Sequence[float]) -> str:
     return "(" + ", ".join(f"{v:.3f}" for v in a) + ")"
 
 
-def hole_rows(results: StudyResults | Mapping[str, Any]) -> list[dict[str, Any]]:
+def hole_rows(results: StudyResults | Mapping[str, Any]) -> list[JsonDict]:
     """One row per hole of the delivered design (``holes.after``, else ``holes.before``)."""
     holes = section(results, "holes", Holes)
     if holes is None:

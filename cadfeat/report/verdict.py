@@ -190,7 +190,7 @@ def decide(results: StudyResults | Mapping[str, Any]) -> Verdict:
     return Verdict(decision, findings, changes, limiting)
 
 
-def verdict_json(results: StudyResults | Mapping[str, Any]) -> dict[str, Any]:
+def verdict_json(results: StudyResults | Mapping[str, Any]) -> JsonDict:
     """results.json ``verdict`` (``cadfeat.results.Verdict``): the decision (one of ``adopt``, ``adopt with
     care``, ``do not adopt``), the limiting objective and each applied rule's outcome, so that a pipeline can
     gate on the run's outcome."""

@@ -27,6 +27,8 @@ from cadfeat.results import FeatureSummary, Measures, Results, section, value
 if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape, Workplane
 
+    from cadfeat.results import JsonDict
+
 
 VENDOR = Path(__file__).parent / "vendor" / "three-0.147.0"
 #: Number of camera frusta drawn along the path.
@@ -47,8 +49,8 @@ def mesh_arrays(shape: Shape | Workplane) -> tuple[np.ndarray, np.ndarray]:
     return v, np.asarray(tris, np.int64).reshape(-1, 3)
 
 
-def _holes(holes: Any, per_feature: list[FeatureSummary], fixed: Any) -> list[dict[str, Any]]:
-    out: list[dict[str, Any]] = []
+def _holes(holes: Any, per_feature: list[FeatureSummary], fixed: Any) -> list[JsonDict]:
+    out: list[JsonDict] = []
     feats = {f.index: f for f in per_feature}
     for i, h in enumerate(holes or []):
         f = feats.get(i)
@@ -67,7 +69,7 @@ def _per_feature(m: Measures | None, which: str) -> list[FeatureSummary]:
     return design.per_feature if design is not None else []
 
 
-def _camera_path(context: ReportContext, results: Results, scale: float) -> dict[str, Any]:
+def _camera_path(context: ReportContext, results: Results, scale: float) -> JsonDict:
     """Camera centres (L, 3) and N_FRUSTA frusta (4 far corners each) in the part frame (mm)."""
     if context.trajectory is None:
         return {}
@@ -91,7 +93,7 @@ def _camera_path(context: ReportContext, results: Results, scale: float) -> dict
     return {"path": path.tolist(), "frusta": frusta}
 
 
-def scene_data(context: ReportContext, results: Results) -> dict[str, Any]:
+def scene_data(context: ReportContext, results: Results) -> JsonDict:
     """The scene as plain data (meshes base64 float32 / uint32)."""
     m = section(results, "measures", Measures)
     designs = {}
