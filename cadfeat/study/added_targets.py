@@ -64,6 +64,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape
 
     from cadfeat.cad.features import Hole
+    from cadfeat.results import JsonDict
     from cadfeat.study.progress import StudyProgress
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.settings.add_targets import AddTargetsSettings
@@ -207,7 +208,7 @@ def _blocking(rules: Sequence[FaceRules], spec: AddTargetsSettings) -> str:
                                                             for k, n in counts.items() if n) + ")"
 
 
-def preflight(config: StudyConfig, setup: StudySetup) -> dict[str, Any]:
+def preflight(config: StudyConfig, setup: StudySetup) -> JsonDict:
     """Before any optimisation: the allowed faces, the drill and a feasible site on the original part (raises
     ``StudyError``), and a dry run of the drilling (the most central site of the first face drilled into the
     original and verified: what fails at the end is tried at the start); returns {"faces", "sites"}."""
@@ -374,7 +375,7 @@ def added_holes(config: StudyConfig, choice: Choice, holes: Sequence[Hole]) -> l
 
 # ------------------------------------------------------------------------------------------------- phase
 def brep_checks(config: StudyConfig, setup: StudySetup, shape: Shape, holes: Sequence[Hole], n_old: int,
-                where: str) -> list[dict[str, Any]]:
+                where: str) -> list[JsonDict]:
     """Every kept requirement of the added design measured on the solid ``shape`` (its holes ``holes``: the
     part's ``n_old`` then the added): OCCT edge, keep-out and ligament distances of the movable and added holes,
     the fixed holes unchanged from the original (``verify_on_brep``), and the keep-out boxes (distance of each
@@ -432,7 +433,7 @@ def _base_design(setup: StudySetup, x: np.ndarray | None, choice: Choice, shape1
 
 def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tuple[Shape, Sequence[Hole]]],
               progress: StudyProgress | None = None, x: np.ndarray | None = None
-              ) -> tuple[dict[str, Any], AddedDesign]:
+              ) -> tuple[JsonDict, AddedDesign]:
     """The added-target phase on the move-only optimum ``designs["after"]`` (its design vector ``x``;
     ``designs["before"]``: the original, for the comparison): returns (results.json ``added_targets``, the added
     design)."""
@@ -463,7 +464,7 @@ def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tupl
 
 
 def _block(config: StudyConfig, spec: AddTargetsSettings, choice: Choice, added: Sequence[AddedHole],
-           checks: list[dict[str, Any]], predicted: Mapping[str, Mapping[str, float]]) -> dict[str, Any]:
+           checks: list[JsonDict], predicted: Mapping[str, Mapping[str, float]]) -> JsonDict:
     sites = choice.allowed.sites
     ref = choice.refined
     drop = 1.0 - predicted["added"]["error_mm"] / max(predicted["move_only"]["error_mm"], 1e-300)
@@ -489,7 +490,7 @@ def _block(config: StudyConfig, spec: AddTargetsSettings, choice: Choice, added:
     }
 
 
-def export_added(config: StudyConfig, stage: Path, results: dict[str, Any], delivery: Delivery) -> None:
+def export_added(config: StudyConfig, stage: Path, results: JsonDict, delivery: Delivery) -> None:
     """Write ``added_targets.step``, re-import it, find every hole where it was put and measure every kept
     requirement again on the re-imported solid (``CadfeatError`` naming the violated one); the block gains
     ``step`` (the round trip's errors) and the STEP checks."""
@@ -529,7 +530,7 @@ def _as_added(h: Hole) -> AddedHole:
 
 
 
-def confirm(config: StudyConfig, results: dict[str, Any], delivery: Delivery,
+def confirm(config: StudyConfig, results: JsonDict, delivery: Delivery,
             progress: StudyProgress | None = None) -> None:
     """The closed loop of the added design against the move-only optimum (the study's check, its mode and
     settings: ``closed_loop_check.check_spec``); the block gains ``tracking`` {"mode", "verdicts" per estimator,

@@ -105,7 +105,7 @@ def fast_spec(config: StudyConfig, n_samples: int) -> TrackingSpec:
                         settle_frames=max(0, min(base.settle_frames, FAST_SETTLE, frames - 3)))
 
 
-def attach(config: StudyConfig, results: dict[str, Any], delivery: Delivery, stage: Path | None,
+def attach(config: StudyConfig, results: JsonDict, delivery: Delivery, stage: Path | None,
            progress: StudyProgress | None = None) -> None:
     """Run this study's closed-loop check and put it into ``results``: the ``tracking`` section (with a ``check``
     block: mode, runs, frames, estimators, seconds), nothing when the mode is ``off``, or a ``warnings`` line
@@ -124,7 +124,7 @@ def attach(config: StudyConfig, results: dict[str, Any], delivery: Delivery, sta
 
 
 def camera_views(config: StudyConfig, delivery: Delivery, stage: Path | None,
-                 progress: StudyProgress | None = None) -> tuple[dict[str, Any] | None, str | None]:
+                 progress: StudyProgress | None = None) -> tuple[JsonDict | None, str | None]:
     """(results.json ``physical_views``: both designs rendered physically at three poses, detections drawn and
     misses named — ``study.physical_views`` —, or None; why they are missing, or None). Made whenever the check
     is on; a renderer that fails leaves a warning (an error in mode ``pbr``, which asked for physics by name)."""
@@ -192,10 +192,10 @@ def _track_design(threads: int | None, arguments: tuple[Any, ...]) -> Any:
     return track_one(*arguments)
 
 
-def _collect(pending: Mapping[str, BackgroundCall | None], progress: StudyProgress | None) -> dict[str, Any]:
+def _collect(pending: Mapping[str, BackgroundCall | None], progress: StudyProgress | None) -> JsonDict:
     """{design name: its worker's tracking} for the workers ``start_design`` started that delivered (a design
     whose worker failed is tracked here by the check, where a failure is reported as the check reports it)."""
-    out: dict[str, Any] = {}
+    out: JsonDict = {}
     for name, call in pending.items():
         if call is None:
             continue
@@ -213,7 +213,7 @@ def _designs(delivery: Delivery) -> dict[str, Design]:
 
 
 def closed_loop_check(config: StudyConfig, delivery: Delivery, stage: Path | None,
-                      progress: StudyProgress | None = None) -> tuple[dict[str, Any] | None, str | None]:
+                      progress: StudyProgress | None = None) -> tuple[JsonDict | None, str | None]:
     """(the results.json ``tracking`` section or None, why it was skipped or None) — ``attach``. The designs
     ``delivery.workers`` track are not tracked again here (a worker that failed leaves its design to this
     process); the workers are collected or cancelled."""
@@ -249,7 +249,7 @@ def closed_loop_check(config: StudyConfig, delivery: Delivery, stage: Path | Non
     return section, None
 
 
-def _inconclusive(section: dict[str, Any]) -> None:
+def _inconclusive(section: JsonDict) -> None:
     """When neither design is tracked — at least 3 holes detected in fewer than ``TRACKED_MIN`` of the frames of
     both (e.g. holes a few pixels wide in a small sensor's image) — the paired test compares two failures: its
     verdicts are kept under ``check.verdicts_not_used`` and the verdict's tracking rule stays silent (a warning

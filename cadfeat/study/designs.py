@@ -34,6 +34,7 @@ from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
+    from cadfeat.results import JsonDict
     from cadfeat.study.setup import StudySetup
 
 __all__ = ["score_design", "track_design"]
@@ -42,7 +43,7 @@ StudySource = str | Path | Mapping[str, Any] | StudyConfig
 
 
 def score_design(study: StudySource, values: Mapping[str, float] | None = None, *,
-                 seed: int | None = None) -> dict[str, Any]:
+                 seed: int | None = None) -> JsonDict:
     """The design ``values`` of ``study`` (module docstring) rebuilt in CAD and scored as ``cadfeat run`` scores
     its delivered design. Returns {"values", "holes", "objectives", "combined" (None for pareto),
     "requirements" (each kept requirement's check), "requirements_hold", "rebuild_deviation_mm" (largest
@@ -68,7 +69,7 @@ def score_design(study: StudySource, values: Mapping[str, float] | None = None, 
 
 def track_design(study: StudySource, values: Mapping[str, float] | None = None, *, against: str | None = "original",
                  mode: str = "fast", seed: int | None = None, out_dir: str | Path | None = None,
-                 **tracking: Any) -> dict[str, Any]:
+                 **tracking: Any) -> JsonDict:
     """The closed loop on the design ``values`` of ``study`` ("after") and, with ``against="original"``, on the
     study's original ("before", paired run by run: the verdict per estimator). ``mode``: "fast" (``cadfeat
     run``'s default check: PnP + IEKF, 8 runs, ≤ 20 frames) or "full" (the study's ``[tracking]`` settings);

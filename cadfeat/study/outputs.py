@@ -27,6 +27,7 @@ from cadfeat.results import SCHEMA_VERSION, StudyResults
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.measures.evaluate import Measures
+    from cadfeat.results import JsonDict
 
 __all__ = [
     "DIGITS",
@@ -89,7 +90,7 @@ def write_results(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Stud
     return results
 
 
-def hole_dict(hole: Any, index: int, fixed: bool, movable: bool) -> dict[str, Any]:
+def hole_dict(hole: Any, index: int, fixed: bool, movable: bool) -> JsonDict:
     """One hole as results.json ``H`` = {index, name, centre_mm, axis, radius_mm, depth_mm, through, kind,
     fixed, movable} (part frame, mm)."""
     return {
@@ -121,7 +122,7 @@ def worst_poses(m: Measures, min_axis_px: float, half_image_px: float) -> np.nda
 
 
 def measures_summary(m: Measures, names: Sequence[str], times_s: np.ndarray, min_axis_px: float,
-                     half_image_px: float) -> dict[str, Any]:
+                     half_image_px: float) -> JsonDict:
     """results.json ``M``: per-feature minima over the trajectory and per-pose series (contracts); per feature
     also ``hidden_frac`` (share of poses where the part hides it, occlusion ray test), ``hidden_worst_pose``
     (first such pose, or None) and ``folded_frac`` (share past the lens's fold radius)."""
@@ -162,7 +163,7 @@ def normalise_step_header(path: str | os.PathLike[str], product: str) -> None:
     path.write_bytes(head + rest)
 
 
-def file_entry(path: Path, root: Path) -> dict[str, Any]:
+def file_entry(path: Path, root: Path) -> JsonDict:
     """``{name, bytes, sha256}`` of a written file (name relative to the output folder)."""
     return {"name": path.relative_to(root).as_posix(), "bytes": path.stat().st_size, "sha256": sha256_file(path)}
 

@@ -16,6 +16,8 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover
     from rich.progress import Progress, TaskID
 
+    from cadfeat.results import JsonDict
+
 __all__ = ["StudyProgress"]
 
 
@@ -73,7 +75,7 @@ class StudyProgress:
     def iteration(self, *args: Any, **kwargs: Any) -> None:
         """Optimiser callback: accepts a dict (``iteration``, ``f``, ``x``, ...), keyword arguments, or
         positional ``(x, f)``; keeps the best design seen."""
-        info: dict[str, Any] = {}
+        info: JsonDict = {}
         for a in args:
             if isinstance(a, Mapping):
                 info.update(cast("Mapping[str, Any]", a))

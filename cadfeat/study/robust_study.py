@@ -89,7 +89,7 @@ class Optimum(Protocol):
 
     setup: StudySetup
     res: OptimResult
-    history: list[dict[str, Any]]
+    history: list[JsonDict]
     interrupted: bool
 
 
@@ -129,7 +129,7 @@ def _starts(opt: Optimum, space: DesignSpace, most: int = 2) -> list[np.ndarray]
 
 
 def robust_phase(config: StudyConfig, opt: Optimum, progress: StudyProgress,
-                 history: Callable[[OptimResult, str], list[dict[str, Any]]]) -> RobustRun | None:
+                 history: Callable[[OptimResult, str], list[JsonDict]]) -> RobustRun | None:
     """The robust optimum of the best set-up (module docstring); ``opt.res`` becomes the delivered design's
     optimiser result and ``opt.history`` gains the robust solves (phase "robust") as ``history(result, label)``
     formats them (the pipeline's ``_history``)."""
@@ -189,7 +189,7 @@ def _choose(setup: StudySetup, rp: RobustProblem, nominal: OptimResult, robust: 
     return "robust", ""
 
 
-def _below(stats: dict[str, Any], original: dict[str, Any]) -> list[str]:
+def _below(stats: JsonDict, original: JsonDict) -> list[str]:
     """The sources the rule covers (``design.robust.BLOCKS``: the whole cell, the camera mount, the shop) under
     which a design's combined 5th percentile is below the original's."""
     out: list[str] = []
@@ -264,12 +264,12 @@ def _distinct_designs(*arrays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def statistics_of(rp: RobustProblem, G0: np.ndarray, G: dict[str, np.ndarray],
-                  values: bool = False) -> list[dict[str, Any]]:
+                  values: bool = False) -> list[JsonDict]:
     """Per design, per source: ``_block`` of ``source_objectives``' arrays (``design_statistics``)."""
     p = rp.inner
     pareto = p.objective_config.combine == "pareto"
     c0 = None if pareto else np.asarray(p.combined_from(G0), float)
-    out: list[dict[str, Any]] = [{} for _ in range(len(G0))]
+    out: list[JsonDict] = [{} for _ in range(len(G0))]
     for src, Gs in G.items():
         comb = None if pareto else np.asarray(p.combined_from(Gs), float)
         for b in range(len(G0)):
@@ -284,7 +284,7 @@ def statistics_of(rp: RobustProblem, G0: np.ndarray, G: dict[str, np.ndarray],
 
 
 def design_statistics(rp: RobustProblem, features: list[Features], D: Draws, values: bool = False,
-                      sources: tuple[str, ...] = SOURCES, depths: Depths = None) -> list[dict[str, Any]]:
+                      sources: tuple[str, ...] = SOURCES, depths: Depths = None) -> list[JsonDict]:
     """Per design (features (N, 3), (N, 3), (N,) each; ``depths``: its hole depths (N,) mm or None for the
     reference holes'), per source of ``sources``: ``_block`` of the draws ``D`` with only that source (the cell
     sources together for "cell"); the designs evaluated as one batch per source (``source_objectives``).
@@ -313,18 +313,18 @@ class RobustDesigns:
     ``objective``, ``uncertainty``, ``designs``, ``recommended``, ``delivered``, ``reason``, ``out_of_sample``,
     ``sensitivity``, ``flagged`` and ``distributions`` (combined value per held-out draw and source, per design)."""
 
-    objective: dict[str, Any]
-    uncertainty: dict[str, Any]
-    designs: dict[str, dict[str, Any]]
+    objective: JsonDict
+    uncertainty: JsonDict
+    designs: dict[str, JsonDict]
     recommended: str
     delivered: str
     reason: str
-    out_of_sample: dict[str, Any]
-    sensitivity: dict[str, Any]
+    out_of_sample: JsonDict
+    sensitivity: JsonDict
     flagged: list[str] = field(default_factory=list[str])
-    distributions: dict[str, Any] = field(default_factory=dict[str, Any])
+    distributions: JsonDict = field(default_factory=dict[str, Any])
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonDict:
         return dataclasses.asdict(self)
 
 
@@ -395,14 +395,14 @@ def robust_designs(setup: StudySetup, run: RobustRun | None, holes0: Sequence[Ho
         out_of_sample=oos, sensitivity=sensitivity(stats[recommended]), flagged=flagged, distributions=dists)
 
 
-def attach_robust(results: dict[str, Any], designs: RobustDesigns | None) -> None:
+def attach_robust(results: JsonDict, designs: RobustDesigns | None) -> None:
     """results.json ``robustness`` gains the ``RobustDesigns`` keys (the block is created when the delivered
     design's own analysis is off)."""
     if designs is not None:
         results["robustness"] = {**(results.get("robustness") or {}), **designs.to_json()}
 
 
-def sensitivity(stats: dict[str, Any]) -> dict[str, Any]:
+def sensitivity(stats: JsonDict) -> JsonDict:
     """Where a design's robustness comes from: per source, the combined value's one-at-a-time drop from nominal
     to the 5th percentile and its share of the sum of these drops; ``words``: the ranking in a sentence."""
     drops: dict[str, float] = {}

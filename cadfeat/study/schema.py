@@ -41,7 +41,7 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 from cadfeat.cell import Cell
 from cadfeat.design.objectives import AGGREGATES, COMBINES, ObjectiveConfig
@@ -70,6 +70,9 @@ from cadfeat.study.settings.scene import (
 )
 from cadfeat.study.table import Table, check_seed
 from cadfeat.trajectory import TrajectorySettings, validate_trajectory
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = [
     "AGGREGATES",
@@ -169,7 +172,7 @@ class StudyConfig:
         ``closed_loop_check.check_mode``'s."""
         return self.tracking if self.tracking is not None else TrackingSpec(seed=self.study.seed)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonDict:
         """The validated study as plain data (defaults filled in, None left out), for echoing into results.json;
         ``load_study(config.to_dict(), base_dir=config.base_dir)`` gives the same study."""
         return copy.deepcopy(dict(self.data))
@@ -185,7 +188,7 @@ class StudyConfig:
 
 
 # ------------------------------------------------------------------------------------------- entry point
-def _read(path_or_dict: StudySource, base_dir: str | Path | None) -> tuple[dict[str, Any], Path | None, Path, str]:
+def _read(path_or_dict: StudySource, base_dir: str | Path | None) -> tuple[JsonDict, Path | None, Path, str]:
     if isinstance(path_or_dict, Mapping):
         base = Path(base_dir) if base_dir is not None else Path.cwd()
         return copy.deepcopy(dict(path_or_dict)), None, base.resolve(), "<study dict>"

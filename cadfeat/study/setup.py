@@ -55,6 +55,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.design_space import DesignSpace, FeatureModel
     from cadfeat.design.objectives import Normaliser
     from cadfeat.design.problem import Problem
+    from cadfeat.results import JsonDict
     from cadfeat.study.settings.design import DesignSpec, Selector
     from cadfeat.trajectory import Trajectory
 
@@ -96,7 +97,7 @@ class StudySetup:
     constraints: ConstraintConfig
     rebuild_shape: Callable[[np.ndarray], Shape]
     rebuild_holes: Callable[[Shape], list[Hole]]
-    values: Callable[[np.ndarray], dict[str, Any]]
+    values: Callable[[np.ndarray], JsonDict]
     linear: bool = True
     int_values: dict[str, int] = field(default_factory=dict[str, int])
     part: Part | StepPart | None = None
@@ -258,7 +259,7 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     starts = {p.name: float(p.start) for p in specs if p.start is not None}  # [design.parameters] NAME.start
     at = {**part.defaults(), **ints, **starts, **{k: float(v) for k, v in (at or {}).items() if k in names}}
 
-    def values(x: np.ndarray) -> dict[str, Any]:
+    def values(x: np.ndarray) -> JsonDict:
         out = dict(at)
         for name, value in zip(names, np.asarray(x, float).reshape(-1), strict=True):
             out[name] = int(round(value)) if part.parameters[name].is_int else float(value)

@@ -107,9 +107,9 @@ def _motion_warnings(T_cam_part: np.ndarray, times_s: np.ndarray) -> list[str]:
             f"trajectory, e.g. a look-at camera rolling about its axis; or track more frames), solvePnP is per frame"]
 
 
-def _curves(result: BeforeAfter) -> dict[str, Any]:
+def _curves(result: BeforeAfter) -> JsonDict:
     """Per design and estimator: frame times and the median / 10 % / 90 % over runs of both errors."""
-    out: dict[str, Any] = {}
+    out: JsonDict = {}
     for name, d in result.designs.items():
         out[name] = {"times_s": [round(float(t), 6) for t in d.times_s]}
         for m, (et, er) in d.errors.items():
@@ -226,7 +226,7 @@ def _view_direction(config: StudyConfig, original_step: Path) -> np.ndarray | No
 
 def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Path | None = None,
                  spec: TrackingSpec | None = None, camera_override: Camera | None = None,
-                 tracked: Mapping[str, Any] | None = None) -> dict[str, Any]:
+                 tracked: Mapping[str, Any] | None = None) -> JsonDict:
     """The results.json ``tracking`` section for ``designs`` = {"before": (shape, holes), "after": (...)}.
 
     ``out_dir``: where the frame PNGs go (``tracking/``); None writes nothing. ``camera_override``: the camera
@@ -262,7 +262,7 @@ def track_arguments(config: StudyConfig, spec: TrackingSpec, design: Design) -> 
 
 
 def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,
-          values: Sequence[float] | None = None, spec: TrackingSpec | None = None) -> dict[str, Any]:
+          values: Sequence[float] | None = None, spec: TrackingSpec | None = None) -> JsonDict:
     """Thesis §6.3.3 sensitivity: the tracking summary per value of one setting (module docstring).
 
     Returns {"kind", "values", "rows": [{"value", design: {estimator: {trans_mm_rms, rot_deg_rms, convergence_s}}}]}.

@@ -40,6 +40,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape
 
     from cadfeat.cad.features import Hole
+    from cadfeat.results import JsonDict
     from cadfeat.study.delivery import Delivery
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import StudySetup
@@ -116,7 +117,7 @@ def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = 
     return shape, holes, err
 
 
-def requirement_checks(setup: StudySetup, shape: Shape, holes: Sequence[Hole], where: str) -> list[dict[str, Any]]:
+def requirement_checks(setup: StudySetup, shape: Shape, holes: Sequence[Hole], where: str) -> list[JsonDict]:
     """Every kept requirement measured on the solid ``shape`` whose holes are ``holes`` (design order).
 
     ``verify_on_brep`` re-extracts the holes with the study's view (``StudySetup.view_direction``: a through
@@ -186,7 +187,7 @@ class AnchoredModel:
 
 
 def export_and_verify(config: StudyConfig, stage: Path, delivery: Delivery,
-                      constraints: list[dict[str, Any]]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+                      constraints: list[JsonDict]) -> tuple[list[JsonDict], JsonDict]:
     """Write original.step, optimised.step and optimised.stl into ``stage`` and verify them: a valid solid, the
     re-imported STEP's holes equal to the design's within ``ROUNDTRIP_TOL_MM`` (and its volume), every kept
     requirement again on the re-imported solid (raises ``CadfeatError`` naming a violated one), a watertight
