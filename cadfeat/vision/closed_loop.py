@@ -50,6 +50,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cadfeat.cad.features import Hole
     from cadfeat.measures.ellipse import Ellipse
+    from cadfeat.results import JsonDict
 
 #: Pixels around the part kept per frame (blur and the contour tracer need a margin of background).
 ROI_MARGIN_PX = 12
@@ -105,7 +106,7 @@ class TrackingConfig:
     material: Any = None
     hole_ends: str = "as_modelled"
 
-    def render_options(self) -> dict[str, Any]:
+    def render_options(self) -> JsonDict:
         """The keyword arguments of ``render.camera_renderer`` for this config's renderer: none for the raster
         one; the cell's light, material and hole ends, the samples per pixel and a metered exposure for the
         physically based one (``render.sensor``: the part's median at a fixed fraction of full scale)."""
@@ -140,7 +141,7 @@ class Observation:
     rim_gap: np.ndarray | None = None  # (F, N) px to the nearest other rim at the nominal pose (None: not computed)
     camera: Camera | None = None  # the detector undistorts the rims' edges with it (``detection.undistorted_centre``)
     renderer: str = "raster"  # the renderer kind and options that made the images (placement re-renders use them)
-    render_options: dict[str, Any] = field(default_factory=dict)
+    render_options: JsonDict = field(default_factory=dict)
 
 
 @dataclass
@@ -433,7 +434,7 @@ def estimate_runs(camera: Camera, obs: Observation, pixels: np.ndarray, T_runs: 
     return errors, summaries
 
 
-def design_json(result: DesignTracking) -> dict[str, Any]:
+def design_json(result: DesignTracking) -> JsonDict:
     """results.json form of one design's tracking: per estimator the Monte-Carlo means and intervals."""
     rate = result.detection_rate
     found = np.all(np.isfinite(result.pixels), axis=-1)
@@ -448,14 +449,14 @@ def design_json(result: DesignTracking) -> dict[str, Any]:
 
 
 def compare(before: DesignTracking, after: DesignTracking, alpha: float = 0.05,
-            min_change: float = 0.0) -> dict[str, Any]:
+            min_change: float = 0.0) -> JsonDict:
     """Paired verdicts per estimator on the per-run translation and rotation RMS errors, and an overall line.
 
     Per estimator: ``better`` when the translation or the rotation RMS is significantly lower after and the
     other not significantly higher (symmetrically ``worse``), ``mixed`` when one is significantly lower and
     the other significantly higher, else ``no significant difference``.
     """
-    out: dict[str, Any] = {}
+    out: JsonDict = {}
     for m in before.summaries:
         if m not in after.summaries:
             continue
@@ -483,12 +484,12 @@ class BeforeAfter:
 
     designs: dict[str, DesignTracking]
     observations: dict[str, Observation]
-    verdicts: dict[str, Any]
+    verdicts: JsonDict
     config: TrackingConfig
     frame_indices: np.ndarray
     timings_s: dict[str, float]
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonDict:
         """The results.json ``tracking`` section (plain data; infinities as None)."""
         c = self.config
         out = {
