@@ -36,6 +36,7 @@ from cadfeat.cad.features.identity import hole_name
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import ShapeLike
     from cadfeat.results import JsonDict
 
 __all__ = [
@@ -410,7 +411,7 @@ def _check(name: str, holes: list[str], required: float, value: float, unit: str
     return ConstraintCheck(name, holes, float(required), float(value), float(margin), unit, bool(margin >= -tol))
 
 
-def verify_on_brep(shape: Any, design_holes: Sequence[Hole], config: ConstraintConfig,
+def verify_on_brep(shape: ShapeLike, design_holes: Sequence[Hole], config: ConstraintConfig,
                    fixed_mask: Sequence[bool] | np.ndarray,
                    reference: Sequence[Hole] | None = None, *, match_tol_mm: float = 1e-3,
                    reference_shape: Any = None, tol_mm: float = 1e-6,

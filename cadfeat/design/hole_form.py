@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
     from cadfeat.design.design_space import FeatureModel
 
 __all__ = ["FORM_TOL", "design_bores", "design_depths", "drill_mask", "drill_radii_batch", "hole_depths",
@@ -61,7 +62,7 @@ def design_bores(model: FeatureModel, X: np.ndarray) -> np.ndarray | None:
     return rim - (np.asarray(lin.features_batch(X)[2], dtype=float) - lin.bores_batch(X))
 
 
-def hole_depths(holes: Sequence[Any]) -> np.ndarray:
+def hole_depths(holes: Sequence[Hole]) -> np.ndarray:
     """(N,) depths (mm) of CAD holes (``Hole.depth_mm``)."""
     return np.array([float(h.depth_mm) for h in holes])
 

@@ -53,7 +53,7 @@ class Pattern:
         return out
 
 
-def _arrays(holes: Sequence[Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _arrays(holes: Sequence[Hole]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     c = np.array([np.asarray(h.centre, float) for h in holes]).reshape(-1, 3)
     a = np.array([np.asarray(h.axis, float) for h in holes]).reshape(-1, 3)
     r = np.array([float(h.radius_mm) for h in holes])
@@ -121,7 +121,7 @@ def _levels(x: np.ndarray, tol: float) -> np.ndarray:
     return np.array(levels)
 
 
-def find_patterns(holes: Sequence[Any], *, centre: Sequence[float] = (0.0, 0.0, 0.0),
+def find_patterns(holes: Sequence[Hole], *, centre: Sequence[float] = (0.0, 0.0, 0.0),
                   tol_mm: float = TOL_MM) -> list[Pattern]:
     """Bolt circles, grids and mirror pairs among ``holes`` (``cadfeat.cad.features.Hole``-like: centre, axis,
     radius_mm); see the module docstring. Largest patterns first; a hole may be in a circle or grid and a
@@ -193,7 +193,7 @@ def _circumcentre(p: np.ndarray) -> np.ndarray | None:
                      (s1 * (x3 - x2) + s2 * (x1 - x3) + s3 * (x2 - x1)) / d])
 
 
-def pattern_kept(pattern: Pattern, holes: Sequence[Any], tol_mm: float = TOL_MM) -> tuple[bool, str]:
+def pattern_kept(pattern: Pattern, holes: Sequence[Hole], tol_mm: float = TOL_MM) -> tuple[bool, str]:
     """Whether ``holes`` (the new design, same order as the original) still form ``pattern`` (a moved, turned
     or rescaled bolt circle or grid still counts; a mirror pair must mirror in the same plane), with why not."""
     c, a, r = _arrays([holes[i] for i in pattern.holes])

@@ -32,6 +32,7 @@ from cadfeat.design.objectives import (
 if TYPE_CHECKING:  # pragma: no cover
     import trimesh
 
+    from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
     from cadfeat.cell import Cell
     from cadfeat.design.design_space import FeatureModel
@@ -81,7 +82,7 @@ def hole_attributes(problem: PoseProblem, radii: np.ndarray,
     return through, depth, depth / (2.0 * np.maximum(np.asarray(radii, float), 1e-9))
 
 
-def hole_kinds(holes: Sequence[Any]) -> list[str]:
+def hole_kinds(holes: Sequence[Hole]) -> list[str]:
     """(N,) the holes' kinds (``Hole.kind``, "plain" where a hole has none; the offset model treats a
     counterbore's rim apart)."""
     return [str(getattr(h, "kind", "plain")) for h in holes]
