@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +25,7 @@ from cadfeat.errors import CadfeatError
 from cadfeat.poses import invert_T
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import ShapeLike
     from cadfeat.results import JsonDict
 
 __all__ = ["PREFERRED_VARIANTS", "annulus_mesh", "emitter_mesh_ply", "light_dicts", "part_mesh_arrays", "sampler_dict",
@@ -60,7 +61,7 @@ def use_variant(variant: str | None = None) -> str:
                        f"with scalar_rgb")
 
 
-def part_mesh_arrays(shape: Any, tolerance_mm: float, angular_tolerance_rad: float
+def part_mesh_arrays(shape: ShapeLike, tolerance_mm: float, angular_tolerance_rad: float
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vertices (V, 3) mm, triangles (T, 3) and unit vertex normals (V, 3) of a B-rep solid.
 
