@@ -31,6 +31,7 @@ from cadfeat.results import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import ShapeLike
     from cadfeat.results import JsonDict
 
 #: Moves smaller than this (mm) count as "did not move".
@@ -64,7 +65,7 @@ def is_evaluation(results: Results) -> bool:
                                                            or (obj is not None and bool(obj.after)))
 
 
-def _change_css(before: Any, after: Any) -> str:
+def _change_css(before: ShapeLike, after: ShapeLike) -> str:
     if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in (before, after)):
         return ""
     return "better" if after > before else "worse" if after < before else ""
