@@ -48,7 +48,7 @@ from cadfeat.vision.motion import so3_exp
 if TYPE_CHECKING:  # pragma: no cover
     import trimesh
 
-    from cadfeat.cad.features import Hole
+    from cadfeat.cad.features import Hole, ShapeLike
     from cadfeat.measures.ellipse import Ellipse
     from cadfeat.results import JsonDict
 
@@ -166,7 +166,7 @@ class DesignTracking:
         return np.where(n_exp > 0, (found & expected).sum(axis=(0, 1)) / np.maximum(n_exp, 1), np.nan)
 
 
-def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, sensor: SensorModel,
+def observe(shape: ShapeLike, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, sensor: SensorModel,
             screws: np.ndarray | None = None, predict_occlusion: bool = True,
             frames: Sequence[int] | None = None, renderer: str = "raster",
             render_options: Mapping[str, Any] | None = None) -> Observation:
@@ -257,13 +257,13 @@ def placed_observations(camera: Camera, obs: Observation, T_runs: np.ndarray) ->
     return out
 
 
-def _rim_hidden(shape: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
+def _rim_hidden(shape: ShapeLike, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
                 radii: np.ndarray) -> np.ndarray:
     """(F, N) hidden fraction of each rim (ray test against the part's mesh, ``measures.rim_occlusion``)."""
     return rim_hidden(part_mesh(shape), holes, T, centres, normals, radii)
 
 
-def part_mesh(shape: Any) -> trimesh.Trimesh:
+def part_mesh(shape: ShapeLike) -> trimesh.Trimesh:
     """The part's triangle mesh the closed loop's rim test uses (0.05 mm chord)."""
     return mesh_from_shape(shape, tolerance=0.05)
 
