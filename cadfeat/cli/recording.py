@@ -18,7 +18,9 @@ import numpy as np
 from cadfeat.cli.command import Command
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.calibration.boards import BoardSpec
     from cadfeat.results import JsonDict
+    from cadfeat.study.schema import StudyConfig, TrackingSpec
 
 #: Decimals of the poses written (mm and quaternion components; 1 µm, ~1e-6 rad: below any robot's repeatability).
 POSE_DECIMALS = 6
@@ -53,7 +55,8 @@ def write_pose_files(T_task_cam: np.ndarray, times_s: np.ndarray, folder: Path) 
     return csv, four
 
 
-def checklist(config: Any, args: argparse.Namespace, board: Any, paper: str, n_poses: int, duration_s: float) -> str:
+def checklist(config: StudyConfig, args: argparse.Namespace, board: BoardSpec, paper: str, n_poses: int,
+              duration_s: float) -> str:
     """The recording checklist (markdown) for the study ``config``."""
     cam, cell = config.camera.build(), config.cell
     light = cell.light
@@ -117,7 +120,7 @@ def plan_recording(args: argparse.Namespace) -> int:
     return 0
 
 
-def track_recorded(config: Any, spec: Any, out: Path, args: argparse.Namespace) -> int:
+def track_recorded(config: StudyConfig, spec: TrackingSpec, out: Path, args: argparse.Namespace) -> int:
     """``cadfeat track STUDY --images DIR --poses CSV``: replay a recording (``study.recorded``); writes
     ``tracking/recorded_<design>.json`` in the study's output folder and prints the summary."""
     from cadfeat.errors import CadfeatError

@@ -22,6 +22,7 @@ from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.results import JsonDict
+    from cadfeat.study.schema import StudyConfig, TrackingSpec
 
 SWEEP_KINDS = ("initial_error", "q", "r", "focal_length", "sample_time")
 
@@ -140,7 +141,8 @@ def track(args: argparse.Namespace) -> int:
     return 0
 
 
-def _with_overrides(config: Any, spec: Any, args: argparse.Namespace) -> tuple[Any, Any]:
+def _with_overrides(config: StudyConfig, spec: TrackingSpec, args: argparse.Namespace
+                    ) -> tuple[StudyConfig, TrackingSpec]:
     """The study and its ``[tracking]`` with the command line's ``--renderer``, ``--spp`` and ``--detector``."""
     import dataclasses
 
