@@ -25,9 +25,12 @@ import threading
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.explore.session import ExploreSession
 
 __all__ = ["ExploreServer", "serve"]
 
@@ -109,7 +112,7 @@ class ExploreServer(ThreadingHTTPServer):
 
     daemon_threads = True
 
-    def __init__(self, session: Any, port: int = 0) -> None:
+    def __init__(self, session: ExploreSession, port: int = 0) -> None:
         super().__init__((HOST, port), _Handler)
         self.session = session
         self._scene: bytes | None = None
@@ -142,7 +145,7 @@ class ExploreServer(ThreadingHTTPServer):
         self.server_close()
 
 
-def serve(session: Any, port: int = 0) -> ExploreServer:
+def serve(session: ExploreSession, port: int = 0) -> ExploreServer:
     """A started ``ExploreServer`` on 127.0.0.1:``port`` (0: a free port)."""
     try:
         return ExploreServer(session, port).start()
