@@ -57,6 +57,8 @@ from cadfeat.render.scene import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+
     from cadfeat.cad.features import Hole, ShapeLike
     from cadfeat.camera import Camera
 
@@ -100,7 +102,7 @@ class CameraViewRenderer:
     Call ``close()`` (or use as a context manager) to free the OpenGL context.
     """
 
-    def __init__(self, shape: ShapeLike, holes: Sequence[Hole], camera: Camera, *, mesh: Any = None,
+    def __init__(self, shape: ShapeLike, holes: Sequence[Hole], camera: Camera, *, mesh: trimesh.Trimesh | None = None,
                  supersample: int | None = None) -> None:
         if supersample is None:
             supersample = DEFAULT_SUPERSAMPLE

@@ -55,6 +55,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cadfeat.cad.features import Hole, ShapeLike
     from cadfeat.camera import Camera
+    from cadfeat.trajectory import Trajectory
 
 MOVED_BEFORE = (0.95, 0.55, 0.10)   # orange: a hole that will move / its old place
 MOVED_AFTER = (0.10, 0.70, 0.25)    # green: a moved hole at its new place
@@ -279,7 +280,7 @@ class _Scene:
 
 def render_comparison(shape_before: ShapeLike, shape_after: ShapeLike, holes_before: Sequence[Hole],
                       holes_after: Sequence[Hole],
-                      fixed: Sequence[bool], out_dir: str | Path, *, trajectory: Any = None,
+                      fixed: Sequence[bool], out_dir: str | Path, *, trajectory: Trajectory | None = None,
                       camera: Camera | None = None, T_task_part: np.ndarray | None = None, n_frusta: int = 5,
                       size: tuple[int, int] = (1000, 760), closeup: bool = False) -> dict[str, Path]:
     """Before/after PNGs from the same viewpoint: ``{"before": out_dir/before.png, "after": out_dir/after.png}``.
