@@ -49,6 +49,8 @@ if TYPE_CHECKING:  # pragma: no cover
     import trimesh
 
     from cadfeat.cad.features import Hole, ShapeLike
+    from cadfeat.cell.light import Light
+    from cadfeat.cell.material import Material
     from cadfeat.measures.ellipse import Ellipse
     from cadfeat.results import JsonDict
 
@@ -102,8 +104,8 @@ class TrackingConfig:
     detector: str = "cadfeat"
     renderer: str = "raster"
     spp: int = 16
-    light: Any = None
-    material: Any = None
+    light: Light | None = None
+    material: Material | None = None
     hole_ends: str = "as_modelled"
 
     def render_options(self) -> JsonDict:
@@ -268,7 +270,7 @@ def part_mesh(shape: ShapeLike) -> trimesh.Trimesh:
     return mesh_from_shape(shape, tolerance=0.05)
 
 
-def rim_hidden(mesh: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
+def rim_hidden(mesh: trimesh.Trimesh, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
                radii: np.ndarray) -> np.ndarray:
     """(F, N) hidden fraction of each rim at the poses T (F, 4, 4) on the part's ``mesh`` (``part_mesh``)."""
     return rim_occlusion(mesh, T, centres, normals, radii, samples=12, through=[h.through for h in holes],
