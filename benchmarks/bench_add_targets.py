@@ -4,7 +4,9 @@ Times, on the original mount and the candidate sites of ``studies/nema17_add_tar
 motor face and the base flange top, outside the motor): the candidate sites, the objective's set-up (every site's
 rim occlusion by the exact ray test at every pose), and choosing k = 1..max_added holes by the lazy greedy —
 against the plain greedy (every feasible site evaluated at every step) as the baseline; then the whole added-target
-study (``cadfeat run``, phase by phase). ``--quick``: the study without its closed-loop check.
+study (``cadfeat run``, phase by phase) with its closed-loop check: the original, the move-only optimum and the
+delivered design (with the added holes) in the same paired runs. ``--quick``: the study without its closed-loop
+check; ``--out DIR``: keep the study's output folder there (default: a temporary folder).
 """
 
 from __future__ import annotations
@@ -69,12 +71,46 @@ def _choice_rows(config, setup):  # type: ignore[no-untyped-def]
     return len(allowed.sites), t_sites, t_obj, rows
 
 
-def main(quick: bool = False) -> str:
+def _tracking_lines(r: dict) -> list[str]:  # type: ignore[type-arg]
+    """The closed loop of the three designs (results.json ``tracking``: the delivered design against the original,
+    and its ``comparisons``), median RMS translation / rotation error over the runs and the paired verdicts."""
+    tr = r.get("tracking") or {}
+    if not tr.get("verdicts"):
+        return [f"Closed loop: {'; '.join(w for w in r.get('warnings', []) if 'closed-loop' in w) or 'off'}."]
+    check, designs = tr.get("check") or {}, tr["designs"]
+
+    def med(design: str, m: str, key: str) -> str:
+        return f"{designs[design]['estimators'][m][key]['median']:.4f}"
+
+    def verdicts(v: dict) -> str:  # type: ignore[type-arg]
+        return "; ".join(f"{m.upper()} {x['verdict']} (p = {x['translation']['p_value']:.2g} translation, "
+                         f"{x['rotation']['p_value']:.2g} rotation)" for m, x in v.items())
+
+    st = tr["settings"]
+    lines = [f"Closed loop ({check.get('mode')} check, {st['runs']} paired runs, {st['frames']} frames; paired "
+             f"Wilcoxon signed-rank, α = {st['alpha']:g}, a change counts when significant and ≥ "
+             f"{100 * st['min_change']:g} %), median RMS error over the runs, original → move-only optimum → "
+             "delivered design:"]
+    lines += [f"- {m.upper()}: translation {med('before', m, 'trans_mm_rms')} → "
+              f"{med('move_only', m, 'trans_mm_rms')} → {med('after', m, 'trans_mm_rms')} mm, rotation "
+              f"{med('before', m, 'rot_deg_rms')} → {med('move_only', m, 'rot_deg_rms')} → "
+              f"{med('after', m, 'rot_deg_rms')}°" for m in tr["verdicts"]]
+    lines += ["", f"Delivered design vs the original (the verdict's tracking rule): {verdicts(tr['verdicts'])}."]
+    names = {"move_only_vs_original": "Move-only optimum vs the original",
+             "added_vs_move_only": "Delivered design vs the move-only optimum"}
+    lines += [f"{names.get(k, k)}: {verdicts(c['verdicts'])}." for k, c in (tr.get("comparisons") or {}).items()]
+    verdict = r.get("verdict") or {}
+    lines.append(f"Verdict: {verdict.get('decision')}.")
+    return lines
+
+
+def main(quick: bool = False, out: Path | None = None) -> str:
     from cadfeat.study.run import run_study
     from cadfeat.study.schema import load_study
     from cadfeat.study.setup import setup_study
 
     machine = _load("run_all", HERE / "run_all.py").machine_description()
+    load0 = os.getloadavg()
     config = load_study(STUDY)
     setup = setup_study(config)
     n_sites, t_sites, t_obj, rows = _choice_rows(config, setup)
@@ -100,7 +136,8 @@ def main(quick: bool = False) -> str:
     try:
         with tempfile.TemporaryDirectory() as tmp:
             t = time.perf_counter()
-            result = run_study(STUDY, Path(tmp) / "out", quiet=True, track="off" if quick else None)
+            result = run_study(STUDY, out or Path(tmp) / "out", quiet=True, track="off" if quick else None,
+                               force=out is not None)
             total = time.perf_counter() - t
     finally:
         os.environ.clear()
@@ -110,7 +147,8 @@ def main(quick: bool = False) -> str:
     lines += [
         "",
         f"Whole study (`cadfeat run studies/nema17_add_targets.toml`{', check off' if quick else ''}): "
-        f"{total:.1f} s wall.",
+        f"{total:.1f} s wall (load average at the benchmark's start {load0[0]:.1f}, at the end "
+        f"{os.getloadavg()[0]:.1f}: other jobs on the 2 cores lengthen every wall time here).",
         "",
         "| phase | wall time (s) |",
         "|---|---:|",
@@ -125,15 +163,13 @@ def main(quick: bool = False) -> str:
         + ", ".join(f"{k}: {e:.4f}" for k, e in zip(block["curve"]["added"], block["curve"]["error_mm"], strict=True))
         + f". Requirements hold on the B-rep and the STEP: {block['requirements_hold']}.",
     ]
-    tr = block.get("tracking") or {}
-    if tr.get("verdicts"):
-        designs = tr.get("designs", {})
-        cells = [f"{m} {designs['move_only'][m]['trans_mm_rms']['median']:.4f} → "
-                 f"{designs['added'][m]['trans_mm_rms']['median']:.4f} mm ({v})" for m, v in tr["verdicts"].items()]
-        lines.append(f"Closed loop ({tr.get('mode')} check), added design against the move-only optimum, median RMS "
-                     f"translation error over the runs: {'; '.join(cells)}.")
+    holes = ", ".join(f"{h['name']} at ({', '.join(f'{v:.1f}' for v in h['centre'])})" for h in block["holes"])
+    lines += [f"Added holes: {holes}; optimised.step holds them (re-imported, every hole found where it was put, "
+              f"largest error {block['step']['max_error_mm']:.1e} mm), move_only.step the move-only optimum.", ""]
+    lines += _tracking_lines(r)
     return save_section("bench_add_targets", "\n".join(lines))
 
 
 if __name__ == "__main__":
-    print(main(quick="--quick" in sys.argv))
+    args = sys.argv[1:]
+    print(main(quick="--quick" in args, out=Path(args[args.index("--out") + 1]) if "--out" in args else None))

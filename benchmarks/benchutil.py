@@ -3,11 +3,17 @@
 from __future__ import annotations
 
 import importlib.util
+import os
 import statistics
 import time
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
+
+# The benchmarks time studies set up from scratch: the study set-up cache (cadfeat.study.setup_cache) would make a
+# second run read its set-up instead. Off here unless the caller says otherwise; bench_explore, which measures the
+# cache, turns it on for its own starts.
+os.environ.setdefault("CADFEAT_CACHE", "off")
 
 
 def load(name: str, path: Path) -> ModuleType:

@@ -12,3 +12,7 @@ class Terminated(BaseException):  # noqa: N818 - named after the signal, like Ke
     """Raised in the main thread by cadfeat's SIGTERM handler: unwinds like Ctrl-C (staging folders and worker
     processes are cleaned up on the way), but is never taken for a request to keep the best design so far;
     the CLI exits with status 143 (128 + SIGTERM)."""
+
+
+class CadfeatWarning(UserWarning):
+    """Something cadfeat worked around and the user should know (the CLI prints it as one ``warning:`` line)."""

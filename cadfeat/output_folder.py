@@ -41,7 +41,8 @@ __all__ = ["MANIFEST", "OUTPUT_NAMES", "REPORT_NAMES", "OutputFolderError", "che
 
 MANIFEST = ".cadfeat-output.json"
 """The ownership manifest cadfeat writes into every folder it creates (and every staging folder)."""
-OUTPUT_NAMES = ("original.step", "optimised.step", "optimised.stl", "holes.csv", "results.json", "report.html", "img")
+OUTPUT_NAMES = ("original.step", "optimised.step", "optimised.stl", "move_only.step", "holes.csv", "results.json",
+                "report.html", "img")
 """Entries cadfeat writes into an output folder (run, evaluate --out)."""
 REPORT_NAMES = ("report.html", "img")
 """Entries ``cadfeat report`` writes."""

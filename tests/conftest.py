@@ -15,6 +15,9 @@ if _TESTS not in sys.path:
 import os  # noqa: E402
 
 os.environ.setdefault("CADFEAT_TRACKING_CHECK", "off")
+# The study set-up cache (study.setup_cache) is off for the suite: each test sets its studies up itself (and
+# nothing is written into the user's cache folder); the tests of the cache turn it on with a folder of their own.
+os.environ.setdefault("CADFEAT_CACHE", "off")
 
 
 #: The folders whose every test is numerical (measures, optimisers and robust design, vision, the cell's models): all

@@ -92,8 +92,9 @@ def entrances(t: dict[str, Any]) -> list[Entrance]:
             far = -a if float((alt - c) @ a) < 0 else a
             dia = float(re.search(r"Ø([0-9.]+)", text).group(1)) if "Ø" in text else float(t["diameters"][-1])
             out.append(Entrance(alt, far, (kind,), float(t["depth"]), dia))
-        else:
-            out.append(Entrance(c, a, (kind,), float(t["depth"]), float(t["diameters"][0])))
+        else:  # at the same end: its own entrance diameter where the text gives one ("countersink (Ø3.8, ...")
+            dia = float(re.search(r"Ø([0-9.]+)", text).group(1)) if "Ø" in text else float(t["diameters"][0])
+            out.append(Entrance(c, a, (kind,), float(t["depth"]), dia))
     return out
 
 

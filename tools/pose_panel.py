@@ -5,7 +5,9 @@ the part is rebuilt, its holes extracted (with the part's view direction), the r
 by the exact ray test, and
 
 - predicted: ``pose_information`` (calibrated detection/measurement models, occlusion) — per pose the bias +
-  noise error; the PnP prediction is its RMS over the frames, the IEKF prediction the posterior CRLB
+  noise error; the PnP prediction is its RMS over the frames with the frames PnP loses held at the last pose
+  (``measures.lost_frames``: fewer than 4 holes found; ``pnp_posed_*`` without them), the IEKF prediction the
+  posterior CRLB
   (``posterior_crlb`` with the closed loop's filter tuning) combined with the same bias;
 - simulated: the closed loop (``vision.closed_loop``: render, blur, noise, detection, association with the
   predicted occlusion, PnP and IEKF; ``--runs`` Monte-Carlo runs), the RMS error after the settle frames, lost
@@ -79,12 +81,13 @@ def designs(setup, count: int, seed: int = 0, extremes: int = 0,
     return xs, names, info
 
 
-def score(setup, x, T, times, tuning, model=None) -> dict:
+def score(setup, x, T, times, tuning, model=None, glare=None) -> dict:
     """Predicted errors of design ``x`` along the frames T (the rows' ``pnp_*`` / ``iekf_*``): RMS over the frames
     after the closed loop's ``settle_frames`` (``TrackingConfig``), the frames its simulated RMS counts
     (``vision.metrics.run_summary``); the per-hole columns over all frames."""
     from cadfeat.cad.export import mesh_from_shape
     from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.measures.lost_frames import held_errors
     from cadfeat.measures.pose_estimator import equal_weight_errors
     from cadfeat.measures.pose_information import pose_information
     from cadfeat.measures.rim_occlusion import rim_occlusion
@@ -98,13 +101,21 @@ def score(setup, x, T, times, tuning, model=None) -> dict:
                         through=[h.through for h in holes], depth_mm=[h.depth_mm for h in holes])
     ratio = [h.depth_mm / (2 * h.radius_mm) for h in holes]
     kinds = [h.kind for h in holes]
+    rate = None
+    if glare is not None:  # the part's own light on its blind rims (measures.glare), as g_POSE in a metal cell
+        from cadfeat.measures.glare import contrast_rate
+
+        rate = np.where([h.through for h in holes], 1.0, contrast_rate(glare, T, c, n, r, 2.0))
     pi = pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio, kinds=kinds,
-                          through=[h.through for h in holes], prior_sigma=(20.0, 0.1), model=model)
+                          through=[h.through for h in holes], prior_sigma=(20.0, 0.1), model=model,
+                          contrast_rate=rate)
     _, sig = posterior_crlb(pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio,
                                              kinds=kinds, through=[h.through for h in holes],
-                                             model=model).information,
+                                             model=model, contrast_rate=rate).information,
                             times, tuning)
     settle = min(TrackingConfig().settle_frames, len(T) - 1)
+    # PnP holds its last pose where fewer than 4 holes are found (the closed loop's metric): measures.lost_frames
+    held_t, held_r, lost = held_errors(T, pi.probability, pi.error_translation_mm, pi.error_rotation_deg)
     rms = lambda a: float(np.sqrt(np.mean(np.square(a[settle:]))))  # noqa: E731
     eq = equal_weight_errors(pi)
     eq_t, eq_r, eq_bias = eq.translation_mm, eq.rotation_deg, eq.bias
@@ -113,7 +124,8 @@ def score(setup, x, T, times, tuning, model=None) -> dict:
             "eq_pnp_t": rms(eq_t), "eq_pnp_r": rms(eq_r),
             "eq_iekf_t": rms(np.hypot(np.linalg.norm(eq_bias[:, :3], axis=-1), eq_sig[:, 0])),
             "eq_iekf_r": rms(np.hypot(np.degrees(np.linalg.norm(eq_bias[:, 3:], axis=-1)), eq_sig[:, 1])),
-            "pnp_t": rms(pi.error_translation_mm), "pnp_r": rms(pi.error_rotation_deg),
+            "pnp_t": rms(held_t), "pnp_r": rms(held_r), "pnp_lost": float(np.mean(lost[settle:])),
+            "pnp_posed_t": rms(pi.error_translation_mm), "pnp_posed_r": rms(pi.error_rotation_deg),
             "iekf_t": rms(np.hypot(pi.bias_translation_mm, sig[:, 0])),
             "iekf_r": rms(np.hypot(pi.bias_rotation_deg, sig[:, 1])),
             "bias_t": rms(pi.bias_translation_mm), "noise_t": rms(pi.sigma_translation_mm),
@@ -128,6 +140,33 @@ def _optimum(path: Path, space) -> np.ndarray:
     return np.array([float(after[v.name]) for v in space.variables])
 
 
+def pbr_cell(args: argparse.Namespace, study: Path, setup):
+    """``--renderer pbr``: the closed loop of ``cadfeat run --track pbr`` in the study's ``[cell]`` (its light, its
+    placement and noise; ``--material`` overrides the finish) — the fast check's frames, ``--runs`` runs, ``--spp``
+    samples — and the prediction with that cell's calibrated models (``design.pose_terms.cell_models``).
+    Returns (TrackingConfig, T (F, 4, 4), times (F,), models, glare maps or None (``study.setup.glare_maps_for``))."""
+    from dataclasses import replace
+
+    from cadfeat.cell.material import Material
+    from cadfeat.design.pose_terms import cell_models
+    from cadfeat.poses import invert_T
+    from cadfeat.study.closed_loop_check import fast_spec
+    from cadfeat.study.schema import load_study
+    from cadfeat.study.setup import glare_maps_for
+    from cadfeat.study.tracking import tracking_config
+    from cadfeat.vision.closed_loop import tracked_frames
+
+    cfg = load_study(study)
+    cell = cfg.cell if args.material is None else cfg.cell.replace(material=Material(name=args.material))
+    traj = setup.trajectory
+    T_all = invert_T(np.asarray(traj.T_task_cam)) @ setup.T_task_part
+    spec = fast_spec(cfg, len(T_all)).replace(renderer="pbr", spp=args.spp, runs=args.runs, seed=args.seed)
+    config = replace(tracking_config(spec, cell), estimators=("pnp", "iekf"))
+    _, T, times, _ = tracked_frames(T_all, np.asarray(traj.times_s), None, config.frame_step)
+    glare = glare_maps_for(replace(cfg, cell=cell), setup.shape0, setup.holes0, setup.camera, T)
+    return config, T, times, cell_models(cell), glare
+
+
 def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> dict:
     """Panel rows of one study (module docstring) and, with ``optimum``, the paired closed-loop test of the
     optimum vs the original on the same runs (common random numbers)."""
@@ -136,7 +175,14 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     from cadfeat.measures.rim_centre import measure
     from cadfeat.poses import invert_T
     from cadfeat.vision import FilterTuning, SensorModel
-    from cadfeat.vision.closed_loop import TrackingConfig, compare, observe, placement_errors, track_design
+    from cadfeat.vision.closed_loop import (
+        TrackingConfig,
+        compare,
+        observe,
+        placement_errors,
+        report_frames,
+        track_design,
+    )
 
     setup = pose_setup(study)
     traj = setup.trajectory
@@ -152,6 +198,10 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     config = TrackingConfig(estimators=("pnp", "iekf"), runs=args.runs, sensor=SensorModel(noise_grey=2.0),
                             tuning=tuning, placement_mm=args.placement_mm, placement_deg=args.placement_deg,
                             gain_sigma=args.gain_sigma, seed=args.seed)
+    glare = None
+    if args.renderer == "pbr":
+        config, T, times, model, glare = pbr_cell(args, study, setup)
+        tuning = config.tuning
     T_runs = T[None] @ placement_errors(config, config.runs)[:, None]
     xs, names, spread = designs(setup, args.designs, extremes=args.extremes, candidates=args.candidates)
     print(json.dumps({"design_space": spread}), flush=True)
@@ -161,8 +211,10 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     rows, tracks = [], {}
     for i, (name, x) in enumerate(zip(names, xs, strict=True)):
         start = time.perf_counter()
-        s = score(setup, x, T, times, tuning, model)
-        obs = observe(s["shape"], s["holes"], setup.camera, T, config.sensor)
+        s = score(setup, x, T, times, tuning, model, glare)
+        frames = report_frames(len(T)) if config.renderer == "pbr" else None  # the runs render their placements
+        obs = observe(s["shape"], s["holes"], setup.camera, T, config.sensor, frames=frames,
+                      renderer=config.renderer, render_options=config.render_options())
         res = track_design(setup.camera, obs, T, times, config)
         tracks[name] = res
         ms = lambda v: float(np.sqrt(np.nanmean(np.square(v))))  # noqa: E731  RMS over runs of per-run RMS
@@ -482,6 +534,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--supersample", type=int, default=1,
                     help="the closed loop renders with k x k sub-pixels per pixel (render.camera_views."
                          "DEFAULT_SUPERSAMPLE; pair with a --model calibrated at the same k)")
+    ap.add_argument("--renderer", choices=("raster", "pbr"), default="raster",
+                    help="pbr: the closed loop of `cadfeat run --track pbr` in the study's [cell] (pbr_cell)")
+    ap.add_argument("--spp", type=int, default=16, help="with --renderer pbr: samples per pixel")
+    ap.add_argument("--material", default=None, help="with --renderer pbr: the finish (cell.material name)")
     ap.add_argument("--model", type=Path, default=None,
                     help="a detection_model.json (calibrate_detection.py --study); default: the committed one")
     args = ap.parse_args(argv)

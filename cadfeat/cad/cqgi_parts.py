@@ -11,14 +11,16 @@ A CadQuery user's script has top-level constants and passes its result to ``show
     result = cq.Workplane("XY").box(length, 60, 10).faces(">Z").workplane().hole(hole_dia)
     show_object(result)
 
-It loads through CadQuery's own gateway interface (``cadquery.cqgi.parse(source).build()``, as cq-editor and
-cq-cli run it), so the script is never imported as a module. Its constants are read from the script's own
-syntax tree (``script_constants``): every top-level ``name = literal`` or ``name: type = literal`` whose literal
-is an int, float (a leading ``-`` / ``+`` included), bool, str or a tuple of those. CQGI's own finder misses
-negative numbers (``-12.0`` is a unary minus, not a constant) and annotated assignments, and its
-``build(build_parameters=...)`` substitutes only what it found; here a build writes every value into a copy of
-the syntax tree (the constant's assignment, ``_substituted``) and hands that tree to CQGI. The part's parameters
-are the NUMERIC constants (``int`` / ``float``; strings, booleans and tuples stay as the script sets them):
+It loads through CadQuery's own gateway interface (``cadquery.cqgi.parse(source).build()``, as cq-editor and cq-cli
+run it), so the script is never imported as a module. A script that names cq-editor's ``__name__`` (``if __name__ ==
+"__cq_main__": show_object(result)``) runs with that ``__name__``, as cq-editor runs it; a script that calls
+cq-editor's ``log`` gets one. Its constants are read from the script's own syntax tree (``script_constants``): every
+top-level ``name = literal`` or ``name: type = literal`` whose literal is an int, float (a leading ``-`` / ``+``
+included), bool, str or a tuple of those. CQGI's own finder misses negative numbers (``-12.0`` is a unary minus, not
+a constant) and annotated assignments, and its ``build(build_parameters=...)`` substitutes only what it found; here
+a build writes every value into a copy of the syntax tree (the constant's assignment, ``_substituted``) and hands
+that tree to CQGI. The part's parameters are the NUMERIC constants (``int`` / ``float``; strings, booleans and
+tuples stay as the script sets them):
 
 - description: ``describe_parameter(name, "text")`` where given, else the constant's line comment (without the
   bounds);
@@ -79,8 +81,10 @@ def _tree(path: Path) -> ast.Module:
 
 def is_cqgi_script(path: str | Path) -> bool:
     """Whether ``path`` is a cq-editor / CQGI script rather than a cadfeat part script: it calls
-    ``show_object`` at module level and defines neither ``build`` nor ``PARAMETERS`` at the top level.
-    A file that does not parse is not (``load_part`` then reports the syntax error)."""
+    ``show_object`` (at module level, or in a function of its own that it calls: ``def main(): ...
+    show_object(part)``) and does not define ``PARAMETERS`` at the top level (cadfeat's protocol: ``PARAMETERS``
+    and ``build``; a cq-editor script may have a helper named ``build`` of its own). A file that does not parse
+    is not (``load_part`` then reports the syntax error)."""
     path = Path(path)
     if path.suffix != ".py" or not path.is_file():
         return False
@@ -89,15 +93,12 @@ def is_cqgi_script(path: str | Path) -> bool:
     except (SyntaxError, UnicodeDecodeError, ValueError):
         return False
     for node in tree.body:
-        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.name == "build":
-            return False
         targets = node.targets if isinstance(node, ast.Assign) else [node.target] \
             if isinstance(node, ast.AnnAssign) else []
         if any(isinstance(t, ast.Name) and t.id == "PARAMETERS" for t in targets):
             return False
-    top = [n for n in tree.body if not isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef)]
     return any(isinstance(c, ast.Call) and isinstance(c.func, ast.Name) and c.func.id == "show_object"
-               for n in top for c in ast.walk(n))
+               for c in ast.walk(tree))
 
 
 @dataclass(frozen=True)
@@ -353,9 +354,38 @@ def _script_dir_on_path(path: Path) -> Iterator[None]:
             sys.path.remove(folder)
 
 
+#: ``__name__`` of a script run by cq-editor (CQGI runs it as ``"__cqgi__"``).
+CQ_EDITOR_NAME = "__cq_main__"
+
+
+def _cq_editor_prelude(tree: ast.Module) -> list[ast.stmt]:
+    """What cq-editor gives a script that CQGI does not, for a script that uses it (statements run before the
+    script's own): its ``__name__`` for a script that names ``"__cq_main__"`` (``if __name__ == "__cq_main__":
+    show_object(...)``, a common guard), and its ``log(x)`` for a script that calls ``log`` (here: the logger
+    ``cadfeat.cqgi``, at INFO). A script that defines or imports ``log`` itself overrides it, as in cq-editor."""
+    out = []
+    if any(isinstance(n, ast.Constant) and n.value == CQ_EDITOR_NAME for n in ast.walk(tree)):
+        out.append(f"__name__ = {CQ_EDITOR_NAME!r}")
+    if any(isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "log" for n in ast.walk(tree)):
+        out.append("log = __import__('logging').getLogger('cadfeat.cqgi').info")
+    return ast.parse("\n".join(out)).body
+
+
+def _with_prelude(tree: ast.Module, prelude: list[ast.stmt]) -> ast.Module:
+    """``tree`` with ``prelude`` first (at the first statement's line, for tracebacks)."""
+    if not prelude:
+        return tree
+    first = tree.body[0] if tree.body else None
+    tree.body[:0] = [ast.copy_location(copy.deepcopy(s), first) if first is not None else copy.deepcopy(s)
+                     for s in prelude]
+    return ast.fix_missing_locations(tree)
+
+
 def _builder(script: _Script, model: Any, names: list[str]) -> Any:
-    """``build(**params)``: run the script through CQGI with ``params`` and return its one solid."""
+    """``build(**params)``: run the script through CQGI with ``params`` and return its one solid (after what
+    cq-editor would give it, ``_cq_editor_prelude``)."""
     path = script.path
+    prelude = _cq_editor_prelude(script.tree)
 
     def build(**params: Any) -> Any:
         unknown = sorted(set(params) - set(names))
@@ -364,7 +394,7 @@ def _builder(script: _Script, model: Any, names: list[str]) -> Any:
         # The values are written into a fresh copy of the script's syntax tree (CQGI's own substitution knows
         # only the constants its finder saw, and writes into its one tree): no build keeps an earlier value.
         values = {k: int(v) if isinstance(v, int) else float(v) for k, v in params.items()}
-        model.ast_tree = _substituted(script.tree, script.constants, values)
+        model.ast_tree = _with_prelude(_substituted(script.tree, script.constants, values), prelude)
         with _two_argument_describe(), _script_dir_on_path(path):
             result = model.build()
         if not result.success:

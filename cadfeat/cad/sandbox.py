@@ -104,7 +104,11 @@ def contained(path: Path, what: str, echo: bool = False) -> Iterator[None]:
 
 # ------------------------------------------------------------------------------------ worker processes
 def worker_setup() -> None:
-    """In a worker: die with the forkserver (so with cadfeat), and send C-level output to /dev/null."""
+    """In a worker: die with the forkserver (so with cadfeat), send C-level output to /dev/null, and ignore SIGINT:
+    Ctrl-C in a terminal reaches the whole process group, and what it means is cadfeat's to decide (a run keeps
+    its best design and finishes its rebuild, ``study.interrupts``); cadfeat stops its workers itself."""
+    with contextlib.suppress(ValueError, OSError):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
     with contextlib.suppress(Exception):  # Linux: SIGKILL when the parent (the forkserver) exits
         import ctypes
 

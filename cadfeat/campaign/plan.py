@@ -26,11 +26,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cadfeat.campaign.spec import CampaignError, CampaignFile, case_values, mode_of, parse_campaign
+from cadfeat.study.inputs import canonical_json, sha256_file
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.results import JsonDict
 
-__all__ = ["Campaign", "Case", "load_campaign"]
+__all__ = ["Campaign", "Case", "load_campaign", "sha256_file"]
 
 _SLUG_CHARS = re.compile(r"[^A-Za-z0-9_.-]+")
 _PATH_KEYS = (("study", "part"), ("camera", "calibration"), ("trajectory", "csv"))
@@ -66,16 +67,7 @@ class Campaign:
     model: CampaignFile = field(repr=False)
 
 
-def sha256_file(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
-def _canonical(data: Any) -> bytes:
-    return json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False, default=str).encode()
+_canonical = canonical_json
 
 
 def _read_base(label: str, path: Path) -> JsonDict:

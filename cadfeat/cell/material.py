@@ -27,7 +27,7 @@ from typing import Any
 
 from cadfeat.settings import Settings, choice, number
 
-__all__ = ["MATERIALS", "Material", "MaterialSpec", "bsdf_dict", "material_spec"]
+__all__ = ["MATERIALS", "Material", "MaterialSpec", "bores_return_light", "bsdf_dict", "material_spec"]
 
 #: Iron's complex index of refraction (n, k) at ≈ 650 / 550 / 450 nm (Johnson & Christy 1974, rounded).
 IRON_ETA_RGB = (2.87, 2.91, 2.58)
@@ -84,6 +84,14 @@ class Material(Settings):
 def material_spec(material: Material) -> MaterialSpec:
     """The named finish of ``material``."""
     return MATERIALS[material.name]
+
+
+def bores_return_light(material: Material) -> bool:
+    """Whether a bore in this material clips the sensor under a light at the lens: a conductor's bore walls and
+    floor mirror the light back (the flagship's targets under the ring light, docs/results.md "Under physical
+    light"); a plastic's or a diffuse finish's bore is darker than its face. g_POSE counts a rim's clipped
+    surround as hidden only where the bore clips too (``measures.glare``)."""
+    return material_spec(material).kind == "roughconductor"
 
 
 def bsdf_dict(material: Material) -> dict[str, Any]:

@@ -37,7 +37,7 @@ from pydantic import Field, ValidationInfo, field_validator
 from cadfeat.cell import defaults as D
 from cadfeat.cell.light import Light
 from cadfeat.cell.material import Material
-from cadfeat.settings import Settings, Tuple, choice, context_of, number, validate_nested
+from cadfeat.settings import Settings, Tuple, boolean, choice, context_of, number, validate_nested
 
 __all__ = ["BOUND_KEYS", "DETECTORS", "HOLE_ENDS", "PER_AXIS", "PLACEMENT_SIGMA_PER_TOLERANCE", "SIGMA_KEYS", "Cell",
            "per_axis", "triple"]
@@ -105,6 +105,10 @@ class Cell(Settings):
                                                                 description="the closed loop's hole detector")
     hole_ends: Literal["as_modelled", "drilled", "milled"] = choice(
         "as_modelled", HOLE_ENDS, description="how a blind hole ends as the shop makes it")
+    glare: bool = boolean(True, description="g_POSE reads where the part's own light leaves a blind rim in a metal "
+                                            "part little contrast, from physically based renders of the part at "
+                                            "the study's poses made at set-up (cadfeat.measures.glare); false: the "
+                                            "detection model alone")
     light: Light = choice(Light, "a table [cell.light] (kind = ring | coaxial | dome | spot, …)", factory=True,
                           description="the cell's light (cadfeat.cell.light)")
     material: Material = choice(Material, "a table [cell.material] (name, roughness)", factory=True,

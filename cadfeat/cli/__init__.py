@@ -14,12 +14,14 @@ import contextlib
 import signal
 import sys
 import threading
+import warnings
 from collections.abc import Callable, Iterator, Sequence
+from typing import TextIO
 
 from cadfeat._version import __version__
 from cadfeat.cli import calibrate, campaign, explore, listing, parts, recording, render, report, study, track
 from cadfeat.cli.command import Command
-from cadfeat.errors import CadfeatError, Terminated
+from cadfeat.errors import CadfeatError, CadfeatWarning, Terminated
 
 __all__ = ["COMMANDS", "build_parser", "main", "run_guarded"]
 
@@ -60,12 +62,32 @@ def sigterm_as_exception() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextlib.contextmanager
+def warnings_as_lines(prog: str = "cadfeat") -> Iterator[None]:
+    """Within the block, cadfeat's own warnings (``CadfeatWarning``) print as one ``prog: warning: ...`` line on
+    stderr; other warnings as Python prints them."""
+    previous = warnings.showwarning
+
+    def show(message: Warning | str, category: type[Warning], filename: str, lineno: int, file: TextIO | None = None,
+             line: str | None = None) -> None:
+        if issubclass(category, CadfeatWarning):
+            print(f"{prog}: warning: {message}", file=sys.stderr)
+        else:
+            previous(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = previous
+
+
 def run_guarded(func: Callable[[], int], prog: str = "cadfeat") -> int:
     """``func()`` with the CLI's error handling: one line for bad input (status 2), ``interrupted`` (130),
     ``terminated`` (143, SIGTERM). Each command gives its part-script imports and CAD builds their time limit
     (``[study] build_timeout_s``, ``--build-timeout``)."""
     try:
-        with sigterm_as_exception():
+        with sigterm_as_exception(), warnings_as_lines(prog):
             return int(func() or 0)
     except Terminated:
         print(f"{prog}: terminated (SIGTERM); nothing half-written was left", file=sys.stderr)

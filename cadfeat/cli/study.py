@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from cadfeat.cli.command import Command
@@ -21,6 +22,14 @@ def _run_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress display, only the summary")
     _force_arg(parser)
     _track_arg(parser)
+    cache_arg(parser)
+
+
+def cache_arg(parser: argparse.ArgumentParser) -> None:
+    """``--no-cache``: set the study up without the set-up cache (``cadfeat.study.setup_cache``)."""
+    parser.add_argument("--no-cache", dest="cache", action="store_const", const=False, default=None,
+                        help="set the study up again instead of reading the set-up of unchanged inputs from the "
+                             "set-up cache (also: CADFEAT_CACHE=off; `cadfeat cache` shows where it is)")
 
 
 def _track_arg(parser: argparse.ArgumentParser) -> None:
@@ -46,6 +55,7 @@ def _evaluate_args(parser: argparse.ArgumentParser) -> None:
                         help="score one trajectory sample only (0-based), like the thesis GUI's single-pose mode")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
     _force_arg(parser)
+    cache_arg(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -53,8 +63,12 @@ def run(args: argparse.Namespace) -> int:
     from cadfeat.study.run import run_study  # lazy: keeps `cadfeat --help` fast
 
     result = run_study(args.study, args.out, seed=args.seed, quiet=args.quiet, progress=not args.quiet,
-                       force=args.force, track=args.track)
+                       force=args.force, track=args.track, cache=args.cache)
     print(result.summary())
+    if result.results.get("interrupted"):  # Ctrl-C: the best design so far was written (study.interrupts)
+        print(f"cadfeat: interrupted; the best design so far is in {result.out_dir} (results.json: "
+              '"interrupted": true)', file=sys.stderr)
+        return 130
     return 0
 
 
@@ -62,7 +76,8 @@ def evaluate(args: argparse.Namespace) -> int:
     """Score the study's current design without optimising; print the per-feature table (thesis Table 5.1)."""
     from cadfeat.study.run import evaluate_study  # lazy: keeps `cadfeat --help` fast
 
-    evaluate_study(args.study, args.out, pose=args.pose, quiet=args.quiet, echo=True, force=args.force)
+    evaluate_study(args.study, args.out, pose=args.pose, quiet=args.quiet, echo=True, force=args.force,
+                   cache=args.cache)
     return 0
 
 
@@ -86,6 +101,10 @@ def validate(args: argparse.Namespace) -> int:
     for line in ([] if pre is None else [f"ASSUMED: {a}" for a in pre.assumptions] +
                  [f"WARNING: {w}" for w in pre.warnings]):
         print(f"  {line}")
+    added = None if pre is None else pre.numbers.get("add_targets")  # type: ignore[attr-defined]
+    if added:
+        print(f"  add_targets: {added['sites']} candidate sites on {'; '.join(added['faces'])}; at most "
+              f"{added['most_that_fit']} holes fit at once; a dry-run hole drilled and verified")
     return 0
 
 
@@ -142,9 +161,35 @@ def schema(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cache_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--clear", action="store_true",
+                        help="delete the set-up cache's entries (only the files cadfeat wrote there)")
+
+
+def cache(args: argparse.Namespace) -> int:
+    """Show where the study set-up cache is and how big it is (--clear: delete its entries).
+
+    ``run``, ``evaluate`` and ``explore`` keep a study's set-up there (CAD builds, design map, normaliser,
+    occlusion mesh) and read it back when the same inputs come again; see docs/guide/commands.md."""
+    from cadfeat.study.setup_cache import CACHE_DIR_ENV, CACHE_ENV, SetupCache, cache_enabled, cache_root
+
+    root = cache_root()
+    store = SetupCache(root)
+    state = "on" if cache_enabled() else f"off ({CACHE_ENV}=off)"
+    if args.clear:
+        print(f"set-up cache {root}: {store.clear()} entries deleted")
+        return 0
+    entries = store.listing()
+    size = sum(p.stat().st_size for p in entries)
+    print(f"set-up cache: {root} ({state}; {CACHE_DIR_ENV} moves it)\n  {len(entries)} entries, "
+          f"{size / 1e6:.1f} MB")
+    return 0
+
+
 COMMANDS = (
     Command("run", _run_args, run),
     Command("evaluate", _evaluate_args, evaluate),
     Command("validate", _study_arg, validate),
     Command("schema", _schema_args, schema),
+    Command("cache", _cache_args, cache),
 )

@@ -19,11 +19,14 @@ Objective names: g_FOV (cone margin eq. 3.3, or the image margin in px with ``fo
 g_FOC (focus margin eq. 3.4–3.6), g_RES (minor axis − ω in px, §3.3.3), g_DIR (Λ, px/mm, eq. 4.33),
 g_POSE (the predicted pose error, ``pose_objective``: minus the error in mm, so larger is better; measure key
 "pose", needs ``measures.pose`` = a ``cadfeat.measures.PoseInformation`` of the same poses). All are "larger
-is better". Hidden, partly hidden and folded holes (``measures.unseen``): with h the hidden fraction of a
-rim at a pose, FOV/focus/resolution score floor + (1 − h)(margin − floor) (each measure's constant floor,
-``unseen_floors``, when hidden whole or folded), Λ weighs the hole's rows by 1 − h, g_POSE gives a hidden rim no
-information — so no objective improves when a hole the camera cannot see shrinks, moves (staying unseen) or
-vanishes, and a partly hidden hole scores between seen and hidden.
+is better". Hidden, partly hidden and folded holes: the measures (``measures.evaluate``) are the thesis's equations
+wherever a hole is; the objectives score what the camera cannot see by the rule of ``design.unseen`` — with h the
+hidden fraction of a rim at a pose, FOV/focus/resolution score floor + (1 − h)(margin − floor) (each measure's
+constant floor, ``unseen_floors``, when hidden whole, facing away with the centre hidden, or folded) —, Λ weighs
+the hole's rows by 1 − h, g_POSE gives a hidden rim no information — so no objective improves when a hole the
+camera cannot see shrinks, moves (staying unseen) or vanishes, and a partly hidden hole scores between seen and
+hidden. ``per_pose_values`` and ``objective_values`` apply the rule to ``evaluate``'s measures (given the camera)
+and take measures already scored (``unseen.scored_measures``, as ``Problem`` makes them) as they are.
 Combination of the normalised objectives ĝ_i = (g_i − offset_i) / scale_i
 (``Normaliser``; default ``"payoff"``: offset = nadir, scale = ideal − nadir, from each objective's own optimum
 over the design space — independent of the starting design):
@@ -244,12 +247,30 @@ def _reduce_features(values: np.ndarray, how: str) -> np.ndarray:
     return {"min": np.min, "mean": np.mean, "sum": np.sum}[how](values, axis=-1)
 
 
-def per_pose_values(measures: Any, config: ObjectiveConfig,
-                    feature_mask: np.ndarray | None = None) -> dict[str, np.ndarray]:
+def _scored(measures: Any, config: ObjectiveConfig, camera: Camera | None) -> dict[str, np.ndarray] | None:
+    """The scored margins (``unseen.scored_arrays``) of ``evaluate``'s measures, or None when ``measures`` are scored
+    already, carry no unseen flags (arrays of another origin) or no chosen measure is ruled (module docstring)."""
+    if getattr(measures, "scored", False) or getattr(measures, "rim_hidden", None) is None \
+            or not set(config.measures) & {"fov", "focus", "resolution"}:  # ``unseen.is_scored``
+        return None
+    from cadfeat.design.unseen import scored_arrays  # lazy: the measures package stays out of the settings' import
+
+    if camera is None:
+        raise CadfeatError("objective values of measures.evaluate's measures need the camera, for the unseen-hole "
+                           "rule (design.unseen): pass camera=..., or score them first with "
+                           "cadfeat.design.unseen.scored_measures(measures, camera, min_axis_px)")
+    return scored_arrays(measures, camera, config.min_axis_px)
+
+
+def per_pose_values(measures: Any, config: ObjectiveConfig, feature_mask: np.ndarray | None = None,
+                    camera: Camera | None = None) -> dict[str, np.ndarray]:
     """Per-pose value (..., L) of each chosen measure: the features selected by ``feature_mask`` (N,) bool
-    (default all) reduced by ``config.feature_reduce``; resolvability uses every feature (the Jacobian)."""
+    (default all) reduced by ``config.feature_reduce``; resolvability uses every feature (the Jacobian).
+    ``measures`` of ``measures.evaluate`` are scored by the unseen rule first (``camera``: the camera they were
+    computed with, module docstring); scored ones (``unseen.ScoredMeasures``) are read as they are."""
     out: dict[str, np.ndarray] = {}
     mask = None if feature_mask is None or not np.any(feature_mask) else np.asarray(feature_mask, dtype=bool)
+    scored = _scored(measures, config, camera)
     for m in config.measures:
         if m == "pose":
             out[m] = -_pose_errors(_pose_of(measures), config.pose_rotation_length_mm)
@@ -259,7 +280,7 @@ def per_pose_values(measures: Any, config: ObjectiveConfig,
             continue
         attr = {"fov": "fov" if config.fov_measure == "cone" else "fov_px", "focus": "focus",
                 "resolution": "resolution_px"}[m]
-        values = np.asarray(getattr(measures, attr), dtype=float)
+        values = np.asarray(getattr(measures, attr) if scored is None else scored[attr], dtype=float)
         out[m] = _reduce_features(values if mask is None else values[..., mask], config.feature_reduce)
     return out
 
@@ -281,13 +302,13 @@ def aggregate(values: np.ndarray, how: str, beta: float = 20.0, unit: float = 1.
 
 
 def objective_values(measures: Any, config: ObjectiveConfig, units: Mapping[str, float] | None = None,
-                     feature_mask: np.ndarray | None = None) -> dict[str, float]:
+                     feature_mask: np.ndarray | None = None, camera: Camera | None = None) -> dict[str, float]:
     """The aggregated objectives {g_FOV, g_FOC, g_RES, g_DIR} (those chosen) of one ``Measures``; ``units``
     (measure → natural unit, ``natural_units``) sets the smooth-min scale (1 if not given);
-    ``feature_mask`` as in ``per_pose_values``."""
+    ``feature_mask`` and ``camera`` (the unseen rule of ``evaluate``'s measures) as in ``per_pose_values``."""
     units = units or {}
     out: dict[str, float] = {}
-    for m, v in per_pose_values(measures, config, feature_mask).items():
+    for m, v in per_pose_values(measures, config, feature_mask, camera).items():
         if m == "pose":
             out[MEASURES[m]] = pose_objective(_pose_of(measures), config.pose_aggregate,
                                                config.pose_rotation_length_mm)

@@ -41,7 +41,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.measures.pose_information import PoseInformation
     from cadfeat.measures.pose_models import HoleGeometry, PoseModels
 
-__all__ = ["StackedPose", "hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_values",
+__all__ = ["StackedPose", "glare_rate", "hole_attributes", "pose_aggregate_batch", "pose_of_features", "pose_values",
            "stacked_information"]
 
 #: rim samples of the occlusion test (``rim_occlusion``)
@@ -106,10 +106,33 @@ def pose_of_features(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray
         if mesh is not None:
             occlusion = rim_occlusion(mesh, T, centres, axes, radii, samples=RIM_SAMPLES, through=through,
                                       depth_mm=depth)
+    rate = glare_rate(problem, centres[None], axes[None], radii[None], through, problem.cell.noise_sigma_grey)
     return pose_information(problem.camera, T, centres, axes, radii, occlusion=occlusion, depth_ratio=ratio,
                             through=through, kinds=hole_kinds(problem.model.holes),
                             rotation_length_mm=cfg.pose_rotation_length_mm, model=cell_models(problem.cell),
-                            noise_grey=problem.cell.noise_sigma_grey)
+                            noise_grey=problem.cell.noise_sigma_grey, contrast_rate=rate)
+
+
+def glare_rate(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, through: np.ndarray,
+               noise_grey: Any) -> np.ndarray | None:
+    """(B·L, N) the detection rate's factor from the part's own light (``measures.glare.contrast_rate``) of B
+    designs' holes (B, N, …) at the problem's L poses, design-major; 1 for through holes; None when the problem
+    has no glare maps or the cell's material does not return light from its bores
+    (``cell.material.bores_return_light``). ``noise_grey``: σ, a number or (L, 1) per pose."""
+    from cadfeat.cell.material import bores_return_light
+
+    glare = problem.glare
+    if glare is None or not bores_return_light(problem.cell.material):
+        return None
+    from cadfeat.measures.glare import contrast_rate  # lazy: as the other measures
+
+    B, N = np.shape(radii)
+    L = len(problem.T_cam_part)
+    noise = np.asarray(noise_grey, float)
+    rate = contrast_rate(glare, problem.T_cam_part, centres.reshape(B * N, 3), axes.reshape(B * N, 3),
+                         radii.reshape(B * N), noise if noise.ndim == 0 else noise.reshape(L, 1))
+    rate = np.moveaxis(rate.reshape(L, B, N), 1, 0).reshape(B * L, N)
+    return np.where(np.asarray(through, bool), 1.0, rate)
 
 
 def cell_models(cell: Cell) -> PoseModels:
@@ -208,6 +231,9 @@ def stacked_information(problem: PoseProblem, centres: np.ndarray, axes: np.ndar
     # measures.pose_information's steps (detection=True, the measurement model's σ and offsets, no prior)
     ratio_bl = np.broadcast_to(ratio, (B, N)).repeat(L, axis=0)
     p = models.detection_probability(geo, occ, depth_ratio=ratio_bl, through=through)
+    rate = glare_rate(problem, centres, axes, radii, through, noise)
+    if rate is not None:
+        p = p * rate
     kw = {"noise_grey": float(noise) if noise.ndim == 0 else np.tile(noise.reshape(L, 1), (B, 1))}
     sig, off = models.measurement_model(geo, depth_ratio=ratio_bl,
                                         kinds=hole_kinds(problem.model.holes), through=through,

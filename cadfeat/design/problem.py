@@ -36,6 +36,7 @@ from cadfeat.design.objectives import (
 from cadfeat.design.optimize import OptimizerConfig, optimise
 from cadfeat.design.optimize.solvers import sobol_starts
 from cadfeat.design.pose_terms import pose_aggregate_batch, pose_values, stacked_information
+from cadfeat.design.unseen import scored_measures
 from cadfeat.errors import CadfeatError
 from cadfeat.measures.depth import DepthMaps
 from cadfeat.measures.jacobian import diagnostics_from_gram
@@ -118,6 +119,7 @@ class Problem:
         n = len(model.holes)
         self.fixed_mask = np.zeros(n, dtype=bool) if fixed_mask is None else np.asarray(fixed_mask, dtype=bool)
         self.occlusion_mesh = occlusion_mesh
+        self._glare: Any = None  # measures.glare.GlareMaps at the nominal poses (set_glare), or None
         if feature_mask is not None:
             self.feature_mask = np.asarray(feature_mask, dtype=bool)
         else:
@@ -158,6 +160,11 @@ class Problem:
         return self._normaliser
 
     @property
+    def normaliser_built(self) -> Normaliser | None:
+        """The objective scales if they are built (given, or ``normaliser`` asked for), else None: never builds."""
+        return self._normaliser
+
+    @property
     def scales(self) -> np.ndarray:
         return np.array([self.normaliser.reference[n] for n in self.names])
 
@@ -194,6 +201,7 @@ class Problem:
                           sub_cfg, self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
                           normaliser=sub_norm, feature_mask=self.feature_mask, cell=self.cell)
             sub._depth_maps = self.occlusion  # the same poses: share the depth maps
+            sub._glare = self._glare
             res = optimise(sub, OptimizerConfig(method="multistart", starts=3, maxiter=60, seed=0,
                                                 snap_standard_sizes=False), x_start=centre)
             table.append(res.x_best)
@@ -263,18 +271,38 @@ class Problem:
                         self.constraint_config, self.fixed_mask, occlusion_mesh=self.occlusion_mesh,
                         normaliser=self.normaliser, feature_mask=self.feature_mask, cell=self.cell)
         other._depth_maps = getattr(self, "_depth_maps", None)
+        other._glare = self._glare
         return other
+
+    def set_glare(self, maps: Any) -> None:
+        """g_POSE's glare maps (``measures.glare.GlareMaps`` at this problem's poses, ``render.glare.glare_maps``):
+        a blind rim in a conductor is found as often as its contrast to the rendered face allows; None: off."""
+        self._glare = maps
+
+    @property
+    def glare(self) -> Any:
+        """The glare maps for this problem's poses (tiled when the poses are stacked copies of the trajectory,
+        as ``occlusion``), or None."""
+        maps = self._glare
+        if maps is None:
+            return None
+        n = len(self.T_cam_part)
+        if maps.n_poses != n and n % maps.n_poses == 0:
+            return maps.tile(n // maps.n_poses)
+        return maps
 
     def measures_from_features(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                                exact_occlusion: bool = False) -> Any:
-        """``measures.evaluate`` of hole features (part frame) along the trajectory; occlusion by the
-        optimiser's depth maps, or by the exact ray test against the mesh with ``exact_occlusion``."""
+        """``measures.evaluate`` of hole features (part frame) along the trajectory, as the objectives score them
+        (``design.unseen.scored_measures``: the unseen-hole rule applied); occlusion by the optimiser's depth maps,
+        or by the exact ray test against the mesh with ``exact_occlusion``."""
         cfg = self.objective_config
         if np.any(np.asarray(radii) <= 0):
             raise CadfeatError(f"a design gives a hole radius ≤ 0 mm: {np.asarray(radii).tolist()}")
-        return measures.evaluate(self.camera, self.T_cam_part, self.screws, centres, axes, radii,
-                                 min_axis_px=cfg.min_axis_px, rotation_length_mm=cfg.rotation_length_mm,
-                                 occlusion_mesh=self.occlusion_mesh if exact_occlusion else self.occlusion)
+        m = measures.evaluate(self.camera, self.T_cam_part, self.screws, centres, axes, radii,
+                              min_axis_px=cfg.min_axis_px, rotation_length_mm=cfg.rotation_length_mm,
+                              occlusion_mesh=self.occlusion_mesh if exact_occlusion else self.occlusion)
+        return scored_measures(m, self.camera, cfg.min_axis_px)
 
     @property
     def occlusion(self) -> Any:

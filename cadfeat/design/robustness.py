@@ -115,10 +115,13 @@ def _cell_chunk(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: 
     B = len(radii)
     stacked = copy.copy(problem)
     stacked.T_cam_part, stacked.screws = cell_poses(problem, draws)
-    maps = problem.occlusion
-    if maps is not None:  # the nominal depth maps, looked up where each pose's nominal camera sees a point
+    maps, glare = problem.occlusion, problem.glare
+    if maps is not None or glare is not None:  # nominal maps, looked up where each pose's nominal camera sees a point
         to_nominal = np.tile(problem.T_cam_part, (S, 1, 1)) @ _inverse(stacked.T_cam_part)
-        stacked._depth_maps = maps.tile(S, to_nominal)  # pyright: ignore[reportPrivateUsage] (the problem's copy)
+        if maps is not None:
+            stacked._depth_maps = maps.tile(S, to_nominal)  # pyright: ignore[reportPrivateUsage] (the problem's copy)
+        if glare is not None:
+            stacked._glare = glare.tile(S, to_nominal)  # pyright: ignore[reportPrivateUsage] (the problem's copy)
     noise = None
     if "pose" in problem.objective_config.measures and draws.noise_grey is not None:
         noise = np.repeat(draws.noise_grey, L)[:, None]

@@ -5,6 +5,9 @@ Routes (JSON in and out):
 - ``GET /``: the page (``static/index.html``); ``GET /static/<file>``: its script and style;
   ``GET /vendor/<file>``: three.js r147 and OrbitControls (``cadfeat/report/vendor``, MIT) — nothing is
   fetched from anywhere else;
+- ``GET /api/status``: the set-up's progress (``SetupStatus``: setting-up / ready / failed, the phase, the
+  seconds so far, whether the set-up cache had it) — the server answers from the start, while the study is set
+  up in the background (``SessionLoader``), and the page shows it until the study is ready;
 - ``GET /api/scene``: ``ExploreSession.scene()`` (once per page load);
 - ``POST /api/evaluate`` ``{"values": {name: value}, "pose": k}``: ``ExploreSession.evaluate``;
 - ``POST /api/save-start`` ``{"values": ...}``: writes a new study TOML that starts at the design;
@@ -12,8 +15,10 @@ Routes (JSON in and out):
 - ``POST /api/rebuild`` ``{"values": ...}``: the CAD model rebuilt at the design, as a mesh for the views;
 - ``POST /api/export`` ``{"values": ...}``: CAD rebuild, ``design.step`` + ``design.glb`` into a new folder.
 
-A bad request gets status 400 with ``{"error": message}``. ``serve(session, port)`` returns a running
-``ExploreServer`` (a daemon thread serves it); ``server.stop()`` shuts it down and closes the socket.
+A bad request gets status 400 with ``{"error": message}``; a request that needs the study before its set-up is
+done gets 503 with ``{"error": message, "status": ...}``. ``serve(session, port)`` (a ready ``ExploreSession`` or a
+``SessionLoader``) returns a running ``ExploreServer`` (a daemon thread serves it); ``server.stop()`` shuts it
+down and closes the socket.
 """
 
 from __future__ import annotations
@@ -28,6 +33,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cadfeat.errors import CadfeatError
+from cadfeat.explore.loader import SessionLoader
+from cadfeat.explore.status import NotReady
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.explore.session import ExploreSession
@@ -75,14 +82,27 @@ class _Handler(BaseHTTPRequestHandler):
             self._file(STATIC, route[len("/static/"):])
         elif route.startswith("/vendor/"):
             self._file(VENDOR, route[len("/vendor/"):])
+        elif route == "/api/status":
+            self._json(HTTPStatus.OK, self.server.loader.status.to_dict())
         elif route == "/api/scene":
-            self._json(HTTPStatus.OK, self.server.scene())
+            try:
+                self._json(HTTPStatus.OK, self.server.scene())
+            except NotReady as exc:
+                self._not_ready(exc)
         else:
             self._json(HTTPStatus.NOT_FOUND, {"error": f"not found: {route}"})
 
+    def _not_ready(self, exc: NotReady) -> None:
+        self._json(HTTPStatus.SERVICE_UNAVAILABLE, {"error": str(exc), "status": exc.status.to_dict()})
+
     def do_POST(self) -> None:  # noqa: N802
         route = self.path.split("?", 1)[0]
-        session = self.server.session
+        try:
+            session = self.server.session
+        except NotReady as exc:
+            self.rfile.read(int(self.headers.get("Content-Length") or 0))
+            self._not_ready(exc)
+            return
         try:
             size = int(self.headers.get("Content-Length") or 0)
             if size > MAX_BODY:
@@ -112,11 +132,16 @@ class ExploreServer(ThreadingHTTPServer):
 
     daemon_threads = True
 
-    def __init__(self, session: ExploreSession, port: int = 0) -> None:
+    def __init__(self, session: ExploreSession | SessionLoader, port: int = 0) -> None:
         super().__init__((HOST, port), _Handler)
-        self.session = session
+        self.loader = session if isinstance(session, SessionLoader) else SessionLoader.of(session)
         self._scene: bytes | None = None
         self._thread: threading.Thread | None = None
+
+    @property
+    def session(self) -> ExploreSession:
+        """The ``ExploreSession``; ``NotReady`` while it is being set up (or when its set-up failed)."""
+        return self.loader.session()
 
     def handle_error(self, request: Any, client_address: Any) -> None:
         """A browser closing a kept-alive connection is not an error; anything else is printed as usual."""
@@ -145,8 +170,9 @@ class ExploreServer(ThreadingHTTPServer):
         self.server_close()
 
 
-def serve(session: ExploreSession, port: int = 0) -> ExploreServer:
-    """A started ``ExploreServer`` on 127.0.0.1:``port`` (0: a free port)."""
+def serve(session: ExploreSession | SessionLoader, port: int = 0) -> ExploreServer:
+    """A started ``ExploreServer`` on 127.0.0.1:``port`` (0: a free port) of ``session`` (an ``ExploreSession``, or
+    a ``SessionLoader`` setting one up)."""
     try:
         return ExploreServer(session, port).start()
     except OSError as exc:

@@ -1,7 +1,11 @@
 """One explorer session: a study loaded once, then every slider move scored by the study's own code.
 
-``ExploreSession(study)`` runs ``cadfeat.study.setup.setup_study`` (CAD builds, the design map ∂F/∂P, the
-objective normaliser: the slow part, done once). ``evaluate(values, pose)`` is then a feature-level
+``ExploreSession(study)`` sets the study up (``cadfeat.study.setup_cache.cached_setup``: CAD builds, the design map
+∂F/∂P, the objective normaliser and the occlusion mesh — the slow part, done once — or all of it read from the
+set-up cache when the same inputs were set up before, by ``cadfeat explore``, ``run`` or ``evaluate``).
+``explore.loader.SessionLoader`` does that in a background thread, so that the server answers at once.
+``evaluate(values, pose)`` is then
+a feature-level
 computation, no CAD: the feature model gives the holes at the design (``setup.model.features``, exact for
 holes placed linearly by the parameters), ``cadfeat.study.run.measure_holes`` gives the (L, N) measures along
 the trajectory with the exact occlusion ray test against the part mesh (what ``cadfeat evaluate`` uses), and
@@ -36,10 +40,12 @@ from cadfeat.cad.features import extract_holes
 from cadfeat.cad.gltf import export_glb
 from cadfeat.design.hole_form import design_depths
 from cadfeat.errors import CadfeatError
+from cadfeat.explore.status import SetupStatus
 from cadfeat.study.pose_accuracy import with_pose
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.results import JsonDict
+    from cadfeat.study.schema import StudyConfig
 
 __all__ = ["ExploreSession", "new_path"]
 
@@ -69,20 +75,30 @@ def new_path(folder: Path, stem: str, suffix: str) -> Path:
 
 
 class ExploreSession:
-    """A loaded study for the explorer (see the module docstring). Thread-safe: one evaluation at a time."""
+    """A loaded study for the explorer (see the module docstring). Thread-safe: one evaluation at a time.
 
-    def __init__(self, study: str | Path, results: str | Path | None = None) -> None:
+    ``cache``: read the set-up from the set-up cache / keep it there (None: on unless ``CADFEAT_CACHE=off``);
+    ``status``: told each phase of the set-up (``SessionLoader``); ``config``: the study, loaded already."""
+
+    def __init__(self, study: str | Path, results: str | Path | None = None, *, cache: bool | None = None,
+                 status: SetupStatus | None = None, config: StudyConfig | None = None) -> None:
         # lazy: import cycle (cadfeat.explore.raycache imports cadfeat.explore.session)
         from cadfeat.explore.raycache import CachedRayMesh
         from cadfeat.study.schema import load_study
-        from cadfeat.study.setup import setup_study
+        from cadfeat.study.setup_cache import cached_setup, open_cache, save
 
-        t0 = time.perf_counter()
+        self.status = status if status is not None else SetupStatus()
+        t0 = self.status.t0 if status is not None else time.perf_counter()
         self.study_path = Path(study).resolve()
-        self.config = load_study(self.study_path)
+        self.config = config if config is not None else load_study(self.study_path)
         self.timeout_s = self.config.study.build_timeout_s
-        self.setup = setup_study(self.config, time_limit_s=self.timeout_s)  # (rebuilds keep the limit)
+        store = open_cache(cache)
+        self.setup = cached_setup(self.config, time_limit_s=self.timeout_s, cache=store,  # (rebuilds keep the limit)
+                                  on_phase=self.status.set_phase)
         s = self.setup
+        entry = s.cache_entry
+        self.status.cache = "off" if entry is None else "hit" if entry.hit else "miss"
+        self.status.saved_s = entry.setup_s if entry is not None and entry.hit else None
         self.variables = list(s.space.variables)
         self.names = [v.name for v in self.variables]
         self.x0 = np.asarray(s.space.x0, float)
@@ -90,6 +106,11 @@ class ExploreSession:
         self.occlusion = None if mesh is None else CachedRayMesh(mesh)
         self.lock = threading.Lock()
         self.optimum = self._optimum(results)
+        if s.problem.normaliser_built is None:
+            self.status.set_phase("objective scales (the payoff table, on the feature map)")
+            s.problem.normaliser  # noqa: B018 - built now (the first evaluation needs it)
+        save(s)  # a fresh set-up: kept for the next start (with its normaliser and display mesh)
+        self.status.set_phase("warm-up: the compiled measure kernels, the current design's occlusion rays")
         self.evaluate()  # warm-up: compiled measure kernels, the rays of the current design
         self.setup_s = time.perf_counter() - t0
 
@@ -116,9 +137,10 @@ class ExploreSession:
         the hole names, the trajectory times, the current and (if any) the optimum design."""
         from cadfeat.poses import invert_T  # lazy: would import scipy.spatial at module load
         from cadfeat.report.view3d import mesh_arrays
+        from cadfeat.study.setup_cache import product
 
         s = self.setup
-        verts, tris = mesh_arrays(s.shape0)
+        verts, tris = product(s, "display_mesh", lambda: mesh_arrays(s.shape0))  # (kept in the set-up cache)
         T_part_cam = invert_T(s.T_task_part) @ np.asarray(s.trajectory.T_task_cam, float)
         cam = s.camera
         return {
@@ -133,7 +155,7 @@ class ExploreSession:
             "T_part_cam": _plain(T_part_cam),
             "mesh": {"vertices": _plain(verts.astype(np.float32)), "triangles": tris.astype(int).tolist()},
             "current": dict(zip(self.names, map(float, self.x0), strict=True)),
-            "optimum": self.optimum, "setup_s": self.setup_s,
+            "optimum": self.optimum, "setup_s": self.setup_s, "cache": self.status.cache,
         }
 
     # ------------------------------------------------------------------------------------ evaluation
@@ -287,3 +309,4 @@ class ExploreSession:
             shutil.rmtree(stage, ignore_errors=True)
             raise
         return {"folder": str(target), "step": str(target / "design.step"), "glb": str(target / "design.glb")}
+

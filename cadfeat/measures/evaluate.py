@@ -10,20 +10,20 @@ summed from the per-point 2×6 blocks, its eigenvalues give σ_min / condition /
 Jacobian weighting: a feature's two Jacobian rows are scaled by ``seen`` — the seen fraction 1 − h of its rim
 where it is in front of the camera, facing it, its rim inside the image and inside the lens's valid field
 (``Camera.fold_radius``: past it rays fold back into the image), else 0: 1 for a feature seen whole (h = 0
-without a mesh), 0 for one the part hides whole — the estimator could not measure it.
+without a mesh), 0 for one the part hides whole — the estimator could not measure it. (A hole the part hides
+whole gives no rows, so Λ is the same whatever its size and position.) The diagnostics use the scaled Jacobian
+J̃ = J diag(1, 1, 1, 1/ℓ, 1/ℓ, 1/ℓ) (ℓ = ``rotation_length_mm``), so every column is in px/mm; with the default
+ℓ = 1 mm that is the thesis's J.
 
-Hidden, partly hidden and folded feature-poses (docs/design.md "Trust rules"; the rule is ``measures.unseen``'s): a
-hole past the lens's fold radius, or facing away with its centre hidden, scores each measure's floor
-(``unseen_floors``: the value of a feature behind the camera, a constant independent of the hole's size and
-position) in FOV (cone and image), focus and resolution; a hole facing the camera scores
-floor + (1 − h)(margin − floor), h the hidden fraction of its rim (``Measures.rim_hidden``) — its margin when
-the whole rim is seen, the floor when the whole rim is hidden, between in proportion otherwise. So a hidden hole
-never scores better than the same hole seen, gains nothing by shrinking, moving or vanishing while wholly hidden
-(issue 17: the old −|margin| let an optimiser improve g_RES by shrinking a hidden hole), and a partly hidden one
-gains only by showing more of its rim (a slope out of hiding; the centre-ray floors were flat steps). Λ and
-the diagnostics weigh each feature's rows by the same seen fraction (``seen``). The diagnostics use the
-scaled Jacobian J̃ = J diag(1, 1, 1, 1/ℓ, 1/ℓ, 1/ℓ) (ℓ = ``rotation_length_mm``), so every column is in px/mm;
-with the default ℓ = 1 mm that is the thesis's J.
+The measures are the thesis's equations, also where the camera cannot see a hole (issue 32 item 7): FOV cone
+(eq. 3.2–3.3), focus (eq. 3.6), the image margin and the resolution margin (§3.3.3) are what the equations give
+for a hole facing away, hidden by the part or past the lens's fold radius, and ``visible`` is the visibility of
+docs/design.md (in front of the camera, facing it, its rim inside the image as the camera model projects it, its
+centre's ray not blocked by the part). What the camera cannot see is reported beside them — ``hidden`` (the
+centre's ray blocked), ``folded`` (past the fold radius), ``rim_hidden`` (the hidden fraction h of the rim),
+``facing`` — and the objectives score it: the unseen-hole rule (a hidden hole never scores better than the same
+hole seen, docs/design.md "Trust rules") is ``cadfeat.design.unseen``'s, applied by the objectives
+(``design.unseen.scored_measures``), not here.
 """
 
 from __future__ import annotations
@@ -44,8 +44,7 @@ from cadfeat.measures.kernels import features, gram_and_speed
 from cadfeat.measures.lens import distort_terms
 from cadfeat.measures.resolution import minor_axis_margin
 from cadfeat.measures.resolvability import check_length, resolvability_from_parts, scale_screws
-from cadfeat.measures.unseen import apply_unseen, rim_hidden_fraction
-from cadfeat.measures.unseen import unseen_floors as unseen_floors  # re-exported (its old home)
+from cadfeat.measures.unseen import rim_hidden_fraction
 from cadfeat.measures.visibility import occluded
 
 #: Feature-poses per slab in ``evaluate`` (temporaries of 16k doubles = 128 kB stay in the L2 cache).
@@ -61,12 +60,15 @@ class Measures:
 
     Per pose and feature (L, N): ``fov`` cone margin (eq. 3.3), ``fov_px`` image margin (px), ``focus``
     (eq. 3.6, normalised), ``resolution_px`` (minor axis − min_axis_px), ``minor_axis_px``, ``facing``
-    (cos), ``visible`` (bool), ``centre_px`` (L, N, 2), ``axes_px`` (L, N, 2), ``angle_rad``.
+    (cos), ``visible`` (bool: in front, facing, the rim inside the image as projected, the centre not hidden; the
+    lens's fold is ``folded``), ``centre_px`` (L, N, 2), ``axes_px`` (L, N, 2), ``angle_rad``.
     Per pose (L,): ``sigma_min``, ``condition``, ``manipulability`` (eq. 4.20–4.21), ``singular`` (bool),
     ``resolvability`` Λ_k (eq. 4.32, px/mm). ``hidden`` (L, N) bool: the centre hidden by the part (occlusion
     mesh); ``folded`` (L, N) bool: past the lens's fold radius; ``rim_hidden`` (L, N) in [0, 1]: the hidden
     fraction h of the rim (0 without a mesh, and where facing away, folded or behind the camera; module
     docstring, ``measures.unseen``); ``seen`` (L, N) in [0, 1]: the Jacobian rows' weight (module docstring).
+    The margins are the thesis's equations wherever the hole is (module docstring); the objectives' unseen rule
+    is ``cadfeat.design.unseen.scored_measures``.
     """
 
     fov: np.ndarray
@@ -206,7 +208,7 @@ def _evaluate_compiled(kernel: Any, camera: Camera, T: np.ndarray, s: np.ndarray
     out = dict(zip(("fov", "fov_px", "focus", "resolution_px", "minor_axis_px", "facing", "angle_rad"), f,
                    strict=True))
     out.update(visible=visible, centre_px=centre, axes_px=axes_px)
-    out.update(_unseen(camera, lens[0], lens[1], r * lens[2], Z, occlusion_mesh, T, c, n, r, out, min_axis_px))
+    out.update(_unseen(camera, lens[0], lens[1], r * lens[2], Z, occlusion_mesh, T, c, n, r, out))
     out.update({k: np.empty(L) for k in _PER_POSE}, singular=np.empty(L, dtype=bool))
     D = list(lens[3:]) if mode else [camera.fx, 0.0, 0.0, camera.fy]
     _jacobian_measures(lens[0], lens[1], lens[2], D, out["seen"], s, rotation_length_mm, out)
@@ -249,21 +251,21 @@ def _evaluate(camera: Camera, T: np.ndarray, s: np.ndarray, c: np.ndarray, n: np
     if not ell.valid.all():  # invalid ellipses: the (depth-clamped) projection of the centre
         bad = ~ell.valid
         centre[bad] = camera.distort_normalized(np.stack([x[bad], y[bad]], axis=-1))
-    flags = _unseen(camera, x, y, r * inv_z, Z, occlusion_mesh, T, c, n, r, out, min_axis_px)
+    flags = _unseen(camera, x, y, r * inv_z, Z, occlusion_mesh, T, c, n, r, out)
     for key in ("hidden", "folded", "rim_hidden", "seen"):
         out[key][...] = flags[key]
     _jacobian_measures(x, y, inv_z, D, out["seen"], s, rotation_length_mm, out)
 
 
 def _unseen(camera: Camera, x: np.ndarray, y: np.ndarray, rim_reach: np.ndarray, Z: np.ndarray, mesh: Any,
-            T: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray, out: dict[str, np.ndarray],
-            min_axis_px: float = 5.0) -> dict[str, np.ndarray]:
+            T: np.ndarray, c: np.ndarray, n: np.ndarray, r: np.ndarray, out: dict[str, np.ndarray]
+            ) -> dict[str, np.ndarray]:
     """Hidden (the centre's ray, by ``mesh``), folded (past ``camera.fold_radius``: the centre's normalised
     radius plus the rim's angular reach R/Z) and partly hidden (``rim_hidden``: ``unseen.rim_hidden_fraction``
-    where facing the camera, in front and not folded) feature-poses; hidden and folded ones are not ``visible``,
-    and the FOV, focus and resolution margins follow ``unseen.apply_unseen`` (module docstring). Modifies
-    ``out`` in place; returns {"hidden", "folded"} (L, N) bool and {"rim_hidden", "seen"} (L, N) float
-    (``seen``: 1 − rim_hidden where ``visible`` but for the centre test, else 0)."""
+    where facing the camera, in front and not folded) feature-poses; hidden ones are not ``visible`` (the margins
+    are left as the equations give them: the objectives' rule is ``design.unseen``'s). Modifies ``out["visible"]``
+    in place; returns {"hidden", "folded"} (L, N) bool and {"rim_hidden", "seen"} (L, N) float (``seen``:
+    1 − rim_hidden where ``visible`` but for the centre test and not folded, else 0)."""
     L, N = x.shape
     r_fold = camera.fold_radius
     folded = np.zeros((L, N), dtype=bool)
@@ -279,8 +281,7 @@ def _unseen(camera: Camera, x: np.ndarray, y: np.ndarray, rim_reach: np.ndarray,
             hidden = occluded(mesh, -np.einsum("lji,lj->li", T[:, :3, :3], T[:, :3, 3]), c, n)
         rim_hidden = rim_hidden_fraction(mesh, T, c, n, r, (out["facing"] > 0.0) & (Z > MIN_DEPTH_MM) & ~folded)
     seen = np.where(out["visible"] & ~folded, 1.0 - rim_hidden, 0.0)
-    out["visible"] &= ~(hidden | folded)
-    apply_unseen(camera, out, hidden, folded, rim_hidden, min_axis_px)
+    out["visible"] &= ~hidden
     return {"hidden": hidden, "folded": folded, "rim_hidden": rim_hidden, "seen": seen}
 
 

@@ -5,10 +5,9 @@ aperture a = f/N, image distance d (from the focus distance) and blur circle c; 
 hyperfocal distance. A point at depth Z (its distance along the optical axis, (r_A − r_C)·ν_C of
 eq. 3.6) is in focus when D2 ≤ Z ≤ D1.
 
-Hidden and partly hidden holes (rule of this measure, applied by ``evaluate``; ``measures.unseen``): facing the
-camera, a hole scores f + (1 − h)(margin − f), h the hidden fraction of its rim and f = −(near + far)/scale the
-floor: its margin seen whole, f hidden whole (whatever its depth), between otherwise; past the fold radius, or
-facing away with its centre hidden, f.
+This is eq. 3.6's margin wherever the hole is, also hidden by the part or past the lens's fold radius
+(``evaluate`` reports those beside it). How the objectives score a hole the camera cannot see (f + (1 − h)(margin
+− f), f = −(near + far)/scale) is ``cadfeat.design.unseen``'s rule, not this measure's.
 """
 
 from __future__ import annotations

@@ -3,10 +3,9 @@
 Margins are positive inside, 0 on the limit. Points at or behind the camera give finite, strongly
 negative values: the cone margin is then ≤ −cos(α/2), the image margin ``BEHIND_PX``.
 
-Hidden and partly hidden holes (rule of this measure, applied by ``evaluate``; ``measures.unseen``): facing the
-camera, a hole scores f + (1 − h)(margin − f), h the hidden fraction of its rim and f the floor (cone
-−1 − cos(α/2), image ``behind_px``): its margin seen whole, f hidden whole (whatever its size and position),
-between otherwise; past the fold radius, or facing away with its centre hidden, f.
+These are the equations' values wherever the hole is, also hidden by the part or past the lens's fold radius
+(``evaluate`` reports those beside them). How the objectives score a hole the camera cannot see (f + (1 − h)(margin
+− f), f the floor: cone −1 − cos(α/2), image ``behind_px``) is ``cadfeat.design.unseen``'s rule, not this measure's.
 """
 
 from __future__ import annotations

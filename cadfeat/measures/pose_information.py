@@ -183,7 +183,7 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
                      kinds: Any = None, through: ArrayLike | None = None, noise_grey: float = D.NOISE_SIGMA_GREY,
                      offsets: bool = True, rotation_length_mm: float = 50.0,
                      prior_sigma: tuple[float, float] | None = None, offset_px: ArrayLike | None = None,
-                     model: Any = None) -> PoseInformation:
+                     model: Any = None, contrast_rate: ArrayLike | None = None) -> PoseInformation:
     """Fisher information, CRLB and predicted pose error (module docstring) of holes seen from L poses.
 
     Parameters
@@ -207,6 +207,8 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     offset_px : (L, N, 2) measured or assumed offsets b (px) replacing the model's (e.g. a closed loop's
         measured detection offsets, to propagate them through the pose Jacobians).
     model : a ``pose_models.PoseModels`` (default: the committed calibration).
+    contrast_rate : (L, N) a factor on the detection rate from the part's own light (``measures.glare``:
+        a blind rim in a conductor against a bright face); None = 1.
     """
     # lazy: import cycle (cadfeat.measures.pose_models imports cadfeat.measures.pose_information)
     from cadfeat.measures import pose_models
@@ -227,6 +229,8 @@ def pose_information(camera: Camera, T_cam_part: ArrayLike, centres: ArrayLike, 
     occ = np.zeros((L, N)) if occlusion is None else np.broadcast_to(np.asarray(occlusion, dtype=float), (L, N))
     if detection:
         p = models.detection_probability(geo, occ, depth_ratio=depth_ratio, through=through)
+        if contrast_rate is not None:
+            p = p * np.broadcast_to(np.asarray(contrast_rate, dtype=float), (L, N))
     else:
         p = (geo.in_front & (geo.facing > 0) & (occ <= models.o0)).astype(float)
     sig, off = _noise_and_offsets(models, geo, (L, N), sigma_px, depth_ratio, kinds, through, noise_grey, offsets,

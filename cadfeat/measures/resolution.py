@@ -4,10 +4,9 @@ A hole is resolvable when the minor axis of its image ellipse is at least ``min_
 ω, eq. 3.22). Margins are in pixels; a rim not wholly in front of the camera gets a minor axis of 0
 and the margin −min_axis_px − max(width, height) (strongly negative, finite).
 
-Hidden and partly hidden holes (rule of this measure, applied by ``evaluate``; ``measures.unseen``): facing the
-camera, a hole scores f + (1 − h)(margin − f), h the hidden fraction of its rim and f = −ω − max(W, H) the
-floor: its margin seen whole, f hidden whole (so a hidden hole gains nothing by shrinking towards ω or to
-nothing), between otherwise; past the fold radius, or facing away with its centre hidden, f.
+These are the margins wherever the hole is, also hidden by the part or past the lens's fold radius (``evaluate``
+reports those beside them). How the objectives score a hole the camera cannot see (f + (1 − h)(margin − f),
+f = −ω − max(W, H), so a hidden hole gains nothing by shrinking) is ``cadfeat.design.unseen``'s rule.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ the eigenvalues of J̃ᵀJ̃ (6×6). Only the rank-deficient poses go through ``
 relative cut-off ``SINGULAR_RTOL``). Conventions: a pose with γ̇ = 0 has no direction, its Λ is the
 worst-direction value σ_min(J̃); a pose with J γ̇ = 0 (no image motion, e.g. no visible feature) has Λ = 0.
 
-Hidden and partly hidden holes (rule of this measure, ``evaluate``): each feature's two rows are scaled by the
+Hidden and partly hidden holes (``evaluate``'s Jacobian weights): each feature's two rows are scaled by the
 seen fraction 1 − h of its rim (``Measures.seen``; 0 past the fold radius, facing away or outside the image):
 a hole the part hides whole gives no rows, so Λ is the same whatever its size and position, and as if it were
 not there; a partly hidden one adds (1 − h)² of its image speed² — less than the same hole seen, more as more

@@ -60,6 +60,7 @@ if TYPE_CHECKING:  # pragma: no cover
 MOVED_BEFORE = (0.95, 0.55, 0.10)   # orange: a hole that will move / its old place
 MOVED_AFTER = (0.10, 0.70, 0.25)    # green: a moved hole at its new place
 FIXED = (0.15, 0.35, 0.90)          # blue: a hole that may not move
+ADDED = (0.80, 0.10, 0.60)          # magenta: a target hole cadfeat added ([add_targets])
 ARROW = (0.85, 0.10, 0.10)
 PATH = (0.55, 0.20, 0.70)
 LEGEND_GREY = (0.55, 0.55, 0.58)    # the part's swatch in the legend (PART_GREY is invisible on white)
@@ -176,13 +177,16 @@ class _Scene:
     def __init__(self, shape_before: ShapeLike, shape_after: ShapeLike, holes_before: Sequence[Hole],
                  holes_after: Sequence[Hole], fixed: Sequence[bool], T_part_cam: np.ndarray | None,
                  camera: Camera | None, n_frusta: int) -> None:
-        if not (len(holes_before) == len(holes_after) == len(fixed)):
-            raise RenderError(f"render_comparison: holes_before ({len(holes_before)}), holes_after "
-                              f"({len(holes_after)}) and fixed ({len(fixed)}) must have the same length "
-                              "(hole i before corresponds to hole i after)")
+        n = len(holes_before)
+        if not (len(fixed) == n <= len(holes_after)):
+            raise RenderError(f"render_comparison: holes_before ({n}), holes_after ({len(holes_after)}) and fixed "
+                              f"({len(fixed)}): before and fixed must have the same length, after at least as many "
+                              "(hole i before corresponds to hole i after; holes after those are added ones)")
         self.before, self.after = list(holes_before), list(holes_after)
-        self.fixed = np.asarray(fixed, dtype=bool)
-        self.moved = _moved_mask(self.before, self.after) & ~self.fixed
+        k = len(self.after) - n  # added target holes, after the part's (``[add_targets]``)
+        self.fixed = np.concatenate([np.asarray(fixed, dtype=bool), np.zeros(k, bool)])
+        self.moved = np.concatenate([_moved_mask(self.before, self.after[:n]), np.zeros(k, bool)]) & ~self.fixed
+        self.added = np.arange(len(self.after)) >= n
         self.mesh_before, self.mesh_after = _picture_mesh(shape_before), _picture_mesh(shape_after)
         pts = np.vstack([self.mesh_before.points, self.mesh_after.points])
         self.size_mm = float(np.linalg.norm(np.ptp(pts, axis=0)))
@@ -200,9 +204,16 @@ class _Scene:
         if T_part_cam is not None:
             self.direction = _side_view(self.direction, self.mesh_after.center, T_part_cam[:, :3, 3])
 
+    def marks(self, after: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(fixed, moved, added) masks of the holes of one picture (the added holes exist after only)."""
+        n = len(self.after if after else self.before)
+        return self.fixed[:n], self.moved[:n], self.added[:n]
+
     def hole_colours(self, after: bool) -> list[tuple[float, float, float]]:
         moved = MOVED_AFTER if after else MOVED_BEFORE
-        return [FIXED if f else moved if m else HOLE_DARK for f, m in zip(self.fixed, self.moved, strict=True)]
+        fixed, mv, added = self.marks(after)
+        return [ADDED if a else FIXED if f else moved if m else HOLE_DARK
+                for f, m, a in zip(fixed, mv, added, strict=True)]
 
     def draw(self, plotter: pv.Plotter, after: bool, overview: bool = True) -> None:
         """The part, hole highlights, old rims and move arrows; with ``overview`` also the point labels, the
@@ -214,7 +225,8 @@ class _Scene:
         add_part(plotter, mesh, cell_colours(hole_cell_labels(mesh, holes), self.hole_colours(after)), specular=0.2)
         lift = 0.004 * self.size_mm
         colours = self.hole_colours(after)
-        for j in np.flatnonzero(self.moved | self.fixed):  # a translucent disc over each highlighted rim
+        fixed, moved, added = self.marks(after)
+        for j in np.flatnonzero(moved | fixed | added):  # a translucent disc over each highlighted rim
             h = holes[j]
             plotter.add_mesh(pv.Disc(center=h.centre + h.axis * lift, inner=0.0, outer=h.radius_mm, normal=h.axis,
                                      c_res=64), color=colours[j], opacity=0.8)
@@ -232,12 +244,15 @@ class _Scene:
             plotter.add_legend(self._legend(overview=False), bcolor="white", border=True, size=(0.2, 0.14),
                                loc="upper left", face="rectangle")
             return
-        fixed_idx = np.flatnonzero(self.fixed)
+        fixed_idx = np.flatnonzero(fixed)
         _label_points(plotter, _label_anchor([holes[j] for j in fixed_idx], mesh),
                       [f"fixed {_hole_name(holes[j], j)}" for j in fixed_idx], FIXED)
-        moved_idx = np.flatnonzero(self.moved)
+        moved_idx = np.flatnonzero(moved)
         _label_points(plotter, _label_anchor([holes[j] for j in moved_idx], mesh),
                       [_hole_name(holes[j], j) for j in moved_idx], MOVED_AFTER if after else MOVED_BEFORE)
+        added_idx = np.flatnonzero(added)
+        _label_points(plotter, _label_anchor([holes[j] for j in added_idx], mesh),
+                      [f"added {_hole_name(holes[j], j)}" for j in added_idx], ADDED)
         if self.T_part_cam is not None:
             path = pv.lines_from_points(self.T_part_cam[:, :3, 3])
             plotter.add_mesh(path, color=PATH, line_width=3)
@@ -269,7 +284,9 @@ class _Scene:
                         ["move old -> new", ARROW]]
         if self.fixed.any():
             entries.append(["fixed hole", FIXED])
-        if (~self.fixed & ~self.moved).any():
+        if self.added.any():
+            entries.append(["added target hole", ADDED])
+        if (~self.fixed & ~self.moved & ~self.added).any():
             entries.append(["unchanged hole", HOLE_DARK])
         if self.T_part_cam is not None and overview:
             entries.append(["camera path (dot: start)", PATH])
@@ -325,7 +342,8 @@ def _render_closeup(scene: _Scene, out: Path, size: tuple[int, int]) -> dict[str
     path): moved holes with old rims and arrows, fixed holes marked, every hole labelled (labels placed
     beside their rims, away from each other, the rims and the arrows)."""
     points = np.vstack([scene.mesh_before.points, scene.mesh_after.points])
-    direction, _ = closeup_view_direction(scene.mesh_after, scene.after, weights=np.where(scene.moved, 3.0, 1.0))
+    direction, _ = closeup_view_direction(scene.mesh_after, scene.after,
+                                          weights=np.where(scene.moved | scene.added, 3.0, 1.0))
     scene = copy.copy(scene)
     scene.before, scene.after = _facing_side(scene.before, direction), _facing_side(scene.after, direction)
     paths: dict[str, Path] = {}
@@ -363,10 +381,12 @@ def _add_hole_labels(plotter: pv.Plotter, scene: _Scene, after: bool) -> None:
     if not holes:
         return
     plotter.render()
-    colours = [FIXED if f else (MOVED_AFTER if after else MOVED_BEFORE) if m else UNCHANGED_LABEL
-               for f, m in zip(scene.fixed, scene.moved, strict=True)]
-    texts = [f"fixed {_hole_name(h, j)}" if scene.fixed[j] else _hole_name(h, j) for j, h in enumerate(holes)]
-    visible = getattr(scene, "visible", np.ones(len(holes), dtype=bool))
+    fixed, moved, added = scene.marks(after)
+    colours = [ADDED if a else FIXED if f else (MOVED_AFTER if after else MOVED_BEFORE) if m else UNCHANGED_LABEL
+               for f, m, a in zip(fixed, moved, added, strict=True)]
+    texts = [f"fixed {_hole_name(h, j)}" if fixed[j] else f"added {_hole_name(h, j)}" if added[j]
+             else _hole_name(h, j) for j, h in enumerate(holes)]
+    visible = getattr(scene, "visible", np.ones(len(scene.after), dtype=bool))[:len(holes)]
     texts = [t if v else f"{t} (hidden)" for t, v in zip(texts, visible, strict=True)]
     actors = []
     for text, colour in zip(texts, colours, strict=True):

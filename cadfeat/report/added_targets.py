@@ -3,7 +3,8 @@
 The diminishing-returns curve (the predicted RMS pose error against the number of added holes, the recommended
 number marked), the recommendation and its reason, the added holes (status "added"), the predicted error of the
 original, the move-only optimum and the added design, the requirement checks on the B-rep and the re-imported
-STEP, and the closed loop of the added design against the move-only optimum. Empty without the section.
+STEP, and the closed loop of the three designs (the delivered added design against the original and the move-only
+optimum, the move-only optimum against the original). Empty without the section.
 """
 
 from __future__ import annotations
@@ -72,27 +73,36 @@ def _checks(block: AddedTargets) -> str:
             f"{esc(' and '.join(where))} (edge distance, keep-outs, ligaments: OCCT distances on the solid).</p>")
 
 
-def _median(v: Any) -> Any:
-    return v.get("median") if isinstance(v, dict) else None
+def _mean(v: Any) -> Any:
+    return v.get("mean") if isinstance(v, dict) else None
+
+
+_COMPARED = {"added_vs_original": ("original", "added", "the delivered design (added holes) vs the original"),
+             "move_only_vs_original": ("original", "move_only", "the move-only optimum vs the original"),
+             "added_vs_move_only": ("move_only", "added", "the delivered design vs the move-only optimum")}
 
 
 def _tracking(block: AddedTargets) -> str:
     tr: Any = block.tracking
     if not tr:
-        return note("closed loop of the added design: not run (the study's check is off)")
+        return note("closed loop of the three designs: not run (the study's check is off)")
     if tr.get("skipped"):
-        return note(f"closed loop of the added design: skipped ({tr['skipped']})", "warning")
+        return note(f"closed loop of the three designs: skipped ({tr['skipped']})", "warning")
     designs = tr.get("designs", {})
     rows = []
-    for m, verdict in tr.get("verdicts", {}).items():
-        a, b = designs.get("move_only", {}).get(m, {}), designs.get("added", {}).get(m, {})
-        rows.append(f"<tr>{text(m)}{num(_median(a.get('trans_mm_rms')))}{num(_median(b.get('trans_mm_rms')))}"
-                    f"{num(_median(a.get('rot_deg_rms')))}{num(_median(b.get('rot_deg_rms')))}{text(verdict)}</tr>")
-    return ("<p>Closed loop (the study's check, mode " + esc(tr.get("mode")) + "): the added design against the "
-            "move-only optimum, paired runs (median RMS over the runs); the original against the move-only optimum "
-            "is the section above.</p>"
-            + table(["estimator", "move-only: translation (mm)", "added: translation (mm)", "move-only: rotation (deg)",
-                     "added: rotation (deg)", "verdict (added)"], rows, "added-tracking"))
+    for label, (a, b, what) in _COMPARED.items():
+        for m, verdict in (tr.get("verdicts", {}).get(label) or {}).items():
+            x, y = designs.get(a, {}).get(m, {}), designs.get(b, {}).get(m, {})
+            rows.append(f"<tr>{text(what)}{text(m)}{num(_mean(x.get('trans_mm_rms')))}"
+                        f"{num(_mean(y.get('trans_mm_rms')))}{num(_mean(x.get('rot_deg_rms')))}"
+                        f"{num(_mean(y.get('rot_deg_rms')))}{text(verdict)}</tr>")
+    return ("<p>Closed loop (the study's check, mode " + esc(tr.get("mode")) + f", {esc(tr.get('runs'))} paired runs: "
+            "the original, the move-only optimum and the delivered design tracked with the same noise, initial "
+            "errors, placements and light; mean RMS error over the runs; verdicts by the paired Wilcoxon "
+            "signed-rank test of the section below). The first comparison is the verdict's tracking rule.</p>"
+            + table(["comparison", "estimator", "first: translation (mm)", "second: translation (mm)",
+                     "first: rotation (deg)", "second: rotation (deg)", "verdict (second vs first)"], rows,
+                    "added-tracking"))
 
 
 def added_targets_section(results: Results, out_dir: Path, rel: Callable[[Path], Any]) -> str:
@@ -104,9 +114,12 @@ def added_targets_section(results: Results, out_dir: Path, rel: Callable[[Path],
     parts = [f"<p>cadfeat proposed new blind target holes on {esc(', '.join(block.faces))} "
              f"({block.candidate_sites} candidate sites keeping every requirement), chose them one at a time by the "
              "predicted pose error (lazy greedy with occlusion), refined their places and drilled them into the "
-             f"delivered design. <b>Recommended: {block.recommended} added hole(s)</b> — {esc(block.reason)}."
+             f"move-only optimum. <b>Recommended: {block.recommended} added hole(s)</b> — {esc(block.reason)}."
              + (f" The predicted error falls {fmt(100 * float(drop), 3)} % below the move-only optimum."
-                if drop is not None else "") + "</p>"]
+                if drop is not None and block.recommended else "")
+             + (" <b>This is the delivered design</b>: <code>optimised.step</code> / <code>.stl</code>, the hole "
+                "table, the measures, objectives, requirements, closed loop and verdict of this report are its; "
+                "<code>move_only.step</code> holds the move-only optimum." if block.delivered else "") + "</p>"]
     try:
         path = curve_plot(block, Path(out_dir) / "img" / "added_targets.png")
         parts.append(figure(rel(path), "Predicted RMS pose error against the number of added target holes "
@@ -118,4 +131,9 @@ def added_targets_section(results: Results, out_dir: Path, rel: Callable[[Path],
     if block.step:
         parts.append(f"<p>STEP: {esc(block.step.get('file'))} re-imported, every hole found where it was put "
                      f"(largest error {fmt(block.step.get('max_error_mm'))} mm).</p>")
+    move = block.move_only or {}
+    step = move.get("step")
+    if isinstance(step, dict):
+        parts.append(f"<p>The move-only optimum: {esc(step.get('file'))}, re-imported with every hole where it was "
+                     f"put (largest error {fmt(step.get('max_error_mm'))} mm).</p>")
     return "".join(parts)

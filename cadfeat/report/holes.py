@@ -1,6 +1,8 @@
 """The drawing's hole table of the delivered design: name, face, x, y, z, Ø, depth, kind (report and holes.csv).
 
-Rows come from results.json ``holes.after`` (the rebuilt, shop-rounded design; part frame, mm). ``face`` is the
+Rows come from results.json ``holes.after`` (the delivered design: the rebuilt, shop-rounded one, with the
+added target holes of ``[add_targets]`` when it recommends some; part frame, mm). ``changed`` is "yes" for a
+hole moved or resized, "added" for an added target hole, "no" otherwise. ``face`` is the
 face the hole opens into, named by its outward normal (the hole axis points out of the material): "+Z" for a
 hole drilled from the top of a part whose top faces +z; a face that is not axis-aligned is given as its
 normal vector. Positions are written to ``POSITION_DECIMALS`` decimals (0.001 mm, finer than the 0.1 mm grid).
@@ -16,12 +18,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cadfeat.report.html import esc, fmt, num, table, text
-from cadfeat.results import AddedTargets, Holes, Shop, StudyResults, present, section
+from cadfeat.results import Holes, Shop, StudyResults, present, section
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.results import JsonDict
 
-HOLE_COLUMNS = ("name", "face", "x_mm", "y_mm", "z_mm", "diameter_mm", "depth_mm", "kind", "moved")
+HOLE_COLUMNS = ("name", "face", "x_mm", "y_mm", "z_mm", "diameter_mm", "depth_mm", "kind", "changed")
 POSITION_DECIMALS = 3
 
 
@@ -50,7 +52,7 @@ def hole_rows(results: StudyResults | Mapping[str, Any]) -> list[JsonDict]:
         rows.append({"name": h.name, "face": face_label(h.axis),
                      "x_mm": float(c[0]), "y_mm": float(c[1]), "z_mm": float(c[2]),
                      "diameter_mm": 2.0 * float(h.radius_mm), "depth_mm": float(h.depth_mm),
-                     "kind": kind.strip(), "moved": moved})
+                     "kind": kind.strip(), "changed": "added" if h.added else "yes" if moved else "no"})
     return rows
 
 
@@ -63,19 +65,8 @@ def write_holes_csv(path: str | Path, results: JsonDict) -> Path:
         for r in hole_rows(results):
             w.writerow([r["name"], r["face"], *(f"{r[k]:.{POSITION_DECIMALS}f}" for k in ("x_mm", "y_mm", "z_mm",
                                                                                            "diameter_mm", "depth_mm")),
-                        r["kind"], "yes" if r["moved"] else "no"])
+                        r["kind"], r["changed"]])
     return path
-
-
-def _added_cells(results: StudyResults | Mapping[str, Any]) -> list[str]:
-    """Rows of the added target holes (results.json ``added_targets``), changed = "added"."""
-    block = section(results, "added_targets", AddedTargets)
-    if block is None:
-        return []
-    return ["".join([text(h.name), text(face_label(h.axis)), num(h.centre[0], digits=7), num(h.centre[1], digits=7),
-                     num(h.centre[2], digits=7), num(h.diameter_mm, digits=6), num(h.depth_mm, digits=6),
-                     text("plain blind" + (f", {fmt(h.chamfer_mm)} mm chamfer" if h.chamfer_mm else "")),
-                     text(h.status)]) for h in block.holes]
 
 
 def hole_table(results: StudyResults | Mapping[str, Any]) -> str:
@@ -85,8 +76,7 @@ def hole_table(results: StudyResults | Mapping[str, Any]) -> str:
         return ""
     cells = ["".join([text(r["name"]), text(r["face"]), num(r["x_mm"], digits=7), num(r["y_mm"], digits=7),
                       num(r["z_mm"], digits=7), num(r["diameter_mm"], digits=6), num(r["depth_mm"], digits=6),
-                      text(r["kind"]), text("yes" if r["moved"] else "")]) for r in rows]
-    cells += _added_cells(results)  # issue 31: the recommended added target holes
+                      text(r["kind"]), text("" if r["changed"] == "no" else r["changed"])]) for r in rows]
     shop = section(results, "shop", Shop)
     head = ""
     if shop is not None and present(shop):
@@ -102,5 +92,5 @@ def hole_table(results: StudyResults | Mapping[str, Any]) -> str:
                      f"{esc(fmt(shop.combined_shop))}.</p>")
     return head + table(["hole", "face", "x (mm)", "y (mm)", "z (mm)", "Ø (mm)", "depth (mm)", "kind", "changed"],
                         cells, "hole-table") + "<p>Also written as <code>holes.csv</code>" + (
-        " (the delivered design; the rows changed \"added\" are the recommended added target holes of "
-        "<code>added_targets.step</code>)" if _added_cells(results) else "") + ".</p>"
+        " (the delivered design of <code>optimised.step</code>; the rows changed \"added\" are the added target "
+        "holes cadfeat recommends)" if any(r["changed"] == "added" for r in rows) else "") + ".</p>"

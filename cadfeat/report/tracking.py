@@ -14,12 +14,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cadfeat.report.html import esc, figure, fmt, note, table
-from cadfeat.results import Interval, PhysicalViews, Results, Tracking, present, section
+from cadfeat.results import Interval, PhysicalViews, Results, Tracking, TrackingComparison, present, section
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.results import JsonDict
 
-COLOURS = {"before": "#d95f02", "after": "#1b9e77"}
+COLOURS = {"before": "#d95f02", "after": "#1b9e77", "move_only": "#7570b3"}
 VERDICT_TEXT = {"better": "tracks better after the redesign", "worse": "tracks WORSE after the redesign",
                 "no significant difference": "shows no significant difference",
                 "mixed": "is significantly better in one of translation / rotation and worse in the other"}
@@ -120,6 +120,24 @@ def report_note(tracking: Tracking) -> str:
     return f"This is cadfeat run's full closed-loop check ({check.runs} runs, {check.seconds} s)."
 
 
+#: The comparisons of a study with added target holes (``closed_loop_check.ADDED_PAIRS``), as the report says them.
+COMPARISONS = {"move_only_vs_original": "The move-only optimum against the original",
+               "added_vs_move_only": "The delivered design (with the added holes) against the move-only optimum"}
+
+
+def _comparison(label: str, c: TrackingComparison) -> str:
+    """One more paired comparison (``tracking.comparisons``): a line per estimator with its tests."""
+    items = []
+    for m, v in c.verdicts.items():
+        t, r = v.translation, v.rotation
+        tests = "" if t is None or r is None else (f" (median change of RMS translation error "
+                                                   f"{fmt(t.median_change, 3)} mm, p = {fmt(t.p_value, 2)}; rotation "
+                                                   f"p = {fmt(r.p_value, 2)})")
+        items.append(f"<li><b>{esc(m.upper())}</b>: {esc(v.verdict)}{tests}</li>")
+    head = COMPARISONS.get(label, f"{c.after} against {c.before}")
+    return f"<p>{esc(head)}, same runs:</p><ul>{''.join(items)}</ul>" if items else ""
+
+
 def tracking_section(results: Results, out_dir: Path, rel: Callable[[Path], str]) -> str:
     """The section's HTML ('' when there is no tracking section)."""
     tracking = section(results, "tracking", Tracking)
@@ -152,7 +170,12 @@ def tracking_section(results: Results, out_dir: Path, rel: Callable[[Path], str]
                      f"α = {fmt(t.alpha, 2)}; changes under {fmt(100 * t.min_change, 2)} % of the error "
                      "do not count).</li>")
     if lines:
+        if tracking.comparisons:
+            parts.append("<p>The design after is the delivered one: the move-only optimum with the added target "
+                         "holes (<code>[add_targets]</code>); the move-only optimum (<i>move_only</i>) is tracked in "
+                         "the same paired runs.</p>")
         parts.append(f'<ul class="verdict">{"".join(lines)}</ul>')
+    parts += [_comparison(label, c) for label, c in tracking.comparisons.items()]
     rows: list[str] = []
     for name, d in tracking.designs.items():
         for m, e in d.estimators.items():

@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING, Any
 from cadfeat.report.html import esc, fmt, num, table, text
 from cadfeat.report.patterns import patterns
 from cadfeat.report.requirements import ACTIVE_MARGIN_MM, requirement_rows
+from cadfeat.results import AddedTargets, Measures, Objectives, Robustness, StudyResults, Tracking, section, value
 from cadfeat.results import Finding as FindingRecord
-from cadfeat.results import Measures, Objectives, Robustness, StudyResults, Tracking, section, value
 from cadfeat.results import Verdict as VerdictRecord
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -31,7 +31,9 @@ MIN_GAIN_FRAC = 0.01
 #: The rules, as printed in the report (the order of ``decide``'s checks).
 RULES = (
     ("combined", f"The combined objective must improve by at least {100 * MIN_GAIN_FRAC:g} % of its original "
-                 "value (a robust study: its robust statistic on held-out draws); otherwise: do not adopt."),
+                 "value (a robust study: its robust statistic on held-out draws; a delivered design with added target "
+                 "holes: its nominal value, the robust draws holding the move-only optimum); otherwise: do not "
+                 "adopt."),
     ("requirements", "Every kept requirement must hold on the rebuilt B-rep and the re-imported STEP; a violated "
                      "or unverified one: do not adopt. An active one (margin below "
                      f"{ACTIVE_MARGIN_MM:g} mm, the position tolerance): adopt with care."),
@@ -135,7 +137,8 @@ def decide(results: StudyResults | Mapping[str, Any]) -> Verdict:
     obj = section(results, "objectives", Objectives)
     cb, ca = (obj.combined_before, obj.combined_after) if obj is not None else (None, None)
     robust = _robust_combined(results)
-    if robust is not None:  # a robust study: its statistic out of sample (issue 18), not the nominal value
+    k = _added(results)
+    if robust is not None and not k:  # a robust study: its statistic out of sample (issue 18), not the nominal value
         nb, na = cb, ca
         cb, ca, what = robust
         gain = ca - cb
@@ -148,9 +151,13 @@ def decide(results: StudyResults | Mapping[str, Any]) -> Verdict:
         gain = ca - cb
         rel = gain / abs(cb) if cb else float("inf") if gain > 0 else 0.0
         ok = rel >= MIN_GAIN_FRAC
-        findings.append(Finding("combined", ADOPT if ok else REJECT,
-                                f"combined objective {fmt(cb)} → {fmt(ca)} ({'+' if gain >= 0 else '−'}"
-                                f"{fmt(abs(100 * rel), 3)} %)"))
+        detail = f"combined objective {fmt(cb)} → {fmt(ca)} ({'+' if gain >= 0 else '−'}{fmt(abs(100 * rel), 3)} %)"
+        if k:  # the delivered design has added holes: its nominal value (the robust draws hold the move-only optimum)
+            detail += f", the delivered design with {k} added target holes"
+            if robust is not None:
+                detail += (f"; {robust[2]} of the move-only optimum {fmt(robust[0])} → {fmt(robust[1])} (the added "
+                           "holes are not in the robust draws)")
+        findings.append(Finding("combined", ADOPT if ok else REJECT, detail))
     reqs = requirement_rows(results)
     bad = [r for r in reqs if r.status in ("VIOLATED", "not verified")]
     active = [r for r in reqs if r.status == "active"]
@@ -222,9 +229,19 @@ def _tracking(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
     if tr is None or not tr.verdicts:
         return []
     per = {str(m): v.verdict for m, v in tr.verdicts.items()}
-    text = "pose tracking, after vs before: " + ", ".join(f"{m.upper()} {v}" for m, v in per.items())
+    k = _added(results)
+    what = f"the delivered design (with {k} added target holes) vs the original" if k else "after vs before"
+    text = f"pose tracking, {what}: " + ", ".join(f"{m.upper()} {v}" for m, v in per.items())
     outcome = REJECT if "worse" in per.values() else CARE if "mixed" in per.values() else ADOPT
     return [Finding("tracking", outcome, text)]
+
+
+def _added(results: StudyResults | Mapping[str, Any]) -> int:
+    """The number of added target holes of the delivered design (``added_targets.delivered``), 0 without."""
+    block = section(results, "added_targets", AddedTargets)
+    if block is None or not block.delivered:
+        return 0
+    return int(block.recommended)
 
 
 def _robust_combined(results: StudyResults | Mapping[str, Any]) -> tuple[float, float, str] | None:
@@ -252,13 +269,16 @@ def _robustness(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
         outcome = REJECT if rec == "original" else ADOPT if rec == delivered else CARE
         if rec not in ("original", delivered):
             detail += f"; the exported files hold the {delivered} optimum"
+        if _added(results):
+            detail += "; of the move-only optimum (the added target holes are not in the robust draws)"
         return [Finding("robustness", outcome, detail)]
     if rb is None or "razor_edge" not in rb.model_fields_set:
         return []
     edges = rb.razor_edge
+    of = " (the move-only optimum; the added target holes are not in the robust draws)" if _added(results) else ""
     return [Finding("robustness", CARE if edges else ADOPT,
-                    ("razor-edge: " + ", ".join(map(str, edges))) if edges
-                    else "the combined objective keeps at least half of its gain under the tolerances")]
+                    (("razor-edge: " + ", ".join(map(str, edges))) if edges
+                     else "the combined objective keeps at least half of its gain under the tolerances") + of)]
 
 
 def _patterns(results: StudyResults | Mapping[str, Any]) -> list[Finding]:

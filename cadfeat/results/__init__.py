@@ -41,6 +41,7 @@ from cadfeat.results._closed_loop import (
     PoseErrors,
     Tracking,
     TrackingCheck,
+    TrackingComparison,
     TrackingDesign,
     TrackingFrame,
     TrackingSettings,
@@ -65,9 +66,9 @@ __all__ = ["AddedTargetCurve", "AddedTargetHole", "AddedTargets", "DesignDraws",
            "Pareto", "Pattern", "PhysicalFrame", "PhysicalViews", "PoseAccuracy", "PoseDesign", "PoseErrors",
            "Record", "RequirementCheck", "RequirementUsed", "Results", "RobustObjective", "Robustness", "SCHEMA_ID",
            "SCHEMA_VERSION", "SampleShift", "Sensitivity", "Shop", "Spread", "StudyRecord", "StudyResults", "Sweep",
-           "Tracking", "TrackingCheck", "TrackingDesign", "TrackingFrame", "TrackingSettings", "TrackingVerdict",
-           "TrajectoryRecord", "Variable", "Verdict", "Verification", "WeakestPhase", "partial_model", "present",
-           "results_json_schema", "section", "value"]
+           "Tracking", "TrackingCheck", "TrackingComparison", "TrackingDesign", "TrackingFrame", "TrackingSettings",
+           "TrackingVerdict", "TrajectoryRecord", "Variable", "Verdict", "Verification", "WeakestPhase",
+           "partial_model", "present", "results_json_schema", "section", "value"]
 
 SCHEMA_VERSION = 4
 """results.json layout version (``schema_version``): 1 first layout; 2 ``shop``, ``patterns`` and
@@ -113,10 +114,13 @@ class HoleRecord(Record):
     kind: str
     fixed: bool
     movable: bool
+    added: bool | None = None
+    """True for a target hole cadfeat added (``[add_targets]``, after the part's holes in ``holes.after``)."""
 
 
 class Holes(Record):
-    """``holes``: before and (a run) after, index-aligned: the same physical hole at the same index."""
+    """``holes``: before and (a run) after, index-aligned: the same physical hole at the same index; with added
+    target holes (``[add_targets]``) ``after`` — the delivered design — lists them after the part's holes."""
 
     before: list[HoleRecord]
     after: list[HoleRecord] | None = None

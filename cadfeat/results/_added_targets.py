@@ -34,7 +34,9 @@ class AddedTargetHole(Record):
 class AddedTargets(Record):
     """``added_targets``: the allowed faces and candidate sites, the curve, the recommended number and why, the
     added holes, the predicted error of the original, the move-only optimum and the added design, every kept
-    requirement measured on the B-rep and the re-imported STEP, and the closed loop of the added design."""
+    requirement measured on the B-rep and the re-imported STEP, and the closed loop of the three designs. With
+    k ≥ 1 the added design is the delivered one (``delivered``; ``study.added_design``) and the move-only
+    optimum's numbers are in ``move_only``."""
 
     settings: dict[str, Json] = {}
     faces: list[str] = []
@@ -51,4 +53,13 @@ class AddedTargets(Record):
     evaluations: int | None = None
     seconds: Number | None = None
     step: dict[str, Json] | None = None
+    """The delivered design's STEP file re-imported: its file, the largest hole error (mm), its holes."""
     tracking: dict[str, Json] | None = None
+    """The closed loop of the original, the move-only optimum and the delivered design in the same paired runs
+    (``study.added_design.tracking_summary``): the mode, ``verdicts`` per comparison ("added_vs_original",
+    "move_only_vs_original", "added_vs_move_only") and estimator, per design the mean RMS errors."""
+    delivered: dict[str, Json] | None = None
+    """Present when the added design is the delivered one (k ≥ 1): its files and the move-only optimum's."""
+    move_only: dict[str, Json] | None = None
+    """The move-only optimum when the added design is delivered: its holes, objectives, combined value,
+    variables, requirement checks (B-rep and ``move_only.step``) and predicted error."""

@@ -6,8 +6,8 @@ from __future__ import annotations
 from cadfeat.results._record import Json, Number, Record
 
 __all__ = ["EstimatorErrors", "HelpMost", "HelpMostBest", "Interval", "PairedTest", "PoseAccuracy", "PoseDesign",
-           "PoseErrors", "Tracking", "TrackingCheck", "TrackingDesign", "TrackingFrame", "TrackingSettings",
-           "TrackingVerdict", "WeakestPhase"]
+           "PoseErrors", "Tracking", "TrackingCheck", "TrackingComparison", "TrackingDesign", "TrackingFrame",
+           "TrackingSettings", "TrackingVerdict", "WeakestPhase"]
 
 
 class PoseErrors(Record):
@@ -135,6 +135,17 @@ class TrackingVerdict(Record):
     rotation: PairedTest | None = None
 
 
+class TrackingComparison(Record):
+    """``tracking.comparisons.<label>``: one more paired comparison of two tracked designs of the same runs
+    (``before`` and ``after`` name designs of ``tracking.designs``), per estimator as ``tracking.verdicts``. A
+    study with added target holes compares the move-only optimum with the original and the delivered design with
+    the move-only optimum (``study.closed_loop_check``)."""
+
+    before: str
+    after: str
+    verdicts: dict[str, TrackingVerdict] = {}
+
+
 class TrackingCheck(Record):
     """``tracking.check``: which closed-loop check of ``cadfeat run`` produced the section (fast or full)."""
 
@@ -210,6 +221,7 @@ class Tracking(Record):
     settings: TrackingSettings | None = None
     designs: dict[str, TrackingDesign] = {}
     verdicts: dict[str, TrackingVerdict] = {}
+    comparisons: dict[str, TrackingComparison] = {}
     curves: dict[str, Json] = {}
     frames: list[TrackingFrame] = []
     warnings: list[str] = []

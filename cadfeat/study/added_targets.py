@@ -16,11 +16,13 @@ allowed faces of that design:
    a variable moved, the part is rebuilt at the refined design (``_base_design``).
 4. **CAD** (``cad.drill_targets``): the holes cut into the delivered solid (a part script's after ``build``, a STEP
    part's B-rep), verified (volume, valid solid, every hole found where it was put, every old hole unchanged),
-   every kept requirement measured on the B-rep (``constraints.verify_on_brep``: edge, keep-out, ligament) and,
-   at export, on the re-imported STEP (``added_targets.step``).
-5. **Confirmation**: the predicted error of the original, the move-only optimum and the added design with
-   ``pose_accuracy.predict`` on each design's own mesh, and the closed loop of the added design against the
-   move-only optimum (``study.tracking.run_tracking``; the study's check compares the original and the optimum).
+   every kept requirement measured on the B-rep (``brep_checks``: ``constraints.verify_on_brep`` with the added
+   holes' edge, keep-out and ligament distances, and the keep-out boxes).
+5. **Delivery** (``study.added_design``): with k ≥ 1 that design is the study's answer — ``optimised.step`` /
+   ``.stl``, results.json's after-sections, ``holes.csv``, the closed-loop check (original, move-only optimum and
+   the added design in the same paired runs) and the verdict; ``move_only.step`` beside it. The predicted error
+   of the original, the move-only optimum and the added design (``pose_accuracy.predict`` on each design's own
+   mesh) is in ``predicted``.
 
 Bad input — an allowed face the part does not have, a drill not in the shop's sizes or larger than a face, no
 feasible site — is one ``StudyError`` naming the file, the key and what is allowed, before any optimisation
@@ -30,10 +32,9 @@ feasible site — is one ``StudyError`` naming the file, the key and what is all
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -52,11 +53,11 @@ from cadfeat.design.added_targets import (
     site_margins,
     sites_on_faces,
 )
-from cadfeat.design.added_targets.sites import box_distance, face_grid
+from cadfeat.design.added_targets.sites import box_distance, face_grid, keepin_margin
 from cadfeat.design.shop import hole_sizes
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
-from cadfeat.study.delivery import AddedDesign, Delivery
+from cadfeat.study.delivery import AddedDesign
 from cadfeat.study.schema import StudyError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -70,11 +71,9 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.study.settings.add_targets import AddTargetsSettings
     from cadfeat.study.setup import StudySetup
 
-__all__ = ["Allowed", "STEP_NAME", "allowed_sites", "choose", "export_added", "preflight", "recommend",
-           "run_phase"]
+__all__ = ["Allowed", "allowed_sites", "as_added", "brep_checks", "choose", "most_that_fit", "preflight",
+           "preflight_part", "recommend", "run_phase"]
 
-STEP_NAME = "added_targets.step"
-"""The added-target design's STEP file in the output folder."""
 _AXES = {"x": 0, "y": 1, "z": 2}
 REFINE_MIN_STEP_MM = 0.5
 """The refinement's last step (mm): the added holes stay on a 0.5 mm grid (the sites' grid is even), a drawing
@@ -147,7 +146,66 @@ def _rules(config: StudyConfig, face: PlanarFace, holes: Sequence[Hole]) -> Face
     centres = np.array([h.centre for h in on], float).reshape(-1, 3)
     radii = np.array([h.radius_mm for h in on], float)
     boxes = np.array(spec.keepout_boxes, float).reshape(-1, 6)
-    return FaceRules(o, centres, radii, boxes, spec.rim_radius_mm, c.edge_distance_mm, c.ligament_mm, c.ligament_mm)
+    return FaceRules(o, centres, radii, boxes, spec.rim_radius_mm, c.edge_distance_mm, c.ligament_mm, c.ligament_mm,
+                     np.array(spec.keepin_boxes, float).reshape(-1, 6))
+
+
+def _face_extent(face: PlanarFace) -> str:
+    """"x −30..30, y 0, z 3..55": a face's bounding box in the part frame (mm), for error messages."""
+    pts = face.outline.to_3d(face.outline.outer)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    return ", ".join(f"{a} {lo[i]:.4g}" + ("" if hi[i] - lo[i] < 1e-6 else f"..{hi[i]:.4g}")
+                     for i, a in enumerate("xyz"))
+
+
+def _check_keepin(config: StudyConfig, faces: Sequence[PlanarFace]) -> None:
+    """Each ``keepin_boxes`` box must meet an allowed face (a point of it inside the box): one ``StudyError``
+    naming the box and the faces' extents otherwise."""
+    spec = _spec(config)
+    for box in spec.keepin_boxes:
+        b = np.array([box], float)
+        if not any(np.any(keepin_margin(f.outline.to_3d(face_grid(f.outline, 0.25)), f.normal, 0.0, b) >= 0)
+                   for f in faces):
+            raise StudyError(f"{config.label}: add_targets.keepin_boxes: {list(box)} meets none of the allowed faces "
+                             f"({'; '.join(f'{f.describe()}: {_face_extent(f)}' for f in faces)}); allowed: boxes "
+                             "[xmin, ymin, zmin, xmax, ymax, zmax] (mm, part frame) that hold part of an allowed face")
+
+
+def most_that_fit(sites: Sites, rim_radius_mm: float, ligament_mm: float, cell_mm: float = 0.25) -> int:
+    """An upper bound on how many holes the sites can hold at once: two added rims keep ``ligament_mm`` apart, so
+    discs of radius ρ = rim + ligament/2 around the chosen centres do not overlap and lie in the union of such
+    discs around the sites; per face the count is at most that union's area / πρ² (the area from a raster of
+    ``cell_mm``, each cell counted when its centre is within ρ + half its diagonal of a site: never less than the
+    union's area)."""
+    from scipy.spatial import cKDTree  # pyright: ignore[reportMissingTypeStubs, reportAttributeAccessIssue, reportUnknownVariableType]
+
+    kdtree = cast("Callable[[np.ndarray], Any]", cKDTree)  # (scipy.spatial has no stubs)
+
+    rho = rim_radius_mm + 0.5 * ligament_mm
+    total = 0
+    for f in np.unique(sites.face):
+        uv = sites.uv[sites.face == f]
+        lo, hi = uv.min(axis=0) - rho - cell_mm, uv.max(axis=0) + rho + cell_mm
+        s = np.arange(lo[0], hi[0], cell_mm) + 0.5 * cell_mm
+        t = np.arange(lo[1], hi[1], cell_mm) + 0.5 * cell_mm
+        S, T = np.meshgrid(s, t, indexing="ij")
+        cells = np.stack([S.ravel(), T.ravel()], axis=-1)
+        d: np.ndarray = kdtree(uv).query(cells, distance_upper_bound=rho + cell_mm)[0]
+        area = float(np.sum(d <= rho + cell_mm * np.sqrt(0.5))) * cell_mm ** 2
+        total += int(np.floor(area / (np.pi * rho ** 2) + 1e-9))
+    return total
+
+
+def _check_count(config: StudyConfig, found: Allowed) -> None:
+    """``max_added`` holes must fit on the sites at once (``most_that_fit``): one ``StudyError`` otherwise."""
+    spec = _spec(config)
+    most = most_that_fit(found.sites, spec.rim_radius_mm, config.constraints.ligament_mm)
+    if spec.max_added > most:
+        raise StudyError(f"{config.label}: add_targets.max_added: {spec.max_added} holes cannot be placed: at most "
+                         f"{most} Ø{spec.diameter_mm:g} mm hole(s) fit on {', '.join(spec.faces)} at once "
+                         f"({len(found.sites)} candidate sites; added rims keep [constraints] ligament_mm = "
+                         f"{config.constraints.ligament_mm:g} to each other); allowed: max_added ≤ {most}, or more "
+                         "faces, fewer keepout_boxes or a smaller diameter_mm")
 
 
 def _check_drill(config: StudyConfig) -> None:
@@ -181,6 +239,7 @@ def allowed_sites(config: StudyConfig, shape: Shape, holes: Sequence[Hole]) -> A
     spec = _spec(config)
     _check_drill(config)
     faces = resolve_faces(config, shape, holes)
+    _check_keepin(config, faces)
     rules = [_rules(config, f, holes) for f in faces]
     for f, r in zip(faces, rules, strict=True):
         _check_fits(config, f, r)
@@ -188,8 +247,8 @@ def allowed_sites(config: StudyConfig, shape: Shape, holes: Sequence[Hole]) -> A
     if not len(sites):
         raise StudyError(f"{config.label}: add_targets: no feasible site on {', '.join(spec.faces)}: "
                          f"{_blocking(rules, spec)}; "
-                         "allowed: other faces, fewer or smaller keepout_boxes, a smaller diameter_mm, a smaller "
-                         "[constraints] edge_distance_mm or ligament_mm, or a finer pitch_mm")
+                         "allowed: other faces, fewer or smaller keepout_boxes, larger keepin_boxes, a smaller "
+                         "diameter_mm, a smaller [constraints] edge_distance_mm or ligament_mm, or a finer pitch_mm")
     return Allowed(faces, rules, sites)
 
 
@@ -203,30 +262,41 @@ def _blocking(rules: Sequence[FaceRules], spec: AddTargetsSettings) -> str:
         for k, v in m.items():
             counts[k] = counts.get(k, 0) + int(np.sum(v < 0))
     words = {"edge": "edge distance", "keepout": "keep-out distance to slots and pockets",
-             "ligament": "ligament to the part's holes", "box": "keepout_boxes"}
+             "ligament": "ligament to the part's holes", "box": "keepout_boxes", "keepin": "keepin_boxes"}
     return "every site breaks a requirement (" + ", ".join(f"{words[k]}: {100 * n / max(total, 1):.0f} % of the sites"
                                                             for k, n in counts.items() if n) + ")"
 
 
 def preflight(config: StudyConfig, setup: StudySetup) -> JsonDict:
-    """Before any optimisation: the allowed faces, the drill and a feasible site on the original part (raises
-    ``StudyError``), and a dry run of the drilling (the most central site of the first face drilled into the
-    original and verified: what fails at the end is tried at the start); returns {"faces", "sites"}."""
+    """Before any optimisation, on the study's original part (``preflight_part``); returns {"faces", "sites"}."""
+    return preflight_part(config, setup.shape0, setup.holes0, setup.view_direction)
+
+
+def preflight_part(config: StudyConfig, shape: Shape, holes: Sequence[Hole],
+                   view: Sequence[float] | np.ndarray | None) -> JsonDict:
+    """What ``[add_targets]`` needs of the part ``shape`` (its holes ``holes``, extracted with the study's view
+    ``view``), before any work — ``cadfeat run``'s set-up and ``cadfeat validate``: the drill a shop size, the
+    allowed faces present, each keep-in box on one of them, the drill no larger than a face, a feasible site
+    (``allowed_sites``), ``max_added`` holes that can fit at once (``most_that_fit``), and a dry run of the
+    drilling (the most central site drilled into the part and verified: what fails at the end is tried at the
+    start). Raises ``StudyError`` naming the file, the key and what is allowed; returns {"faces", "sites"}."""
     spec = _spec(config)
-    found = allowed_sites(config, setup.shape0, setup.holes0)
+    found = allowed_sites(config, shape, holes)
+    _check_count(config, found)
     sites = found.sites
     i = int(np.argmax(sites.margin))
-    names = _next_names(setup.holes0, 1)
+    names = _next_names(holes, 1)
     trial = AddedHole(sites.centres[i], sites.axes[i], 0.5 * spec.diameter_mm, spec.depth_mm, spec.chamfer_mm,
                       names[0])
     try:
-        drill_targets(setup.shape0, [trial], list(setup.holes0), label=f"{config.label}: [add_targets] dry run",
-                      prefer_direction=setup.view_direction)
+        drill_targets(shape, [trial], list(holes), label=f"{config.label}: [add_targets] dry run",
+                      prefer_direction=view)
     except CadfeatError as exc:
         at = np.round(np.asarray(sites.centres[i], float), 3).tolist()
         raise StudyError(f"{config.label}: add_targets: a hole cannot be drilled into the part (dry run at {at} mm): "
                          f"{exc}; allowed: other faces, a shallower depth_mm or a smaller diameter_mm") from None
-    return {"faces": [f.describe() for f in found.faces], "sites": len(sites)}
+    return {"faces": [f.describe() for f in found.faces], "sites": len(sites), "most_that_fit":
+            most_that_fit(sites, spec.rim_radius_mm, config.constraints.ligament_mm)}
 
 
 # ---------------------------------------------------------------------------------------------- choice
@@ -389,12 +459,18 @@ def brep_checks(config: StudyConfig, setup: StudySetup, shape: Shape, holes: Seq
     same = n_old == len(setup.holes0)
     fixed = np.concatenate([np.asarray(setup.fixed_mask, bool), np.zeros(k, bool)]) if same else \
         np.arange(len(holes)) < n_old
-    reference = list(setup.holes0) + [added_hole(_as_added(h)) for h in holes[n_old:]] if same else None
+    reference = list(setup.holes0) + [added_hole(as_added(h)) for h in holes[n_old:]] if same else None
     checks = [{**c.to_dict(), "checked_on": where}
               for c in verify_on_brep(shape, holes, setup.constraints, fixed, reference=reference,
+                                      reference_shape=setup.shape0 if same else None,
                                       prefer_direction=setup.view_direction)]
     boxes = np.array(spec.keepout_boxes, float).reshape(-1, 6)
+    keepin = np.array(spec.keepin_boxes, float).reshape(-1, 6)
     for h in holes[n_old:]:
+        if len(keepin):
+            inside = float(keepin_margin(np.asarray(h.centre, float), np.asarray(h.axis, float), h.radius_mm, keepin))
+            checks.append({"name": "keepin_box", "holes": [h.name], "required": 0.0, "value": inside,
+                           "margin": inside, "unit": "mm", "ok": bool(inside >= -1e-6), "checked_on": where})
         if len(boxes):
             gap = float(np.min(box_distance(np.asarray(h.centre, float), boxes))) - h.radius_mm
             need = config.constraints.ligament_mm
@@ -490,75 +566,7 @@ def _block(config: StudyConfig, spec: AddTargetsSettings, choice: Choice, added:
     }
 
 
-def export_added(config: StudyConfig, stage: Path, results: JsonDict, delivery: Delivery) -> None:
-    """Write ``added_targets.step``, re-import it, find every hole where it was put and measure every kept
-    requirement again on the re-imported solid (``CadfeatError`` naming the violated one); the block gains
-    ``step`` (the round trip's errors) and the STEP checks."""
-    from cadfeat.cad.export import export_step, import_step, shape_volume_mm3, verify_step_roundtrip
-    from cadfeat.study.verify import extract_viewed, fail_on
-
-    block = results.get("added_targets")
-    added = delivery.added
-    if block is None or added is None:
-        return
-    setup = delivery.setup
-    path = stage / STEP_NAME
-    export_step(added.shape, path)
-    view = setup.view_direction
-    trip = verify_step_roundtrip(path, extract_viewed(added.shape, view), tol_mm=1e-6,
-                                 expected_volume_mm3=shape_volume_mm3(added.shape), volume_rtol=1e-7,
-                                 prefer_direction=view)
-    from cadfeat.cad.drill_targets import verify_drilled
-
-    holes = list(added.holes)
-    n_old = int(added.n_old)
-    reimported = import_step(path)
-    found = verify_drilled(reimported, holes[:n_old], [_as_added(h) for h in holes[n_old:]],
-                           label=str(path), prefer_direction=view)
-    checks = brep_checks(config, setup, reimported, found, n_old, "step")
-    block["constraints"] = list(block["constraints"]) + checks
-    block["requirements_hold"] = all(bool(c["ok"]) for c in block["constraints"])
-    fail_on(block["constraints"], f"{config.label}: [add_targets]")
-    block["step"] = {"file": STEP_NAME, "max_error_mm": max(trip.max_centre_error_mm, trip.max_radius_error_mm,
-                                                            trip.max_depth_error_mm), "holes": trip.n_holes}
-
-
-def _as_added(h: Hole) -> AddedHole:
+def as_added(h: Hole) -> AddedHole:
     """An extracted added hole as the ``AddedHole`` it was drilled as (bore radius, chamfer from the rim)."""
     return AddedHole(np.asarray(h.centre, float), np.asarray(h.axis, float), float(h.bore_radius_mm),
                      float(h.depth_mm), float(h.radius_mm - h.bore_radius_mm), h.name)
-
-
-
-def confirm(config: StudyConfig, results: JsonDict, delivery: Delivery,
-            progress: StudyProgress | None = None) -> None:
-    """The closed loop of the added design against the move-only optimum (the study's check, its mode and
-    settings: ``closed_loop_check.check_spec``); the block gains ``tracking`` {"mode", "verdicts" per estimator,
-    "designs": per design and estimator the RMS translation (mm) and rotation (deg) errors}. The study's own check
-    compares the original with the move-only optimum. Nothing when the check is off."""
-    from cadfeat.study.closed_loop_check import check_spec
-    from cadfeat.study.outputs import plain
-    from cadfeat.study.tracking import run_tracking
-
-    block = results.get("added_targets")
-    added = delivery.added
-    if block is None or added is None:
-        return
-    mode, spec = check_spec(config, len(delivery.setup.trajectory.times_s))
-    if spec is None:
-        return
-    designs = {"before": (delivery.shape1, delivery.holes1), "after": (added.shape, added.holes)}
-    try:
-        section = plain(run_tracking(config, designs, None, spec))
-    except (CadfeatError, ImportError, RuntimeError, OSError, ValueError) as exc:
-        block["tracking"] = {"mode": mode, "skipped": f"{type(exc).__name__}: {exc}"}
-        return
-    names = {"before": "move_only", "after": "added"}
-    block["tracking"] = {
-        "mode": mode, "compared": "the move-only optimum (before) and the added design (after)",
-        "verdicts": {m: v.get("verdict") for m, v in section.get("verdicts", {}).items()},
-        "designs": {names[d]: {m: {"trans_mm_rms": e.get("trans_mm_rms"), "rot_deg_rms": e.get("rot_deg_rms")}
-                               for m, e in v.get("estimators", {}).items()}
-                    for d, v in section.get("designs", {}).items() if d in names}}
-    if progress is not None:
-        progress.log(f"added targets, closed loop against the move-only optimum: {block['tracking']['verdicts']}")

@@ -71,6 +71,9 @@ SKIPPED = "closed-loop check skipped"
 TRACKED_MIN = 0.5
 BACKGROUND_ENV = "CADFEAT_TRACKING_BACKGROUND"
 BACKGROUND_WAIT_S = 3600.0
+#: With added target holes (``[add_targets]``, issue 31) the delivered design ("after") is the move-only optimum
+#: with the holes drilled; the move-only optimum is tracked too, in the same paired runs, and compared both ways.
+ADDED_PAIRS = {"move_only_vs_original": ("before", "move_only"), "added_vs_move_only": ("move_only", "after")}
 
 
 def with_mode(config: StudyConfig, mode: str | None) -> StudyConfig:
@@ -133,7 +136,7 @@ def camera_views(config: StudyConfig, delivery: Delivery, stage: Path | None,
     mode, spec = check_spec(config, len(delivery.setup.trajectory.times_s))
     if spec is None or min(len(delivery.holes0), len(delivery.holes1)) < MIN_HOLES:
         return None, None
-    designs = _designs(delivery)
+    designs = {"before": (delivery.shape0, delivery.holes0), "after": (delivery.shape1, delivery.holes1)}
     try:
         with progress.phase("camera views") if progress is not None else contextlib.nullcontext():
             return physical_views(config, designs, stage, spec), None
@@ -172,8 +175,9 @@ def start_design(config: StudyConfig, name: str, shape: Shape, holes: Sequence[H
         return None
     threads = 1 if name == "before" else None  # beside the optimiser (one core): the renderer and OpenCV on one
     try:
+        what = {"before": "original", "move_only": "move-only"}.get(name, "recommended")
         return BackgroundCall(_track_design, (threads, track_arguments(config, spec, (shape, list(holes)))),
-                              f"the closed loop of the {'original' if name == 'before' else 'recommended'} design")
+                              f"the closed loop of the {what} design")
     except Exception:  # noqa: BLE001 - an optimisation: the check then runs here, where errors are reported
         return None
 
@@ -208,8 +212,9 @@ def _collect(pending: Mapping[str, BackgroundCall | None], progress: StudyProgre
 
 
 def _designs(delivery: Delivery) -> dict[str, Design]:
-    """{"before": the original (shape, holes), "after": the recommended design}."""
-    return {"before": (delivery.shape0, delivery.holes0), "after": (delivery.shape1, delivery.holes1)}
+    """The designs the check tracks: "before" (the original) and "after" (the delivered design), and
+    "move_only" (the move-only optimum) when the delivered design has added target holes."""
+    return delivery.designs()
 
 
 def closed_loop_check(config: StudyConfig, delivery: Delivery, stage: Path | None,
@@ -221,7 +226,7 @@ def closed_loop_check(config: StudyConfig, delivery: Delivery, stage: Path | Non
 
     mode, spec = check_spec(config, len(delivery.setup.trajectory.times_s))
     designs = _designs(delivery)
-    few = min(len(delivery.holes0), len(delivery.holes1))
+    few = min(len(holes) for _, holes in designs.values())
     if spec is None:
         delivery.workers.cancel()
         return None, None
@@ -233,10 +238,11 @@ def closed_loop_check(config: StudyConfig, delivery: Delivery, stage: Path | Non
 
         progress.log(pbr_announcement(config, spec, designs))
     t0, c0 = time.perf_counter(), time.process_time()
-    pending = delivery.workers.pending()
+    pending = delivery.workers.pending(designs)
     try:
         with _phase(progress):
-            section = run_tracking(config, designs, stage, spec, tracked=_collect(pending, progress))
+            section = run_tracking(config, designs, stage, spec, tracked=_collect(pending, progress),
+                                   pairs=ADDED_PAIRS if "move_only" in designs else None)
     except (CadfeatError, ImportError, RuntimeError, OSError, ValueError) as exc:
         if mode in ("full", "pbr"):  # asked for by name: fail loudly
             raise
@@ -259,6 +265,9 @@ def _inconclusive(section: JsonDict) -> None:
     if tracked and max(tracked.values()) < TRACKED_MIN and section.get("verdicts"):
         section["check"]["verdicts_not_used"] = section["verdicts"]
         section["verdicts"] = {}
+        comparisons: JsonDict = section.get("comparisons") or {}
+        for c in comparisons.values():
+            c["verdicts_not_used"], c["verdicts"] = c["verdicts"], {}
         share = ", ".join(f"{k} {100 * v:.0f} %" for k, v in tracked.items())
         section.setdefault("warnings", []).append(
             f"the closed loop detects 3 or more holes in too few frames of either design (frames tracked: {share}; "
@@ -282,14 +291,29 @@ def summary_lines(results: Mapping[str, Any]) -> list[str]:
     tr = cast("JsonDict", tr)
     check: JsonDict = tr.get("check") or {}
     head = (f"  closed loop ({check.get('mode', 'full')}: {check.get('runs', '?')} paired runs, "
-            f"{check.get('frames', '?')} frames, {check.get('seconds', '?')} s), after vs before:")
+            f"{check.get('frames', '?')} frames, {check.get('seconds', '?')} s), "
+            + ("the delivered design (with the added holes) vs the original:" if tr.get("comparisons")
+               else "after vs before:"))
     lines = [head] + [f"    WARNING: {w}" for w in tr.get("warnings", []) if "no tracking verdict" in str(w)]
     verdicts: JsonDict = tr.get("verdicts") or {}
     for m, v in verdicts.items():
         t, r = v.get("translation", {}), v.get("rotation", {})
         rms = _rms(tr, m)
         lines.append(f"    {m.upper():<5} {v.get('verdict')} (translation p = {_p(t)}, rotation p = {_p(r)}){rms}")
+    comparisons: JsonDict = tr.get("comparisons") or {}
+    for label, c in comparisons.items():
+        lines.append(f"  closed loop, {COMPARISON_TEXT.get(label, label)}:")
+        pair: JsonDict = c.get("verdicts") or {}
+        for m, v in pair.items():
+            t, r = v.get("translation", {}), v.get("rotation", {})
+            lines.append(f"    {m.upper():<5} {v.get('verdict')} (translation p = {_p(t)}, rotation p = {_p(r)})"
+                         f"{_rms(tr, m, c.get('before', 'before'), c.get('after', 'after'))}")
     return lines
+
+
+#: How the printout and the report name the comparisons of ``ADDED_PAIRS``.
+COMPARISON_TEXT = {"move_only_vs_original": "the move-only optimum vs the original",
+                   "added_vs_move_only": "the delivered design (with the added holes) vs the move-only optimum"}
 
 
 def _p(v: Mapping[str, Any]) -> str:
@@ -301,10 +325,10 @@ def _p(v: Mapping[str, Any]) -> str:
     return f"{p:.2g}" + (f" (change under {100 * v.get('min_change', 0.0):.0f} %)" if small else "")
 
 
-def _rms(tr: Mapping[str, Any], m: str) -> str:
+def _rms(tr: Mapping[str, Any], m: str, before: str = "before", after: str = "after") -> str:
     """'; RMS 0.039 → 0.034 mm, 0.027° → 0.027°' from the designs' Monte-Carlo means."""
     try:
-        b, a = (tr["designs"][k]["estimators"][m] for k in ("before", "after"))
+        b, a = (tr["designs"][k]["estimators"][m] for k in (before, after))
         return (f"; RMS {b['trans_mm_rms']['mean']:.4f} → {a['trans_mm_rms']['mean']:.4f} mm, "
                 f"{b['rot_deg_rms']['mean']:.4f}° → {a['rot_deg_rms']['mean']:.4f}°")
     except (KeyError, TypeError):

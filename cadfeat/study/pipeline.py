@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, cast
+from typing import TYPE_CHECKING, Any, ParamSpec, Protocol, TypeAlias, TypeVar, cast
 
 import numpy as np
 
@@ -25,12 +25,14 @@ from cadfeat.design.memory import check_fits
 from cadfeat.design.patterns import check_patterns, find_patterns
 from cadfeat.design.robustness import robustness
 from cadfeat.design.shop import ShopDesign, hole_sizes, refine_on_rebuild, shop_design
+from cadfeat.design.unseen import scored_measures
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
 from cadfeat.results import JsonDict
-from cadfeat.study import added_targets, closed_loop_check
+from cadfeat.study import added_design, added_targets, closed_loop_check
 from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
-from cadfeat.study.delivery import Delivery, TrackingWorkers
+from cadfeat.study.delivery import AddedDesign, Delivery, TrackingWorkers
+from cadfeat.study.interrupts import RunInterrupts
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
     hole_dict,
@@ -43,6 +45,7 @@ from cadfeat.study.progress import StudyProgress
 from cadfeat.study.robust_study import attach_robust, check_robust, robust_designs, robust_phase
 from cadfeat.study.schema import StudyConfig, StudyError
 from cadfeat.study.setup import int_grid, load_scene, occlusion_mesh, score_rule
+from cadfeat.study.setup_cache import cached_setup, save
 from cadfeat.study.trust import objective_changes
 from cadfeat.study.verify import (
     AnchoredModel,
@@ -64,7 +67,11 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.measures.evaluate import Measures
     from cadfeat.study.preflight import Preflight
     from cadfeat.study.setup import Scene, StudySetup
+    from cadfeat.study.setup_cache import SetupCache
 
+
+_P = ParamSpec("_P")
+_T = TypeVar("_T")
 
 OUTLINE_ROUNDS = 4
 
@@ -93,15 +100,18 @@ SWEEP_SAMPLES = 41
 def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Samples | None = None, *,
                   mesh: trimesh.Trimesh | None = None) -> Measures:
     """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
-    the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off)."""
+    the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off), as
+    the objectives score them (``design.unseen.scored_measures``: results.json's measures, the pre-flight and the
+    explorer show the values the objectives aggregate; ``measures.evaluate`` alone gives the thesis's)."""
     traj = trajectory if trajectory is not None else setup.trajectory
     o = setup.config.objective
     if mesh is None:
         mesh = getattr(getattr(setup, "problem", None), "occlusion_mesh", None)
     T_cam_part = cam_from_part(traj.T_task_cam, setup.T_task_part)
     c, a, r = holes_to_arrays(list(holes))
-    return measures.evaluate(setup.camera, T_cam_part, traj.velocity_screws(), c, a, r, min_axis_px=o.min_axis_px,
-                             rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
+    m = measures.evaluate(setup.camera, T_cam_part, traj.velocity_screws(), c, a, r, min_axis_px=o.min_axis_px,
+                          rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
+    return scored_measures(m, setup.camera, o.min_axis_px)
 
 
 def score(setup: StudySetup, holes: Sequence[Hole]) -> tuple[dict[str, float], float | None]:
@@ -121,10 +131,11 @@ def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tu
     """Optimise one setup; returns (OptimResult-like, interrupted)."""
     oc = setup.config.optimizer
     try:
-        if setup.linear:
-            res = optimize.optimise(setup.problem, oc, progress=progress.iteration)
-        else:
-            res = optimize.solve_with_cad(setup.problem, cad_holes(setup), oc, progress=progress.iteration)
+        with progress.interrupts.keeping():  # Ctrl-C: the optimiser returns its best design so far
+            if setup.linear:
+                res = optimize.optimise(setup.problem, oc, progress=progress.iteration)
+            else:
+                res = optimize.solve_with_cad(setup.problem, cad_holes(setup), oc, progress=progress.iteration)
     except KeyboardInterrupt:
         if progress.best_x is None:
             raise
@@ -188,15 +199,16 @@ def _refresh_outlines(setup: StudySetup, res: OptimResult, scene: Scene, normali
     for k in range(OUTLINE_ROUNDS):
         x = np.asarray(res.x_best, float)
         try:
-            _, holes, _ = rebuild(setup, x)
-            holes_at = getattr(setup.model, "holes_at", None)
-            if not outlines_differ(holes_at(x) if holes_at is not None else setup.model.holes,
-                                   holes):  # the outlines the model predicts at x (they may move with x)
-                break
-            names = setup.space.names
-            new = study_setup.setup_script(setup.config, setup.int_values, scene, normaliser,
-                                           at=dict(zip(names, x, strict=True)), time_limit_s=setup.time_limit_s)
-            res2, stopped = _optimise(new, prog, label)
+            with prog.interrupts.keeping():  # Ctrl-C: the previous round's design is kept
+                _, holes, _ = rebuild(setup, x)
+                holes_at = getattr(setup.model, "holes_at", None)
+                if not outlines_differ(holes_at(x) if holes_at is not None else setup.model.holes,
+                                       holes):  # the outlines the model predicts at x (they may move with x)
+                    break
+                names = setup.space.names
+                new = study_setup.setup_script(setup.config, setup.int_values, scene, normaliser,
+                                               at=dict(zip(names, x, strict=True)), time_limit_s=setup.time_limit_s)
+                res2, stopped = _optimise(new, prog, label)
         except CadfeatError:
             break
         except KeyboardInterrupt:  # keep the design of the previous round
@@ -328,16 +340,16 @@ class _Delivered:
     rebuild_failure: str | None
 
 
-def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None = None
-            ) -> tuple[JsonDict, Delivery]:
+def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None = None,
+            cache: SetupCache | None = None) -> tuple[JsonDict, Delivery]:
     """The study's phases in order: set up, optimise, deliver (shop rounding, CAD rebuild, scores and
     requirement checks on the B-rep), analyse; returns (results, the designs for the export, the report and the
     closed-loop check).
     ``time_limit_s``: every part-script import and CAD build in a worker process within it (``run_study``:
-    ``[study] build_timeout_s``); None: in this process."""
+    ``[study] build_timeout_s``); None: in this process. ``cache``: the set-up cache (``study.setup_cache``)."""
     check_robust(config)  # issue 18: a chance constraint names a measure of the study, before any work
     with prog.phase("setup"):
-        start = _set_up(config, time_limit_s)
+        start = _set_up(config, time_limit_s, cache)
     base = start.base  # issue 17: the closed-loop check tracks the original on another core meanwhile
     workers = TrackingWorkers(before=closed_loop_check.start_design(
         config, "before", base.shape0, base.holes0, len(base.trajectory.times_s)))
@@ -352,9 +364,11 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, worke
                   ) -> tuple[JsonDict, Delivery]:
     """``compute``'s phases after the set-up: optimise, deliver, analyse; ``workers`` gains the recommended
     design's closed loop (``closed_loop_check.start_design``, before the analysis)."""
+    interrupts = prog.interrupts
     with prog.phase("optimise"):
         opt = _optimise_all(config, start, prog)
         robust_run = robust_phase(config, opt, prog, _history)  # issue 18: the robust optimum (opt.res if delivered)
+    opt.interrupted = opt.interrupted or interrupts.requested  # (from here on, Ctrl-C finishes: study.interrupts)
     setup = opt.setup
     x1 = np.asarray(opt.res.x_best, float)
     if not opt.interrupted and getattr(opt.res, "feasible", True) is False:
@@ -372,24 +386,74 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, worke
         m1 = measure_holes(setup, done.holes1, mesh=mesh1)
         obj1, comb1 = score(setup, done.holes1)
         checks = requirement_checks(setup, done.shape1, done.holes1, "brep")
-    workers.after = closed_loop_check.start_design(config, "after", done.shape1, done.holes1,
-                                                   len(setup.trajectory.times_s))
+    if not interrupts.requested:  # (interrupted: no closed loop, study.interrupts)
+        worker = closed_loop_check.start_design(config, "after" if config.add_targets is None else "move_only",
+                                                done.shape1, done.holes1, len(setup.trajectory.times_s))
+        if config.add_targets is None:
+            workers.after = worker
+        else:  # with [add_targets] the move-only optimum may not be the delivered design: "move_only" until known
+            workers.move_only = worker
     with prog.phase("analyse"):
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, done.x1)
-        robust = _robustness(setup, start.base.holes0, done.holes1, start.comb0)
-        pose = _pose_accuracy(config, start, setup, done, mesh1)
+        robust = _optional(interrupts, _robustness, setup, start.base.holes0, done.holes1, start.comb0)
+        pose = _optional(interrupts, _pose_accuracy, config, start, setup, done, mesh1)
+    opt.interrupted = opt.interrupted or interrupts.requested
     results = _results(config, start, opt, done, (m1, obj1, comb1, checks), (sweep, dmat, robust))
-    results["pose_accuracy"] = pose
-    added = None
-    if config.add_targets is not None and not opt.interrupted:  # issue 31: new target holes on the delivered design
+    if pose is not None:
+        results["pose_accuracy"] = pose
+    designs = _optional(interrupts, robust_designs, setup, robust_run, start.base.holes0, done.holes1)
+    if designs is not None:
+        attach_robust(results, designs)  # issue 18
+    delivery = Delivery(start.base.shape0, start.base.holes0, done.shape1, done.holes1, setup, start.base,
+                        workers=workers)
+    if config.add_targets is not None:  # issue 31: new target holes on the move-only optimum
+        delivery = _add_targets(config, prog, start, opt, done, results, delivery)
+    results["interrupted"] = bool(opt.interrupted or interrupts.requested)
+    return results, delivery
+
+
+def _optional(interrupts: RunInterrupts, func: Callable[_P, _T], *args: _P.args, **kwargs: _P.kwargs) -> _T | None:
+    """``func(*args, **kwargs)``, an optional part of the run after the optimiser; None when the run is interrupted
+    before or during it (``RunInterrupts.skippable``: the run finishes without it)."""
+    try:
+        with interrupts.skippable():
+            return func(*args, **kwargs)
+    except KeyboardInterrupt:
+        return None
+
+
+def _add_targets(config: StudyConfig, prog: StudyProgress, start: _Start, opt: _Optimum, done: _Delivered,
+                 results: JsonDict, delivery: Delivery) -> Delivery:
+    """The added-target phase (``study.added_targets``) on the move-only optimum; when it recommends holes, that
+    design is delivered (``study.added_design.deliver``: the returned ``Delivery``) and its closed loop starts in a
+    worker; otherwise the move-only optimum's worker is the delivered design's. An interrupted run
+    (``study.interrupts``) delivers the move-only optimum: the phase is skipped, or abandoned when Ctrl-C comes
+    during it."""
+    base = start.base
+    recommended = 0
+    interrupts = prog.interrupts
+    found: tuple[JsonDict, AddedDesign] | None = None
+    if not opt.interrupted and not interrupts.requested:
         with prog.phase("add targets"):
-            results["added_targets"], added = added_targets.run_phase(
-                config, setup, {"before": (start.base.shape0, start.base.holes0), "after": (done.shape1, done.holes1)},
-                prog, done.x1)
-    attach_robust(results, robust_designs(setup, robust_run, start.base.holes0, done.holes1))  # issue 18
-    return results, Delivery(start.base.shape0, start.base.holes0, done.shape1, done.holes1, setup, start.base,
-                             added, workers)
+            found = _optional(interrupts, added_targets.run_phase, config, opt.setup, {
+                "before": (base.shape0, base.holes0), "after": (done.shape1, done.holes1)}, prog, done.x1)
+    if found is not None:
+        results["added_targets"], added = found
+        recommended = int(results["added_targets"]["recommended"])
+        if recommended:  # (from here on Ctrl-C is noted, not raised: the results are not left half-changed)
+            with prog.phase("add targets"):
+                delivery = added_design.deliver(config, opt.setup, base, results, delivery, added,
+                                                lambda holes, shape: measure_holes(opt.setup, holes,
+                                                                                   mesh=occlusion_mesh(config, shape)),
+                                                lambda holes: _patterns(base, holes))
+    workers = delivery.workers
+    if recommended:
+        workers.after = closed_loop_check.start_design(config, "after", delivery.shape1, delivery.holes1,
+                                                       len(opt.setup.trajectory.times_s))
+    else:
+        workers.after, workers.move_only = workers.move_only, None
+    return delivery
 
 
 def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: _Delivered,
@@ -401,31 +465,33 @@ def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: 
                          setup, done.holes1, part_mesh(config, done.shape1, mesh1))
 
 
-def _set_up(config: StudyConfig, time_limit_s: float | None) -> _Start:
+def _set_up(config: StudyConfig, time_limit_s: float | None, cache: SetupCache | None = None) -> _Start:
     """The part as it is and every set-up to optimise; the pre-flight refuses a study that cannot mean
-    anything before any optimisation."""
+    anything before any optimisation. ``cache``: the set-ups are read from it when these inputs were set up before
+    and kept in it once their normaliser is built (``study.setup_cache``)."""
     scene = load_scene(config)
     # issue 16: refuse what cannot fit in memory, before any CAD work
     check_fits(len(scene.trajectory), occlusion=config.objective.occlusion,
                robustness_samples=config.robustness.samples, what=config.label)
     combos = int_grid(config) if config.study.part_kind == "script" else [dict[str, int]()]
     if config.study.part_kind == "step":
-        base = study_setup.setup_study(config, time_limit_s=time_limit_s)
+        base = cached_setup(config, time_limit_s=time_limit_s, cache=cache)
         setups = [base]
         m0 = measure_holes(base, base.holes0)
         pre = preflight_setup(config, base, m0)  # refuses a study that cannot mean anything, before any work
     else:  # "before" = the part's own integer values; the others share its objective scales
         defaults = {p.name: int(p.default) for p in config.design.parameters if p.is_int}
-        base = study_setup.setup_script(config, defaults, scene, time_limit_s=time_limit_s)
+        base = cached_setup(config, defaults, scene=scene, time_limit_s=time_limit_s, cache=cache)
         m0 = measure_holes(base, base.holes0)
         pre = preflight_setup(config, base, m0)  # before the other combinations (and before any optimisation)
-        setups = [base] + [study_setup.setup_script(config, c, scene, base.problem.normaliser,
-                                                    time_limit_s=time_limit_s) for c in combos if c != defaults]
+        setups = [base] + [cached_setup(config, c, scene=scene, normaliser=base.problem.normaliser,
+                                        time_limit_s=time_limit_s, cache=cache) for c in combos if c != defaults]
         if defaults not in combos:  # the part's own integers are outside the study's bounds: "before" only
             setups = setups[1:]
     if config.add_targets is not None:  # issue 31: faces, drill and a feasible site, before any optimisation
         added_targets.preflight(config, base)
     obj0, comb0 = score(base, base.holes0)
+    save([base, *setups])  # (the base's normaliser is built by now: kept with it)
     return _Start(scene, base, setups, m0, pre, obj0, comb0)
 
 
@@ -436,6 +502,9 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
     history: list[JsonDict] = []
     setups = start.setups
     for s in setups:
+        if best is not None and prog.interrupts.requested:  # interrupted: the combinations left are not tried
+            interrupted = True
+            break
         label = ", ".join(f"{k}={v}" for k, v in s.int_values.items()) if len(setups) > 1 else ""
         prog.best_x, prog.best_f = None, np.inf
         try:
@@ -445,6 +514,7 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
                 raise
             interrupted = True
             break
+        prog.interrupts.designing()  # a design exists: from now on Ctrl-C finishes with the best one
         history += _history(res, label)
         if not stopped and config.study.part_kind == "script":
             s, res, extra, stopped = _refresh_outlines(s, res, start.scene, start.base.problem.normaliser, prog,
@@ -456,7 +526,7 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
             interrupted = True
             break
     assert best is not None  # (an interrupt before the first result re-raises above)
-    return _Optimum(best[0], best[1], history, interrupted)
+    return _Optimum(best[0], best[1], history, interrupted or prog.interrupts.requested)
 
 
 def _rebuild_delivered(setup: StudySetup, x1: np.ndarray, x_opt: np.ndarray, verified: Sequence[Hole] | None,
@@ -503,7 +573,7 @@ def _deliver(setup: StudySetup, opt: _Optimum, prog: StudyProgress, shopped: Sho
         model = AnchoredModel(setup.model, x_opt, verified)
         x1, shop, targets = _shop(setup, x_opt, model)
         x1, targets, (shape1, holes1, pred_err) = _rebuild_delivered(setup, x1, x_opt, verified, model, shop, targets)
-    if targets is not None:
+    if targets is not None and not prog.interrupts.requested:  # (interrupted: the first rebuild is delivered)
         x1, shape1, holes1, pred_err = _shop_refine(setup, x1, (shape1, holes1, pred_err), targets, shop, model)
     return _Delivered(x1, shape1, holes1, pred_err, shop, res, rebuild_failure)
 
@@ -560,10 +630,12 @@ def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered
     }
 
 
-def part_points(shape: Shape, mesh: trimesh.Trimesh | None = None, most: int = 4000) -> np.ndarray:
+def part_points(shape: Shape | None, mesh: trimesh.Trimesh | None = None, most: int = 4000) -> np.ndarray:
     """Points of the part (V, 3) mm, part frame, for the pre-flight: the occlusion mesh's vertices (or a coarse
     mesh of ``shape``), at most ``most`` of them (evenly strided)."""
     if mesh is None:
+        if shape is None:
+            raise ValueError("part_points: neither a mesh nor a shape")
         mesh = mesh_from_shape(shape, tolerance=0.5)
     v = np.asarray(mesh.vertices, float)
     return v[:: max(1, len(v) // most)]
@@ -571,7 +643,8 @@ def part_points(shape: Shape, mesh: trimesh.Trimesh | None = None, most: int = 4
 
 def preflight_setup(config: StudyConfig, setup: StudySetup, m: Measures) -> Preflight:
     """``preflight.preflight`` of a set-up study with the measures ``m`` of its holes along the trajectory."""
-    pts = part_points(setup.shape0, getattr(setup.problem, "occlusion_mesh", None))
+    mesh = getattr(setup.problem, "occlusion_mesh", None)
+    pts = part_points(setup.shape0 if mesh is None else None, mesh)  # (a cached set-up's solid: only if needed)
     return preflight(config, setup.camera, setup.trajectory, setup.T_task_part, pts, m, scored_mask(setup),
                      setup.hole_names)
 

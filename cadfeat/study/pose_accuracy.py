@@ -44,6 +44,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
     from cadfeat.measures.evaluate import Measures
+    from cadfeat.measures.glare import GlareMaps
     from cadfeat.measures.pose_information import PoseInformation
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import StudySetup
@@ -100,11 +101,12 @@ def _arrays(holes: Sequence[Hole]) -> tuple[np.ndarray, ...]:
 
 def predict(camera: Camera, T_cam_part: np.ndarray, holes: Sequence[Hole], mesh: trimesh.Trimesh | None,
             rotation_length_mm: float, occlusion: np.ndarray | None = None,
-            arrays: tuple[np.ndarray, ...] | None = None, cell: Cell | None = None
+            arrays: tuple[np.ndarray, ...] | None = None, cell: Cell | None = None, glare: GlareMaps | None = None
             ) -> tuple[PoseInformation, np.ndarray]:
     """(``PoseInformation``, rim hidden fraction (L, N)) of ``holes`` at the poses, exact rim test on ``mesh``
     (None: nothing hidden) unless ``occlusion`` is given; ``arrays`` replaces the holes' (c, a, r, through, depth);
-    ``cell``: the robot cell (its gate, placement and sensor noise; default ``Cell()``) — g_POSE's own."""
+    ``cell``: the robot cell (its gate, placement and sensor noise; default ``Cell()``) — g_POSE's own;
+    ``glare``: g_POSE's glare maps at these poses (``Problem.glare``, ``measures.glare``), None: none."""
     from cadfeat.measures import pose_information  # lazy: would import scipy.spatial at module load
     from cadfeat.measures.rim_occlusion import rim_occlusion
 
@@ -116,8 +118,22 @@ def predict(camera: Camera, T_cam_part: np.ndarray, holes: Sequence[Hole], mesh:
     info = pose_information(camera, T_cam_part, c, a, r, occlusion=occlusion, through=through,
                             kinds=hole_kinds(holes) if len(holes) == len(c) else None,
                             depth_ratio=depth / (2.0 * np.maximum(r, 1e-9)), rotation_length_mm=rotation_length_mm,
-                            model=cell_models(cell), noise_grey=cell.noise_sigma_grey)
+                            model=cell_models(cell), noise_grey=cell.noise_sigma_grey,
+                            contrast_rate=_contrast_rate(glare, cell, T_cam_part, c, a, r, through))
     return info, occlusion
+
+
+def _contrast_rate(glare: GlareMaps | None, cell: Cell, T: np.ndarray, c: np.ndarray, a: np.ndarray, r: np.ndarray,
+                   through: np.ndarray) -> np.ndarray | None:
+    """(L, N) g_POSE's factor from the part's own light (``design.pose_terms.glare_rate``'s rule) when ``glare``
+    holds maps of these L poses and the cell's material returns light from its bores; else None."""
+    from cadfeat.cell.material import bores_return_light
+
+    if glare is None or glare.n_poses != len(T) or not bores_return_light(cell.material):
+        return None
+    from cadfeat.measures.glare import contrast_rate  # lazy: as pose_information
+
+    return np.where(through, 1.0, contrast_rate(glare, T, c, a, r, cell.noise_sigma_grey))
 
 
 def _rms(v: np.ndarray) -> float:
@@ -265,12 +281,13 @@ def _finite(v: np.ndarray) -> list[float | None]:
 
 def design_pose_accuracy(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, holes: Sequence[Hole],
                          names: Sequence[str], movable: Sequence[str], mesh: trimesh.Trimesh | None,
-                         tuning: FilterTuning, rotation_length_mm: float, cell: Cell | None = None
-                         ) -> dict[str, object]:
-    """The ``pose_accuracy`` block of one design (module docstring) in the robot cell ``cell``."""
+                         tuning: FilterTuning, rotation_length_mm: float, cell: Cell | None = None,
+                         glare: GlareMaps | None = None) -> dict[str, object]:
+    """The ``pose_accuracy`` block of one design (module docstring) in the robot cell ``cell`` (``glare``: g_POSE's
+    glare maps, ``predict``)."""
     from cadfeat.vision import posterior_crlb  # lazy: would import scipy.spatial at module load
 
-    info, occ = predict(camera, T_cam_part, holes, mesh, rotation_length_mm, cell=cell)
+    info, occ = predict(camera, T_cam_part, holes, mesh, rotation_length_mm, cell=cell, glare=glare)
     _, crlb = posterior_crlb(info.information, times_s, tuning)
     per_pose = {"error_translation_mm": info.error_translation_mm, "error_rotation_deg": info.error_rotation_deg,
                 "bias_translation_mm": info.bias_translation_mm, "bias_rotation_deg": info.bias_rotation_deg,
@@ -312,7 +329,8 @@ def pose_accuracy(config: StudyConfig, base: StudySetup, holes0: Sequence[Hole],
     for key, s, holes, mesh in designs:
         T = cam_from_part(s.trajectory.T_task_cam, s.T_task_part)
         out[key] = design_pose_accuracy(s.camera, T, np.asarray(s.trajectory.times_s, float), holes,
-                                        hole_names(list(holes)), movable, mesh, tuning, ell, config.cell)
+                                        hole_names(list(holes)), movable, mesh, tuning, ell, config.cell,
+                                        getattr(getattr(s, "problem", None), "glare", None))
     return out
 
 

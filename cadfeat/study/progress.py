@@ -1,7 +1,8 @@
 """Terminal progress of a study (rich): one line per phase with its time, and the optimiser's iterations.
 
 ``StudyProgress`` also records the wall time of every phase (``timings_s`` of results.json) and the best
-design the optimiser reported so far (kept if the run is interrupted with Ctrl-C).
+design the optimiser reported so far (kept if the run is interrupted with Ctrl-C), and carries the run's Ctrl-C
+handling (``interrupts``: ``study.interrupts.RunInterrupts``).
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from collections.abc import Generator, Mapping
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+
+from cadfeat.study.interrupts import RunInterrupts
 
 if TYPE_CHECKING:  # pragma: no cover
     from rich.progress import Progress, TaskID
@@ -24,9 +27,11 @@ __all__ = ["StudyProgress"]
 class StudyProgress:
     """Phases and optimiser iterations on the terminal (nothing if ``enabled`` is false)."""
 
-    def __init__(self, title: str, enabled: bool = True) -> None:
+    def __init__(self, title: str, enabled: bool = True, interrupts: RunInterrupts | None = None) -> None:
         self.title = title
         self.enabled = enabled
+        self.interrupts = interrupts if interrupts is not None else RunInterrupts()
+        """The run's Ctrl-C handling (``study.interrupts``): the phases ask it whether the run was interrupted."""
         self.timings: dict[str, float] = {}
         self.best_x: np.ndarray | None = None
         self.best_f = np.inf
@@ -83,6 +88,10 @@ class StudyProgress:
         if not info and len(args) >= 2:
             info = {"x": args[0], "f": args[1]}
         self.iterations += 1
+        self._keep_best(info)
+        self.interrupts.check()  # an interrupt requested after the optimiser: a solve started now stops here
+
+    def _keep_best(self, info: Mapping[str, Any]) -> None:
         f = info.get("f", info.get("f_best"))
         x = info.get("x", info.get("x_best"))
         feasible = info.get("feasible", True)

@@ -24,6 +24,7 @@ the robust optimiser holds to the original's in sample), is never recommended; t
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -135,6 +136,9 @@ def robust_phase(config: StudyConfig, opt: Optimum, progress: StudyProgress,
     formats them (the pipeline's ``_history``)."""
     spec = config.robustness
     setup = opt.setup
+    interrupts = getattr(progress, "interrupts", None)
+    if interrupts is not None and interrupts.requested:  # (Ctrl-C: the nominal optimum is delivered)
+        opt.interrupted = True
     if not spec.robust or opt.interrupted:
         return None
     if config.objective.combine == "pareto" or not setup.linear:
@@ -147,8 +151,10 @@ def robust_phase(config: StudyConfig, opt: Optimum, progress: StudyProgress,
     rp = RobustProblem(problem, objective, D, floor_x=setup.space.x0)
     nominal = opt.res
     try:
-        res = robust_optimise(rp, config.optimizer, _starts(opt, setup.space), progress=progress.iteration)
-    except KeyboardInterrupt:
+        with interrupts.keeping() if interrupts is not None else contextlib.nullcontext():
+            res = robust_optimise(rp, config.optimizer, _starts(opt, setup.space), progress=progress.iteration)
+    except KeyboardInterrupt:  # before the robust solve evaluated anything: the nominal optimum is delivered
+        opt.interrupted = True
         return None
     opt.history += history(res, "robust")
     held = draws(unc, spec.samples or 64, len(problem.model.holes), config.study.seed + HELD_OUT_SEED_OFFSET,

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import shutil
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -39,13 +40,15 @@ from cadfeat.cad.parts import load_part
 from cadfeat.cad.sandbox import start_workers
 from cadfeat.cad.step_parts import load_step
 from cadfeat.design.objectives import objective_values
+from cadfeat.design.unseen import scored_measures
 from cadfeat.errors import CadfeatError
 from cadfeat.output_folder import staged_output
 from cadfeat.poses import cam_from_part
 from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
 from cadfeat.results import JsonDict, StudyResults
-from cadfeat.study import added_targets, closed_loop_check
+from cadfeat.study import added_design, added_targets, closed_loop_check
+from cadfeat.study.interrupts import RunInterrupts
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
     file_entry,
@@ -69,7 +72,8 @@ from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy, with_pose
 from cadfeat.study.preflight import preflight
 from cadfeat.study.progress import StudyProgress
 from cadfeat.study.schema import StudyConfig, StudyError, StudySource, load_study
-from cadfeat.study.setup import load_scene, occlusion_mesh, score_rule, setup_study
+from cadfeat.study.setup import load_scene, occlusion_mesh, score_rule
+from cadfeat.study.setup_cache import SetupCache, cached_setup, open_cache, save
 from cadfeat.study.trust import objective_changes
 from cadfeat.study.verify import (
     export_and_verify,
@@ -89,7 +93,7 @@ __all__ = ["EXPORTS_DIR", "StudyResult", "evaluate_study", "run_study"]
 
 EXPORTS_DIR = Path("exports")
 """Default parent of a study's output folder: ``exports/<study name>/`` (relative to the current folder)."""
-OUTPUT_FILES = ("original.step", "optimised.step", "optimised.stl", "holes.csv", "results.json")
+OUTPUT_FILES = ("original.step", "optimised.step", "optimised.stl", "holes.csv", "results.json", "move_only.step")
 
 
 @dataclass(frozen=True)
@@ -139,9 +143,17 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
         lines.append(f"  verdict: {verdict['decision']}" + "".join(
             f"\n    {f['rule']}: {f['outcome']} ({f['detail']})" for f in verdict["findings"]
             if f["outcome"] != "adopt"))
+    added: JsonDict = results.get("added_targets") or {}
+    if added.get("delivered"):
+        holes: list[JsonDict] = added.get("holes", [])
+        names = ", ".join(str(h["name"]) for h in holes)
+        p: dict[str, JsonDict | None] = added.get("predicted") or {}
+        lines.append(f"  delivered: the move-only optimum with {added['recommended']} added target hole(s) ({names}); "
+                     "predicted RMS pose error (mm) original {0} -> move-only {1} -> delivered {2}".format(
+                         *(_num((p.get(k) or {}).get("error_mm")) for k in ("original", "move_only", "added"))))
     if out_dir is not None:
         lines.append(f"  outputs: {out_dir}")
-        for name in ("optimised.step", "optimised.stl", "report.html"):
+        for name in ("optimised.step", "optimised.stl", "move_only.step", "report.html"):
             if (out_dir / name).exists():
                 lines.append(f"    {out_dir / name}")
     return "\n".join(lines)
@@ -166,8 +178,8 @@ def default_out_dir(config: StudyConfig) -> Path:
 
 
 def run_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | None = None, *, seed: int | None = None,
-              quiet: bool = False, progress: bool = True, force: bool = False, track: str | None = None
-              ) -> StudyResult:
+              quiet: bool = False, progress: bool = True, force: bool = False, track: str | None = None,
+              cache: bool | None = None) -> StudyResult:
     """Run a study (a TOML path, a dict or a ``StudyConfig``) and write its outputs to ``out_dir``
     (default ``exports/<study name>/``): original.step, optimised.step, optimised.stl, results.json and the
     report. ``seed`` overrides the study's seeds. Raises ``CadfeatError`` (nothing written) on bad input or a
@@ -177,14 +189,17 @@ def run_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | Non
     did not create is refused unless ``force`` (then cadfeat's files are added, other files untouched).
     ``track``: the closed-loop check's mode, fast | full | off (default: the study's; ``study.closed_loop_check``).
     Every part-script import and CAD build runs in a worker process within ``[study] build_timeout_s``.
+    ``cache``: the set-up cache (``study.setup_cache``: the set-up of unchanged inputs is read from it); None: on
+    unless ``CADFEAT_CACHE=off``.
     """
 
     config = closed_loop_check.with_mode(_resolve(path_or_dict, seed), track)
     out = out_dir if out_dir is not None else default_out_dir(config)
     start_workers()  # (CadQuery loads in the worker server meanwhile)
-    with staged_output(out, force) as stage, \
-            StudyProgress(config.study.name, enabled=progress and not quiet) as prog:
-        results, delivery = compute(config, prog, config.study.build_timeout_s)
+    interrupts = RunInterrupts()  # Ctrl-C keeps the best design so far (study.interrupts)
+    with interrupts.installed(), staged_output(out, force) as stage, \
+            StudyProgress(config.study.name, enabled=progress and not quiet, interrupts=interrupts) as prog:
+        results, delivery = compute(config, prog, config.study.build_timeout_s, open_cache(cache))
         try:
             with prog.phase("export"):
                 _write_outputs(config, stage, results, delivery, prog)
@@ -200,13 +215,32 @@ def preflight_study(path_or_dict: StudySource | StudyConfig, time_limit_s: float
     config = _resolve(path_or_dict, None)
     camera, traj, T_task_part = load_scene(config)
     shape, holes, _, names = _current_design(config, time_limit_s)
+    added = None
+    if config.add_targets is not None:  # issue 31: faces, keep-in, drill, count, a site, a dry run: before any work
+        added = _preflight_added(config, shape, holes, traj, T_task_part, time_limit_s)
     mesh = occlusion_mesh(config, shape)
     o = config.objective
     T_cam_part = cam_from_part(traj.T_task_cam, T_task_part)
     m = measures.evaluate(camera, T_cam_part, traj.velocity_screws(), *holes_to_arrays(list(holes)),
                           min_axis_px=o.min_axis_px, rotation_length_mm=o.rotation_length_mm, occlusion_mesh=mesh)
-    return preflight(config, camera, traj, T_task_part, part_points(shape, mesh), m, np.ones(len(holes), bool),
-                     names)
+    m = scored_measures(m, camera, o.min_axis_px)  # as the objectives score them (``design.unseen``)
+    pre = preflight(config, camera, traj, T_task_part, part_points(shape, mesh), m, np.ones(len(holes), bool), names)
+    if added is not None:
+        pre.numbers["add_targets"] = added
+    return pre
+
+
+def _preflight_added(config: StudyConfig, shape: Shape, holes: list[Hole], traj: Trajectory, T_task_part: np.ndarray,
+                     time_limit_s: float | None) -> JsonDict:
+    """``added_targets.preflight_part`` on the part as it is, its holes extracted with the study's view (the
+    through holes' entrance as ``run`` extracts them; names kept): {"faces", "sites", "most_that_fit"}."""
+    from cadfeat.study.setup import study_view_direction
+    from cadfeat.study.verify import extract_viewed, pair_by_axis
+
+    part = load_part(config.study.part_path, time_limit_s) if config.study.part_kind == "script" else None
+    view = study_view_direction(config, shape, traj, T_task_part, part)
+    viewed = pair_by_axis(holes, extract_viewed(shape, view), f"{config.label}: the part's holes")
+    return added_targets.preflight_part(config, shape, viewed, view)
 
 
 def _write_outputs(config: StudyConfig, stage: Path, results: JsonDict, delivery: Delivery,
@@ -214,22 +248,47 @@ def _write_outputs(config: StudyConfig, stage: Path, results: JsonDict, delivery
     """Write and verify the outputs into the staging folder ``stage`` (published by the caller). The report's
     renders are made before the closed-loop check collects its workers' tracking (they run meanwhile)."""
     t0 = time.perf_counter()
-    results["constraints"], results["verification"] = export_and_verify(config, stage, delivery,
-                                                                        results["constraints"])
-    added_targets.export_added(config, stage, results, delivery)  # issue 31: added_targets.step, verified
+    added = added_design.delivered(delivery)  # issue 31: the delivered design has added target holes
+    results["constraints"], results["verification"] = export_and_verify(
+        config, stage, delivery, results["constraints"],
+        step_checks=added_design.step_checks(config, delivery, f"{config.label}: optimised.step") if added else None)
+    added_design.export_move_only(config, stage, results, delivery)  # issue 31: move_only.step beside it, verified
     write_holes_csv(stage / "holes.csv", plain(results))
     results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl",
-                                                                 "holes.csv", added_targets.STEP_NAME)
+                                                                 "holes.csv", added_design.MOVE_ONLY_STEP)
                         if (stage / n).exists()]
     results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
     results["versions"] = versions()
     finish_report = _report(stage, results, _report_context(delivery), prog)
-    closed_loop_check.attach(config, results, delivery, stage, prog)  # the closed loop confirms (issue 17)
-    added_targets.confirm(config, results, delivery, prog)  # issue 31: the added design against the move-only optimum
+    _closed_loop(config, results, delivery, stage, prog)  # the closed loop confirms (issue 17)
+    added_design.tracking_summary(results)  # issue 31: the three designs' closed loop, summed up
+    results["interrupted"] = bool(results.get("interrupted") or prog.interrupts.requested)
     results["verdict"] = verdict_json(plain(results))
     write_results(stage / "results.json", results)
     if finish_report is not None:
         finish_report(results)
+
+
+def _closed_loop(config: StudyConfig, results: JsonDict, delivery: Delivery, stage: Path,
+                 prog: StudyProgress) -> None:
+    """The closed-loop check (``closed_loop_check.attach``); skipped — its workers stopped, whatever it had written
+    into the stage removed, a warning saying so — when the run is interrupted before or during it
+    (``study.interrupts``: the run finishes with the design found)."""
+    try:
+        with prog.interrupts.skippable():
+            closed_loop_check.attach(config, results, delivery, stage, prog)
+    except KeyboardInterrupt:
+        from cadfeat.study.physical_views import FOLDER as VIEWS  # lazy: Mitsuba
+
+        delivery.workers.cancel()
+        for key in ("tracking", "physical_views"):
+            results.pop(key, None)
+        for name in ("tracking", VIEWS):  # (the frames and views drawn so far: no half-written folder)
+            if (stage / name).is_dir():
+                shutil.rmtree(stage / name)
+        results.setdefault("warnings", []).append(
+            f"{closed_loop_check.SKIPPED}: the run was interrupted (`cadfeat track` on this study confirms the "
+            "design in the closed loop)")
 
 
 def _report(stage: Path, results: JsonDict, context: report.ReportContext, prog: StudyProgress
@@ -257,22 +316,23 @@ def _report_context(delivery: Delivery) -> report.ReportContext:
 # ------------------------------------------------------------------------------------------ evaluate
 def evaluate_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | None = None, *,
                    pose: int | None = None, quiet: bool = True, echo: bool = False, seed: int | None = None,
-                   force: bool = False) -> JsonDict:
+                   force: bool = False, cache: bool | None = None) -> JsonDict:
     """Score the study's current design without optimising (the thesis GUI's single-pose mode when ``pose``
     is given: one trajectory sample). Returns the results dict; prints the per-feature table (thesis
     Table 5.1: FOV, focus, resolution margins, visibility, worst pose) and a per-pose summary when ``echo``;
     writes results.json (+ report) into ``out_dir`` if given (checked before any work, as by ``run_study``;
-    ``force``: add the files to a folder cadfeat did not create)."""
+    ``force``: add the files to a folder cadfeat did not create; ``cache``: as ``run_study``'s)."""
 
     config = _resolve(path_or_dict, seed)
     with contextlib.ExitStack() as stack:
         stage = stack.enter_context(staged_output(out_dir, force)) if out_dir is not None else None
         start_workers()
-        results = _evaluate(config, stage, pose, quiet, echo)
+        results = _evaluate(config, stage, pose, quiet, echo, open_cache(cache))
     return results
 
 
-def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: bool, echo: bool) -> JsonDict:
+def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: bool, echo: bool,
+              cache: SetupCache | None = None) -> JsonDict:
     with StudyProgress(config.study.name, enabled=not quiet) as prog:
         with prog.phase("setup"):
             camera, traj, T_task_part = load_scene(config)
@@ -280,8 +340,8 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
                 raise StudyError(f"{config.label}: --pose {pose}: allowed: 0..{len(traj) - 1} "
                                  f"(the trajectory has {len(traj)} samples)")
             # the same holes, names, scored holes and occlusion mesh as ``run``
-            setup = setup_study(config, time_limit_s=config.study.build_timeout_s)
-            shape, holes, fixed, names = setup.shape0, setup.holes0, setup.fixed_mask, setup.hole_names
+            setup = cached_setup(config, time_limit_s=config.study.build_timeout_s, cache=cache)
+            holes, fixed, names = setup.holes0, setup.fixed_mask, setup.hole_names
         full_traj = traj
         if pose is not None:
             traj = _single_pose(traj, pose)
@@ -295,11 +355,14 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
             trust = objective_changes(setup.problem, values, None) if pose is None else {}
             combined = float(setup.problem.combined_from(np.array([values[n] for n in setup.problem.names]))) \
                 if pose is None and config.objective.combine != "pareto" else None
+            save(setup)  # (its normaliser built above, when the evaluation needs one)
         summary = measures_summary(m, names, traj.times_s, config.objective.min_axis_px, half_image(camera))
         pose_block = None
         if pose is None:  # the predicted pose error of the design as it is (``study.pose_accuracy``)
 
-            pose_block = pose_accuracy(config, setup, holes, part_mesh(config, shape, setup.problem.occlusion_mesh))
+            mesh = setup.problem.occlusion_mesh  # (a cached set-up's solid is loaded only without one)
+            pose_block = pose_accuracy(config, setup, holes, mesh if mesh is not None else part_mesh(config,
+                                                                                                    setup.shape0))
         if pose is not None:  # pose indices of the full trajectory
             for f in summary["per_feature"]:
                 f["worst_pose"] = pose
@@ -329,9 +392,9 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
                 "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
                 "measures": {"before": summary, "after": summary},
                 "objectives": {**results["objectives"], "after": values}}
-        context = report.ReportContext(shape_before=shape, shape_after=shape, holes_before=holes, holes_after=holes,
-                                       fixed_mask=np.asarray(fixed, bool), camera=camera, trajectory=full_traj,
-                                       T_task_part=T_task_part)
+        context = report.ReportContext(shape_before=setup.shape0, shape_after=setup.shape0, holes_before=holes,
+                                       holes_after=holes, fixed_mask=np.asarray(fixed, bool), camera=camera,
+                                       trajectory=full_traj, T_task_part=T_task_part)
         finish_report = _report(stage, same, context, prog)
         if finish_report is not None:
             finish_report(same)

@@ -55,11 +55,13 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.design_space import DesignSpace, FeatureModel
     from cadfeat.design.objectives import Normaliser
     from cadfeat.design.problem import Problem
+    from cadfeat.measures.glare import GlareMaps
     from cadfeat.results import JsonDict
     from cadfeat.study.settings.design import DesignSpec, Selector
     from cadfeat.trajectory import Trajectory
 
-__all__ = ["MAX_INT_COMBINATIONS", "Scene", "StudySetup", "int_grid", "setup_study"]
+__all__ = ["MAX_INT_COMBINATIONS", "ProblemPieces", "Scene", "ScriptValues", "StudySetup", "build_problem",
+           "int_grid", "script_rebuilders", "setup_study", "step_rebuilders"]
 
 MAX_INT_COMBINATIONS = 64
 """Largest number of integer-parameter combinations a study enumerates."""
@@ -106,6 +108,8 @@ class StudySetup:
     view_direction: np.ndarray | None = None
     """(3,) unit vector, part frame, from the part towards the camera (``study_view_direction``): the end of a
     through hole that is its entrance, in set-up, rebuilds and every check alike; None: extraction's own rule."""
+    cache_entry: Any = field(default=None, repr=False, compare=False)
+    """Where the set-up cache keeps this set-up (``setup_cache.CacheEntry``), None when it was not cached."""
 
     @property
     def hole_names(self) -> list[str]:
@@ -134,8 +138,10 @@ def constraint_config(config: StudyConfig, holes: Sequence[Hole] = (), movable: 
 
 
 @dataclass(frozen=True)
-class _ProblemParts:
-    """What ``_problem`` builds the ``Problem`` from (a script part's set-up or a STEP part's)."""
+class ProblemPieces:
+    """What ``build_problem`` builds a set-up's ``Problem`` from besides the study: its design space and feature
+    model, the scene (camera, trajectory, ``T_task_part``) and the fixed holes' mask (a fresh set-up's or one read
+    from the set-up cache)."""
 
     space: DesignSpace
     model: FeatureModel
@@ -143,9 +149,19 @@ class _ProblemParts:
     trajectory: Trajectory
     T_task_part: np.ndarray
     fixed_mask: np.ndarray
+
+
+@dataclass(frozen=True)
+class _ProblemParts(ProblemPieces):
+    """What ``_problem`` builds the ``Problem`` from (a script part's set-up or a STEP part's): the pieces, the
+    part's holes and solid (and a STEP part)."""
+
     holes: list[Hole]
     shape0: Shape
     part: StepPart | None = None
+
+    def pieces(self) -> ProblemPieces:
+        return ProblemPieces(self.space, self.model, self.camera, self.trajectory, self.T_task_part, self.fixed_mask)
 
 
 def _problem(args: _ProblemParts, config: StudyConfig, normaliser: Normaliser | None = None
@@ -155,12 +171,37 @@ def _problem(args: _ProblemParts, config: StudyConfig, normaliser: Normaliser | 
     part = args.part
     tol = max(1e-6, 10 * part.tolerance.linear_mm) if part is not None else 1e-6
     cc = constraint_config(config, args.holes, movable, shape_volume_mm3(args.shape0), mirror_tol_mm=tol)
-    problem = Problem(args.space, args.model, args.camera, args.trajectory, args.T_task_part,
-                      config.objective, cc, args.fixed_mask, normaliser=normaliser,
-                      occlusion_mesh=occlusion_mesh(config, args.shape0),
-                      feature_mask=score_mask(config, args.holes, ~np.asarray(args.fixed_mask, bool)),
-                      cell=config.cell)
+    problem = build_problem(config, args.pieces(), cc, occlusion_mesh(config, args.shape0),
+                            score_mask(config, args.holes, ~np.asarray(args.fixed_mask, bool)), normaliser)
+    glare = glare_maps_for(config, args.shape0, args.holes, args.camera, problem.T_cam_part)
+    if glare is not None:
+        problem.set_glare(glare)
     return problem, cc
+
+
+def build_problem(config: StudyConfig, args: ProblemPieces, cc: ConstraintConfig, mesh: trimesh.Trimesh | None,
+                  feature_mask: np.ndarray | None, normaliser: Normaliser | None = None) -> Problem:
+    """The set-up's ``Problem`` from its pieces (``args``: space, model, camera, trajectory, T_task_part,
+    fixed_mask): the one constructor of a fresh set-up and of one read from the set-up cache (which sets the glare
+    maps it kept, ``glare_maps_for``'s)."""
+    return Problem(args.space, args.model, args.camera, args.trajectory, args.T_task_part,
+                   config.objective, cc, args.fixed_mask, normaliser=normaliser, occlusion_mesh=mesh,
+                   feature_mask=feature_mask, cell=config.cell)
+
+
+def glare_maps_for(config: StudyConfig, shape: Shape, holes: Sequence[Hole], camera: Camera,
+                   T_cam_part: np.ndarray) -> GlareMaps | None:
+    """g_POSE's glare maps (``measures.glare``; ``render.glare.glare_maps``: the part rendered physically in the
+    study's cell at its poses) when the study predicts the pose (``pose`` among the measures), its ``[cell]`` asks
+    (``glare``, default on) and the part's material returns light from its bores (a metal); else None."""
+    from cadfeat.cell.material import bores_return_light
+
+    cell = config.cell
+    if "pose" not in config.objective.measures or not cell.glare or not bores_return_light(cell.material):
+        return None
+    from cadfeat.render.glare import glare_maps  # lazy: Mitsuba
+
+    return glare_maps(shape, holes, camera, T_cam_part, cell)
 
 
 def occlusion_mesh(config: StudyConfig, shape: Shape) -> trimesh.Trimesh | None:
@@ -259,12 +300,7 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     starts = {p.name: float(p.start) for p in specs if p.start is not None}  # [design.parameters] NAME.start
     at = {**part.defaults(), **ints, **starts, **{k: float(v) for k, v in (at or {}).items() if k in names}}
 
-    def values(x: np.ndarray) -> JsonDict:
-        out = dict(at)
-        for name, value in zip(names, np.asarray(x, float).reshape(-1), strict=True):
-            out[name] = int(round(value)) if part.parameters[name].is_int else float(value)
-        return out
-
+    values = ScriptValues(dict(at), tuple(names), frozenset(n for n in names if part.parameters[n].is_int))
     shape0 = part.build(**at)
     view = study_view_direction(config, shape0, trajectory, T_task_part, part)
     part = dataclasses.replace(part, view_direction=view)  # every extraction of the part enters on the camera's side
@@ -306,12 +342,49 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
     args = _ProblemParts(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                          fixed_mask=fixed, holes=holes0, shape0=shape0)
     problem, cc = _problem(args, config, normaliser)
+    rebuild_shape, rebuild_holes = script_rebuilders(lambda: part, values, view)
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part, shape0=shape0,
                       holes0=holes0, fixed_mask=fixed, movable_mask=moved, space=space, model=model,
-                      problem=problem, constraints=cc, rebuild_shape=lambda x: part.build(**values(x)),
-                      rebuild_holes=lambda shape: _extract(shape, view), values=values,
-                      linear=bool(getattr(dm, "linear", True)), int_values=ints, part=part,
+                      problem=problem, constraints=cc, rebuild_shape=rebuild_shape, rebuild_holes=rebuild_holes,
+                      values=values, linear=bool(getattr(dm, "linear", True)), int_values=ints, part=part,
                       time_limit_s=time_limit_s, view_direction=view)
+
+
+@dataclass(frozen=True)
+class ScriptValues:
+    """``StudySetup.values`` of a part-script study: the design vector x as the part's named values — the values
+    the set-up linearised at, with the design variables (``names``, in x's order) replaced (``ints``: cast to
+    int). A class, not a closure, so that a set-up's products can be kept in the set-up cache."""
+
+    at: dict[str, Any]
+    names: tuple[str, ...]
+    ints: frozenset[str] = frozenset()
+
+    def __call__(self, x: np.ndarray) -> dict[str, Any]:
+        out = dict(self.at)
+        for name, value in zip(self.names, np.asarray(x, float).reshape(-1), strict=True):
+            out[name] = int(round(value)) if name in self.ints else float(value)
+        return out
+
+
+def script_rebuilders(part: Callable[[], Part], values: Callable[[np.ndarray], dict[str, Any]],
+                      view: np.ndarray | None) -> tuple[Callable[[np.ndarray], Shape], Callable[[Shape], list[Hole]]]:
+    """(``rebuild_shape``, ``rebuild_holes``) of a part-script set-up; ``part()`` gives the loaded part (the set-up
+    cache loads it on first use)."""
+    return (lambda x: part().build(**values(x))), (lambda shape: _extract(shape, view))
+
+
+def step_rebuilders(config: StudyConfig, step: Callable[[], StepPart], model: HoleMoveModel,
+                    view: np.ndarray | Sequence[float] | None, time_limit_s: float | None
+                    ) -> tuple[Callable[[np.ndarray], Shape], Callable[[Shape], list[Hole]]]:
+    """(``rebuild_shape``, ``rebuild_holes``) of a STEP set-up: re-drilled within the time limit; holes extracted
+    as the part was read (the same entrance side and tolerances), named H1.. in extraction order."""
+
+    def rebuild_holes(shape: Shape) -> list[Hole]:
+        holes = _extract(shape, view, step().tolerance)
+        return [dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(holes)]
+
+    return (lambda x: _timed_redrill(config, step(), model.hole_moves(x), time_limit_s)), rebuild_holes
 
 
 def _extract(shape: Shape, prefer_direction: Sequence[float] | np.ndarray | None = None,
@@ -340,16 +413,11 @@ def setup_step(config: StudyConfig, scene: Scene | None = None,
     args = _ProblemParts(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                          fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
     problem, cc = _problem(args, config)
-
-    def rebuild_holes(shape: Shape) -> list[Hole]:  # as the part was read: the same entrance side and tolerances
-        holes = _extract(shape, view, step.tolerance)
-        return [dataclasses.replace(h, name=f"H{i + 1}") for i, h in enumerate(holes)]
-
+    rebuild_shape, rebuild_holes = step_rebuilders(config, lambda: step, model, view, time_limit_s)
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                       shape0=step.shape, holes0=holes0, fixed_mask=fixed, movable_mask=movable_mask, space=space,
-                      model=model, problem=problem, constraints=cc,
-                      rebuild_shape=lambda x: _timed_redrill(config, step, model.hole_moves(x), time_limit_s),
-                      rebuild_holes=rebuild_holes, values=lambda x: space.as_dict(x), part=step,
+                      model=model, problem=problem, constraints=cc, rebuild_shape=rebuild_shape,
+                      rebuild_holes=rebuild_holes, values=space.as_dict, part=step,
                       time_limit_s=time_limit_s, view_direction=None if view is None else np.asarray(view, float))
 
 

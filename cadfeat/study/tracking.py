@@ -226,13 +226,15 @@ def _view_direction(config: StudyConfig, original_step: Path) -> np.ndarray | No
 
 def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Path | None = None,
                  spec: TrackingSpec | None = None, camera_override: Camera | None = None,
-                 tracked: Mapping[str, Any] | None = None) -> JsonDict:
+                 tracked: Mapping[str, Any] | None = None, pairs: Mapping[str, tuple[str, str]] | None = None
+                 ) -> JsonDict:
     """The results.json ``tracking`` section for ``designs`` = {"before": (shape, holes), "after": (...)}.
 
     ``out_dir``: where the frame PNGs go (``tracking/``); None writes nothing. ``camera_override``: the camera
     the estimators assume (the images always use the study's camera) — for the focal-length sweep. ``tracked``:
     designs already tracked with ``spec`` (``closed_loop.track_one`` of ``track_arguments``, e.g. in a worker),
-    not re-run.
+    not re-run. ``pairs``: more paired comparisons of ``designs`` (label → (before, after) names: the section's
+    ``comparisons``); the main verdicts are always "after" against "before".
     """
     spec = spec or config.tracking_settings()
     designs = {k: (shape, _named(holes)) for k, (shape, holes) in designs.items()}
@@ -241,7 +243,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     from cadfeat.vision.closed_loop import track_designs  # lazy: looked up per call (tests replace it)
 
     result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec, config.cell),
-                           estimator_camera=camera_override, tracked=tracked)
+                           estimator_camera=camera_override, tracked=tracked, pairs=pairs)
     section = result.to_json()
     section["warnings"] = _motion_warnings(T_cam_part[result.frame_indices], times[result.frame_indices])
     section["curves"] = _curves(result)

@@ -15,7 +15,7 @@ entrance, and its entrance is the same in set-up, rebuild, checks and the re-imp
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -33,6 +33,7 @@ from cadfeat.cad.export import (
 from cadfeat.cad.features import extract_holes, holes_to_arrays
 from cadfeat.cad.features.identity import holes_at, pair_holes, take_names
 from cadfeat.design.constraints import verify_on_brep
+from cadfeat.design.optimize.cad import MATCH_TOL_MM
 from cadfeat.errors import CadfeatError
 from cadfeat.study.outputs import normalise_step_header
 
@@ -105,12 +106,17 @@ def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = 
             ) -> tuple[Shape, list[Hole], float]:
     """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
     deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
-    loop extracted at ``x``, in model order) when given."""
+    loop extracted at ``x``, in model order) when given. The rebuilt holes pair with the prediction within
+    0.5 mm of its axis lines and radii; with the feature model of a part whose map is not linear (``setup.linear``
+    false: a bolt circle turned by its phase, predicted by the map linearised at the middle of the design box),
+    within the CAD trust-region loop's ``MATCH_TOL_MM``, as that loop pairs them."""
     shape = setup.rebuild_shape(x)
     predicted = predicted_holes(setup, x)
+    tol_mm = 0.5 if setup.linear else MATCH_TOL_MM
     if verified is not None and len(verified) == len(predicted):
         predicted = [dataclasses.replace(v, name=p.name) for v, p in zip(verified, predicted, strict=True)]
-    holes = order_like(predicted, setup.rebuild_holes(shape), 0.5, "CAD rebuild of the optimum")
+        tol_mm = 0.5
+    holes = order_like(predicted, setup.rebuild_holes(shape), tol_mm, "CAD rebuild of the optimum")
     c0, _, r0 = holes_to_arrays(predicted)
     c1, _, r1 = holes_to_arrays(holes)
     err = float(max(np.linalg.norm(c1 - c0, axis=1).max(initial=0.0), np.abs(r1 - r0).max(initial=0.0)))
@@ -186,12 +192,15 @@ class AnchoredModel:
         return holes_at(self, x)
 
 
-def export_and_verify(config: StudyConfig, stage: Path, delivery: Delivery,
-                      constraints: list[JsonDict]) -> tuple[list[JsonDict], JsonDict]:
+def export_and_verify(config: StudyConfig, stage: Path, delivery: Delivery, constraints: list[JsonDict],
+                      step_checks: Callable[[Shape], list[JsonDict]] | None = None
+                      ) -> tuple[list[JsonDict], JsonDict]:
     """Write original.step, optimised.step and optimised.stl into ``stage`` and verify them: a valid solid, the
     re-imported STEP's holes equal to the design's within ``ROUNDTRIP_TOL_MM`` (and its volume), every kept
     requirement again on the re-imported solid (raises ``CadfeatError`` naming a violated one), a watertight
-    STL. Returns (the B-rep and STEP requirement checks, the results.json ``verification`` block)."""
+    STL. ``step_checks``: what is measured on the re-imported solid instead of the design's requirements (a
+    delivered design with added target holes: ``study.added_design.step_checks``). Returns (the B-rep and STEP
+    requirement checks, the results.json ``verification`` block)."""
     setup = delivery.setup
     problems = check_solid(delivery.shape1)
     if problems:
@@ -209,8 +218,11 @@ def export_and_verify(config: StudyConfig, stage: Path, delivery: Delivery,
                                  tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=volume, volume_rtol=1e-7,
                                  prefer_direction=view, volume_uncertainty_mm3=uncertainty)
     reimported = import_step(stage / "optimised.step")
-    step_holes = order_like(delivery.holes1, setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
-    checks = constraints + requirement_checks(setup, reimported, step_holes, "step")
+    if step_checks is not None:
+        checks = constraints + step_checks(reimported)
+    else:
+        step_holes = order_like(delivery.holes1, setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
+        checks = constraints + requirement_checks(setup, reimported, step_holes, "step")
     fail_on(checks, config.label)
     export_stl(delivery.shape1, stage / "optimised.stl")
     stl_problems = check_stl(stage / "optimised.stl", delivery.shape1,

@@ -490,6 +490,8 @@ class BeforeAfter:
     config: TrackingConfig
     frame_indices: np.ndarray
     timings_s: dict[str, float]
+    comparisons: dict[str, Any] = field(default_factory=dict[str, Any])
+    """More paired comparisons: label → {"before": name, "after": name, "verdicts": per estimator}."""
 
     def to_json(self) -> JsonDict:
         """The results.json ``tracking`` section (plain data; infinities as None)."""
@@ -510,6 +512,7 @@ class BeforeAfter:
                             if c.renderer == "pbr" else {})},
             "designs": {name: design_json(d) for name, d in self.designs.items()},
             "verdicts": self.verdicts,
+            **({"comparisons": self.comparisons} if self.comparisons else {}),
             "timings_s": {k: round(v, 3) for k, v in self.timings_s.items()},
         }
         return _finite_json(out)
@@ -556,11 +559,13 @@ def tracked_frames(T_cam_part: np.ndarray, times_s: np.ndarray, screws: np.ndarr
 def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, screws: np.ndarray | None,
                   designs: dict[str, tuple[Any, Sequence[Hole]]], config: TrackingConfig,
                   before: str = "before", after: str = "after", estimator_camera: Camera | None = None,
-                  tracked: Mapping[str, tuple[DesignTracking, Observation, dict[str, float]]] | None = None
-                  ) -> BeforeAfter:
+                  tracked: Mapping[str, tuple[DesignTracking, Observation, dict[str, float]]] | None = None,
+                  pairs: Mapping[str, tuple[str, str]] | None = None) -> BeforeAfter:
     """Closed loop on several designs along one trajectory (every ``config.frame_step``-th sample), and the
     paired verdict ``after`` vs ``before`` per estimator. ``designs`` maps a name to (shape, holes); ``tracked``:
-    designs already tracked with this config by ``track_one`` (their entries of ``designs`` are not re-run)."""
+    designs already tracked with this config by ``track_one`` (their entries of ``designs`` are not re-run);
+    ``pairs``: more paired comparisons, label → (before name, after name), each as the main one (the runs' seeds
+    are the config's, so every design's run r has the same noise, initial error, placement and light)."""
     idx, T, t, sc = tracked_frames(T_cam_part, times_s, screws, config.frame_step)
     results, observations, timings = {}, {}, {}
     for name, design in designs.items():
@@ -569,4 +574,7 @@ def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, s
         timings[f"{name}_render"], timings[f"{name}_track"] = done[2]["render"], done[2]["track"]
     verdicts = compare(results[before], results[after], config.alpha, config.min_change) \
         if before in results and after in results else {}
-    return BeforeAfter(results, observations, verdicts, config, idx, timings)
+    more = {label: {"before": a, "after": b,
+                    "verdicts": compare(results[a], results[b], config.alpha, config.min_change)}
+            for label, (a, b) in (pairs or {}).items() if a in results and b in results}
+    return BeforeAfter(results, observations, verdicts, config, idx, timings, more)

@@ -137,6 +137,28 @@ def test_through_entrance_rules(solid):
     assert (-15.0, -15.0, 0.0) in plain and (-15.0, 15.0, 0.0) in plain
 
 
+@pytest.mark.parametrize(("bore_d", "rim_d", "angle", "kind"), [
+    (0.125, 0.25, 82.0, "countersink"),          # cadquery's examples/Ex019 (a 4 x 2 x 0.5 plate)
+    (1.8, 3.8, 90.0, "countersink"),             # lcr_gripper_moving_part.step's holes (truth: either)
+    (3.4, 6.6, 90.0, "countersink"),             # M3
+    (2.4, 4.4, 90.0, "plain, chamfered rim"),    # 1 x 45° on Ø2.4 (lcr_shoulder_to_elbow.step's truth)
+    (4.0, 6.0, 90.0, "plain, chamfered rim"),    # 1 x 45° chamfer on Ø4
+    (2.0, 3.6, 90.0, "plain, chamfered rim"),    # 0.8 x 45° on Ø2: the flagship's widest rim chamfer
+    (8.0, 9.0, 90.0, "plain, chamfered rim"),    # 0.5 x 45° on Ø8
+])
+def test_a_countersink_that_doubles_a_small_bore_is_no_chamfer(bore_d, rim_d, angle, kind):
+    """A cone is a chamfered rim when it widens the bore by at most max(1 mm, 0.35 × its radius), the 1 mm never
+    more than 0.9 × the radius (a cone that about doubles a bore's diameter is a countersink's seat). Before: any
+    cone widening a bore by up to 1 mm was a chamfer, so the countersinks of a small part (cadquery's Ex019: Ø0.25
+    over Ø0.125) were "plain, chamfered rim"."""
+    import cadquery as cq
+
+    plate = cq.Workplane("XY").box(8 * rim_d, 8 * rim_d, 2 * rim_d).faces(">Z").workplane()
+    (hole,) = extract_holes(plate.cskHole(bore_d, rim_d, angle).val(), prefer_direction=(0.0, 0.0, 1.0))
+    assert hole.kind == kind
+    assert (hole.radius_mm, hole.bore_radius_mm) == pytest.approx((rim_d / 2, bore_d / 2), abs=1e-9)
+
+
 def test_deterministic_order(holes):
     again = extract_holes(make_solid(reverse=True), prefer_direction=(0.0, 0.0, 1.0))
     c1, a1, r1 = holes_to_arrays(holes)

@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def cadfeat(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "cadfeat", *args], capture_output=True, text=True, cwd=ROOT,
-                          env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"}, timeout=120)
+                          env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "CADFEAT_CACHE": "off"}, timeout=120)
 
 
 def test_validate_ok(tmp_path):

@@ -124,3 +124,74 @@ def test_busy_port_is_refused_before_any_work(capsys):
         assert main(["explore", str(DATA / "ex003_study.toml"), "--port", str(port), "--no-browser"]) == 2
     err = capsys.readouterr().err
     assert f"cannot listen on 127.0.0.1:{port}" in err and "loading" not in err
+
+
+def _get(url: str) -> tuple[int, bytes]:
+    import urllib.error
+    import urllib.request
+
+    try:
+        with urllib.request.urlopen(url, timeout=30) as r:
+            return r.status, r.read()
+    except urllib.error.HTTPError as exc:
+        return exc.code, exc.read()
+
+
+def _slow_study(tmp_path: Path, build: str) -> Path:
+    """The study tests' plate study, its part script's ``build`` preceded by ``build`` (a statement)."""
+    from study_helpers import PLATE, study
+
+    path = study(tmp_path, design={"parameters": {"x0": {"lower": -15, "upper": -5}}})
+    (tmp_path / "study_plate.py").write_text(PLATE.read_text().replace(
+        "    import cadquery as cq\n", f"    import cadquery as cq\n    {build}\n", 1))
+    return path
+
+
+def test_the_page_is_served_at_once_and_shows_the_set_up(tmp_path):
+    """While the study is set up (its part takes 0.4 s a build), the server answers: the page, the set-up's status
+    (the phase, the time so far), 503 for what needs the study; once ready, the scene and the numbers."""
+    import json
+    import urllib.error
+    import urllib.request
+
+    from cadfeat.explore.loader import SessionLoader
+    from cadfeat.explore.server import serve
+
+    loader = SessionLoader(_slow_study(tmp_path, "import time; time.sleep(0.4)"), cache=False)
+    server = serve(loader.start(), 0)
+    try:
+        code, page = _get(server.url)
+        assert code == 200 and b"explore.js" in page
+        status = json.loads(_get(server.url + "api/status")[1])
+        assert status["state"] == "setting-up" and status["study"] == "plate" and status["phase"], status
+        code, body = _get(server.url + "api/scene")
+        assert code == 503 and json.loads(body)["status"]["state"] == "setting-up"
+        req = urllib.request.Request(server.url + "api/evaluate", b"{}", {"Content-Type": "application/json"})
+        with pytest.raises(urllib.error.HTTPError) as err:
+            urllib.request.urlopen(req, timeout=30)
+        assert err.value.code == 503 and "still being set up" in json.loads(err.value.read())["error"]
+        assert loader.done.wait(300)
+        status = json.loads(_get(server.url + "api/status")[1])
+        assert status["state"] == "ready" and status["ready_s"] > 0.4 and status["cache"] == "off", status
+        code, body = _get(server.url + "api/scene")
+        assert code == 200 and [v["name"] for v in json.loads(body)["variables"]] == ["x0"]
+    finally:
+        server.stop()
+
+
+def test_a_set_up_that_fails_is_shown(tmp_path):
+    import json
+
+    from cadfeat.explore.loader import SessionLoader
+    from cadfeat.explore.server import serve
+
+    loader = SessionLoader(_slow_study(tmp_path, "raise RuntimeError('no such tool')"), cache=False)
+    server = serve(loader.start(), 0)
+    try:
+        assert loader.done.wait(300)
+        status = json.loads(_get(server.url + "api/status")[1])
+        assert status["state"] == "failed" and "no such tool" in status["error"], status
+        code, body = _get(server.url + "api/scene")
+        assert code == 503 and "set-up failed" in json.loads(body)["error"]
+    finally:
+        server.stop()

@@ -120,6 +120,7 @@ def test_slider_numbers_equal_cadfeat_evaluate(explorer):
 
 def test_camera_view_follows_the_pose_slider(explorer):
     page, _, _, _ = explorer
+    assert page.js("document.body.dataset.setup") == "ready"  # (the page waited for the set-up: /api/status)
     cam0 = json.loads(page.js("JSON.stringify(cadfeatExplore.snapshotCamera())"))
     ov0 = page.js("cadfeatExplore.overlayHash()")
     _move(page, "#pose", 7)

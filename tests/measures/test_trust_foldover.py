@@ -10,6 +10,7 @@ import pytest
 from cadfeat import measures
 from cadfeat.cad.features import Hole
 from cadfeat.camera import Camera
+from cadfeat.design.unseen import scored_measures
 from cadfeat.render.camera_views import draw_hole_overlay
 
 pytestmark = pytest.mark.numerics  # run again under another BLAS kernel (Makefile: test)
@@ -42,8 +43,12 @@ def test_point_35_degrees_off_axis_is_not_visible_not_in_jacobian_no_overlay():
     assert np.all((raw >= 0) & (raw <= [THESIS.width, THESIS.height]))  # the fold puts it inside the image
     m = measures.evaluate(THESIS, T, np.ones((1, 6)), centre, axes, np.full(4, 0.2))
     assert m.folded[0].tolist() == [True, False, False, False]
-    assert not m.visible[0, 0] and m.visible[0, 1:].all()
-    assert m.fov[0, 0] < 0 and m.fov_px[0, 0] < 0 and m.resolution_px[0, 0] <= 0 and m.focus[0, 0] <= 0
+    # the measures are the thesis's (issue 32 item 7: the cone margin of a point 35° off axis, outside the
+    # camera's 2 atan(64/fx) field); the objectives score the folded point unseen
+    assert m.fov[0, 0] == pytest.approx(np.cos(a) - np.cos(THESIS.fov_rad / 2), abs=1e-12) and m.fov[0, 0] < 0
+    s = scored_measures(m, THESIS, 5.0)
+    assert not s.visible[0, 0] and s.visible[0, 1:].all()
+    assert s.fov[0, 0] < 0 and s.fov_px[0, 0] < 0 and s.resolution_px[0, 0] <= 0 and s.focus[0, 0] <= 0
     # not in Λ: the same measures without the folded point
     rest = measures.evaluate(THESIS, T, np.ones((1, 6)), centre[1:], axes[1:], np.full(3, 0.2))
     np.testing.assert_allclose(m.sigma_min, rest.sigma_min, rtol=1e-12)

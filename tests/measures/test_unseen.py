@@ -1,11 +1,12 @@
-"""The unseen-hole rule of every measure (issue 17, ``measures.unseen``), checked against an independent
-occlusion: a segment-box slab test on the rim points of a hole behind a wall, not the implementation's ray
-casts or depth maps.
+"""The unseen-hole rule of every measure (issue 17; the objectives' rule, ``design.unseen``, since issue 32 item 7),
+checked against an independent occlusion: a segment-box slab test on the rim points of a hole behind a wall, not
+the implementation's ray casts or depth maps.
 
 Rule: a hole facing the camera scores f + (1 − h)(v − f) in FOV (cone and image), focus and resolution (v its
 value as if seen, f the floor, h its rim's hidden fraction); g_DIR weighs each hole's Jacobian rows by 1 − h;
 g_POSE gives a hidden rim no information. So a hidden hole gains nothing by shrinking, by moving further into
-hiding or by vanishing, and a partly hidden one scores between seen and hidden."""
+hiding or by vanishing, and a partly hidden one scores between seen and hidden. ``measures.evaluate`` itself
+reports the thesis's margins (and h, ``hidden``, ``folded``); the objectives apply the rule."""
 
 from __future__ import annotations
 
@@ -16,9 +17,11 @@ import trimesh
 from cadfeat import measures
 from cadfeat.camera import Camera
 from cadfeat.design.objectives import ObjectiveConfig, objective_values
+from cadfeat.design.unseen import UNSEEN_KEYS, scored_measures, unseen_floors
+from cadfeat.errors import CadfeatError
 from cadfeat.measures.depth import DepthMaps
 from cadfeat.measures.pose_information import pose_information
-from cadfeat.measures.unseen import RIM_SAMPLES, UNSEEN_KEYS, unseen_floors
+from cadfeat.measures.unseen import RIM_SAMPLES
 from cadfeat.poses import invert_T, look_at
 
 WALL_LO, WALL_HI = np.array([10.0, -20.0, 5.0]), np.array([16.0, 20.0, 20.0])  # the wall (box), part frame, mm
@@ -61,11 +64,16 @@ def _slab_fraction(x: float, r: float, k: int = RIM_SAMPLES) -> np.ndarray:
     return _slab_hidden(_rim(x, r, k)).mean(axis=-1)
 
 
-def _evaluate(x: float, r: float, occlusion, with_others: bool = True) -> measures.Measures:
+def _raw(x: float, r: float, occlusion, with_others: bool = True) -> measures.Measures:
     centres = np.vstack([[[x, 0.0, 5.0]], OTHERS]) if with_others else np.array([[x, 0.0, 5.0]])
     radii = np.r_[r, np.full(len(centres) - 1, 2.0)]
     return measures.evaluate(CAMERA, T_CAM_PART, SCREWS, centres, np.tile(UP, (len(centres), 1)), radii,
                              min_axis_px=MIN_AXIS_PX, occlusion_mesh=occlusion)
+
+
+def _evaluate(x: float, r: float, occlusion, with_others: bool = True) -> measures.Measures:
+    """The measures as the objectives score them (``design.unseen.scored_measures``)."""
+    return scored_measures(_raw(x, r, occlusion, with_others), CAMERA, MIN_AXIS_PX)
 
 
 def test_rim_hidden_fraction_agrees_with_the_slab_test():
@@ -137,6 +145,24 @@ def test_no_objective_improves_while_its_hole_is_hidden(measure):
     hidden = [g(x, r) for x, r in ((30.0, 1.5), (30.0, 0.75), (26.0, 1.5), (22.0, 0.01))]
     assert hidden == [hidden[0]] * 4
     assert g(36.0, 1.5) > hidden[0] and g(40.0, 1.5) > g(36.0, 1.5)  # coming out of hiding pays
+    # ``objective_values`` applies the rule itself to ``evaluate``'s measures, given the camera (issue 32 item 7)
+    raw = _raw(40.0, 1.5, MAPS)
+    assert objective_values(raw, cfg, feature_mask=mask, camera=CAMERA) == \
+        objective_values(_evaluate(40.0, 1.5, MAPS), cfg, feature_mask=mask)
+    with pytest.raises(CadfeatError, match="camera"):
+        objective_values(raw, cfg, feature_mask=mask)
+
+
+def test_evaluate_reports_the_equations_and_the_flags_the_rule_reads():
+    """``evaluate`` leaves the margins of a hidden hole as the equations give them (the same as without the part)
+    and reports h, ``hidden`` and ``facing``: the rule is the objectives' (issue 32 item 7)."""
+    for x in (30.0, 40.0):
+        with_part, free = _raw(x, 1.5, MESH), _raw(x, 1.5, None)
+        for key in UNSEEN_KEYS:
+            np.testing.assert_array_equal(getattr(with_part, key), getattr(free, key), err_msg=key)
+        np.testing.assert_array_equal(with_part.visible, free.visible & ~with_part.hidden)
+        assert with_part.rim_hidden[:, 0].max() == 1.0 and with_part.hidden[:, 0].any()
+        assert not np.array_equal(_evaluate(x, 1.5, MESH).fov, free.fov)  # scored: the rule bites here
 
 
 def test_g_dir_weighs_a_hole_by_its_rim_seen():
@@ -208,8 +234,9 @@ def test_the_depth_maps_visibility_term_slopes_out_of_hiding():
     and, moving away from the wall, falls from 1 to 0 with no flat step in between: a slope to follow."""
     xs = np.arange(30.0, 46.0, 0.02)
     centres = np.column_stack([xs, np.zeros_like(xs), np.full_like(xs, 5.0)])
-    m = measures.evaluate(CAMERA, T_CAM_PART, SCREWS, centres, np.tile(UP, (len(xs), 1)), np.full(len(xs), 1.5),
-                          occlusion_mesh=MAPS)
+    m = scored_measures(measures.evaluate(CAMERA, T_CAM_PART, SCREWS, centres, np.tile(UP, (len(xs), 1)),
+                                          np.full(len(xs), 1.5), min_axis_px=MIN_AXIS_PX, occlusion_mesh=MAPS),
+                        CAMERA, MIN_AXIS_PX)
     h = m.rim_hidden  # (12 poses, positions)
     assert np.abs(np.diff(h, axis=1)).max() < 0.05  # the centre-ray test jumps by 1 between two such positions
     assert np.abs(np.diff(m.hidden.astype(float), axis=1)).max() == 1.0

@@ -149,41 +149,40 @@ def test_a_shallow_hole_is_outside_what_the_models_describe() -> None:
         AddTargetsSettings(faces=["+z"], diameter_mm=5.5, depth_mm=2.0)
 
 
-@pytest.mark.slow
-def test_step_study_with_added_targets(tmp_path: Path) -> None:
-    """A STEP study (tests/data/plate_holes.step, two holes moved) with [add_targets] on its top face: the added
-    holes drilled into the re-drilled B-rep, added_targets.step re-imported with every hole of optimised.step
-    unchanged and each added hole where results.json puts it, every requirement held on the B-rep and the STEP."""
-    from cadfeat.cad.export import import_step
-    from cadfeat.cad.features import extract_holes, match_holes
-    from cadfeat.study.run import run_study
+def _most_at_once(clash: np.ndarray) -> int:
+    """The largest set of sites without a conflict (exact, branch and bound; a few dozen sites)."""
+    n = len(clash)
+    best = 0
 
-    step = ROOT / "tests" / "data" / "plate_holes.step"
-    data = {
-        "study": {"name": "step_add", "part": str(step), "seed": 2},
-        "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 220.0},
-        "trajectory": {"kind": "orbit_arc", "centre": [0, 0, 10], "radius_mm": 220.0, "elevation_deg": 55.0,
-                       "azimuth_start_deg": -150.0, "azimuth_end_deg": -30.0, "n": 12, "duration_s": 2.0},
-        "design": {"holes": [{"select": [-25.0, -15.0, 10.0], "max_offset_mm": 6.0},
-                             {"select": [-25.0, 15.0, 10.0], "max_offset_mm": 6.0}]},
-        "constraints": {"edge_distance_mm": 3.0, "ligament_mm": 2.5},
-        "objective": {"measures": ["pose"]},
-        "optimizer": {"method": "multistart", "starts": 2, "maxiter": 20},
-        "robustness": {"robust": False},
-        "add_targets": {"faces": ["+z"], "diameter_mm": 4.5, "depth_mm": 2.5, "chamfer_mm": 0.3, "max_added": 2,
-                        "min_gain_percent": 0.0, "pitch_mm": 6.0},
-    }
-    result = run_study(data, tmp_path / "out", quiet=True, track="off")
-    block = result.results["added_targets"]
-    assert block["recommended"] >= 1 and block["requirements_hold"]
-    assert {c["checked_on"] for c in block["constraints"]} == {"brep", "step"}
-    optimum = extract_holes(import_step(tmp_path / "out" / "optimised.step"))
-    added = extract_holes(import_step(tmp_path / "out" / "added_targets.step"))
-    assert len(added) == len(optimum) + block["recommended"]
-    idx = match_holes(optimum, added, tol_mm=1e-6)
-    for i, h in zip(idx, optimum, strict=True):
-        assert np.linalg.norm(added[i].centre - h.centre) < 1e-6 and abs(added[i].depth_mm - h.depth_mm) < 1e-6
-    rest = [h for i, h in enumerate(added) if i not in set(idx)]
-    for h in block["holes"]:
-        assert min(np.linalg.norm(x.centre - h["centre"]) for x in rest) < 1e-6
-    assert block["predicted"]["added"]["error_mm"] < block["predicted"]["move_only"]["error_mm"]
+    def grow(free: np.ndarray, size: int) -> None:
+        nonlocal best
+        idx = np.flatnonzero(free)
+        if size + len(idx) <= best:
+            return
+        if not len(idx):
+            best = max(best, size)
+            return
+        i = idx[0]
+        grow(free & ~clash[i], size + 1)  # take site i (its conflicts, itself included, leave)
+        rest = free.copy()
+        rest[i] = False
+        grow(rest, size)
+    grow(np.ones(n, bool), 0)
+    return best
+
+
+@pytest.mark.parametrize(("pitch", "ligament"), [(8.0, 3.0), (6.0, 0.5), (5.0, 6.0)])
+def test_most_that_fit_bounds_the_largest_conflict_free_set(plate: Any, pitch: float, ligament: float) -> None:
+    """The count check refuses only what is impossible: ``most_that_fit`` is never below the largest set of sites
+    that can be drilled together (computed exactly here on coarse grids of the plate's top face)."""
+    from cadfeat.design.added_targets import conflicts
+    from cadfeat.study.added_targets import most_that_fit
+
+    shape, holes = plate
+    config = _config(pitch_mm=pitch)
+    config.constraints = ConstraintSettings(edge_distance_mm=3.0, ligament_mm=ligament)
+    sites = allowed_sites(config, shape, holes).sites
+    assert 5 <= len(sites) <= 60
+    exact = _most_at_once(conflicts(sites, 2.75, ligament))
+    bound = most_that_fit(sites, 2.75, ligament)
+    assert exact <= bound <= 2 * exact + 2, (exact, bound)

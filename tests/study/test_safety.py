@@ -23,7 +23,8 @@ import pytest
 from study_helpers import PLATE, STEP, study, write_toml
 
 ROOT = Path(__file__).resolve().parents[2]
-ENV = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/tmp")}
+ENV = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/tmp"),
+       "CADFEAT_CACHE": "off"}  # (the suite never writes into the user's set-up cache: tests/conftest.py)
 TINY = {"trajectory": {"n": 4}, "optimizer": {"starts": 1, "maxiter": 5},
         "design": {"parameters": {"x0": {"lower": -15, "upper": -5}}}}  # (no integer parameter: one setup)
 MEMORY_LIMIT_BYTES = 3 * 2**30

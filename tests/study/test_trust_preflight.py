@@ -18,7 +18,8 @@ TILTED = {"kind": "straight_approach", "start": [80, 30, 250], "end": [60, 20, 1
 
 def cadfeat(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "cadfeat", *args], capture_output=True, text=True, cwd=ROOT,
-                          env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"}, timeout=300)
+                          env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "CADFEAT_CACHE": "off"},
+                          timeout=300)
 
 
 def _w_first_csv(tmp_path: Path) -> Path:

@@ -29,7 +29,9 @@ LINEAR_TOL_MM = 1e-6
 CLASSIFY_STEP_MM = 1e-4  # least step beyond an end along the axis for the inside/outside test (10× linear tol)
 NEAR_ROUND_MIN_RAD = np.radians(200.0)  # a concave partial cylinder spanning at least this is a near-round hole
 CHAMFER_MAX_RATIO = 0.35  # an entrance cone widening the bore by at most max(CHAMFER_MAX_MM, this × bore radius)
-CHAMFER_MAX_MM = 1.0      # is a chamfered rim (a 1 × 45° chamfer on an M4 bore), a wider one a countersink
+CHAMFER_MAX_MM = 1.0      # is a chamfered rim (a 1 × 45° chamfer on an M4 bore), a wider one a countersink;
+CHAMFER_MAX_BORE = 0.9    # CHAMFER_MAX_MM at most this × the bore radius: a cone that about doubles the bore's
+#                           diameter is a countersink's seat, on a small bore or a small part too (Ø0.25 over Ø0.125)
 SAMPLE_DEFLECTION_MM = OUTLINE_CHORD_ERROR_MM / 2
 MIN_CURVE_POINTS = 17  # per curved edge, so that a loop's angular gaps stay small
 ENCIRCLING_MAX_GAP_RAD = np.pi / 4

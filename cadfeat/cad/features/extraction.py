@@ -43,6 +43,7 @@ from cadfeat.cad.features import FaceOutline, Hole
 from cadfeat.cad.features._brep import (
     ANGLE_TOL_RAD,
     AREA_RTOL,
+    CHAMFER_MAX_BORE,
     CHAMFER_MAX_MM,
     CHAMFER_MAX_RATIO,
     CLASSIFY_STEP_MM,
@@ -69,7 +70,7 @@ from cadfeat.cad.features._brep import (
 from cadfeat.cad.features.identity import named
 from cadfeat.cad.tolerance import ModelTolerance
 
-__all__ = ["ANGLE_TOL_RAD", "AREA_RTOL", "CHAMFER_MAX_MM", "CHAMFER_MAX_RATIO", "CLASSIFY_STEP_MM",
+__all__ = ["ANGLE_TOL_RAD", "AREA_RTOL", "CHAMFER_MAX_BORE", "CHAMFER_MAX_MM", "CHAMFER_MAX_RATIO", "CLASSIFY_STEP_MM",
            "ENCIRCLING_MAX_GAP_RAD", "LINEAR_TOL_MM", "MIN_CURVE_POINTS", "NEAR_ROUND_MIN_RAD", "OBLIQUE_RIM_MM",
            "SAMPLE_DEFLECTION_MM", "SkippedHole", "extract_holes", "extract_holes_and_skipped"]
 
@@ -263,14 +264,16 @@ class _Extractor:
 
     def _kind(self, entrance: _End, revs: list[_Revolution], bore: float) -> str:
         """plain / counterbore / countersink, with ", chamfered rim" or ", filleted rim" when the entrance
-        rim is a small cone (widening the bore under it by at most max(``CHAMFER_MAX_MM``, ``CHAMFER_MAX_RATIO`` ×
-        its radius): a 1 × 45° chamfer on a Ø4 bore, 0.5 × 45° on Ø8; a Ø6 countersink on Ø3.4 is wider) or a
+        rim is a small cone (widening the bore under it by at most max(min(``CHAMFER_MAX_MM``, ``CHAMFER_MAX_BORE``
+        × its radius), ``CHAMFER_MAX_RATIO`` × its radius): a 1 × 45° chamfer on a Ø4 bore, 0.5 × 45° on Ø8; a Ø6
+        countersink on Ø3.4 is wider, and so are Ø3.8 over Ø1.8 and Ø0.25 over Ø0.125: a small bore's 1 mm is less) or a
         fillet (torus) blending into the host face."""
         if entrance.wall.is_cone:
             below = [r for r in revs if not r.is_cone]
             # the cylinder the entrance cone leads into: the widest one narrower than the cone's rim
             under = max((c.r0 for c in below if c.r0 < entrance.radius - self.lin), default=bore)
-            if entrance.radius - under <= max(CHAMFER_MAX_MM, CHAMFER_MAX_RATIO * under) + self.lin:
+            chamfer_max = max(min(CHAMFER_MAX_MM, CHAMFER_MAX_BORE * under), CHAMFER_MAX_RATIO * under)
+            if entrance.radius - under <= chamfer_max + self.lin:
                 base = "counterbore" if under > bore + self.lin else "plain"
                 return f"{base}, chamfered rim"
             return "countersink"

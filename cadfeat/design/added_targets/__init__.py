@@ -6,7 +6,15 @@ The study phase is ``cadfeat.study.added_targets``; the CAD side ``cadfeat.cad.d
 from cadfeat.design.added_targets.greedy import GreedyResult, exhaustive, lazy_greedy
 from cadfeat.design.added_targets.objective import PoseScene, TargetObjective
 from cadfeat.design.added_targets.refine import Movable, Refined, refine
-from cadfeat.design.added_targets.sites import FaceRules, Sites, conflicts, face_grid, site_margins, sites_on_faces
+from cadfeat.design.added_targets.sites import (
+    FaceRules,
+    Sites,
+    conflicts,
+    face_grid,
+    keepin_margin,
+    site_margins,
+    sites_on_faces,
+)
 
 __all__ = ["FaceRules", "GreedyResult", "Movable", "PoseScene", "Refined", "Sites", "TargetObjective", "conflicts",
-           "exhaustive", "face_grid", "lazy_greedy", "refine", "site_margins", "sites_on_faces"]
+           "exhaustive", "face_grid", "keepin_margin", "lazy_greedy", "refine", "site_margins", "sites_on_faces"]

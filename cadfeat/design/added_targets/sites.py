@@ -8,7 +8,10 @@ A site is the rim centre of a new blind hole of rim radius ``R`` (drill radius +
 - ``keepout``:  distance(centre, each keep-out polygon of the face: slots, pockets) − R − keepout_mm;
 - ``ligament``: ‖c − c_h‖ − R − r_h − ligament_mm to every hole h of the part on that face (and, in the
   greedy choice, to every hole already added: ``conflicts``);
-- ``box``:      distance(centre, each keep-out box of the study, 3-D) − R − ligament_mm.
+- ``box``:      distance(centre, each keep-out box of the study, 3-D) − R − ligament_mm;
+- ``keepin``:   with keep-in boxes, how far the whole rim lies inside the best of them: per box
+  min_i(min(p_i − lo_i, hi_i − p_i) − R √(1 − n_i²)) (a circle of radius R in a plane of normal n reaches
+  R √(1 − n_i²) along axis i), the largest over the boxes.
 
 All functions are batched over sites (no Python loop over sites). Units: mm, part frame.
 """
@@ -16,14 +19,15 @@ All functions are batched over sites (no Python loop over sites). Units: mm, par
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from cadfeat.cad.features import FaceOutline
 from cadfeat.design.constraints import _pad_polygons, point_polygon_distance  # pyright: ignore[reportPrivateUsage]
 
-__all__ = ["FaceRules", "Sites", "box_distance", "conflicts", "face_grid", "site_margins", "sites_on_faces"]
+__all__ = ["FaceRules", "Sites", "box_distance", "conflicts", "face_grid", "keepin_margin", "site_margins",
+           "sites_on_faces"]
 
 
 @dataclass(frozen=True)
@@ -40,6 +44,8 @@ class FaceRules:
     edge_distance_mm: float
     ligament_mm: float
     keepout_mm: float
+    keepin: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    """(B, 6) keep-in boxes [xmin, ymin, zmin, xmax, ymax, zmax] mm: the rim must lie inside one (none: anywhere)."""
 
 
 @dataclass(frozen=True)
@@ -81,6 +87,16 @@ def box_distance(points: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     return np.linalg.norm(gap, axis=-1)
 
 
+def keepin_margin(points: np.ndarray, normal: np.ndarray, radius_mm: float, boxes: np.ndarray) -> np.ndarray:
+    """(...,) mm: how far a rim circle (centre ``points`` (..., 3), plane normal ``normal`` (3,), radius
+    ``radius_mm``) lies inside the best of the axis-aligned ``boxes`` (B, 6) — ≥ 0 inside one, negative outside
+    all (module docstring)."""
+    p = np.asarray(points, float)[..., None, :]
+    reach = radius_mm * np.sqrt(np.clip(1.0 - np.square(np.asarray(normal, float)), 0.0, 1.0))
+    inside = np.minimum(p - boxes[:, :3], boxes[:, 3:] - p) - reach
+    return np.max(np.min(inside, axis=-1), axis=-1)
+
+
 def site_margins(uv: np.ndarray, rules: FaceRules) -> dict[str, np.ndarray]:
     """Each requirement's least margin (...,) mm at face coordinates ``uv`` (..., 2) (module docstring);
     a requirement with nothing to keep apart from gives +inf."""
@@ -107,6 +123,7 @@ def site_margins(uv: np.ndarray, rules: FaceRules) -> dict[str, np.ndarray]:
         out["box"] = np.min(box_distance(o.to_3d(uv), rules.boxes), axis=-1) - R - rules.ligament_mm
     else:
         out["box"] = inf
+    out["keepin"] = keepin_margin(o.to_3d(uv), o.normal, R, rules.keepin) if len(rules.keepin) else inf
     return out
 
 

@@ -240,11 +240,17 @@ class _TrustRegionLoop:
         return None
 
 
+#: How far (mm) a rebuilt hole may lie from the feature model's prediction and still pair with it: the model of a
+#: part whose map is not linear (a bolt circle turned by its phase) predicts away from its linearisation point only
+#: approximately.
+MATCH_TOL_MM = 5.0
+
+
 def solve_with_cad(problem: CadProblem, rebuild: Callable[[np.ndarray], list[Hole]],
                    config: OptimizerConfig | None = None,
                    *, refresh: Callable[[np.ndarray, list[Hole]], Any] | None = None, max_rounds: int = 6,
-                   tol_mm: float = 1e-6, match_tol_mm: float = 5.0, shrink: float = 0.5, fd_rel_step: float = 1e-4,
-                   progress: Callable[[JsonDict], None] | None = None) -> OptimResult:
+                   tol_mm: float = 1e-6, match_tol_mm: float = MATCH_TOL_MM, shrink: float = 0.5,
+                   fd_rel_step: float = 1e-4, progress: Callable[[JsonDict], None] | None = None) -> OptimResult:
     """Optimise ``problem`` on its feature model and verify with CAD (module docstring).
 
     ``rebuild(x) -> list[Hole]``: build the part at design x and extract its holes (any order; raising =

@@ -327,9 +327,29 @@
     overlayHash: function () { var d = $('camoverlay').getContext('2d').getImageData(0, 0, C.w, C.h).data, h = 0;
       for (var i = 0; i < d.length; i += 4) h = (h * 31 + d[i] + 7 * d[i + 1] + 13 * d[i + 3]) % 1000000007; return h; }
   };
-  fetch('/api/scene').then(function (r) { return r.json(); }).then(function (scene) {
-    S = scene;
-    $('study').textContent = S.study + ' — ' + S.part + ' (' + S.objectives.join(', ') + ', ' + S.aggregate + ')';
-    setup3d(); sliders(); evaluate();
-  }).catch(function (e) { message('could not load the study: ' + e, true); });
+  // the server answers at once and sets the study up meanwhile: show its progress until it is ready
+  function setupText(st) {
+    var cache = st.cache === 'hit' ? ' (read from the set-up cache' + (st.cache_saved_s ? '; it took ' +
+      Math.round(st.cache_saved_s) + ' s to make' : '') + ')' : '';
+    return st.phase + cache + ' — ' + Number(st.elapsed_s).toFixed(1) + ' s';
+  }
+  function loadScene() {
+    fetch('/api/scene').then(function (r) { return r.json(); }).then(function (scene) {
+      S = scene;
+      $('study').textContent = S.study + ' — ' + S.part + ' (' + S.objectives.join(', ') + ', ' + S.aggregate + ')';
+      setup3d(); sliders(); evaluate();
+    }).catch(function (e) { message('could not load the study: ' + e, true); });
+  }
+  function waitForSetup() {
+    fetch('/api/status').then(function (r) { return r.json(); }).then(function (st) {
+      document.body.dataset.setup = st.state;
+      if (st.state === 'ready') { $('status').textContent = 'study ready in ' + Number(st.ready_s).toFixed(1) + ' s' +
+        (st.cache === 'hit' ? ' (set-up read from the cache)' : ''); loadScene(); return; }
+      if (st.state === 'failed') { $('status').textContent = 'set-up failed'; message(st.error, true); return; }
+      $('study').textContent = st.study;
+      $('status').textContent = 'setting the study up: ' + setupText(st);
+      setTimeout(waitForSetup, 250);
+    }).catch(function (e) { message('the explorer stopped (see its terminal): ' + e, true); });
+  }
+  waitForSetup();
 })();

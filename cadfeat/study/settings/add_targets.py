@@ -2,10 +2,10 @@
 
 Moving and resizing the holes a part already has gains little when the part has few of them; drilling a few
 small blind target holes where the camera sees them well is the lever that lowers the predicted pose error most.
-This section says where holes may be added (``faces``, minus ``keepout_boxes``), the drill (a diameter of the
-study's ``[shop] hole_sizes`` table, a blind depth, a 45° rim chamfer), the most to add, and when to stop
-(``target_error_mm`` reached, or one more hole gains less than ``min_gain_percent``). The study phase is
-``cadfeat.study.added_targets``; units are in the key names (mm, percent).
+This section says where holes may be added (``faces``, minus ``keepout_boxes``, within ``keepin_boxes``), the
+drill (a diameter of the study's ``[shop] hole_sizes`` table, a blind depth, a 45° rim chamfer), the most to add,
+and when to stop (``target_error_mm`` reached, or one more hole gains less than ``min_gain_percent``). The study
+phase is ``cadfeat.study.added_targets``; units are in the key names (mm, percent).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 import re
 from typing import ClassVar, Self
 
-from pydantic import field_validator, model_validator
+from pydantic import ValidationInfo, field_validator, model_validator
 
 from cadfeat.study.settings._base import Settings, Tuple, boolean, choice, integer, number, reject
 
@@ -43,6 +43,11 @@ class AddTargetsSettings(Settings):
     keepout_boxes: Tuple[Tuple[float]] = choice(
         (), "a list of boxes [xmin, ymin, zmin, xmax, ymax, zmax] (mm, part frame), each min < max",
         description="regions no added hole's rim may enter (e.g. a motor's outline), plus [constraints] ligament_mm")
+    keepin_boxes: Tuple[Tuple[float]] = choice(
+        (), "a list of boxes [xmin, ymin, zmin, xmax, ymax, zmax] (mm, part frame), each min < max and holding part "
+            "of an allowed face",
+        description="a keep-in region: each added hole's whole rim must lie inside one of these boxes; none: "
+                    "anywhere on the allowed faces")
     diameter_mm: float = number(5.5, 0.0, 50.0, lo_open=True,
                                 description="drill diameter, a size of the study's [shop] hole_sizes table")
     depth_mm: float = number(3.0, 0.0, 100.0, lo_open=True,
@@ -68,12 +73,12 @@ class AddTargetsSettings(Settings):
             raise reject("faces", "a face is listed twice", FACE_TEXT)
         return value
 
-    @field_validator("keepout_boxes")
+    @field_validator("keepout_boxes", "keepin_boxes")
     @classmethod
-    def _boxes(cls, value: tuple[tuple[float, ...], ...]) -> tuple[tuple[float, ...], ...]:
+    def _boxes(cls, value: tuple[tuple[float, ...], ...], info: ValidationInfo) -> tuple[tuple[float, ...], ...]:
         for box in value:
             if len(box) != 6 or not all(box[i] < box[i + 3] for i in range(3)):
-                raise reject("keepout_boxes", f"{list(box)} is not allowed",
+                raise reject(str(info.field_name), f"{list(box)} is not allowed",
                              "a list of boxes [xmin, ymin, zmin, xmax, ymax, zmax] (mm), each min < max")
         return value
 
