@@ -38,6 +38,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.design_space import FeatureModel
     from cadfeat.design.objectives import ObjectiveConfig
     from cadfeat.measures.depth import DepthMaps
+    from cadfeat.measures.glare import GlareMaps
     from cadfeat.measures.pose_information import PoseInformation
     from cadfeat.measures.pose_models import HoleGeometry, PoseModels
 
@@ -69,6 +70,8 @@ class PoseProblem(Protocol):
     def cell(self) -> Cell: ...
     @property
     def fixed_mask(self) -> np.ndarray: ...
+    @property
+    def glare(self) -> GlareMaps | None: ...
 
 
 def hole_attributes(problem: PoseProblem, radii: np.ndarray,
@@ -113,8 +116,8 @@ def pose_of_features(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray
                             noise_grey=problem.cell.noise_sigma_grey, contrast_rate=rate)
 
 
-def glare_rate(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, through: np.ndarray,
-               noise_grey: Any) -> np.ndarray | None:
+def glare_rate(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+               through: np.ndarray, noise_grey: float | np.ndarray) -> np.ndarray | None:
     """(B·L, N) the detection rate's factor from the part's own light (``measures.glare.contrast_rate``) of B
     designs' holes (B, N, …) at the problem's L poses, design-major; 1 for through holes; None when the problem
     has no glare maps or the cell's material does not return light from its bores

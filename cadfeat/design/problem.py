@@ -47,6 +47,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from collections.abc import Sequence
 
     from cadfeat.camera import Camera
+    from cadfeat.measures.glare import GlareMaps
     from cadfeat.results import JsonDict
     from cadfeat.trajectory import Trajectory
 
@@ -119,7 +120,7 @@ class Problem:
         n = len(model.holes)
         self.fixed_mask = np.zeros(n, dtype=bool) if fixed_mask is None else np.asarray(fixed_mask, dtype=bool)
         self.occlusion_mesh = occlusion_mesh
-        self._glare: Any = None  # measures.glare.GlareMaps at the nominal poses (set_glare), or None
+        self._glare: GlareMaps | None = None  # at the nominal poses (set_glare), or None
         if feature_mask is not None:
             self.feature_mask = np.asarray(feature_mask, dtype=bool)
         else:
@@ -274,13 +275,13 @@ class Problem:
         other._glare = self._glare
         return other
 
-    def set_glare(self, maps: Any) -> None:
+    def set_glare(self, maps: GlareMaps | None) -> None:
         """g_POSE's glare maps (``measures.glare.GlareMaps`` at this problem's poses, ``render.glare.glare_maps``):
         a blind rim in a conductor is found as often as its contrast to the rendered face allows; None: off."""
         self._glare = maps
 
     @property
-    def glare(self) -> Any:
+    def glare(self) -> GlareMaps | None:
         """The glare maps for this problem's poses (tiled when the poses are stacked copies of the trajectory,
         as ``occlusion``), or None."""
         maps = self._glare

@@ -65,6 +65,8 @@ from cadfeat.study.setup import StudySetup
 if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape
 
+    from cadfeat.cad.parts import Part
+    from cadfeat.cad.step_parts import StepPart
     from cadfeat.design.objectives import Normaliser
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import Scene
@@ -335,10 +337,10 @@ class _LazyCad:
     def __init__(self, config: StudyConfig, view: np.ndarray | None, brep: bytes | None, time_limit_s: float | None):
         self.config, self.view, self.brep, self.time_limit_s = config, view, brep, time_limit_s
         self._lock = threading.RLock()
-        self._part: Any = None
+        self._part: Part | StepPart | None = None
         self._shape: Shape | None = None
 
-    def part(self) -> Any:
+    def part(self) -> Part | StepPart:
         with self._lock:
             if self._part is None:
                 path = self.config.study.part_path
@@ -358,7 +360,7 @@ class _LazyCad:
             shape = self._shape
             if shape is None:
                 if self.brep is None:
-                    shape = cast("Shape", self.part().shape)
+                    shape = self.step().shape  # (a STEP part: its own solid; a script's is kept as BRep)
                 else:
                     import cadquery as cq
 
@@ -368,7 +370,15 @@ class _LazyCad:
                 self._shape = shape
             return shape
 
-    def set_part(self, part: Any) -> None:
+    def step(self) -> StepPart:
+        """The part of a STEP study (``part``)."""
+        return cast("StepPart", self.part())
+
+    def script(self) -> Part:
+        """The part of a part-script study (``part``)."""
+        return cast("Part", self.part())
+
+    def set_part(self, part: Part | StepPart | None) -> None:
         if part is not None:
             self._part = part
 
@@ -504,11 +514,11 @@ def _from_products(config: StudyConfig, scene: Scene, p: Mapping[str, Any], norm
     cad = _LazyCad(config, p["view_direction"], p["brep"], time_limit_s)
     view = p["view_direction"]
     if config.study.part_kind == "step":
-        rebuild_shape, rebuild_holes = step_rebuilders(config, cad.part, p["model"], view, time_limit_s)
+        rebuild_shape, rebuild_holes = step_rebuilders(config, cad.step, p["model"], view, time_limit_s)
         values = p["space"].as_dict
     else:
         values = p["values"]
-        rebuild_shape, rebuild_holes = script_rebuilders(cad.part, values, view)
+        rebuild_shape, rebuild_holes = script_rebuilders(cad.script, values, view)
     return CachedSetup(cad, config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                        holes0=list(p["holes0"]), fixed_mask=p["fixed_mask"], movable_mask=p["movable_mask"],
                        space=p["space"], model=p["model"], problem=problem, constraints=p["constraints"],
