@@ -46,8 +46,9 @@ test-kernels: $(STAMP)
 	done
 
 # ruff; pyright basic on the package (pyrightconfig.json: the rules that fail on the CadQuery/OCP/numpy stubs
-# are listed there, off) and strict on measures/ and the study settings models (pyright-strict.json); the two
-# pyright runs side by side (one core each), the strict run's output after the basic run's.
+# are listed there, off) and strict on measures/, study/, design/, results/ and settings.py (pyright-strict.json,
+# which names the modules left out and why); the two pyright runs side by side (one core each), the strict run's
+# output after the basic run's.
 lint: $(STAMP)
 	$(PY) -m ruff check cadfeat tests benchmarks tools $(wildcard parts studies)
 	log=$$(mktemp); \

@@ -28,10 +28,13 @@ import shutil
 import socket
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from cadfeat._version import __version__
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = ["MANIFEST", "OUTPUT_NAMES", "REPORT_NAMES", "OutputFolderError", "check_output_folder", "is_cadfeat_folder",
            "pid_alive", "remove_stale_staging", "staged_output"]
@@ -50,7 +53,7 @@ class OutputFolderError(CadfeatError):
     """The output folder cannot be used: not cadfeat's, not writable, or not a folder."""
 
 
-def _manifest(folder: Path) -> dict[str, Any] | None:
+def _manifest(folder: Path) -> JsonDict | None:
     """The folder's manifest, or None if it has no valid one (see ``_legacy_manifest`` for folders written
     before the manifest existed)."""
     try:
@@ -64,7 +67,7 @@ def _manifest(folder: Path) -> dict[str, Any] | None:
     return data
 
 
-def _legacy_manifest(folder: Path) -> dict[str, Any] | None:
+def _legacy_manifest(folder: Path) -> JsonDict | None:
     """An output folder of a cadfeat version without manifests: only names cadfeat writes (``OUTPUT_NAMES``),
     and a results.json that cadfeat wrote (it names ``cadfeat_version``). None for anything else."""
     if folder.is_symlink() or not folder.is_dir():

@@ -191,3 +191,35 @@ def shared_case() -> tuple[Path, dict[str, Any], Any]:
     atexit.register(shutil.rmtree, out, True)
     results, context = build_case(out)
     return out, results, context
+
+
+ROBUST_SOURCES = ("cell", "camera", "placement", "path", "pixel_noise", "manufacturing")
+
+
+def _stats(nominal: float, p05: float) -> dict:
+    one = {"nominal": nominal, "mean": (nominal + p05) / 2, "p05": p05, "p10": (nominal + 3 * p05) / 4, "min": p05 - 1}
+    return {s: {"g_FOV": dict(one), "combined": dict(one)} for s in ROBUST_SOURCES}
+
+
+def robustness_block(recommended: str) -> dict:
+    """A hand-written results.json ``robustness`` block (issue 18) whose recommended design is ``recommended``:
+    the report's robust section (tests/report/test_robust_report.py) and its typed model
+    (tests/results/test_typed_sections.py)."""
+    rng = np.random.default_rng(0)
+    designs = {"original": _stats(-0.66, -1.1), "robust": _stats(0.95, 0.35), "nominal": _stats(0.98, -1.3)}
+    block = {"original": designs["original"], "recommended": designs[recommended]}
+    block.update({k: v for k, v in designs.items() if k not in ("original", recommended)})
+    dists = {k: {"combined": {s: list(rng.normal(v["cell"]["combined"]["nominal"], 0.3, 50)) for s in ROBUST_SOURCES},
+                 "objectives_cell": {"g_FOV": list(rng.normal(0.0, 1.0, 50))}} for k, v in designs.items()}
+    return {"objective": {"robust": True, "statistic": "percentile", "label": "p10", "draws": 64, "sampling": "sobol",
+                          "seed": 1},
+            "uncertainty": {"camera_position_mm": [2.0, 2.0, 2.0], "camera_angle_deg": [1.0, 1.0, 1.0]},
+            "designs": block, "recommended": recommended, "delivered": "robust", "reason": "stated reason",
+            "flagged": ["nominal"] + (["robust"] if recommended == "original" else []),
+            "out_of_sample": {"statistic": "p10", "draws_in_sample": 64, "seed_in_sample": 1,
+                              "draws_out_of_sample": 200, "seed_out_of_sample": 2,
+                              "designs": {"original": {"in_sample": -0.9, "out_of_sample": -0.87},
+                                          "robust": {"in_sample": 0.07, "out_of_sample": -0.06},
+                                          "nominal": {"in_sample": -0.2, "out_of_sample": -0.36}}},
+            "sensitivity": {"words": "most sensitive to the camera mounting error (61 %)"},
+            "distributions": dists}

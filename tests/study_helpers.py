@@ -6,6 +6,10 @@ import copy
 import importlib.util
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import pytest
 
 DATA = Path(__file__).parent / "data"
 PLATE = DATA / "study_plate.py"
@@ -23,6 +27,28 @@ BASE = {
     "optimizer": {"method": "multistart", "starts": 2},
     "robustness": {"robust": False},  # the nominal optimum: robust studies are tested in test_robust*.py
 }
+
+
+#: The kept requirements of ``SMALL`` (tests re-check them on the written STEP).
+EDGE_MM, LIGAMENT_MM = 3.0, 2.5
+#: A small script study optimised end to end (tests/study/test_study_run.py, the results model, compare_results).
+SMALL = {
+    "study": {"name": "small_plate", "part": str(PLATE), "seed": 7},
+    "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 200.0},
+    "trajectory": {"kind": "straight_approach", "start": [-60.0, -80.0, 260.0], "end": [40.0, -40.0, 180.0],
+                   "target": [0.0, 0.0, 6.0], "n": 12, "duration_s": 2.0},
+    "design": {"parameters": {"x0": {"lower": -18.0, "upper": -4.0}, "y0": {"lower": -8.0, "upper": 12.0}}},
+    "constraints": {"edge_distance_mm": EDGE_MM, "ligament_mm": LIGAMENT_MM},
+    "objective": {"measures": ["fov", "resolution", "resolvability"], "aggregate": "sum", "combine": "maxmin",
+                  "rotation_length_mm": 50.0},
+    "optimizer": {"method": "multistart", "starts": 2, "maxiter": 25},
+    "robustness": {"robust": False},  # the nominal optimum: robust studies are tested in test_robust*.py
+}
+
+
+def no_report(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Skip the (slow, separately tested) report rendering in runs that check other things."""
+    monkeypatch.setattr("cadfeat.study.run._report", lambda *a, **k: None)
 
 
 def plate_study(name: str) -> dict:

@@ -151,3 +151,24 @@ def test_no_import_circle_among_sub_packages():
         for t in node:
             graph.setdefault(t, set())
     assert _cycle(graph) is None, f"import loop between sub-packages: {' -> '.join(_cycle(graph) or [])}"
+
+
+def test_tests_mirror_the_package():
+    """Tests mirror the package (issue 29 item 6): every sub-folder of tests/ with test modules names a sub-package
+    or a module of cadfeat (tests/cli/ for cadfeat/cli/, tests/results/ for cadfeat/results/, …), so a module's
+    tests are where a reader looks for them; tests/data holds fixtures only. A flat test module names no
+    sub-package (``tools/move_tests.py`` moves the others)."""
+    tests = ROOT / "tests"
+    folders = sorted(p for p in tests.iterdir() if p.is_dir() and not p.name.startswith((".", "_")))
+    assert folders
+    for folder in folders:
+        modules = sorted(folder.rglob("test_*.py"))
+        if folder.name == "data":
+            assert not modules, f"tests/data holds fixtures, not tests: {[m.name for m in modules]}"
+            continue
+        assert (PACKAGE / folder.name / "__init__.py").is_file() or (PACKAGE / f"{folder.name}.py").is_file(), \
+            f"tests/{folder.name}/ names no sub-package or module of cadfeat"
+    subpackages = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file()}
+    for path in sorted(tests.glob("test_*.py")):
+        assert path.stem.removeprefix("test_") not in subpackages, \
+            f"tests/{path.name} tests cadfeat/{path.stem.removeprefix('test_')}/: it belongs in that folder"

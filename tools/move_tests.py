@@ -3,13 +3,16 @@
 
     tools/move_tests.py [--dry-run]
 
-Re-runnable: after merging branches that edited or added tests in the flat ``tests/`` folder, run it again and
-commit the result as one pure move. For each ``tests/test_*.py`` it picks a folder (``folder_of``: an explicit
-table, then name prefixes; unknown names stay in ``tests/``), ``git mv``s the file, and rewrites the one thing a
-move changes inside a test: paths computed from ``Path(__file__)`` (one folder deeper: ``.parent`` →
-``.parents[1]``, ``.parents[1]`` → ``.parents[2]``). Mentions of moved tests (``tests/test_x.py``) in README.md, docs/,
-the package's docstrings, benchmarks and the tests themselves are updated. The shared helpers and ``data/`` stay
-in ``tests/`` (``tests/conftest.py`` puts that folder on ``sys.path``).
+Re-runnable: after merging branches that edited or added tests, run it again and commit the result as one pure
+move. For each ``tests/test_*.py`` it picks a folder (``folder_of``: an explicit table, then name prefixes; unknown
+names stay in ``tests/``); a test already in a sub-folder moves only when the explicit table names another one
+(``tests/study/test_study_cli.py`` → ``tests/cli/``: a module's tests sit in the folder of the sub-package they
+test, ``tests/test_layout.py`` checks that every folder names one). It ``git mv``s the file, and rewrites the one
+thing a move changes inside a test: paths computed from ``Path(__file__)`` (one folder deeper: ``.parent`` →
+``.parents[1]``, ``.parents[1]`` → ``.parents[2]``). Mentions of moved tests (``tests/test_x.py``,
+``tests/study/test_x.py``) in README.md, docs/, the package's docstrings, benchmarks and the tests themselves are
+updated. The shared helpers and ``data/`` stay in ``tests/`` (``tests/conftest.py`` puts that folder on
+``sys.path``); a test imports no other test module (they may sit in different folders).
 """
 
 from __future__ import annotations
@@ -30,12 +33,14 @@ EXPLICIT = {
     "test_trust_foldover": "measures", "test_hole_identity": "cad", "test_occt_behaviour": "cad",
     "test_features": "cad", "test_parts": "cad", "test_redrill": "cad", "test_export": "cad",
     "test_design_map": "cad", "test_optimize": "design", "test_shop": "design", "test_robustness": "design",
-    "test_patterns": "design", "test_camera": "", "test_poses": "", "test_trajectory": "", "test_package": "",
+    "test_patterns": "design", "test_camera": "", "test_poses": "", "test_package": "",
     "test_layout": "", "test_build_failures": "study", "test_start_independence": "study",
-    "test_memory_budget": "design", "test_outline_motion": "design", "test_pose_objective": "design",
+    "test_memory_budget": "design", "test_pose_objective": "design",
     "test_cqgi_parts": "cad", "test_real_step_parts": "cad", "test_explore": "explore",
     "test_explore_browser": "explore", "test_campaign": "campaign", "test_real_step_study": "study",
-    "test_occt_real_exports": "cad",
+    "test_occt_real_exports": "cad", "test_outline_motion": "cad", "test_trajectory": "trajectory",
+    "test_results_model": "results", "test_typed_sections": "results", "test_study_cli": "cli",
+    "test_render_cli": "cli", "test_plan_recording": "cli", "test_docs": "",
 }
 #: Name prefix → folder, tried in order after ``EXPLICIT``.
 PREFIXES = (("test_measures_", "measures"), ("test_step_", "cad"), ("test_optim_", "design"),
@@ -62,11 +67,15 @@ def deeper(text: str) -> str:
 
 
 def plan() -> dict[Path, Path]:
-    """Every flat test module and where it goes."""
+    """Every test module not where it belongs, and where it goes (module docstring)."""
     moves = {}
     for path in sorted(TESTS.glob("test_*.py")):
         folder = folder_of(path.stem)
         if folder:
+            moves[path] = TESTS / folder / path.name
+    for path in sorted(TESTS.glob("*/test_*.py")):
+        folder = EXPLICIT.get(path.stem)
+        if folder and folder != path.parent.name:
             moves[path] = TESTS / folder / path.name
     return moves
 
@@ -90,8 +99,10 @@ def main(argv: list[str] | None = None) -> int:
     for src, dst in moves.items():
         dst.parent.mkdir(exist_ok=True)
         subprocess.run(["git", "mv", str(src), str(dst)], cwd=ROOT, check=True)
-        dst.write_text(deeper(dst.read_text(encoding="utf-8")), encoding="utf-8")
-    names = {f"tests/{src.name}": f"tests/{dst.relative_to(TESTS).as_posix()}" for src, dst in moves.items()}
+        if src.parent == TESTS:  # one folder deeper (a move between sub-folders keeps the depth)
+            dst.write_text(deeper(dst.read_text(encoding="utf-8")), encoding="utf-8")
+    names = {f"tests/{src.relative_to(TESTS).as_posix()}": f"tests/{dst.relative_to(TESTS).as_posix()}"
+             for src, dst in moves.items()}
     pattern = re.compile("|".join(re.escape(k) for k in sorted(names, key=len, reverse=True)))
     for f in _mentions():
         text = f.read_text(encoding="utf-8")

@@ -54,11 +54,14 @@ import types
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = ["BOUNDS_COMMENT", "ScriptConstant", "cad_shapes", "cqgi_parameters", "getparams", "is_cqgi_script",
            "load_cqgi_part", "script_constants", "unit_view_direction"]
@@ -177,7 +180,7 @@ def _descriptions(tree: ast.Module) -> dict[str, str]:
     return out
 
 
-def _substituted(tree: ast.Module, constants: dict[str, ScriptConstant], values: dict[str, Any]) -> ast.Module:
+def _substituted(tree: ast.Module, constants: dict[str, ScriptConstant], values: JsonDict) -> ast.Module:
     """A copy of ``tree`` with each constant named in ``values`` assigned that value (a literal in place of
     the script's own: ``-12.0`` and ``x: float = 90.0`` are written like any other constant)."""
     out = copy.deepcopy(tree)
@@ -221,7 +224,7 @@ def _model(path: Path) -> Any:
 
 
 def cqgi_parameters(path: str | Path, parameter_cls: Callable[..., Any], script: _Script | None = None
-                    ) -> dict[str, Any]:
+                    ) -> JsonDict:
     """The numeric constants of the script (``script_constants``: negative and annotated ones included), as
     ``parameter_cls`` (``cadfeat.cad.parts.Parameter``, passed in so that this module does not import ``parts``,
     which dispatches here) by name, in the script's order; bounds and unit from the ``# [lower, upper] unit``
@@ -257,9 +260,9 @@ def cqgi_parameters(path: str | Path, parameter_cls: Callable[..., Any], script:
     return out
 
 
-def _text_constants(script: _Script) -> dict[str, Any]:
+def _text_constants(script: _Script) -> JsonDict:
     path, consts = script.path, script.constants
-    out: dict[str, Any] = {}
+    out: JsonDict = {}
     for key in ("DESCRIPTION", "FIXED_HOLES"):
         value = consts[key].value if key in consts else ""
         if not isinstance(value, str):
@@ -421,7 +424,7 @@ def load_cqgi_part(path: str | Path, part_cls: Callable[..., Any], parameter_cls
                 module)
 
 
-def getparams(path: str | Path) -> list[dict[str, Any]]:
+def getparams(path: str | Path) -> list[JsonDict]:
     """cq-cli's ``--getparams`` listing of a CQGI script: one object per top-level constant
     (``script_constants``: negative and annotated ones too, which CQGI's own finder misses), in the script's
     order, with ``type`` (number | string | boolean; none for tuples), ``name``, ``caption`` (the
@@ -433,7 +436,7 @@ def getparams(path: str | Path) -> list[dict[str, Any]]:
     cqgi_meta = _model(path).metadata.parameters
     out = []
     for name, c in script.constants.items():
-        entry: dict[str, Any] = {}
+        entry: JsonDict = {}
         kind = "boolean" if isinstance(c.value, bool) else "number" if isinstance(c.value, int | float) \
             else "string" if isinstance(c.value, str) else None
         if kind:

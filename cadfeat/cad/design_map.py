@@ -33,6 +33,7 @@ from cadfeat.errors import CadfeatError
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
     from cadfeat.cad.parts import Part
+    from cadfeat.results import JsonDict
 
 __all__ = ["LINEAR_TOL_MM", "MOVE_TOL", "DesignMap", "design_map", "reference_design_map", "reference_designs"]
 
@@ -123,7 +124,7 @@ def _form(holes: Sequence[Hole]) -> tuple[np.ndarray, np.ndarray]:
     return (np.array([float(h.depth_mm) for h in holes]), np.array([float(h.bore_radius_mm) for h in holes]))
 
 
-def _matched(part: Part, params: dict[str, Any], reference: Sequence[Hole], what: str,
+def _matched(part: Part, params: JsonDict, reference: Sequence[Hole], what: str,
              tol_mm: float, timeout_s: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Hole]]:
     """Centres, axes, radii and the holes of a build at ``params`` in ``reference`` order (matched by geometry)."""
     holes = part.holes_timed(params, timeout_s)
@@ -212,7 +213,7 @@ def design_map(part: Part, names: Sequence[str], at: Mapping[str, Any] | None = 
                      outline_rates(holes0, sides[0], sides[1], spans), dD, dB)
 
 
-def _check_linear(part: Part, x: dict[str, Any], name: str, holes0: Sequence[Hole],
+def _check_linear(part: Part, x: JsonDict, name: str, holes0: Sequence[Hole],
                   grads: tuple[np.ndarray, ...], big_step: float,
                   match_tol_mm: float, timeout_s: float | None) -> tuple[bool, float, float]:
     """Build at a larger step; (linear?, max deviation mm of centres, radii, depths and bores, the signed step)."""

@@ -19,13 +19,16 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.cad.features import FaceOutline, Hole, extract_holes
 from cadfeat.cad.tolerance import ModelTolerance
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import ShapeLike
 
 __all__ = ["OUTSIDE_MM", "AddedHole", "PlanarFace", "added_hole", "drill_targets", "planar_faces",
            "verify_drilled"]
@@ -82,7 +85,7 @@ def added_hole(added: AddedHole, host_face: int = -1, outline: FaceOutline | Non
                 through=False, kind=kind, host_face=host_face, outline=outline, name=added.name)
 
 
-def planar_faces(shape: Any, min_area_mm2: float = 1.0) -> list[PlanarFace]:
+def planar_faces(shape: ShapeLike, min_area_mm2: float = 1.0) -> list[PlanarFace]:
     """Every planar face of ``shape`` (a cadquery Shape) of at least ``min_area_mm2``, with its outline in which
     the rims of the part's extracted holes are not keep-outs (they are holes: kept apart by the ligament), and
     the indices of the extracted holes that open into it (``extract_holes`` order)."""
@@ -141,9 +144,9 @@ def _volume_mm3(added: AddedHole) -> float:
     return float(np.pi * r * r * h + frustum - np.pi * r * r * c)
 
 
-def drill_targets(shape: Any, added: Sequence[AddedHole], holes_before: Sequence[Hole] | None = None,
+def drill_targets(shape: ShapeLike, added: Sequence[AddedHole], holes_before: Sequence[Hole] | None = None,
                   tol: ModelTolerance | None = None, label: str = "the part",
-                  prefer_direction: Sequence[float] | None = None) -> tuple[Any, list[Hole]]:
+                  prefer_direction: Sequence[float] | np.ndarray | None = None) -> tuple[Any, list[Hole]]:
     """``shape`` (a cadquery Shape holding one solid) with the ``added`` blind holes cut, verified (module
     docstring); returns (the solid, its holes: the part's holes as before, in their order and names, then
     the added ones named as ``added``). ``holes_before``: the part's holes (default: extracted from ``shape``);
@@ -173,8 +176,9 @@ def drill_targets(shape: Any, added: Sequence[AddedHole], holes_before: Sequence
     return result, verify_drilled(result, before, added, tol, label, prefer_direction)
 
 
-def verify_drilled(shape: Any, before: Sequence[Hole], added: Sequence[AddedHole], tol: ModelTolerance | None = None,
-                   label: str = "the part", prefer_direction: Sequence[float] | None = None) -> list[Hole]:
+def verify_drilled(shape: ShapeLike, before: Sequence[Hole], added: Sequence[AddedHole],
+                   tol: ModelTolerance | None = None,
+                   label: str = "the part", prefer_direction: Sequence[float] | np.ndarray | None = None) -> list[Hole]:
     """Re-extract the holes of ``shape`` and find each hole of ``before`` unchanged and each ``added`` hole where
     it was put (centre, axis, rim radius, depth within ``max(1e-3, 10 × tol)`` mm); returns the holes in that
     order (``before``'s names, then the added names). Raises ``CadfeatError`` naming the missing hole."""

@@ -39,7 +39,7 @@ if TYPE_CHECKING:  # pragma: no cover
     import cadquery as cq
     import trimesh
 
-    from cadfeat.cad.features import Hole
+    from cadfeat.cad.features import Hole, ShapeLike
 
 __all__ = [
     "staged_output",
@@ -67,7 +67,7 @@ class ExportError(CadfeatError):
 
 
 # --------------------------------------------------------------------------------------------- helpers
-def _occ_shape(shape: Any) -> Any:
+def _occ_shape(shape: ShapeLike) -> Any:
     """The ``TopoDS_Shape`` of a cadquery Shape/Workplane or of an OCP shape."""
     if hasattr(shape, "vals") and hasattr(shape, "objects"):  # cadquery Workplane
         import cadquery as cq
@@ -116,7 +116,7 @@ def _interface_static_int(values: dict[str, int]) -> Iterator[None]:
             Interface_Static.SetIVal_s(name, value)
 
 
-def shape_volume_mm3(shape: Any) -> float:
+def shape_volume_mm3(shape: ShapeLike) -> float:
     """Volume of a solid (or of all solids of a compound) in mm³, from OCCT mass properties."""
     from OCP.BRepGProp import BRepGProp
     from OCP.GProp import GProp_GProps
@@ -126,7 +126,7 @@ def shape_volume_mm3(shape: Any) -> float:
     return float(props.Mass())
 
 
-def _shape_area_mm2(shape: Any) -> float:
+def _shape_area_mm2(shape: ShapeLike) -> float:
     from OCP.BRepGProp import BRepGProp
     from OCP.GProp import GProp_GProps
 
@@ -174,7 +174,7 @@ def step_length_unit(path: str | os.PathLike[str]) -> str:
     return units.pop()
 
 
-def export_step(shape: Any, path: str | os.PathLike[str], write_pcurves: bool = True) -> Path:
+def export_step(shape: ShapeLike, path: str | os.PathLike[str], write_pcurves: bool = True) -> Path:
     """Write ``shape`` (geometry in mm) to a STEP AP214 file in MILLIMETRES and check the written unit.
 
     The unit is set explicitly (OCCT ``Interface_Static``: ``xstep.cascade.unit`` = ``write.step.unit`` =
@@ -232,7 +232,7 @@ def import_step(path: str | os.PathLike[str]) -> cq.Shape:
 
 
 # -------------------------------------------------------------------------------------------- validity
-def check_solid(shape: Any) -> list[str]:
+def check_solid(shape: ShapeLike) -> list[str]:
     """Problems of a B-rep solid, empty if it is valid.
 
     Runs OCCT's ``BRepCheck_Analyzer`` and lists every non-``NoError`` status per sub-shape
@@ -368,7 +368,7 @@ def _triangulate_as_nurbs(occ: Any, tolerance_mm: float, angular_tolerance_rad: 
         builder.UpdateFace(face, BRep_Tool.Triangulation_s(twin, TopLoc_Location()))
 
 
-def face_meshes(shape: Any, tolerance_mm: float = 0.01,
+def face_meshes(shape: ShapeLike, tolerance_mm: float = 0.01,
                 angular_tolerance_rad: float = 0.1) -> list[tuple[np.ndarray, np.ndarray]]:
     """Per B-rep face: vertices (V, 3) mm and triangles (T, 3) (vertex indices of that face) oriented out of the
     material (reversed faces flipped), from the triangulation ``export_stl`` writes with these tolerances (chord
@@ -402,7 +402,7 @@ def face_meshes(shape: Any, tolerance_mm: float = 0.01,
     return out
 
 
-def mesh_from_shape(shape: Any, tolerance: float = 0.01, angular_tolerance_rad: float = 0.1) -> trimesh.Trimesh:
+def mesh_from_shape(shape: ShapeLike, tolerance: float = 0.01, angular_tolerance_rad: float = 0.1) -> trimesh.Trimesh:
     """Triangle mesh (mm) of a B-rep solid: chord error ≤ ``tolerance`` mm, faces outward, shared vertices.
 
     Triangles of reversed faces are flipped so every normal points out of the material (``face_meshes``);
@@ -418,7 +418,7 @@ def mesh_from_shape(shape: Any, tolerance: float = 0.01, angular_tolerance_rad: 
                            np.concatenate([t + o for (_, t), o in zip(faces, offsets, strict=True)]), process=True)
 
 
-def export_stl(shape: Any, path: str | os.PathLike[str], tolerance_mm: float = 0.01,
+def export_stl(shape: ShapeLike, path: str | os.PathLike[str], tolerance_mm: float = 0.01,
                angular_tolerance_rad: float = 0.1) -> Path:
     """Write a binary STL (mm) of ``shape`` with chord error ≤ ``tolerance_mm`` (absolute, not relative)."""
     from OCP.StlAPI import StlAPI_Writer
@@ -433,8 +433,8 @@ def export_stl(shape: Any, path: str | os.PathLike[str], tolerance_mm: float = 0
     return path
 
 
-def check_stl(path: str | os.PathLike[str], shape: Any = None, tolerance_mm: float = 0.01,
-              original: Any = None) -> list[str]:
+def check_stl(path: str | os.PathLike[str], shape: ShapeLike | None = None, tolerance_mm: float = 0.01,
+              original: ShapeLike | None = None) -> list[str]:
     """Problems of an STL file, empty if it is a good closed mesh of ``shape``.
 
     ``original``: the part as read (a STEP part) — a mesh that is not watertight is then a problem only if the
@@ -503,7 +503,7 @@ def _hole_label(hole: Hole, index: int) -> str:
 
 def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Sequence[Hole], tol_mm: float = 1e-6,
                           expected_volume_mm3: float | None = None, volume_rtol: float = 1e-9,
-                          prefer_direction: Sequence[float] | None = None,
+                          prefer_direction: Sequence[float] | np.ndarray | None = None,
                           volume_uncertainty_mm3: float = 0.0) -> RoundTrip:
     """Re-import a written STEP file and prove it holds the designed part.
 
@@ -566,7 +566,8 @@ def verify_step_roundtrip(step_path: str | os.PathLike[str], expected_holes: Seq
                      max_depth_error_mm=float(errors["depth"].max()), volume_mm3=volume, volume_rel_error=rel)
 
 
-def expected_step_volume(design: Any, original: Any, original_step: str | os.PathLike[str]) -> tuple[float, float]:
+def expected_step_volume(design: ShapeLike, original: ShapeLike,
+                         original_step: str | os.PathLike[str]) -> tuple[float, float]:
     """(volume, uncertainty) in mm³ that a STEP file of ``design`` should have when re-read: the re-read volume of
     the original part's own STEP file (``original_step``, written by the same writer) plus the design's change
     ``V(design) − V(original)`` measured on the in-memory solids; the uncertainty is the original's own volume

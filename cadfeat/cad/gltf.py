@@ -14,18 +14,21 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cadfeat.cad.export import face_meshes
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole, ShapeLike
 
 __all__ = ["MM_TO_M", "export_glb"]
 
 MM_TO_M = 1e-3
 
 
-def _owner(vertices: np.ndarray, holes: Sequence[Any], tol_mm: float) -> int | None:
+def _owner(vertices: np.ndarray, holes: Sequence[Hole], tol_mm: float) -> int | None:
     """Index of the hole whose volume (entrance radius around the axis, from the entrance rim down to its depth)
     holds every vertex of a face, or None. Faces touching the rim from outside (the host face) extend beyond."""
     for j, h in enumerate(holes):
@@ -40,7 +43,7 @@ def _owner(vertices: np.ndarray, holes: Sequence[Any], tol_mm: float) -> int | N
     return None
 
 
-def export_glb(shape: Any, holes: Sequence[Any], path: str | os.PathLike[str], tolerance_mm: float = 0.01,
+def export_glb(shape: ShapeLike, holes: Sequence[Hole], path: str | os.PathLike[str], tolerance_mm: float = 0.01,
                angular_tolerance_rad: float = 0.1) -> Path:
     """Write ``path`` (.glb): node ``part`` and one node per hole named ``hole.name`` (see the module
     docstring). Returns the path."""

@@ -21,7 +21,7 @@ from cadfeat.cell.defaults import HOLE_ENDS
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.cad.features import Hole
+    from cadfeat.cad.features import Hole, ShapeLike
 
 __all__ = ["DRILL_POINT_DEG", "HOLE_ENDS", "drill_point_depth_mm", "drill_point_volume_mm3", "drill_points",
            "with_hole_ends"]
@@ -40,7 +40,7 @@ def drill_point_volume_mm3(radius_mm: float, point_deg: float = DRILL_POINT_DEG)
     return math.pi * radius_mm ** 2 * drill_point_depth_mm(radius_mm, point_deg) / 3.0
 
 
-def drill_points(shape: Any, holes: Sequence[Hole], point_deg: float = DRILL_POINT_DEG) -> Any:
+def drill_points(shape: ShapeLike, holes: Sequence[Hole], point_deg: float = DRILL_POINT_DEG) -> Any:
     """``shape`` (a cadquery Shape or Workplane) with a ``point_deg`` drill point cut into the floor of every blind
     hole of ``holes`` (through holes are left alone); a ``cadquery.Shape``. One boolean cut of all the cones."""
     import cadquery as cq
@@ -70,7 +70,7 @@ def _cone(hole: Hole, point_deg: float) -> Any:
     return cq.Solid.makeCone(r, 0.0, drill_point_depth_mm(r, point_deg), cq.Vector(*floor), cq.Vector(*axis))
 
 
-def with_hole_ends(shape: Any, holes: Sequence[Hole], hole_ends: str) -> Any:
+def with_hole_ends(shape: ShapeLike, holes: Sequence[Hole], hole_ends: str) -> Any:
     """``shape`` with its blind holes' ends as ``hole_ends`` says (module docstring)."""
     if hole_ends not in HOLE_ENDS:
         raise CadfeatError(f"hole_ends: {hole_ends!r} is not allowed; allowed: {', '.join(HOLE_ENDS)}")

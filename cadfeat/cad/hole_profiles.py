@@ -20,7 +20,7 @@ from cadfeat.errors import CadfeatError
 if TYPE_CHECKING:  # pragma: no cover
     import cadquery as cq
 
-    from cadfeat.cad.features import Hole
+    from cadfeat.cad.features import Hole, ShapeLike
     from cadfeat.cad.tolerance import ModelTolerance
 
 __all__ = ["CYLINDER", "CONE", "FILLET", "HoleProfile", "hole_profile", "hole_label", "revolved"]
@@ -363,7 +363,7 @@ def _face_area(face: Any) -> float:
     return float(props.Mass())
 
 
-def hole_profile(shape: Any, hole: Hole, tol: ModelTolerance | None = None, path: Any = None) -> HoleProfile:
+def hole_profile(shape: ShapeLike, hole: Hole, tol: ModelTolerance | None = None, path: Any = None) -> HoleProfile:
     """The wall profile of ``hole`` read from the faces of ``shape`` (exact B-rep geometry).
 
     Collects the cylindrical and conical faces (and the entrance fillet of a ``"..., filleted rim"`` hole)

@@ -65,6 +65,7 @@ if TYPE_CHECKING:  # pragma: no cover
     import cadquery as cq
 
     from cadfeat.cad.features import Hole
+    from cadfeat.results import JsonDict
 
 __all__ = [
     "PARTS_DIR",
@@ -429,7 +430,7 @@ def load_parts(directory: str | os.PathLike[str] | None = None) -> list[Part]:
 
 
 # ------------------------------------------------------------------------------ time-limited builds
-def _worker(path: str, params: dict[str, Any] | None, conn: Any) -> None:
+def _worker(path: str, params: JsonDict | None, conn: Any) -> None:
     """Worker process: import the script, build (``params`` None: import only), send ('ok', BRep bytes) or
     ('error', message)."""
     worker_setup()
@@ -468,7 +469,7 @@ def _import_in_worker(path: Path, timeout_s: float) -> None:
     _in_worker(path, None, timeout_s, "importing the part script")
 
 
-def _in_worker(path: Path, values: dict[str, Any] | None, timeout_s: float, what: str) -> bytes:
+def _in_worker(path: Path, values: JsonDict | None, timeout_s: float, what: str) -> bytes:
     status, payload = run_worker(_worker, (str(path), values), timeout_s, f"{path}: {what}")
     if status != "ok":
         message = payload if payload.startswith(str(path)) else f"{path}: {payload}"

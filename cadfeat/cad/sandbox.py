@@ -19,9 +19,9 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from cadfeat.errors import CadfeatError
 
@@ -206,7 +206,10 @@ def _call_worker(func: Any, args: tuple, conn: Any) -> None:
         conn.close()
 
 
-def call_with_time_limit(func: Any, args: tuple, what: str, timeout_s: float | None) -> Any:
+R = TypeVar("R")
+
+
+def call_with_time_limit(func: Callable[..., R], args: tuple[Any, ...], what: str, timeout_s: float | None) -> R:
     """``func(*args)`` in a worker process within ``timeout_s`` (None: in this process). ``func`` must be
     importable and ``args`` and the result picklable (CadQuery shapes are). A timeout, a dead worker or an
     exception raises ``PartBuildError`` starting with ``what``. Used for the CAD work that is not a part

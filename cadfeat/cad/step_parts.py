@@ -39,7 +39,7 @@ from cadfeat.errors import CadfeatError
 if TYPE_CHECKING:  # pragma: no cover
     import cadquery as cq
 
-    from cadfeat.cad.features import Hole
+    from cadfeat.cad.features import Hole, ShapeLike
     from cadfeat.cad.features.extraction import SkippedHole
 
 __all__ = [
@@ -66,7 +66,7 @@ class StepPart:
 
     name: str
     path: Path
-    shape: Any  # cadquery.Solid
+    shape: cq.Solid
     holes: tuple[Hole, ...] = field(repr=False)
     tolerance: ModelTolerance = field(default_factory=ModelTolerance, repr=False)
     skipped: tuple[SkippedHole, ...] = field(default=(), repr=False)
@@ -134,7 +134,7 @@ class StepPart:
         return lines
 
 
-def load_step(path: str | os.PathLike[str], prefer_direction: Sequence[float] | None = None) -> StepPart:
+def load_step(path: str | os.PathLike[str], prefer_direction: Sequence[float] | np.ndarray | None = None) -> StepPart:
     """Read a STEP part: exactly one solid, its holes extracted and named ``H1``, ``H2``... in the
     deterministic order of ``features.extract_holes``, with tolerances scaled to the model (its size, its
     B-rep tolerances and the file's STEP uncertainty). ``prefer_direction`` (the side the camera looks
@@ -199,7 +199,7 @@ def _check_on_host_plane(move: HoleMove, tol: ModelTolerance, path: Any) -> None
                            f"its host face plane (allowed {tol.linear_mm:.3g} mm)")
 
 
-def _unify(shape: Any) -> cq.Shape:
+def _unify(shape: ShapeLike) -> cq.Shape:
     """Merge same-domain faces and edges (``ShapeUpgrade_UnifySameDomain``), within the model tolerance."""
     import cadquery as cq
     from OCP.ShapeUpgrade import ShapeUpgrade_UnifySameDomain
@@ -210,7 +210,7 @@ def _unify(shape: Any) -> cq.Shape:
     return cq.Shape.cast(unify.Shape())
 
 
-def _single_solid(shape: Any, what: str) -> cq.Solid:
+def _single_solid(shape: ShapeLike, what: str) -> cq.Solid:
     import cadquery as cq
 
     solids = shape.Solids()
@@ -219,7 +219,7 @@ def _single_solid(shape: Any, what: str) -> cq.Solid:
     return cq.Solid(solids[0].wrapped)
 
 
-def volume_change_mm3(before: Any, after: Any) -> float:
+def volume_change_mm3(before: ShapeLike, after: ShapeLike) -> float:
     """Volume ``after`` minus ``before`` (mm³), measured on the changed region only: the volumes of the two
     Boolean differences (material added, material removed), small solids bounded by the changed faces.
 
@@ -230,7 +230,7 @@ def volume_change_mm3(before: Any, after: Any) -> float:
     return shape_volume_mm3(after.cut(before)) - shape_volume_mm3(before.cut(after))
 
 
-def _material_in(shape: Any, tools: Sequence[Any], tol: ModelTolerance) -> tuple[float, float]:
+def _material_in(shape: ShapeLike, tools: Sequence[Any], tol: ModelTolerance) -> tuple[float, float]:
     """(volume of the union of ``tools``, volume of ``shape``'s material inside it), mm³: Booleans of the
     part with small solids bounded by a hole's own surfaces, which OCCT integrates exactly."""
     union = tools[0].fuse(*tools[1:]) if len(tools) > 1 else tools[0]
@@ -245,7 +245,8 @@ def _volume_tolerance(profiles: Sequence[HoleProfile], expected: float, tol: Mod
     return 2.0 * tol.linear_mm * surface + VOLUME_RTOL_FLOOR * abs(expected)
 
 
-def fill_holes(shape: Any, holes: Sequence[Hole], tol: ModelTolerance | None = None, path: Any = None) -> cq.Solid:
+def fill_holes(shape: ShapeLike, holes: Sequence[Hole], tol: ModelTolerance | None = None,
+               path: Any = None) -> cq.Solid:
     """``shape`` with ``holes`` filled: fused with the solid of revolution of each hole's own profile,
     then same-domain faces unified so the filled host faces merge back into one face.
 
@@ -256,7 +257,7 @@ def fill_holes(shape: Any, holes: Sequence[Hole], tol: ModelTolerance | None = N
     return _fill(shape, holes, [hole_profile(shape, h, tol, path) for h in holes], tol, path)
 
 
-def _fill(shape: Any, holes: Sequence[Hole], profiles: Sequence[HoleProfile], tol: ModelTolerance,
+def _fill(shape: ShapeLike, holes: Sequence[Hole], profiles: Sequence[HoleProfile], tol: ModelTolerance,
           path: Any) -> cq.Solid:
     """``fill_holes`` with the holes' profiles already read."""
     if not holes:
@@ -276,7 +277,7 @@ def _fill(shape: Any, holes: Sequence[Hole], profiles: Sequence[HoleProfile], to
     return filled
 
 
-def redrill(shape: Any, moves: Sequence[HoleMove], tol: ModelTolerance | None = None, path: Any = None,
+def redrill(shape: ShapeLike, moves: Sequence[HoleMove], tol: ModelTolerance | None = None, path: Any = None,
             verify: bool = True) -> cq.Solid:
     """Re-drill holes of ``shape``: fill each ``move.hole`` (``fill_holes``), then cut it again at
     ``move.centre`` with entrance radius ``move.radius_mm`` (``HoleProfile.resized``, same axis direction),

@@ -20,7 +20,10 @@ import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape, Workplane
 
 __all__ = ["ModelTolerance", "step_uncertainty_mm"]
 
@@ -46,7 +49,7 @@ class ModelTolerance:
     step_uncertainty_mm: float | None = None
 
     @classmethod
-    def of_shape(cls, shape: Any, step_uncertainty: float | None = None) -> ModelTolerance:
+    def of_shape(cls, shape: Shape | Workplane, step_uncertainty: float | None = None) -> ModelTolerance:
         """The tolerances of ``shape`` (cadquery Shape or OCP TopoDS_Shape), optionally with the STEP file's
         uncertainty (mm, ``step_uncertainty_mm``)."""
         occ = shape.wrapped if hasattr(shape, "wrapped") else shape

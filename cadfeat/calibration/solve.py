@@ -16,7 +16,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,6 +24,9 @@ from cadfeat.calibration.boards import BoardSpec
 from cadfeat.camera import Camera, CameraError
 from cadfeat.errors import CadfeatError
 from cadfeat.vision.image_files import ImageFileError, read_grey
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 #: Fewest images with the board found that a calibration accepts (5 intrinsics + 5 distortion terms need several
 #: views at different tilts; OpenCV's own sample asks for more).
@@ -116,7 +119,7 @@ class CalibrationResult:
     warnings: list[str] = field(default_factory=list)
     fixed_k3: bool = False
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonDict:
         """Plain-data form (the ``<stem>_report.json`` beside the calibration file)."""
         cam = self.camera
         return {

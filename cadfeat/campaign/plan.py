@@ -23,10 +23,13 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.campaign.spec import CampaignError, CampaignFile, case_values, mode_of, parse_campaign
 from cadfeat.study.inputs import canonical_json, sha256_file
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = ["Campaign", "Case", "load_campaign", "sha256_file"]
 
@@ -42,8 +45,8 @@ class Case:
 
     index: int
     name: str
-    values: dict[str, Any]
-    study: dict[str, Any]
+    values: JsonDict
+    study: JsonDict
     input_hash: str
     files: dict[str, str]
     timeout_s: float
@@ -67,7 +70,7 @@ class Campaign:
 _canonical = canonical_json
 
 
-def _read_base(label: str, path: Path) -> dict[str, Any]:
+def _read_base(label: str, path: Path) -> JsonDict:
     if not path.is_file():
         raise CampaignError(f"{label}: campaign.study: file {path} does not exist; allowed: an existing study file "
                             "(TOML), relative to the campaign file")
@@ -80,7 +83,7 @@ def _read_base(label: str, path: Path) -> dict[str, Any]:
     return data
 
 
-def _absolute_paths(study: dict[str, Any], base: Path) -> None:
+def _absolute_paths(study: JsonDict, base: Path) -> None:
     """Make the study's file paths (part, calibration, trajectory CSV) absolute, relative to ``base``."""
     for section, key in _PATH_KEYS:
         table = study.get(section)
@@ -107,7 +110,7 @@ def _expand_parts(label: str, key: str, values: list[Any], base: Path, single: b
     return out
 
 
-def _camera(value: Any, base: Path, label: str, key: str) -> dict[str, Any]:
+def _camera(value: Any, base: Path, label: str, key: str) -> JsonDict:
     if isinstance(value, str):
         return {"preset": value}
     if isinstance(value, Mapping):
@@ -119,7 +122,7 @@ def _camera(value: Any, base: Path, label: str, key: str) -> dict[str, Any]:
                         "a [camera] table ({preset = ...}, {calibration = \"file.yaml\"} or intrinsics)")
 
 
-def _apply(study: dict[str, Any], key: str, value: Any) -> None:
+def _apply(study: JsonDict, key: str, value: Any) -> None:
     if key == "part":
         study.setdefault("study", {})["part"] = value
     elif key == "camera":
@@ -181,7 +184,7 @@ def _describe(values: Mapping[str, Any]) -> str:
     return ", ".join(f"{k}={v}" for k, v in values.items())
 
 
-def _validated(label: str, index: int, shown: Mapping[str, Any], study: dict[str, Any]) -> dict[str, Any]:
+def _validated(label: str, index: int, shown: Mapping[str, Any], study: JsonDict) -> JsonDict:
     """The study's own validator on one case: its resolved dict (defaults filled in), or ``CampaignError``."""
     from cadfeat.study.schema import StudyError, load_study  # lazy: would import scipy.spatial at module load
 
@@ -193,8 +196,8 @@ def _validated(label: str, index: int, shown: Mapping[str, Any], study: dict[str
     return config.to_dict()
 
 
-def _overridden(label: str, base: dict[str, Any], overrides: Mapping[str, Mapping[str, Any]],
-                folder: Path) -> dict[str, Any]:
+def _overridden(label: str, base: JsonDict, overrides: Mapping[str, Mapping[str, Any]],
+                folder: Path) -> JsonDict:
     from cadfeat.study.schema import SECTIONS  # lazy: would import scipy.spatial at module load
 
     study = copy.deepcopy(base)
@@ -227,7 +230,7 @@ def load_campaign(path: str | Path) -> Campaign:
         if not timeout > 0:
             raise CampaignError(f"{label}: cases[{i}].timeout_s: {timeout!r} is not allowed; allowed: a number of "
                                 "seconds > 0")
-        values: dict[str, Any] = {}
+        values: JsonDict = {}
         for key, value in raw.items():
             if key == "part" and model.cases:
                 value = _expand_parts(label, f"cases[{i}].part", [value], folder, single=True)[0]

@@ -31,13 +31,16 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.campaign.plan import Campaign, Case, load_campaign
 from cadfeat.campaign.store import CampaignStore
 from cadfeat.campaign.summary import write_csv, write_summary
 from cadfeat.campaign.task import EVENT_TOPIC, run_case
 from cadfeat.output_folder import pid_alive
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = ["EXPORTS_DIR", "CampaignResult", "local_cluster", "run_campaign"]
 
@@ -52,7 +55,7 @@ class CampaignResult:
     """Where the campaign wrote, its per-case records (case order), and what this run did."""
 
     out_dir: Path
-    records: list[dict[str, Any]]
+    records: list[JsonDict]
     ran: int
     skipped: int
     wall_s: float
@@ -123,7 +126,7 @@ def run_campaign(path_or_campaign: str | os.PathLike[str] | Campaign, out_dir: s
     store.remove_stale_staging()
     todo = [c for c in campaign.cases if not store.finished(c)]
     skipped = len(campaign.cases) - len(todo)
-    outcomes: dict[str, dict[str, Any]] = {}
+    outcomes: dict[str, JsonDict] = {}
     try:
         if todo:
             with _client(scheduler, workers, campaign.retries, client) as c, \
@@ -205,9 +208,9 @@ class _Execution:
     """Submit the cases, follow them, enforce the hard time limit, record outcomes as they arrive."""
 
     def __init__(self, client: Any, store: CampaignStore, todo: list[Case], display: _Display,
-                 outcomes: dict[str, dict[str, Any]]) -> None:
+                 outcomes: dict[str, JsonDict]) -> None:
         self.client, self.store, self.display, self.outcomes = client, store, display, outcomes
-        self.started: dict[str, dict[str, Any]] = {}
+        self.started: dict[str, JsonDict] = {}
         self.lock = threading.Lock()
         self.cases = {self._key(c): c for c in todo}
         self.outcomes_keys: set[str] = set()
@@ -266,7 +269,7 @@ class _Execution:
                 with contextlib.suppress(OSError, TypeError, ValueError):
                     os.kill(int(start["pid"]), signal.SIGKILL)
 
-    def _outcome(self, key: str, fut: Any) -> dict[str, Any] | None:
+    def _outcome(self, key: str, fut: Any) -> JsonDict | None:
         """The outcome of a finished future; None while it runs (after enforcing the hard time limit)."""
         if fut.status == "finished":
             out = dict(fut.result())

@@ -24,10 +24,13 @@ import secrets
 import time
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.campaign.plan import Campaign, Case, sha256_file
 from cadfeat.campaign.spec import CampaignError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = ["MARKER", "CampaignStore", "atomic_write"]
 
@@ -89,7 +92,7 @@ class CampaignStore:
     def record_path(self, case: Case) -> Path:
         return self.records_dir / f"{case.name}.json"
 
-    def record(self, case: Case) -> dict[str, Any] | None:
+    def record(self, case: Case) -> JsonDict | None:
         return _read_json(self.record_path(case))
 
     def finished(self, case: Case) -> bool:
@@ -100,14 +103,14 @@ class CampaignStore:
         results = self.case_dir(case) / "results.json"
         return results.is_file() and sha256_file(results) == rec.get("results_sha256")
 
-    def save(self, case: Case, outcome: Mapping[str, Any]) -> dict[str, Any]:
+    def save(self, case: Case, outcome: Mapping[str, Any]) -> JsonDict:
         """Record a case's outcome (atomically); returns the record."""
         rec = {"case": case.name, "index": case.index, "values": case.values, "input_hash": case.input_hash,
                "recorded": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), **dict(outcome)}
         atomic_write(self.record_path(case), json.dumps(rec, indent=1, sort_keys=True, default=str) + "\n")
         return rec
 
-    def results(self, case: Case) -> dict[str, Any] | None:
+    def results(self, case: Case) -> JsonDict | None:
         return _read_json(self.case_dir(case) / "results.json")
 
     def remove_stale_staging(self) -> list[Path]:
@@ -120,7 +123,7 @@ class CampaignStore:
         return sorted(p for p in self.cases_dir.iterdir() if p.name.startswith(".") and ".staging-" in p.name)
 
 
-def _read_json(path: Path) -> dict[str, Any] | None:
+def _read_json(path: Path) -> JsonDict | None:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError, UnicodeDecodeError):

@@ -21,10 +21,13 @@ import io
 import json
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.campaign.plan import Campaign
 from cadfeat.campaign.store import CampaignStore, atomic_write
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = ["case_row", "write_csv", "write_summary"]
 
@@ -89,10 +92,10 @@ def closed_loop_pose_error(results: Mapping[str, Any]) -> dict[str, float | str]
     return out
 
 
-def case_row(record: Mapping[str, Any], results: Mapping[str, Any] | None, axes: Sequence[str]) -> dict[str, Any]:
+def case_row(record: Mapping[str, Any], results: Mapping[str, Any] | None, axes: Sequence[str]) -> JsonDict:
     """One summary row of a case from its record and (if it finished) its results.json."""
     values = record.get("values") or {}
-    row: dict[str, Any] = {"case": record.get("case"), "status": record.get("status")}
+    row: JsonDict = {"case": record.get("case"), "status": record.get("status")}
     for axis in axes:
         v = values.get(axis)
         row[axis] = json.dumps(v) if isinstance(v, list | dict) else v
@@ -117,7 +120,7 @@ def case_row(record: Mapping[str, Any], results: Mapping[str, Any] | None, axes:
     return row
 
 
-def rows(store: CampaignStore, campaign: Campaign) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+def rows(store: CampaignStore, campaign: Campaign) -> tuple[list[JsonDict], list[JsonDict]]:
     """The records (case order; a case never run is ``pending``) and the summary rows."""
     records, out = [], []
     for case in campaign.cases:
@@ -147,14 +150,14 @@ def _csv_text(table: Sequence[Mapping[str, Any]]) -> str:
     return buf.getvalue()
 
 
-def write_csv(store: CampaignStore, campaign: Campaign) -> list[dict[str, Any]]:
+def write_csv(store: CampaignStore, campaign: Campaign) -> list[JsonDict]:
     """Rewrite ``campaign.csv`` (atomically); returns the records."""
     records, table = rows(store, campaign)
     atomic_write(store.root / "campaign.csv", _csv_text(table))
     return records
 
 
-def write_summary(store: CampaignStore, campaign: Campaign) -> list[dict[str, Any]]:
+def write_summary(store: CampaignStore, campaign: Campaign) -> list[JsonDict]:
     """Write ``campaign.csv``, ``campaign.json`` and ``campaign.html`` (each atomically); returns the records."""
     records, table = rows(store, campaign)
     atomic_write(store.root / "campaign.csv", _csv_text(table))

@@ -23,9 +23,12 @@ import socket
 import threading
 import time
 from collections.abc import Iterator, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = ["EVENT_TOPIC", "CaseTimeout", "run_case", "warm_worker"]
 
@@ -94,7 +97,7 @@ def _daemonic() -> bool:
     return bool(multiprocessing.current_process().daemon)
 
 
-def run_case(payload: Mapping[str, Any]) -> dict[str, Any]:
+def run_case(payload: Mapping[str, Any]) -> JsonDict:
     """Run one case (keys: ``key``, ``study``, ``out_dir``, ``timeout_s``, ``files``); returns its outcome:
     ``status`` ("done" | "failed" | "timeout"), ``error`` (one line or None), ``wall_s``, ``host``, ``pid``,
     and for a finished study ``results_sha256`` (of its results.json)."""

@@ -10,10 +10,13 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 BOARD_CHOICES = ("chessboard", "charuco")
 
@@ -89,7 +92,7 @@ def calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-def summary_lines(report: dict[str, Any]) -> list[str]:
+def summary_lines(report: JsonDict) -> list[str]:
     """The console summary of a calibration report (``CalibrationResult.to_json``)."""
     lines = [f"calibration: {report['board']}; {len(report['views'])} images used, {len(report['rejected'])} "
              f"rejected; reprojection RMS {report['rms_px']:.3f} px"]

@@ -10,7 +10,7 @@ import argparse
 import dataclasses
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from cadfeat.cad.sandbox import DEFAULT_BUILD_TIMEOUT_S, start_workers
 from cadfeat.cli.command import Command
@@ -18,6 +18,8 @@ from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
     import numpy as np
+
+    from cadfeat.results import JsonDict
 
 
 def _arguments(parser: argparse.ArgumentParser) -> None:
@@ -85,7 +87,7 @@ def _params_json(target: object, time_limit_s: float | None) -> int:
     return 0
 
 
-def parameter_listing(path: Path, time_limit_s: float | None = None) -> list[dict[str, Any]]:
+def parameter_listing(path: Path, time_limit_s: float | None = None) -> list[JsonDict]:
     """``cadfeat parts SCRIPT --params``: cq-cli's ``--getparams`` JSON objects. A CQGI script: exactly
     ``cqgi_parts.getparams``. A cadfeat part script (``PARAMETERS`` + ``build``, which CQGI cannot list): the same
     fields from its ``PARAMETERS`` — ``type`` number, ``name``, ``caption`` (description), ``initial`` (default)

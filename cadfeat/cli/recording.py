@@ -11,11 +11,16 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.cli.command import Command
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.calibration.boards import BoardSpec
+    from cadfeat.results import JsonDict
+    from cadfeat.study.schema import StudyConfig, TrackingSpec
 
 #: Decimals of the poses written (mm and quaternion components; 1 µm, ~1e-6 rad: below any robot's repeatability).
 POSE_DECIMALS = 6
@@ -50,7 +55,8 @@ def write_pose_files(T_task_cam: np.ndarray, times_s: np.ndarray, folder: Path) 
     return csv, four
 
 
-def checklist(config: Any, args: argparse.Namespace, board: Any, paper: str, n_poses: int, duration_s: float) -> str:
+def checklist(config: StudyConfig, args: argparse.Namespace, board: BoardSpec, paper: str, n_poses: int,
+              duration_s: float) -> str:
     """The recording checklist (markdown) for the study ``config``."""
     cam, cell = config.camera.build(), config.cell
     light = cell.light
@@ -114,7 +120,7 @@ def plan_recording(args: argparse.Namespace) -> int:
     return 0
 
 
-def track_recorded(config: Any, spec: Any, out: Path, args: argparse.Namespace) -> int:
+def track_recorded(config: StudyConfig, spec: TrackingSpec, out: Path, args: argparse.Namespace) -> int:
     """``cadfeat track STUDY --images DIR --poses CSV``: replay a recording (``study.recorded``); writes
     ``tracking/recorded_<design>.json`` in the study's output folder and prints the summary."""
     from cadfeat.errors import CadfeatError
@@ -134,7 +140,7 @@ def track_recorded(config: Any, spec: Any, out: Path, args: argparse.Namespace) 
     return 0
 
 
-def recorded_lines(section: dict[str, Any]) -> list[str]:
+def recorded_lines(section: JsonDict) -> list[str]:
     """Console summary of a replayed recording: measured vs predicted, NEES, detection rates, problems."""
     p = section["predicted"]
     lines = [f"recorded {section['design']} design: {section['frames_used']} of {section['poses_parsed']} poses "

@@ -14,11 +14,15 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.cell.defaults import DETECTORS, RENDERERS
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
+    from cadfeat.study.schema import StudyConfig, TrackingSpec
 
 SWEEP_KINDS = ("initial_error", "q", "r", "focal_length", "sample_time")
 
@@ -44,7 +48,7 @@ def _track_args(parser: argparse.ArgumentParser) -> None:
                         help="with --images: the design the recorded part has (default optimised)")
 
 
-def _write_json(path: Path, data: dict[str, Any]) -> None:
+def _write_json(path: Path, data: JsonDict) -> None:
     from cadfeat.study.outputs import write_json  # lazy: keeps `cadfeat --help` fast
 
     tmp = path.with_name(path.name + ".tmp")
@@ -52,7 +56,7 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
     tmp.replace(path)
 
 
-def summary_lines(section: dict[str, Any]) -> list[str]:
+def summary_lines(section: JsonDict) -> list[str]:
     """Console table: per design and estimator, RMS errors with intervals; the verdict per estimator."""
     lines = []
     for name, d in section["designs"].items():
@@ -76,11 +80,11 @@ def _f(x: Any) -> str:
 def track(args: argparse.Namespace) -> int:
     """Does the new design track better? Images → OpenCV detection → EKF/IEKF/PnP pose, before vs after."""
     from cadfeat.study.run import default_out_dir  # lazy: keeps `cadfeat --help` fast
-    from cadfeat.study.schema import TrackingSpec, load_study
+    from cadfeat.study.schema import load_study
     from cadfeat.study.tracking import exported_designs, run_tracking, sweep
 
     config = load_study(args.study)
-    spec = config.tracking or TrackingSpec(seed=config.study.seed)
+    spec = config.tracking_settings()
     if args.runs is not None:
         if args.runs < 1:
             raise CadfeatError(f"--runs: {args.runs} is not allowed; allowed: an integer >= 1")
@@ -137,7 +141,8 @@ def track(args: argparse.Namespace) -> int:
     return 0
 
 
-def _with_overrides(config: Any, spec: Any, args: argparse.Namespace) -> tuple[Any, Any]:
+def _with_overrides(config: StudyConfig, spec: TrackingSpec, args: argparse.Namespace
+                    ) -> tuple[StudyConfig, TrackingSpec]:
     """The study and its ``[tracking]`` with the command line's ``--renderer``, ``--spp`` and ``--detector``."""
     import dataclasses
 

@@ -22,9 +22,13 @@ Verdict on the significant (binary) matrix, rows affected by nothing left out:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.problem import Problem
+    from cadfeat.results import JsonDict
 
 __all__ = ["VERDICTS", "DesignMatrix", "classify", "design_matrix"]
 
@@ -44,7 +48,7 @@ class DesignMatrix:
     verdict: str
     note: str
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonDict:
         return {"rows": list(self.rows), "cols": list(self.cols), "matrix": self.matrix.tolist(),
                 "significant": self.binary.astype(int).tolist(), "threshold_rel": self.threshold_rel,
                 "verdict": self.verdict, "note": self.note}
@@ -65,7 +69,7 @@ def classify(binary: np.ndarray) -> tuple[str, str]:
     if np.all(A.sum(axis=1) == 1) and np.all(A.sum(axis=0) <= 1):
         return "uncoupled", "each requirement depends on one parameter group of its own (diagonal)"
     rows, cols = set(range(r)), set(range(c))
-    order = []
+    order: list[tuple[int, int]] = []
     while rows:
         pick = next(((i, j) for i in sorted(rows) for j in [np.flatnonzero(A[i, sorted(cols)])]
                      if len(j) == 1), None)
@@ -80,7 +84,7 @@ def classify(binary: np.ndarray) -> tuple[str, str]:
                          f"{[c for _, c in order]} (column indices)")
 
 
-def design_matrix(problem: Any, x: np.ndarray, *, columns: str = "groups", rows: str = "all",
+def design_matrix(problem: Problem, x: np.ndarray, *, columns: str = "groups", rows: str = "all",
                   threshold_rel: float = 0.05, step: float = 1e-4) -> DesignMatrix:
     """The design matrix of ``problem`` at design ``x`` (module docstring). ``step``: finite-difference step
     as a fraction of each variable's range."""
@@ -96,18 +100,19 @@ def design_matrix(problem: Any, x: np.ndarray, *, columns: str = "groups", rows:
         groups = space.groups()
     cols = list(groups)
     row_names = list(problem.names)
-    S = [[np.linalg.norm(dG[i, idx]) for idx in groups.values()] for i in range(len(row_names))]
+    S: list[list[float]] = [[float(np.linalg.norm(dG[i, idx])) for idx in groups.values()]
+                            for i in range(len(row_names))]
     if rows == "all":
         kinds = problem.constraint_kinds()
         for kind in dict.fromkeys(kinds):
             sel = [k for k, name in enumerate(kinds) if name == kind]
             row_names.append(kind)
             S.append([float(np.max(np.linalg.norm(dC[sel][:, idx], axis=1))) for idx in groups.values()])
-    S = np.array(S, dtype=float).reshape(len(row_names), len(cols))
-    row_max = S.max(axis=1, keepdims=True)
-    binary = (S > threshold_rel * row_max) & (row_max > 1e-12)
+    A = np.array(S, dtype=float).reshape(len(row_names), len(cols))
+    row_max = A.max(axis=1, keepdims=True)
+    binary = (A > threshold_rel * row_max) & (row_max > 1e-12)
     verdict, note = classify(binary)
     zero = [row_names[i] for i in np.flatnonzero(~binary.any(axis=1))]
     if zero:
         note += f"; not affected by the parameters: {', '.join(zero)}"
-    return DesignMatrix(row_names, cols, S, binary, threshold_rel, verdict, note)
+    return DesignMatrix(row_names, cols, A, binary, threshold_rel, verdict, note)

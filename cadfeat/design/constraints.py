@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -34,6 +34,10 @@ from cadfeat.cad.export import shape_volume_mm3
 from cadfeat.cad.features import Hole, as_shape, extract_holes, holes_to_arrays, match_holes
 from cadfeat.cad.features.identity import hole_name
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import ShapeLike
+    from cadfeat.results import JsonDict
 
 __all__ = [
     "ConstraintCheck",
@@ -102,7 +106,7 @@ class ConstraintCheck:
     unit: str
     ok: bool
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonDict:
         return {"name": self.name, "holes": list(self.holes), "required": float(self.required),
                 "value": float(self.value), "margin": float(self.margin), "unit": self.unit, "ok": bool(self.ok)}
 
@@ -179,8 +183,8 @@ class ConstraintSet:
     """The 2-D constraints of one problem, compiled once (index arrays, padded polygons) and then evaluated
     batched: ``margins(centres (...,N,3), radii (...,N)) -> {name: (..., M_name)}``."""
 
-    def __init__(self, holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool],
-                 radii0: Sequence[float] | None = None, outline_rates: Sequence[Any] | None = None,
+    def __init__(self, holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool] | np.ndarray,
+                 radii0: Sequence[float] | np.ndarray | None = None, outline_rates: Sequence[Any] | None = None,
                  x_anchor: Sequence[float] | None = None):
         """``holes``: the reference holes (host face outlines, depths, names); ``radii0`` (N,) mm: the original
         part's radii for the volume requirement (default: the reference holes'); ``outline_rates`` (per hole,
@@ -302,7 +306,7 @@ class ConstraintSet:
 
 
 def constraint_margins(centres: np.ndarray, radii: np.ndarray, holes: Sequence[Hole], config: ConstraintConfig,
-                       fixed_mask: Sequence[bool]) -> dict[str, np.ndarray]:
+                       fixed_mask: Sequence[bool] | np.ndarray) -> dict[str, np.ndarray]:
     """The 2-D constraint margins (see module docstring) of a design: ``{kind: (..., M_kind)}``.
 
     ``holes`` are the reference holes (host face outlines, depths, names); ``centres`` (..., N, 3) mm and
@@ -407,7 +411,8 @@ def _check(name: str, holes: list[str], required: float, value: float, unit: str
     return ConstraintCheck(name, holes, float(required), float(value), float(margin), unit, bool(margin >= -tol))
 
 
-def verify_on_brep(shape: Any, design_holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool],
+def verify_on_brep(shape: ShapeLike, design_holes: Sequence[Hole], config: ConstraintConfig,
+                   fixed_mask: Sequence[bool] | np.ndarray,
                    reference: Sequence[Hole] | None = None, *, match_tol_mm: float = 1e-3,
                    reference_shape: Any = None, tol_mm: float = 1e-6,
                    prefer_direction: Sequence[float] | np.ndarray | None = None) -> list[ConstraintCheck]:

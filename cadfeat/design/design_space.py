@@ -20,7 +20,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, cast, runtime_checkable
 
 import numpy as np
 
@@ -28,6 +28,9 @@ from cadfeat.cad.features import FaceOutline, Hole, holes_to_arrays, match_holes
 from cadfeat.cad.features.identity import hole_name
 from cadfeat.cad.step_parts import HoleMove
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = [
     "VARIABLE_KINDS",
@@ -72,7 +75,7 @@ class Variable:
     def span(self) -> float:
         return float(self.upper - self.lower)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonDict:
         return {"name": self.name, "unit": self.unit, "kind": self.kind, "lower": float(self.lower),
                 "upper": float(self.upper),
                 "standard_sizes": None if self.standard_sizes is None else list(self.standard_sizes)}
@@ -80,8 +83,8 @@ class Variable:
 
 def snap_to_sizes(value: float, sizes: Sequence[float]) -> float:
     """The standard size nearest to ``value`` (ties: the smaller)."""
-    sizes = np.asarray(sizes, dtype=float)
-    return float(sizes[int(np.argmin(np.abs(sizes - value)))])
+    table = np.asarray(sizes, dtype=float)
+    return float(table[int(np.argmin(np.abs(table - value)))])
 
 
 @dataclass
@@ -166,7 +169,10 @@ class DesignSpace:
 class FeatureModel(Protocol):
     """Design variables → hole features (part frame, mm)."""
 
-    holes: list[Hole]
+    @property
+    def holes(self) -> list[Hole]:
+        """The holes at the reference design (their order is the features' order)."""
+        ...
 
     def features(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """centres (N,3) mm, unit axes (N,3), radii (N,) mm at design ``x`` (P,)."""
@@ -193,7 +199,7 @@ class LinearFeatureModel:
     x0: np.ndarray
     dC: np.ndarray
     dR: np.ndarray
-    names: list[str] = field(default_factory=list)
+    names: list[str] = field(default_factory=list[str])
     dA: np.ndarray | None = None
     outline_rates: list[Any] | None = None
     dD: np.ndarray | None = None
@@ -216,12 +222,12 @@ class LinearFeatureModel:
     def from_design_map(cls, dm: Any, names: Sequence[str], x0: Sequence[float]) -> LinearFeatureModel:
         """From a ``cadfeat.cad.design_map.DesignMap`` built at parameters ``x0`` for ``names`` (columns in that
         order). ``dm.holes0``, ``dm.dC`` (N,3,P), ``dm.dR`` (N,P), ``dm.dA`` (N,3,P) if present."""
-        x0 = np.asarray(x0, dtype=float)
+        x = np.asarray(x0, dtype=float)
         dC, dR = np.asarray(dm.dC, dtype=float), np.asarray(dm.dR, dtype=float)
-        if dC.shape[-1] != len(names) or dR.shape[-1] != len(names) or x0.size != len(names):
+        if dC.shape[-1] != len(names) or dR.shape[-1] != len(names) or x.size != len(names):
             raise CadfeatError(f"design map has {dC.shape[-1]} parameter columns, expected {len(names)} ({names})")
         dA = getattr(dm, "dA", None)
-        return cls(list(dm.holes0), x0, dC, dR, list(names), None if dA is None else np.asarray(dA, dtype=float),
+        return cls(list(dm.holes0), x, dC, dR, list(names), None if dA is None else np.asarray(dA, dtype=float),
                    getattr(dm, "outline_rates", None), getattr(dm, "dD", None), getattr(dm, "dB", None))
 
     @classmethod
@@ -245,7 +251,7 @@ class LinearFeatureModel:
             if len(moved) != len(holes0):  # a step that adds or merges holes has no derivative
                 raise CadfeatError(f"CAD rebuild for the map: {len(moved)} holes found, {len(holes0)} designed")
             idx = match_holes(holes0, moved, tol_mm=tol)
-            c, _, r = holes_to_arrays([moved[i] for i in idx])
+            c, _, r = holes_to_arrays([moved[int(i)] for i in idx])
             dC[:, :, k] = (c - c0) / steps[k]
             dR[:, k] = (r - r0) / steps[k]
         return cls(holes0, x0, dC, dR, list(names))
@@ -258,8 +264,9 @@ class LinearFeatureModel:
         dX = np.asarray(X, dtype=float) - self.x0
         centres = self.centres0 + np.einsum("nkp,bp->bnk", self.dC, dX)
         radii = self.radii0 + dX @ self.dR.T
-        if np.any(self.dA):
-            axes = self.axes0 + np.einsum("nkp,bp->bnk", self.dA, dX)
+        dA = cast(np.ndarray, self.dA)  # (arrays after __post_init__, as dD and dB)
+        if np.any(dA):
+            axes = self.axes0 + np.einsum("nkp,bp->bnk", dA, dX)
             axes = axes / np.linalg.norm(axes, axis=-1, keepdims=True)
         else:
             axes = np.broadcast_to(self.axes0, centres.shape)
@@ -267,11 +274,11 @@ class LinearFeatureModel:
 
     def depths_batch(self, X: np.ndarray) -> np.ndarray:
         """(B, N) hole depths (mm) at designs ``X`` (B, P): ``depth0 + dD (x − x0)``."""
-        return self.depths0 + (np.atleast_2d(np.asarray(X, dtype=float)) - self.x0) @ self.dD.T
+        return self.depths0 + (np.atleast_2d(np.asarray(X, dtype=float)) - self.x0) @ cast(np.ndarray, self.dD).T
 
     def bores_batch(self, X: np.ndarray) -> np.ndarray:
         """(B, N) bore radii (mm; the drill's, under a chamfered or counterbored rim) at designs ``X`` (B, P)."""
-        return self.bores0 + (np.atleast_2d(np.asarray(X, dtype=float)) - self.x0) @ self.dB.T
+        return self.bores0 + (np.atleast_2d(np.asarray(X, dtype=float)) - self.x0) @ cast(np.ndarray, self.dB).T
 
     def holes_at(self, x: np.ndarray) -> list[Hole]:
         """The reference holes with the features (and depth, bore) at ``x`` and their host-face outlines moved to
@@ -279,7 +286,7 @@ class LinearFeatureModel:
         c, a, r = self.features(x)
         depth, bore = self.depths_batch(x)[0], self.bores_batch(x)[0]
         dx = np.asarray(x, dtype=float) - self.x0
-        out = []
+        out: list[Hole] = []
         for i, h in enumerate(self.holes):
             o, rates = h.outline, (self.outline_rates or [None] * len(self.holes))[i]
             if o is not None and rates is not None:
@@ -341,7 +348,8 @@ class HoleMoveModel(LinearFeatureModel):
                 raise CadfeatError(f"HoleMoveModel: hole {leader} leads a pattern but follows another one")
         leaders = [i for i in movable if i not in follow]
         # diameter: True (every movable hole), False, or the hole indices whose entrance diameter varies
-        resized = set(movable) if diameter is True else set() if diameter is False else {int(i) for i in diameter}
+        resized = set(movable) if diameter is True else set[int]() if diameter is False else \
+            {int(i) for i in diameter}
         width = sum(3 if i in resized else 2 for i in leaders)
         names: list[str] = []
         x0: list[float] = []
@@ -381,7 +389,7 @@ class HoleMoveModel(LinearFeatureModel):
         the hole centre (the hole may go anywhere on its face, the constraints keep it inside), or to
         ±``max_offsets_mm[i]`` for hole index ``i`` whose host face is not planar; diameters default to
         [0.5, 2]× the current one."""
-        variables = []
+        variables: list[Variable] = []
         for i in self.leaders:
             hole = self.holes[i]
             label = hole_name(hole, i)

@@ -22,9 +22,13 @@ in the tests (``tests/design/test_hole_form.py``: the floor at the upper bound, 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
+    from cadfeat.design.design_space import FeatureModel
 
 __all__ = ["FORM_TOL", "design_bores", "design_depths", "drill_mask", "drill_radii_batch", "hole_depths",
            "variable_kind"]
@@ -33,7 +37,7 @@ FORM_TOL = 1e-7
 """A rate (mm per unit) above this counts as changing the depth, the bore or the rim."""
 
 
-def _linear(model: Any) -> Any:
+def _linear(model: FeatureModel) -> Any:
     """The linear model under ``model`` (``study.verify.AnchoredModel`` wraps one as ``.model``), or None."""
     for m in (model, getattr(model, "model", None)):
         if m is not None and hasattr(m, "depths_batch") and hasattr(m, "bores_batch"):
@@ -41,13 +45,13 @@ def _linear(model: Any) -> Any:
     return None
 
 
-def design_depths(model: Any, X: np.ndarray) -> np.ndarray | None:
+def design_depths(model: FeatureModel, X: np.ndarray) -> np.ndarray | None:
     """(B, N) hole depths (mm) of designs ``X`` (B, P) by the feature model's depth rates; None without them."""
     lin = _linear(model)
     return None if lin is None else lin.depths_batch(np.atleast_2d(np.asarray(X, dtype=float)))
 
 
-def design_bores(model: Any, X: np.ndarray) -> np.ndarray | None:
+def design_bores(model: FeatureModel, X: np.ndarray) -> np.ndarray | None:
     """(B, N) bore radii (mm) of designs ``X``: the model's rims minus its rim-to-bore width (an anchored model
     keeps its anchor's offset on the bore too); None without bore rates."""
     lin = _linear(model)
@@ -58,13 +62,14 @@ def design_bores(model: Any, X: np.ndarray) -> np.ndarray | None:
     return rim - (np.asarray(lin.features_batch(X)[2], dtype=float) - lin.bores_batch(X))
 
 
-def hole_depths(holes: Sequence[Any]) -> np.ndarray:
+def hole_depths(holes: Sequence[Hole]) -> np.ndarray:
     """(N,) depths (mm) of CAD holes (``Hole.depth_mm``)."""
     return np.array([float(h.depth_mm) for h in holes])
 
 
 def variable_kind(dR: np.ndarray, dB: np.ndarray | None, dD: np.ndarray | None,
-                  through: np.ndarray | None = None, plain: np.ndarray | None = None) -> str:
+                  through: Sequence[bool] | np.ndarray | None = None, plain: Sequence[bool] | np.ndarray | None = None
+                  ) -> str:
     """The ``Variable.kind`` of a parameter with per-hole rates (N,) of rim radius ``dR``, bore radius ``dB`` and
     depth ``dD`` (mm per unit; None: not known): "diameter" when it changes a bore (or, bore unknown, a rim);
     "other" when it changes only blind holes' depths or rims over unchanged bores (a chamfer); else "position".
@@ -81,7 +86,7 @@ def variable_kind(dR: np.ndarray, dB: np.ndarray | None, dD: np.ndarray | None,
     return "other" if rim or depth else "position"
 
 
-def drill_mask(model: Any) -> np.ndarray:
+def drill_mask(model: FeatureModel) -> np.ndarray:
     """(N,) bool: holes whose drilled size is the bore (plain holes, chamfered rim or not, of a model with bore
     rates); the others (counterbores, countersinks, models without bore rates) are sized at their entrance."""
     holes = list(model.holes)
@@ -90,11 +95,11 @@ def drill_mask(model: Any) -> np.ndarray:
     return np.array([h.kind.partition(", ")[0] == "plain" for h in holes], dtype=bool)
 
 
-def drill_radii_batch(model: Any, X: np.ndarray) -> np.ndarray:
+def drill_radii_batch(model: FeatureModel, X: np.ndarray) -> np.ndarray:
     """(B, N) the radius a shop drills (``drill_mask``: the bore, else the entrance rim) at designs ``X``."""
     X = np.atleast_2d(np.asarray(X, dtype=float))
     rim = np.asarray(model.features_batch(X)[2], dtype=float)
     mask = drill_mask(model)
     if not mask.any():
         return rim
-    return np.where(mask, design_bores(model, X), rim)
+    return np.where(mask, cast(np.ndarray, design_bores(model, X)), rim)

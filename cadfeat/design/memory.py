@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -89,9 +89,10 @@ def chunked(fn: Callable[[slice], Any], n: int, bytes_per_item: int, what: str) 
     step = chunk_size(bytes_per_item, what)
     if n <= step:
         return fn(slice(0, n))
-    parts = [fn(slice(i, min(i + step, n))) for i in range(0, n, step)]
+    parts: list[Any] = [fn(slice(i, min(i + step, n))) for i in range(0, n, step)]
     if isinstance(parts[0], tuple):
-        return tuple(np.concatenate([p[k] for p in parts], axis=0) for k in range(len(parts[0])))
+        tuples = cast("list[tuple[np.ndarray, ...]]", parts)
+        return tuple(np.concatenate([p[k] for p in tuples], axis=0) for k in range(len(tuples[0])))
     return np.concatenate(parts, axis=0)
 
 

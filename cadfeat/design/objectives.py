@@ -45,13 +45,16 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, cast
+from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import numpy as np
 from pydantic import ValidationInfo, field_validator, model_validator
 
 from cadfeat.errors import CadfeatError
 from cadfeat.settings import Settings, Tuple, boolean, choice, context_of, number, reject
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.camera import Camera
 
 __all__ = [
     "AGGREGATES",
@@ -158,7 +161,7 @@ class ObjectiveConfig(Settings):
         """A study file (validation context ``study``) without ``measures`` optimises ``STUDY_MEASURES``."""
         if context_of(info).get("study") and isinstance(data, Mapping) and "measures" not in data:
             return {**cast("Mapping[str, object]", data), "measures": list(STUDY_MEASURES)}
-        return data
+        return cast(object, data)
 
     @field_validator("measures")
     @classmethod
@@ -244,7 +247,7 @@ def _reduce_features(values: np.ndarray, how: str) -> np.ndarray:
     return {"min": np.min, "mean": np.mean, "sum": np.sum}[how](values, axis=-1)
 
 
-def _scored(measures: Any, config: ObjectiveConfig, camera: Any) -> dict[str, np.ndarray] | None:
+def _scored(measures: Any, config: ObjectiveConfig, camera: Camera | None) -> dict[str, np.ndarray] | None:
     """The scored margins (``unseen.scored_arrays``) of ``evaluate``'s measures, or None when ``measures`` are scored
     already, carry no unseen flags (arrays of another origin) or no chosen measure is ruled (module docstring)."""
     if getattr(measures, "scored", False) or getattr(measures, "rim_hidden", None) is None \
@@ -260,12 +263,12 @@ def _scored(measures: Any, config: ObjectiveConfig, camera: Any) -> dict[str, np
 
 
 def per_pose_values(measures: Any, config: ObjectiveConfig, feature_mask: np.ndarray | None = None,
-                    camera: Any = None) -> dict[str, np.ndarray]:
+                    camera: Camera | None = None) -> dict[str, np.ndarray]:
     """Per-pose value (..., L) of each chosen measure: the features selected by ``feature_mask`` (N,) bool
     (default all) reduced by ``config.feature_reduce``; resolvability uses every feature (the Jacobian).
     ``measures`` of ``measures.evaluate`` are scored by the unseen rule first (``camera``: the camera they were
     computed with, module docstring); scored ones (``unseen.ScoredMeasures``) are read as they are."""
-    out = {}
+    out: dict[str, np.ndarray] = {}
     mask = None if feature_mask is None or not np.any(feature_mask) else np.asarray(feature_mask, dtype=bool)
     scored = _scored(measures, config, camera)
     for m in config.measures:
@@ -299,12 +302,12 @@ def aggregate(values: np.ndarray, how: str, beta: float = 20.0, unit: float = 1.
 
 
 def objective_values(measures: Any, config: ObjectiveConfig, units: Mapping[str, float] | None = None,
-                     feature_mask: np.ndarray | None = None, camera: Any = None) -> dict[str, float]:
+                     feature_mask: np.ndarray | None = None, camera: Camera | None = None) -> dict[str, float]:
     """The aggregated objectives {g_FOV, g_FOC, g_RES, g_DIR} (those chosen) of one ``Measures``; ``units``
     (measure → natural unit, ``natural_units``) sets the smooth-min scale (1 if not given);
     ``feature_mask`` and ``camera`` (the unseen rule of ``evaluate``'s measures) as in ``per_pose_values``."""
     units = units or {}
-    out = {}
+    out: dict[str, float] = {}
     for m, v in per_pose_values(measures, config, feature_mask, camera).items():
         if m == "pose":
             out[MEASURES[m]] = pose_objective(_pose_of(measures), config.pose_aggregate,
@@ -348,15 +351,15 @@ def pose_objective(pose: Any, how: str = "rms", rotation_length_mm: float = 50.0
     if how == "logdet":
         s = np.array([1.0, 1.0, 1.0] + [1.0 / rotation_length_mm] * 3)
         info = np.asarray(pose.information, dtype=float) * s[:, None] * s[None, :]
-        sign, logdet = np.linalg.slogdet(info)
+        sign, raw = np.linalg.slogdet(info)
         floor = -12.0 * np.log(POSE_UNOBSERVABLE_MM)
-        logdet = np.where((sign > 0) & np.isfinite(logdet), np.maximum(logdet, floor), floor)
+        logdet = cast(np.ndarray, np.where((sign > 0) & np.isfinite(raw), np.maximum(raw, floor), floor))
         return float(-np.exp(-np.mean(logdet) / 12.0))
     e = _pose_errors(pose, rotation_length_mm)
     return float(-np.sqrt(np.mean(e * e, axis=-1))) if how == "rms" else float(-np.max(e, axis=-1))
 
 
-def natural_units(config: ObjectiveConfig, camera: Any, n_poses: int, n_features: int,
+def natural_units(config: ObjectiveConfig, camera: Camera, n_poses: int, n_features: int,
                   median_depth_mm: float) -> dict[str, float]:
     """A natural unit of each aggregated objective (measure key → value), used when the initial value is tiny
     and for the smooth min: per pose —
@@ -408,7 +411,7 @@ class Normaliser:
     reference: dict[str, float]
     sources: dict[str, str]
     note: str = ""
-    offset: dict[str, float] = field(default_factory=dict)
+    offset: dict[str, float] = field(default_factory=dict[str, float])
     constant: tuple[str, ...] = ()
     payoff: dict[str, Any] | None = None
 
@@ -417,7 +420,8 @@ class Normaliser:
         """From the initial objective values and the natural units (both keyed by objective name); for
         ``"payoff"`` use ``from_payoff``."""
         _choice("normalisation", method, NORMALISATIONS)
-        ref, src = {}, {}
+        ref: dict[str, float] = {}
+        src: dict[str, str] = {}
         for name, g0 in initial.items():
             unit = float(natural[name])
             if method == "none":
@@ -446,7 +450,10 @@ class Normaliser:
         ideal = np.diag(table).copy()
         ideal = np.maximum(ideal, table.max(axis=0))
         nadir = table.min(axis=0)
-        ref, off, src, constant = {}, {}, {}, []
+        ref: dict[str, float] = {}
+        off: dict[str, float] = {}
+        src: dict[str, str] = {}
+        constant: list[str] = []
         for i, name in enumerate(names):
             unit = float(natural[name])
             spread = ideal[i] - nadir[i]
@@ -473,7 +480,7 @@ class Normaliser:
         return {k: (np.asarray(v) - self.offset.get(k, 0.0)) / self.reference[k] for k, v in values.items()}
 
     def to_dict(self) -> dict[str, Any]:
-        out = {"method": self.method, "reference": dict(self.reference), "sources": dict(self.sources),
+        out: dict[str, Any] = {"method": self.method, "reference": dict(self.reference), "sources": dict(self.sources),
                "note": self.note}
         if self.offset:
             out["offset"] = dict(self.offset)

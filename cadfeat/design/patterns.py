@@ -22,9 +22,13 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
+    from cadfeat.results import JsonDict
 
 __all__ = ["Pattern", "check_patterns", "find_patterns"]
 
@@ -39,17 +43,17 @@ class Pattern:
 
     kind: str
     holes: tuple[int, ...]
-    params: dict[str, Any] = field(default_factory=dict)
+    params: JsonDict = field(default_factory=dict[str, Any])
 
-    def to_dict(self, names: Sequence[str] | None = None) -> dict[str, Any]:
-        out = {"kind": self.kind, "indices": list(self.holes),
+    def to_dict(self, names: Sequence[str] | None = None) -> JsonDict:
+        out: JsonDict = {"kind": self.kind, "indices": list(self.holes),
                "holes": [names[i] for i in self.holes] if names is not None else list(self.holes)}
-        out.update({k: (np.asarray(v).tolist() if isinstance(v, np.ndarray | tuple) else v)
+        out.update({k: (np.asarray(cast(Any, v)).tolist() if isinstance(v, np.ndarray | tuple) else v)
                     for k, v in self.params.items()})
         return out
 
 
-def _arrays(holes: Sequence[Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _arrays(holes: Sequence[Hole]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     c = np.array([np.asarray(h.centre, float) for h in holes]).reshape(-1, 3)
     a = np.array([np.asarray(h.axis, float) for h in holes]).reshape(-1, 3)
     r = np.array([float(h.radius_mm) for h in holes])
@@ -117,7 +121,7 @@ def _levels(x: np.ndarray, tol: float) -> np.ndarray:
     return np.array(levels)
 
 
-def find_patterns(holes: Sequence[Any], *, centre: Sequence[float] = (0.0, 0.0, 0.0),
+def find_patterns(holes: Sequence[Hole], *, centre: Sequence[float] = (0.0, 0.0, 0.0),
                   tol_mm: float = TOL_MM) -> list[Pattern]:
     """Bolt circles, grids and mirror pairs among ``holes`` (``cadfeat.cad.features.Hole``-like: centre, axis,
     radius_mm); see the module docstring. Largest patterns first; a hole may be in a circle or grid and a
@@ -152,12 +156,12 @@ def find_patterns(holes: Sequence[Any], *, centre: Sequence[float] = (0.0, 0.0, 
             if fit_g is not None and set(g) not in covered:  # a square 2 × 2 grid is already a bolt circle
                 out.append(Pattern("grid", tuple(g), {"pitch_mm": fit_g[0], "shape": list(fit_g[1])}))
                 covered.append(set(g))
-    centre = np.asarray(centre, float)
+    point = np.asarray(centre, float)
     for i, j in itertools.combinations(range(len(r)), 2):
         if abs(r[i] - r[j]) > tol_mm or any({i, j} <= s for s in covered):
             continue
-        if _opposite_error(c[i], c[j], a[i], a[j], centre) <= tol_mm:
-            out.append(Pattern("opposite", (i, j), {"point": centre}))
+        if _opposite_error(c[i], c[j], a[i], a[j], point) <= tol_mm:
+            out.append(Pattern("opposite", (i, j), {"point": point}))
             continue
         for k in range(3):
             n = np.eye(3)[k]
@@ -189,7 +193,7 @@ def _circumcentre(p: np.ndarray) -> np.ndarray | None:
                      (s1 * (x3 - x2) + s2 * (x1 - x3) + s3 * (x2 - x1)) / d])
 
 
-def pattern_kept(pattern: Pattern, holes: Sequence[Any], tol_mm: float = TOL_MM) -> tuple[bool, str]:
+def pattern_kept(pattern: Pattern, holes: Sequence[Hole], tol_mm: float = TOL_MM) -> tuple[bool, str]:
     """Whether ``holes`` (the new design, same order as the original) still form ``pattern`` (a moved, turned
     or rescaled bolt circle or grid still counts; a mirror pair must mirror in the same plane), with why not."""
     c, a, r = _arrays([holes[i] for i in pattern.holes])
@@ -218,10 +222,10 @@ def pattern_kept(pattern: Pattern, holes: Sequence[Any], tol_mm: float = TOL_MM)
     return True, ""
 
 
-def check_patterns(patterns: Sequence[Pattern], holes_after: Sequence[Any], names: Sequence[str] | None = None,
-                   tol_mm: float = TOL_MM) -> list[dict[str, Any]]:
+def check_patterns(patterns: Sequence[Pattern], holes_after: Sequence[Hole], names: Sequence[str] | None = None,
+                   tol_mm: float = TOL_MM) -> list[JsonDict]:
     """results.json ``patterns``: each original pattern with ``broken`` (bool) and ``why``."""
-    out = []
+    out: list[JsonDict] = []
     for p in patterns:
         kept, why = pattern_kept(p, holes_after, tol_mm)
         out.append({**p.to_dict(names), "broken": not kept, "why": why})

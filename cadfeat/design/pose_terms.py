@@ -16,14 +16,31 @@ from __future__ import annotations
 
 import hashlib
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Callable, Hashable, Sequence
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 
 from cadfeat.design.memory import budget_bytes
-from cadfeat.design.objectives import POSE_AGGREGATES, POSE_UNOBSERVABLE_MM, _choice
+from cadfeat.design.objectives import (
+    POSE_AGGREGATES,
+    POSE_UNOBSERVABLE_MM,
+    _choice,  # pyright: ignore[reportPrivateUsage] (the same refusal)
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+
+    from cadfeat.cad.features import Hole
+    from cadfeat.camera import Camera
+    from cadfeat.cell import Cell
+    from cadfeat.design.design_space import FeatureModel
+    from cadfeat.design.objectives import ObjectiveConfig
+    from cadfeat.measures.depth import DepthMaps
+    from cadfeat.measures.glare import GlareMaps
+    from cadfeat.measures.pose_information import PoseInformation
+    from cadfeat.measures.pose_models import HoleGeometry, PoseModels
 
 __all__ = ["StackedPose", "designs_glare_rate", "glare_rate", "hole_attributes", "pose_aggregate_batch",
            "pose_of_features", "pose_values",
@@ -33,7 +50,32 @@ __all__ = ["StackedPose", "designs_glare_rate", "glare_rate", "hole_attributes",
 RIM_SAMPLES = 16
 
 
-def hole_attributes(problem: Any, radii: np.ndarray,
+class PoseProblem(Protocol):
+    """What g_POSE reads of the optimisation problem (``design.problem.Problem``; a protocol: ``problem`` imports
+    this module): the reference holes, the objective's settings, the poses ``T_cam_part`` (L, 4, 4), the part's
+    mesh (exact rim test) and the optimiser's depth maps, the camera, the cell and the fixed holes (N,) bool."""
+
+    @property
+    def model(self) -> FeatureModel: ...
+    @property
+    def objective_config(self) -> ObjectiveConfig: ...
+    @property
+    def T_cam_part(self) -> np.ndarray: ...
+    @property
+    def occlusion_mesh(self) -> trimesh.Trimesh | None: ...
+    @property
+    def occlusion(self) -> DepthMaps | None: ...
+    @property
+    def camera(self) -> Camera: ...
+    @property
+    def cell(self) -> Cell: ...
+    @property
+    def fixed_mask(self) -> np.ndarray: ...
+    @property
+    def glare(self) -> GlareMaps | None: ...
+
+
+def hole_attributes(problem: PoseProblem, radii: np.ndarray,
                     depth_mm: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(through (N,) bool, depth (N,) or like ``radii`` mm, depth/diameter like ``radii``) of the problem's
     reference holes at ``radii``; ``depth_mm`` (the design's depths, ``design.hole_form``) replaces theirs."""
@@ -44,15 +86,15 @@ def hole_attributes(problem: Any, radii: np.ndarray,
     return through, depth, depth / (2.0 * np.maximum(np.asarray(radii, float), 1e-9))
 
 
-def hole_kinds(holes: Sequence[Any]) -> list[str]:
+def hole_kinds(holes: Sequence[Hole]) -> list[str]:
     """(N,) the holes' kinds (``Hole.kind``, "plain" where a hole has none; the offset model treats a
     counterbore's rim apart)."""
     return [str(getattr(h, "kind", "plain")) for h in holes]
 
 
-def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+def pose_of_features(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                      exact_occlusion: bool = False, occlusion: np.ndarray | None = None,
-                     depth_mm: np.ndarray | None = None) -> Any:
+                     depth_mm: np.ndarray | None = None) -> PoseInformation:
     """``measures.pose_information`` (L poses × N holes) of one design's features (module docstring).
 
     ``occlusion`` (L, N) overrides the rim test (e.g. held fixed for finite differences); ``depth_mm`` (N,) the
@@ -75,16 +117,17 @@ def pose_of_features(problem: Any, centres: np.ndarray, axes: np.ndarray, radii:
                             noise_grey=problem.cell.noise_sigma_grey, contrast_rate=rate)
 
 
-def glare_rate(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, through: np.ndarray,
-               noise_grey: Any) -> np.ndarray | None:
+def glare_rate(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+               through: np.ndarray, noise_grey: float | np.ndarray) -> np.ndarray | None:
     """(B·L, N) the detection rate's factor from the part's own light of B designs' holes (B, N, …) at the
     problem's L poses (``designs_glare_rate`` with the problem's glare maps, poses and cell)."""
     return designs_glare_rate(problem.glare, problem.cell, problem.T_cam_part, centres, axes, radii, through,
                               noise_grey)
 
 
-def designs_glare_rate(glare: Any, cell: Any, T_cam_part: np.ndarray, centres: np.ndarray, axes: np.ndarray,
-                       radii: np.ndarray, through: np.ndarray, noise_grey: Any) -> np.ndarray | None:
+def designs_glare_rate(glare: GlareMaps | None, cell: Cell, T_cam_part: np.ndarray, centres: np.ndarray,
+                       axes: np.ndarray, radii: np.ndarray, through: np.ndarray,
+                       noise_grey: float | np.ndarray) -> np.ndarray | None:
     """(B·L, N) the detection rate's factor from the part's own light (``measures.glare.contrast_rate``) of B
     designs' holes (B, N, …) at the L poses ``T_cam_part`` (those of the ``glare`` maps), design-major; 1 for
     through holes; None without maps or when the cell's material does not return light from its bores
@@ -95,25 +138,31 @@ def designs_glare_rate(glare: Any, cell: Any, T_cam_part: np.ndarray, centres: n
         return None
     from cadfeat.measures.glare import contrast_rate  # lazy: as the other measures
 
-    B, N = np.shape(radii)
+    B, N = radii.shape
     L = len(T_cam_part)
     noise = np.asarray(noise_grey, float)
+    flat_radii = np.asarray(radii, float).reshape(B * N)
     rate = contrast_rate(glare, T_cam_part, np.reshape(centres, (B * N, 3)), np.reshape(axes, (B * N, 3)),
-                         np.reshape(radii, B * N), noise if noise.ndim == 0 else noise.reshape(L, 1))
+                         flat_radii, noise if noise.ndim == 0 else noise.reshape(L, 1))
     rate = np.moveaxis(rate.reshape(L, B, N), 1, 0).reshape(B * L, N)
     return np.where(np.asarray(through, bool), 1.0, rate)
 
 
-@lru_cache(maxsize=16)
-def cell_models(cell: Any) -> Any:
+def cell_models(cell: Cell) -> PoseModels:
     """g_POSE's detection and measurement models (``measures.pose_models``) in the study's cell (``Cell``): the
     calibration of the cell's detector under its light, material and hole ends in the physical world
     (``pose_models.models_for``; the nearest one where none matches, said in ``source``), with the cell's gate
     and placement σ (``PoseModels.for_cell``). Cached per cell (a frozen, hashable model): every g_POSE evaluation
     asks, and choosing the calibration reads the package's data folder (~1 ms)."""
+    return _cell_models(cast("Hashable", cell))  # (frozen: pydantic hashes it; the checker cannot tell)
+
+
+@lru_cache(maxsize=16)
+def _cell_models(cell: Hashable) -> PoseModels:
     from cadfeat.measures import pose_models  # lazy: would import scipy.spatial at module load
 
-    return pose_models.models_for(cell).for_cell(cell)
+    c = cast("Cell", cell)
+    return pose_models.models_for(c).for_cell(c)
 
 
 def pose_aggregate_batch(errors_mm: np.ndarray, information: np.ndarray, how: str,
@@ -127,13 +176,13 @@ def pose_aggregate_batch(errors_mm: np.ndarray, information: np.ndarray, how: st
     if how == "worst":
         return -np.max(e, axis=-1)
     s = np.array([1.0, 1.0, 1.0] + [1.0 / rotation_length_mm] * 3)
-    sign, logdet = np.linalg.slogdet(np.asarray(information, float) * s[:, None] * s[None, :])
+    sign, raw = np.linalg.slogdet(np.asarray(information, float) * s[:, None] * s[None, :])
     floor = -12.0 * np.log(POSE_UNOBSERVABLE_MM)
-    logdet = np.where((sign > 0) & np.isfinite(logdet), np.maximum(logdet, floor), floor)
+    logdet = cast(np.ndarray, np.where((sign > 0) & np.isfinite(raw), np.maximum(raw, floor), floor))
     return -np.exp(-np.mean(logdet, axis=-1) / 12.0)
 
 
-def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+def pose_values(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                 exact_occlusion: bool = False, depth_mm: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(g_POSE (B,), per-pose value −e (B, L)) of B designs' features (B, N, 3), (B, N, 3), (B, N); ``depth_mm``
     (B, N) their hole depths (``design.hole_form.design_depths``; None: the reference holes').
@@ -142,7 +191,7 @@ def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     each with its own design's holes; the exact ray test (reported values) takes one design at a time."""
     cfg = problem.objective_config
     ell = cfg.pose_rotation_length_mm
-    B, N = np.shape(radii)
+    B, _ = np.shape(radii)
     L = len(problem.T_cam_part)
     if exact_occlusion and problem.occlusion_mesh is not None:
         depths = [None] * B if depth_mm is None else np.asarray(depth_mm, float)
@@ -160,8 +209,9 @@ def pose_values(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     return g, per_pose
 
 
-def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                        noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> StackedPose:
+def stacked_information(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                        noise_grey: float | np.ndarray | None = None, depth_mm: np.ndarray | None = None
+                        ) -> StackedPose:
     """g_POSE's pose information of B designs as B·L poses (design-major), holes per pose; occlusion by the
     problem's depth maps (every design's rims at each of the L poses in one ``rim_occlusion`` call).
     ``noise_grey``: the sensor's grey-level noise, a number or (L, 1) per pose (a robustness draw's pixel noise);
@@ -181,7 +231,7 @@ def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, rad
     depth = np.broadcast_to(depth, (B, N))
     noise = np.asarray(problem.cell.noise_sigma_grey if noise_grey is None else noise_grey, float)
     fixed = np.asarray(problem.fixed_mask, bool) & _same_in_every_design(centres, axes, radii, depth)
-    parts = []
+    parts: list[tuple[np.ndarray, Terms]] = []
     if fixed.any():
         idx = np.flatnonzero(fixed)
         terms = _fixed_terms(problem, centres[0, idx], axes[0, idx], radii[0, idx])
@@ -199,7 +249,8 @@ def stacked_information(problem: Any, centres: np.ndarray, axes: np.ndarray, rad
         p = p * rate
     kw = {"noise_grey": float(noise) if noise.ndim == 0 else np.tile(noise.reshape(L, 1), (B, 1))}
     sig, off = models.measurement_model(geo, depth_ratio=ratio_bl,
-                                        kinds=hole_kinds(problem.model.holes), through=through, **kw)
+                                        kinds=hole_kinds(problem.model.holes), through=through,
+                                        **kw)  # pyright: ignore[reportArgumentType] (a (B·L, 1) noise per pose)
     from cadfeat.measures.pose_information import weighted_information  # lazy: as pose_models above
 
     _, per_hole, rhs = weighted_information(p, J, sig, off)
@@ -229,14 +280,19 @@ def _same_in_every_design(centres: np.ndarray, axes: np.ndarray, radii: np.ndarr
             & np.all(radii == radii[:1], axis=0) & np.all(depth == depth[:1], axis=0))
 
 
-def _map(fn: Any, terms: Any) -> Any:
+Terms = tuple["HoleGeometry", np.ndarray, np.ndarray]
+"""What depends on each hole alone: (``pose_models.HoleGeometry``, measurement Jacobian, rim hidden fraction)."""
+
+
+def _map(fn: Callable[[np.ndarray], np.ndarray], terms: Terms) -> Terms:
     """``fn`` applied to every array of (HoleGeometry, J, occlusion) (the geometry's ``rims`` tuple included)."""
     geo, J, occ = terms
-    fields = [tuple(fn(a) for a in v) if isinstance(v, tuple) else None if v is None else fn(v) for v in geo]
+    fields: list[Any] = [tuple(fn(a) for a in cast("tuple[np.ndarray, ...]", v)) if isinstance(v, tuple) else
+                         None if v is None else fn(v) for v in geo]
     return type(geo)(*fields), fn(J), fn(occ)
 
 
-def _assemble(parts: list[tuple[np.ndarray, Any]], M: int, N: int) -> Any:
+def _assemble(parts: list[tuple[np.ndarray, Terms]], M: int, N: int) -> Terms:
     """(HoleGeometry, J, occlusion) of all N holes (M, N, …) from parts (hole indices, the same of those holes)."""
     def put(pieces: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
         a0 = pieces[0][1]
@@ -245,15 +301,16 @@ def _assemble(parts: list[tuple[np.ndarray, Any]], M: int, N: int) -> Any:
             out[:, idx] = a
         return out
     geos = [t[0] for _, t in parts]
-    fields = []
+    fields: list[Any] = []
     for k, v in enumerate(geos[0]):
         if isinstance(v, tuple):
-            fields.append(tuple(put([(idx, g[k][j]) for (idx, _), g in zip(parts, geos, strict=True)])
+            fields.append(tuple(put([(idx, cast("tuple[np.ndarray, ...]", g[k])[j])
+                                     for (idx, _), g in zip(parts, geos, strict=True)])
                                 for j in range(len(v))))
         elif v is None:
             fields.append(None)
         else:
-            fields.append(put([(idx, g[k]) for (idx, _), g in zip(parts, geos, strict=True)]))
+            fields.append(put([(idx, cast(np.ndarray, g[k])) for (idx, _), g in zip(parts, geos, strict=True)]))
     return (type(geos[0])(*fields), put([(idx, t[1]) for idx, t in parts]),
             put([(idx, t[2]) for idx, t in parts]))
 
@@ -261,8 +318,8 @@ def _assemble(parts: list[tuple[np.ndarray, Any]], M: int, N: int) -> Any:
 def _pose_error(info: np.ndarray, rhs: np.ndarray, ell: float) -> StackedPose:
     """The predicted errors of ``measures.pose_information`` from the summed information and bias right-hand
     side (its steps): covariance (its ``_inverse``), bias δ_b = cov · rhs, √(bias² + σ²) per part."""
-    from cadfeat.measures.pose_information import (  # pyright: ignore[reportPrivateUsage]
-        _inverse,
+    from cadfeat.measures.pose_information import (
+        _inverse,  # pyright: ignore[reportPrivateUsage] (its steps, as the module docstring says)
         pose_errors,
     )
 
@@ -271,7 +328,7 @@ def _pose_error(info: np.ndarray, rhs: np.ndarray, ell: float) -> StackedPose:
     return StackedPose(info, np.hypot(b_t, sig_t), np.hypot(b_r, sig_r), float(ell))
 
 
-def _hole_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
+def _hole_terms(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Terms:
     """What depends on each hole alone, for B designs' holes (B, n, …) at the problem's L poses as B·L stacked
     poses: ``pose_models.hole_geometry``, the measurement Jacobian (``rim_centre.measure``) (B·L, n, 2, 6) and
     the rims' hidden fraction (``rim_occlusion`` against the depth maps; 0 without them) (B·L, n)."""
@@ -298,14 +355,14 @@ def _hole_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     return geo, J, occlusion
 
 
-_CACHE: OrderedDict[bytes, tuple[Any, Any, int]] = OrderedDict()
+_CACHE: OrderedDict[bytes, tuple[tuple[object, ...], Terms, int]] = OrderedDict()
 #: fixed holes' terms kept (one entry per pose set: the nominal poses, each robust source's and held-out draws)
 CACHE_ENTRIES = 8
 #: the most the kept terms may hold, as a share of the memory budget (``design.memory.budget_bytes``)
 CACHE_BUDGET_SHARE = 0.25
 
 
-def _fixed_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Any:
+def _fixed_terms(problem: PoseProblem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> Terms:
     """``_hole_terms`` of one set of holes (n, …) at the problem's L poses, kept for the same poses, occlusion
     maps, camera and holes (a key of their bytes; the camera and maps objects are held with the entry so their
     ids stay theirs); at most ``CACHE_ENTRIES`` pose sets and ``CACHE_BUDGET_SHARE`` of the memory budget, the
@@ -337,7 +394,7 @@ def _fixed_terms(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.
     return terms
 
 
-def _nbytes(terms: Any) -> int:
+def _nbytes(terms: Terms) -> int:
     """Bytes of the arrays of (HoleGeometry, J, occlusion)."""
     total = [0]
 

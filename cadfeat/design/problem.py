@@ -11,7 +11,7 @@ objective and constraint configurations. Everything the solvers need comes from 
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -42,6 +42,14 @@ from cadfeat.measures.depth import DepthMaps
 from cadfeat.measures.jacobian import diagnostics_from_gram
 from cadfeat.measures.resolvability import resolvability_from_parts, scale_jacobian, scale_screws
 from cadfeat.poses import cam_from_part
+
+if TYPE_CHECKING:  # pragma: no cover
+    from collections.abc import Sequence
+
+    from cadfeat.camera import Camera
+    from cadfeat.measures.glare import GlareMaps
+    from cadfeat.results import JsonDict
+    from cadfeat.trajectory import Trajectory
 
 __all__ = ["Problem"]
 
@@ -96,7 +104,7 @@ class Problem:
     ``Cell()``).
     """
 
-    def __init__(self, space: DesignSpace, model: FeatureModel, camera: Any, trajectory: Any,
+    def __init__(self, space: DesignSpace, model: FeatureModel, camera: Camera, trajectory: Trajectory,
                  T_task_part: np.ndarray, objective_config: ObjectiveConfig, constraint_config: ConstraintConfig,
                  fixed_mask: Any = None, *, occlusion_mesh: Any = None, normaliser: Normaliser | None = None,
                  feature_mask: Any = None, cell: Cell | None = None):
@@ -112,7 +120,7 @@ class Problem:
         n = len(model.holes)
         self.fixed_mask = np.zeros(n, dtype=bool) if fixed_mask is None else np.asarray(fixed_mask, dtype=bool)
         self.occlusion_mesh = occlusion_mesh
-        self._glare: Any = None  # measures.glare.GlareMaps at the nominal poses (set_glare), or None
+        self._glare: GlareMaps | None = None  # at the nominal poses (set_glare), or None
         if feature_mask is not None:
             self.feature_mask = np.asarray(feature_mask, dtype=bool)
         else:
@@ -185,7 +193,7 @@ class Problem:
         centre = 0.5 * (space.lower + space.upper)
         if len(cfg.measures) == 1:
             return self._sampled_normaliser(natural, samples)
-        table = []
+        table: list[np.ndarray] = []
         for m in cfg.measures:
             sub_cfg = cfg.replace(measures=(m,), combine="weighted", weights={}, thresholds={},
                               normalisation="natural")
@@ -204,6 +212,7 @@ class Problem:
         S = np.vstack([S, G])
         rng = np.ptp(S, axis=0)
         normaliser = Normaliser.from_payoff(self.names, G, natural.reference, rng, S.min(axis=0))
+        assert normaliser.payoff is not None  # (from_payoff sets it)
         normaliser.payoff["designs"] = X.tolist()
         return normaliser
 
@@ -266,13 +275,13 @@ class Problem:
         other._glare = self._glare
         return other
 
-    def set_glare(self, maps: Any) -> None:
+    def set_glare(self, maps: GlareMaps | None) -> None:
         """g_POSE's glare maps (``measures.glare.GlareMaps`` at this problem's poses, ``render.glare.glare_maps``):
         a blind rim in a conductor is found as often as its contrast to the rendered face allows; None: off."""
         self._glare = maps
 
     @property
-    def glare(self) -> Any:
+    def glare(self) -> GlareMaps | None:
         """The glare maps for this problem's poses (tiled when the poses are stacked copies of the trajectory,
         as ``occlusion``), or None."""
         maps = self._glare
@@ -317,7 +326,8 @@ class Problem:
         return self.measures_from_features(*self.model.features(np.asarray(x, dtype=float)))
 
     def features_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                            exact_occlusion: bool = False, depth_mm: np.ndarray | None = None) -> np.ndarray:
+                            exact_occlusion: bool = False, depth_mm: Sequence[float] | np.ndarray | None = None
+                            ) -> np.ndarray:
         """Raw aggregated objectives (K,) in ``names`` order from hole features (``exact_occlusion``: as
         ``measures_from_features``; the reported before/after values use it); ``depth_mm`` (N,) the holes'
         depths for g_POSE (None: the reference holes')."""
@@ -330,8 +340,9 @@ class Problem:
                                     None if depth_mm is None else np.asarray(depth_mm, float).reshape(1, -1))
             pose = _BatchPose(-e[0], g_pose[0])
         values = per_pose_values(_WithPose(m, pose), cfg, self.feature_mask)
-        return np.array([pose.g if k == "pose" else aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta,
-                                                                self.units[k]) for k in cfg.measures])
+        return np.array([pose.g if k == "pose" and pose is not None else
+                         aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k])
+                         for k in cfg.measures])
 
     def batch_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                          depth_mm: np.ndarray | None = None) -> np.ndarray:
@@ -352,7 +363,7 @@ class Problem:
         return self.aggregate_arrays(self.pose_arrays(centres, axes, radii, depth_mm=depth_mm))
 
     def pose_arrays(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                    noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> dict[str, Any]:
+                    noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> JsonDict:
         """Per-pose arrays of B designs at the problem's L poses: each chosen measure's (B, L, N) feature values
         (``seen``, the Jacobian rows' weights, for Λ), Λ as (B, L), and for g_POSE
         ``("pose", (errors (B, L) mm, information (B, L, 6, 6)))``.
@@ -375,13 +386,13 @@ class Problem:
             return np.moveaxis(a.reshape(L, B, N), 1, 0)
         attrs = {"fov": "fov" if cfg.fov_measure == "cone" else "fov_px", "focus": "focus",
                  "resolution": "resolution_px", "resolvability": "seen"}
-        arrays: dict[str, Any] = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
+        arrays: JsonDict = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
         if "pose" in cfg.measures:  # g_POSE: one pose_information on the B·L stacked poses (``design.pose_terms``)
 
             info = stacked_information(self, centres, axes, radii, noise_grey, depth_mm)
             arrays["pose"] = (info.error_mm(cfg.pose_rotation_length_mm).reshape(B, L),
                               info.information.reshape(B, L, 6, 6))
-        if "resolvability" in cfg.measures and B == 1:  # evaluate's own Λ is the design's
+        if "resolvability" in cfg.measures and B == 1 and m is not None:  # evaluate's own Λ is the design's
             arrays["resolvability"] = np.asarray(m.resolvability)[None]
         elif "resolvability" in cfg.measures:
             R, t = self.T_cam_part[:, :3, :3], self.T_cam_part[:, :3, 3]
@@ -392,7 +403,7 @@ class Problem:
                                                      cfg.rotation_length_mm).reshape(B, L)
         return arrays
 
-    def aggregate_arrays(self, arrays: dict[str, Any]) -> np.ndarray:
+    def aggregate_arrays(self, arrays: JsonDict) -> np.ndarray:
         """Raw aggregated objectives (B, K) of ``pose_arrays`` (any leading batch shape B of the (B, L, …) arrays)."""
         cfg = self.objective_config
         arrays = dict(arrays)

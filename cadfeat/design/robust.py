@@ -33,18 +33,23 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from cadfeat.design.objectives import ObjectiveConfig
-from cadfeat.design.optimize import _result
-from cadfeat.design.optimize.evaluator import FEAS_TOL, Evaluator
+from cadfeat.design.optimize import _result  # pyright: ignore[reportPrivateUsage] (the optimisers' result)
+from cadfeat.design.optimize.evaluator import FEAS_TOL, Best, Evaluator
 from cadfeat.design.robustness import cell_objectives, shop_objectives
 from cadfeat.design.uncertainty import Draws
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.optimize import OptimizerConfig, OptimResult
+    from cadfeat.design.problem import Problem
+    from cadfeat.results import JsonDict
 
 __all__ = ["BLOCKS", "FLOOR_PERCENTILE", "STATISTICS", "TIE_TOL", "RobustObjective", "RobustProblem",
            "robust_optimise", "statistic", "tie_break"]
@@ -109,7 +114,7 @@ class RobustProblem:
     original) whose combined 5th percentile under each source of ``BLOCKS`` is a constraint (margin ≥ 0): the
     robust optimum is never more fragile than it, in sample."""
 
-    def __init__(self, problem: Any, objective: RobustObjective, draws: Draws, changed: Any = None,
+    def __init__(self, problem: Problem, objective: RobustObjective, draws: Draws, changed: Any = None,
                  floor_x: Any = None):
         if problem.objective_config.combine == "pareto":
             raise CadfeatError("robustness.robust: a robust objective needs one combined value; allowed: "
@@ -147,7 +152,8 @@ class RobustProblem:
         return np.asarray(G, float)[..., 0]
 
     def constraint_labels(self) -> list[tuple[str, list[str]]]:
-        extra = [(f"chance:{self.objective.chance_measure}", [])] if self._chance is not None else []
+        extra: list[tuple[str, list[str]]] = \
+            [(f"chance:{self.objective.chance_measure}", [])] if self._chance is not None else []
         if self.floor is not None:
             extra += [(f"p05 not below the original's: {b}", []) for b in BLOCKS]
         return self.inner.constraint_labels() + extra
@@ -183,12 +189,12 @@ class RobustProblem:
         ``block_objectives``."""
         p = self.inner
         comb = {k: np.asarray(p.combined_from(v), float) for k, v in G.items()}
-        margins = []
+        margins: list[np.ndarray] = []
         if self.objective.statistic == "chance":
             value = comb["nominal"]
             k, q = self._chance, 100.0 * (1.0 - self.objective.chance_probability)
             low = np.min([np.percentile(G[b][..., k], q, axis=1) for b in BLOCKS], axis=0)
-            margins.append((low - float(self.objective.chance_min)) / float(p.scales[k]))
+            margins.append((low - float(cast(float, self.objective.chance_min))) / float(p.scales[k]))
         else:
             value = np.min([statistic(comb[b], self.objective) for b in BLOCKS], axis=0)
         if self.floor is not None:
@@ -254,7 +260,7 @@ def _local(ev: Any, u0: np.ndarray, maxiter: int) -> None:
     finite-difference gradients mislead a gradient solver. The evaluator keeps the best feasible design. The
     solve ends early when its best feasible value has not risen by ``STALL_TOL`` in ``STALL_EVALS_PER_VARIABLE``
     · (n + 1) evaluations, at least ``STALL_EVALS_MIN`` (a solve that has found no feasible design runs on)."""
-    from scipy.optimize import minimize
+    from scipy.optimize import minimize  # pyright: ignore[reportMissingTypeStubs, reportUnknownVariableType]
 
     iteration = [0]
     best, count, last = [-np.inf], [0], [0]
@@ -278,7 +284,10 @@ def _local(ev: Any, u0: np.ndarray, maxiter: int) -> None:
             ev.record(iteration[0], G[0], C[0])
 
     n_cons = ev.batch(u0[None])[1].shape[1]
-    cons = [{"type": "ineq", "fun": lambda u: ev.batch(np.clip(u, 0.0, 1.0)[None])[1][0]}] if n_cons else []
+    def margins(u: np.ndarray) -> np.ndarray:
+        return ev.batch(np.clip(u, 0.0, 1.0)[None])[1][0]
+
+    cons = [{"type": "ineq", "fun": margins}] if n_cons else []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
@@ -292,9 +301,9 @@ class _PoolEvaluator(Evaluator):
     """An ``Evaluator`` that also keeps every feasible design it evaluates (in ``pool``, shared with the evaluators
     of ``sub``): the candidates of ``tie_break``."""
 
-    def __init__(self, *args: Any, pool: list[dict[str, Any]] | None = None, **kwargs: Any) -> None:
+    def __init__(self, *args: Any, pool: list[Best] | None = None, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.pool: list[dict[str, Any]] = [] if pool is None else pool
+        self.pool: list[Best] = [] if pool is None else pool
 
     def sub(self, x_base: np.ndarray, free: np.ndarray) -> _PoolEvaluator:
         return _PoolEvaluator(self.problem, x_base, free, self.progress, self.t0, self.history, self.bounds,
@@ -308,8 +317,7 @@ class _PoolEvaluator(Evaluator):
                               "C": c.copy(), "feasible": True, "violation": violation})
 
 
-def tie_break(problem: RobustProblem, best: dict[str, Any] | None, pool: Sequence[dict[str, Any]]) -> \
-        dict[str, Any] | None:
+def tie_break(problem: RobustProblem, best: Best | None, pool: Sequence[Best]) -> Best | None:
     """Among the feasible designs of ``pool`` whose statistic is within ``TIE_TOL`` of ``best``'s (equally good:
     the statistic cannot tell them apart), the one with the largest ``fragility_margin``; equal margins (to 1e-12)
     go to the higher statistic, then to the earlier design. ``best`` itself when it is not feasible or the problem
@@ -334,8 +342,8 @@ def tie_break(problem: RobustProblem, best: dict[str, Any] | None, pool: Sequenc
     return max(chosen, key=lambda d: d["combined"])  # (max keeps the first of equal values: the earlier design)
 
 
-def robust_optimise(problem: RobustProblem, config: Any, starts: Sequence[np.ndarray],
-                    progress: Any = None) -> Any:
+def robust_optimise(problem: RobustProblem, config: OptimizerConfig, starts: Sequence[np.ndarray],
+                    progress: Callable[[JsonDict], None] | None = None) -> OptimResult:
     """Local solves of ``problem`` (COBYLA, ``ROBUST_EVALS_PER_VARIABLE`` evaluations per free variable) from
     each of ``starts`` in turn, one evaluator keeping the best feasible design (ties: the earlier); standard-size
     variables (``snap_standard_sizes``) stay at each start's (snapped) sizes. The delivered design: among the
@@ -349,7 +357,8 @@ def robust_optimise(problem: RobustProblem, config: Any, starts: Sequence[np.nda
     t0, n0 = time.perf_counter(), problem.n_evals
     ev = _PoolEvaluator(problem, np.asarray(starts[0], float), free, progress=progress, t0=t0)
     ev.phase = "robust"
-    interrupted, summaries = False, []
+    interrupted = False
+    summaries: list[JsonDict] = []
     try:
         for k, x in enumerate(starts):
             sub = ev.sub(np.asarray(x, float), free)

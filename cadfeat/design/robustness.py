@@ -23,13 +23,17 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from cadfeat.design.uncertainty import Draws
 from cadfeat.poses import rotvec_matrix
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.problem import Problem
+    from cadfeat.results import JsonDict
 
 __all__ = ["RAZOR_KEEP", "camera_objectives", "cell_objectives", "cell_poses", "robustness", "shop_features",
            "shop_objectives"]
@@ -50,7 +54,7 @@ def _stats(G: np.ndarray, nominal: np.ndarray) -> dict[str, np.ndarray]:
     return {"nominal": nominal, "mean": G.mean(axis=0), "p05": np.percentile(G, 5, axis=0), "min": G.min(axis=0)}
 
 
-def camera_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+def camera_objectives(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                       dT: np.ndarray) -> np.ndarray:
     """Raw objectives (S, K) of one design seen by S displaced cameras ``dT`` (S, 4, 4) (camera frame):
     ``cell_objectives`` with only a camera mounting error."""
@@ -61,7 +65,7 @@ def camera_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii
                            np.asarray(radii, float)[None], draws)[0]
 
 
-def cell_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+def cell_objectives(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                     draws: Draws, depth_mm: np.ndarray | None = None) -> np.ndarray:
     """Raw objectives (B, S, K) of B designs' features (B, N, 3), (B, N, 3), (B, N) in S cells that differ from
     the nominal one by ``draws`` (camera mount, part placement, path offset, time scaling, pixel noise; the
@@ -80,7 +84,7 @@ def cell_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: 
     return np.moveaxis(out, 0, 1)
 
 
-def cell_poses(problem: Any, draws: Draws) -> tuple[np.ndarray, np.ndarray]:
+def cell_poses(problem: Problem, draws: Draws) -> tuple[np.ndarray, np.ndarray]:
     """The S·L poses ``T_cam_part`` (S·L, 4, 4) and camera screws (S·L, 6) of the S drawn cells (draw-major).
 
     Camera mount ``ΔC`` (camera frame, the same at every pose): ``T' = ΔC⁻¹ T`` and ``v' = Rᵀ (v − p × ω)``,
@@ -104,7 +108,7 @@ def cell_poses(problem: Any, draws: Draws) -> tuple[np.ndarray, np.ndarray]:
     return T, screws.reshape(S * L, 6)
 
 
-def _cell_chunk(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+def _cell_chunk(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
                 draws: Draws, depth_mm: np.ndarray | None = None) -> np.ndarray:
     """``cell_objectives`` (B, S, K) of one chunk of draws, as one stack of S·L poses."""
     S, L = draws.size, len(problem.screws)
@@ -115,9 +119,9 @@ def _cell_chunk(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
     if maps is not None or glare is not None:  # nominal maps, looked up where each pose's nominal camera sees a point
         to_nominal = np.tile(problem.T_cam_part, (S, 1, 1)) @ _inverse(stacked.T_cam_part)
         if maps is not None:
-            stacked._depth_maps = maps.tile(S, to_nominal)
+            stacked._depth_maps = maps.tile(S, to_nominal)  # pyright: ignore[reportPrivateUsage] (the problem's copy)
         if glare is not None:
-            stacked._glare = glare.tile(S, to_nominal)
+            stacked._glare = glare.tile(S, to_nominal)  # pyright: ignore[reportPrivateUsage] (the problem's copy)
     noise = None
     if "pose" in problem.objective_config.measures and draws.noise_grey is not None:
         noise = np.repeat(draws.noise_grey, L)[:, None]
@@ -126,8 +130,8 @@ def _cell_chunk(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.n
 
     def per_draw(a: np.ndarray) -> np.ndarray:  # (B, S·L, …) → (B·S, L, …)
         return a.reshape((B * S, L) + a.shape[2:])
-    arrays = {k: tuple(map(per_draw, v)) if isinstance(v, tuple) else per_draw(np.asarray(v))
-              for k, v in arrays.items()}
+    arrays = {k: tuple(map(per_draw, cast("tuple[np.ndarray, ...]", v))) if isinstance(v, tuple) else
+              per_draw(np.asarray(v)) for k, v in arrays.items()}
     return problem.aggregate_arrays(arrays).reshape(B, S, -1)
 
 
@@ -155,7 +159,7 @@ def shop_features(centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, chan
     return C, np.broadcast_to(a[:, None], C.shape), R
 
 
-def shop_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray,
+def shop_objectives(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray,
                     draws: Draws, depth_mm: np.ndarray | None = None) -> np.ndarray:
     """Raw objectives (B, S, K) of B designs made by the shop in S draws (``shop_features``), as B·S designs of
     ONE batched evaluation (``Problem.batch_objectives``, chunked to the memory budget)."""
@@ -167,10 +171,10 @@ def shop_objectives(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: 
     return G.reshape(B, S, -1)
 
 
-def robustness(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray, *,
+def robustness(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray, *,
                position_tol_mm: float = 0.1, size_steps: int = 1, sizes: Sequence[float] = (),
                camera_position_mm: Any = 2.0, camera_angle_deg: Any = 1.0, samples: int = 200,
-               combined_before: float | None = None, seed: int = 0) -> dict[str, Any]:
+               combined_before: float | None = None, seed: int = 0) -> JsonDict:
     """The robustness block of results.json for the design with features (N,3), (N,3), (N,) (part frame, mm);
     ``changed`` (N,) bool: the holes the shop makes anew (moved or resized)."""
     rng = np.random.default_rng(seed)
@@ -180,8 +184,8 @@ def robustness(problem: Any, centres: np.ndarray, axes: np.ndarray, radii: np.nd
     names = list(problem.names)
     nominal = problem.features_objectives(c, a, r)
     pareto = problem.objective_config.combine == "pareto"
-    comb = (lambda G: problem.combined_from(G)) if not pareto else None  # noqa: E731
-    out: dict[str, Any] = {"position_tol_mm": position_tol_mm, "size_steps": size_steps,
+    comb: Callable[[np.ndarray], np.ndarray] | None = problem.combined_from if not pareto else None
+    out: JsonDict = {"position_tol_mm": position_tol_mm, "size_steps": size_steps,
                            "camera_position_mm": cam_mm.tolist(), "camera_angle_deg": cam_deg.tolist(),
                            "samples": samples, "names": names, "razor_edge": []}
     if samples <= 0:

@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -33,8 +33,11 @@ from cadfeat.design.hole_form import drill_mask, drill_radii_batch
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
-    from cadfeat.cad.features.identity import FeatureModel
+    from cadfeat.design.design_space import DesignSpace, FeatureModel
+    from cadfeat.design.problem import Problem
 
 __all__ = ["DEFAULT_GRID_MM", "HOLE_SIZE_TABLES", "ShopDesign", "hole_sizes", "model_jacobian", "off_target",
            "refine_on_rebuild", "shop_design", "snap_diameters"]
@@ -108,12 +111,12 @@ class ShopDesign:
     target_centres: np.ndarray
     target_diameters: np.ndarray
     residual_mm: float
-    notes: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list[str])
     drill_bore: np.ndarray | None = None
     """(N,) bool: the target diameter is the hole's bore (``hole_form.drill_mask``), else its entrance rim."""
 
 
-def model_jacobian(model: Any, x: np.ndarray, h: float = 1e-3) -> np.ndarray:
+def model_jacobian(model: FeatureModel, x: np.ndarray, h: float = 1e-3) -> np.ndarray:
     """(4N, P) d(centres, drilled radii)/dx by central differences, one batched feature evaluation (drilled
     radius: ``hole_form.drill_radii_batch``, the bore of a plain hole, the entrance of the others)."""
     P = x.size
@@ -132,7 +135,7 @@ def _flat(c: np.ndarray, r: np.ndarray) -> np.ndarray:
 MAX_ROUNDINGS = 4096
 
 
-def rounding_candidates(space: Any, x: np.ndarray, grid_mm: float) -> np.ndarray:
+def rounding_candidates(space: DesignSpace, x: np.ndarray, grid_mm: float) -> np.ndarray:
     """(C, P) designs with the position and hole-form variables (mm, no standard sizes) on the grid: nearest first,
     then every floor/ceil combination (at most ``MAX_ROUNDINGS``; beyond that, nearest only), clipped to the bounds."""
     x = np.asarray(x, float).reshape(-1)
@@ -145,15 +148,16 @@ def rounding_candidates(space: Any, x: np.ndarray, grid_mm: float) -> np.ndarray
     out = [space.clip(nearest)]
     if 2 ** pos.size <= MAX_ROUNDINGS:
         lo, hi = np.floor(x[pos] / grid_mm) * grid_mm, np.ceil(x[pos] / grid_mm) * grid_mm
-        bits = (np.arange(2 ** pos.size)[:, None] >> np.arange(pos.size)) & 1
+        bits = cast(np.ndarray, (np.arange(2 ** pos.size)[:, None] >> np.arange(pos.size)) & 1)
         X = np.tile(x, (len(bits), 1))
         X[:, pos] = np.where(bits == 1, hi, lo)
         out += list(space.clip(X))
     return np.array(out)
 
 
-def shop_design(space: Any, model: Any, x: np.ndarray, *, grid_mm: float = DEFAULT_GRID_MM,
-                sizes: Sequence[float] = ISO_273["medium"], tol_mm: float = 1e-9, problem: Any = None) -> ShopDesign:
+def shop_design(space: DesignSpace, model: FeatureModel, x: np.ndarray, *, grid_mm: float = DEFAULT_GRID_MM,
+                sizes: Sequence[float] = ISO_273["medium"], tol_mm: float = 1e-9,
+                problem: Problem | None = None) -> ShopDesign:
     """The shop-ready design near ``x`` (see the module docstring). ``space``: the ``DesignSpace``; ``model``:
     the feature model (``features``, ``features_batch``); ``grid_mm`` 0 keeps positions; ``sizes`` empty
     keeps diameters. With ``problem`` (its ``evaluate_batch`` on ``model``'s variables): when the nearest
@@ -180,7 +184,8 @@ def shop_design(space: Any, model: Any, x: np.ndarray, *, grid_mm: float = DEFAU
     return first
 
 
-def _reachable_diameters(space: Any, x: np.ndarray, r: np.ndarray, J_r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _reachable_diameters(space: DesignSpace, x: np.ndarray, r: np.ndarray, J_r: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
     """(N,) lowest and highest diameter (mm) each hole can have within the variable bounds, to first order about
     ``x`` (``J_r``: (N, P) dr/dx): a table size outside them cannot be drilled by this design space."""
     lower, upper = np.asarray(space.lower, float), np.asarray(space.upper, float)
@@ -188,12 +193,12 @@ def _reachable_diameters(space: Any, x: np.ndarray, r: np.ndarray, J_r: np.ndarr
     return 2 * (r + np.minimum(lo_step, hi_step).sum(axis=1)), 2 * (r + np.maximum(lo_step, hi_step).sum(axis=1))
 
 
-def _feasible(problem: Any, x: np.ndarray) -> bool:
+def _feasible(problem: Problem, x: np.ndarray) -> bool:
     return float(np.asarray(problem.constraints(x), float).min(initial=0.0)) >= -1e-9
 
 
-def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: float, sizes: Sequence[float],
-               tol_mm: float) -> ShopDesign:
+def _shop_from(space: DesignSpace, model: FeatureModel, x: np.ndarray, xr: np.ndarray, grid_mm: float,
+               sizes: Sequence[float], tol_mm: float) -> ShopDesign:
     """Targets from the rounded variables ``xr`` and the least-squares step towards them."""
     cr, ar = (np.asarray(v, float) for v in model.features(xr)[:2])
     rr = drill_radii_batch(model, xr)[0]
@@ -217,7 +222,7 @@ def _shop_from(space: Any, model: Any, x: np.ndarray, xr: np.ndarray, grid_mm: f
     xs = space.snap(space.clip(xr + step))
     cs, rs = model.features(xs)[0], drill_radii_batch(model, xs)[0]
     residual = float(np.max(np.abs(_flat(cs, rs) - target), initial=0.0))
-    notes = []
+    notes: list[str] = []
     if residual > 1e-6:
         notes.append(f"the design variables cannot put every moved hole on the {grid_mm:g} mm grid and every resized "
                      f"hole on a table size at once (largest remaining difference {residual:.3g} mm, feature model)")
@@ -241,10 +246,10 @@ def off_target(holes: Sequence[Hole], design: ShopDesign) -> float:
                      np.abs(2 * r - design.target_diameters).max(initial=0.0)))
 
 
-def refine_on_rebuild(space: Any, model: FeatureModel, problem: Any, x: np.ndarray,
-                      rebuilt: tuple[Any, list[Hole], float],
-                      design: ShopDesign, rebuild: Callable[[np.ndarray, list[Hole]], tuple[Any, list[Hole], float]],
-                      rounds: int = 6) -> tuple[np.ndarray, tuple[Any, list[Hole], float], float]:
+def refine_on_rebuild(space: DesignSpace, model: FeatureModel, problem: Problem, x: np.ndarray,
+                      rebuilt: tuple[Shape, list[Hole], float],
+                      design: ShopDesign, rebuild: Callable[[np.ndarray, list[Hole]], tuple[Shape, list[Hole], float]],
+                      rounds: int = 6) -> tuple[np.ndarray, tuple[Shape, list[Hole], float], float]:
     """Where the feature model is only a linearisation (a nonlinear part script), the rebuilt holes may miss the
     grid/table targets of ``design``: up to ``rounds`` Newton steps on the real CAD rebuild (the model's
     Jacobian, the rebuilt holes' error), each kept only if it gets closer and keeps the model's constraints.

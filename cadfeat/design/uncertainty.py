@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -32,6 +32,9 @@ from cadfeat.cell import Cell, triple
 from cadfeat.cell import defaults as D
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import rotvec_matrix
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = ["CELL_KINDS", "KINDS", "NOMINAL_NOISE_GREY", "SAMPLINGS", "Draws", "Uncertainty", "draws", "rigid"]
 
@@ -50,10 +53,10 @@ Triple = tuple[float, float, float]
 class Uncertainty:
     """Tolerances of the cell and the shop (module docstring; defaults: the study's ``[robustness]``)."""
 
-    camera_position_mm: Triple = (D.CAMERA_POSITION_MM,) * 3
-    camera_angle_deg: Triple = (D.CAMERA_ANGLE_DEG,) * 3
-    placement_position_mm: Triple = (D.PLACEMENT_POSITION_MM,) * 3
-    placement_angle_deg: Triple = (D.PLACEMENT_ANGLE_DEG,) * 3
+    camera_position_mm: Triple = (D.CAMERA_POSITION_MM,) * 3  # pyright: ignore[reportAssignmentType] (3 floats)
+    camera_angle_deg: Triple = (D.CAMERA_ANGLE_DEG,) * 3  # pyright: ignore[reportAssignmentType]
+    placement_position_mm: Triple = (D.PLACEMENT_POSITION_MM,) * 3  # pyright: ignore[reportAssignmentType]
+    placement_angle_deg: Triple = (D.PLACEMENT_ANGLE_DEG,) * 3  # pyright: ignore[reportAssignmentType]
     path_offset_mm: Triple = (0.5, 0.5, 0.5)
     time_scale_percent: float = 10.0
     pixel_noise_grey: float = D.NOISE_SPREAD_GREY
@@ -73,8 +76,9 @@ class Uncertainty:
                            float(spec.position_tol_mm), float(spec.diameter_tol_mm), str(spec.distribution),
                            float(cell.noise_sigma_grey))
 
-    def to_dict(self) -> dict[str, Any]:
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
+    def to_dict(self) -> JsonDict:
+        return {k: list(cast("tuple[float, ...]", v)) if isinstance(v, tuple) else v
+                for k, v in dataclasses.asdict(self).items()}
 
 
 def rigid(rotvec_rad: np.ndarray, translation_mm: np.ndarray) -> np.ndarray:
@@ -135,16 +139,16 @@ class Draws:
 
 def _unit(S: int, d: int, seed: int, sampling: str) -> np.ndarray:
     """S points in [0, 1)^d: scrambled Sobol (the first S of 2^m) or a Latin hypercube, seeded."""
-    from scipy.stats import qmc
+    from scipy.stats import qmc  # pyright: ignore[reportMissingTypeStubs]
 
     if sampling not in SAMPLINGS:
         raise CadfeatError(f"robustness.sampling: {sampling!r} is not allowed; allowed: {', '.join(SAMPLINGS)}")
     if S <= 0:
         return np.zeros((0, d))
     if sampling == "lhs":
-        return qmc.LatinHypercube(d=d, seed=seed).random(S)
+        return qmc.LatinHypercube(d=d, seed=seed).random(S)  # pyright: ignore[reportCallIssue] (scipy: no stubs)
     m = int(np.ceil(np.log2(max(S, 2))))
-    return qmc.Sobol(d=d, scramble=True, seed=seed).random_base2(m)[:S]
+    return qmc.Sobol(d=d, scramble=True, seed=seed).random_base2(m)[:S]  # pyright: ignore[reportCallIssue]
 
 
 def _signed(U: np.ndarray, distribution: str) -> np.ndarray:
@@ -152,10 +156,11 @@ def _signed(U: np.ndarray, distribution: str) -> np.ndarray:
     if distribution == "uniform":
         return 2.0 * U - 1.0
     if distribution == "normal":
-        from scipy.stats import norm
+        from scipy.stats import norm  # pyright: ignore[reportMissingTypeStubs]
 
-        lo, hi = norm.cdf(-2.0), norm.cdf(2.0)
-        return 0.5 * norm.ppf(lo + np.clip(U, 1e-12, 1 - 1e-12) * (hi - lo))
+        lo, hi = norm.cdf(-2.0), norm.cdf(2.0)  # pyright: ignore[reportUnknownMemberType] (scipy: no stubs)
+        return 0.5 * norm.ppf(  # pyright: ignore[reportUnknownMemberType]
+            lo + np.clip(U, 1e-12, 1 - 1e-12) * (hi - lo))
     raise CadfeatError(f"robustness.distribution: {distribution!r} is not allowed; allowed: uniform, normal")
 
 

@@ -11,10 +11,13 @@ from __future__ import annotations
 
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from cadfeat.errors import CadfeatError
 from cadfeat.explore.status import NotReady, SetupStatus
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.explore.session import ExploreSession
 
 __all__ = ["NotReady", "SessionLoader", "SetupStatus"]
 
@@ -31,12 +34,12 @@ class SessionLoader:
         self.status = SetupStatus(str(study))
         self.config = load_study(Path(study).resolve())
         self.status.study = self.config.study.name
-        self._session: Any = None
+        self._session: ExploreSession | None = None
         self.done = threading.Event()
         self._thread: threading.Thread | None = None
 
     @classmethod
-    def of(cls, session: Any) -> SessionLoader:
+    def of(cls, session: ExploreSession) -> SessionLoader:
         """A loader of a session that is set up already."""
         loader = cls.__new__(cls)
         loader.study, loader.results, loader.cache = session.study_path, None, None
@@ -64,7 +67,7 @@ class SessionLoader:
         finally:
             self.done.set()
 
-    def session(self) -> Any:
+    def session(self) -> ExploreSession:
         """The ``ExploreSession``; ``NotReady`` while it is being set up or after its set-up failed."""
         if self._session is None:
             raise NotReady(self.status)

@@ -30,11 +30,14 @@ import threading
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.errors import CadfeatError
 from cadfeat.explore.loader import SessionLoader
 from cadfeat.explore.status import NotReady
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.explore.session import ExploreSession
 
 __all__ = ["ExploreServer", "serve"]
 
@@ -129,14 +132,14 @@ class ExploreServer(ThreadingHTTPServer):
 
     daemon_threads = True
 
-    def __init__(self, session: Any, port: int = 0) -> None:
+    def __init__(self, session: ExploreSession | SessionLoader, port: int = 0) -> None:
         super().__init__((HOST, port), _Handler)
         self.loader = session if isinstance(session, SessionLoader) else SessionLoader.of(session)
         self._scene: bytes | None = None
         self._thread: threading.Thread | None = None
 
     @property
-    def session(self) -> Any:
+    def session(self) -> ExploreSession:
         """The ``ExploreSession``; ``NotReady`` while it is being set up (or when its set-up failed)."""
         return self.loader.session()
 
@@ -167,7 +170,7 @@ class ExploreServer(ThreadingHTTPServer):
         self.server_close()
 
 
-def serve(session: Any, port: int = 0) -> ExploreServer:
+def serve(session: ExploreSession | SessionLoader, port: int = 0) -> ExploreServer:
     """A started ``ExploreServer`` on 127.0.0.1:``port`` (0: a free port) of ``session`` (an ``ExploreSession``, or
     a ``SessionLoader`` setting one up)."""
     try:

@@ -31,7 +31,7 @@ import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -42,6 +42,10 @@ from cadfeat.design.hole_form import design_depths
 from cadfeat.errors import CadfeatError
 from cadfeat.explore.status import SetupStatus
 from cadfeat.study.pose_accuracy import with_pose
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
+    from cadfeat.study.schema import StudyConfig
 
 __all__ = ["ExploreSession", "new_path"]
 
@@ -77,7 +81,7 @@ class ExploreSession:
     ``status``: told each phase of the set-up (``SessionLoader``); ``config``: the study, loaded already."""
 
     def __init__(self, study: str | Path, results: str | Path | None = None, *, cache: bool | None = None,
-                 status: SetupStatus | None = None, config: Any = None) -> None:
+                 status: SetupStatus | None = None, config: StudyConfig | None = None) -> None:
         # lazy: import cycle (cadfeat.explore.raycache imports cadfeat.explore.session)
         from cadfeat.explore.raycache import CachedRayMesh
         from cadfeat.study.schema import load_study
@@ -128,7 +132,7 @@ class ExploreSession:
                                ) from None
         return {n: after[n] for n in self.names if n in after} if after else None
 
-    def scene(self) -> dict[str, Any]:
+    def scene(self) -> JsonDict:
         """What the page draws once: variables with bounds, the part mesh, the camera path and intrinsics,
         the hole names, the trajectory times, the current and (if any) the optimum design."""
         from cadfeat.poses import invert_T  # lazy: would import scipy.spatial at module load
@@ -169,7 +173,7 @@ class ExploreSession:
             x[self.names.index(name)] = float(value)
         return x
 
-    def evaluate(self, values: Mapping[str, Any] | None = None, pose: int = 0) -> dict[str, Any]:
+    def evaluate(self, values: Mapping[str, Any] | None = None, pose: int = 0) -> JsonDict:
         """Every number the page shows at design ``values`` (see the module docstring), with the synthetic
         camera view's predicted ellipses at trajectory sample ``pose``."""
         from cadfeat.design.objectives import objective_values  # lazy: would import pydantic at module load
@@ -210,7 +214,7 @@ class ExploreSession:
             "elapsed_s": elapsed,
         }
 
-    def sweep(self, values: Mapping[str, Any] | None, name: str, n: int = 41) -> dict[str, Any]:
+    def sweep(self, values: Mapping[str, Any] | None, name: str, n: int = 41) -> JsonDict:
         """The objectives along design variable ``name`` over its bounds, the others at ``values`` (as the thesis
         plots them against the design variable, Figs. 5.10-5.11): ``n`` designs scored in one batch by the
         optimiser's own function (``Problem.evaluate_batch``: the depth-map occlusion test), normalised, with
@@ -265,7 +269,7 @@ class ExploreSession:
         """The real CAD model at the chosen design (time-limited build): a ``cadquery.Solid``."""
         return self.setup.rebuild_shape(self.design(values))
 
-    def rebuilt_mesh(self, values: Mapping[str, Any] | None) -> dict[str, Any]:
+    def rebuilt_mesh(self, values: Mapping[str, Any] | None) -> JsonDict:
         """The CAD model rebuilt at the chosen design, triangulated for the page (vertices mm, triangles)."""
         from cadfeat.report.view3d import mesh_arrays  # lazy: would import pydantic at module load
 

@@ -50,7 +50,7 @@ poses or holes.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -58,6 +58,9 @@ from numpy.typing import ArrayLike
 from cadfeat.camera import Camera
 from cadfeat.cell import defaults as D
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = ["PoseInformation", "direction_words", "pose_information"]
 
@@ -104,7 +107,7 @@ class PoseInformation:
     detected: np.ndarray
     rotation_length_mm: float = 1.0
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> JsonDict:
         return {**{f.name: getattr(self, f.name) for f in fields(self)}, "weakest_words": self.weakest_words}
 
     @property

@@ -57,7 +57,9 @@ from cadfeat.render.scene import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.cad.features import Hole
+    import trimesh
+
+    from cadfeat.cad.features import Hole, ShapeLike
     from cadfeat.camera import Camera
 
 BACKGROUND_BLACK = (0.0, 0.0, 0.0)
@@ -100,7 +102,7 @@ class CameraViewRenderer:
     Call ``close()`` (or use as a context manager) to free the OpenGL context.
     """
 
-    def __init__(self, shape: Any, holes: Sequence[Hole], camera: Camera, *, mesh: Any = None,
+    def __init__(self, shape: ShapeLike, holes: Sequence[Hole], camera: Camera, *, mesh: trimesh.Trimesh | None = None,
                  supersample: int | None = None) -> None:
         if supersample is None:
             supersample = DEFAULT_SUPERSAMPLE
@@ -261,7 +263,7 @@ def _label(image: np.ndarray, text: str, at: tuple[int, int]) -> None:
     cv2.putText(image, text, at, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), thick, cv2.LINE_AA)
 
 
-def render_camera_views(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray,
+def render_camera_views(shape: ShapeLike, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray,
                         out_dir: str | Path, prefix: str = "view", *, overlay: bool = True) -> list[Path]:
     """Synthetic camera images at poses ``T_cam_part`` (K, 4, 4), one PNG each (``{prefix}_{k:03d}.png``).
 

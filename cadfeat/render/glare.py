@@ -12,7 +12,7 @@ variant, 2 cores quiet (``benchmarks/bench_pbr.py``: ~0.4 s per full frame at 16
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,7 +20,9 @@ from cadfeat.camera import Camera
 from cadfeat.cell.model import Cell
 from cadfeat.measures.glare import GlareMaps
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
 
 __all__ = ["SCALE", "SPP", "glare_maps", "reduced"]
@@ -33,7 +35,7 @@ SMOOTH_PX = 1.0
 SCALE = 2
 
 
-def glare_maps(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, cell: Cell) -> GlareMaps:
+def glare_maps(shape: Shape, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, cell: Cell) -> GlareMaps:
     """``GlareMaps`` of ``shape`` (its ``holes``) seen by ``camera`` at poses ``T_cam_part`` (L, 4, 4) in ``cell``
     (module docstring)."""
     import cv2

@@ -17,7 +17,7 @@ from cadfeat.cell.defaults import RENDERERS
 from cadfeat.render.scene import RenderError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.cad.features import Hole
+    from cadfeat.cad.features import Hole, ShapeLike
     from cadfeat.camera import Camera
 
 __all__ = ["RENDERER_KINDS", "CameraRenderer", "camera_renderer", "grey_sequence"]
@@ -40,7 +40,7 @@ class CameraRenderer(Protocol):
     def __exit__(self, *exc: object) -> None: ...
 
 
-def camera_renderer(kind: Literal["raster", "pbr"] | str, shape: Any, holes: Sequence[Hole], camera: Camera,
+def camera_renderer(kind: Literal["raster", "pbr"] | str, shape: ShapeLike, holes: Sequence[Hole], camera: Camera,
                     **cell: Any) -> CameraRenderer:
     """The ``kind`` renderer of ``shape`` seen by ``camera``: ``"raster"`` → ``CameraViewRenderer`` (``cell``:
     its ``supersample``, ``mesh``), ``"pbr"`` → ``PbrRenderer`` (``cell``: ``light``, ``material``, ``sensor``,

@@ -53,8 +53,9 @@ from cadfeat.render.view_geometry import (
 if TYPE_CHECKING:  # pragma: no cover
     import pyvista as pv
 
-    from cadfeat.cad.features import Hole
+    from cadfeat.cad.features import Hole, ShapeLike
     from cadfeat.camera import Camera
+    from cadfeat.trajectory import Trajectory
 
 MOVED_BEFORE = (0.95, 0.55, 0.10)   # orange: a hole that will move / its old place
 MOVED_AFTER = (0.10, 0.70, 0.25)    # green: a moved hole at its new place
@@ -124,7 +125,7 @@ def _label_points(plotter: pv.Plotter, points: np.ndarray, labels: list[str], co
                                  shape_opacity=0.75, show_points=False, always_visible=True)
 
 
-def render_part(shape: Any, path: str | Path, holes: Sequence[Hole] | None = None, *,
+def render_part(shape: ShapeLike, path: str | Path, holes: Sequence[Hole] | None = None, *,
                 view_direction: Sequence[float] | None = None, size: tuple[int, int] = (900, 700)) -> Path:
     """A PNG of ``shape`` from ``view_direction`` (part frame, towards the viewer), holes dark and labelled.
 
@@ -156,7 +157,7 @@ def _picture_plotter(size: tuple[int, int], headlight: float = 0.15) -> pv.Plott
     return plotter
 
 
-def _picture_mesh(shape: Any) -> Any:
+def _picture_mesh(shape: ShapeLike) -> Any:
     return shape_polydata(shape, PICTURE_TOLERANCE_MM, PICTURE_ANGULAR_TOLERANCE_RAD)
 
 
@@ -173,7 +174,7 @@ def _save(plotter: pv.Plotter, path: str | Path) -> Path:
 class _Scene:
     """What both comparison images share: meshes, colours, overlays and the fitted viewpoint."""
 
-    def __init__(self, shape_before: Any, shape_after: Any, holes_before: Sequence[Hole],
+    def __init__(self, shape_before: ShapeLike, shape_after: ShapeLike, holes_before: Sequence[Hole],
                  holes_after: Sequence[Hole], fixed: Sequence[bool], T_part_cam: np.ndarray | None,
                  camera: Camera | None, n_frusta: int) -> None:
         n = len(holes_before)
@@ -294,8 +295,9 @@ class _Scene:
         return entries
 
 
-def render_comparison(shape_before: Any, shape_after: Any, holes_before: Sequence[Hole], holes_after: Sequence[Hole],
-                      fixed: Sequence[bool], out_dir: str | Path, *, trajectory: Any = None,
+def render_comparison(shape_before: ShapeLike, shape_after: ShapeLike, holes_before: Sequence[Hole],
+                      holes_after: Sequence[Hole],
+                      fixed: Sequence[bool], out_dir: str | Path, *, trajectory: Trajectory | None = None,
                       camera: Camera | None = None, T_task_part: np.ndarray | None = None, n_frusta: int = 5,
                       size: tuple[int, int] = (1000, 760), closeup: bool = False) -> dict[str, Path]:
     """Before/after PNGs from the same viewpoint: ``{"before": out_dir/before.png, "after": out_dir/after.png}``.

@@ -57,7 +57,7 @@ from cadfeat.render.scene import RenderError
 from cadfeat.render.sensor import Sensor, expose
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.cad.features import Hole
+    from cadfeat.cad.features import Hole, ShapeLike
     from cadfeat.camera import Camera
 
 __all__ = ["HOLE_ENDS", "PbrRenderer", "row_resampling"]
@@ -93,7 +93,7 @@ class PbrRenderer:
     uses seed + k).
     """
 
-    def __init__(self, shape: Any, holes: Sequence[Hole], camera: Camera, *, light: Light | None = None,
+    def __init__(self, shape: ShapeLike, holes: Sequence[Hole], camera: Camera, *, light: Light | None = None,
                  material: Material | None = None, sensor: Sensor | None = None, spp: int = 16,
                  max_depth: int = 6, variant: str | None = None, hole_ends: str = "as_modelled",
                  seed: int = 0) -> None:
@@ -112,7 +112,7 @@ class PbrRenderer:
         self._emitter = emitter_mesh_ply(self.light, Path(self._tmp.name) / "emitter.ply")
         self._geometry()
 
-    def _load_part(self, shape: Any) -> tuple[Any, np.ndarray]:
+    def _load_part(self, shape: ShapeLike) -> tuple[Any, np.ndarray]:
         import mitsuba as mi
 
         vertices, tris, normals = part_mesh_arrays(shape, TOLERANCE_MM, ANGULAR_TOLERANCE_RAD)
@@ -209,7 +209,7 @@ def _checked_pose(T_cam_part: np.ndarray) -> np.ndarray:
     return T
 
 
-def _shaped_holes(shape: Any, holes: Sequence[Hole], hole_ends: str) -> Any:
+def _shaped_holes(shape: ShapeLike, holes: Sequence[Hole], hole_ends: str) -> Any:
     """``shape`` with its blind holes' ends made as ``hole_ends`` says (``cad.hole_ends``)."""
     from cadfeat.cad.hole_ends import with_hole_ends
 

@@ -16,13 +16,17 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cadfeat.cell.light import Light, emitter_strength
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import invert_T
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import ShapeLike
+    from cadfeat.results import JsonDict
 
 __all__ = ["PREFERRED_VARIANTS", "annulus_mesh", "emitter_mesh_ply", "light_dicts", "part_mesh_arrays", "sampler_dict",
            "sensor_dict", "use_variant", "write_ply"]
@@ -57,7 +61,7 @@ def use_variant(variant: str | None = None) -> str:
                        f"with scalar_rgb")
 
 
-def part_mesh_arrays(shape: Any, tolerance_mm: float, angular_tolerance_rad: float
+def part_mesh_arrays(shape: ShapeLike, tolerance_mm: float, angular_tolerance_rad: float
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vertices (V, 3) mm, triangles (T, 3) and unit vertex normals (V, 3) of a B-rep solid.
 
@@ -118,13 +122,13 @@ def write_ply(path: str | Path, vertices: np.ndarray, triangles: np.ndarray,
 
 def sensor_dict(width: int, height: int, fx: float, cx: float, cy: float, T_cam_part: np.ndarray, *,
                 spp: int, near_far_mm: tuple[float, float], crop: tuple[int, int, int, int] | None = None
-                ) -> dict[str, Any]:
+                ) -> JsonDict:
     """A Mitsuba ``perspective`` sensor with square pixels of focal length ``fx`` px, principal point (cx, cy)
     (OpenCV pixels) and a ``width`` × ``height`` film with a box filter (each pixel is the mean over its area),
     at pose ``T_cam_part`` (4, 4). ``crop`` = (x, y, w, h) renders only that window of the film."""
     import mitsuba as mi
 
-    film: dict[str, Any] = {"type": "hdrfilm", "width": int(width), "height": int(height),
+    film: JsonDict = {"type": "hdrfilm", "width": int(width), "height": int(height),
                             "rfilter": {"type": "box"}, "pixel_format": "rgb", "component_format": "float32"}
     if crop is not None:
         film.update(crop_offset_x=int(crop[0]), crop_offset_y=int(crop[1]), crop_width=int(crop[2]),
@@ -137,14 +141,14 @@ def sensor_dict(width: int, height: int, fx: float, cx: float, cy: float, T_cam_
             "sampler": sampler_dict(spp), "film": film}
 
 
-def sampler_dict(spp: int) -> dict[str, Any]:
+def sampler_dict(spp: int) -> JsonDict:
     """Stratified samples (jittered on a √spp × √spp grid: pixel coverage, hence edges, converge fastest) when
     ``spp`` is a power of 4 (what Mitsuba's ``stratified`` takes without rounding), else independent ones."""
     power_of_4 = spp > 0 and spp & (spp - 1) == 0 and (spp.bit_length() - 1) % 2 == 0
     return {"type": "stratified" if power_of_4 else "independent", "sample_count": int(spp)}
 
 
-def _area_light(filename: Path, T_part_cam: np.ndarray, radiance: float) -> dict[str, Any]:
+def _area_light(filename: Path, T_part_cam: np.ndarray, radiance: float) -> JsonDict:
     import mitsuba as mi
 
     return {"type": "ply", "filename": str(filename), "to_world": mi.ScalarTransform4f(T_part_cam),
@@ -152,12 +156,12 @@ def _area_light(filename: Path, T_part_cam: np.ndarray, radiance: float) -> dict
             "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [radiance] * 3}}}
 
 
-def light_dicts(light: Light, T_cam_part: np.ndarray, emitter_ply: Path | None) -> dict[str, Any]:
+def light_dicts(light: Light, T_cam_part: np.ndarray, emitter_ply: Path | None) -> JsonDict:
     """The scene entries of ``light`` at camera pose ``T_cam_part`` (the ring and the coaxial disc move with the
     camera; ``emitter_ply`` is their mesh in the camera frame, ``annulus_mesh``), plus the ambient term."""
     import mitsuba as mi
 
-    out: dict[str, Any] = {}
+    out: JsonDict = {}
     strength = emitter_strength(light)
     T_part_cam = invert_T(np.asarray(T_cam_part, float))
     if light.kind in ("ring", "coaxial") and strength > 0:

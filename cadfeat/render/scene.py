@@ -23,7 +23,7 @@ from cadfeat.errors import CadfeatError
 if TYPE_CHECKING:  # pragma: no cover
     import pyvista as pv
 
-    from cadfeat.cad.features import Hole
+    from cadfeat.cad.features import Hole, ShapeLike
 
 #: The render window class VTK creates when asked for an OpenGL window.
 EGL_WINDOW = "vtkEGLRenderWindow"
@@ -75,7 +75,7 @@ def screenshot(plotter: pv.Plotter) -> np.ndarray:
     return np.asarray(plotter.screenshot(return_img=True), dtype=np.uint8)[..., :3]
 
 
-def shape_polydata(shape: Any, tolerance_mm: float = RENDER_TOLERANCE_MM,
+def shape_polydata(shape: ShapeLike, tolerance_mm: float = RENDER_TOLERANCE_MM,
                    angular_tolerance_rad: float = RENDER_ANGULAR_TOLERANCE_RAD) -> pv.PolyData:
     """Triangle mesh of a B-rep (``cadquery`` Shape / Workplane) as ``pyvista.PolyData`` (mm, part frame)."""
     import pyvista as pv

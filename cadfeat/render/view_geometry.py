@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,8 +19,11 @@ from cadfeat.poses import invert_T
 from cadfeat.render.scene import RenderError
 
 if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
+    from cadfeat.trajectory import Trajectory
 
 #: Centre or radius changes (mm) above this count as a move.
 MOVE_TOL_MM = 1e-6
@@ -60,7 +63,7 @@ def _hole_name(hole: Hole, index: int) -> str:
     return identity_name(hole, index)
 
 
-def _label_anchor(holes: Sequence[Hole], mesh: Any) -> np.ndarray:
+def _label_anchor(holes: Sequence[Hole], mesh: trimesh.Trimesh) -> np.ndarray:
     """Where a hole's label sits: beside its rim, a little out of the face (mm)."""
     if not holes:
         return np.zeros((0, 3))
@@ -75,7 +78,7 @@ def _perpendicular(axis: np.ndarray) -> np.ndarray:
     return p / np.linalg.norm(p)
 
 
-def _trajectory_in_part(trajectory: Any, T_task_part: np.ndarray | None) -> np.ndarray | None:
+def _trajectory_in_part(trajectory: Trajectory | None, T_task_part: np.ndarray | None) -> np.ndarray | None:
     """Camera poses T_part_cam (L, 4, 4) from a ``Trajectory`` or an (L, 4, 4) array of T_task_cam."""
     if trajectory is None:
         return None
@@ -136,7 +139,7 @@ def _side_view(direction: np.ndarray, centre: np.ndarray, path: np.ndarray) -> n
 MIN_RIM_COSINE = 0.3
 
 
-def closeup_view_direction(mesh: Any, holes: Sequence[Hole], weights: np.ndarray | None = None,
+def closeup_view_direction(mesh: trimesh.Trimesh, holes: Sequence[Hole], weights: np.ndarray | None = None,
                            n_candidates: int = 160) -> tuple[np.ndarray, np.ndarray]:
     """Viewing direction (part frame, unit, towards the viewer) that shows the most hole rims: among
     ``default_view_direction(holes)`` and ``n_candidates`` directions spread over the sphere (Fibonacci), the
@@ -175,7 +178,7 @@ def closeup_view_direction(mesh: Any, holes: Sequence[Hole], weights: np.ndarray
     return cand[best], free[:, best]
 
 
-def _visible_from(mesh: Any, holes: Sequence[Hole], eye: np.ndarray) -> np.ndarray:
+def _visible_from(mesh: trimesh.Trimesh, holes: Sequence[Hole], eye: np.ndarray) -> np.ndarray:
     """Which rims (N,) bool face the eye point (mm, part frame) and see it unobstructed (trimesh rays)."""
     import trimesh
 

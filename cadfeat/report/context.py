@@ -4,12 +4,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cadfeat.poses import cam_from_part
 from cadfeat.results import Measures, Results, present, section
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape, Workplane
+
+    from cadfeat.cad.features import Hole
+    from cadfeat.camera import Camera
+    from cadfeat.trajectory import Trajectory
 
 
 @dataclass
@@ -25,13 +32,13 @@ class ReportContext:
     with a note in the report.
     """
 
-    shape_before: Any = None
-    shape_after: Any = None
-    holes_before: Sequence[Any] | None = None
-    holes_after: Sequence[Any] | None = None
-    fixed_mask: Sequence[bool] | None = None
-    camera: Any = None
-    trajectory: Any = None
+    shape_before: Shape | Workplane | None = None
+    shape_after: Shape | Workplane | None = None
+    holes_before: Sequence[Hole] | None = None
+    holes_after: Sequence[Hole] | None = None
+    fixed_mask: Sequence[bool] | np.ndarray | None = None
+    camera: Camera | None = None
+    trajectory: Trajectory | None = None
     T_task_part: np.ndarray | None = None
     sample_indices: Sequence[int] | None = None
 

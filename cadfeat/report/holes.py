@@ -13,12 +13,15 @@ from __future__ import annotations
 import csv
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.report.html import esc, fmt, num, table, text
 from cadfeat.results import Holes, Shop, StudyResults, present, section
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 HOLE_COLUMNS = ("name", "face", "x_mm", "y_mm", "z_mm", "diameter_mm", "depth_mm", "kind", "changed")
 POSITION_DECIMALS = 3
@@ -33,7 +36,7 @@ def face_label(axis: Sequence[float]) -> str:
     return "(" + ", ".join(f"{v:.3f}" for v in a) + ")"
 
 
-def hole_rows(results: StudyResults | Mapping[str, Any]) -> list[dict[str, Any]]:
+def hole_rows(results: StudyResults | Mapping[str, Any]) -> list[JsonDict]:
     """One row per hole of the delivered design (``holes.after``, else ``holes.before``)."""
     holes = section(results, "holes", Holes)
     if holes is None:
@@ -53,7 +56,7 @@ def hole_rows(results: StudyResults | Mapping[str, Any]) -> list[dict[str, Any]]
     return rows
 
 
-def write_holes_csv(path: str | Path, results: dict) -> Path:
+def write_holes_csv(path: str | Path, results: JsonDict) -> Path:
     """``holes.csv``: the hole table (header ``HOLE_COLUMNS``), positions to ``POSITION_DECIMALS`` decimals."""
     path = Path(path)
     with path.open("w", newline="", encoding="utf-8") as f:

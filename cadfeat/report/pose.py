@@ -13,10 +13,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.report.html import esc, figure, fmt, note, num, table, text
 from cadfeat.results import PoseAccuracy, PoseDesign, Results, Tracking, present, section
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 COLOURS = {"before": "#d95f02", "after": "#1b9e77"}
 DESIGNS = ("before", "after")
@@ -78,7 +81,7 @@ def _summary_table(pose: PoseAccuracy) -> str:
                           "RMS (mm)", "RMS (deg)", "holes detected"])
 
 
-def _shares(pose: PoseAccuracy, name: str) -> dict[str, Any]:
+def _shares(pose: PoseAccuracy, name: str) -> JsonDict:
     d = _design(pose, name)
     return d.share if d is not None else {}
 

@@ -8,7 +8,7 @@ Each function returns an HTML fragment, or "" when its data is absent. Numbers k
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -29,6 +29,10 @@ from cadfeat.results import (
     section,
     value,
 )
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import ShapeLike
+    from cadfeat.results import JsonDict
 
 #: Moves smaller than this (mm) count as "did not move".
 MOVE_TOL_MM = 1e-6
@@ -61,7 +65,7 @@ def is_evaluation(results: Results) -> bool:
                                                            or (obj is not None and bool(obj.after)))
 
 
-def _change_css(before: Any, after: Any) -> str:
+def _change_css(before: ShapeLike, after: ShapeLike) -> str:
     if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in (before, after)):
         return ""
     return "better" if after > before else "worse" if after < before else ""
@@ -72,12 +76,12 @@ def _label(item: _Indexed | None, index: int) -> str:
 
 
 # ------------------------------------------------------------------------------------------------ summary
-def hole_moves(results: Results) -> list[dict[str, Any]]:
+def hole_moves(results: Results) -> list[JsonDict]:
     """Per hole present before and after: displacement of the centre (mm) and diameter change (mm)."""
     holes = section(results, "holes", Holes)
     before = _by_index(holes.before if holes else None)
     after = _by_index(holes.after if holes else None)
-    moves: list[dict[str, Any]] = []
+    moves: list[JsonDict] = []
     for index, hb in before.items():
         ha = after.get(index)
         if ha is None:
@@ -140,7 +144,7 @@ def _evaluation_summary(results: Results) -> str:
     return out
 
 
-def moves_table(moves: list[dict[str, Any]]) -> str:
+def moves_table(moves: list[JsonDict]) -> str:
     """Hole centres and diameters before and after, with the move length in mm."""
     if not moves:
         return ""

@@ -11,10 +11,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.report.html import esc, figure, fmt, note, table
 from cadfeat.results import Interval, PhysicalViews, Results, Tracking, TrackingComparison, present, section
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 COLOURS = {"before": "#d95f02", "after": "#1b9e77", "move_only": "#7570b3"}
 VERDICT_TEXT = {"better": "tracks better after the redesign", "worse": "tracks WORSE after the redesign",
@@ -32,7 +35,7 @@ def _figure(ncols: int, nrows: int, size: tuple[float, float]) -> tuple[Any, Any
 
 def error_plot(tracking: Tracking, path: Path) -> Path:
     """Translation (mm) and rotation (deg) error against time, one column per estimator, both designs."""
-    curves: dict[str, Any] = tracking.curves
+    curves: JsonDict = tracking.curves
     if tracking.settings is None:
         raise KeyError("tracking.settings")
     estimators = list(tracking.settings.estimators)
@@ -65,7 +68,7 @@ def error_plot(tracking: Tracking, path: Path) -> Path:
     return path
 
 
-def sweep_plot(result: dict[str, Any], path: Path) -> Path:
+def sweep_plot(result: JsonDict, path: Path) -> Path:
     """RMS translation error against the swept value, per design and estimator (``cadfeat track --sweep``)."""
     rows = result["rows"]
     x = [r["value"] for r in rows]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.report.html import esc, fmt, num, table, text
 from cadfeat.report.patterns import patterns
@@ -18,6 +18,9 @@ from cadfeat.report.requirements import ACTIVE_MARGIN_MM, requirement_rows
 from cadfeat.results import AddedTargets, Measures, Objectives, Robustness, StudyResults, Tracking, section, value
 from cadfeat.results import Finding as FindingRecord
 from cadfeat.results import Verdict as VerdictRecord
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 ADOPT, CARE, REJECT = "adopt", "adopt with care", "do not adopt"
 _SEVERITY = {ADOPT: 0, CARE: 1, REJECT: 2}
@@ -194,7 +197,7 @@ def decide(results: StudyResults | Mapping[str, Any]) -> Verdict:
     return Verdict(decision, findings, changes, limiting)
 
 
-def verdict_json(results: StudyResults | Mapping[str, Any]) -> dict[str, Any]:
+def verdict_json(results: StudyResults | Mapping[str, Any]) -> JsonDict:
     """results.json ``verdict`` (``cadfeat.results.Verdict``): the decision (one of ``adopt``, ``adopt with
     care``, ``do not adopt``), the limiting objective and each applied rule's outcome, so that a pipeline can
     gate on the run's outcome."""
@@ -293,7 +296,7 @@ def _patterns(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
 _CSS = {ADOPT: "adopt", CARE: "care", REJECT: "reject"}
 
 
-def verdict_section(results: dict) -> str:
+def verdict_section(results: JsonDict) -> str:
     """The decision banner, the rules with what each saw, and the per-hole gains and losses."""
     v = decide(results)
     rows = []

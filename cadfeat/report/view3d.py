@@ -16,13 +16,19 @@ from __future__ import annotations
 import base64
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.cad.features import as_shape
 from cadfeat.report.context import ReportContext
 from cadfeat.results import FeatureSummary, Measures, Results, section, value
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape, Workplane
+
+    from cadfeat.results import JsonDict
+
 
 VENDOR = Path(__file__).parent / "vendor" / "three-0.147.0"
 #: Number of camera frusta drawn along the path.
@@ -33,7 +39,7 @@ def _b64(a: np.ndarray, dtype: str) -> str:
     return base64.b64encode(np.ascontiguousarray(a, dtype=dtype).tobytes()).decode("ascii")
 
 
-def mesh_arrays(shape: Any) -> tuple[np.ndarray, np.ndarray]:
+def mesh_arrays(shape: Shape | Workplane) -> tuple[np.ndarray, np.ndarray]:
     """Triangulated B-rep: vertices (V, 3) mm and triangles (T, 3), tolerance 0.2 % of the bounding box."""
     s = as_shape(shape)
     bb = s.BoundingBox()
@@ -43,8 +49,8 @@ def mesh_arrays(shape: Any) -> tuple[np.ndarray, np.ndarray]:
     return v, np.asarray(tris, np.int64).reshape(-1, 3)
 
 
-def _holes(holes: Any, per_feature: list[FeatureSummary], fixed: Any) -> list[dict[str, Any]]:
-    out: list[dict[str, Any]] = []
+def _holes(holes: Any, per_feature: list[FeatureSummary], fixed: Any) -> list[JsonDict]:
+    out: list[JsonDict] = []
     feats = {f.index: f for f in per_feature}
     for i, h in enumerate(holes or []):
         f = feats.get(i)
@@ -63,7 +69,7 @@ def _per_feature(m: Measures | None, which: str) -> list[FeatureSummary]:
     return design.per_feature if design is not None else []
 
 
-def _camera_path(context: ReportContext, results: Results, scale: float) -> dict[str, Any]:
+def _camera_path(context: ReportContext, results: Results, scale: float) -> JsonDict:
     """Camera centres (L, 3) and N_FRUSTA frusta (4 far corners each) in the part frame (mm)."""
     if context.trajectory is None:
         return {}
@@ -87,7 +93,7 @@ def _camera_path(context: ReportContext, results: Results, scale: float) -> dict
     return {"path": path.tolist(), "frusta": frusta}
 
 
-def scene_data(context: ReportContext, results: Results) -> dict[str, Any]:
+def scene_data(context: ReportContext, results: Results) -> JsonDict:
     """The scene as plain data (meshes base64 float32 / uint32)."""
     m = section(results, "measures", Measures)
     designs = {}

@@ -20,7 +20,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cadfeat.errors import CadfeatError
 from cadfeat.report import tables, trust
@@ -41,6 +41,9 @@ from cadfeat.report.view3d import view3d_section
 from cadfeat.results import StudyRecord, value
 from cadfeat.results import section as typed_section
 
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
+
 log = logging.getLogger(__name__)
 
 REPORT_NAME = "report.html"
@@ -57,7 +60,7 @@ class ReportOutput:
     timings_s: dict[str, float] = field(default_factory=dict)
 
 
-def write_report(out_dir: str | Path, results: dict, context: ReportContext | None = None) -> Path:
+def write_report(out_dir: str | Path, results: JsonDict, context: ReportContext | None = None) -> Path:
     """Write ``out_dir/report.html`` (images in ``out_dir/img/``) for a study's results; returns its path.
 
     ``results`` has the keys of results.json (contracts.md); ``context`` holds the shapes, holes, camera
@@ -66,7 +69,7 @@ def write_report(out_dir: str | Path, results: dict, context: ReportContext | No
     return build_report(out_dir, results, context).path
 
 
-def report_renders(out_dir: str | Path, results: dict, context: ReportContext | None) -> Renders:
+def report_renders(out_dir: str | Path, results: JsonDict, context: ReportContext | None) -> Renders:
     """The report's renders (``make_renders`` into ``out_dir/img``) on their own, for ``build_report``'s
     ``renders``: they need the designs and their measures, not the closed loop."""
     results, context = _single_design(results, context)
@@ -104,7 +107,7 @@ def read_results(path: str | Path) -> dict:
     return data
 
 
-def build_report(out_dir: str | Path, results: dict, context: ReportContext | None = None, *,
+def build_report(out_dir: str | Path, results: JsonDict, context: ReportContext | None = None, *,
                  parallel: bool | None = None, self_contained: bool = True,
                  renders: Renders | None = None) -> ReportOutput:
     """``write_report`` that also returns the images, notes and the time of each phase (s).
@@ -173,7 +176,7 @@ def build_report(out_dir: str | Path, results: dict, context: ReportContext | No
     return ReportOutput(path, images, notes, timings)
 
 
-def _single_design(results: dict, context: ReportContext | None) -> tuple[dict, ReportContext | None]:
+def _single_design(results: JsonDict, context: ReportContext | None) -> tuple[dict, ReportContext | None]:
     """For ``evaluation_only`` results: drop any "after" copy of the current design (the report then shows one
     design, "current", and renders it once)."""
     if not value(results, "evaluation_only"):
@@ -195,7 +198,7 @@ class _PlotProcess:
         self.proc, self.tmp = proc, tmp
 
     @classmethod
-    def start(cls, results: dict, img_dir: Path) -> _PlotProcess | None:
+    def start(cls, results: JsonDict, img_dir: Path) -> _PlotProcess | None:
         tmp = Path(tempfile.mkdtemp(prefix="cadfeat-plots-"))
         try:
             (tmp / "results.json").write_text(json.dumps(results), encoding="utf-8")
@@ -241,7 +244,7 @@ def _package_root() -> str:
 
 
 # ------------------------------------------------------------------------------------------------ sections
-def _document(out_dir: Path, results: dict, renders: Renders, plots: list[Plot], notes: list[str],
+def _document(out_dir: Path, results: JsonDict, renders: Renders, plots: list[Plot], notes: list[str],
               timings: dict[str, float], embed: bool = True, view3d: str = "") -> str:
     study = typed_section(results, "study", StudyRecord, partial=True)
     kind = "evaluation" if tables.is_evaluation(results) else "report"
@@ -341,7 +344,7 @@ def _views_section(renders: Renders, rel: Callable[[Path], Any]) -> str:
     return "".join(out)
 
 
-def _features_section(results: dict) -> str:
+def _features_section(results: JsonDict) -> str:
     body = tables.feature_table(results)
     if not body:
         return ""
@@ -354,14 +357,14 @@ def _features_section(results: dict) -> str:
             "axis − required (px).</p></details>")
 
 
-def _provenance(results: dict, timings: dict[str, float]) -> str:
+def _provenance(results: JsonDict, timings: dict[str, float]) -> str:
     report_t = {f"report: {k}": v for k, v in timings.items()}
     return (tables.key_value_table(value(results, "versions"), "versions", ("library", "version"))
             + tables.key_value_table({**(value(results, "timings_s") or {}), **report_t}, "timings",
                                      ("phase", "seconds")))
 
 
-def _appendix(results: dict) -> str:
+def _appendix(results: JsonDict) -> str:
     """Design matrix (thesis §2.2.4) and normalisation: background, folded away."""
     body = tables.design_matrix_table(results) + tables.normalisation_note(results)
     return f"<details><summary>Design matrix and normalisation of the objectives</summary>{body}</details>" \

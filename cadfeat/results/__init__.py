@@ -48,7 +48,7 @@ from cadfeat.results._closed_loop import (
     TrackingVerdict,
     WeakestPhase,
 )
-from cadfeat.results._record import Json, Number, Record
+from cadfeat.results._record import Json, JsonDict, Number, Record
 from cadfeat.results._robustness import (
     DesignDraws,
     OutOfSample,
@@ -60,8 +60,8 @@ from cadfeat.results._robustness import (
 )
 
 __all__ = ["AddedTargetCurve", "AddedTargetHole", "AddedTargets", "DesignDraws", "DesignMatrix", "EstimatorErrors",
-           "FeatureSummary", "FileEntry", "Finding", "HelpMost",
-           "HelpMostBest", "HistoryPoint", "HoleRecord", "Holes", "Interval", "Json", "MeasureSummary", "Measures",
+           "FeatureSummary", "FileEntry", "Finding", "HelpMost", "HelpMostBest", "HistoryPoint", "HoleRecord",
+           "Holes", "Interval", "Json", "JsonDict", "MeasureSummary", "Measures",
            "Normalisation", "ObjectiveChange", "Objectives", "OptimizerRecord", "OutOfSample", "PairedTest",
            "Pareto", "Pattern", "PhysicalFrame", "PhysicalViews", "PoseAccuracy", "PoseDesign", "PoseErrors",
            "Record", "RequirementCheck", "RequirementUsed", "Results", "RobustObjective", "Robustness", "SCHEMA_ID",

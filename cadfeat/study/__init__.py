@@ -13,7 +13,11 @@ imports numpy-heavy modules only when used.
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover (the names ``__getattr__`` gives, for the type checker)
+    from cadfeat.study.designs import score_design, track_design
+    from cadfeat.study.run import StudyResult, evaluate_study, run_study
 
 __all__ = ["StudyResult", "evaluate_study", "run_study", "score_design", "track_design"]
 _HOMES = {"score_design": "cadfeat.study.designs", "track_design": "cadfeat.study.designs"}

@@ -25,18 +25,25 @@ With k = 0 the move-only optimum is delivered and nothing here applies. Units: m
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+import dataclasses
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from cadfeat.cad.features.identity import hole_names
 from cadfeat.study.added_targets import as_added, brep_checks
+from cadfeat.study.delivery import AddedDesign, Delivery, MoveOnly
 from cadfeat.study.outputs import hole_dict, measures_summary, normalise_step_header
 
 if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
+    from cadfeat.measures.evaluate import Measures
+    from cadfeat.results import JsonDict
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import StudySetup
 
@@ -46,15 +53,15 @@ MOVE_ONLY_STEP = "move_only.step"
 """The move-only optimum's STEP file in the output folder when the delivered design has added holes."""
 
 
-def delivered(shapes: Mapping[str, Any]) -> bool:
-    """True when the delivered design (``shapes["shape1"]``) is the move-only optimum with added holes."""
-    return shapes.get("shape_move_only") is not None
+def delivered(delivery: Delivery) -> bool:
+    """True when the delivered design (``delivery.shape1``) is the move-only optimum with added holes."""
+    return delivery.move_only is not None
 
 
-def _hole_records(setup: StudySetup, holes: Sequence[Hole], n_old: int) -> list[dict[str, Any]]:
+def _hole_records(setup: StudySetup, holes: Sequence[Hole], n_old: int) -> list[JsonDict]:
     """results.json ``holes.after`` of the delivered design: the part's holes as the set-up marks them, then the
     added ones (neither fixed nor movable: new, ``"added": true``)."""
-    out = []
+    out: list[JsonDict] = []
     for i, h in enumerate(holes):
         if i < n_old:
             out.append(hole_dict(h, i, bool(setup.fixed_mask[i]), bool(setup.movable_mask[i])))
@@ -63,8 +70,8 @@ def _hole_records(setup: StudySetup, holes: Sequence[Hole], n_old: int) -> list[
     return out
 
 
-def _objectives(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], measured: Any,
-                mesh: Any) -> tuple[dict[str, float], float | None]:
+def _objectives(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], measured: Measures,
+                mesh: trimesh.Trimesh) -> tuple[dict[str, float], float | None]:
     """The study's aggregated objectives of a design with any number of holes and their combined value: its
     measures ``measured`` (with its pose information for g_POSE, rims tested against its own ``mesh``), every
     hole scored (the added ones too), normalised as the optimiser normalises (``Problem.combined_from``)."""
@@ -84,19 +91,19 @@ def _objectives(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], m
     return values, float(problem.combined_from(np.array([values[n] for n in problem.names], float)))
 
 
-def deliver(config: StudyConfig, setup: StudySetup, base: StudySetup, results: dict[str, Any],
-            shapes: dict[str, Any], extra: Mapping[str, Any], measure: Callable[[Sequence[Hole], Any], Any],
-            patterns: Callable[[Sequence[Hole]], Any]) -> None:
-    """Make the added design (``extra``: ``added_targets.run_phase``'s shapes) the delivered one: ``results``'
-    after-sections describe it (module docstring; the move-only optimum's go to ``added_targets.move_only``) and
-    ``shapes`` gains it as "shape1"/"holes1", the move-only optimum as "shape_move_only"/"holes_move_only" and the
-    number of the part's holes "n_old". ``measure(holes, shape)``: the study's measures of a design's holes
+def deliver(config: StudyConfig, setup: StudySetup, base: StudySetup, results: JsonDict, delivery: Delivery,
+            added: AddedDesign, measure: Callable[[Sequence[Hole], Shape], Measures],
+            patterns: Callable[[Sequence[Hole]], list[JsonDict]]) -> Delivery:
+    """Make the added design (``added``: ``added_targets.run_phase``'s) the delivered one: ``results``'
+    after-sections describe it (module docstring; the move-only optimum's go to ``added_targets.move_only``);
+    returns ``delivery`` with it as ``shape1``/``holes1``, the move-only optimum as ``move_only`` and the number
+    of the part's holes ``n_old``. ``measure(holes, shape)``: the study's measures of a design's holes
     along its trajectory, occlusion by that design's solid (``pipeline.measure_holes``); ``patterns``: the
     original's patterns checked on the part's holes."""
     from cadfeat.study.pose_accuracy import part_mesh, pose_accuracy
     from cadfeat.study.trust import objective_changes
 
-    shape2, holes2, n_old = extra["shape_added"], list(extra["holes_added"]), int(extra["n_old"])
+    shape2, holes2, n_old = added.shape, list(added.holes), int(added.n_old)
     block = results["added_targets"]
     obj = results["objectives"]
     block["move_only"] = {
@@ -121,34 +128,36 @@ def deliver(config: StudyConfig, setup: StudySetup, base: StudySetup, results: d
     results["pose_accuracy"] = pose_accuracy(config, base, base.holes0,
                                              part_mesh(config, base.shape0, base.problem.occlusion_mesh), setup,
                                              holes2, mesh2)
-    moved = (block.get("refinement") or {}).get("variables") or {}
+    refinement: JsonDict = block.get("refinement") or {}
+    moved: dict[str, float] = refinement.get("variables") or {}
     for v in results["variables"]:
         if v["name"] in moved:
             v["move_only"], v["after"] = v["after"], float(moved[v["name"]])
     results["patterns"] = patterns(holes2[:n_old])
     block["delivered"] = {"design": "added", "files": ["optimised.step", "optimised.stl"],
                           "move_only_file": MOVE_ONLY_STEP}
-    shapes.update({"shape_move_only": shapes["shape1"], "holes_move_only": shapes["holes1"], "shape1": shape2,
-                   "holes1": holes2, "n_old": n_old})
+    return dataclasses.replace(delivery, shape1=shape2, holes1=holes2,
+                               move_only=MoveOnly(delivery.shape1, delivery.holes1), n_old=n_old)
 
 
-def step_checks(config: StudyConfig, shapes: Mapping[str, Any], label: str) -> Callable[[Any], list[dict[str, Any]]]:
+def step_checks(config: StudyConfig, delivery: Delivery, label: str) -> Callable[[Shape], list[JsonDict]]:
     """What ``verify.export_and_verify`` measures on the re-imported ``optimised.step`` of the delivered added
     design: every hole found where it was put — the part's holes unchanged, each added hole at its centre, axis,
     rim radius and depth (``verify_drilled``: ``CadfeatError`` naming a missing one) — and every kept requirement
     on the re-imported solid (``added_targets.brep_checks``)."""
     from cadfeat.cad.drill_targets import verify_drilled
 
-    setup, holes, n_old = shapes["setup"], list(shapes["holes1"]), int(shapes["n_old"])
+    setup, holes = delivery.setup, list(delivery.holes1)
+    n_old = len(holes) if delivery.n_old is None else delivery.n_old
 
-    def checks(reimported: Any) -> list[dict[str, Any]]:
+    def checks(reimported: Shape) -> list[JsonDict]:
         found = verify_drilled(reimported, holes[:n_old], [as_added(h) for h in holes[n_old:]], label=label,
                                prefer_direction=setup.view_direction)
         return brep_checks(config, setup, reimported, found, n_old, "step")
     return checks
 
 
-def export_move_only(config: StudyConfig, stage: Path, results: dict[str, Any], shapes: Mapping[str, Any]) -> None:
+def export_move_only(config: StudyConfig, stage: Path, results: JsonDict, delivery: Delivery) -> None:
     """Write ``move_only.step`` (the move-only optimum) and verify it as ``optimised.step`` is verified without
     added holes: the re-imported STEP's holes equal to the design's within 1e-6 mm (and its volume), every kept
     requirement on the re-imported solid (``CadfeatError`` naming a violated one). Then
@@ -158,14 +167,15 @@ def export_move_only(config: StudyConfig, stage: Path, results: dict[str, Any], 
     from cadfeat.study.verify import ROUNDTRIP_TOL_MM, extract_viewed, fail_on, order_like, requirement_checks
 
     block = results.get("added_targets")
-    if block is None or not delivered(shapes):
+    move_only = delivery.move_only
+    if block is None or move_only is None:
         return
-    setup, shape, holes = shapes["setup"], shapes["shape_move_only"], shapes["holes_move_only"]
+    setup, shape, holes = delivery.setup, move_only.shape, move_only.holes
     path = stage / MOVE_ONLY_STEP
     export_step(shape, path)
     normalise_step_header(path, f"{config.study.name} move_only")
     view = setup.view_direction
-    volume, uncertainty = expected_step_volume(shape, shapes["shape0"], stage / "original.step")
+    volume, uncertainty = expected_step_volume(shape, delivery.shape0, stage / "original.step")
     trip = verify_step_roundtrip(path, extract_viewed(shape, view), tol_mm=ROUNDTRIP_TOL_MM,
                                  expected_volume_mm3=volume, volume_rtol=1e-7, prefer_direction=view,
                                  volume_uncertainty_mm3=uncertainty)
@@ -179,12 +189,12 @@ def export_move_only(config: StudyConfig, stage: Path, results: dict[str, Any], 
                                                                 trip.max_depth_error_mm), "holes": trip.n_holes}
     block["constraints"] = list(results["constraints"])
     block["requirements_hold"] = all(bool(c["ok"]) for c in block["constraints"])
-    ver = results.get("verification") or {}
+    ver: JsonDict = results.get("verification") or {}
     block["step"] = {"file": "optimised.step", "max_error_mm": ver.get("step_roundtrip_max_error_mm"),
-                     "holes": len(shapes["holes1"]), "added_found": len(shapes["holes1"]) - int(shapes["n_old"])}
+                     "holes": len(delivery.holes1), "added_found": len(delivery.holes1) - int(delivery.n_old or 0)}
 
 
-def tracking_summary(results: dict[str, Any]) -> None:
+def tracking_summary(results: JsonDict) -> None:
     """``added_targets.tracking`` from the closed-loop check's section (``tracking``): the mode, per comparison
     and estimator the paired verdict — the delivered design against the original (the check's verdicts), the
     move-only optimum against the original and the delivered design against the move-only optimum — and per
@@ -197,14 +207,21 @@ def tracking_summary(results: dict[str, Any]) -> None:
         skipped = [w for w in results.get("warnings", []) if "closed-loop check skipped" in str(w)]
         block["tracking"] = {"skipped": skipped[0]} if skipped else None
         return
-    verdicts = {"added_vs_original": {m: v.get("verdict") for m, v in (tr.get("verdicts") or {}).items()}}
-    for label, c in (tr.get("comparisons") or {}).items():
-        verdicts[label] = {m: v.get("verdict") for m, v in (c.get("verdicts") or {}).items()}
+    section = cast("JsonDict", tr)
+
+    def part(d: JsonDict, key: str) -> dict[str, JsonDict]:
+        return d.get(key) or {}
+
+    verdicts = {"added_vs_original": {m: v.get("verdict") for m, v in part(section, "verdicts").items()}}
+    for label, c in part(section, "comparisons").items():
+        verdicts[label] = {m: v.get("verdict") for m, v in part(c, "verdicts").items()}
     names = {"before": "original", "move_only": "move_only", "after": "added"}
+    check: JsonDict = section.get("check") or {}
+    settings: JsonDict = section.get("settings") or {}
     block["tracking"] = {
-        "mode": (tr.get("check") or {}).get("mode"), "runs": (tr.get("settings") or {}).get("runs"),
+        "mode": check.get("mode"), "runs": settings.get("runs"),
         "verdicts": verdicts,
         "designs": {names[d]: {m: {"trans_mm_rms": e.get("trans_mm_rms"), "rot_deg_rms": e.get("rot_deg_rms")}
-                               for m, e in (v.get("estimators") or {}).items()}
-                    for d, v in (tr.get("designs") or {}).items() if d in names}}
+                               for m, e in part(v, "estimators").items()}
+                    for d, v in part(section, "designs").items() if d in names}}
 

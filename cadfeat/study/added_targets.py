@@ -32,9 +32,9 @@ feasible site — is one ``StudyError`` naming the file, the key and what is all
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -57,10 +57,16 @@ from cadfeat.design.added_targets.sites import box_distance, face_grid, keepin_m
 from cadfeat.design.shop import hole_sizes
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
+from cadfeat.study.delivery import AddedDesign
 from cadfeat.study.schema import StudyError
 
 if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
+    from cadfeat.results import JsonDict
+    from cadfeat.study.progress import StudyProgress
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.settings.add_targets import AddTargetsSettings
     from cadfeat.study.setup import StudySetup
@@ -117,7 +123,7 @@ def _select(selector: str, faces: Sequence[PlanarFace], names: Sequence[str], la
     return max(on, key=lambda f: f.area_mm2)
 
 
-def resolve_faces(config: StudyConfig, shape: Any, holes: Sequence[Hole]) -> list[PlanarFace]:
+def resolve_faces(config: StudyConfig, shape: Shape, holes: Sequence[Hole]) -> list[PlanarFace]:
     """The planar faces of ``shape`` the study's ``[add_targets] faces`` select, in their order; the part's holes
     ``holes`` (their names) for ``host:`` selectors. One ``StudyError`` for a face the part does not have."""
     spec = _spec(config)
@@ -171,7 +177,9 @@ def most_that_fit(sites: Sites, rim_radius_mm: float, ligament_mm: float, cell_m
     discs around the sites; per face the count is at most that union's area / πρ² (the area from a raster of
     ``cell_mm``, each cell counted when its centre is within ρ + half its diagonal of a site: never less than the
     union's area)."""
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # pyright: ignore[reportMissingTypeStubs, reportAttributeAccessIssue, reportUnknownVariableType]
+
+    kdtree = cast("Callable[[np.ndarray], Any]", cKDTree)  # (scipy.spatial has no stubs)
 
     rho = rim_radius_mm + 0.5 * ligament_mm
     total = 0
@@ -181,7 +189,8 @@ def most_that_fit(sites: Sites, rim_radius_mm: float, ligament_mm: float, cell_m
         s = np.arange(lo[0], hi[0], cell_mm) + 0.5 * cell_mm
         t = np.arange(lo[1], hi[1], cell_mm) + 0.5 * cell_mm
         S, T = np.meshgrid(s, t, indexing="ij")
-        d, _ = cKDTree(uv).query(np.stack([S.ravel(), T.ravel()], axis=-1), distance_upper_bound=rho + cell_mm)
+        cells = np.stack([S.ravel(), T.ravel()], axis=-1)
+        d: np.ndarray = kdtree(uv).query(cells, distance_upper_bound=rho + cell_mm)[0]
         area = float(np.sum(d <= rho + cell_mm * np.sqrt(0.5))) * cell_mm ** 2
         total += int(np.floor(area / (np.pi * rho ** 2) + 1e-9))
     return total
@@ -224,7 +233,7 @@ def _check_fits(config: StudyConfig, face: PlanarFace, rules: FaceRules) -> None
                      "or other faces")
 
 
-def allowed_sites(config: StudyConfig, shape: Any, holes: Sequence[Hole]) -> Allowed:
+def allowed_sites(config: StudyConfig, shape: Shape, holes: Sequence[Hole]) -> Allowed:
     """The allowed faces of ``shape`` (whose holes are ``holes``), their rules and the feasible candidate sites;
     ``StudyError`` when a face does not exist, the drill does not fit a face or no site is feasible."""
     spec = _spec(config)
@@ -258,13 +267,13 @@ def _blocking(rules: Sequence[FaceRules], spec: AddTargetsSettings) -> str:
                                                             for k, n in counts.items() if n) + ")"
 
 
-def preflight(config: StudyConfig, setup: StudySetup) -> dict[str, Any]:
+def preflight(config: StudyConfig, setup: StudySetup) -> JsonDict:
     """Before any optimisation, on the study's original part (``preflight_part``); returns {"faces", "sites"}."""
     return preflight_part(config, setup.shape0, setup.holes0, setup.view_direction)
 
 
-def preflight_part(config: StudyConfig, shape: Any, holes: Sequence[Hole],
-                   view: Sequence[float] | np.ndarray | None) -> dict[str, Any]:
+def preflight_part(config: StudyConfig, shape: Shape, holes: Sequence[Hole],
+                   view: Sequence[float] | np.ndarray | None) -> JsonDict:
     """What ``[add_targets]`` needs of the part ``shape`` (its holes ``holes``, extracted with the study's view
     ``view``), before any work — ``cadfeat run``'s set-up and ``cadfeat validate``: the drill a shop size, the
     allowed faces present, each keep-in box on one of them, the drill no larger than a face, a feasible site
@@ -283,9 +292,9 @@ def preflight_part(config: StudyConfig, shape: Any, holes: Sequence[Hole],
         drill_targets(shape, [trial], list(holes), label=f"{config.label}: [add_targets] dry run",
                       prefer_direction=view)
     except CadfeatError as exc:
-        raise StudyError(f"{config.label}: add_targets: a hole cannot be drilled into the part (dry run at "
-                         f"{np.round(sites.centres[i], 3).tolist()} mm): {exc}; allowed: other faces, a shallower "
-                         "depth_mm or a smaller diameter_mm") from None
+        at = np.round(np.asarray(sites.centres[i], float), 3).tolist()
+        raise StudyError(f"{config.label}: add_targets: a hole cannot be drilled into the part (dry run at {at} mm): "
+                         f"{exc}; allowed: other faces, a shallower depth_mm or a smaller diameter_mm") from None
     return {"faces": [f.describe() for f in found.faces], "sites": len(sites), "most_that_fit":
             most_that_fit(sites, spec.rim_radius_mm, config.constraints.ligament_mm)}
 
@@ -301,7 +310,7 @@ def pose_scene(config: StudyConfig, setup: StudySetup) -> PoseScene:
                      float(config.cell.noise_sigma_grey), setup.problem.glare, config.cell)
 
 
-def _occlude(mesh: Any, T: np.ndarray) -> Any:
+def _occlude(mesh: trimesh.Trimesh | None, T: np.ndarray) -> Any:
     """Rim hidden fraction (L, n) of n holes (centres, axes (n, 3), rim radii, through, depth (n,)) against the
     part's ``mesh`` (the exact ray test, as ``pose_accuracy.predict``)."""
     from cadfeat.measures.rim_occlusion import rim_occlusion
@@ -312,7 +321,7 @@ def _occlude(mesh: Any, T: np.ndarray) -> Any:
     return occlude
 
 
-def target_objective(config: StudyConfig, scene: PoseScene, holes: Sequence[Hole], mesh: Any,
+def target_objective(config: StudyConfig, scene: PoseScene, holes: Sequence[Hole], mesh: trimesh.Trimesh | None,
                      sites: Sites) -> TargetObjective:
     """g_POSE of ``holes`` plus added holes at ``sites``, each rim's hidden fraction against ``mesh``."""
     from cadfeat.design.pose_terms import hole_kinds
@@ -391,7 +400,7 @@ def movable(setup: StudySetup, x: np.ndarray, holes: Sequence[Hole]) -> Movable 
                    np.asarray(setup.movable_mask, bool))
 
 
-def choose(config: StudyConfig, setup: StudySetup, shape: Any, holes: Sequence[Hole], mesh: Any,
+def choose(config: StudyConfig, setup: StudySetup, shape: Shape, holes: Sequence[Hole], mesh: trimesh.Trimesh | None,
            x: np.ndarray | None = None) -> Choice:
     """Sites, lazy greedy up to ``max_added``, the recommended number and its refinement on the design
     (``shape``, ``holes``; ``x`` its design vector: the study's position variables are refined with the added
@@ -435,8 +444,8 @@ def added_holes(config: StudyConfig, choice: Choice, holes: Sequence[Hole]) -> l
 
 
 # ------------------------------------------------------------------------------------------------- phase
-def brep_checks(config: StudyConfig, setup: StudySetup, shape: Any, holes: Sequence[Hole], n_old: int,
-                where: str) -> list[dict[str, Any]]:
+def brep_checks(config: StudyConfig, setup: StudySetup, shape: Shape, holes: Sequence[Hole], n_old: int,
+                where: str) -> list[JsonDict]:
     """Every kept requirement of the added design measured on the solid ``shape`` (its holes ``holes``: the
     part's ``n_old`` then the added): OCCT edge, keep-out and ligament distances of the movable and added holes,
     the fixed holes unchanged from the original (``verify_on_brep``), and the keep-out boxes (distance of each
@@ -470,19 +479,23 @@ def brep_checks(config: StudyConfig, setup: StudySetup, shape: Any, holes: Seque
     return checks
 
 
-def _predicted(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], mesh: Any) -> dict[str, float]:
+def _predicted(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], mesh: trimesh.Trimesh | None
+               ) -> dict[str, float]:
     """RMS predicted errors (mm; translation mm, rotation deg) of a design with ``pose_accuracy.predict``."""
     from cadfeat.study.pose_accuracy import predict
 
     T = cam_from_part(setup.trajectory.T_task_cam, setup.T_task_part)
     ell = float(config.objective.pose_rotation_length_mm)
     info, _ = predict(setup.camera, T, holes, mesh, ell, cell=config.cell, glare=setup.problem.glare)
-    rms = lambda v: float(np.sqrt(np.mean(np.square(np.minimum(v, 1e6)))))  # noqa: E731
+
+    def rms(v: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(np.square(np.minimum(v, 1e6)))))
+
     return {"error_mm": rms(info.error_mm(ell)), "translation_mm": rms(info.error_translation_mm),
             "rotation_deg": rms(info.error_rotation_deg)}
 
 
-def _base_design(setup: StudySetup, x: np.ndarray | None, choice: Choice, shape1: Any,
+def _base_design(setup: StudySetup, x: np.ndarray | None, choice: Choice, shape1: Shape,
                  holes1: Sequence[Hole]) -> tuple[Any, list[Hole], dict[str, float] | None]:
     """The design the added holes are drilled into: the move-only optimum, or — when the joint refinement moved
     the study's position variables — its CAD rebuild at the refined x (with x as named values)."""
@@ -495,11 +508,12 @@ def _base_design(setup: StudySetup, x: np.ndarray | None, choice: Choice, shape1
     return shape, list(holes), setup.space.as_dict(ref.x)
 
 
-def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tuple[Any, Sequence[Hole]]],
-              progress: Any = None, x: np.ndarray | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tuple[Shape, Sequence[Hole]]],
+              progress: StudyProgress | None = None, x: np.ndarray | None = None
+              ) -> tuple[JsonDict, AddedDesign]:
     """The added-target phase on the move-only optimum ``designs["after"]`` (its design vector ``x``;
-    ``designs["before"]``: the original, for the comparison): returns (results.json ``added_targets``, shapes
-    {"shape_added", "holes_added", "n_old"})."""
+    ``designs["before"]``: the original, for the comparison): returns (results.json ``added_targets``, the added
+    design)."""
     from cadfeat.study.pose_accuracy import part_mesh
 
     shape1, holes1 = designs["after"]
@@ -523,11 +537,11 @@ def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tupl
     if progress is not None:
         progress.log(f"added targets: {choice.k} recommended ({choice.why}); predicted RMS error "
                      f"{predicted['move_only']['error_mm']:.4g} → {predicted['added']['error_mm']:.4g} mm")
-    return block, {"shape_added": shape2, "holes_added": holes2, "n_old": len(base_holes)}
+    return block, AddedDesign(shape2, holes2, len(base_holes))
 
 
 def _block(config: StudyConfig, spec: AddTargetsSettings, choice: Choice, added: Sequence[AddedHole],
-           checks: list[dict[str, Any]], predicted: Mapping[str, Mapping[str, float]]) -> dict[str, Any]:
+           checks: list[JsonDict], predicted: Mapping[str, Mapping[str, float]]) -> JsonDict:
     sites = choice.allowed.sites
     ref = choice.refined
     drop = 1.0 - predicted["added"]["error_mm"] / max(predicted["move_only"]["error_mm"], 1e-300)

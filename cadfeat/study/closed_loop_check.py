@@ -43,16 +43,23 @@ import dataclasses
 import math
 import os
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 from cadfeat.study.settings.sections import CHECK_MODES
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
+    from cadfeat.cad.features import Hole
     from cadfeat.cad.sandbox import BackgroundCall
+    from cadfeat.results import JsonDict
+    from cadfeat.study.delivery import Delivery
+    from cadfeat.study.progress import StudyProgress
+    from cadfeat.study.tracking import Design
 
 ENV = "CADFEAT_TRACKING_CHECK"
 FAST_ESTIMATORS = ("pnp", "iekf")
@@ -64,8 +71,6 @@ SKIPPED = "closed-loop check skipped"
 TRACKED_MIN = 0.5
 BACKGROUND_ENV = "CADFEAT_TRACKING_BACKGROUND"
 BACKGROUND_WAIT_S = 3600.0
-#: Where ``pipeline.compute`` keeps the workers of ``start_design`` in its shapes, per design name.
-BACKGROUND_KEYS = {"before": "tracking_before", "after": "tracking_after", "move_only": "tracking_move_only"}
 #: With added target holes (``[add_targets]``, issue 31) the delivered design ("after") is the move-only optimum
 #: with the holes drilled; the move-only optimum is tracked too, in the same paired runs, and compared both ways.
 ADDED_PAIRS = {"move_only_vs_original": ("before", "move_only"), "added_vs_move_only": ("move_only", "after")}
@@ -77,8 +82,7 @@ def with_mode(config: StudyConfig, mode: str | None) -> StudyConfig:
         return config
     if mode not in CHECK_MODES:
         raise StudyError(f"{config.label}: --track {mode!r} is not allowed; allowed: {', '.join(CHECK_MODES)}")
-    spec = config.tracking or TrackingSpec(seed=config.study.seed)
-    return dataclasses.replace(config, tracking=spec.replace(check=mode))
+    return dataclasses.replace(config, tracking=config.tracking_settings().replace(check=mode))
 
 
 def check_mode(config: StudyConfig) -> str:
@@ -97,42 +101,42 @@ def check_mode(config: StudyConfig) -> str:
 def fast_spec(config: StudyConfig, n_samples: int) -> TrackingSpec:
     """The fast check's settings: the study's sensor/tuning with PnP + IEKF, ``FAST_RUNS`` runs, at most
     ``FAST_FRAMES`` frames and ``FAST_SETTLE`` settling frames (fewer when the trajectory is short)."""
-    base = config.tracking or TrackingSpec(seed=config.study.seed)
+    base = config.tracking_settings()
     step = max(base.frame_step, math.ceil(n_samples / FAST_FRAMES))
     frames = len(range(0, n_samples, step))
     return base.replace(estimators=FAST_ESTIMATORS, runs=FAST_RUNS, frame_step=step,
                         settle_frames=max(0, min(base.settle_frames, FAST_SETTLE, frames - 3)))
 
 
-def attach(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, Any], stage: Path | None,
-           progress: Any = None) -> None:
+def attach(config: StudyConfig, results: JsonDict, delivery: Delivery, stage: Path | None,
+           progress: StudyProgress | None = None) -> None:
     """Run this study's closed-loop check and put it into ``results``: the ``tracking`` section (with a ``check``
     block: mode, runs, frames, estimators, seconds), nothing when the mode is ``off``, or a ``warnings`` line
-    saying why it was skipped. ``shapes``: ``pipeline.compute``'s (shape0/holes0 the original, shape1/holes1 the
-    recommended design, setup); ``stage``: the output folder (the frames' PNGs)."""
-    section, skipped = closed_loop_check(config, shapes, stage, progress)
+    saying why it was skipped. ``delivery``: ``pipeline.compute``'s (shape0/holes0 the original, shape1/holes1 the
+    recommended design, setup, the workers); ``stage``: the output folder (the frames' PNGs)."""
+    section, skipped = closed_loop_check(config, delivery, stage, progress)
     if section is not None:
         results["tracking"] = section
     if skipped:
         results.setdefault("warnings", []).append(skipped)
-    views, why = camera_views(config, shapes, stage, progress)
+    views, why = camera_views(config, delivery, stage, progress)
     if views is not None:
         results["physical_views"] = views
     if why:
         results.setdefault("warnings", []).append(why)
 
 
-def camera_views(config: StudyConfig, shapes: Mapping[str, Any], stage: Path | None,
-                 progress: Any = None) -> tuple[dict[str, Any] | None, str | None]:
+def camera_views(config: StudyConfig, delivery: Delivery, stage: Path | None,
+                 progress: StudyProgress | None = None) -> tuple[JsonDict | None, str | None]:
     """(results.json ``physical_views``: both designs rendered physically at three poses, detections drawn and
     misses named — ``study.physical_views`` —, or None; why they are missing, or None). Made whenever the check
     is on; a renderer that fails leaves a warning (an error in mode ``pbr``, which asked for physics by name)."""
     from cadfeat.study.physical_views import physical_views  # lazy: Mitsuba
 
-    mode, spec = check_spec(config, len(shapes["setup"].trajectory.times_s))
-    if spec is None or min(len(shapes["holes0"]), len(shapes["holes1"])) < MIN_HOLES:
+    mode, spec = check_spec(config, len(delivery.setup.trajectory.times_s))
+    if spec is None or min(len(delivery.holes0), len(delivery.holes1)) < MIN_HOLES:
         return None, None
-    designs = {"before": (shapes["shape0"], shapes["holes0"]), "after": (shapes["shape1"], shapes["holes1"])}
+    designs = {"before": (delivery.shape0, delivery.holes0), "after": (delivery.shape1, delivery.holes1)}
     try:
         with progress.phase("camera views") if progress is not None else contextlib.nullcontext():
             return physical_views(config, designs, stage, spec), None
@@ -148,22 +152,14 @@ def check_spec(config: StudyConfig, n_samples: int) -> tuple[str, TrackingSpec |
     if mode == "off":
         return mode, None
     if mode == "full":
-        return mode, config.tracking or TrackingSpec(seed=config.study.seed)
+        return mode, config.tracking_settings()
     if mode == "pbr":
         return mode, fast_spec(config, n_samples).replace(renderer="pbr")
     return mode, fast_spec(config, n_samples)
 
 
-def designs_of(shapes: Mapping[str, Any]) -> dict[str, tuple[Any, Any]]:
-    """The designs the check tracks: "before" (the original) and "after" (the delivered design), and
-    "move_only" (the move-only optimum) when the delivered design has added target holes."""
-    designs = {"before": (shapes["shape0"], shapes["holes0"]), "after": (shapes["shape1"], shapes["holes1"])}
-    if shapes.get("shape_move_only") is not None:
-        designs["move_only"] = (shapes["shape_move_only"], shapes["holes_move_only"])
-    return designs
-
-
-def start_design(config: StudyConfig, name: str, shape: Any, holes: Any, n_samples: int) -> BackgroundCall | None:
+def start_design(config: StudyConfig, name: str, shape: Shape, holes: Sequence[Hole], n_samples: int
+                 ) -> BackgroundCall | None:
     """Start tracking one design (``shape``, ``holes``; ``name`` "before" or "after") in a worker process, so
     that the check runs on another core while this process goes on: the original while the optimiser runs,
     the recommended design during the analysis, export and the report's renders (neither depends on what this
@@ -200,10 +196,10 @@ def _track_design(threads: int | None, arguments: tuple[Any, ...]) -> Any:
     return track_one(*arguments)
 
 
-def _collect(pending: Mapping[str, BackgroundCall | None], progress: Any) -> dict[str, Any]:
+def _collect(pending: Mapping[str, BackgroundCall | None], progress: StudyProgress | None) -> JsonDict:
     """{design name: its worker's tracking} for the workers ``start_design`` started that delivered (a design
     whose worker failed is tracked here by the check, where a failure is reported as the check reports it)."""
-    out = {}
+    out: JsonDict = {}
     for name, call in pending.items():
         if call is None:
             continue
@@ -215,34 +211,34 @@ def _collect(pending: Mapping[str, BackgroundCall | None], progress: Any) -> dic
     return out
 
 
-def cancel(shapes: Mapping[str, Any]) -> None:
-    """Stop the workers ``start_design`` started for ``shapes`` (keys "tracking_before"/"tracking_after")."""
-    for key in BACKGROUND_KEYS.values():
-        if shapes.get(key) is not None:
-            shapes[key].cancel()
+def _designs(delivery: Delivery) -> dict[str, Design]:
+    """The designs the check tracks: "before" (the original) and "after" (the delivered design), and
+    "move_only" (the move-only optimum) when the delivered design has added target holes."""
+    return delivery.designs()
 
 
-def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Path | None,
-                      progress: Any = None) -> tuple[dict[str, Any] | None, str | None]:
-    """(the results.json ``tracking`` section or None, why it was skipped or None) — ``attach``. ``shapes`` may
-    hold ``start_design``'s workers under ``BACKGROUND_KEYS`` (their designs are not tracked again here)."""
+def closed_loop_check(config: StudyConfig, delivery: Delivery, stage: Path | None,
+                      progress: StudyProgress | None = None) -> tuple[JsonDict | None, str | None]:
+    """(the results.json ``tracking`` section or None, why it was skipped or None) — ``attach``. The designs
+    ``delivery.workers`` track are not tracked again here (a worker that failed leaves its design to this
+    process); the workers are collected or cancelled."""
     from cadfeat.study.tracking import run_tracking  # lazy: would import scipy.optimize at module load
 
-    mode, spec = check_spec(config, len(shapes["setup"].trajectory.times_s))
-    designs = designs_of(shapes)
+    mode, spec = check_spec(config, len(delivery.setup.trajectory.times_s))
+    designs = _designs(delivery)
     few = min(len(holes) for _, holes in designs.values())
     if spec is None:
-        cancel(shapes)
+        delivery.workers.cancel()
         return None, None
     if mode in ("fast", "pbr") and few < MIN_HOLES:
-        cancel(shapes)
+        delivery.workers.cancel()
         return None, f"{SKIPPED}: the part has {few} hole(s); a pose needs at least {MIN_HOLES}"
     if spec.renderer == "pbr" and progress is not None:
         from cadfeat.study.tracking import pbr_announcement  # lazy: Mitsuba
 
         progress.log(pbr_announcement(config, spec, designs))
     t0, c0 = time.perf_counter(), time.process_time()
-    pending = {name: shapes.get(key) for name, key in BACKGROUND_KEYS.items() if name in designs}
+    pending = delivery.workers.pending(designs)
     try:
         with _phase(progress):
             section = run_tracking(config, designs, stage, spec, tracked=_collect(pending, progress),
@@ -259,7 +255,7 @@ def closed_loop_check(config: StudyConfig, shapes: Mapping[str, Any], stage: Pat
     return section, None
 
 
-def _inconclusive(section: dict[str, Any]) -> None:
+def _inconclusive(section: JsonDict) -> None:
     """When neither design is tracked — at least 3 holes detected in fewer than ``TRACKED_MIN`` of the frames of
     both (e.g. holes a few pixels wide in a small sensor's image) — the paired test compares two failures: its
     verdicts are kept under ``check.verdicts_not_used`` and the verdict's tracking rule stays silent (a warning
@@ -269,7 +265,8 @@ def _inconclusive(section: dict[str, Any]) -> None:
     if tracked and max(tracked.values()) < TRACKED_MIN and section.get("verdicts"):
         section["check"]["verdicts_not_used"] = section["verdicts"]
         section["verdicts"] = {}
-        for c in (section.get("comparisons") or {}).values():
+        comparisons: JsonDict = section.get("comparisons") or {}
+        for c in comparisons.values():
             c["verdicts_not_used"], c["verdicts"] = c["verdicts"], {}
         share = ", ".join(f"{k} {100 * v:.0f} %" for k, v in tracked.items())
         section.setdefault("warnings", []).append(
@@ -278,7 +275,7 @@ def _inconclusive(section: dict[str, Any]) -> None:
             "camera's images)")
 
 
-def _phase(progress: Any) -> Any:
+def _phase(progress: StudyProgress | None) -> Any:
     return progress.phase("tracking") if progress is not None else contextlib.nullcontext()
 
 
@@ -291,19 +288,23 @@ def summary_lines(results: Mapping[str, Any]) -> list[str]:
             return []  # the warning line says why
         return ["  closed loop: off (the verdict rests on the predicted objectives; `cadfeat run --track fast` "
                 "or `cadfeat track` confirms it)"]
-    check = tr.get("check") or {}
+    tr = cast("JsonDict", tr)
+    check: JsonDict = tr.get("check") or {}
     head = (f"  closed loop ({check.get('mode', 'full')}: {check.get('runs', '?')} paired runs, "
             f"{check.get('frames', '?')} frames, {check.get('seconds', '?')} s), "
             + ("the delivered design (with the added holes) vs the original:" if tr.get("comparisons")
                else "after vs before:"))
     lines = [head] + [f"    WARNING: {w}" for w in tr.get("warnings", []) if "no tracking verdict" in str(w)]
-    for m, v in (tr.get("verdicts") or {}).items():
+    verdicts: JsonDict = tr.get("verdicts") or {}
+    for m, v in verdicts.items():
         t, r = v.get("translation", {}), v.get("rotation", {})
         rms = _rms(tr, m)
         lines.append(f"    {m.upper():<5} {v.get('verdict')} (translation p = {_p(t)}, rotation p = {_p(r)}){rms}")
-    for label, c in (tr.get("comparisons") or {}).items():
+    comparisons: JsonDict = tr.get("comparisons") or {}
+    for label, c in comparisons.items():
         lines.append(f"  closed loop, {COMPARISON_TEXT.get(label, label)}:")
-        for m, v in (c.get("verdicts") or {}).items():
+        pair: JsonDict = c.get("verdicts") or {}
+        for m, v in pair.items():
             t, r = v.get("translation", {}), v.get("rotation", {})
             lines.append(f"    {m.upper():<5} {v.get('verdict')} (translation p = {_p(t)}, rotation p = {_p(r)})"
                          f"{_rms(tr, m, c.get('before', 'before'), c.get('after', 'after'))}")

@@ -34,6 +34,7 @@ from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
+    from cadfeat.results import JsonDict
     from cadfeat.study.setup import StudySetup
 
 __all__ = ["score_design", "track_design"]
@@ -42,7 +43,7 @@ StudySource = str | Path | Mapping[str, Any] | StudyConfig
 
 
 def score_design(study: StudySource, values: Mapping[str, float] | None = None, *,
-                 seed: int | None = None) -> dict[str, Any]:
+                 seed: int | None = None) -> JsonDict:
     """The design ``values`` of ``study`` (module docstring) rebuilt in CAD and scored as ``cadfeat run`` scores
     its delivered design. Returns {"values", "holes", "objectives", "combined" (None for pareto),
     "requirements" (each kept requirement's check), "requirements_hold", "rebuild_deviation_mm" (largest
@@ -68,7 +69,7 @@ def score_design(study: StudySource, values: Mapping[str, float] | None = None, 
 
 def track_design(study: StudySource, values: Mapping[str, float] | None = None, *, against: str | None = "original",
                  mode: str = "fast", seed: int | None = None, out_dir: str | Path | None = None,
-                 **tracking: Any) -> dict[str, Any]:
+                 **tracking: Any) -> JsonDict:
     """The closed loop on the design ``values`` of ``study`` ("after") and, with ``against="original"``, on the
     study's original ("before", paired run by run: the verdict per estimator). ``mode``: "fast" (``cadfeat
     run``'s default check: PnP + IEKF, 8 runs, ≤ 20 frames) or "full" (the study's ``[tracking]`` settings);
@@ -84,10 +85,10 @@ def track_design(study: StudySource, values: Mapping[str, float] | None = None, 
         raise StudyError(f"track_design: against={against!r} is not allowed; allowed: 'original' or None")
     if mode not in ("fast", "full"):
         raise StudyError(f"track_design: mode={mode!r} is not allowed; allowed: 'fast', 'full'")
-    from cadfeat.study.run import _resolve
+    from cadfeat.study.run import _resolve  # pyright: ignore[reportPrivateUsage] (the run's own resolution)
 
     config = _resolve(study, seed)
-    spec = _with_keys(config.tracking or TrackingSpec(seed=config.study.seed), tracking, config.label)
+    spec = _with_keys(config.tracking_settings(), tracking, config.label)
     if out_dir is not None:
         check_output_folder(out_dir, names=("tracking",))  # before any work
     _, setup, _, (shape, holes, _) = _design(config, values, None)
@@ -117,7 +118,7 @@ def _design(study: StudySource, values: Mapping[str, float] | None, seed: int | 
     """(config, the set-up of the design's integer parameters, the design vector, ``verify.rebuild`` at it). A part
     script's values are checked against the study's parameters before any CAD work; a STEP part's variables (its
     holes') are known once its set-up has read them."""
-    from cadfeat.study.run import _resolve
+    from cadfeat.study.run import _resolve  # pyright: ignore[reportPrivateUsage] (the run's own resolution)
     from cadfeat.study.setup import setup_study
     from cadfeat.study.verify import HoleCountError, rebuild
 

@@ -27,8 +27,8 @@ import contextlib
 import signal
 import sys
 import threading
-from collections.abc import Iterator
-from typing import Any
+from collections.abc import Generator
+from types import FrameType
 
 __all__ = ["RunInterrupts"]
 
@@ -52,7 +52,7 @@ class RunInterrupts:
     def requested(self) -> bool:
         return self.count > 0
 
-    def _on_sigint(self, signum: int, frame: Any) -> None:
+    def _on_sigint(self, signum: int, frame: FrameType | None) -> None:
         self.count += 1
         if self.count > 1 or self._stage == "abort":
             raise KeyboardInterrupt
@@ -61,7 +61,7 @@ class RunInterrupts:
             raise KeyboardInterrupt
 
     @contextlib.contextmanager
-    def installed(self) -> Iterator[RunInterrupts]:
+    def installed(self) -> Generator[RunInterrupts]:
         """Handle SIGINT as the module docstring says within the block (the main thread only, and only if SIGINT
         has Python's default handler: a caller with its own, e.g. a campaign, keeps it). The block starts in the
         "abort" stage; ``designing()`` moves it on."""
@@ -82,14 +82,14 @@ class RunInterrupts:
         self._stage = "finish"
 
     @contextlib.contextmanager
-    def keeping(self) -> Iterator[None]:
+    def keeping(self) -> Generator[None]:
         """Within the block (an optimiser that returns its best design when ``KeyboardInterrupt`` reaches it), the
         first Ctrl-C raises at once; if one was requested already, ``KeyboardInterrupt`` is raised on entry."""
         with self._in("keep"):
             yield
 
     @contextlib.contextmanager
-    def skippable(self) -> Iterator[None]:
+    def skippable(self) -> Generator[None]:
         """An optional part of the run after the optimiser (the robustness statistics, the closed-loop check):
         within the block the first Ctrl-C raises ``KeyboardInterrupt`` at once, and the caller goes on without
         the block's result; if one was requested already, it is raised on entry (the block is skipped)."""
@@ -97,7 +97,7 @@ class RunInterrupts:
             yield
 
     @contextlib.contextmanager
-    def _in(self, stage: str) -> Iterator[None]:
+    def _in(self, stage: str) -> Generator[None]:
         self.check()
         previous, self._stage = self._stage, stage if self._stage != "abort" or stage != "skip" else "abort"
         try:

@@ -13,7 +13,7 @@ with taplo / Even Better TOML by a first line ``#:schema ./study.schema.json`` i
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 from cadfeat.cell import Cell
 from cadfeat.settings import Settings
@@ -32,6 +32,9 @@ from cadfeat.study.settings.design import DesignSpec
 from cadfeat.study.settings.scene import PartPose, StudyInfo
 from cadfeat.trajectory import TRAJECTORY_KINDS, trajectory_model
 
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
+
 __all__ = ["SCHEMA_ID", "study_json_schema"]
 
 SCHEMA_ID = "https://cadfeat.invalid/schema/study.json"
@@ -45,7 +48,7 @@ _MODELS: dict[str, type[Settings]] = {
 }
 
 
-def _model_schema(model: type[Settings]) -> dict[str, Any]:
+def _model_schema(model: type[Settings]) -> JsonDict:
     out = model.model_json_schema()
     keys = set(model.study_keys())
     out["properties"] = {k: v for k, v in out.get("properties", {}).items() if k in keys}
@@ -57,17 +60,17 @@ def _model_schema(model: type[Settings]) -> dict[str, Any]:
     return out
 
 
-def _trajectory_schema() -> dict[str, Any]:
+def _trajectory_schema() -> JsonDict:
     """``[trajectory]``: one form per library kind (its generated model) or a CSV file (``CsvTrajectory``)."""
     forms = [_model_schema(trajectory_model(kind)) for kind in (None, *TRAJECTORY_KINDS)]
     return {"description": "kind = library kind + its arguments (cadfeat trajectories), or csv = file of poses",
             "oneOf": forms}
 
 
-def study_json_schema() -> dict[str, Any]:
+def study_json_schema() -> JsonDict:
     """The JSON Schema (draft 2020-12) of a study file's tables."""
-    props: dict[str, Any] = {}
-    defs: dict[str, Any] = {}
+    props: JsonDict = {}
+    defs: JsonDict = {}
     for name in study_schema.SECTIONS:
         if name in _MODELS:
             sub = _model_schema(_MODELS[name])
@@ -75,7 +78,7 @@ def study_json_schema() -> dict[str, Any]:
             props[name] = sub
         else:
             props[name] = _trajectory_schema()
-    out: dict[str, Any] = {
+    out: JsonDict = {
         "$schema": "https://json-schema.org/draft/2020-12/schema", "$id": SCHEMA_ID, "title": "cadfeat study file",
         "type": "object", "additionalProperties": False, "required": list(study_schema.REQUIRED_SECTIONS),
         "properties": props,

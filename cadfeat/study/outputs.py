@@ -17,13 +17,17 @@ import re
 from collections.abc import Mapping, Sequence
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from cadfeat.cad.export import sha256_file
 from cadfeat.cad.features.identity import hole_name
 from cadfeat.results import SCHEMA_VERSION, StudyResults
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.measures.evaluate import Measures
+    from cadfeat.results import JsonDict
 
 __all__ = [
     "DIGITS",
@@ -50,17 +54,17 @@ def plain(value: Any, digits: int = DIGITS) -> Any:
     """JSON-ready copy: numpy → Python, floats rounded to ``digits`` significant digits, non-finite → None,
     tuples → lists, Paths → str. Integers stay integers."""
     if isinstance(value, Mapping):
-        return {str(k): plain(v, digits) for k, v in value.items()}
+        return {str(k): plain(v, digits) for k, v in cast("Mapping[object, object]", value).items()}
     if isinstance(value, list | tuple):
-        return [plain(v, digits) for v in value]
+        return [plain(v, digits) for v in cast("Sequence[object]", value)]
     if isinstance(value, np.ndarray):
         return plain(value.tolist(), digits)
     if isinstance(value, bool | np.bool_):
-        return bool(value)
+        return bool(cast(bool, value))
     if isinstance(value, int | np.integer):
-        return int(value)
+        return int(cast(int, value))
     if isinstance(value, float | np.floating):
-        x = float(value)
+        x = float(cast(float, value))
         if not math.isfinite(x):
             return None
         return 0.0 if x == 0 else float(f"{x:.{digits}g}")
@@ -86,7 +90,7 @@ def write_results(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Stud
     return results
 
 
-def hole_dict(hole: Any, index: int, fixed: bool, movable: bool) -> dict[str, Any]:
+def hole_dict(hole: Any, index: int, fixed: bool, movable: bool) -> JsonDict:
     """One hole as results.json ``H`` = {index, name, centre_mm, axis, radius_mm, depth_mm, through, kind,
     fixed, movable} (part frame, mm)."""
     return {
@@ -97,12 +101,12 @@ def hole_dict(hole: Any, index: int, fixed: bool, movable: bool) -> dict[str, An
     }
 
 
-def _arr(m: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
+def _arr(m: Measures, name: str, shape: tuple[int, ...]) -> np.ndarray:
     value = getattr(m, name, None)
     return np.full(shape, np.nan) if value is None else np.asarray(value, dtype=float)
 
 
-def worst_poses(m: Any, min_axis_px: float, half_image_px: float) -> np.ndarray:
+def worst_poses(m: Measures, min_axis_px: float, half_image_px: float) -> np.ndarray:
     """(N,) index of each feature's worst pose: the smallest of its FOV image margin (in units of the half
     image size), focus margin and resolution margin (in units of ``min_axis_px``) — all dimensionless, 0 at
     the limit — with invisible samples counted as −∞."""
@@ -111,11 +115,14 @@ def worst_poses(m: Any, min_axis_px: float, half_image_px: float) -> np.ndarray:
     score = np.minimum.reduce([fov_px / max(half_image_px, 1.0), _arr(m, "focus", (L, N)),
                                _arr(m, "resolution_px", (L, N)) / max(min_axis_px, 1e-9)])
     score = np.where(np.asarray(m.visible, bool), np.nan_to_num(score, nan=-np.inf), -np.inf)
-    return np.argmin(score, axis=0) if L else np.zeros(N, int)
+    if not L:
+        return np.zeros(int(N), dtype=np.int_)
+    worst: np.ndarray = np.asarray(np.argmin(score, axis=0))
+    return worst
 
 
-def measures_summary(m: Any, names: Sequence[str], times_s: np.ndarray, min_axis_px: float,
-                     half_image_px: float) -> dict[str, Any]:
+def measures_summary(m: Measures, names: Sequence[str], times_s: np.ndarray, min_axis_px: float,
+                     half_image_px: float) -> JsonDict:
     """results.json ``M``: per-feature minima over the trajectory and per-pose series (contracts); per feature
     also ``hidden_frac`` (share of poses where the part hides it, occlusion ray test), ``hidden_worst_pose``
     (first such pose, or None) and ``folded_frac`` (share past the lens's fold radius)."""
@@ -156,7 +163,7 @@ def normalise_step_header(path: str | os.PathLike[str], product: str) -> None:
     path.write_bytes(head + rest)
 
 
-def file_entry(path: Path, root: Path) -> dict[str, Any]:
+def file_entry(path: Path, root: Path) -> JsonDict:
     """``{name, bytes, sha256}`` of a written file (name relative to the output folder)."""
     return {"name": path.relative_to(root).as_posix(), "bytes": path.stat().st_size, "sha256": sha256_file(path)}
 

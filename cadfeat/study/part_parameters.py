@@ -10,7 +10,7 @@ import ast
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import cast
 
 from cadfeat.cad.cqgi_parts import is_cqgi_script
 from cadfeat.study.settings import StudyError
@@ -96,19 +96,21 @@ def _parameters_by_loading(path: Path, time_limit_s: float | None) -> dict[str, 
             for name, p in part.parameters.items()}
 
 
-def _parse_parameters(table: Any, path: Path) -> dict[str, PartParameter]:
+def _parse_parameters(table: object, path: Path) -> dict[str, PartParameter]:
     allowed = "a dict {name: {default, bounds: (lower, upper), unit, description}}"
     if not isinstance(table, Mapping):
         raise StudyError(f"{path}: PARAMETERS: not a dict; allowed: {allowed}")
-    out = {}
-    for name, spec in table.items():
+    out: dict[str, PartParameter] = {}
+    for name, spec in cast("Mapping[object, object]", table).items():
         if not isinstance(name, str) or not isinstance(spec, Mapping) or "default" not in spec or \
-                "bounds" not in spec or not isinstance(spec["bounds"], Sequence) or len(spec["bounds"]) != 2:
+                "bounds" not in spec or not isinstance(spec["bounds"], Sequence) or \
+                len(cast("Sequence[object]", spec["bounds"])) != 2:
             raise StudyError(f"{path}: PARAMETERS.{name}: malformed; allowed: {allowed}")
-        default, (lo, hi) = spec["default"], spec["bounds"]
-        if not all(is_num(v) for v in (default, lo, hi)):
+        spec = cast("Mapping[str, object]", spec)
+        default, (lo, hi) = spec["default"], cast("Sequence[object]", spec["bounds"])
+        if not (is_num(default) and is_num(lo) and is_num(hi)):
             raise StudyError(f"{path}: PARAMETERS.{name}: default and bounds must be numbers; allowed: {allowed}")
         is_int = isinstance(default, int)
-        out[name] = PartParameter(name, default, lo, hi, str(spec.get("unit", "")),
-                                  str(spec.get("description", "")), is_int)
+        out[name] = PartParameter(name, cast(float, default), cast(float, lo), cast(float, hi),
+                                  str(spec.get("unit", "")), str(spec.get("description", "")), is_int)
     return out

@@ -20,9 +20,23 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from collections.abc import Sequence
+
+    from cadquery import Shape
+
+    from cadfeat.cad.features import Hole
+    from cadfeat.camera import Camera
+    from cadfeat.measures.ellipse import Ellipse
+    from cadfeat.results import JsonDict
+    from cadfeat.study.schema import StudyConfig, TrackingSpec
+    from cadfeat.study.tracking import Design
+    from cadfeat.vision.closed_loop import TrackingConfig
+    from cadfeat.vision.detection import Detections
 
 __all__ = ["FOLDER", "physical_views"]
 
@@ -30,21 +44,24 @@ FOLDER = "camera"
 """The frames' folder in the output folder."""
 
 
-def physical_views(config: Any, designs: Mapping[str, Any], out_dir: Path | None, spec: Any = None,
-                   count: int = 3) -> dict[str, Any]:
+def physical_views(config: StudyConfig, designs: Mapping[str, Design], out_dir: Path | None,
+                   spec: TrackingSpec | None = None, count: int = 3) -> JsonDict:
     """results.json ``physical_views`` for ``designs`` = {name: (shape, holes)} (module docstring); ``spec``: the
     ``[tracking]`` settings (its ``spp`` and seed; default the study's); ``out_dir``: where ``camera/`` goes (None:
     frames not written)."""
-    from cadfeat.study.schema import TrackingSpec
-    from cadfeat.study.tracking import _named, _scene, tracking_config
+    from cadfeat.study.tracking import (  # (the closed loop's own scene and hole names)
+        _named,  # pyright: ignore[reportPrivateUsage]
+        _scene,  # pyright: ignore[reportPrivateUsage]
+        tracking_config,
+    )
     from cadfeat.vision.closed_loop import report_frames
 
-    spec = (spec or config.tracking or TrackingSpec(seed=config.study.seed)).replace(renderer="pbr")
+    spec = (spec or config.tracking_settings()).replace(renderer="pbr")
     tc = tracking_config(spec, config.cell)
     camera, T_cam_part, times, _ = _scene(config)
     idx = report_frames(len(T_cam_part), count)
     t0 = time.perf_counter()
-    frames: list[dict[str, Any]] = []
+    frames: list[JsonDict] = []
     for name, (shape, holes) in designs.items():
         frames += _design_frames(name, shape, _named(holes), camera, T_cam_part[idx], times[idx], idx, tc, out_dir)
     cell = config.cell
@@ -53,8 +70,8 @@ def physical_views(config: Any, designs: Mapping[str, Any], out_dir: Path | None
             "seconds": round(time.perf_counter() - t0, 2)}
 
 
-def _design_frames(name: str, shape: Any, holes: Any, camera: Any, T: np.ndarray, times: np.ndarray,
-                   idx: list[int], tc: Any, out_dir: Path | None) -> list[dict[str, Any]]:
+def _design_frames(name: str, shape: Shape, holes: Sequence[Hole], camera: Camera, T: np.ndarray, times: np.ndarray,
+                   idx: list[int], tc: TrackingConfig, out_dir: Path | None) -> list[JsonDict]:
     """One design's frames: rendered, detected, drawn and written (module docstring)."""
     from cadfeat.study.tracking import write_frame
     from cadfeat.vision.closed_loop import detect_sequence, expected_visible, frame_image, observe
@@ -64,9 +81,9 @@ def _design_frames(name: str, shape: Any, holes: Any, camera: Any, T: np.ndarray
     pixels, dets = detect_sequence(obs, tc.sensor.noise_grey, seed, tc.gate_px, 1.0, tc.detector)
     expected = expected_visible(camera, obs, T)
     found = np.all(np.isfinite(pixels), axis=-1)
-    out = []
+    out: list[JsonDict] = []
     for j, k in enumerate(idx):
-        entry: dict[str, Any] = {
+        entry: JsonDict = {
             "design": name, "frame": int(k), "time_s": float(times[j]),
             "expected": [n for n, e in zip(obs.names, expected[j], strict=True) if e],
             "detected": [n for n, e, f in zip(obs.names, expected[j], found[j], strict=True) if e and f],
@@ -79,7 +96,7 @@ def _design_frames(name: str, shape: Any, holes: Any, camera: Any, T: np.ndarray
     return out
 
 
-def _drawn(image: np.ndarray, predicted: Any, names: list[str], detections: Any, pixels: np.ndarray,
+def _drawn(image: np.ndarray, predicted: Ellipse, names: list[str], detections: Detections, pixels: np.ndarray,
            missed: np.ndarray) -> np.ndarray:
     """``closed_loop.draw_frame`` (predicted rims red, detections green, associated centres yellow) with each
     missed hole's name written in red beside its predicted rim."""

@@ -1,9 +1,9 @@
 """The phases of a study run: set up, optimise, deliver (shop rounding and CAD rebuild), analyse, and the
 results they give (``compute``).
 
-``compute(config, progress)`` returns the results.json content (before export) and the shapes the export and
-the report need; ``cadfeat.study.run`` stages, exports (``cadfeat.study.verify``) and publishes. Each phase is a
-function of its own below, in run order.
+``compute(config, progress)`` returns the results.json content (before export) and the designs the export, the
+report and the closed-loop check need (``delivery.Delivery``); ``cadfeat.study.run`` stages, exports
+(``cadfeat.study.verify``) and publishes. Each phase is a function of its own below, in run order.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ParamSpec, Protocol, TypeAlias, TypeVar, cast
 
 import numpy as np
 
@@ -24,12 +24,14 @@ from cadfeat.design import optimize  # (called through the module: tests replace
 from cadfeat.design.memory import check_fits
 from cadfeat.design.patterns import check_patterns, find_patterns
 from cadfeat.design.robustness import robustness
-from cadfeat.design.shop import hole_sizes, refine_on_rebuild, shop_design
+from cadfeat.design.shop import ShopDesign, hole_sizes, refine_on_rebuild, shop_design
 from cadfeat.design.unseen import scored_measures
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
+from cadfeat.results import JsonDict
 from cadfeat.study import added_design, added_targets, closed_loop_check
 from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
+from cadfeat.study.delivery import AddedDesign, Delivery, TrackingWorkers
 from cadfeat.study.interrupts import RunInterrupts
 from cadfeat.study.outputs import (
     SCHEMA_VERSION,
@@ -66,16 +68,36 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.study.preflight import Preflight
     from cadfeat.study.setup import Scene, StudySetup
     from cadfeat.study.setup_cache import SetupCache
-    from cadfeat.trajectory import Trajectory
 
+
+_P = ParamSpec("_P")
+_T = TypeVar("_T")
 
 OUTLINE_ROUNDS = 4
+
+
+class Samples(Protocol):
+    """What the measures and results.json read of a trajectory: a ``Trajectory``, or ``cadfeat evaluate``'s view of
+    one of its samples (``run._OnePose``)."""
+
+    @property
+    def T_task_cam(self) -> np.ndarray: ...
+    @property
+    def times_s(self) -> np.ndarray: ...
+    @property
+    def duration_s(self) -> float: ...
+
+    def __len__(self) -> int: ...
+
+    def velocity_screws(self) -> np.ndarray:
+        """(L, 6) the camera's velocity screws (v mm/s, ω rad/s), camera frame."""
+        ...
 
 
 SWEEP_SAMPLES = 41
 
 
-def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Trajectory | None = None, *,
+def measure_holes(setup: StudySetup, holes: Sequence[Hole], trajectory: Samples | None = None, *,
                   mesh: trimesh.Trimesh | None = None) -> Measures:
     """``measures.evaluate`` of real holes (part frame) along the study's trajectory (or ``trajectory``), with
     the occlusion test against ``mesh`` (default: the setup problem's part mesh, None when occlusion is off), as
@@ -117,7 +139,8 @@ def _optimise(setup: StudySetup, progress: StudyProgress, label: str = "") -> tu
     except KeyboardInterrupt:
         if progress.best_x is None:
             raise
-        res = _Interrupted(progress.best_x, progress.best_f)
+        # a stand-in with the fields the run reads of an optimiser's result
+        res = cast("OptimResult", _Interrupted(progress.best_x, progress.best_f))
     if getattr(res, "interrupted", False) and not getattr(res, "history", None) and progress.best_x is None:
         raise KeyboardInterrupt  # stopped before the optimiser evaluated any design: nothing to write
     return res, bool(getattr(res, "interrupted", False))
@@ -150,9 +173,9 @@ class _Interrupted:
 
     x_best: np.ndarray
     f_best: float
-    history: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    history: list[JsonDict] = dataclasses.field(default_factory=list[JsonDict])
     interrupted: bool = True
-    pareto: dict[str, Any] | None = None
+    pareto: JsonDict | None = None
     n_evals: int = 0
 
 
@@ -166,20 +189,21 @@ def _violations(setup: StudySetup, x: np.ndarray, most: int = 5) -> str:
 
 
 def _refresh_outlines(setup: StudySetup, res: OptimResult, scene: Scene, normaliser: Normaliser,
-                      prog: StudyProgress, label: str) -> tuple[StudySetup, OptimResult, list[dict[str, Any]], bool]:
+                      prog: StudyProgress, label: str) -> tuple[StudySetup, OptimResult, list[JsonDict], bool]:
     """The optimiser's 2-D constraints use the host-face outlines of the design it was linearised at; when a
     parameter also changes the faces (e.g. a block that grows with the hole spacing), rebuild at the
     optimum, linearise again there (new outlines) and re-optimise from it, until the outlines agree (at
     most ``OUTLINE_ROUNDS`` rounds; a round is kept only if it improves the objective)."""
-    history: list[dict[str, Any]] = []
+    history: list[JsonDict] = []
     stopped = False
     for k in range(OUTLINE_ROUNDS):
         x = np.asarray(res.x_best, float)
         try:
             with prog.interrupts.keeping():  # Ctrl-C: the previous round's design is kept
                 _, holes, _ = rebuild(setup, x)
-                if not outlines_differ(setup.model.holes_at(x) if hasattr(setup.model, "holes_at")
-                                       else setup.model.holes, holes):  # the outlines the model predicts at x
+                holes_at = getattr(setup.model, "holes_at", None)
+                if not outlines_differ(holes_at(x) if holes_at is not None else setup.model.holes,
+                                       holes):  # the outlines the model predicts at x (they may move with x)
                     break
                 names = setup.space.names
                 new = study_setup.setup_script(setup.config, setup.int_values, scene, normaliser,
@@ -197,17 +221,18 @@ def _refresh_outlines(setup: StudySetup, res: OptimResult, scene: Scene, normali
     return setup, res, history, stopped
 
 
-def _history(res: OptimResult, label: str) -> list[dict[str, Any]]:
-    out = []
-    for i, h in enumerate(getattr(res, "history", None) or []):
-        h = dict(h) if isinstance(h, Mapping) else {"f": h}
+def _history(res: OptimResult, label: str) -> list[JsonDict]:
+    out: list[JsonDict] = []
+    entries: list[object] = getattr(res, "history", None) or []
+    for i, entry in enumerate(entries):
+        h: JsonDict = dict(cast("Mapping[str, Any]", entry)) if isinstance(entry, Mapping) else {"f": entry}
         out.append({"iteration": int(h.get("iteration", i)), "f": h.get("f"), "combined": h.get("combined"),
                     "feasible": bool(h.get("feasible", True)), "phase": (label + " " if label else "")
                     + str(h.get("phase", "")).strip()})
     return out
 
 
-def _sweep(setup: StudySetup) -> dict[str, Any] | None:
+def _sweep(setup: StudySetup) -> JsonDict | None:
     """For a one-variable study: the objectives over the variable's range (thesis Figs. 5.10/5.11)."""
     space = setup.space
     if space.size != 1:
@@ -215,7 +240,7 @@ def _sweep(setup: StudySetup) -> dict[str, Any] | None:
     v = space.variables[0]
     values = np.linspace(v.lower, v.upper, SWEEP_SAMPLES)
     objectives: dict[str, list[float]] = {}
-    combined = []
+    combined: list[float] = []
     for x in values:
         obj = setup.problem.objectives(np.array([x]))
         for k, g in obj.items():
@@ -225,8 +250,8 @@ def _sweep(setup: StudySetup) -> dict[str, Any] | None:
 
 
 def _variables(setup: StudySetup, x0: np.ndarray, x1: np.ndarray, ints0: Mapping[str, int],
-               ints1: Mapping[str, int]) -> list[dict[str, Any]]:
-    out = []
+               ints1: Mapping[str, int]) -> list[JsonDict]:
+    out: list[JsonDict] = []
     for v, a, b in zip(setup.space.variables, x0, x1, strict=True):
         out.append({"name": v.name, "unit": v.unit, "kind": v.kind, "lower": v.lower, "upper": v.upper,
                     "before": float(a), "after": float(b),
@@ -240,12 +265,12 @@ def _variables(setup: StudySetup, x0: np.ndarray, x1: np.ndarray, ints0: Mapping
 
 
 def _holes_block(setup0: StudySetup, holes0: Sequence[Hole], setup1: StudySetup,
-                 holes1: Sequence[Hole]) -> dict[str, Any]:
+                 holes1: Sequence[Hole]) -> JsonDict:
     return {"before": [hole_dict(h, i, setup0.fixed_mask[i], setup0.movable_mask[i]) for i, h in enumerate(holes0)],
             "after": [hole_dict(h, i, setup1.fixed_mask[i], setup1.movable_mask[i]) for i, h in enumerate(holes1)]}
 
 
-def _design_matrix(setup: StudySetup, x: np.ndarray) -> dict[str, Any] | None:
+def _design_matrix(setup: StudySetup, x: np.ndarray) -> JsonDict | None:
     try:
         from cadfeat.design.axiomatic import design_matrix
     except ImportError:
@@ -257,7 +282,7 @@ def _design_matrix(setup: StudySetup, x: np.ndarray) -> dict[str, Any] | None:
             "verdict": dm.verdict, "note": note}
 
 
-def _normalisation(setup: StudySetup) -> dict[str, Any]:
+def _normalisation(setup: StudySetup) -> JsonDict:
     normaliser = getattr(setup.problem, "normaliser", None)
     if normaliser is None:
         return {"method": "none", "reference": {}, "note": "objectives in their own units"}
@@ -266,7 +291,7 @@ def _normalisation(setup: StudySetup) -> dict[str, Any]:
             **({"sources": d["sources"]} if "sources" in d else {})}
 
 
-def trajectory_info(traj: Trajectory) -> dict[str, Any]:
+def trajectory_info(traj: Samples) -> JsonDict:
     """Kind, sample count, duration and the sampled camera poses (``T_task_cam`` (L, 4, 4), mm; ``time_s``)."""
     table_kind = getattr(traj, "name", "") or ""
     return {"kind": table_kind, "n_samples": len(traj), "duration_s": float(traj.duration_s),
@@ -297,7 +322,7 @@ class _Optimum:
 
     setup: StudySetup
     res: OptimResult
-    history: list[dict[str, Any]]
+    history: list[JsonDict]
     interrupted: bool
 
 
@@ -310,34 +335,35 @@ class _Delivered:
     shape1: Shape
     holes1: list[Hole]
     pred_err: float
-    shop: dict[str, Any]
+    shop: JsonDict
     res: OptimResult
     rebuild_failure: str | None
 
 
 def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None = None,
-            cache: SetupCache | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+            cache: SetupCache | None = None) -> tuple[JsonDict, Delivery]:
     """The study's phases in order: set up, optimise, deliver (shop rounding, CAD rebuild, scores and
-    requirement checks on the B-rep), analyse; returns (results, shapes) for the export and the report.
+    requirement checks on the B-rep), analyse; returns (results, the designs for the export, the report and the
+    closed-loop check).
     ``time_limit_s``: every part-script import and CAD build in a worker process within it (``run_study``:
     ``[study] build_timeout_s``); None: in this process. ``cache``: the set-up cache (``study.setup_cache``)."""
     check_robust(config)  # issue 18: a chance constraint names a measure of the study, before any work
     with prog.phase("setup"):
         start = _set_up(config, time_limit_s, cache)
     base = start.base  # issue 17: the closed-loop check tracks the original on another core meanwhile
-    shapes: dict[str, Any] = {"tracking_before": closed_loop_check.start_design(
-        config, "before", base.shape0, base.holes0, len(base.trajectory.times_s))}
+    workers = TrackingWorkers(before=closed_loop_check.start_design(
+        config, "before", base.shape0, base.holes0, len(base.trajectory.times_s)))
     try:
-        return _after_set_up(config, prog, start, shapes)
+        return _after_set_up(config, prog, start, workers)
     except BaseException:
-        closed_loop_check.cancel(shapes)
+        workers.cancel()
         raise
 
 
-def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shapes: dict[str, Any]
-                  ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """``compute``'s phases after the set-up: optimise, deliver, analyse; ``shapes`` gains the designs (and the
-    recommended design's closed loop in a worker, ``closed_loop_check.start_design``, before the analysis)."""
+def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, workers: TrackingWorkers
+                  ) -> tuple[JsonDict, Delivery]:
+    """``compute``'s phases after the set-up: optimise, deliver, analyse; ``workers`` gains the recommended
+    design's closed loop (``closed_loop_check.start_design``, before the analysis)."""
     interrupts = prog.interrupts
     with prog.phase("optimise"):
         opt = _optimise_all(config, start, prog)
@@ -360,12 +386,13 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
         m1 = measure_holes(setup, done.holes1, mesh=mesh1)
         obj1, comb1 = score(setup, done.holes1)
         checks = requirement_checks(setup, done.shape1, done.holes1, "brep")
-    n_samples = len(setup.trajectory.times_s)
-    # with [add_targets] the move-only optimum may not be the delivered design: tracked as "move_only" until known
-    key = "tracking_move_only" if config.add_targets is not None else "tracking_after"
     if not interrupts.requested:  # (interrupted: no closed loop, study.interrupts)
-        shapes[key] = closed_loop_check.start_design(config, key.removeprefix("tracking_"), done.shape1, done.holes1,
-                                                     n_samples)
+        worker = closed_loop_check.start_design(config, "after" if config.add_targets is None else "move_only",
+                                                done.shape1, done.holes1, len(setup.trajectory.times_s))
+        if config.add_targets is None:
+            workers.after = worker
+        else:  # with [add_targets] the move-only optimum may not be the delivered design: "move_only" until known
+            workers.move_only = worker
     with prog.phase("analyse"):
         sweep = _sweep(setup)
         dmat = _design_matrix(setup, done.x1)
@@ -378,56 +405,59 @@ def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, shape
     designs = _optional(interrupts, robust_designs, setup, robust_run, start.base.holes0, done.holes1)
     if designs is not None:
         attach_robust(results, designs)  # issue 18
-    shapes.update({"shape0": start.base.shape0, "shape1": done.shape1, "holes0": start.base.holes0,
-                   "holes1": done.holes1, "setup": setup, "base": start.base})
+    delivery = Delivery(start.base.shape0, start.base.holes0, done.shape1, done.holes1, setup, start.base,
+                        workers=workers)
     if config.add_targets is not None:  # issue 31: new target holes on the move-only optimum
-        _add_targets(config, prog, start, opt, done, results, shapes)
+        delivery = _add_targets(config, prog, start, opt, done, results, delivery)
     results["interrupted"] = bool(opt.interrupted or interrupts.requested)
-    return results, shapes
+    return results, delivery
 
 
-def _optional(interrupts: RunInterrupts, func: Callable[..., Any], *args: Any) -> Any:
-    """``func(*args)``, an optional part of the run after the optimiser; None when the run is interrupted before
-    or during it (``RunInterrupts.skippable``: the run finishes without it)."""
+def _optional(interrupts: RunInterrupts, func: Callable[_P, _T], *args: _P.args, **kwargs: _P.kwargs) -> _T | None:
+    """``func(*args, **kwargs)``, an optional part of the run after the optimiser; None when the run is interrupted
+    before or during it (``RunInterrupts.skippable``: the run finishes without it)."""
     try:
         with interrupts.skippable():
-            return func(*args)
+            return func(*args, **kwargs)
     except KeyboardInterrupt:
         return None
 
 
 def _add_targets(config: StudyConfig, prog: StudyProgress, start: _Start, opt: _Optimum, done: _Delivered,
-                 results: dict[str, Any], shapes: dict[str, Any]) -> None:
+                 results: JsonDict, delivery: Delivery) -> Delivery:
     """The added-target phase (``study.added_targets``) on the move-only optimum; when it recommends holes, that
-    design is delivered (``study.added_design.deliver``) and its closed loop starts in a worker; otherwise the
-    move-only optimum's worker is the delivered design's. An interrupted run (``study.interrupts``) delivers the
-    move-only optimum: the phase is skipped, or abandoned when Ctrl-C comes during it."""
+    design is delivered (``study.added_design.deliver``: the returned ``Delivery``) and its closed loop starts in a
+    worker; otherwise the move-only optimum's worker is the delivered design's. An interrupted run
+    (``study.interrupts``) delivers the move-only optimum: the phase is skipped, or abandoned when Ctrl-C comes
+    during it."""
     base = start.base
     recommended = 0
     interrupts = prog.interrupts
-    found = None
+    found: tuple[JsonDict, AddedDesign] | None = None
     if not opt.interrupted and not interrupts.requested:
         with prog.phase("add targets"):
             found = _optional(interrupts, added_targets.run_phase, config, opt.setup, {
                 "before": (base.shape0, base.holes0), "after": (done.shape1, done.holes1)}, prog, done.x1)
     if found is not None:
-        results["added_targets"], extra = found
+        results["added_targets"], added = found
         recommended = int(results["added_targets"]["recommended"])
         if recommended:  # (from here on Ctrl-C is noted, not raised: the results are not left half-changed)
             with prog.phase("add targets"):
-                added_design.deliver(config, opt.setup, base, results, shapes, extra,
-                                     lambda holes, shape: measure_holes(opt.setup, holes,
-                                                                        mesh=occlusion_mesh(config, shape)),
-                                     lambda holes: _patterns(base, holes))
+                delivery = added_design.deliver(config, opt.setup, base, results, delivery, added,
+                                                lambda holes, shape: measure_holes(opt.setup, holes,
+                                                                                   mesh=occlusion_mesh(config, shape)),
+                                                lambda holes: _patterns(base, holes))
+    workers = delivery.workers
     if recommended:
-        shapes["tracking_after"] = closed_loop_check.start_design(config, "after", shapes["shape1"],
-                                                                  shapes["holes1"], len(opt.setup.trajectory.times_s))
+        workers.after = closed_loop_check.start_design(config, "after", delivery.shape1, delivery.holes1,
+                                                       len(opt.setup.trajectory.times_s))
     else:
-        shapes["tracking_after"] = shapes.pop("tracking_move_only", None)
+        workers.after, workers.move_only = workers.move_only, None
+    return delivery
 
 
 def _pose_accuracy(config: StudyConfig, start: _Start, setup: StudySetup, done: _Delivered,
-                   mesh1: trimesh.Trimesh | None = None) -> dict[str, Any]:
+                   mesh1: trimesh.Trimesh | None = None) -> JsonDict:
     """results.json ``pose_accuracy`` (``study.pose_accuracy``): predicted pose error before and after;
     ``mesh1``: the delivered design's occlusion mesh when the study built one (else one is made here)."""
     base = start.base
@@ -440,9 +470,10 @@ def _set_up(config: StudyConfig, time_limit_s: float | None, cache: SetupCache |
     anything before any optimisation. ``cache``: the set-ups are read from it when these inputs were set up before
     and kept in it once their normaliser is built (``study.setup_cache``)."""
     scene = load_scene(config)
-    check_fits(len(scene[1]), occlusion=config.objective.occlusion, robustness_samples=config.robustness.samples,
-               what=config.label)  # issue 16: refuse what cannot fit in memory, before any CAD work
-    combos = int_grid(config) if config.study.part_kind == "script" else [{}]
+    # issue 16: refuse what cannot fit in memory, before any CAD work
+    check_fits(len(scene.trajectory), occlusion=config.objective.occlusion,
+               robustness_samples=config.robustness.samples, what=config.label)
+    combos = int_grid(config) if config.study.part_kind == "script" else [dict[str, int]()]
     if config.study.part_kind == "step":
         base = cached_setup(config, time_limit_s=time_limit_s, cache=cache)
         setups = [base]
@@ -468,7 +499,7 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
     """One optimisation per set-up (integer combination), the best kept; Ctrl-C keeps the best so far."""
     best = None
     interrupted = False
-    history: list[dict[str, Any]] = []
+    history: list[JsonDict] = []
     setups = start.setups
     for s in setups:
         if best is not None and prog.interrupts.requested:  # interrupted: the combinations left are not tried
@@ -499,8 +530,8 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
 
 
 def _rebuild_delivered(setup: StudySetup, x1: np.ndarray, x_opt: np.ndarray, verified: Sequence[Hole] | None,
-                       model: Any, shop: dict[str, Any], targets: Any) -> tuple[np.ndarray, Any, tuple[Any, list[Hole],
-                                                                                                        float]]:
+                       model: AnchoredModel, shop: JsonDict, targets: ShopDesign | None
+                       ) -> tuple[np.ndarray, ShopDesign | None, tuple[Shape, list[Hole], float]]:
     """The CAD rebuild of the delivered design: the shop-rounded ``x1``; when that does not build (a CAD failure
     is an infeasible point, issue 16), the optimum ``x_opt`` unrounded (``shop`` notes it). Returns (x, shop
     targets or None, ``rebuild``'s result); ``CadfeatError`` when neither builds."""
@@ -515,7 +546,12 @@ def _rebuild_delivered(setup: StudySetup, x1: np.ndarray, x_opt: np.ndarray, ver
     return x_opt, None, rebuild(setup, x_opt, verified)
 
 
-def _deliver(setup: StudySetup, opt: _Optimum, prog: StudyProgress, shopped: tuple[Any, ...]) -> _Delivered:
+Shopped: TypeAlias = "tuple[np.ndarray, np.ndarray, JsonDict, ShopDesign | None, AnchoredModel, Sequence[Hole] | None]"
+"""The shop phase's outcome: (the optimum, the shop-rounded design, the results.json ``shop`` block, the rounding's
+targets (None: not rounded), the anchored feature model, the holes the CAD loop verified at the optimum or None)."""
+
+
+def _deliver(setup: StudySetup, opt: _Optimum, prog: StudyProgress, shopped: Shopped) -> _Delivered:
     """The CAD rebuild of the shop-rounded optimum; when the linear feature model's optimum does not build,
     an infeasible point: search again with CAD in the loop, round that optimum for the shop, rebuild."""
     x_opt, x1, shop, targets, model, verified = shopped
@@ -542,8 +578,9 @@ def _deliver(setup: StudySetup, opt: _Optimum, prog: StudyProgress, shopped: tup
     return _Delivered(x1, shape1, holes1, pred_err, shop, res, rebuild_failure)
 
 
-def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered, after: tuple[Any, ...],
-             analysis: tuple[Any, ...]) -> dict[str, Any]:
+def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered,
+             after: tuple[Measures, dict[str, float], float | None, list[JsonDict]],
+             analysis: tuple[JsonDict | None, JsonDict | None, JsonDict | None]) -> JsonDict:
     """The results.json content of a run (before export: files, verification, timings and verdict follow)."""
     m1, obj1, comb1, checks = after
     sweep, dmat, robust = analysis
@@ -597,6 +634,8 @@ def part_points(shape: Shape | None, mesh: trimesh.Trimesh | None = None, most: 
     """Points of the part (V, 3) mm, part frame, for the pre-flight: the occlusion mesh's vertices (or a coarse
     mesh of ``shape``), at most ``most`` of them (evenly strided)."""
     if mesh is None:
+        if shape is None:
+            raise ValueError("part_points: neither a mesh nor a shape")
         mesh = mesh_from_shape(shape, tolerance=0.5)
     v = np.asarray(mesh.vertices, float)
     return v[:: max(1, len(v) // most)]
@@ -619,8 +658,8 @@ def scored_mask(setup: StudySetup) -> np.ndarray:
     return np.ones(len(setup.holes0), bool) if mask is None else np.asarray(mask, bool)
 
 
-def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Shape, list[Hole], float], targets: Any,
-                 info: dict[str, Any], model: FeatureModel) -> tuple[np.ndarray, Shape, list[Hole], float]:
+def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Shape, list[Hole], float], targets: ShopDesign,
+                 info: JsonDict, model: FeatureModel) -> tuple[np.ndarray, Shape, list[Hole], float]:
     """``shop.refine_on_rebuild`` on the study's CAD rebuild; ``info["rebuilt_off_target_mm"]``: what remains."""
     x, (shape, holes, err), off = refine_on_rebuild(setup.space, model, setup.problem, x, rebuilt, targets,
                                                     lambda x_new, guess: rebuild(setup, x_new, guess))
@@ -629,13 +668,14 @@ def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Shape, list[Ho
     return x, shape, holes, err
 
 
-def _shop(setup: StudySetup, x: np.ndarray, model: Any = None) -> tuple[np.ndarray, dict[str, Any], Any]:
+def _shop(setup: StudySetup, x: np.ndarray, model: FeatureModel | None = None
+          ) -> tuple[np.ndarray, JsonDict, ShopDesign | None]:
     """The shop-ready design near the optimum ``x`` (``cadfeat.design.shop``, study ``[shop]``) and its
     results.json block; the optimum itself when rounding would break a kept requirement of the model (the
     rebuilt design is verified on the B-rep and the STEP either way)."""
     spec = setup.config.shop
     sizes = hole_sizes(spec.hole_sizes)
-    info: dict[str, Any] = {"grid_mm": spec.grid_mm, "hole_sizes": spec.hole_sizes if isinstance(spec.hole_sizes, str)
+    info: JsonDict = {"grid_mm": spec.grid_mm, "hole_sizes": spec.hole_sizes if isinstance(spec.hole_sizes, str)
                             else list(spec.hole_sizes), "applied": False, "notes": []}
     if spec.grid_mm <= 0 and not sizes:
         info["notes"].append("rounding off ([shop] grid_mm = 0, hole_sizes = \"none\")")
@@ -663,7 +703,7 @@ def _shop(setup: StudySetup, x: np.ndarray, model: Any = None) -> tuple[np.ndarr
 
 
 def _robustness(setup: StudySetup, holes0: Sequence[Hole], holes1: Sequence[Hole],
-                combined_before: float | None) -> dict[str, Any] | None:
+                combined_before: float | None) -> JsonDict | None:
     """Objective drops of the delivered design under the study's ``[robustness]`` tolerances (sampled on
     features, ``cadfeat.design.robustness``); the holes the shop makes anew are the moved or resized ones."""
     spec = setup.config.robustness
@@ -679,14 +719,14 @@ def _robustness(setup: StudySetup, holes0: Sequence[Hole], holes1: Sequence[Hole
                       samples=spec.samples, combined_before=combined_before, seed=setup.config.study.seed)
 
 
-def _patterns(base: StudySetup, holes1: Sequence[Hole]) -> list[dict[str, Any]]:
+def _patterns(base: StudySetup, holes1: Sequence[Hole]) -> list[JsonDict]:
     """The original's hole patterns with a movable hole (``cadfeat.design.patterns``), each with ``broken``."""
     movable = np.asarray(base.movable_mask, bool)
     found = [p for p in find_patterns(base.holes0) if movable[list(p.holes)].any()]
     return check_patterns(found, list(holes1), base.hole_names) if len(holes1) == len(base.holes0) else []
 
 
-def _requirements_used(setup: StudySetup, x: np.ndarray) -> list[dict[str, Any]]:
+def _requirements_used(setup: StudySetup, x: np.ndarray) -> list[JsonDict]:
     """The kept requirements the optimiser's model used (kind, hole names, its 2-D margin at ``x``): the report
     checks that each one was verified on the rebuilt geometry."""
     labels = setup.problem.constraint_labels()

@@ -25,8 +25,8 @@ design, along the study's trajectory:
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, NotRequired, Protocol, TypedDict, cast
 
 import numpy as np
 
@@ -37,30 +37,72 @@ from cadfeat.design.pose_terms import cell_models, hole_kinds
 from cadfeat.measures.raycache import cache_rays
 from cadfeat.poses import cam_from_part
 
+if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+    from cadquery import Shape
+
+    from cadfeat.cad.features import Hole
+    from cadfeat.camera import Camera
+    from cadfeat.measures.evaluate import Measures
+    from cadfeat.measures.glare import GlareMaps
+    from cadfeat.measures.pose_information import PoseInformation
+    from cadfeat.study.schema import StudyConfig
+    from cadfeat.study.setup import StudySetup
+    from cadfeat.vision import FilterTuning
+
 __all__ = ["PHASES", "design_pose_accuracy", "help_most", "pose_accuracy", "predict", "with_pose"]
 
 PHASES = ("start", "middle", "end")
 STEP_MM = 0.25
 
 
-def _tuning(config: Any) -> Any:
-    from cadfeat.study.settings import TrackingSettings  # lazy: would import pydantic, scipy.spatial at module load
+class Poses(Protocol):
+    """What ``with_pose`` reads of a trajectory: the camera poses ``T_task_cam`` (L, 4, 4), mm (a ``Trajectory``,
+    or ``cadfeat evaluate``'s one-pose view of one)."""
+
+    @property
+    def T_task_cam(self) -> np.ndarray: ...
+
+
+class Probe(TypedDict):
+    """A probe move that brings a hidden hole out of hiding (``help_most``'s ``out_of_hiding``)."""
+
+    distance_mm: float
+    direction: list[float]
+    d_error_mm: float
+    d_rotation_deg: float
+    d_error_per_mm: float
+    detected_fraction: float
+
+
+class HoleHelp(TypedDict):
+    """``help_most``'s entry for one movable hole: the gradients of the predicted RMS errors (module docstring)."""
+
+    d_error_per_mm_move: float
+    move_direction: list[float]
+    d_error_per_mm_radius: float
+    d_rotation_deg_per_mm_move: float
+    d_rotation_deg_per_mm_radius: float
+    out_of_hiding: NotRequired[Probe | None]
+
+
+def _tuning(config: StudyConfig) -> FilterTuning:
     from cadfeat.study.tracking import tracking_config
 
-    spec = config.tracking if getattr(config, "tracking", None) is not None else TrackingSettings()
-    return tracking_config(spec).tuning  # (the filter tuning only: no placement)
+    return tracking_config(config.tracking_settings()).tuning  # (the filter tuning only: no placement)
 
 
-def _arrays(holes: Sequence[Any]) -> tuple[np.ndarray, ...]:
+def _arrays(holes: Sequence[Hole]) -> tuple[np.ndarray, ...]:
     c, a, r = holes_to_arrays(list(holes))
     through = np.array([bool(h.through) for h in holes])
     depth = np.array([float(h.depth_mm) for h in holes])
     return c, a, r, through, depth
 
 
-def predict(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], mesh: Any, rotation_length_mm: float,
-            occlusion: np.ndarray | None = None, arrays: tuple[np.ndarray, ...] | None = None,
-            cell: Cell | None = None, glare: Any = None) -> tuple[Any, Any]:
+def predict(camera: Camera, T_cam_part: np.ndarray, holes: Sequence[Hole], mesh: trimesh.Trimesh | None,
+            rotation_length_mm: float, occlusion: np.ndarray | None = None,
+            arrays: tuple[np.ndarray, ...] | None = None, cell: Cell | None = None, glare: GlareMaps | None = None
+            ) -> tuple[PoseInformation, np.ndarray]:
     """(``PoseInformation``, rim hidden fraction (L, N)) of ``holes`` at the poses, exact rim test on ``mesh``
     (None: nothing hidden) unless ``occlusion`` is given; ``arrays`` replaces the holes' (c, a, r, through, depth);
     ``cell``: the robot cell (its gate, placement and sensor noise; default ``Cell()``) — g_POSE's own;
@@ -81,7 +123,7 @@ def predict(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], mesh: Any
     return info, occlusion
 
 
-def _contrast_rate(glare: Any, cell: Cell, T: np.ndarray, c: np.ndarray, a: np.ndarray, r: np.ndarray,
+def _contrast_rate(glare: GlareMaps | None, cell: Cell, T: np.ndarray, c: np.ndarray, a: np.ndarray, r: np.ndarray,
                    through: np.ndarray) -> np.ndarray | None:
     """(L, N) g_POSE's factor from the part's own light (``design.pose_terms.glare_rate``'s rule) when ``glare``
     holds maps of these L poses and the cell's material returns light from its bores; else None."""
@@ -107,9 +149,9 @@ def _in_plane(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u, np.cross(a, u)
 
 
-def help_most(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], names: Sequence[str],
+def help_most(camera: Camera, T_cam_part: np.ndarray, holes: Sequence[Hole], names: Sequence[str],
               movable: Sequence[str], occlusion: np.ndarray, rotation_length_mm: float,
-              mesh: Any = None, cell: Cell | None = None) -> dict[str, Any]:
+              mesh: trimesh.Trimesh | None = None, cell: Cell | None = None) -> dict[str, object]:
     """Per movable hole: d(RMS translation error)/d(move) along the steepest in-plane direction and
     d/d(radius) (mm per mm, central differences, ``STEP_MM``), the same for the RMS rotation error (deg per mm),
     and the best single change (module docstring). With the part ``mesh``, a hole hidden at most poses (mean
@@ -117,18 +159,18 @@ def help_most(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], names: 
     moves of ``PROBE_MM`` in its face's plane with its rim occlusion recomputed: "move it out of hiding"."""
     c0, a0, r0, through, depth = _arrays(holes)
 
-    def errs(c: np.ndarray, r: np.ndarray, occ: np.ndarray = occlusion) -> tuple[float, float, Any]:
+    def errs(c: np.ndarray, r: np.ndarray, occ: np.ndarray = occlusion) -> tuple[float, float, PoseInformation]:
         info, _ = predict(camera, T_cam_part, holes, None, rotation_length_mm, occ, (c, a0, r, through, depth),
                           cell)
         return _rms(info.error_translation_mm), _rms(info.error_rotation_deg), info
 
     e0, rot0, info0 = errs(c0, r0)
-    out: dict[str, Any] = {}
+    out: dict[str, HoleHelp] = {}
     for j, name in enumerate(names):
         if name not in movable:
             continue
         u, v = _in_plane(a0[j])
-        grad = []
+        grad: list[tuple[float, float]] = []
         for d in (u, v):
             cp, cm = c0.copy(), c0.copy()
             cp[j] += STEP_MM * d
@@ -153,8 +195,9 @@ def help_most(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], names: 
     best = None
     for name, d in out.items():
         options = [("move", d["d_error_per_mm_move"]), ("radius", d["d_error_per_mm_radius"])]
-        if d.get("out_of_hiding"):
-            options.append(("reveal", d["out_of_hiding"]["d_error_per_mm"]))
+        probe = d.get("out_of_hiding")
+        if probe:
+            options.append(("reveal", probe["d_error_per_mm"]))
         for what, value in options:
             gain = -abs(value) if what == "radius" else value
             if best is None or gain < best[2]:
@@ -168,15 +211,17 @@ def help_most(camera: Any, T_cam_part: np.ndarray, holes: Sequence[Any], names: 
 PROBE_MM = (3.0, 8.0)
 
 
-def _out_of_hiding(j: int, arrays: tuple[np.ndarray, ...], mesh: Any, T: np.ndarray, occlusion: np.ndarray,
-                   errs: Any, e0: float, rot0: float) -> dict[str, Any] | None:
+def _out_of_hiding(j: int, arrays: tuple[np.ndarray, ...], mesh: trimesh.Trimesh, T: np.ndarray,
+                   occlusion: np.ndarray, errs: Callable[[np.ndarray, np.ndarray, np.ndarray],
+                                                         tuple[float, float, PoseInformation]],
+                   e0: float, rot0: float) -> Probe | None:
     """The probe move of hole j that lowers the predicted RMS translation error most, with its rim occlusion
     recomputed on ``mesh`` (exact ray test, 8 rim samples); None when no probe helps."""
     from cadfeat.measures.rim_occlusion import rim_occlusion  # lazy: would import scipy.spatial at module load
 
     c0, a0, r0, through, depth = arrays
     u, v = _in_plane(a0[j])
-    best = None
+    best: Probe | None = None
     for dist in PROBE_MM:
         for d in (u, -u, v, -v):
             c = c0.copy()
@@ -192,12 +237,13 @@ def _out_of_hiding(j: int, arrays: tuple[np.ndarray, ...], mesh: Any, T: np.ndar
     return best
 
 
-def _sentence(best: tuple[Any, ...], holes: dict[str, Any]) -> str:
+def _sentence(best: tuple[str, str, float, float], holes: Mapping[str, HoleHelp]) -> str:
     name, what, gain, value = best
     if gain >= 0 or not np.isfinite(gain):
         return "No small move or resize of a movable hole lowers the predicted error."
     if what == "reveal":
-        r = holes[name]["out_of_hiding"]
+        r = holes[name].get("out_of_hiding")
+        assert r is not None  # (what == "reveal": the probe exists)
         d = np.round(r["direction"], 2).tolist()
         return (f"Moving {name} out of hiding helps most: {r['distance_mm']:g} mm along {d} (part frame) it is "
                 f"detected at {100 * r['detected_fraction']:.0f} % of the poses and the predicted RMS error falls by "
@@ -215,13 +261,13 @@ def _sentence(best: tuple[Any, ...], holes: dict[str, Any]) -> str:
             f"radius).")
 
 
-def _phases(info: Any) -> list[dict[str, Any]]:
+def _phases(info: PoseInformation) -> list[dict[str, object]]:
     words = info.weakest_words
-    out = []
+    out: list[dict[str, object]] = []
     for phase, idx in zip(PHASES, np.array_split(np.arange(len(words)), len(PHASES)), strict=True):
         if len(idx) == 0:
             continue
-        top, count = Counter(words[i] for i in idx).most_common(1)[0]
+        top, count = Counter(words[int(i)] for i in idx).most_common(1)[0]
         sig = np.asarray(info.weakest_sigma, float)[idx]
         out.append({"phase": phase, "poses": [int(idx[0]), int(idx[-1])], "weakest": top,
                     "fraction": count / len(idx),
@@ -233,9 +279,10 @@ def _finite(v: np.ndarray) -> list[float | None]:
     return [float(x) if np.isfinite(x) else None for x in np.asarray(v, float)]
 
 
-def design_pose_accuracy(camera: Any, T_cam_part: np.ndarray, times_s: np.ndarray, holes: Sequence[Any],
-                         names: Sequence[str], movable: Sequence[str], mesh: Any, tuning: Any,
-                         rotation_length_mm: float, cell: Cell | None = None, glare: Any = None) -> dict[str, Any]:
+def design_pose_accuracy(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, holes: Sequence[Hole],
+                         names: Sequence[str], movable: Sequence[str], mesh: trimesh.Trimesh | None,
+                         tuning: FilterTuning, rotation_length_mm: float, cell: Cell | None = None,
+                         glare: GlareMaps | None = None) -> dict[str, object]:
     """The ``pose_accuracy`` block of one design (module docstring) in the robot cell ``cell`` (``glare``: g_POSE's
     glare maps, ``predict``)."""
     from cadfeat.vision import posterior_crlb  # lazy: would import scipy.spatial at module load
@@ -258,8 +305,9 @@ def design_pose_accuracy(camera: Any, T_cam_part: np.ndarray, times_s: np.ndarra
     }
 
 
-def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, setup: Any = None,
-                  holes1: Sequence[Any] | None = None, mesh1: Any = None) -> dict[str, Any]:
+def pose_accuracy(config: StudyConfig, base: StudySetup, holes0: Sequence[Hole], mesh0: trimesh.Trimesh | None,
+                  setup: StudySetup | None = None, holes1: Sequence[Hole] | None = None,
+                  mesh1: trimesh.Trimesh | None = None) -> dict[str, object]:
     """results.json ``pose_accuracy``: the original (``base``, ``holes0``) and the delivered design (``setup``,
     ``holes1``; None: the original only, ``cadfeat evaluate``), each with its own part mesh for the rim test
     (module docstring)."""
@@ -268,7 +316,7 @@ def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, set
     tuning = _tuning(config)
     ell = float(config.objective.pose_rotation_length_mm)
     movable = [n for n, fixed in zip(base.hole_names, base.problem.fixed_mask, strict=True) if not fixed]
-    out: dict[str, Any] = {
+    out: dict[str, object] = {
         "model": "measures.pose_information (calibrated detection and measurement models, exact rim occlusion); "
                  "IEKF: vision.posterior_crlb with the [tracking] filter tuning",
         "times_s": [float(t) for t in base.trajectory.times_s],
@@ -276,7 +324,8 @@ def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, set
         "tuning": {"r_px2": tuning.r_px2, "q_rate_mm2_s2": tuning.q_rate_mm2_s2,
                    "q_omega_rad2_s2": tuning.q_omega_rad2_s2},
     }
-    designs = [("before", base, holes0, mesh0)] + ([("after", setup, holes1, mesh1)] if holes1 is not None else [])
+    designs = [("before", base, holes0, mesh0)] + ([("after", setup, holes1, mesh1)]
+                                                   if setup is not None and holes1 is not None else [])
     for key, s, holes, mesh in designs:
         T = cam_from_part(s.trajectory.T_task_cam, s.T_task_part)
         out[key] = design_pose_accuracy(s.camera, T, np.asarray(s.trajectory.times_s, float), holes,
@@ -285,7 +334,7 @@ def pose_accuracy(config: Any, base: Any, holes0: Sequence[Any], mesh0: Any, set
     return out
 
 
-def part_mesh(config: Any, shape: Any, mesh: Any = None) -> Any:
+def part_mesh(config: StudyConfig, shape: Shape, mesh: trimesh.Trimesh | None = None) -> trimesh.Trimesh:
     """The part mesh for the rim test: ``mesh`` when the study built one, else one of ``shape`` (the pose
     prediction always tests occlusion, even when ``objective.occlusion`` is off)."""
     if mesh is not None:
@@ -297,14 +346,15 @@ def part_mesh(config: Any, shape: Any, mesh: Any = None) -> Any:
 class _MeasuresWithPose:
     """``measures`` with ``pose`` attached (read by ``objectives.objective_values``)."""
 
-    def __init__(self, measures: Any, pose: Any):
+    def __init__(self, measures: Measures, pose: PoseInformation):
         self._m, self.pose = measures, pose
 
-    def __getattr__(self, name: str) -> Any:
+    def __getattr__(self, name: str) -> Any:  # (the measures' arrays, as ``Measures`` has them)
         return getattr(self._m, name)
 
 
-def with_pose(setup: Any, holes: Sequence[Any], trajectory: Any, measures: Any, mesh: Any = None) -> Any:
+def with_pose(setup: StudySetup, holes: Sequence[Hole], trajectory: Poses, measures: Measures,
+              mesh: trimesh.Trimesh | None = None) -> Measures:
     """``measures`` of ``holes`` along ``trajectory`` with their ``PoseInformation`` attached as ``pose``: the
     exact rim test against ``mesh`` (default the set-up's part mesh, as
     ``Problem.features_objectives(exact_occlusion=True)``)."""
@@ -312,4 +362,4 @@ def with_pose(setup: Any, holes: Sequence[Any], trajectory: Any, measures: Any, 
     mesh = mesh if mesh is not None else getattr(setup.problem, "occlusion_mesh", None)
     info, _ = predict(setup.camera, T, holes, mesh, float(setup.config.objective.pose_rotation_length_mm),
                       cell=setup.config.cell)
-    return _MeasuresWithPose(measures, info)
+    return cast("Measures", _MeasuresWithPose(measures, info))  # (a Measures in all but its class)

@@ -25,10 +25,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from scipy.spatial.transform import Rotation  # pyright: ignore[reportMissingTypeStubs]
 
 from cadfeat.camera import MIN_DEPTH_MM, PRESETS, CameraError, read_opencv_calibration
 from cadfeat.poses import cam_from_part
@@ -53,15 +53,15 @@ class Preflight:
     """What the pre-flight found (the study passed): ``assumptions`` (optics not given), ``warnings``,
     ``numbers`` (share of poses seeing the part, depth range, field of view)."""
 
-    assumptions: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    numbers: dict[str, Any] = field(default_factory=dict)
+    assumptions: list[str] = field(default_factory=list[str])
+    warnings: list[str] = field(default_factory=list[str])
+    numbers: dict[str, object] = field(default_factory=dict[str, object])
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, object]:
         return {"assumptions": list(self.assumptions), "warnings": list(self.warnings), **self.numbers}
 
 
-def optics_assumptions(camera_table: Mapping[str, Any], camera: Camera) -> list[str]:
+def optics_assumptions(camera_table: Mapping[str, object], camera: Camera) -> list[str]:
     """The optics a study's ``[camera]`` did not set (neither directly nor through a preset or calibration
     file that defines them), as "key = value (assumed)" lines."""
     given = set(camera_table)
@@ -69,12 +69,12 @@ def optics_assumptions(camera_table: Mapping[str, Any], camera: Camera) -> list[
         given |= set(PRESETS.get(str(camera_table["preset"]).strip().lower(), {}))
     if camera_table.get("calibration") is not None:  # its optics nodes, when it has them (cadfeat calibrate)
         try:
-            given |= set(read_opencv_calibration(camera_table["calibration"]))
+            given |= set(read_opencv_calibration(str(camera_table["calibration"])))
         except CameraError:
             pass
     if "aperture_mm" in given:
         given.add("f_number")
-    out = []
+    out: list[str] = []
     for key in OPTICS_KEYS:
         if key not in given:
             out.append(f"camera.{key} = {getattr(camera, key):g} (not given: assumed; it drives the focus and "
@@ -110,7 +110,7 @@ def check_visibility(measures: Measures, label: str, scored: np.ndarray | None =
                      f"the {L} trajectory samples; {cause}. Nothing was optimised.")
 
 
-def _in_image(camera: Any, P: np.ndarray) -> np.ndarray:
+def _in_image(camera: Camera, P: np.ndarray) -> np.ndarray:
     """(L, V) bool: points (L, V, 3) camera frame in front of the camera, within the lens's valid field, and
     projecting inside the image."""
     Z = P[..., 2]
@@ -122,7 +122,7 @@ def _in_image(camera: Any, P: np.ndarray) -> np.ndarray:
     return ok & inside
 
 
-def _share(camera: Any, T_cam_part: np.ndarray, pts: np.ndarray) -> float:
+def _share(camera: Camera, T_cam_part: np.ndarray, pts: np.ndarray) -> float:
     P = np.einsum("lij,vj->lvi", T_cam_part[:, :3, :3], pts) + T_cam_part[:, None, :3, 3]
     return float(_in_image(camera, P).any(axis=1).mean())
 

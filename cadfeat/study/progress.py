@@ -9,12 +9,17 @@ from __future__ import annotations
 
 import contextlib
 import time
-from collections.abc import Iterator, Mapping
-from typing import Any
+from collections.abc import Generator, Mapping
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from cadfeat.study.interrupts import RunInterrupts
+
+if TYPE_CHECKING:  # pragma: no cover
+    from rich.progress import Progress, TaskID
+
+    from cadfeat.results import JsonDict
 
 __all__ = ["StudyProgress"]
 
@@ -31,8 +36,8 @@ class StudyProgress:
         self.best_x: np.ndarray | None = None
         self.best_f = np.inf
         self.iterations = 0
-        self._progress: Any = None
-        self._tasks: list[Any] = []
+        self._progress: Progress | None = None
+        self._tasks: list[TaskID | None] = []
         self._t0 = time.perf_counter()
 
     def __enter__(self) -> StudyProgress:
@@ -57,7 +62,7 @@ class StudyProgress:
             self._progress.console.print(text)
 
     @contextlib.contextmanager
-    def phase(self, name: str, total: float | None = None) -> Iterator[None]:
+    def phase(self, name: str, total: float | None = None) -> Generator[None]:
         """Time a phase (accumulated under ``name``) and show it while it runs."""
         t0 = time.perf_counter()
         task = self._progress.add_task(name, total=total, info="") if self._progress is not None else None
@@ -68,17 +73,17 @@ class StudyProgress:
             self._tasks.pop()
             dt = time.perf_counter() - t0
             self.timings[name] = self.timings.get(name, 0.0) + dt
-            if task is not None:
+            if task is not None and self._progress is not None:
                 self._progress.update(task, completed=total if total is not None else 1, total=total or 1,
                                       info=f"{dt:.2f} s")
 
     def iteration(self, *args: Any, **kwargs: Any) -> None:
         """Optimiser callback: accepts a dict (``iteration``, ``f``, ``x``, ...), keyword arguments, or
         positional ``(x, f)``; keeps the best design seen."""
-        info: dict[str, Any] = {}
+        info: JsonDict = {}
         for a in args:
             if isinstance(a, Mapping):
-                info.update(a)
+                info.update(cast("Mapping[str, Any]", a))
         info.update(kwargs)
         if not info and len(args) >= 2:
             info = {"x": args[0], "f": args[1]}

@@ -10,7 +10,7 @@ study's ``[cell]`` — the camera mount and the part placement bounds, each take
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,6 +18,16 @@ from cadfeat.cell import Cell
 from cadfeat.poses import cam_from_part
 from cadfeat.study.schema import StudyConfig, TrackingSpec
 from cadfeat.study.setup import load_scene
+
+if TYPE_CHECKING:  # pragma: no cover
+    import trimesh
+    from cadquery import Shape
+
+    from cadfeat.cad.features import Hole
+    from cadfeat.camera import Camera
+    from cadfeat.measures.pose_information import PoseInformation
+    from cadfeat.results import JsonDict
+    from cadfeat.vision.replay import Replay, ReportedPoses
 
 #: The designs a recording may be of, and their key in ``tracking.exported_designs``.
 DESIGN_KEYS = {"original": "before", "optimised": "after"}
@@ -34,7 +44,8 @@ def reference_sigma(cell: Cell) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(mm, float), np.radians(np.asarray(deg, float))
 
 
-def _exclusions(shape: Any, holes: list[Any], camera: Any, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, Any]:
+def _exclusions(shape: Shape, holes: list[Hole], camera: Camera, T: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, trimesh.Trimesh]:
     """(exclude (F, N), rim hidden (F, N), mesh): the closed loop's rules at the reference poses."""
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.measures.pose_models import hole_geometry
@@ -44,11 +55,12 @@ def _exclusions(shape: Any, holes: list[Any], camera: Any, T: np.ndarray) -> tup
     mesh = part_mesh(shape)
     hidden = rim_hidden(mesh, holes, T, c, n, r)
     gap = hole_geometry(camera, T, c, n, r).rim_gap_px(hidden)
+    assert gap is not None  # (hole_geometry computes the rims)
     return not_associated(hidden, gap), hidden, mesh
 
 
 def track_recording(config: StudyConfig, out: Path, images: Path, poses: Path, hand_eye: Path | None,
-                    design: str, spec: TrackingSpec) -> dict[str, Any]:
+                    design: str, spec: TrackingSpec) -> JsonDict:
     """Replay the recording and return the ``tracking/recorded.json`` section (module docstring)."""
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.study.pose_accuracy import predict
@@ -76,16 +88,16 @@ def track_recording(config: StudyConfig, out: Path, images: Path, poses: Path, h
                     reported.problems + problems + rep.problems, tc.estimators)
 
 
-def _section(rep: Any, reported: Any, files: list[Path | None], used: np.ndarray, info: Any, names: list[str],
-             design: str, sig_mm: np.ndarray, sig_rad: np.ndarray, problems: list[str],
-             estimators: tuple[str, ...]) -> dict[str, Any]:
+def _section(rep: Replay, reported: ReportedPoses, files: list[Path | None], used: np.ndarray,
+             info: PoseInformation, names: list[str], design: str, sig_mm: np.ndarray, sig_rad: np.ndarray,
+             problems: list[str], estimators: tuple[str, ...]) -> JsonDict:
     """The JSON section: per frame (image, time, errors, NEES, predicted error), per hole detection rate, summary."""
-    from scipy.stats import chi2
+    from scipy.stats import chi2  # pyright: ignore[reportMissingTypeStubs]
 
-    frames = []
+    frames: list[JsonDict] = []
     pred_t, pred_r = np.asarray(info.error_translation_mm), np.asarray(info.error_rotation_deg)
     for j, k in enumerate(used):
-        row: dict[str, Any] = {"image": files[k].name if files[k] else None,  # type: ignore[union-attr]
+        row: JsonDict = {"image": files[k].name if files[k] else None,  # type: ignore[union-attr]
                                "time_s": float(reported.times_s[k]), "csv_line": reported.lines[k],
                                "holes_found": int(np.all(np.isfinite(rep.pixels[k]), axis=-1).sum()),
                                "predicted_trans_mm": float(pred_t[j]), "predicted_rot_deg": float(pred_r[j])}
@@ -93,11 +105,12 @@ def _section(rep: Any, reported: Any, files: list[Path | None], used: np.ndarray
             row[m] = {"trans_mm": _num(rep.errors[m][0][k]), "rot_deg": _num(rep.errors[m][1][k]),
                       "nees": _num(rep.nees[m][k])}
         frames.append(row)
-    summary = {}
+    summary: JsonDict = {}
     for m in estimators:
         e_t, e_r, ne, nf = (np.asarray(a)[used] for a in (*rep.errors[m], rep.nees[m], rep.nees_filter[m]))
         ok = np.isfinite(ne)
-        lo, hi = chi2.ppf([0.025, 0.975], 6 * max(int(ok.sum()), 1)) / max(int(ok.sum()), 1)
+        lo, hi = chi2.ppf(  # pyright: ignore[reportUnknownMemberType] (scipy.stats has no stubs)
+            [0.025, 0.975], 6 * max(int(ok.sum()), 1)) / max(int(ok.sum()), 1)
         mean = float(np.nanmean(ne)) if ok.any() else float("nan")
         summary[m] = {"trans_mm_rms": _rms(e_t), "rot_deg_rms": _rms(e_r),
                       "frames_lost": int((~np.isfinite(e_t)).sum()),
@@ -131,7 +144,7 @@ def _consistency(mean: float, lo: float, hi: float) -> str:
     return "consistent"
 
 
-def _num(x: Any) -> float | None:
+def _num(x: float | np.floating | np.ndarray) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 

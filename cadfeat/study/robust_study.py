@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol, TypedDict
 
 import numpy as np
 
@@ -35,7 +36,16 @@ from cadfeat.cad.features import holes_to_arrays
 from cadfeat.design.hole_form import hole_depths
 from cadfeat.design.robust import BLOCKS, RobustObjective, RobustProblem, robust_optimise, statistic
 from cadfeat.design.robustness import cell_objectives, shop_objectives
-from cadfeat.design.uncertainty import CELL_KINDS, KINDS, Uncertainty, draws
+from cadfeat.design.uncertainty import CELL_KINDS, KINDS, Draws, Uncertainty, draws
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
+    from cadfeat.design.design_space import DesignSpace
+    from cadfeat.design.optimize import OptimResult
+    from cadfeat.results import JsonDict
+    from cadfeat.study.progress import StudyProgress
+    from cadfeat.study.schema import StudyConfig
+    from cadfeat.study.setup import StudySetup
 
 __all__ = ["HELD_OUT_SEED_OFFSET", "SOURCES", "RobustDesigns", "RobustRun", "attach_robust", "check_robust",
            "design_statistics",
@@ -52,7 +62,7 @@ SOURCE_WORDS = {"camera": "the camera mounting error", "placement": "the part's 
                 "manufacturing": "the shop's hole tolerances", "cell": "the cell (all its sources together)"}
 
 
-def check_robust(config: Any) -> None:
+def check_robust(config: StudyConfig) -> None:
     """Refuse, before any work, a chance constraint on a measure the study does not optimise (one line)."""
     from cadfeat.study.schema import StudyError  # lazy: would import scipy.spatial at module load
 
@@ -67,23 +77,44 @@ class RobustRun:
     """The optimise phase's robust step: the nominal and robust optimisers' results, the problem and draws the
     robust one saw, which design goes to the shop (``delivered``: "robust" or "nominal") and why."""
 
-    nominal: Any
-    robust: Any
+    nominal: OptimResult
+    robust: OptimResult
     problem: RobustProblem
     delivered: str
     note: str = ""
 
 
-def _uncertainty(config: Any) -> tuple[Uncertainty, RobustObjective]:
+class Optimum(Protocol):
+    """What the robust step reads and updates of the optimise phase's outcome (``pipeline._Optimum``): the best
+    set-up, its optimiser result (replaced by the robust one when that is delivered), the history, interrupted?"""
+
+    setup: StudySetup
+    res: OptimResult
+    history: list[JsonDict]
+    interrupted: bool
+
+
+class Spread(TypedDict):
+    """One objective's (or the combined value's) statistics over draws (``_block``)."""
+
+    nominal: float
+    mean: float
+    p05: float
+    p10: float
+    min: float
+
+
+def _uncertainty(config: StudyConfig) -> tuple[Uncertainty, RobustObjective]:
     spec = config.robustness
     return Uncertainty.from_settings(spec, config.cell), RobustObjective.from_settings(spec)
 
 
-def _starts(opt: Any, space: Any, most: int = 2) -> list[np.ndarray]:
+def _starts(opt: Optimum, space: DesignSpace, most: int = 2) -> list[np.ndarray]:
     """The nominal optimum, the ``most`` best other end-points of the nominal multi-start, the initial design
     (distinct, in that order)."""
     out = [np.asarray(opt.res.x_best, float)]
-    ends = sorted((s for s in getattr(opt.res, "starts", None) or [] if s.get("max_violation", 0.0) <= 1e-6),
+    summaries: list[JsonDict] = getattr(opt.res, "starts", None) or []
+    ends = sorted((s for s in summaries if s.get("max_violation", 0.0) <= 1e-6),
                   key=lambda s: -float(s["combined"]))
     for s in ends:
         if len(out) > most:
@@ -98,7 +129,8 @@ def _starts(opt: Any, space: Any, most: int = 2) -> list[np.ndarray]:
     return distinct
 
 
-def robust_phase(config: Any, opt: Any, progress: Any, history: Any) -> RobustRun | None:
+def robust_phase(config: StudyConfig, opt: Optimum, progress: StudyProgress,
+                 history: Callable[[OptimResult, str], list[JsonDict]]) -> RobustRun | None:
     """The robust optimum of the best set-up (module docstring); ``opt.res`` becomes the delivered design's
     optimiser result and ``opt.history`` gains the robust solves (phase "robust") as ``history(result, label)``
     formats them (the pipeline's ``_history``)."""
@@ -134,7 +166,8 @@ def robust_phase(config: Any, opt: Any, progress: Any, history: Any) -> RobustRu
     return RobustRun(nominal, res, rp, delivered, note)
 
 
-def _choose(setup: Any, rp: RobustProblem, nominal: Any, robust: Any, held: Any) -> tuple[str, str]:
+def _choose(setup: StudySetup, rp: RobustProblem, nominal: OptimResult, robust: OptimResult, held: Draws
+            ) -> tuple[str, str]:
     """"robust" unless, on held-out draws, the robust optimum's 5th percentile falls below the original's under a
     source while the nominal optimum's does not, or the nominal optimum (its 5th percentiles not below the
     original's) has the higher robust statistic — the robust solve did not improve on it (then "nominal").
@@ -162,10 +195,10 @@ def _choose(setup: Any, rp: RobustProblem, nominal: Any, robust: Any, held: Any)
     return "robust", ""
 
 
-def _below(stats: dict[str, Any], original: dict[str, Any]) -> list[str]:
+def _below(stats: JsonDict, original: JsonDict) -> list[str]:
     """The sources the rule covers (``design.robust.BLOCKS``: the whole cell, the camera mount, the shop) under
     which a design's combined 5th percentile is below the original's."""
-    out = []
+    out: list[str] = []
     for src in BLOCKS:
         a, b = stats[src].get("combined", {}), original[src].get("combined", {})
         if a and b and a["p05"] < b["p05"] - TOL * max(1.0, abs(b["p05"])):
@@ -174,9 +207,9 @@ def _below(stats: dict[str, Any], original: dict[str, Any]) -> list[str]:
 
 
 def _block(G: np.ndarray, G0: np.ndarray, names: list[str], combined: np.ndarray | None,
-           c0: float | None) -> dict[str, Any]:
+           c0: float | None) -> dict[str, Spread]:
     """nominal/mean/p05/p10/min of each objective (S, K) and of the combined values (S,)."""
-    def st(v: np.ndarray, nom: float) -> dict[str, float]:
+    def st(v: np.ndarray, nom: float) -> Spread:
         return {"nominal": float(nom), "mean": float(v.mean()), "p05": float(np.percentile(v, 5)),
                 "p10": float(np.percentile(v, 10)), "min": float(v.min())}
     out = {n: st(G[:, k], G0[k]) for k, n in enumerate(names)}
@@ -188,7 +221,11 @@ def _block(G: np.ndarray, G0: np.ndarray, names: list[str], combined: np.ndarray
 Features = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
-def _design_depths(rp: RobustProblem, depths: Any, B: int) -> np.ndarray:
+Depths = np.ndarray | Sequence[np.ndarray | None] | None
+"""Hole depths (mm) of B designs: (B, N), a (N,) array or None per design, or None (the reference holes')."""
+
+
+def _design_depths(rp: RobustProblem, depths: Depths, B: int) -> np.ndarray:
     """(B, N) hole depths (mm) of B designs: ``depths`` (B, N), or a list of (N,) / None per design (None: the
     reference holes' depths, as ``design.pose_terms.hole_attributes`` takes them)."""
     ref = hole_depths(rp.inner.model.holes)
@@ -197,8 +234,8 @@ def _design_depths(rp: RobustProblem, depths: Any, B: int) -> np.ndarray:
     return np.stack([ref if d is None else np.asarray(d, float).reshape(-1) for d in depths])
 
 
-def source_objectives(rp: RobustProblem, features: Features, D: Any, sources: tuple[str, ...] = SOURCES,
-                      depths: Any = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def source_objectives(rp: RobustProblem, features: Features, D: Draws, sources: tuple[str, ...] = SOURCES,
+                      depths: Depths = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Raw objectives of B designs' features (B, N, 3), (B, N, 3), (B, N) with hole depths ``depths`` (B, N) mm
     (or a list of (N,)/None per design; None: the reference holes'): nominal (B, K) and, per source of
     ``sources``, (B, S, K) on the draws ``D`` with only that source (the cell sources together for "cell"); one
@@ -210,7 +247,7 @@ def source_objectives(rp: RobustProblem, features: Features, D: Any, sources: tu
     first, back = _distinct_designs(c, a, r, depth)  # the same design twice (e.g. robust = nominal) costs once
     c, a, r, depth = c[first], a[first], r[first], depth[first]
     G0 = p.batch_objectives(c, a, r, depth_mm=depth)
-    out = {}
+    out: dict[str, np.ndarray] = {}
     for src in sources:
         d = D.only(src)
         if src == "pixel_noise" and "pose" not in p.objective_config.measures:  # only g_POSE's σ model sees it
@@ -233,12 +270,12 @@ def _distinct_designs(*arrays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def statistics_of(rp: RobustProblem, G0: np.ndarray, G: dict[str, np.ndarray],
-                  values: bool = False) -> list[dict[str, Any]]:
+                  values: bool = False) -> list[JsonDict]:
     """Per design, per source: ``_block`` of ``source_objectives``' arrays (``design_statistics``)."""
     p = rp.inner
     pareto = p.objective_config.combine == "pareto"
     c0 = None if pareto else np.asarray(p.combined_from(G0), float)
-    out: list[dict[str, Any]] = [{} for _ in range(len(G0))]
+    out: list[JsonDict] = [{} for _ in range(len(G0))]
     for src, Gs in G.items():
         comb = None if pareto else np.asarray(p.combined_from(Gs), float)
         for b in range(len(G0)):
@@ -252,8 +289,8 @@ def statistics_of(rp: RobustProblem, G0: np.ndarray, G: dict[str, np.ndarray],
     return out
 
 
-def design_statistics(rp: RobustProblem, features: list[Features], D: Any, values: bool = False,
-                      sources: tuple[str, ...] = SOURCES, depths: list[Any] | None = None) -> list[dict[str, Any]]:
+def design_statistics(rp: RobustProblem, features: list[Features], D: Draws, values: bool = False,
+                      sources: tuple[str, ...] = SOURCES, depths: Depths = None) -> list[JsonDict]:
     """Per design (features (N, 3), (N, 3), (N,) each; ``depths``: its hole depths (N,) mm or None for the
     reference holes'), per source of ``sources``: ``_block`` of the draws ``D`` with only that source (the cell
     sources together for "cell"); the designs evaluated as one batch per source (``source_objectives``).
@@ -263,7 +300,7 @@ def design_statistics(rp: RobustProblem, features: list[Features], D: Any, value
     return statistics_of(rp, G0, G, values)
 
 
-def _robust_value(rp: RobustProblem, features: list[Features], depths: list[Any] | None = None) -> list[float]:
+def _robust_value(rp: RobustProblem, features: list[Features], depths: Depths = None) -> list[float]:
     """The robust statistic of each design (hole depths ``depths``, as ``design_statistics``) on ``rp``'s draws,
     as the optimiser computes it (for "chance": the 10th percentile of the combined value, the default
     statistic)."""
@@ -282,22 +319,23 @@ class RobustDesigns:
     ``objective``, ``uncertainty``, ``designs``, ``recommended``, ``delivered``, ``reason``, ``out_of_sample``,
     ``sensitivity``, ``flagged`` and ``distributions`` (combined value per held-out draw and source, per design)."""
 
-    objective: dict[str, Any]
-    uncertainty: dict[str, Any]
-    designs: dict[str, dict[str, Any]]
+    objective: JsonDict
+    uncertainty: JsonDict
+    designs: dict[str, JsonDict]
     recommended: str
     delivered: str
     reason: str
-    out_of_sample: dict[str, Any]
-    sensitivity: dict[str, Any]
-    flagged: list[str] = field(default_factory=list)
-    distributions: dict[str, Any] = field(default_factory=dict)
+    out_of_sample: JsonDict
+    sensitivity: JsonDict
+    flagged: list[str] = field(default_factory=list[str])
+    distributions: JsonDict = field(default_factory=dict[str, Any])
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonDict:
         return dataclasses.asdict(self)
 
 
-def robust_designs(setup: Any, run: RobustRun | None, holes0: Any, holes1: Any) -> RobustDesigns | None:
+def robust_designs(setup: StudySetup, run: RobustRun | None, holes0: Sequence[Hole], holes1: Sequence[Hole]
+                   ) -> RobustDesigns | None:
     """The comparison of the original, the delivered and the other optimum (module docstring); None when the
     robust step did not run or the hole counts differ."""
     if run is None or len(holes0) != len(holes1) or len(holes1) != len(run.problem.changed):
@@ -363,17 +401,17 @@ def robust_designs(setup: Any, run: RobustRun | None, holes0: Any, holes1: Any) 
         out_of_sample=oos, sensitivity=sensitivity(stats[recommended]), flagged=flagged, distributions=dists)
 
 
-def attach_robust(results: dict[str, Any], designs: RobustDesigns | None) -> None:
+def attach_robust(results: JsonDict, designs: RobustDesigns | None) -> None:
     """results.json ``robustness`` gains the ``RobustDesigns`` keys (the block is created when the delivered
     design's own analysis is off)."""
     if designs is not None:
         results["robustness"] = {**(results.get("robustness") or {}), **designs.to_json()}
 
 
-def sensitivity(stats: dict[str, Any]) -> dict[str, Any]:
+def sensitivity(stats: JsonDict) -> JsonDict:
     """Where a design's robustness comes from: per source, the combined value's one-at-a-time drop from nominal
     to the 5th percentile and its share of the sum of these drops; ``words``: the ranking in a sentence."""
-    drops = {}
+    drops: dict[str, float] = {}
     for src in KINDS:
         comb = stats.get(src, {}).get("combined")
         if comb:

@@ -46,7 +46,7 @@ from cadfeat.output_folder import staged_output
 from cadfeat.poses import cam_from_part
 from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
-from cadfeat.results import StudyResults
+from cadfeat.results import JsonDict, StudyResults
 from cadfeat.study import added_design, added_targets, closed_loop_check
 from cadfeat.study.interrupts import RunInterrupts
 from cadfeat.study.outputs import (
@@ -83,9 +83,9 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape
 
     from cadfeat.cad.features import Hole
-    from cadfeat.camera import Camera
     from cadfeat.design.problem import Problem
     from cadfeat.measures.evaluate import Measures
+    from cadfeat.study.delivery import Delivery
     from cadfeat.study.preflight import Preflight
     from cadfeat.trajectory import Trajectory
 
@@ -101,7 +101,7 @@ class StudyResult:
     """Where a study wrote its outputs and the results (the content of results.json)."""
 
     out_dir: Path | None
-    results: dict[str, Any]
+    results: JsonDict
 
     @property
     def typed(self) -> StudyResults:
@@ -131,7 +131,8 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
         lines.append(f"  scored holes: {obj['score']}")
     for w in obj.get("warnings", []) + list(results.get("warnings", [])):
         lines.append(f"  WARNING: {w}")
-    for a in (results.get("preflight") or {}).get("assumptions", []):
+    preflight_block: JsonDict = results.get("preflight") or {}
+    for a in preflight_block.get("assumptions", []):
         lines.append(f"  ASSUMED: {a}")
     lines += closed_loop_check.summary_lines(results)
     failed = [c for c in results["constraints"] if not c["ok"]]
@@ -142,10 +143,11 @@ def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
         lines.append(f"  verdict: {verdict['decision']}" + "".join(
             f"\n    {f['rule']}: {f['outcome']} ({f['detail']})" for f in verdict["findings"]
             if f["outcome"] != "adopt"))
-    added = results.get("added_targets") or {}
+    added: JsonDict = results.get("added_targets") or {}
     if added.get("delivered"):
-        names = ", ".join(h["name"] for h in added.get("holes", []))
-        p = added.get("predicted") or {}
+        holes: list[JsonDict] = added.get("holes", [])
+        names = ", ".join(str(h["name"]) for h in holes)
+        p: dict[str, JsonDict | None] = added.get("predicted") or {}
         lines.append(f"  delivered: the move-only optimum with {added['recommended']} added target hole(s) ({names}); "
                      "predicted RMS pose error (mm) original {0} -> move-only {1} -> delivered {2}".format(
                          *(_num((p.get(k) or {}).get("error_mm")) for k in ("original", "move_only", "added"))))
@@ -197,12 +199,12 @@ def run_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | Non
     interrupts = RunInterrupts()  # Ctrl-C keeps the best design so far (study.interrupts)
     with interrupts.installed(), staged_output(out, force) as stage, \
             StudyProgress(config.study.name, enabled=progress and not quiet, interrupts=interrupts) as prog:
-        results, shapes = compute(config, prog, config.study.build_timeout_s, open_cache(cache))
+        results, delivery = compute(config, prog, config.study.build_timeout_s, open_cache(cache))
         try:
             with prog.phase("export"):
-                _write_outputs(config, stage, results, shapes, prog)
+                _write_outputs(config, stage, results, delivery, prog)
         finally:  # the closed loop's workers (``closed_loop_check.start_design``), if not collected
-            closed_loop_check.cancel(shapes)
+            delivery.workers.cancel()
     return StudyResult(Path(out), results)
 
 
@@ -229,7 +231,7 @@ def preflight_study(path_or_dict: StudySource | StudyConfig, time_limit_s: float
 
 
 def _preflight_added(config: StudyConfig, shape: Shape, holes: list[Hole], traj: Trajectory, T_task_part: np.ndarray,
-                     time_limit_s: float | None) -> dict[str, Any]:
+                     time_limit_s: float | None) -> JsonDict:
     """``added_targets.preflight_part`` on the part as it is, its holes extracted with the study's view (the
     through holes' entrance as ``run`` extracts them; names kept): {"faces", "sites", "most_that_fit"}."""
     from cadfeat.study.setup import study_view_direction
@@ -241,24 +243,24 @@ def _preflight_added(config: StudyConfig, shape: Shape, holes: list[Hole], traj:
     return added_targets.preflight_part(config, shape, viewed, view)
 
 
-def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], shapes: Mapping[str, Any],
+def _write_outputs(config: StudyConfig, stage: Path, results: JsonDict, delivery: Delivery,
                    prog: StudyProgress) -> None:
     """Write and verify the outputs into the staging folder ``stage`` (published by the caller). The report's
     renders are made before the closed-loop check collects its workers' tracking (they run meanwhile)."""
     t0 = time.perf_counter()
-    added = added_design.delivered(shapes)  # issue 31: the delivered design has added target holes
+    added = added_design.delivered(delivery)  # issue 31: the delivered design has added target holes
     results["constraints"], results["verification"] = export_and_verify(
-        config, stage, shapes, results["constraints"],
-        step_checks=added_design.step_checks(config, shapes, f"{config.label}: optimised.step") if added else None)
-    added_design.export_move_only(config, stage, results, shapes)  # issue 31: move_only.step beside it, verified
+        config, stage, delivery, results["constraints"],
+        step_checks=added_design.step_checks(config, delivery, f"{config.label}: optimised.step") if added else None)
+    added_design.export_move_only(config, stage, results, delivery)  # issue 31: move_only.step beside it, verified
     write_holes_csv(stage / "holes.csv", plain(results))
     results["files"] = [file_entry(stage / n, stage) for n in ("original.step", "optimised.step", "optimised.stl",
                                                                  "holes.csv", added_design.MOVE_ONLY_STEP)
                         if (stage / n).exists()]
     results["timings_s"] = {**prog.timings, "export": time.perf_counter() - t0}
     results["versions"] = versions()
-    finish_report = _report(stage, results, shapes, prog)
-    _closed_loop(config, results, shapes, stage, prog)  # the closed loop confirms (issue 17)
+    finish_report = _report(stage, results, _report_context(delivery), prog)
+    _closed_loop(config, results, delivery, stage, prog)  # the closed loop confirms (issue 17)
     added_design.tracking_summary(results)  # issue 31: the three designs' closed loop, summed up
     results["interrupted"] = bool(results.get("interrupted") or prog.interrupts.requested)
     results["verdict"] = verdict_json(plain(results))
@@ -267,18 +269,18 @@ def _write_outputs(config: StudyConfig, stage: Path, results: dict[str, Any], sh
         finish_report(results)
 
 
-def _closed_loop(config: StudyConfig, results: dict[str, Any], shapes: Mapping[str, Any], stage: Path,
+def _closed_loop(config: StudyConfig, results: JsonDict, delivery: Delivery, stage: Path,
                  prog: StudyProgress) -> None:
     """The closed-loop check (``closed_loop_check.attach``); skipped — its workers stopped, whatever it had written
     into the stage removed, a warning saying so — when the run is interrupted before or during it
     (``study.interrupts``: the run finishes with the design found)."""
     try:
         with prog.interrupts.skippable():
-            closed_loop_check.attach(config, results, shapes, stage, prog)
+            closed_loop_check.attach(config, results, delivery, stage, prog)
     except KeyboardInterrupt:
         from cadfeat.study.physical_views import FOLDER as VIEWS  # lazy: Mitsuba
 
-        closed_loop_check.cancel(shapes)
+        delivery.workers.cancel()
         for key in ("tracking", "physical_views"):
             results.pop(key, None)
         for name in ("tracking", VIEWS):  # (the frames and views drawn so far: no half-written folder)
@@ -289,34 +291,32 @@ def _closed_loop(config: StudyConfig, results: dict[str, Any], shapes: Mapping[s
             "design in the closed loop)")
 
 
-def _report(stage: Path, results: dict[str, Any], shapes: Mapping[str, Any], prog: StudyProgress
-            ) -> Callable[[dict[str, Any]], None]:
+def _report(stage: Path, results: JsonDict, context: report.ReportContext, prog: StudyProgress
+            ) -> Callable[[JsonDict], None]:
     """The report's renders now (they need the designs and their measures, not the closed loop, whose workers
     run meanwhile); returns what writes the report from the final results (``report.build_report``)."""
-    context = _report_context(shapes)
     with prog.phase("report"):
         renders = report.report_renders(stage, plain(results), context)
 
-    def finish(final: dict[str, Any]) -> None:
+    def finish(final: JsonDict) -> None:
         with prog.phase("report"):
             report.build_report(stage, plain(final), context, renders=renders)
     return finish
 
 
-def _report_context(shapes: Mapping[str, Any]) -> report.ReportContext:
+def _report_context(delivery: Delivery) -> report.ReportContext:
     """The report's designs, camera and trajectory (camera views at each hole's worst pose, its default)."""
-    setup = shapes["setup"]
-    fixed = getattr(setup, "fixed_mask", None)
+    setup = delivery.setup
     return report.ReportContext(
-        shape_before=shapes["shape0"], shape_after=shapes["shape1"], holes_before=shapes["holes0"],
-        holes_after=shapes["holes1"], fixed_mask=np.asarray(fixed, bool), camera=setup.camera,
+        shape_before=delivery.shape0, shape_after=delivery.shape1, holes_before=delivery.holes0,
+        holes_after=delivery.holes1, fixed_mask=np.asarray(setup.fixed_mask, bool), camera=setup.camera,
         trajectory=setup.trajectory, T_task_part=setup.T_task_part)
 
 
 # ------------------------------------------------------------------------------------------ evaluate
 def evaluate_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path | None = None, *,
                    pose: int | None = None, quiet: bool = True, echo: bool = False, seed: int | None = None,
-                   force: bool = False, cache: bool | None = None) -> dict[str, Any]:
+                   force: bool = False, cache: bool | None = None) -> JsonDict:
     """Score the study's current design without optimising (the thesis GUI's single-pose mode when ``pose``
     is given: one trajectory sample). Returns the results dict; prints the per-feature table (thesis
     Table 5.1: FOV, focus, resolution margins, visibility, worst pose) and a per-pose summary when ``echo``;
@@ -332,7 +332,7 @@ def evaluate_study(path_or_dict: StudySource | StudyConfig, out_dir: str | Path 
 
 
 def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: bool, echo: bool,
-              cache: SetupCache | None = None) -> dict[str, Any]:
+              cache: SetupCache | None = None) -> JsonDict:
     with StudyProgress(config.study.name, enabled=not quiet) as prog:
         with prog.phase("setup"):
             camera, traj, T_task_part = load_scene(config)
@@ -366,7 +366,7 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
         if pose is not None:  # pose indices of the full trajectory
             for f in summary["per_feature"]:
                 f["worst_pose"] = pose
-        results = {
+        results: JsonDict = {
             "schema_version": SCHEMA_VERSION, "cadfeat_version": __version__, "created": now_iso(),
             "evaluation_only": True,
             "study": {"name": config.study.name, "file": str(config.file) if config.file else None,
@@ -392,22 +392,13 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
                 "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
                 "measures": {"before": summary, "after": summary},
                 "objectives": {**results["objectives"], "after": values}}
-        shapes = {"shape0": setup.shape0, "shape1": setup.shape0, "holes0": holes, "holes1": holes,
-                  "setup": _EvalSetup(config, camera, full_traj, T_task_part, holes, fixed)}
-        finish_report = _report(stage, same, shapes, prog)
+        context = report.ReportContext(shape_before=setup.shape0, shape_after=setup.shape0, holes_before=holes,
+                                       holes_after=holes, fixed_mask=np.asarray(fixed, bool), camera=camera,
+                                       trajectory=full_traj, T_task_part=T_task_part)
+        finish_report = _report(stage, same, context, prog)
         if finish_report is not None:
             finish_report(same)
     return plain(results)
-
-
-@dataclass
-class _EvalSetup:
-    config: StudyConfig
-    camera: Camera
-    trajectory: Trajectory
-    T_task_part: np.ndarray
-    holes0: list[Hole]
-    fixed_mask: np.ndarray
 
 
 def _current_design(config: StudyConfig, time_limit_s: float | None

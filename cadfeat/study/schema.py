@@ -38,10 +38,10 @@ from __future__ import annotations
 import copy
 import dataclasses
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from cadfeat.cell import Cell
 from cadfeat.design.objectives import AGGREGATES, COMBINES, ObjectiveConfig
@@ -70,6 +70,9 @@ from cadfeat.study.settings.scene import (
 )
 from cadfeat.study.table import Table, check_seed
 from cadfeat.trajectory import TrajectorySettings, validate_trajectory
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 __all__ = [
     "AGGREGATES",
@@ -147,8 +150,8 @@ class StudyConfig:
     constraints: ConstraintSpec
     objective: ObjectiveConfig
     optimizer: OptimizerConfig
-    part_params: Mapping[str, PartParameter] = field(default_factory=dict, repr=False)
-    data: Mapping[str, Any] = field(default_factory=dict, repr=False)
+    part_params: Mapping[str, PartParameter] = field(default_factory=dict[str, PartParameter], repr=False)
+    data: Mapping[str, Any] = field(default_factory=dict[str, Any], repr=False)
     shop: ShopSpec = field(default_factory=ShopSpec)
     robustness: RobustnessSpec = field(default_factory=RobustnessSpec)
     tracking: TrackingSpec | None = None
@@ -161,7 +164,15 @@ class StudyConfig:
     def label(self) -> str:
         return str(self.file) if self.file is not None else "<study dict>"
 
-    def to_dict(self) -> dict[str, Any]:
+    def tracking_settings(self) -> TrackingSpec:
+        """The ``[tracking]`` settings every closed loop of this study runs with (``cadfeat run``'s check, ``cadfeat
+        track``, the physical views, ``track_design``, g_POSE's filter tuning): the study's ``[tracking]`` table, or
+        — what a study without one means, decided here only — the section's defaults with the study's seed (as a
+        ``[tracking]`` table that does not set ``seed``). Whether the check runs, and how, is
+        ``closed_loop_check.check_mode``'s."""
+        return self.tracking if self.tracking is not None else TrackingSpec(seed=self.study.seed)
+
+    def to_dict(self) -> JsonDict:
         """The validated study as plain data (defaults filled in, None left out), for echoing into results.json;
         ``load_study(config.to_dict(), base_dir=config.base_dir)`` gives the same study."""
         return copy.deepcopy(dict(self.data))
@@ -177,11 +188,11 @@ class StudyConfig:
 
 
 # ------------------------------------------------------------------------------------------- entry point
-def _read(path_or_dict: StudySource, base_dir: str | Path | None) -> tuple[dict[str, Any], Path | None, Path, str]:
+def _read(path_or_dict: StudySource, base_dir: str | Path | None) -> tuple[JsonDict, Path | None, Path, str]:
     if isinstance(path_or_dict, Mapping):
         base = Path(base_dir) if base_dir is not None else Path.cwd()
         return copy.deepcopy(dict(path_or_dict)), None, base.resolve(), "<study dict>"
-    if not isinstance(path_or_dict, str | Path):
+    if not isinstance(path_or_dict, str | Path):  # pyright: ignore[reportUnnecessaryIsInstance] (a caller's bad input)
         raise StudyError(f"study: expected a TOML file path or a dict, got {type(path_or_dict).__name__}")
     path = Path(path_or_dict)
     label = str(path)
@@ -241,9 +252,9 @@ def load_study(path_or_dict: StudySource, base_dir: str | Path | None = None) ->
         add_targets = validate_section(AddTargetsSettings, top.raw("add_targets"), "add_targets", label)
     echo = {
         "study": info.study_dump(),
-        "camera": dict(top.raw("camera")),
+        "camera": dict(cast("Mapping[str, object]", top.raw("camera"))),  # (validated: a table)
         "part_pose": pose.study_dump(),
-        "trajectory": copy.deepcopy(dict(top.raw("trajectory"))),
+        "trajectory": copy.deepcopy(dict(cast("Mapping[str, object]", top.raw("trajectory")))),
         "design": design.echo(),
         "constraints": constraints.model_dump(mode="json"),
         "objective": objective.study_dump(),
@@ -261,10 +272,10 @@ def load_study(path_or_dict: StudySource, base_dir: str | Path | None = None) ->
                        cell=cell, add_targets=add_targets)
 
 
-def _drop_none(value: Any) -> Any:
+def _drop_none(value: object) -> Any:
     """Plain data without None entries (TOML has no null): the echo can be loaded again."""
     if isinstance(value, Mapping):
-        return {k: _drop_none(v) for k, v in value.items() if v is not None}
+        return {k: _drop_none(v) for k, v in cast("Mapping[object, object]", value).items() if v is not None}
     if isinstance(value, list | tuple):
-        return [_drop_none(v) for v in value]
+        return [_drop_none(v) for v in cast("Sequence[object]", value)]
     return value

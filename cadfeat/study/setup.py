@@ -22,7 +22,7 @@ import itertools
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -55,17 +55,26 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.design_space import DesignSpace, FeatureModel
     from cadfeat.design.objectives import Normaliser
     from cadfeat.design.problem import Problem
+    from cadfeat.measures.glare import GlareMaps
+    from cadfeat.results import JsonDict
     from cadfeat.study.settings.design import DesignSpec, Selector
     from cadfeat.trajectory import Trajectory
 
-__all__ = ["MAX_INT_COMBINATIONS", "Scene", "ScriptValues", "StudySetup", "build_problem", "int_grid",
-           "script_rebuilders", "setup_study", "step_rebuilders"]
+__all__ = ["MAX_INT_COMBINATIONS", "ProblemPieces", "Scene", "ScriptValues", "StudySetup", "build_problem",
+           "int_grid", "script_rebuilders", "setup_study", "step_rebuilders"]
 
 MAX_INT_COMBINATIONS = 64
 """Largest number of integer-parameter combinations a study enumerates."""
-Scene = tuple["Camera", "Trajectory", np.ndarray]
-"""(camera, trajectory T_task_cam, T_task_part): a study's scene (``load_scene``)."""
 SYMMETRY_NORMALS = {"x": [(1.0, 0.0, 0.0)], "y": [(0.0, 1.0, 0.0)], "xy": [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]}
+
+
+class Scene(NamedTuple):
+    """A study's scene (``load_scene``): its camera, the trajectory (``T_task_cam``) and where the part sits in the
+    task frame (``T_task_part`` (4, 4), mm); unpacks as the (camera, trajectory, T_task_part) it replaces."""
+
+    camera: Camera
+    trajectory: Trajectory
+    T_task_part: np.ndarray
 
 
 @dataclass
@@ -90,9 +99,9 @@ class StudySetup:
     constraints: ConstraintConfig
     rebuild_shape: Callable[[np.ndarray], Shape]
     rebuild_holes: Callable[[Shape], list[Hole]]
-    values: Callable[[np.ndarray], dict[str, Any]]
+    values: Callable[[np.ndarray], JsonDict]
     linear: bool = True
-    int_values: dict[str, int] = field(default_factory=dict)
+    int_values: dict[str, int] = field(default_factory=dict[str, int])
     part: Part | StepPart | None = None
     time_limit_s: float | None = None
     """The time limit of each CAD rebuild (s, a worker process); None: in this process (``setup_study``)."""
@@ -110,10 +119,10 @@ class StudySetup:
 # ----------------------------------------------------------------------------------------- common
 def load_scene(config: StudyConfig) -> Scene:
     """Camera, trajectory (T_task_cam) and T_task_part of a study."""
-    return config.camera.build(), config.trajectory.build(), config.part_pose.T_task_part
+    return Scene(config.camera.build(), config.trajectory.build(), config.part_pose.T_task_part)
 
 
-def constraint_config(config: StudyConfig, holes: Sequence[Hole] = (), movable: Sequence[int] = (),
+def constraint_config(config: StudyConfig, holes: Sequence[Hole] = (), movable: Sequence[int] | np.ndarray = (),
                       volume_mm3: float | None = None, mirror_tol_mm: float = 1e-6) -> ConstraintConfig:
     """``constraints.ConstraintConfig`` of a study; ``symmetry`` becomes the mirror pairs among the movable
     ``holes`` (about the part's x = 0 / y = 0 planes); ``volume_mm3`` is the original part volume."""
@@ -128,33 +137,60 @@ def constraint_config(config: StudyConfig, holes: Sequence[Hole] = (), movable: 
                             volume_change_max_frac=frac, part_volume_mm3=volume_mm3, symmetry=pairs)
 
 
-def _problem(args: Mapping[str, Any], config: StudyConfig, normaliser: Normaliser | None = None
+@dataclass(frozen=True)
+class ProblemPieces:
+    """What ``build_problem`` builds a set-up's ``Problem`` from besides the study: its design space and feature
+    model, the scene (camera, trajectory, ``T_task_part``) and the fixed holes' mask (a fresh set-up's or one read
+    from the set-up cache)."""
+
+    space: DesignSpace
+    model: FeatureModel
+    camera: Camera
+    trajectory: Trajectory
+    T_task_part: np.ndarray
+    fixed_mask: np.ndarray
+
+
+@dataclass(frozen=True)
+class _ProblemParts(ProblemPieces):
+    """What ``_problem`` builds the ``Problem`` from (a script part's set-up or a STEP part's): the pieces, the
+    part's holes and solid (and a STEP part)."""
+
+    holes: list[Hole]
+    shape0: Shape
+    part: StepPart | None = None
+
+    def pieces(self) -> ProblemPieces:
+        return ProblemPieces(self.space, self.model, self.camera, self.trajectory, self.T_task_part, self.fixed_mask)
+
+
+def _problem(args: _ProblemParts, config: StudyConfig, normaliser: Normaliser | None = None
              ) -> tuple[Problem, ConstraintConfig]:
     """The ``Problem`` and its ``ConstraintConfig`` (``normaliser``: share another problem's scales)."""
-    movable = np.flatnonzero(~np.asarray(args["fixed_mask"], bool))
-    part = args.get("part")
-    tol = max(1e-6, 10 * part.tolerance.linear_mm) if hasattr(part, "tolerance") else 1e-6
-    cc = constraint_config(config, args["holes"], movable, shape_volume_mm3(args["shape0"]), mirror_tol_mm=tol)
-    problem = build_problem(config, args, cc, occlusion_mesh(config, args["shape0"]),
-                            score_mask(config, args["holes"], ~np.asarray(args["fixed_mask"], bool)), normaliser)
-    glare = glare_maps_for(config, args["shape0"], args["holes"], args["camera"], problem.T_cam_part)
+    movable = np.flatnonzero(~np.asarray(args.fixed_mask, bool))
+    part = args.part
+    tol = max(1e-6, 10 * part.tolerance.linear_mm) if part is not None else 1e-6
+    cc = constraint_config(config, args.holes, movable, shape_volume_mm3(args.shape0), mirror_tol_mm=tol)
+    problem = build_problem(config, args.pieces(), cc, occlusion_mesh(config, args.shape0),
+                            score_mask(config, args.holes, ~np.asarray(args.fixed_mask, bool)), normaliser)
+    glare = glare_maps_for(config, args.shape0, args.holes, args.camera, problem.T_cam_part)
     if glare is not None:
         problem.set_glare(glare)
     return problem, cc
 
 
-def build_problem(config: StudyConfig, args: Mapping[str, Any], cc: ConstraintConfig, mesh: trimesh.Trimesh | None,
+def build_problem(config: StudyConfig, args: ProblemPieces, cc: ConstraintConfig, mesh: trimesh.Trimesh | None,
                   feature_mask: np.ndarray | None, normaliser: Normaliser | None = None) -> Problem:
     """The set-up's ``Problem`` from its pieces (``args``: space, model, camera, trajectory, T_task_part,
     fixed_mask): the one constructor of a fresh set-up and of one read from the set-up cache (which sets the glare
     maps it kept, ``glare_maps_for``'s)."""
-    return Problem(args["space"], args["model"], args["camera"], args["trajectory"], args["T_task_part"],
-                   config.objective, cc, args["fixed_mask"], normaliser=normaliser, occlusion_mesh=mesh,
+    return Problem(args.space, args.model, args.camera, args.trajectory, args.T_task_part,
+                   config.objective, cc, args.fixed_mask, normaliser=normaliser, occlusion_mesh=mesh,
                    feature_mask=feature_mask, cell=config.cell)
 
 
-def glare_maps_for(config: StudyConfig, shape: Shape, holes: Sequence[Hole], camera: Any,
-                   T_cam_part: np.ndarray) -> Any:
+def glare_maps_for(config: StudyConfig, shape: Shape, holes: Sequence[Hole], camera: Camera,
+                   T_cam_part: np.ndarray) -> GlareMaps | None:
     """g_POSE's glare maps (``measures.glare``; ``render.glare.glare_maps``: the part rendered physically in the
     study's cell at its poses) when the study predicts the pose (``pose`` among the measures), its ``[cell]`` asks
     (``glare``, default on) and the part's material returns light from its bores (a metal); else None."""
@@ -193,7 +229,7 @@ def score_mask(config: StudyConfig, holes: Sequence[Hole], movable: np.ndarray) 
     names = hole_names(holes)
     mask = np.zeros(n, bool)
     for name in rule:
-        hits = [i for i, h in enumerate(holes) if name in (names[i], f"H{i + 1}")]
+        hits = [i for i in range(len(holes)) if name in (names[i], f"H{i + 1}")]
         if not hits:
             raise StudyError(f"{config.label}: objective.score: no hole named {name!r} in {config.study.part}; "
                              f"allowed: \"movable\", \"all\" or names from {', '.join(names)}")
@@ -278,11 +314,12 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
         dm, holes0 = reference_design_map(part, names, at, [p.lower for p in specs], [p.upper for p in specs])
     x0 = np.array([float(at[n]) for n in names])
     model = LinearFeatureModel.from_design_map(dm, names, [float(dm.at[n]) for n in names])
-    variables = []
+    variables: list[Variable] = []
     for p in specs:
         j = names.index(p.name)
-        kind = variable_kind(*(None if m is None else np.asarray(m)[:, j] for m in (dm.dR, dm.dB, dm.dD)),
-                             through=[h.through for h in dm.holes0], plain=[h.base_kind == "plain" for h in dm.holes0])
+        dB, dD = (None if m is None else np.asarray(m)[:, j] for m in (dm.dB, dm.dD))
+        kind = variable_kind(np.asarray(dm.dR)[:, j], dB, dD, through=[h.through for h in dm.holes0],
+                             plain=[h.base_kind == "plain" for h in dm.holes0])
         variables.append(Variable(p.name, float(p.lower), float(p.upper), p.unit or "mm", kind, p.standard_sizes))
     space = DesignSpace(variables, np.clip(x0, [v.lower for v in variables], [v.upper for v in variables]))
     moved = np.zeros(len(holes0), bool)
@@ -302,8 +339,8 @@ def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = Non
             raise StudyError(f"{config.label}: design.fixed[{i}]: hole {holes0[j].name or j + 1} is moved by the "
                              f"design parameter(s) {', '.join(movers)}; allowed: holes no design parameter moves")
         fixed[j] = True
-    args = dict(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
-                fixed_mask=fixed, holes=holes0, shape0=shape0)
+    args = _ProblemParts(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
+                         fixed_mask=fixed, holes=holes0, shape0=shape0)
     problem, cc = _problem(args, config, normaliser)
     rebuild_shape, rebuild_holes = script_rebuilders(lambda: part, values, view)
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part, shape0=shape0,
@@ -373,8 +410,8 @@ def setup_step(config: StudyConfig, scene: Scene | None = None,
     movable_mask = np.zeros(len(holes0), bool)
     movable_mask[movable] = True
     fixed = ~movable_mask
-    args = dict(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
-                fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
+    args = _ProblemParts(space=space, model=model, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
+                         fixed_mask=fixed, holes=holes0, shape0=step.shape, part=step)
     problem, cc = _problem(args, config)
     rebuild_shape, rebuild_holes = step_rebuilders(config, lambda: step, model, view, time_limit_s)
     return StudySetup(config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
@@ -546,14 +583,14 @@ def step_dry_run(config: StudyConfig, step: StepPart, movable: Sequence[int]) ->
 
 def _keep_patterns(holes: Sequence[Hole], movable: Sequence[int], patterns: list[list[int]],
                    mirrors: list[tuple[int, int, tuple[float, float, float]]]
-                   ) -> tuple[list[list[int]], list, list[int]]:
+                   ) -> tuple[list[list[int]], list[tuple[int, int, tuple[float, float, float]]], list[int]]:
     """``[shop] keep_patterns``: the bolt circles and grids of the original (``cadfeat.design.patterns``) whose
     holes are all movable move together (one shared offset: the pattern is translated); mirror pairs of movable
     holes move as mirror images; a movable hole of a pattern whose other holes are fixed is pinned (a single
     bolt moved off its circle breaks the circle). Explicit ``design.patterns`` and symmetry pairs come first."""
     mov = set(movable)
     taken = {i for p in patterns for i in p} | {i for m in mirrors for i in m[:2]}
-    patterns, mirrors, pinned = list(patterns), list(mirrors), []
+    patterns, mirrors, pinned = list(patterns), list(mirrors), list[int]()
     for p in find_patterns(holes):
         idx = list(p.holes)
         if taken & set(idx) or not mov & set(idx):
@@ -572,13 +609,13 @@ def _limit_offsets(space: DesignSpace, holes: Sequence[Hole], design: DesignSpec
                    pinned: Sequence[int] = ()) -> DesignSpace:
     """Per-hole ``max_offset_mm`` (and ``move = false`` or ``pinned`` to keep a pattern: position pinned to
     ±1 µm) applied to the (s, t) bounds of ``HoleMoveModel.design_space``."""
-    limits = {}
+    limits: dict[str, float] = {}
     for spec, j in zip(design.holes, movable, strict=True):
         label = hole_name(holes[j], j)
         limit = 1e-3 if not spec.move or j in pinned else spec.max_offset_mm
         if limit is not None:
             limits[f"{label}.s"] = limits[f"{label}.t"] = float(limit)
-    variables = []
+    variables: list[Variable] = []
     for v in space.variables:
         if v.name in limits:
             m = limits[v.name]
@@ -587,7 +624,7 @@ def _limit_offsets(space: DesignSpace, holes: Sequence[Hole], design: DesignSpec
     return DesignSpace(variables, space.x0)
 
 
-def _mirror_pairs(holes: Sequence[Hole], movable: Sequence[int], patterns: Sequence[Sequence[int]],
+def _mirror_pairs(holes: Sequence[Hole], movable: Sequence[int] | np.ndarray, patterns: Sequence[Sequence[int]],
                   symmetry: str, tol_mm: float = 1e-6) -> list[tuple[int, int, tuple[float, float, float]]]:
     """(leader, follower, plane normal) for movable holes that mirror each other about x = 0 / y = 0 (centres
     reflected onto each other, equal radii)."""

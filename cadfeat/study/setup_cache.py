@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -63,6 +63,10 @@ from cadfeat.study.inputs import canonical_json, sha256_file
 from cadfeat.study.setup import StudySetup
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
+    from cadfeat.cad.parts import Part
+    from cadfeat.cad.step_parts import StepPart
     from cadfeat.design.objectives import Normaliser
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import Scene
@@ -134,7 +138,7 @@ def part_files(path: Path) -> dict[str, str]:
         tree = ast.parse(path.read_text(encoding="utf-8"))
     except (SyntaxError, UnicodeDecodeError, ValueError):
         return files  # (the set-up reports it)
-    names = set()
+    names: set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             names.update(a.name.split(".")[0] for a in node.names)
@@ -256,12 +260,16 @@ class SetupCache:
             _warn(f"set-up cache: {path} cannot be read ({exc.strerror or exc}); setting the study up again")
             return None
         try:
-            entry = pickle.loads(data)  # noqa: S301 - only cadfeat's own cache folder (module docstring)
-            if not isinstance(entry, dict) or entry.get("format") != FORMAT or entry.get("key") != key:
+            entry: object = pickle.loads(data)  # noqa: S301 - only cadfeat's own cache folder (module docstring)
+            if not isinstance(entry, dict):
+                raise ValueError("not an entry of this format and key")
+            entry = cast("dict[str, object]", entry)
+            if entry.get("format") != FORMAT or entry.get("key") != key:
                 raise ValueError("not an entry of this format and key")
             products = entry["products"]
             if not isinstance(products, dict):
                 raise ValueError("no products")
+            products = cast("dict[str, Any]", products)
         except Exception as exc:  # noqa: BLE001 - whatever a damaged file raises, it is a miss
             _warn(f"set-up cache: entry {path} is damaged ({type(exc).__name__}: {exc}); ignored, the study is set "
                   "up again and the entry replaced")
@@ -316,7 +324,7 @@ class CacheEntry:
     hit: bool
     own_normaliser: bool = True
     products: dict[str, Any] | None = None
-    extras: dict[str, Any] = field(default_factory=dict)
+    extras: dict[str, Any] = field(default_factory=dict[str, Any])
     setup_s: float = 0.0
     """The wall time of the fresh set-up (s): on a hit, what the cache saved (about)."""
 
@@ -329,10 +337,10 @@ class _LazyCad:
     def __init__(self, config: StudyConfig, view: np.ndarray | None, brep: bytes | None, time_limit_s: float | None):
         self.config, self.view, self.brep, self.time_limit_s = config, view, brep, time_limit_s
         self._lock = threading.RLock()
-        self._part: Any = None
-        self._shape: Any = None
+        self._part: Part | StepPart | None = None
+        self._shape: Shape | None = None
 
-    def part(self) -> Any:
+    def part(self) -> Part | StepPart:
         with self._lock:
             if self._part is None:
                 path = self.config.study.part_path
@@ -347,24 +355,34 @@ class _LazyCad:
                     self._part = dataclasses.replace(part, view_direction=self.view)
             return self._part
 
-    def shape(self) -> Any:
+    def shape(self) -> Shape:
         with self._lock:
-            if self._shape is None:
+            shape = self._shape
+            if shape is None:
                 if self.brep is None:
-                    self._shape = self.part().shape
+                    shape = self.step().shape  # (a STEP part: its own solid; a script's is kept as BRep)
                 else:
                     import cadquery as cq
 
-                    shape = cq.Shape.importBrep(io.BytesIO(self.brep))
-                    solids = shape.Solids()
-                    self._shape = solids[0] if len(solids) == 1 else shape
-            return self._shape
+                    read = cq.Shape.importBrep(io.BytesIO(self.brep))
+                    solids = read.Solids()
+                    shape = solids[0] if len(solids) == 1 else read
+                self._shape = shape
+            return shape
 
-    def set_part(self, part: Any) -> None:
+    def step(self) -> StepPart:
+        """The part of a STEP study (``part``)."""
+        return cast("StepPart", self.part())
+
+    def script(self) -> Part:
+        """The part of a part-script study (``part``)."""
+        return cast("Part", self.part())
+
+    def set_part(self, part: Part | StepPart | None) -> None:
         if part is not None:
             self._part = part
 
-    def set_shape(self, shape: Any) -> None:
+    def set_shape(self, shape: Shape | None) -> None:
         if shape is not None:
             self._shape = shape
 
@@ -375,7 +393,7 @@ class CachedSetup(StudySetup):
 
     def __init__(self, cad: _LazyCad, **fields: Any) -> None:
         self._cad = cad
-        super().__init__(shape0=None, part=None, **fields)
+        super().__init__(shape0=cast("Shape", None), part=None, **fields)
 
     # (the dataclass __init__ assigns None to both: the setters ignore None)
     shape0 = property(lambda self: self._cad.shape(), lambda self, value: self._cad.set_shape(value))  # type: ignore[assignment]
@@ -480,7 +498,7 @@ def _from_products(config: StudyConfig, scene: Scene, p: Mapping[str, Any], norm
                    time_limit_s: float | None) -> StudySetup:
     """A ``CachedSetup`` of an entry's products (the problem built by ``setup.build_problem``, as a fresh one)."""
     from cadfeat.measures.raycache import cache_rays
-    from cadfeat.study.setup import build_problem, script_rebuilders, step_rebuilders
+    from cadfeat.study.setup import ProblemPieces, build_problem, script_rebuilders, step_rebuilders
 
     camera, trajectory, T_task_part = scene
     mesh = None
@@ -488,8 +506,7 @@ def _from_products(config: StudyConfig, scene: Scene, p: Mapping[str, Any], norm
         import trimesh
 
         mesh = cache_rays(trimesh.Trimesh(*p["mesh"], process=False))
-    args = {"space": p["space"], "model": p["model"], "camera": camera, "trajectory": trajectory,
-            "T_task_part": T_task_part, "fixed_mask": p["fixed_mask"]}
+    args = ProblemPieces(p["space"], p["model"], camera, trajectory, T_task_part, p["fixed_mask"])
     problem = build_problem(config, args, p["constraints"], mesh, p["feature_mask"],
                             normaliser if normaliser is not None else p["normaliser"])
     if p["glare"] is not None:
@@ -497,11 +514,11 @@ def _from_products(config: StudyConfig, scene: Scene, p: Mapping[str, Any], norm
     cad = _LazyCad(config, p["view_direction"], p["brep"], time_limit_s)
     view = p["view_direction"]
     if config.study.part_kind == "step":
-        rebuild_shape, rebuild_holes = step_rebuilders(config, cad.part, p["model"], view, time_limit_s)
+        rebuild_shape, rebuild_holes = step_rebuilders(config, cad.step, p["model"], view, time_limit_s)
         values = p["space"].as_dict
     else:
         values = p["values"]
-        rebuild_shape, rebuild_holes = script_rebuilders(cad.part, values, view)
+        rebuild_shape, rebuild_holes = script_rebuilders(cad.script, values, view)
     return CachedSetup(cad, config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                        holes0=list(p["holes0"]), fixed_mask=p["fixed_mask"], movable_mask=p["movable_mask"],
                        space=p["space"], model=p["model"], problem=problem, constraints=p["constraints"],

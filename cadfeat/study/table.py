@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping, Sequence
-from typing import Any, NoReturn
+from typing import NoReturn, cast
 
 import numpy as np
 
@@ -17,27 +17,31 @@ from cadfeat.study.settings import StudyError, range_text
 
 __all__ = ["MISSING", "Table", "check_seed", "fmt", "is_num", "number_value", "vector_value"]
 
-MISSING: Any = object()
+class _Missing:
+    """The type of ``MISSING``."""
+
+
+MISSING = _Missing()
 """The default of a required key."""
 
 
-def check_seed(seed: Any, label: str, key: str) -> None:
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= int(seed) < 2**32:
+def check_seed(seed: object, label: str, key: str) -> None:
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= int(cast(int, seed)) < 2**32:
         raise StudyError(f"{label}: {key}: {seed!r} is not allowed; allowed: an integer in [0, 2^32)")
 
 
-def fmt(value: Any) -> str:
+def fmt(value: object) -> str:
     return repr(value) if isinstance(value, str) else str(value)
 
 
 class Table:
     """Reads one TOML table, checking each key; ``done()`` rejects keys that were not read."""
 
-    def __init__(self, data: Any, key: str, label: str, allowed: Sequence[str]) -> None:
+    def __init__(self, data: object, key: str, label: str, allowed: Sequence[str]) -> None:
         self.key, self.label, self.allowed = key, label, tuple(allowed)
         if not isinstance(data, Mapping):
             self.fail(key, f"expected a table, got {fmt(data)}", f"a table with keys {', '.join(allowed)}")
-        self.data = dict(data)
+        self.data: dict[str, object] = dict(cast("Mapping[str, object]", data))  # (TOML keys are strings)
         unknown = sorted(set(self.data) - set(allowed))
         if unknown:
             self.fail(self.dotted(unknown[0]), "unknown key", f"keys of [{key}]: {', '.join(allowed)}")
@@ -51,14 +55,14 @@ class Table:
     def has(self, name: str) -> bool:
         return name in self.data
 
-    def raw(self, name: str, default: Any = None) -> Any:
+    def raw(self, name: str, default: object = None) -> object:
         return self.data.get(name, default)
 
-    def string(self, name: str, default: Any = MISSING, choices: Sequence[str] | None = None,
+    def string(self, name: str, default: str | _Missing = MISSING, choices: Sequence[str] | None = None,
                pattern: re.Pattern[str] | None = None, what: str = "a string") -> str:
         allowed = ", ".join(choices) if choices else what
         if name not in self.data:
-            if default is MISSING:
+            if isinstance(default, _Missing):
                 self.fail(self.dotted(name), "missing", allowed)
             return default
         value = self.data[name]
@@ -98,13 +102,15 @@ class Table:
         return vector_value(self.data[name], n, self.dotted(name), self.label)
 
 
-def is_num(value: Any) -> bool:
+def is_num(value: object) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
 
-def number_value(value: Any, key: str, label: str, lo: float | None = None, hi: float | None = None,
+def number_value(value: object, key: str, label: str, lo: float | None = None, hi: float | None = None,
             lo_open: bool = False) -> float:
-    ok = is_num(value) and math.isfinite(value)
+    if not (isinstance(value, int | float) and not isinstance(value, bool)):  # (is_num)
+        raise StudyError(f"{label}: {key}: {fmt(value)} is not allowed; allowed: {range_text(lo, hi, lo_open)}")
+    ok = math.isfinite(value)
     if ok and lo is not None:
         ok = value > lo if lo_open else value >= lo
     if ok and hi is not None:
@@ -114,7 +120,11 @@ def number_value(value: Any, key: str, label: str, lo: float | None = None, hi: 
     return float(value)
 
 
-def vector_value(value: Any, n: int, key: str, label: str) -> tuple[float, ...]:
-    if not isinstance(value, list) or len(value) != n or not all(is_num(v) and math.isfinite(v) for v in value):
-        raise StudyError(f"{label}: {key}: {fmt(value)} is not allowed; allowed: a list of {n} finite numbers")
-    return tuple(float(v) for v in value)
+def vector_value(value: object, n: int, key: str, label: str) -> tuple[float, ...]:
+    is_list = isinstance(value, list)
+    items = cast("list[object]", value) if is_list else []
+    numbers = [v for v in items if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)]
+    if not is_list or len(items) != n or len(numbers) != n:
+        raise StudyError(f"{label}: {key}: {fmt(cast(object, value))} is not allowed; allowed: a list of {n} finite "
+                         "numbers")
+    return tuple(float(v) for v in numbers)

@@ -37,6 +37,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
+    from cadfeat.results import JsonDict
     from cadfeat.vision.closed_loop import BeforeAfter, TrackingConfig
 
 Design = tuple["Shape", "Sequence[Hole]"]
@@ -106,9 +107,9 @@ def _motion_warnings(T_cam_part: np.ndarray, times_s: np.ndarray) -> list[str]:
             f"trajectory, e.g. a look-at camera rolling about its axis; or track more frames), solvePnP is per frame"]
 
 
-def _curves(result: BeforeAfter) -> dict[str, Any]:
+def _curves(result: BeforeAfter) -> JsonDict:
     """Per design and estimator: frame times and the median / 10 % / 90 % over runs of both errors."""
-    out: dict[str, Any] = {}
+    out: JsonDict = {}
     for name, d in result.designs.items():
         out[name] = {"times_s": [round(float(t), 6) for t in d.times_s]}
         for m, (et, er) in d.errors.items():
@@ -122,11 +123,11 @@ def _curves(result: BeforeAfter) -> dict[str, Any]:
     return out
 
 
-def _frames(result: BeforeAfter, camera: Camera, out_dir: Path | None, count: int = 3) -> list[dict[str, Any]]:
+def _frames(result: BeforeAfter, camera: Camera, out_dir: Path | None, count: int = 3) -> list[JsonDict]:
     """Frames (first, middle, last) of run 0 of each design, drawn with detections and predictions, as PNGs."""
     if out_dir is None:
         return []
-    entries = []
+    entries: list[JsonDict] = []
     for name, d in result.designs.items():
         obs = result.observations[name]
         n = len(obs.optical)
@@ -179,10 +180,10 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
                                f"(run `cadfeat run {config.label}` first, or give --out DIR)")
         shapes[name] = import_step(path)
     results_path = Path(out) / "results.json"
-    holes = {}
+    holes: dict[str, list[Hole]] = {}
     if results_path.is_file():
         try:
-            block = json.loads(results_path.read_text(encoding="utf-8")).get("holes") or {}
+            block: JsonDict = json.loads(results_path.read_text(encoding="utf-8")).get("holes") or {}
         except (ValueError, AttributeError) as exc:
             raise CadfeatError(f"{results_path}: not a results.json of `cadfeat run` ({exc})") from None
         if all(isinstance(block.get(k), list) and block[k] for k in EXPORTED):
@@ -194,7 +195,7 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
     return {k: (shapes[k], _named(holes[k])) for k in EXPORTED}
 
 
-def _hole_from_json(h: Any, path: Path, key: str, i: int) -> Hole:
+def _hole_from_json(h: JsonDict, path: Path, key: str, i: int) -> Hole:
     """A ``Hole`` from a results.json hole entry (``study.outputs.hole_dict``). The closed loop uses the entrance
     rim only (centre, axis, radius, depth, through); the narrowest bore is not stored and is taken as the rim."""
     try:
@@ -226,7 +227,7 @@ def _view_direction(config: StudyConfig, original_step: Path) -> np.ndarray | No
 def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Path | None = None,
                  spec: TrackingSpec | None = None, camera_override: Camera | None = None,
                  tracked: Mapping[str, Any] | None = None, pairs: Mapping[str, tuple[str, str]] | None = None
-                 ) -> dict[str, Any]:
+                 ) -> JsonDict:
     """The results.json ``tracking`` section for ``designs`` = {"before": (shape, holes), "after": (...)}.
 
     ``out_dir``: where the frame PNGs go (``tracking/``); None writes nothing. ``camera_override``: the camera
@@ -235,7 +236,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     not re-run. ``pairs``: more paired comparisons of ``designs`` (label → (before, after) names: the section's
     ``comparisons``); the main verdicts are always "after" against "before".
     """
-    spec = spec or config.tracking or TrackingSpec()
+    spec = spec or config.tracking_settings()
     designs = {k: (shape, _named(holes)) for k, (shape, holes) in designs.items()}
     camera, T_cam_part, times, screws = _scene(config)
     _check_frames(config, spec, len(T_cam_part))
@@ -263,15 +264,15 @@ def track_arguments(config: StudyConfig, spec: TrackingSpec, design: Design) -> 
 
 
 def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,
-          values: Sequence[float] | None = None, spec: TrackingSpec | None = None) -> dict[str, Any]:
+          values: Sequence[float] | None = None, spec: TrackingSpec | None = None) -> JsonDict:
     """Thesis §6.3.3 sensitivity: the tracking summary per value of one setting (module docstring).
 
     Returns {"kind", "values", "rows": [{"value", design: {estimator: {trans_mm_rms, rot_deg_rms, convergence_s}}}]}.
     """
     if kind not in SWEEPS:
         raise StudyError(f"{config.label}: --sweep {kind!r} is not allowed; allowed: {', '.join(SWEEPS)}")
-    base = spec or config.tracking or TrackingSpec()
-    rows = []
+    base = spec or config.tracking_settings()
+    rows: list[JsonDict] = []
     camera = _scene(config)[0]
     for value in (values or SWEEPS[kind]):
         s, cam = base, None
@@ -286,7 +287,7 @@ def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,
         elif kind == "sample_time":
             s = base.replace(frame_step=int(value), settle_frames=min(base.settle_frames, 2))
         section = run_tracking(config, designs, None, s, camera_override=cam)
-        row: dict[str, Any] = {"value": float(value)}
+        row: JsonDict = {"value": float(value)}
         for name, d in section["designs"].items():
             row[name] = {m: {k: e[k]["mean"] for k in ("trans_mm_rms", "rot_deg_rms", "convergence_s")}
                          for m, e in d["estimators"].items()}

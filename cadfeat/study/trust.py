@@ -8,9 +8,13 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.objectives import ObjectiveConfig
+    from cadfeat.design.problem import Problem
 
 __all__ = ["OBJECTIVE_UNITS", "objective_changes", "objective_unit"]
 
@@ -19,7 +23,7 @@ OBJECTIVE_UNITS = {"g_FOV": "cone margin 1 − cos (dimensionless)", "g_FOC": "f
                    "g_RES": "px", "g_DIR": "px/mm"}
 
 
-def objective_unit(name: str, objective_config: Any) -> str:
+def objective_unit(name: str, objective_config: ObjectiveConfig) -> str:
     """The unit of an aggregated objective, e.g. "px, summed over the poses"."""
     if name == "g_POSE":  # minus the predicted pose error, by pose_aggregate (not by aggregate)
         how = getattr(objective_config, "pose_aggregate", "rms")
@@ -33,19 +37,20 @@ def objective_unit(name: str, objective_config: Any) -> str:
                    "smoothmin": ", smooth minimum over the poses"}.get(how, "")
 
 
-def objective_changes(problem: Any, before: Mapping[str, float], after: Mapping[str, float] | None) -> dict[str, Any]:
+def objective_changes(problem: Problem, before: Mapping[str, float], after: Mapping[str, float] | None
+                      ) -> dict[str, object]:
     """{"limiting", "limiting_before", "constant", "changes": [{name, before, after, change, unit,
     normalised_before, normalised_after, in_combination}]}: the limiting objective is the smallest normalised
     one among those combined (max-min); ``constant``: objectives that do not depend on the design variables
     on this trajectory (left out of the combination, with a warning)."""
     names = list(problem.names)
     cfg = problem.objective_config
-    used = {names[i] for i in problem.combined_idx}
+    used = {names[int(i)] for i in problem.combined_idx}
     g0 = np.array([before[n] for n in names], float)
     g1 = None if after is None else np.array([after[n] for n in names], float)
     n0 = problem.normalised(g0)
     n1 = None if g1 is None else problem.normalised(g1)
-    rows = []
+    rows: list[dict[str, object]] = []
     for i, name in enumerate(names):
         rows.append({"name": name, "unit": objective_unit(name, cfg), "before": float(g0[i]),
                      "after": None if g1 is None else float(g1[i]),
@@ -55,7 +60,7 @@ def objective_changes(problem: Any, before: Mapping[str, float], after: Mapping[
     constant = list(getattr(problem.normaliser, "constant", ()))
     warnings = [f"{n} does not depend on the design variables on this trajectory (the same value at every "
                 "design that meets the kept requirements): it is left out of the combination" for n in constant]
-    out = {"limiting_before": problem.limiting(g0) if cfg.combine in ("maxmin", "pareto") else None,
+    out: dict[str, object] = {"limiting_before": problem.limiting(g0) if cfg.combine in ("maxmin", "pareto") else None,
            "limiting": None, "constant": constant, "changes": rows, "warnings": warnings}
     if g1 is not None and cfg.combine in ("maxmin", "pareto"):
         out["limiting"] = problem.limiting(g1)

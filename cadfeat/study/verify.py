@@ -38,7 +38,11 @@ from cadfeat.errors import CadfeatError
 from cadfeat.study.outputs import normalise_step_header
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
+    from cadfeat.results import JsonDict
+    from cadfeat.study.delivery import Delivery
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import StudySetup
 
@@ -65,7 +69,7 @@ def outlines_differ(a: Sequence[Hole], b: Sequence[Hole], tol_mm: float = 1e-6) 
         oa, ob = h.outline, g.outline
         if (oa is None) != (ob is None):
             return True
-        if oa is None:
+        if oa is None or ob is None:  # (both None: the same)
             continue
         pa, pb = np.asarray(oa.outer, float), np.asarray(ob.outer, float)
         if pa.shape != pb.shape or np.abs(pa - pb).max(initial=0.0) > tol_mm:
@@ -98,7 +102,8 @@ def predicted_holes(setup: StudySetup, x: np.ndarray) -> list[Hole]:
     return holes_at(setup.model, x)
 
 
-def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = None) -> tuple[Any, list[Hole], float]:
+def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = None
+            ) -> tuple[Shape, list[Hole], float]:
     """The CAD rebuild at ``x``: solid, its holes in the design's order, and the largest centre/radius
     deviation from the prediction (mm): the feature model's, or ``verified`` (the holes the CAD trust-region
     loop extracted at ``x``, in model order) when given. The rebuilt holes pair with the prediction within
@@ -118,7 +123,7 @@ def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = 
     return shape, holes, err
 
 
-def requirement_checks(setup: StudySetup, shape: Any, holes: Sequence[Hole], where: str) -> list[dict[str, Any]]:
+def requirement_checks(setup: StudySetup, shape: Shape, holes: Sequence[Hole], where: str) -> list[JsonDict]:
     """Every kept requirement measured on the solid ``shape`` whose holes are ``holes`` (design order).
 
     ``verify_on_brep`` re-extracts the holes with the study's view (``StudySetup.view_direction``: a through
@@ -151,12 +156,12 @@ def fail_on(checks: Sequence[Mapping[str, Any]], label: str) -> None:
         raise CadfeatError(f"{label}: the optimised design violates kept requirement(s): {text}")
 
 
-def extract_plain(shape: Any) -> list[Hole]:
+def extract_plain(shape: Shape) -> list[Hole]:
     """The holes of ``shape`` by extraction's own entrance rule (no view)."""
     return extract_holes(shape)
 
 
-def extract_viewed(shape: Any, view: Sequence[float] | np.ndarray | None) -> list[Hole]:
+def extract_viewed(shape: Shape, view: Sequence[float] | np.ndarray | None) -> list[Hole]:
     """The holes of ``shape``, each through hole entering on the side of ``view`` (towards the camera, part
     frame; None: extraction's own rule)."""
     return extract_holes(shape, prefer_direction=view)
@@ -187,21 +192,20 @@ class AnchoredModel:
         return holes_at(self, x)
 
 
-def export_and_verify(config: StudyConfig, stage: Path, shapes: Mapping[str, Any],
-                      constraints: list[dict[str, Any]],
-                      step_checks: Callable[[Any], list[dict[str, Any]]] | None = None
-                      ) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+def export_and_verify(config: StudyConfig, stage: Path, delivery: Delivery, constraints: list[JsonDict],
+                      step_checks: Callable[[Shape], list[JsonDict]] | None = None
+                      ) -> tuple[list[JsonDict], JsonDict]:
     """Write original.step, optimised.step and optimised.stl into ``stage`` and verify them: a valid solid, the
     re-imported STEP's holes equal to the design's within ``ROUNDTRIP_TOL_MM`` (and its volume), every kept
     requirement again on the re-imported solid (raises ``CadfeatError`` naming a violated one), a watertight
     STL. ``step_checks``: what is measured on the re-imported solid instead of the design's requirements (a
     delivered design with added target holes: ``study.added_design.step_checks``). Returns (the B-rep and STEP
     requirement checks, the results.json ``verification`` block)."""
-    setup = shapes["setup"]
-    problems = check_solid(shapes["shape1"])
+    setup = delivery.setup
+    problems = check_solid(delivery.shape1)
     if problems:
         raise CadfeatError(f"{config.label}: the rebuilt optimum is not a valid solid: {'; '.join(problems[:3])}")
-    for name, shape in (("original.step", shapes["shape0"]), ("optimised.step", shapes["shape1"])):
+    for name, shape in (("original.step", delivery.shape0), ("optimised.step", delivery.shape1)):
         export_step(shape, stage / name)
         normalise_step_header(stage / name, f"{config.study.name} {name[:-5]}")
     from cadfeat.cad.export import verify_step_roundtrip  # lazy: looked up per call (tests replace it)
@@ -209,20 +213,20 @@ def export_and_verify(config: StudyConfig, stage: Path, shapes: Mapping[str, Any
     view = setup.view_direction  # (the rebuild's holes extracted as verify_step_roundtrip extracts them)
     # the volume expected of the re-read file: the re-read original's plus the design's change (an imported
     # part's own volume is off by up to 1.5e-5 relative before any change: export.expected_step_volume)
-    volume, uncertainty = expected_step_volume(shapes["shape1"], shapes["shape0"], stage / "original.step")
-    trip = verify_step_roundtrip(stage / "optimised.step", extract_viewed(shapes["shape1"], view),
+    volume, uncertainty = expected_step_volume(delivery.shape1, delivery.shape0, stage / "original.step")
+    trip = verify_step_roundtrip(stage / "optimised.step", extract_viewed(delivery.shape1, view),
                                  tol_mm=ROUNDTRIP_TOL_MM, expected_volume_mm3=volume, volume_rtol=1e-7,
                                  prefer_direction=view, volume_uncertainty_mm3=uncertainty)
     reimported = import_step(stage / "optimised.step")
     if step_checks is not None:
         checks = constraints + step_checks(reimported)
     else:
-        step_holes = order_like(shapes["holes1"], setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
+        step_holes = order_like(delivery.holes1, setup.rebuild_holes(reimported), 1e-3, "re-imported STEP")
         checks = constraints + requirement_checks(setup, reimported, step_holes, "step")
     fail_on(checks, config.label)
-    export_stl(shapes["shape1"], stage / "optimised.stl")
-    stl_problems = check_stl(stage / "optimised.stl", shapes["shape1"],
-                             original=shapes["shape0"] if config.study.part_kind == "step" else None)
+    export_stl(delivery.shape1, stage / "optimised.stl")
+    stl_problems = check_stl(stage / "optimised.stl", delivery.shape1,
+                             original=delivery.shape0 if config.study.part_kind == "step" else None)
     if stl_problems:
         raise CadfeatError(f"{config.label}: optimised.stl: {'; '.join(stl_problems[:3])}")
     verification = {

@@ -46,8 +46,13 @@ from cadfeat.vision.metrics import aggregate_runs, hold_last, paired_verdict, po
 from cadfeat.vision.motion import so3_exp
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.cad.features import Hole
+    import trimesh
+
+    from cadfeat.cad.features import Hole, ShapeLike
+    from cadfeat.cell.light import Light
+    from cadfeat.cell.material import Material
     from cadfeat.measures.ellipse import Ellipse
+    from cadfeat.results import JsonDict
 
 #: Pixels around the part kept per frame (blur and the contour tracer need a margin of background).
 ROI_MARGIN_PX = 12
@@ -99,11 +104,11 @@ class TrackingConfig:
     detector: str = "cadfeat"
     renderer: str = "raster"
     spp: int = 16
-    light: Any = None
-    material: Any = None
+    light: Light | None = None
+    material: Material | None = None
     hole_ends: str = "as_modelled"
 
-    def render_options(self) -> dict[str, Any]:
+    def render_options(self) -> JsonDict:
         """The keyword arguments of ``render.camera_renderer`` for this config's renderer: none for the raster
         one; the cell's light, material and hole ends, the samples per pixel and a metered exposure for the
         physically based one (``render.sensor``: the part's median at a fixed fraction of full scale)."""
@@ -138,7 +143,7 @@ class Observation:
     rim_gap: np.ndarray | None = None  # (F, N) px to the nearest other rim at the nominal pose (None: not computed)
     camera: Camera | None = None  # the detector undistorts the rims' edges with it (``detection.undistorted_centre``)
     renderer: str = "raster"  # the renderer kind and options that made the images (placement re-renders use them)
-    render_options: dict[str, Any] = field(default_factory=dict)
+    render_options: JsonDict = field(default_factory=dict)
 
 
 @dataclass
@@ -163,7 +168,7 @@ class DesignTracking:
         return np.where(n_exp > 0, (found & expected).sum(axis=(0, 1)) / np.maximum(n_exp, 1), np.nan)
 
 
-def observe(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, sensor: SensorModel,
+def observe(shape: ShapeLike, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, sensor: SensorModel,
             screws: np.ndarray | None = None, predict_occlusion: bool = True,
             frames: Sequence[int] | None = None, renderer: str = "raster",
             render_options: Mapping[str, Any] | None = None) -> Observation:
@@ -254,18 +259,18 @@ def placed_observations(camera: Camera, obs: Observation, T_runs: np.ndarray) ->
     return out
 
 
-def _rim_hidden(shape: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
+def _rim_hidden(shape: ShapeLike, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
                 radii: np.ndarray) -> np.ndarray:
     """(F, N) hidden fraction of each rim (ray test against the part's mesh, ``measures.rim_occlusion``)."""
     return rim_hidden(part_mesh(shape), holes, T, centres, normals, radii)
 
 
-def part_mesh(shape: Any) -> Any:
+def part_mesh(shape: ShapeLike) -> trimesh.Trimesh:
     """The part's triangle mesh the closed loop's rim test uses (0.05 mm chord)."""
     return mesh_from_shape(shape, tolerance=0.05)
 
 
-def rim_hidden(mesh: Any, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
+def rim_hidden(mesh: trimesh.Trimesh, holes: Sequence[Hole], T: np.ndarray, centres: np.ndarray, normals: np.ndarray,
                radii: np.ndarray) -> np.ndarray:
     """(F, N) hidden fraction of each rim at the poses T (F, 4, 4) on the part's ``mesh`` (``part_mesh``)."""
     return rim_occlusion(mesh, T, centres, normals, radii, samples=12, through=[h.through for h in holes],
@@ -341,14 +346,14 @@ def draw_frame(image: np.ndarray, predicted: Ellipse, detections: Detections, pi
 
 
 def detect_sequence(obs: Observation, noise_grey: float, seed: int, gate_px: float,
-                    gain: float = 1.0, detector: str = "cadfeat") -> tuple[np.ndarray, list]:
+                    gain: float = 1.0, detector: str = "cadfeat") -> tuple[np.ndarray, list[Detections]]:
     """Pixels (F, N, 2) of one Monte-Carlo run (NaN = missing) and the raw detections per frame; ``gain``
     scales the optical image (the run's illumination) before the noise; ``detector``: ``vision.detectors``'s
     kind (cadfeat's rim-edge detector takes the nominal predicted rims as its prior; the others see the image
     alone)."""
     F_, N = len(obs.optical), len(obs.centres)
     pixels = np.full((F_, N, 2), np.nan)
-    dets = []
+    dets: list[Detections] = []
     for k, img in enumerate(obs.optical):
         frame = sensor_images(img[None] * np.float32(gain), noise_grey, frame_seed(seed, k))[0]
         d = detect(detector, frame, camera=obs.camera, origin_px=obs.offsets[k], predicted=obs.predicted[k])
@@ -431,7 +436,7 @@ def estimate_runs(camera: Camera, obs: Observation, pixels: np.ndarray, T_runs: 
     return errors, summaries
 
 
-def design_json(result: DesignTracking) -> dict[str, Any]:
+def design_json(result: DesignTracking) -> JsonDict:
     """results.json form of one design's tracking: per estimator the Monte-Carlo means and intervals."""
     rate = result.detection_rate
     found = np.all(np.isfinite(result.pixels), axis=-1)
@@ -446,14 +451,14 @@ def design_json(result: DesignTracking) -> dict[str, Any]:
 
 
 def compare(before: DesignTracking, after: DesignTracking, alpha: float = 0.05,
-            min_change: float = 0.0) -> dict[str, Any]:
+            min_change: float = 0.0) -> JsonDict:
     """Paired verdicts per estimator on the per-run translation and rotation RMS errors, and an overall line.
 
     Per estimator: ``better`` when the translation or the rotation RMS is significantly lower after and the
     other not significantly higher (symmetrically ``worse``), ``mixed`` when one is significantly lower and
     the other significantly higher, else ``no significant difference``.
     """
-    out: dict[str, Any] = {}
+    out: JsonDict = {}
     for m in before.summaries:
         if m not in after.summaries:
             continue
@@ -481,14 +486,14 @@ class BeforeAfter:
 
     designs: dict[str, DesignTracking]
     observations: dict[str, Observation]
-    verdicts: dict[str, Any]
+    verdicts: JsonDict
     config: TrackingConfig
     frame_indices: np.ndarray
     timings_s: dict[str, float]
     comparisons: dict[str, Any] = field(default_factory=dict[str, Any])
     """More paired comparisons: label → {"before": name, "after": name, "verdicts": per estimator}."""
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonDict:
         """The results.json ``tracking`` section (plain data; infinities as None)."""
         c = self.config
         out = {

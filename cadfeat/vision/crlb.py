@@ -14,8 +14,6 @@ EKF/IEKF of ``vision.estimate`` reach it on noise-only data (tests).
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -26,7 +24,7 @@ from cadfeat.vision.motion import PoseState, predict, process_noise
 __all__ = ["posterior_crlb"]
 
 
-def posterior_crlb(information: ArrayLike, times_s: ArrayLike, tuning: Any = None,
+def posterior_crlb(information: ArrayLike, times_s: ArrayLike, tuning: FilterTuning | None = None,
                    omega_rad_s: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Posterior CRLB of the constant-velocity filter along the trajectory (module docstring).
 

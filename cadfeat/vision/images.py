@@ -33,7 +33,7 @@ from cadfeat.measures import image_jacobian
 from cadfeat.measures.focus import defocus_diameter_px
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.cad.features import Hole
+    from cadfeat.cad.features import Hole, ShapeLike
 
 #: Kernels are drawn on a grid this many times finer than the pixel grid, then summed (area coverage).
 SUPERSAMPLE = 8
@@ -50,7 +50,7 @@ class SensorModel:
     blur_scale: float = 1.0
 
 
-def render_sequence(shape: Any, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray,
+def render_sequence(shape: ShapeLike, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray,
                     renderer: str = "raster", **options: Any) -> np.ndarray:
     """Noiseless grey images (F, H, W) float32 (0..255) of the part at poses T_cam_part (F, 4, 4), mm, by the
     ``renderer`` kind (``render.camera_renderer``: "raster" VTK, "pbr" Mitsuba 3 with the cell's ``options``:

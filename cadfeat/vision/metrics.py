@@ -21,11 +21,14 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cadfeat.vision.motion import so3_log
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.results import JsonDict
 
 
 def pose_errors(T_est: np.ndarray, T_true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -119,7 +122,7 @@ def aggregate_runs(runs: Sequence[dict[str, float]], level: float = 0.95) -> dic
 
 
 def paired_verdict(before: np.ndarray, after: np.ndarray, alpha: float = 0.05,
-                   min_change: float = 0.0) -> dict[str, Any]:
+                   min_change: float = 0.0) -> JsonDict:
     """Wilcoxon signed-rank test of per-run errors ``after − before`` (paired by run), two-sided.
 
     Returns ``verdict`` ("better" = after lower, "worse", "no significant difference"), ``p_value``,
@@ -133,7 +136,7 @@ def paired_verdict(before: np.ndarray, after: np.ndarray, alpha: float = 0.05,
     b, a = np.asarray(before, dtype=float), np.asarray(after, dtype=float)
     ok = np.isfinite(a) & np.isfinite(b)
     d = a[ok] - b[ok]
-    result: dict[str, Any] = {"test": "Wilcoxon signed-rank, two-sided, paired by Monte-Carlo run",
+    result: JsonDict = {"test": "Wilcoxon signed-rank, two-sided, paired by Monte-Carlo run",
                               "runs": int(ok.sum()), "alpha": alpha}
     if d.size < 5 or np.all(d == 0):
         return {**result, "verdict": "no significant difference", "p_value": 1.0,

@@ -10,8 +10,7 @@ from __future__ import annotations
 import copy
 import json
 
-from study_helpers import STEP, compare_results_tool
-from test_study_run import SMALL, no_report
+from study_helpers import SMALL, STEP, compare_results_tool, no_report
 
 from cadfeat.study import evaluate_study
 

@@ -17,41 +17,22 @@ from pathlib import Path
 import jsonschema
 import numpy as np
 import pytest
-from study_helpers import DATA, PLATE, STEP, compare_results_tool
+from study_helpers import DATA, EDGE_MM, LIGAMENT_MM, PLATE, SMALL, STEP, compare_results_tool, no_report
 
-from cadfeat.study import run as study_mod
 from cadfeat.study.outputs import plain
 from cadfeat.study.run import evaluate_study, run_study
 
 PLATE_HALF = (30.0, 20.0)   # study_plate.py: 60 x 40 mm, centred
 FIXED_HOLE = (-22.0, -12.0, 2.0)
-EDGE_MM, LIGAMENT_MM = 3.0, 2.5
 ALLOWED_EXTRA = {"report.html", "img", "holes.csv", ".cadfeat-output.json"}
 RESULT_KEYS = {"cadfeat_version", "created", "study", "inputs", "camera", "trajectory", "variables", "holes",
                "objectives", "measures", "constraints", "design_matrix", "history", "sweep", "pareto", "files",
                "timings_s", "versions", "interrupted", "verification"}
 
-SMALL = {
-    "study": {"name": "small_plate", "part": str(PLATE), "seed": 7},
-    "camera": {"preset": "realsense-d435-rgb", "focus_distance_mm": 200.0},
-    "trajectory": {"kind": "straight_approach", "start": [-60.0, -80.0, 260.0], "end": [40.0, -40.0, 180.0],
-                   "target": [0.0, 0.0, 6.0], "n": 12, "duration_s": 2.0},
-    "design": {"parameters": {"x0": {"lower": -18.0, "upper": -4.0}, "y0": {"lower": -8.0, "upper": 12.0}}},
-    "constraints": {"edge_distance_mm": EDGE_MM, "ligament_mm": LIGAMENT_MM},
-    "objective": {"measures": ["fov", "resolution", "resolvability"], "aggregate": "sum", "combine": "maxmin",
-                  "rotation_length_mm": 50.0},
-    "optimizer": {"method": "multistart", "starts": 2, "maxiter": 25},
-    "robustness": {"robust": False},  # the nominal optimum: robust studies are tested in test_robust*.py
-}
 
 
 def sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
-def no_report(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Skip the (slow, separately tested) report rendering in runs that check other things."""
-    monkeypatch.setattr(study_mod, "_report", lambda *a, **k: None)
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,7 @@ import cv2  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 from cadfeat.cli import main  # noqa: E402
-from cadfeat.study.schema import TrackingSpec, load_study  # noqa: E402
+from cadfeat.study.schema import load_study  # noqa: E402
 from tests.study_helpers import write_toml  # noqa: E402
 
 PART = (Path(__file__).parents[1] / "data" / "spread_plate.py").read_text()
@@ -64,7 +64,7 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> dict:
     shape, holes = exported_designs(config, out)["after"]
     camera, traj, T_task_part = load_scene(config)
     T = cam_from_part(traj.T_task_cam, T_task_part)
-    tc = tracking_config(config.tracking or TrackingSpec(), config.cell)
+    tc = tracking_config(config.tracking_settings(), config.cell)
     obs = observe(shape, holes, camera, T, tc.sensor)
     frames = [frame_image(camera, obs, k, tc.sensor.noise_grey, NOISE_SEED) for k in range(len(T))]
     pixels, _ = detect_sequence(obs, tc.sensor.noise_grey, NOISE_SEED, tc.gate_px, 1.0, tc.detector)

@@ -18,14 +18,22 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
 from cadfeat.errors import CadfeatError
 
+if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape, Workplane
+
+ShapeLike: TypeAlias = "Shape | Workplane"
+"""A solid as cadfeat's CAD functions take it: a ``cadquery.Shape`` (Solid, Compound, ...) or a ``cadquery.Workplane``
+holding one (``as_shape`` gives the ``cadquery.Shape``; it also wraps a raw OCP ``TopoDS_Shape``)."""
+
 __all__ = [
     "FaceOutline",
+    "ShapeLike",
     "Hole",
     "as_shape",
     "extract_holes",
@@ -186,7 +194,7 @@ def match_holes(reference: Sequence[Hole], candidates: Sequence[Hole], tol_mm: f
 # ------------------------------------------------------------------------------------------ shape input
 
 
-def as_shape(obj: Any) -> Any:
+def as_shape(obj: ShapeLike | Any) -> Shape:
     """The ``cadquery.Shape`` whose faces ``Hole.host_face`` indexes.
 
     Accepts a ``cadquery.Shape`` (Solid, Compound, ...), a ``cadquery.Workplane`` (its
@@ -234,7 +242,8 @@ def extract_points(shape: Any, tol_mm: float = 1e-7) -> np.ndarray:
     return pts[np.lexsort((r[:, 2], r[:, 1], r[:, 0]))]
 
 
-def extract_holes(shape: Any, prefer_direction: Sequence[float] | None = None, tol: Any = None) -> list[Hole]:
+def extract_holes(shape: Any, prefer_direction: Sequence[float] | np.ndarray | None = None,
+                  tol: Any = None) -> list[Hole]:
     """All circular holes of ``shape`` (algorithm in ``cadfeat.cad.features.extraction``).
 
     A hole is a connected set of coaxial concave cylinders and cones (plus the annular steps and flat

@@ -92,7 +92,7 @@ class SkippedHole:
 
 
 class _Extractor:
-    def __init__(self, shape, prefer_direction: Sequence[float] | None, tol=None) -> None:
+    def __init__(self, shape, prefer_direction: Sequence[float] | np.ndarray | None, tol=None) -> None:
         self.shape = shape.wrapped
         self.topo = _Topology.build(self.shape)
         self.tol = tol if tol is not None else ModelTolerance.of_shape(self.shape)
@@ -509,12 +509,12 @@ class _Extractor:
 _ORDER = 9
 
 
-def extract_holes(shape, prefer_direction: Sequence[float] | None = None, tol=None) -> list[Hole]:
+def extract_holes(shape, prefer_direction: Sequence[float] | np.ndarray | None = None, tol=None) -> list[Hole]:
     """See ``cadfeat.cad.features.extract_holes``; ``shape`` is a ``cadquery.Shape``."""
     return extract_holes_and_skipped(shape, prefer_direction, tol)[0]
 
 
-def extract_holes_and_skipped(shape, prefer_direction: Sequence[float] | None = None,
+def extract_holes_and_skipped(shape, prefer_direction: Sequence[float] | np.ndarray | None = None,
                               tol=None) -> tuple[list[Hole], list[SkippedHole]]:
     """The holes (as ``extract_holes``, named ``H1`` … in their order) and the skipped near-round openings, with
     tolerances ``tol`` (``ModelTolerance``; default: scaled to ``shape``)."""

@@ -47,7 +47,8 @@ class FeatureModel(Protocol):
     """What a feature model offers (``cadfeat.cad.design_map``'s models, ``study.verify.AnchoredModel``): its
     holes at the reference design and, at a design ``x``, centres (N, 3) mm, unit axes (N, 3), radii (N,) mm."""
 
-    holes: Sequence[Hole]
+    @property
+    def holes(self) -> Sequence[Hole]: ...
 
     def features(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 

@@ -31,7 +31,7 @@ class GreedyResult:
 
     order: list[int]
     values: list[float]
-    evaluations: list[int] = field(default_factory=list)
+    evaluations: list[int] = field(default_factory=list[int])
 
 
 def _feasible(conflicts: np.ndarray, chosen: list[int]) -> np.ndarray:

@@ -15,9 +15,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.camera import Camera
 
 __all__ = ["CHUNK", "PoseScene", "TargetObjective"]
 
@@ -31,7 +34,7 @@ class PoseScene:
     rotation length ℓ (mm), the aggregate ("rms", "worst", "logdet"), the cell's models and grey-level noise, and
     g_POSE's glare maps with the cell (``design.pose_terms.designs_glare_rate``)."""
 
-    camera: Any
+    camera: Camera
     T_cam_part: np.ndarray
     rotation_length_mm: float
     aggregate: str

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cadfeat.cad.features import FaceOutline
 from cadfeat.design.added_targets.objective import TargetObjective
 from cadfeat.design.added_targets.sites import FaceRules, site_margins
 
@@ -76,7 +77,7 @@ class _State:
 def _rules_at(rules: Sequence[FaceRules], c: np.ndarray, a: np.ndarray, r: np.ndarray) -> list[FaceRules]:
     """Each face's rules with the part's holes where they are (rim centres c (N0, 3), axes, radii): the holes
     whose rim lies on the face's plane."""
-    out = []
+    out: list[FaceRules] = []
     for rule in rules:
         o = rule.outline
         on = (np.abs((c - o.origin) @ o.normal) < 1e-4) & (a @ o.normal > 1 - 1e-6)
@@ -97,18 +98,24 @@ def _added_ok(uv: np.ndarray, hole: int, faces: np.ndarray, rules: Sequence[Face
     return ok
 
 
-def _added_trials(st: _State, step: float, faces: np.ndarray, rules: Sequence[FaceRules], outlines: list,
-                  objective: TargetObjective, occlude: Occlude) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
+Moves = list[tuple[int, np.ndarray]]
+"""Moves of the added holes: (which hole, its new face coordinates (2,) mm)."""
+
+
+def _added_trials(st: _State, step: float, faces: np.ndarray, rules: Sequence[FaceRules],
+                  outlines: list[FaceOutline], objective: TargetObjective, occlude: Occlude
+                  ) -> tuple[Moves, np.ndarray, np.ndarray, np.ndarray]:
     """The feasible moves of the added holes: (moves (hole, uv), centres (T, k, 3), occlusion (T, L, k), base)."""
     k = len(st.uv)
+    none: Moves = []
     if k == 0:
-        return [], np.zeros((0, 0, 3)), np.zeros((0,) + st.occ.shape), np.zeros(0)
+        return none, np.zeros((0, 0, 3)), np.zeros((0,) + st.occ.shape), np.zeros(0)
     face_rules = _rules_at(rules, st.base[0], st.base[1], st.base[2])
     trial = st.uv[:, None] + step * _DIRECTIONS[None]                                  # (k, 4, 2)
     ok = np.stack([_added_ok(trial[i], i, faces, face_rules, st.uv, objective.rim_radius_mm) for i in range(k)])
     who, way = np.nonzero(ok)
     if not who.size:
-        return [], np.zeros((0, k, 3)), np.zeros((0,) + st.occ.shape), np.zeros(0)
+        return none, np.zeros((0, k, 3)), np.zeros((0,) + st.occ.shape), np.zeros(0)
     moved = np.stack([outlines[i].to_3d(trial[i, w]) for i, w in zip(who, way, strict=True)])
     n = len(who)
     hidden = occlude(moved, st.axes[who], np.full(n, objective.rim_radius_mm), np.zeros(n, bool),
@@ -146,14 +153,14 @@ def _variable_trials(st: _State, step: float, movable: Movable, faces: np.ndarra
     return X, (c, a, r, occ)
 
 
-def refine(objective: TargetObjective, rules: Sequence[FaceRules], faces: Sequence[int], uv0: np.ndarray,
+def refine(objective: TargetObjective, rules: Sequence[FaceRules], faces: Sequence[int] | np.ndarray, uv0: np.ndarray,
            occlude: Occlude, step_mm: float, min_step_mm: float = 0.25, max_iterations: int = 40,
            movable: Movable | None = None) -> Refined:
     """Compass search of the added holes' face coordinates ``uv0`` (k, 2) on their faces (``faces`` (k,) indices
     into ``rules``) and, with ``movable``, of the study's position variables, from ``step_mm`` down to
     ``min_step_mm`` (module docstring)."""
     faces_a = np.asarray(faces, int)
-    outlines = [rules[f].outline for f in faces_a]
+    outlines = [rules[int(f)].outline for f in faces_a]
     uv = np.asarray(uv0, float).copy()
     axes = np.stack([o.normal for o in outlines]).reshape(-1, 3)
     centres = np.stack([o.to_3d(p) for o, p in zip(outlines, uv, strict=True)]).reshape(-1, 3)
@@ -178,8 +185,8 @@ def refine(objective: TargetObjective, rules: Sequence[FaceRules], faces: Sequen
 
 
 def _best_move(st: _State, step: float, objective: TargetObjective, rules: Sequence[FaceRules], faces: np.ndarray,
-               outlines: list, occlude: Occlude, movable: Movable | None) -> tuple[int, Callable[[_State], None] | None,
-                                                                                 float]:
+               outlines: list[FaceOutline], occlude: Occlude, movable: Movable | None
+               ) -> tuple[int, Callable[[_State], None] | None, float]:
     """(designs evaluated, the best feasible move as a function applying it to the state, its g_POSE)."""
     moves, C, O, _ = _added_trials(st, step, faces, rules, outlines, objective, occlude)
     T = len(moves)

@@ -71,9 +71,10 @@ def face_grid(outline: FaceOutline, pitch_mm: float) -> np.ndarray:
     """(G, 2) face coordinates (mm) of a square grid of ``pitch_mm`` over the face's bounding box, centred on it
     (so a symmetric face gets a symmetric grid)."""
     lo, hi = outline.outer.min(axis=0), outline.outer.max(axis=0)
-    mid, n = 0.5 * (lo + hi), np.floor(0.5 * (hi - lo) / pitch_mm).astype(int)
-    s = mid[0] + pitch_mm * np.arange(-n[0], n[0] + 1)
-    t = mid[1] + pitch_mm * np.arange(-n[1], n[1] + 1)
+    mid: np.ndarray = 0.5 * (lo + hi)
+    n: np.ndarray = np.floor(0.5 * (hi - lo) / pitch_mm).astype(int)
+    s: np.ndarray = mid[0] + pitch_mm * np.arange(-int(n[0]), int(n[0]) + 1)
+    t: np.ndarray = mid[1] + pitch_mm * np.arange(-int(n[1]), int(n[1]) + 1)
     S, T = np.meshgrid(s, t, indexing="ij")
     return np.stack([S.ravel(), T.ravel()], axis=-1)
 
@@ -128,7 +129,7 @@ def site_margins(uv: np.ndarray, rules: FaceRules) -> dict[str, np.ndarray]:
 
 def sites_on_faces(rules: Sequence[FaceRules], pitch_mm: float) -> Sites:
     """The feasible grid sites (every margin ≥ 0) of each face of ``rules`` (``face_grid`` of ``pitch_mm``)."""
-    parts = []
+    parts: list[tuple[np.ndarray, ...]] = []
     for f, r in enumerate(rules):
         uv = face_grid(r.outline, pitch_mm)
         m = np.min(np.stack(list(site_margins(uv, r).values())), axis=0)

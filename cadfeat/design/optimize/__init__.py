@@ -26,12 +26,12 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, cast
+from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
 
-from cadfeat.design.optimize.evaluator import FEAS_TOL, Evaluator
+from cadfeat.design.optimize.evaluator import FEAS_TOL, Best, Evaluator, best_of
 from cadfeat.design.optimize.solvers import (
     global_solve,
     leximin_refine,
@@ -40,7 +40,14 @@ from cadfeat.design.optimize.solvers import (
     pareto_solve,
     snap_candidates,
 )
+from cadfeat.results import JsonDict
 from cadfeat.settings import Settings, boolean, choice, context_of, integer, number, reject, seed_from_context
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.optimize.evaluator import OptimProblem
 
 __all__ = ["FEAS_TOL", "METHODS", "OptimResult", "OptimizerConfig", "optimise", "solve_with_cad"]
 
@@ -60,9 +67,9 @@ class OptimizerConfig(Settings):
     section: ClassVar[str] = "optimizer"
 
     method: str = choice("multistart", METHODS)
-    starts: int = Field(8, description="multistart: number of local starts",
+    starts: int = Field(default=8, description="multistart: number of local starts",
                         json_schema_extra={"minimum": 1, "x-allowed": "an integer ≥ 1 (≤ the study's size limit)"})
-    maxiter: int = Field(100, description="iterations of each local solve",
+    maxiter: int = Field(default=100, description="iterations of each local solve",
                          json_schema_extra={"minimum": 1, "x-allowed": "an integer ≥ 1 (≤ the study's size limit)"})
     seed: int = integer(0, 0, 2**32 - 1)
     local_solver: str = choice("SLSQP", LOCAL_SOLVERS)
@@ -105,30 +112,28 @@ class OptimResult:
 
     x_best: np.ndarray
     f_best: float
-    history: list[dict]
+    history: list[JsonDict]
     interrupted: bool
-    pareto: dict | None
+    pareto: JsonDict | None
     n_evals: int
     time_s: float
     combined_best: float = float("nan")
-    objectives_best: dict[str, float] = field(default_factory=dict)
+    objectives_best: dict[str, float] = field(default_factory=dict[str, float])
     feasible: bool = False
     max_violation: float = 0.0
     message: str = ""
-    starts: list[dict] = field(default_factory=list)
-    cad_rounds: list[dict] = field(default_factory=list)
-    holes: list | None = None
+    starts: list[JsonDict] = field(default_factory=list[JsonDict])
+    cad_rounds: list[JsonDict] = field(default_factory=list[JsonDict])
+    holes: list[Hole] | None = None
 
 
-def _result(ev: Evaluator, problem: Any, t0: float, interrupted: bool, n0: int, pareto: dict | None = None,
-            starts: list | None = None, message: str = "") -> OptimResult:
+def _result(ev: Evaluator, problem: OptimProblem, t0: float, interrupted: bool, n0: int, pareto: JsonDict | None = None,
+            starts: list[JsonDict] | None = None, message: str = "") -> OptimResult:
     best = ev.best
     if best is None:  # interrupted before any evaluation
         x = problem.space.x0.copy()
         G, C = problem.evaluate_batch(x[None])
-        best = {"x": x, "combined": float(problem.combined_from(G[0])), "G": G[0], "C": C[0],
-                "violation": float(max(0.0, -C[0].min(initial=0.0)))}
-        best["feasible"] = best["violation"] <= FEAS_TOL
+        best = best_of(x, float(problem.combined_from(G[0])), G[0], C[0])
     if not message:
         message = ("interrupted: best design so far" if interrupted else
                    "feasible optimum" if best["feasible"] else "no feasible design found: least violation")
@@ -138,8 +143,8 @@ def _result(ev: Evaluator, problem: Any, t0: float, interrupted: bool, n0: int, 
                        float(best["violation"]), message, starts or [])
 
 
-def optimise(problem: Any, config: OptimizerConfig | None = None,
-             progress: Callable[[dict], None] | None = None, *, x_start: np.ndarray | None = None,
+def optimise(problem: OptimProblem, config: OptimizerConfig | None = None,
+             progress: Callable[[JsonDict], None] | None = None, *, x_start: np.ndarray | None = None,
              bounds: tuple[np.ndarray, np.ndarray] | None = None) -> OptimResult:
     """Optimise ``problem`` (module docstring). ``x_start`` replaces the initial design; ``bounds`` (lower,
     upper) restricts the search box (the trust region of ``solve_with_cad``)."""
@@ -148,15 +153,15 @@ def optimise(problem: Any, config: OptimizerConfig | None = None,
     n0 = problem.n_evals
     x_start = problem.space.x0 if x_start is None else np.asarray(x_start, dtype=float)
     ev = Evaluator(problem, x_start, progress=progress, t0=t0, bounds=bounds)
-    pareto, starts, interrupted = None, [], False
+    pareto: JsonDict | None = None
+    starts: list[JsonDict] = []
+    interrupted = False
     try:
         if config.method == "pareto":
             pareto = pareto_solve(ev, config)
             x = np.asarray(pareto["x"][pareto["chosen"]])
             G, C = ev.batch(ev.to_u(x)[None])
-            ev.best = {"x": x, "combined": float(problem.combined_from(G[0])), "G": G[0], "C": C[0],
-                       "violation": float(max(0.0, -C[0].min(initial=0.0)))}
-            ev.best["feasible"] = ev.best["violation"] <= FEAS_TOL
+            ev.best = best_of(x, float(problem.combined_from(G[0])), G[0], C[0])
         elif config.method == "global":
             global_solve(ev, config)
         elif config.method == "local":
@@ -172,13 +177,14 @@ def optimise(problem: Any, config: OptimizerConfig | None = None,
     return _result(ev, problem, t0, interrupted, n0, pareto, starts)
 
 
-def _snap(ev: Evaluator, problem: Any, config: OptimizerConfig) -> None:
+def _snap(ev: Evaluator, problem: OptimProblem, config: OptimizerConfig) -> None:
     """Snap standard-size variables of the best design and re-solve the others with them fixed."""
     space = problem.space
+    assert ev.best is not None  # (called after the solves: they evaluated designs)
     x_cont = ev.best["x"].copy()
     free = np.flatnonzero(~space.discrete)
     candidates = snap_candidates(space, x_cont)
-    results = []
+    results: list[Best] = []
     for k, x in enumerate(candidates):
         sub = ev.sub(x, free)
         sub.phase, sub.start = "snap", k
@@ -186,12 +192,13 @@ def _snap(ev: Evaluator, problem: Any, config: OptimizerConfig) -> None:
             local_solve(sub, sub.to_u(x), config)
         else:
             sub.batch(np.zeros((1, 0)))
+        assert sub.best is not None  # (the sub-evaluator evaluated its designs)
         results.append(sub.best)
     feasible = [r for r in results if r["feasible"]]
     pool = feasible or sorted(results, key=lambda r: r["violation"])[:1]
     best = pool[0]
     for r in pool[1:]:
-        if r["feasible"] and best["feasible"] and ev._improves(r["G"], best) or not best["feasible"] and \
+        if r["feasible"] and best["feasible"] and ev.improves(r["G"], best) or not best["feasible"] and \
                 r["violation"] < best["violation"]:
             best = r
     ev.best = best

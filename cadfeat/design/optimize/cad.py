@@ -25,36 +25,40 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.cad.features import Hole, holes_to_arrays, match_holes
-from cadfeat.design.design_space import LinearFeatureModel
+from cadfeat.design.design_space import FeatureModel, LinearFeatureModel
 from cadfeat.design.optimize import FEAS_TOL, OptimizerConfig, OptimResult, optimise
 from cadfeat.errors import CadfeatError
+from cadfeat.results import JsonDict
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.optimize.evaluator import CadProblem
 
 
-def _predicted_holes(model: Any, x: np.ndarray) -> list[Hole]:
+def _predicted_holes(model: FeatureModel, x: np.ndarray) -> list[Hole]:
     c, a, r = model.features(x)
     return [dataclasses.replace(h, centre=c[i], axis=a[i], radius_mm=float(r[i])) for i, h in enumerate(model.holes)]
 
 
-def _ordered(model: Any, x: np.ndarray, holes: list[Hole], match_tol_mm: float) -> tuple[list[Hole], float]:
+def _ordered(model: FeatureModel, x: np.ndarray, holes: list[Hole], match_tol_mm: float) -> tuple[list[Hole], float]:
     """Extracted ``holes`` in the model's order (matched to the prediction at x) and the largest error
     ‖Δcentre‖ + |Δradius| (mm)."""
     predicted = _predicted_holes(model, x)
     if len(holes) != len(predicted):  # (match_holes would pair a subset of extra holes)
         raise CadfeatError(f"CAD rebuild: {len(holes)} holes found, {len(predicted)} designed")
     idx = match_holes(predicted, holes, tol_mm=match_tol_mm, axis_tol_rad=1e-3)
-    ordered = [holes[i] for i in idx]
+    ordered = [holes[int(i)] for i in idx]
     c_p, _, r_p = holes_to_arrays(predicted)
     c_r, _, r_r = holes_to_arrays(ordered)
     err = float(np.max(np.linalg.norm(c_r - c_p, axis=1) + np.abs(r_r - r_p), initial=0.0))
     return ordered, err
 
 
-def _candidate(problem: Any, x: np.ndarray, holes: list[Hole]) -> dict:
+def _candidate(problem: CadProblem, x: np.ndarray, holes: list[Hole]) -> JsonDict:
     """A CAD-evaluated design: ``x`` with its extracted ``holes`` (model order), its true combined objective,
     objectives, feasibility and largest constraint violation."""
     c, a, r = holes_to_arrays(holes)
@@ -66,7 +70,7 @@ def _candidate(problem: Any, x: np.ndarray, holes: list[Hole]) -> dict:
             "violation": violation, "holes": holes}
 
 
-def _anchor_candidate(problem: Any, x: np.ndarray) -> dict | None:
+def _anchor_candidate(problem: CadProblem, x: np.ndarray) -> JsonDict | None:
     """The feature model's anchor as a CAD-evaluated design: the set-up built it (the model's reference holes are
     its extracted holes), so it is the fallback when no round's design builds (issue 16: a failing region next to
     the anchor must not leave the loop without a buildable answer)."""
@@ -85,17 +89,17 @@ class _TrustRegionLoop:
     combined objective, the region's half-widths ``radius`` (None: the whole box), the feature model ``prob``
     (refreshed each round), the rounds so far and the best CAD-evaluated design ``verified``."""
 
-    def __init__(self, problem: Any, rebuild: Callable[[np.ndarray], list[Hole]], config: OptimizerConfig,
+    def __init__(self, problem: CadProblem, rebuild: Callable[[np.ndarray], list[Hole]], config: OptimizerConfig,
                  refresh: Callable[[np.ndarray, list[Hole]], Any] | None, *, max_rounds: int, tol_mm: float,
                  match_tol_mm: float, shrink: float, fd_rel_step: float,
-                 progress: Callable[[dict], None] | None) -> None:
+                 progress: Callable[[JsonDict], None] | None) -> None:
         self.t0 = time.perf_counter()
         self.n0 = problem.n_evals
         self.problem, self.rebuild, self.config, self.progress = problem, rebuild, config, progress
         self.max_rounds, self.tol_mm, self.match_tol_mm = max_rounds, tol_mm, match_tol_mm
         self.shrink, self.fd_rel_step = shrink, fd_rel_step
         self.space = problem.space
-        self.history: list[dict] = []
+        self.history: list[JsonDict] = []
         self.refresh = refresh or self._default_refresh
         self.prob = problem
         # the first centre of the trust region: the feature model's own anchor (a design that was built), not the
@@ -105,8 +109,8 @@ class _TrustRegionLoop:
         self.x_c = space.x0.copy() if anchor is None or np.shape(anchor) != space.x0.shape else space.clip(anchor)
         self.centre_value: float | None = None
         self.radius: np.ndarray | None = None
-        self.rounds: list[dict] = []
-        self.verified: dict | None = _anchor_candidate(problem, self.x_c) if anchor is not None else None
+        self.rounds: list[JsonDict] = []
+        self.verified: JsonDict | None = _anchor_candidate(problem, self.x_c) if anchor is not None else None
         self.rebuilt = False  # whether a round's design has been rebuilt yet (an interrupt before: the feature optimum)
         self.agreed = 0  # the round whose rebuild agreed with the model, when failed rebuilds had cut the region short
         self.last: OptimResult | None = None
@@ -117,7 +121,7 @@ class _TrustRegionLoop:
         return LinearFeatureModel.from_rebuild(self.rebuild, x, steps, holes0=holes,
                                                names=self.space.names, match_tol_mm=self.match_tol_mm)
 
-    def _progress_all(self, entry: dict) -> None:
+    def _progress_all(self, entry: JsonDict) -> None:
         self.history.append(entry)
         if self.progress is not None:
             self.progress(entry)
@@ -169,10 +173,12 @@ class _TrustRegionLoop:
         if res is None or res.interrupted:
             if not self.rebuilt and res is not None:
                 return self._finish(res, True, _FEATURE_OPTIMUM)
-            return self._finish(res or self.last, True, _BEST_VERIFIED)
+            last = res or self.last
+            assert last is not None  # (optimise returns a result, interrupted or not)
+            return self._finish(last, True, _BEST_VERIFIED)
         self.last = res
         x_new = res.x_best
-        entry: dict[str, Any] = {"round": k + 1, "x": x_new.tolist(), "predicted_combined": res.combined_best,
+        entry: JsonDict = {"round": k + 1, "x": x_new.tolist(), "predicted_combined": res.combined_best,
                                  "radius": None if radius is None else radius.tolist()}
         try:
             extracted = list(self.rebuild(x_new))
@@ -197,7 +203,7 @@ class _TrustRegionLoop:
             return self._agree(k, res, candidate, err)
         return self._move(res, candidate["combined"], holes, entry)
 
-    def _agree(self, k: int, res: OptimResult, candidate: dict, err: float) -> OptimResult | None:
+    def _agree(self, k: int, res: OptimResult, candidate: JsonDict, err: float) -> OptimResult | None:
         """The rebuild agreed with the model: the answer, unless failed rebuilds had cut the region short."""
         cut_short = self.radius is not None and any(r["status"] == "rebuild failed" for r in self.rounds)
         if not cut_short or k == self.max_rounds - 1:
@@ -212,7 +218,7 @@ class _TrustRegionLoop:
         self._shrink_region()
         return None
 
-    def _move(self, res: OptimResult, combined: float, holes: list[Hole], entry: dict[str, Any]) -> OptimResult | None:
+    def _move(self, res: OptimResult, combined: float, holes: list[Hole], entry: JsonDict) -> OptimResult | None:
         """The rebuild differed from the model: move the centre there (or shrink the region if it is worse) and
         refresh the map at the rebuilt point; the result if interrupted, else None."""
         x_new = res.x_best
@@ -240,10 +246,11 @@ class _TrustRegionLoop:
 MATCH_TOL_MM = 5.0
 
 
-def solve_with_cad(problem: Any, rebuild: Callable[[np.ndarray], list[Hole]], config: OptimizerConfig | None = None,
+def solve_with_cad(problem: CadProblem, rebuild: Callable[[np.ndarray], list[Hole]],
+                   config: OptimizerConfig | None = None,
                    *, refresh: Callable[[np.ndarray, list[Hole]], Any] | None = None, max_rounds: int = 6,
                    tol_mm: float = 1e-6, match_tol_mm: float = MATCH_TOL_MM, shrink: float = 0.5,
-                   fd_rel_step: float = 1e-4, progress: Callable[[dict], None] | None = None) -> OptimResult:
+                   fd_rel_step: float = 1e-4, progress: Callable[[JsonDict], None] | None = None) -> OptimResult:
     """Optimise ``problem`` on its feature model and verify with CAD (module docstring).
 
     ``rebuild(x) -> list[Hole]``: build the part at design x and extract its holes (any order; raising =

@@ -9,12 +9,16 @@ returns.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, Protocol, TypedDict
 
 import numpy as np
 
 from cadfeat.design.objectives import leximin_better
+from cadfeat.results import JsonDict
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.design_space import DesignSpace, FeatureModel
 
 FEAS_TOL = 1e-6
 """A design is feasible when every constraint margin is ≥ −FEAS_TOL (mm, or normalised units)."""
@@ -22,12 +26,92 @@ LEXIMIN_TOL = 1e-8
 """Normalised objectives within this of each other count as tied (max-min then compares the next-worst)."""
 
 
+class Best(TypedDict):
+    """A design an evaluator has seen (its best so far, ``Evaluator.best``): the design ``x`` (P,), its combined
+    objective, raw objectives G (K,) and margins C (M,), whether it is feasible and its largest violation."""
+
+    x: np.ndarray
+    combined: float
+    G: np.ndarray
+    C: np.ndarray
+    feasible: bool
+    violation: float
+
+
+def best_of(x: np.ndarray, combined: float, G: np.ndarray, C: np.ndarray) -> Best:
+    """The ``Best`` record of a design evaluated to ``G`` and ``C`` (feasible when its violation is within
+    ``FEAS_TOL``)."""
+    violation = float(max(0.0, -C.min(initial=0.0)))
+    return {"x": x, "combined": combined, "G": G, "C": C, "feasible": violation <= FEAS_TOL, "violation": violation}
+
+
+class Combination(Protocol):
+    """What the optimisers read of an objective configuration: how the objectives combine ("weighted", "maxmin",
+    "constraint", "pareto")."""
+
+    @property
+    def combine(self) -> str: ...
+
+
+class OptimProblem(Protocol):
+    """What the optimisers read of a problem: ``design.problem.Problem`` and ``design.robust.RobustProblem`` are
+    such problems (a protocol: ``problem`` imports the optimisers)."""
+
+    @property
+    def space(self) -> DesignSpace: ...
+    @property
+    def names(self) -> Sequence[str]: ...
+    @property
+    def objective_config(self) -> Combination: ...
+    @property
+    def scales(self) -> np.ndarray: ...
+    @property
+    def combined_idx(self) -> np.ndarray: ...
+    @property
+    def n_evals(self) -> int: ...
+
+    def evaluate_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Raw objectives G (B, K) and constraint margins C (B, M) of designs X (B, P)."""
+        ...
+
+    def combined_from(self, G: np.ndarray) -> np.ndarray:
+        """The scalar to maximise (...,) from raw objectives G (..., K)."""
+        ...
+
+    def normalised(self, G: np.ndarray) -> np.ndarray:
+        """Normalised objectives (..., K)."""
+        ...
+
+
+class CadProblem(OptimProblem, Protocol):
+    """What the CAD trust-region loop (``optimize.cad``) reads besides: the feature model, objectives and margins
+    of CAD-extracted features, and the same problem on a refreshed model (``design.problem.Problem``)."""
+
+    @property
+    def model(self) -> FeatureModel: ...
+
+    def with_model(self, model: FeatureModel) -> CadProblem:
+        """The same problem on another feature model."""
+        ...
+
+    def features_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
+                            exact_occlusion: bool = False, depth_mm: Sequence[float] | np.ndarray | None = None
+                            ) -> np.ndarray:
+        """Raw aggregated objectives (K,) of hole features."""
+        ...
+
+    def features_constraints(self, centres: np.ndarray, radii: np.ndarray, g: np.ndarray,
+                             X: np.ndarray | None = None) -> np.ndarray:
+        """Constraint margins (..., M) of features and raw objectives."""
+        ...
+
+
 class Evaluator:
     """Batched, cached evaluation of a ``Problem`` on the free variables ``free`` (others at ``x_base``)."""
 
-    def __init__(self, problem: Any, x_base: np.ndarray, free: np.ndarray | None = None,
-                 progress: Callable[[dict], None] | None = None, t0: float | None = None,
-                 history: list[dict] | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None):
+    def __init__(self, problem: OptimProblem, x_base: np.ndarray, free: np.ndarray | None = None,
+                 progress: Callable[[JsonDict], None] | None = None, t0: float | None = None,
+                 history: list[JsonDict] | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None):
         self.problem = problem
         space = problem.space
         lower, upper = (space.lower, space.upper) if bounds is None else bounds
@@ -41,7 +125,7 @@ class Evaluator:
         self.t0 = time.perf_counter() if t0 is None else t0
         self.history = [] if history is None else history
         self._cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-        self.best: dict[str, Any] | None = None  # x, combined, G, C, feasible, violation
+        self.best: Best | None = None
         self.phase = "local"
         self.start = 0
 
@@ -81,20 +165,21 @@ class Evaluator:
         feasible = violation <= FEAS_TOL
         combined = float(self.problem.combined_from(g))
         b = self.best
-        better = (b is None or (feasible and not b["feasible"]) or (feasible and b["feasible"] and self._improves(g, b))
+        better = (b is None or (feasible and not b["feasible"]) or (feasible and b["feasible"] and self.improves(g, b))
                   or (not feasible and not b["feasible"] and violation < b["violation"]))
         if better:
             self.best = {"x": x.copy(), "combined": combined, "G": g.copy(), "C": c.copy(), "feasible": feasible,
                          "violation": violation}
 
-    def _improves(self, g: np.ndarray, best: dict[str, Any]) -> bool:
+    def improves(self, g: np.ndarray, best: Best) -> bool:
         """Whether feasible objectives ``g`` beat the feasible best: by the combined value; for max-min, ties
         (within ``LEXIMIN_TOL``) broken by the next-worst normalised objective, and so on (leximin)."""
         problem = self.problem
-        if problem.objective_config.combine != "maxmin" or not hasattr(problem, "leximin_key"):
+        key = getattr(problem, "leximin_key", None)  # (``Problem`` has it; the robust problem's one value has none)
+        if problem.objective_config.combine != "maxmin" or key is None:
             return float(problem.combined_from(g)) > best["combined"]
 
-        return leximin_better(problem.leximin_key(g), problem.leximin_key(best["G"]), LEXIMIN_TOL)
+        return leximin_better(key(g), key(best["G"]), LEXIMIN_TOL)
 
     def combined(self, U: np.ndarray) -> np.ndarray:
         G, _ = self.batch(U)
@@ -115,7 +200,7 @@ class Evaluator:
         return G[0], C[0], dG, dC
 
     # -------------------------------------------------------------------------------------- history
-    def record(self, iteration: int, G: np.ndarray, C: np.ndarray, **extra: Any) -> dict:
+    def record(self, iteration: int, G: np.ndarray, C: np.ndarray, **extra: Any) -> JsonDict:
         """Append a history entry (and report it to ``progress``, which may raise KeyboardInterrupt)."""
         violation = float(max(0.0, -np.min(C, initial=0.0)))
         entry = {"iteration": len(self.history), "phase": self.phase, "start": self.start, "local_iteration": iteration,

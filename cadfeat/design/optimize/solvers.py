@@ -5,11 +5,17 @@ from __future__ import annotations
 
 import itertools
 import warnings
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cadfeat.design.optimize.evaluator import Evaluator
+from cadfeat.results import JsonDict
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.design.design_space import DesignSpace
+    from cadfeat.design.optimize import OptimizerConfig
+    from cadfeat.design.optimize.evaluator import OptimProblem
 
 
 # -------------------------------------------------------------------------------------------- local
@@ -17,12 +23,12 @@ class _LocalFunctions:
     """The local solve's objective and constraints (maximise the combined objective, constraints C ≥ 0) on
     z = u (the free variables' unit coordinates), with finite-difference Jacobians (``local_solve``)."""
 
-    def __init__(self, ev: Evaluator, config: Any, p: int) -> None:
+    def __init__(self, ev: Evaluator, config: OptimizerConfig, p: int) -> None:
         self.ev, self.config, self.p = ev, config, p
         self.problem = ev.problem
         self.iteration = 0
 
-    def grads(self, z: np.ndarray) -> tuple:
+    def grads(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         return self.ev.gradients(z[:self.p], self.config.fd_step)
 
     def values(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -65,7 +71,7 @@ class _EpigraphFunctions(_LocalFunctions):
     """Max-min in epigraph form on z = (u, τ): maximise τ subject to C ≥ 0, ĝ_i(u) − τ ≥ 0 (i in ``use``) and
     ĝ_i(u) − floor_i ≥ 0 (``floors``)."""
 
-    def __init__(self, ev: Evaluator, config: Any, p: int, use: np.ndarray, fl_idx: np.ndarray,
+    def __init__(self, ev: Evaluator, config: OptimizerConfig, p: int, use: np.ndarray, fl_idx: np.ndarray,
                  fl_val: np.ndarray) -> None:
         super().__init__(ev, config, p)
         self.use, self.fl_idx, self.fl_val = use, fl_idx, fl_val
@@ -95,7 +101,7 @@ class _EpigraphFunctions(_LocalFunctions):
         return np.append(np.zeros(self.p), -np.inf), np.append(np.ones(self.p), np.inf)
 
 
-def local_solve(ev: Evaluator, u0: np.ndarray, config: Any, *, use: np.ndarray | None = None,
+def local_solve(ev: Evaluator, u0: np.ndarray, config: OptimizerConfig, *, use: np.ndarray | None = None,
                 floors: dict[int, float] | None = None) -> np.ndarray:
     """One local solve from u0 (unit coordinates of the free variables); returns the final u.
 
@@ -123,7 +129,7 @@ def local_solve(ev: Evaluator, u0: np.ndarray, config: Any, *, use: np.ndarray |
     return _minimize(f, z0, n_cons, config)
 
 
-def _minimize(f: _LocalFunctions, z0: np.ndarray, n_cons: int, config: Any) -> np.ndarray:
+def _minimize(f: _LocalFunctions, z0: np.ndarray, n_cons: int, config: OptimizerConfig) -> np.ndarray:
     """``scipy.optimize.minimize`` (``config.local_solver``: SLSQP or trust-constr) of ``f`` from z0 with
     ``n_cons`` constraints; the final u clipped to the unit box."""
     from scipy.optimize import Bounds, NonlinearConstraint, minimize
@@ -147,7 +153,7 @@ def _minimize(f: _LocalFunctions, z0: np.ndarray, n_cons: int, config: Any) -> n
     return np.clip(np.asarray(res.x)[:f.p], 0.0, 1.0)
 
 
-def _combine_weights(problem: Any, G: np.ndarray) -> np.ndarray:
+def _combine_weights(problem: OptimProblem, G: np.ndarray) -> np.ndarray:
     """∂combined/∂G (K,) at G by finite differences of ``combined_from`` (exact for the linear combinations)."""
     K = G.size
     eps = 1e-6 * np.maximum(np.abs(G), problem.scales)
@@ -156,7 +162,7 @@ def _combine_weights(problem: Any, G: np.ndarray) -> np.ndarray:
     return (np.asarray(problem.combined_from(Gp)) - np.asarray(problem.combined_from(Gm))) / (2 * eps)[:K]
 
 
-def leximin_refine(ev: Evaluator, config: Any, tol: float = 1e-8) -> None:
+def leximin_refine(ev: Evaluator, config: OptimizerConfig, tol: float = 1e-8) -> None:
     """Break max-min ties by leximin: from the best design, fix the worst normalised objective at its value
     (− ``tol``) and maximise the smallest of the others, then the next, ... (K' − 1 local solves). The
     evaluator's best design is compared leximin-wise (``Evaluator._consider``), so the result is the
@@ -188,7 +194,7 @@ def sobol_starts(p: int, n: int, seed: int) -> np.ndarray:
     return qmc.Sobol(d=p, scramble=True, seed=seed).random_base2(m)[:n]
 
 
-def multistart(ev: Evaluator, config: Any) -> list[dict]:
+def multistart(ev: Evaluator, config: OptimizerConfig) -> list[JsonDict]:
     """Local solves from ``config.starts`` points of a seeded Sobol design of the search box (they cover it
     whatever the initial design), then from the initial design as one extra start; one summary per start.
 
@@ -197,7 +203,7 @@ def multistart(ev: Evaluator, config: Any) -> list[dict]:
     the answer does not depend on where the part's current values happen to be (issue 16)."""
     u0 = ev.to_u(ev.x_base)
     starts = np.vstack([sobol_starts(u0.size, config.starts, config.seed), u0[None]])
-    summaries = []
+    summaries: list[JsonDict] = []
     for k, u in enumerate(starts):
         ev.start = k
         u_end = local_solve(ev, u, config)
@@ -210,7 +216,7 @@ def multistart(ev: Evaluator, config: Any) -> list[dict]:
 
 
 # ---------------------------------------------------------------------------------------- global
-def global_solve(ev: Evaluator, config: Any) -> np.ndarray:
+def global_solve(ev: Evaluator, config: OptimizerConfig) -> np.ndarray:
     """``scipy.optimize.differential_evolution`` (seeded) on the combined objective with the margins as
     constraints, then a local polish from its best point."""
     from scipy.optimize import NonlinearConstraint, differential_evolution
@@ -236,7 +242,7 @@ def global_solve(ev: Evaluator, config: Any) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------- Pareto
-def pareto_solve(ev: Evaluator, config: Any) -> dict:
+def pareto_solve(ev: Evaluator, config: OptimizerConfig) -> JsonDict:
     """NSGA-II (pymoo, seeded) on the normalised objectives; the front and its max-min point."""
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.callback import Callback
@@ -251,7 +257,7 @@ def pareto_solve(ev: Evaluator, config: Any) -> dict:
         def __init__(self) -> None:
             super().__init__(n_var=ev.free.size, n_obj=use.size, n_ieq_constr=n_cons, xl=0.0, xu=1.0)
 
-        def _evaluate(self, U: np.ndarray, out: dict, *args: Any, **kwargs: Any) -> None:
+        def _evaluate(self, U: np.ndarray, out: JsonDict, *args: Any, **kwargs: Any) -> None:
             G, C = ev.batch(U)
             out["F"] = -problem.normalised(G)[:, use]
             if n_cons:
@@ -282,18 +288,18 @@ def pareto_solve(ev: Evaluator, config: Any) -> dict:
 
 
 # ------------------------------------------------------------------------------------------- snap
-def snap_candidates(space: Any, x: np.ndarray, max_combinations: int = 16) -> list[np.ndarray]:
+def snap_candidates(space: DesignSpace, x: np.ndarray, max_combinations: int = 16) -> list[np.ndarray]:
     """Designs with every standard-size variable at one of its two nearest sizes (all combinations when at
     most ``max_combinations``, else the nearest size only)."""
     disc = np.flatnonzero(space.discrete)
-    options = []
+    options: list[np.ndarray] = []
     for i in disc:
         sizes = np.asarray(space.variables[i].standard_sizes, dtype=float)
         order = np.argsort(np.abs(sizes - x[i]), kind="stable")
         options.append(sizes[order[:2]])
     if np.prod([len(o) for o in options]) > max_combinations:
         options = [o[:1] for o in options]
-    out = []
+    out: list[np.ndarray] = []
     for combo in itertools.product(*options):
         y = np.array(x, dtype=float)
         y[disc] = combo

@@ -12,8 +12,7 @@ import json
 
 import jsonschema
 import pytest
-from study_helpers import STEP, compare_results_tool
-from test_study_run import SMALL, no_report
+from study_helpers import SMALL, STEP, compare_results_tool, no_report
 
 from cadfeat.cli import main
 from cadfeat.results import SCHEMA_VERSION, StudyResults

@@ -4,7 +4,8 @@ refused by the schema and by the model alike.
 
 Independent reference: the ``jsonschema`` library (Draft 2020-12) on ``cadfeat schema --results``'s output, each
 section checked against its own definition; ``pose_accuracy`` is computed by ``cadfeat.study.pose_accuracy`` on
-the report fixture's re-extracted holes, ``robustness`` is the hand-written block of test_robust_report.py.
+the report fixture's re-extracted holes, ``robustness`` is the hand-written block of
+``report_fixture.robustness_block``.
 """
 
 from __future__ import annotations
@@ -16,8 +17,7 @@ import jsonschema
 import numpy as np
 import pydantic
 import pytest
-from report_fixture import shared_case
-from test_robust_report import _robustness
+from report_fixture import robustness_block, shared_case
 
 from cadfeat.cli import main
 from cadfeat.poses import invert_T
@@ -60,7 +60,7 @@ def test_pose_accuracy_meets_the_schema_and_reads_typed(schema, pose_block):
 
 
 def test_robust_designs_meet_the_schema_and_read_typed(schema):
-    block = json.loads(json.dumps(_robustness("robust")))
+    block = json.loads(json.dumps(robustness_block("robust")))
     assert not [e.message for e in _validator(schema, "robustness").iter_errors(block)]
     typed = section({"robustness": block}, "robustness", Robustness)
     assert typed is not None and typed.to_data() == block
@@ -79,7 +79,7 @@ def test_planted_mistakes_refused_by_schema_and_model(schema, pose_block, plant)
         else:
             del block["before"]["weakest"][0]["phase"]
     else:
-        name, model, block = "robustness", Robustness, json.loads(json.dumps(_robustness("robust")))
+        name, model, block = "robustness", Robustness, json.loads(json.dumps(robustness_block("robust")))
         if plant == "p05 as text":
             block["designs"]["recommended"]["camera"]["combined"]["p05"] = "low"
         else:
