@@ -361,5 +361,5 @@ def with_pose(setup: StudySetup, holes: Sequence[Hole], trajectory: Poses, measu
     T = cam_from_part(trajectory.T_task_cam, setup.T_task_part)
     mesh = mesh if mesh is not None else getattr(setup.problem, "occlusion_mesh", None)
     info, _ = predict(setup.camera, T, holes, mesh, float(setup.config.objective.pose_rotation_length_mm),
-                      cell=setup.config.cell)
+                      cell=setup.config.cell, glare=setup.problem.glare)
     return cast("Measures", _MeasuresWithPose(measures, info))  # (a Measures in all but its class)
