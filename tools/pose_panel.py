@@ -81,7 +81,7 @@ def designs(setup, count: int, seed: int = 0, extremes: int = 0,
     return xs, names, info
 
 
-def score(setup, x, T, times, tuning, model=None, glare=None) -> dict:
+def score(setup, x, T, times, tuning, model=None, glare=None, cell=None) -> dict:
     """Predicted errors of design ``x`` along the frames T (the rows' ``pnp_*`` / ``iekf_*``): RMS over the frames
     after the closed loop's ``settle_frames`` (``TrackingConfig``), the frames its simulated RMS counts
     (``vision.metrics.run_summary``); the per-hole columns over all frames."""
@@ -102,10 +102,11 @@ def score(setup, x, T, times, tuning, model=None, glare=None) -> dict:
     ratio = [h.depth_mm / (2 * h.radius_mm) for h in holes]
     kinds = [h.kind for h in holes]
     rate = None
-    if glare is not None:  # the part's own light on its blind rims (measures.glare), as g_POSE in a metal cell
-        from cadfeat.measures.glare import contrast_rate
+    if glare is not None:  # the part's own light on its blind rims (measures.glare), as g_POSE in ``cell``
+        from cadfeat.design.pose_terms import designs_glare_rate
 
-        rate = np.where([h.through for h in holes], 1.0, contrast_rate(glare, T, c, n, r, 2.0))
+        rate = designs_glare_rate(glare, cell, T, c[None], n[None], np.asarray(r, float)[None],
+                                  np.array([h.through for h in holes]), cell.noise_sigma_grey)
     pi = pose_information(setup.camera, T, c, n, r, occlusion=occ, depth_ratio=ratio, kinds=kinds,
                           through=[h.through for h in holes], prior_sigma=(20.0, 0.1), model=model,
                           contrast_rate=rate)
@@ -144,7 +145,8 @@ def pbr_cell(args: argparse.Namespace, study: Path, setup):
     """``--renderer pbr``: the closed loop of ``cadfeat run --track pbr`` in the study's ``[cell]`` (its light, its
     placement and noise; ``--material`` overrides the finish) — the fast check's frames, ``--runs`` runs, ``--spp``
     samples — and the prediction with that cell's calibrated models (``design.pose_terms.cell_models``).
-    Returns (TrackingConfig, T (F, 4, 4), times (F,), models, glare maps or None (``study.setup.glare_maps_for``))."""
+    Returns (TrackingConfig, T (F, 4, 4), times (F,), models, glare maps or None (``study.setup.glare_maps_for``),
+    the cell)."""
     from dataclasses import replace
 
     from cadfeat.cell.material import Material
@@ -164,7 +166,7 @@ def pbr_cell(args: argparse.Namespace, study: Path, setup):
     config = replace(tracking_config(spec, cell), estimators=("pnp", "iekf"))
     _, T, times, _ = tracked_frames(T_all, np.asarray(traj.times_s), None, config.frame_step)
     glare = glare_maps_for(replace(cfg, cell=cell), setup.shape0, setup.holes0, setup.camera, T)
-    return config, T, times, cell_models(cell), glare
+    return config, T, times, cell_models(cell), glare, cell
 
 
 def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> dict:
@@ -198,9 +200,9 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     config = TrackingConfig(estimators=("pnp", "iekf"), runs=args.runs, sensor=SensorModel(noise_grey=2.0),
                             tuning=tuning, placement_mm=args.placement_mm, placement_deg=args.placement_deg,
                             gain_sigma=args.gain_sigma, seed=args.seed)
-    glare = None
+    glare = cell = None
     if args.renderer == "pbr":
-        config, T, times, model, glare = pbr_cell(args, study, setup)
+        config, T, times, model, glare, cell = pbr_cell(args, study, setup)
         tuning = config.tuning
     T_runs = T[None] @ placement_errors(config, config.runs)[:, None]
     xs, names, spread = designs(setup, args.designs, extremes=args.extremes, candidates=args.candidates)
@@ -211,7 +213,7 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     rows, tracks = [], {}
     for i, (name, x) in enumerate(zip(names, xs, strict=True)):
         start = time.perf_counter()
-        s = score(setup, x, T, times, tuning, model, glare)
+        s = score(setup, x, T, times, tuning, model, glare, cell)
         frames = report_frames(len(T)) if config.renderer == "pbr" else None  # the runs render their placements
         obs = observe(s["shape"], s["holes"], setup.camera, T, config.sensor, frames=frames,
                       renderer=config.renderer, render_options=config.render_options())

@@ -35,6 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from cadfeat.camera import Camera
+from cadfeat.measures.rim_occlusion import rim_points
 
 __all__ = ["C50", "CS", "FULL_SCALE", "SAMPLES", "SURROUND", "GlareMaps", "contrast_rate", "rim_contrast"]
 
@@ -75,16 +76,9 @@ class GlareMaps:
 
 
 def _surround_points(centres: np.ndarray, axes: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """(..., SAMPLES, 3) part-frame points on the circle of ``SURROUND`` × radius around each hole's centre, in the
-    plane normal to its axis (the hole's face)."""
-    a = axes / np.linalg.norm(axes, axis=-1, keepdims=True)
-    helper = np.where(np.abs(a[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
-    u = np.cross(a, helper)
-    u /= np.linalg.norm(u, axis=-1, keepdims=True)
-    v = np.cross(a, u)
-    phi = 2 * np.pi * np.arange(SAMPLES) / SAMPLES
-    ring = np.cos(phi)[:, None] * u[..., None, :] + np.sin(phi)[:, None] * v[..., None, :]
-    return centres[..., None, :] + (SURROUND * radii)[..., None, None] * ring
+    """(M, SAMPLES, 3) part-frame points on the circle of ``SURROUND`` × radius around each hole's centre, in the
+    plane normal to its axis (the hole's face): ``rim_occlusion.rim_points`` of the grown circle."""
+    return rim_points(centres, axes, SURROUND * np.asarray(radii, float), SAMPLES, phase=0.0)
 
 
 def rim_contrast(glare: GlareMaps, T_cam_part: np.ndarray, centres: np.ndarray, axes: np.ndarray,

@@ -25,8 +25,10 @@ from cadfeat.poses import invert_T
 __all__ = ["rim_occlusion", "rim_points"]
 
 
-def rim_points(centres: ArrayLike, normals: ArrayLike, radii_mm: ArrayLike, samples: int = 16) -> np.ndarray:
-    """(N, K, 3) points evenly spaced on each rim circle (part frame, mm)."""
+def rim_points(centres: ArrayLike, normals: ArrayLike, radii_mm: ArrayLike, samples: int = 16,
+               phase: float = 0.5) -> np.ndarray:
+    """(N, K, 3) points evenly spaced on each rim circle (part frame, mm); the first at ``phase`` sample spacings
+    from the circle's in-plane axis u."""
     c = np.asarray(centres, dtype=float)
     n = np.asarray(normals, dtype=float)
     n = n / np.linalg.norm(n, axis=-1, keepdims=True)
@@ -35,7 +37,7 @@ def rim_points(centres: ArrayLike, normals: ArrayLike, radii_mm: ArrayLike, samp
     u = np.cross(n, helper)
     u /= np.linalg.norm(u, axis=-1, keepdims=True)
     v = np.cross(n, u)
-    phi = 2.0 * np.pi * (np.arange(samples) + 0.5) / samples
+    phi = 2.0 * np.pi * (np.arange(samples) + phase) / samples
     ring = np.cos(phi)[None, :, None] * u[:, None] + np.sin(phi)[None, :, None] * v[:, None]
     return c[:, None] + r[:, None, None] * ring
 

@@ -33,7 +33,7 @@ import numpy as np
 from cadfeat.cad.export import mesh_from_shape
 from cadfeat.cad.features import holes_to_arrays
 from cadfeat.cell import Cell
-from cadfeat.design.pose_terms import cell_models, hole_kinds
+from cadfeat.design.pose_terms import cell_models, designs_glare_rate, hole_kinds
 from cadfeat.measures.raycache import cache_rays
 from cadfeat.poses import cam_from_part
 
@@ -125,15 +125,12 @@ def predict(camera: Camera, T_cam_part: np.ndarray, holes: Sequence[Hole], mesh:
 
 def _contrast_rate(glare: GlareMaps | None, cell: Cell, T: np.ndarray, c: np.ndarray, a: np.ndarray, r: np.ndarray,
                    through: np.ndarray) -> np.ndarray | None:
-    """(L, N) g_POSE's factor from the part's own light (``design.pose_terms.glare_rate``'s rule) when ``glare``
-    holds maps of these L poses and the cell's material returns light from its bores; else None."""
-    from cadfeat.cell.material import bores_return_light
-
-    if glare is None or glare.n_poses != len(T) or not bores_return_light(cell.material):
+    """(L, N) g_POSE's factor from the part's own light (``design.pose_terms.designs_glare_rate`` of this one
+    design) when ``glare`` holds maps of these L poses; else None."""
+    if glare is None or glare.n_poses != len(T):
         return None
-    from cadfeat.measures.glare import contrast_rate  # lazy: as pose_information
-
-    return np.where(through, 1.0, contrast_rate(glare, T, c, a, r, cell.noise_sigma_grey))
+    return designs_glare_rate(glare, cell, T, c[None], a[None], np.asarray(r, float)[None], through,
+                              cell.noise_sigma_grey)
 
 
 def _rms(v: np.ndarray) -> float:

@@ -134,11 +134,10 @@ def test_fixed_holes_kept_between_calls_give_pose_informations_numbers(tmp_path)
 def _glare(problem, grey):
     """Uniform glare maps at the problem's poses: a face of ``grey`` everywhere (measures.glare)."""
     from cadfeat.measures.glare import GlareMaps
+    from cadfeat.render.glare import reduced
 
-    cam = problem.camera
-    image = np.full((len(problem.T_cam_part), cam.height // 4, cam.width // 4), grey, np.float32)
-    small = cam.replace(width=cam.width // 4, height=cam.height // 4, fx=cam.fx / 4, fy=cam.fy / 4,
-                        cx=(cam.cx + 0.5) / 4 - 0.5, cy=(cam.cy + 0.5) / 4 - 0.5)
+    small = reduced(problem.camera, 4)
+    image = np.full((len(problem.T_cam_part), small.height, small.width), grey, np.float32)
     return GlareMaps(image, small, np.zeros((0, 3)), np.zeros(0))
 
 
