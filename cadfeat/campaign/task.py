@@ -36,34 +36,69 @@ __all__ = ["EVENT_TOPIC", "CaseTimeout", "run_case", "warm_worker"]
 EVENT_TOPIC = "cadfeat-campaign"
 
 
+#: Seconds after a delivered ``CaseTimeout`` before it is raised again if the block still runs: an asynchronous
+#: exception can land in a finaliser (``__del__``, a weakref callback, the garbage collector), where Python prints
+#: "Exception ignored in …" and the study goes on; a study must not outrun its limit (and publish its folder) so.
+REFIRE_S = 3.0
+
+
 class CaseTimeout(BaseException):  # noqa: N818 - an interruption like KeyboardInterrupt, not an error class
-    """Raised inside a case's thread when its wall-time limit has passed."""
+    """Raised inside a case's thread when its wall-time limit has passed. Its creation (Python instantiates the
+    class where the asynchronous exception is delivered) is noted per thread, for ``time_limit``'s re-firing."""
+
+    delivered: dict[int, float] = {}  # thread id -> time.monotonic() of the latest delivery
+
+    def __init__(self, *args: object) -> None:
+        super().__init__(*args)
+        CaseTimeout.delivered[threading.get_ident()] = time.monotonic()
+
+
+def _raise_in(tid: int, exc: type[BaseException] | None) -> None:
+    """Set (or, with None, withdraw) the asynchronous exception of thread ``tid``."""
+    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), ctypes.py_object(exc) if exc else None)
 
 
 @contextlib.contextmanager
-def time_limit(seconds: float) -> Iterator[None]:
-    """Raise ``CaseTimeout`` in this thread after ``seconds`` unless the block has finished by then."""
+def time_limit(seconds: float, refire_s: float | None = None) -> Iterator[None]:
+    """Raise ``CaseTimeout`` in this thread after ``seconds`` unless the block has finished by then; while the
+    block still runs ``refire_s`` (default ``REFIRE_S``) after a delivery, raise it again: one swallowed by a
+    finaliser does not let the study run on. (Not sooner: the unwinding — the staging folder's removal — must not
+    be cut short by the next one.)"""
     tid = threading.get_ident()
+    every = REFIRE_S if refire_s is None else refire_s
     lock = threading.Lock()
     state = {"done": False, "fired": False}
+    timers: list[threading.Timer] = []
+    CaseTimeout.delivered.pop(tid, None)
+
+    def arm(delay: float) -> None:
+        timer = threading.Timer(delay, fire)
+        timer.daemon = True
+        timers.append(timer)
+        timer.start()
 
     def fire() -> None:
         with lock:
-            if not state["done"]:
+            if state["done"]:
+                return
+            last = CaseTimeout.delivered.get(tid)
+            if not state["fired"] or (last is not None and time.monotonic() - last >= every):
                 state["fired"] = True
-                ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), ctypes.py_object(CaseTimeout))
+                CaseTimeout.delivered.pop(tid, None)
+                _raise_in(tid, CaseTimeout)
+            arm(every)
 
-    timer = threading.Timer(seconds, fire)
-    timer.daemon = True
-    timer.start()
+    arm(seconds)
     try:
         yield
     finally:
         with lock:
             state["done"] = True
-            timer.cancel()
-            if state["fired"]:  # not yet delivered (the block ended first): withdraw it
-                ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), None)
+            for timer in timers:
+                timer.cancel()
+            if state["fired"]:  # a pending one not yet delivered (the block ended first): withdraw it
+                _raise_in(tid, None)
+            CaseTimeout.delivered.pop(tid, None)
 
 
 def _announce(key: str | None) -> None:

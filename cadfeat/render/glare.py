@@ -48,7 +48,9 @@ def glare_maps(shape: Shape, holes: Sequence[Hole], camera: Camera, T_cam_part: 
     film = reduced(camera, SCALE)
     grey = np.empty((len(T), film.height, film.width), dtype=np.float32)
     with PbrRenderer(shape, holes, film, light=cell.light, material=cell.material, spp=SPP,
-                     hole_ends=cell.hole_ends, sensor=Sensor(exposure="meter")) as renderer:
+                     hole_ends=cell.hole_ends, sensor=Sensor(exposure="meter"), crop=False) as renderer:
+        # (the whole film, as when the contrast curve was fitted: the part's window gives the same maps up to the
+        # sampler's noise, which would move the studies' optima by round-off-sized steps)
         for k, pose in enumerate(T):
             grey[k] = cv2.GaussianBlur(renderer.render_grey(pose), (0, 0), SMOOTH_PX)
     centres, _, radii = holes_to_arrays(holes)

@@ -46,6 +46,7 @@ from cadfeat.cell.light import Light
 from cadfeat.cell.material import Material, bsdf_dict
 from cadfeat.render.camera_views import _distortion_maps, _padding, near_far_mm
 from cadfeat.render.pbr_scene import (
+    background_radiance,
     emitter_mesh_ply,
     light_dicts,
     part_mesh_arrays,
@@ -67,6 +68,11 @@ __all__ = ["HOLE_ENDS", "PbrRenderer", "row_resampling"]
 #: make its wall shade round (a glossy wall's highlight does not break into facets).
 TOLERANCE_MM = 0.01
 ANGULAR_TOLERANCE_RAD = 0.1
+#: Film pixels added around the part's projected extent when only that window is rendered (the box filter gives
+#: a pixel only the samples inside its own square: 2 px cover round-off).
+CROP_PAD_PX = 2
+#: A window covering more than this fraction of the film is rendered as the whole film.
+CROP_MAX_FRACTION = 0.8
 #: Luminance of linear RGB (Rec. 709 / sRGB primaries, Mitsuba's RGB variants).
 LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
 
@@ -90,13 +96,15 @@ class PbrRenderer:
     ``variant``: a Mitsuba variant (None: ``use_variant``'s choice); ``hole_ends``: ``"as_modelled"``, or
     ``"drilled"`` (a 118° drill point cut into each blind hole's floor, ``cad.hole_ends``) or ``"milled"`` (a
     flat floor: the model as it is when it has one); ``seed``: the sampler's seed of the first frame (frame k
-    uses seed + k).
+    uses seed + k); ``crop``: path-trace only the film window the part covers (``part_window``) and give the rest
+    the background's radiance (what a ray that misses the part reads) — the same image at the cost of the part's
+    pixels.
     """
 
     def __init__(self, shape: ShapeLike, holes: Sequence[Hole], camera: Camera, *, light: Light | None = None,
                  material: Material | None = None, sensor: Sensor | None = None, spp: int = 16,
                  max_depth: int = 6, variant: str | None = None, hole_ends: str = "as_modelled",
-                 seed: int = 0) -> None:
+                 seed: int = 0, crop: bool = True) -> None:
         if hole_ends not in HOLE_ENDS:
             raise RenderError(f"hole_ends: {hole_ends!r} is not allowed; allowed: {', '.join(HOLE_ENDS)}")
         if isinstance(spp, bool) or not isinstance(spp, int) or spp < 1 or max_depth < 4:
@@ -106,7 +114,7 @@ class PbrRenderer:
         self.camera, self.holes, self.spp, self.max_depth = camera, list(holes), spp, max_depth
         self.light, self.material = light or Light(), material or Material()
         self.sensor = sensor or Sensor()
-        self._frame = seed
+        self._frame, self.crop = seed, crop
         self._tmp = tempfile.TemporaryDirectory(prefix="cadfeat_pbr_")
         self._part, self._corners = self._load_part(_shaped_holes(shape, self.holes, hole_ends))
         self._emitter = emitter_mesh_ply(self.light, Path(self._tmp.name) / "emitter.ply")
@@ -121,6 +129,7 @@ class PbrRenderer:
                              "bsdf": bsdf_dict(self.material)})
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
         corners = np.array(np.meshgrid(*zip(lo, hi, strict=True), indexing="ij")).reshape(3, -1).T
+        self._hull = _hull_points(vertices)
         return part, corners
 
     def _geometry(self) -> None:
@@ -163,12 +172,47 @@ class PbrRenderer:
         self._frame += 1
         return (rgb[..., :3] @ LUMINANCE_RGB) * np.float32(math.pi)
 
+    def part_window(self, T_cam_part: np.ndarray) -> tuple[int, int, int, int] | None:
+        """(x, y, w, h) of the render film (square pixels, before the row resampling and the distortion) holding
+        every pixel the part covers at pose ``T_cam_part``: the projections of the part's convex hull (a convex
+        body projects inside its hull points' image) + ``CROP_PAD_PX``, clipped to the film; w or h 0 when the part
+        is outside it. None — render the whole film — when a hull point is not in front of the camera or the
+        window exceeds ``CROP_MAX_FRACTION`` of the film."""
+        T = _checked_pose(T_cam_part)
+        p = self._hull @ T[:3, :3].T + T[:3, 3]
+        if np.any(p[:, 2] <= 1e-6):
+            return None
+        W, H = self.pinhole.width, self.render_height
+        u = self.pinhole.fx * p[:, 0] / p[:, 2] + self.pinhole.cx    # pixel i spans [i − ½, i + ½)
+        v = self.pinhole.fx * p[:, 1] / p[:, 2] + self.render_cy     # rendered rows: fy' = fx
+        x0, y0 = (max(0, math.floor(float(c.min()) + 0.5) - CROP_PAD_PX) for c in (u, v))
+        x1 = min(W, math.floor(float(u.max()) + 0.5) + 1 + CROP_PAD_PX)
+        y1 = min(H, math.floor(float(v.max()) + 0.5) + 1 + CROP_PAD_PX)
+        w, h = max(0, x1 - x0), max(0, y1 - y0)
+        return None if w * h > CROP_MAX_FRACTION * W * H else (min(x0, W), min(y0, H), w, h)
+
+    def render_film(self, T_cam_part: np.ndarray) -> np.ndarray:
+        """Radiance × π of the whole square-pixel film: path-traced in ``part_window`` (``crop``), the background's
+        radiance elsewhere."""
+        window = self.part_window(T_cam_part) if self.crop else None
+        if window is None:
+            return self.render_raw(T_cam_part)
+        rgb = np.full(3, background_radiance(self.light), dtype=np.float32)   # as ``render_raw`` reads a miss
+        film = np.full((self.render_height, self.pinhole.width), (rgb @ LUMINANCE_RGB) * np.float32(math.pi),
+                       dtype=np.float32)
+        x, y, w, h = window
+        if w and h:
+            film[y:y + h, x:x + w] = self.render_raw(T_cam_part, crop=window)
+        else:
+            self._frame += 1  # (the frame's seed is used up all the same)
+        return film
+
     def render(self, T_cam_part: np.ndarray) -> np.ndarray:
         """Linear radiance (H, W) float32 at pose ``T_cam_part`` (4, 4) (maps part to camera frame, mm); a white
         Lambertian face lit on axis by intensity 1 reads 1.0."""
         import cv2
 
-        image = self.render_raw(T_cam_part)
+        image = self.render_film(T_cam_part)
         if self._rows is not None:
             image = self._rows @ image
         if self._maps is not None:
@@ -183,12 +227,21 @@ class PbrRenderer:
     def estimate_seconds(self, T_cam_part: np.ndarray, spp: int | None = None, decimate: int = 4) -> float:
         """Expected seconds of one ``render`` at ``spp`` and pose ``T_cam_part``: the same view on a ``decimate``×
         coarser film (the same content, 1/decimate² of the pixels) at ``spp`` is timed warm (after an untimed one
-        that compiles the kernels) and scaled by decimate². Within ~±30 % of the measured frame on the flagship
-        part (benchmarks/bench_pbr.py); it costs ~2/decimate² of a frame."""
+        that compiles the kernels) and scaled by decimate² — with ``crop``, the part's window of it. Within ~±30 %
+        of the measured frame on the flagship part (benchmarks/bench_pbr.py); it costs ~2/decimate² of a frame."""
         spp = spp or self.spp
-        self.render_raw(T_cam_part, spp=spp, decimate=decimate)
+        window = self.part_window(T_cam_part) if self.crop else None
+        crop = None
+        if window is not None:
+            if not (window[2] and window[3]):
+                return 0.0
+            x, y, w, h = window
+            W, H = self.pinhole.width // decimate, self.render_height // decimate
+            x, y = min(x // decimate, W - 1), min(y // decimate, H - 1)
+            crop = (x, y, max(1, min(-(-w // decimate), W - x)), max(1, min(-(-h // decimate), H - y)))
+        self.render_raw(T_cam_part, spp=spp, decimate=decimate, crop=crop)
         t0 = time.perf_counter()
-        self.render_raw(T_cam_part, spp=spp, decimate=decimate)
+        self.render_raw(T_cam_part, spp=spp, decimate=decimate, crop=crop)
         return (time.perf_counter() - t0) * decimate ** 2
 
     def close(self) -> None:
@@ -214,3 +267,13 @@ def _shaped_holes(shape: ShapeLike, holes: Sequence[Hole], hole_ends: str) -> An
     from cadfeat.cad.hole_ends import with_hole_ends
 
     return with_hole_ends(shape, holes, hole_ends)
+
+
+def _hull_points(vertices: np.ndarray) -> np.ndarray:
+    """The vertices (M, 3) of the convex hull of ``vertices`` (all of them when the hull is degenerate)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        return np.asarray(vertices[ConvexHull(vertices).vertices], dtype=float)
+    except (QhullError, ValueError):
+        return np.asarray(vertices, dtype=float)

@@ -174,10 +174,16 @@ def light_dicts(light: Light, T_cam_part: np.ndarray, emitter_ply: Path | None) 
         out["light"] = {"type": "spot", "to_world": to_world, "cutoff_angle": light.cutoff_deg,
                         "beam_width": min(light.beam_deg, light.cutoff_deg),
                         "intensity": {"type": "rgb", "value": [strength] * 3}}
-    dome = (strength if light.kind == "dome" else 0.0) + light.ambient / math.pi
+    dome = background_radiance(light)
     if dome > 0:
         out["dome"] = {"type": "constant", "radiance": {"type": "rgb", "value": [dome] * 3}}
     return out
+
+
+def background_radiance(light: Light) -> float:
+    """Radiance of the constant environment (a dome's, plus ``ambient`` / π): what a camera ray that misses the
+    part reads (the ring, the coaxial disc and a spot are not seen directly)."""
+    return (emitter_strength(light) if light.kind == "dome" else 0.0) + light.ambient / math.pi
 
 
 def _up_for(direction: np.ndarray) -> list[float]:

@@ -214,3 +214,32 @@ def test_scalar_variant_projects_the_same(scalar_variant):
     expected = CAMERA.project(DISC_CENTRES @ T[:3, :3].T + T[:3, 3])
     found = np.array([_centroid(1.0 - image, p) for p in expected])
     assert np.linalg.norm(found - expected, axis=1).max() < 0.15
+
+
+def test_the_part_window_is_the_same_image_at_the_cost_of_the_part():
+    """``crop`` path-traces only ``part_window`` and gives the rest the background's radiance. Reference: the whole
+    film path-traced (``crop=False``): outside the window it reads the background to float32 round-off (a ray that
+    misses the part sees only the dome/ambient), and inside it the two images differ by sampling noise only — no
+    more than two whole-film renders with different seeds differ. A camera with fx ≠ fy and distortion: the window
+    is found in the rendered film, before the row resampling and the remap."""
+    plate = cq.Workplane("XY").box(40, 30, 6).faces(">Z").workplane().pushPoints([(-10, 0), (10, 4)]).hole(5.0, 4.0)
+    from cadfeat.cad.features import extract_holes
+
+    holes = extract_holes(plate)
+    T = invert_T(look_at(np.array([0.0, -75.0, 130.0]), np.array([2.0, 0.0, 3.0]), up=(0.0, 1.0, 0.0)))
+    light = Light(kind="ring", ambient=0.05)
+    kwargs = {"light": light, "material": Material(name="machined_aluminium"), "spp": 16}
+    with PbrRenderer(plate, holes, CAMERA, crop=False, **kwargs) as full, \
+            PbrRenderer(plate, holes, CAMERA, crop=True, seed=50, **kwargs) as cropped:
+        x, y, w, h = cropped.part_window(T)
+        film = full.render_raw(T)
+        assert film.shape == (cropped.render_height, cropped.pinhole.width)
+        assert w * h < 0.6 * film.size                                          # the point of it
+        outside = np.ones(film.shape, bool)
+        outside[y:y + h, x:x + w] = False
+        np.testing.assert_allclose(film[outside], 0.05, rtol=1e-6)              # (ambient / π) × π
+        np.testing.assert_allclose(cropped.render_film(T)[outside], film[outside], rtol=1e-6)  # what a miss reads
+        a, b, c = full.render(T), full.render(T), cropped.render(T)
+    assert c.shape == a.shape
+    noise = np.sqrt(np.mean((a - b) ** 2))
+    assert noise > 0 and np.sqrt(np.mean((c - a) ** 2)) < 1.3 * noise
