@@ -53,7 +53,7 @@ def image_line(i: int, n: int, result: ImageResult) -> str:
     return f"{head} ({w}x{h}): {counts} ellipse(s)"
 
 
-def _picture_names(results: list[ImageResult]) -> list[str]:
+def picture_names(results: list[ImageResult]) -> list[str]:
     """``<stem>.png`` per image, ``<stem>_2.png``… where two images share a stem."""
     seen: dict[str, int] = {}
     names = []
@@ -86,7 +86,7 @@ def _write_outputs(results: list[ImageResult], detectors: list[str], args: argpa
     if not args.no_pictures:
         folder = out / "annotated"
         folder.mkdir(exist_ok=True)
-        for r, name in zip(results, _picture_names(results), strict=True):
+        for r, name in zip(results, picture_names(results), strict=True):
             if r.problem is None:
                 path = folder / name
                 if not cv2.imwrite(str(path), annotated(read_grey(r.path), r.found)):
@@ -112,6 +112,8 @@ def detect_images(args: argparse.Namespace) -> int:
     from cadfeat.vision.image_files import expand_image_paths
 
     detectors = list(DETECTORS) if args.detector == ALL else [args.detector]
+    if Path(args.out).exists() and not Path(args.out).is_dir():
+        raise CadfeatError(f"--out: {args.out} is a file; allowed: a folder (made if missing)")
     camera = None
     if args.calibration:
         from cadfeat.camera import Camera

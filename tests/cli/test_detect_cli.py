@@ -16,8 +16,9 @@ import pytest
 
 from cadfeat.camera import Camera, write_opencv_calibration
 from cadfeat.cli import main
+from cadfeat.cli.detect import picture_names
 from cadfeat.vision.detectors import DETECTORS
-from cadfeat.vision.image_detection import CSV_COLUMNS, detect_file
+from cadfeat.vision.image_detection import CSV_COLUMNS, ImageResult, detect_file
 from cadfeat.vision.image_files import read_grey
 
 DATA = Path(__file__).parents[1] / "data" / "visp_images"
@@ -78,6 +79,14 @@ def test_detect_with_nothing_readable_is_an_error(tmp_path: Path, capsys: pytest
     assert main(["detect", str(tmp_path / "empty")]) == 2
     assert "no image files in" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+    (tmp_path / "taken").write_text("")
+    assert main(["detect", str(TARGET[0]), "--out", str(tmp_path / "taken")]) == 2
+    assert f"--out: {tmp_path / 'taken'} is a file" in capsys.readouterr().err
+
+
+def test_pictures_of_images_with_one_name_do_not_overwrite_each_other() -> None:
+    results = [ImageResult(Path(p)) for p in ("a/frame.png", "b/frame.png", "c/other.pgm", "d/frame.tif")]
+    assert picture_names(results) == ["frame.png", "frame_2.png", "other.png", "frame_3.png"]
 
 
 def test_detect_calibration_moves_cadfeats_centres_only(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
