@@ -1,5 +1,5 @@
 """Command line: ``cadfeat run | evaluate | validate | track | parts | render | report | cameras | trajectories |
-calibrate | plan-recording``.
+calibrate | plan-recording | detect``.
 
 One module per command group (``study``, ``track``, ``parts``, ``render``, ``report``, ``listing``), each with a
 ``COMMANDS`` table of ``Command`` entries; the parser is built from those tables. The command modules import
@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TextIO
 
 from cadfeat._version import __version__
-from cadfeat.cli import calibrate, campaign, explore, listing, parts, recording, render, report, study, track
+from cadfeat.cli import calibrate, campaign, detect, explore, listing, parts, recording, render, report, study, track
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError, CadfeatWarning, Terminated
 
@@ -28,7 +28,8 @@ __all__ = ["COMMANDS", "build_parser", "main", "run_guarded"]
 #: Every sub-command, in the order ``cadfeat --help`` lists them.
 COMMANDS: tuple[Command, ...] = (*listing.COMMANDS, *parts.COMMANDS, *render.COMMANDS, *report.COMMANDS,
                                  *study.COMMANDS, *track.COMMANDS, *explore.COMMANDS,
-                                 *campaign.COMMANDS, *calibrate.COMMANDS, *recording.COMMANDS)
+                                 *campaign.COMMANDS, *calibrate.COMMANDS, *recording.COMMANDS,
+                                 *detect.COMMANDS)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -22,7 +22,7 @@ BOARD_CHOICES = ("chessboard", "charuco")
 
 
 def _calibrate_args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("images", metavar="IMAGES", nargs="+", help="board images (PNG/JPEG/TIFF, 8 or 16 bit) or "
+    parser.add_argument("images", metavar="IMAGES", nargs="+", help="board images (PNG/JPEG/TIFF/PGM, 8 or 16 bit) or "
                         "folders of them")
     parser.add_argument("--board", choices=BOARD_CHOICES, default="chessboard", help="the board printed")
     parser.add_argument("--inner-corners", metavar="COLSxROWS", default="9x6",
@@ -40,17 +40,6 @@ def _calibrate_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--focal-length-mm", type=float, metavar="MM", help="the lens's focal length (focus measure)")
     parser.add_argument("--f-number", type=float, metavar="N", help="the lens's aperture f-number (focus measure)")
     parser.add_argument("--focus-mm", type=float, metavar="MM", help="the distance the lens is focused at, mm")
-
-
-def _image_paths(items: list[str]) -> list[Path]:
-    """The images named, a folder standing for the image files in it (a missing name is kept: reported later)."""
-    from cadfeat.vision.image_files import image_files
-
-    out: list[Path] = []
-    for item in items:
-        p = Path(item)
-        out.extend(image_files(p) if p.is_dir() else [p])
-    return out
 
 
 def _optics(args: argparse.Namespace) -> dict[str, float]:
@@ -71,13 +60,14 @@ def calibrate(args: argparse.Namespace) -> int:
     from cadfeat.calibration import calibrate as solve
     from cadfeat.calibration.plot import calibration_plot
     from cadfeat.study.outputs import write_json
+    from cadfeat.vision.image_files import expand_image_paths
 
     cols, rows = parse_corners(args.inner_corners)
     board = BoardSpec(args.board, cols, rows, args.square_mm, args.marker_mm, args.dictionary)
     optics = _optics(args)
-    paths = _image_paths(args.images)
+    paths = expand_image_paths(args.images)
     if not paths:
-        raise CadfeatError(f"IMAGES: no image files in {', '.join(args.images)}; allowed: PNG, JPEG or TIFF files")
+        raise CadfeatError(f"IMAGES: no image files in {', '.join(args.images)}; allowed: PNG, JPEG, TIFF or PGM files")
     result = solve(paths, board, fix_k3=args.fix_k3, optics=optics)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,5 @@
-"""Camera images read from files as a real camera writes them: PNG, JPEG or TIFF, 8 or 16 bit, colour or grey.
+"""Camera images read from files as a real camera writes them: PNG, JPEG, TIFF, BMP or PGM/PPM (the netpbm
+formats many machine-vision tools record in), 8 or 16 bit, colour or grey.
 
 ``read_grey`` gives the (H, W) uint8 grey image the detectors take; a 16-bit image is scaled to 8 bits by its
 bit depth (÷ 257), a colour image is converted with OpenCV's luma weights. Every failure raises ``ImageFileError``
@@ -7,6 +8,7 @@ naming the file, so a command that reads many images can report it and go on.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +16,7 @@ import numpy as np
 from cadfeat.errors import CadfeatError
 
 #: File name endings read as images (lower case).
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm", ".pnm")
 
 
 class ImageFileError(CadfeatError):
@@ -65,3 +67,14 @@ def image_files(folder: str | Path) -> list[Path]:
     if not folder.is_dir():
         raise CadfeatError(f"{folder}: not a folder of images")
     return sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
+
+
+def expand_image_paths(items: Sequence[str | Path]) -> list[Path]:
+    """The images named on a command line, in the order given: a folder stands for its image files
+    (``image_files``, sorted by name); any other name is kept as it is, missing or not, so that the command
+    reports it by name (``read_grey``) and goes on."""
+    out: list[Path] = []
+    for item in items:
+        p = Path(item)
+        out.extend(image_files(p) if p.is_dir() else [p])
+    return out

@@ -9,7 +9,7 @@ Inputs as a robot cell logs them:
   skipped (its image then has no pose). The poses are T_task_cam (or T_task_flange with a hand-eye transform
   T_flange_cam, ``read_hand_eye``).
 - **images** (``match_images``): ``frame_NNNN.png`` (any name whose last number is NNNN) is the image of the
-  CSV's data row NNNN (0-based); PNG/JPEG/TIFF, 8 or 16 bit, colour or grey (``image_files.read_grey``).
+  CSV's data row NNNN (0-based); PNG/JPEG/TIFF/PGM, 8 or 16 bit, colour or grey (``image_files.read_grey``).
 
 ``replay`` predicts each hole's rim at the reported pose, detects (``detectors.detect`` with those rims as the
 prior), associates (``detection.associate``), and tracks with each estimator from the first reported pose. The

@@ -11,7 +11,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from cadfeat.errors import CadfeatError
-from cadfeat.vision.image_files import read_grey
+from cadfeat.vision.image_files import expand_image_paths, image_files, read_grey
 from cadfeat.vision.replay import match_images, read_hand_eye, read_reported_poses
 
 
@@ -66,5 +66,16 @@ def test_sixteen_bit_and_colour_images_read_as_grey(tmp_path: Path) -> None:
     grey = np.random.default_rng(0).integers(0, 256, (20, 30)).astype(np.uint8)
     cv2.imwrite(str(tmp_path / "a.png"), grey.astype(np.uint16) * 257)
     cv2.imwrite(str(tmp_path / "b.tiff"), cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR))
-    for name in ("a.png", "b.tiff"):
+    cv2.imwrite(str(tmp_path / "c.pgm"), grey)                        # netpbm, as ViSP and many grabbers record
+    cv2.imwrite(str(tmp_path / "d.pgm"), grey.astype(np.uint16) * 257)
+    for name in ("a.png", "b.tiff", "c.pgm", "d.pgm"):
         np.testing.assert_array_equal(read_grey(tmp_path / name), grey)
+    assert [p.name for p in image_files(tmp_path)] == ["a.png", "b.tiff", "c.pgm", "d.pgm"]
+
+
+def test_command_line_images_expand_folders_and_keep_missing_names(tmp_path: Path) -> None:
+    """A folder stands for its images sorted by name; a missing name is kept (the command reports it)."""
+    for name in ("b.pgm", "a.png", "notes.txt"):
+        (tmp_path / name).write_bytes(b"")
+    missing = tmp_path / "gone.png"
+    assert expand_image_paths([missing, tmp_path]) == [missing, tmp_path / "a.png", tmp_path / "b.pgm"]
