@@ -16,7 +16,11 @@ by the exact ray test, and
 
 Prints Spearman ρ (predicted vs simulated) per estimator and error kind and the predicted/simulated ratios;
 ``--json`` writes the numbers, ``--markdown`` the committed table (``benchmarks/results/pose_panel.md``);
-``--optimum results.json`` adds a study's optimum to the panel with a paired test vs the original. Cost: the
+``--optimum results.json`` adds a study's optimum to the panel with a paired test vs the original. ``--added
+results.json`` (a study run with ``[add_targets]``) replaces the Sobol designs by the original with each subset of
+the added-target curve's greedy sites drilled (``cad.drill_targets``; 2^k designs, k ≤ 4): designs whose
+predicted errors differ by up to a third, beyond the loop's scatter, where a move-only design space spans a few
+per cent. Cost: the
 renders, once per run and design (placement jitter). Run, e.g.:
 ``python tools/pose_panel.py --study studies/nema17_mount.toml --optimum OUT/results.json --study
 studies/industrial_plate.toml --designs 12 --runs 8 --json panel.json --markdown benchmarks/results/pose_panel.md``.
@@ -81,7 +85,7 @@ def designs(setup, count: int, seed: int = 0, extremes: int = 0,
     return xs, names, info
 
 
-def score(setup, x, T, times, tuning, model=None, glare=None, cell=None) -> dict:
+def score(setup, x, T, times, tuning, model=None, glare=None, cell=None, added=()) -> dict:
     """Predicted errors of design ``x`` along the frames T (the rows' ``pnp_*`` / ``iekf_*``): RMS over the frames
     after the closed loop's ``settle_frames`` (``TrackingConfig``), the frames its simulated RMS counts
     (``vision.metrics.run_summary``); the per-hole columns over all frames."""
@@ -96,6 +100,11 @@ def score(setup, x, T, times, tuning, model=None, glare=None, cell=None) -> dict
 
     shape = setup.rebuild_shape(x)
     holes = setup.rebuild_holes(shape)
+    if added:  # (--added) the design's target holes drilled into the rebuilt solid, verified
+        from cadfeat.cad.drill_targets import drill_targets
+
+        shape, holes = drill_targets(shape, list(added), holes_before=holes, label="the panel's design",
+                                     prefer_direction=setup.view_direction)
     c, n, r = holes_to_arrays(holes)
     occ = rim_occlusion(mesh_from_shape(shape, tolerance=0.05), T, c, n, r, samples=12,
                         through=[h.through for h in holes], depth_mm=[h.depth_mm for h in holes])
@@ -133,6 +142,34 @@ def score(setup, x, T, times, tuning, model=None, glare=None, cell=None) -> dict
             "holes_seen": float(pi.detected.sum(axis=1).mean()),
             "model_px": np.sqrt(pi.sigma_px ** 2 + np.sum(pi.offset_px ** 2, axis=-1) / 2),   # (L, N) per axis
             "model_detected": pi.detected}
+
+
+def added_designs(path: Path, setup) -> tuple[list[np.ndarray], list[str], list[tuple], dict]:
+    """(``--added``) The original design with each subset of the greedy sites of a ``[add_targets]`` run's curve
+    drilled (results.json ``added_targets.curve.sites``, in their greedy order; the drill's diameter, depth and
+    chamfer from ``added_targets.settings``, the axis from the face of each delivered hole — the outward normal of
+    the face the site lies on): (xs, names, added holes per design, info)."""
+    from itertools import combinations
+
+    from cadfeat.cad.drill_targets import AddedHole
+
+    at = json.loads(path.read_text())["added_targets"]
+    sites = np.asarray(at["curve"]["sites"], float)[:4]
+    st = at["settings"]
+    axes = {tuple(np.round(h["centre"], 6)): h["axis"] for h in at["holes"]}
+    face_axis = np.asarray(next(iter(axes.values())), float)
+    n_old = len(setup.holes0)
+    holes = [AddedHole(c, face_axis, st["diameter_mm"] / 2, st["depth_mm"], st["chamfer_mm"], f"H{n_old + 1 + i}")
+             for i, c in enumerate(sites)]
+    x0 = np.asarray(setup.space.x0, float)
+    xs, names, added = [], [], []
+    for k in range(len(holes) + 1):
+        for subset in combinations(range(len(holes)), k):
+            xs.append(x0)
+            names.append("original" if not subset else "original + " + "+".join(f"s{i + 1}" for i in subset))
+            added.append(tuple(holes[i] for i in subset))
+    info = {"added_sites": sites.tolist(), "curve_error_mm": at["curve"]["error_mm"][:len(sites) + 1]}
+    return xs, names, added, info
 
 
 def _optimum(path: Path, space) -> np.ndarray:
@@ -205,15 +242,20 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
         config, T, times, model, glare, cell = pbr_cell(args, study, setup)
         tuning = config.tuning
     T_runs = T[None] @ placement_errors(config, config.runs)[:, None]
-    xs, names, spread = designs(setup, args.designs, extremes=args.extremes, candidates=args.candidates)
+    if args.added is not None:
+        xs, names, added, spread = added_designs(args.added, setup)
+    else:
+        xs, names, spread = designs(setup, args.designs, extremes=args.extremes, candidates=args.candidates)
+        added = [()] * len(xs)
     print(json.dumps({"design_space": spread}), flush=True)
     if optimum is not None:
         xs.append(_optimum(optimum, setup.space))
         names.append("g_POSE optimum")
+        added.append(())
     rows, tracks = [], {}
     for i, (name, x) in enumerate(zip(names, xs, strict=True)):
         start = time.perf_counter()
-        s = score(setup, x, T, times, tuning, model, glare, cell)
+        s = score(setup, x, T, times, tuning, model, glare, cell, added[i])
         frames = report_frames(len(T)) if config.renderer == "pbr" else None  # the runs render their placements
         obs = observe(s["shape"], s["holes"], setup.camera, T, config.sensor, frames=frames,
                       renderer=config.renderer, render_options=config.render_options())
@@ -249,7 +291,8 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
                       for j, h in enumerate(s["holes"])}
         s["measured_offset_px_median"] = float(np.median(med)) if med else 0.0
         s["propagated_t"], s["propagated_r"] = float(np.sqrt(np.mean(pt))), float(np.sqrt(np.mean(pr)))
-        row = {"part": study.stem, "design": i, "name": name, "x": [round(float(v), 3) for v in x],
+        row = {"part": study.stem, "design": i, "name": name, "x": [round(float(v), 3) for v in x]
+               + [round(float(v), 3) for a in added[i] for v in a.centre],
                **{k: v for k, v in s.items() if k not in ("shape",)},
                "sim_pnp_t": sim["pnp"][0], "sim_pnp_r": sim["pnp"][1], "sim_pnp_lost": sim["pnp"][2],
                "sim_iekf_t": sim["iekf"][0], "sim_iekf_r": sim["iekf"][1], "seconds": time.perf_counter() - start,
@@ -540,6 +583,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="pbr: the closed loop of `cadfeat run --track pbr` in the study's [cell] (pbr_cell)")
     ap.add_argument("--spp", type=int, default=16, help="with --renderer pbr: samples per pixel")
     ap.add_argument("--material", default=None, help="with --renderer pbr: the finish (cell.material name)")
+    ap.add_argument("--added", type=Path, default=None,
+                    help="results.json of an [add_targets] run: the original with each subset of its greedy sites")
     ap.add_argument("--model", type=Path, default=None,
                     help="a detection_model.json (calibrate_detection.py --study); default: the committed one")
     args = ap.parse_args(argv)

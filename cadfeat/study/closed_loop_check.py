@@ -47,6 +47,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
+import numpy as np
+
 from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 from cadfeat.study.settings.sections import CHECK_MODES
@@ -117,6 +119,10 @@ def attach(config: StudyConfig, results: JsonDict, delivery: Delivery, stage: Pa
     section, skipped = closed_loop_check(config, delivery, stage, progress)
     if section is not None:
         results["tracking"] = section
+        caveat = glare_caveat(config, delivery, section["check"]["mode"], section["settings"].get("renderer"))
+        if caveat is not None:
+            section["check"]["glare"] = caveat
+            results.setdefault("warnings", []).append(caveat["warning"])
     if skipped:
         results.setdefault("warnings", []).append(skipped)
     views, why = camera_views(config, delivery, stage, progress)
@@ -124,6 +130,63 @@ def attach(config: StudyConfig, results: JsonDict, delivery: Delivery, stage: Pa
         results["physical_views"] = views
     if why:
         results.setdefault("warnings", []).append(why)
+
+
+#: A hole is named by ``glare_caveat`` when g_POSE's glare factor is below ``GLARE_RATE`` at ``GLARE_SHARE`` or more
+#: of the study's poses where it faces the camera (its axis within ``FACING_DEG`` of the line of sight).
+GLARE_RATE = 0.5
+GLARE_SHARE = 0.1
+FACING_DEG = 75.0
+
+
+def glare_caveat(config: StudyConfig, delivery: Delivery, mode: str, renderer: str | None) -> JsonDict | None:
+    """What the raster check cannot see (issue 28): the raster renderer paints every bore dark, so in a metal cell
+    (``cell.material.bores_return_light``) a blind rim the part's own light leaves without contrast
+    (``measures.glare``: g_POSE's factor on its detection rate, from the set-up's physically based maps) is
+    found there all the same. Returns, for a raster check whose designs have such holes, ``{"holes": {design:
+    {hole: share of the facing poses with factor < GLARE_RATE}}, "warning": one line}`` naming them and the
+    physically based check that sees them; None otherwise (a PBR check, plastics, through holes, ``[cell] glare
+    = false``, no maps)."""
+    from cadfeat.cell.material import bores_return_light
+
+    problem = delivery.setup.problem
+    maps = problem.glare if hasattr(problem, "glare") else None
+    if renderer == "pbr" or maps is None or not bores_return_light(config.cell.material):
+        return None
+    from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.design.pose_terms import designs_glare_rate
+
+    T = np.asarray(problem.T_cam_part, float)
+    if maps.n_poses != len(T):
+        return None
+    found: dict[str, dict[str, float]] = {}
+    for label, (_, holes) in _designs(delivery).items():
+        c, a, r = holes_to_arrays(list(holes))
+        through = np.array([bool(h.through) for h in holes])
+        rate = designs_glare_rate(maps, config.cell, T, c[None], a[None], np.asarray(r, float)[None], through,
+                                  config.cell.noise_sigma_grey)
+        if rate is None:
+            return None
+        c_cam = np.einsum("lij,nj->lni", T[:, :3, :3], c) + T[:, None, :3, 3]
+        a_cam = np.einsum("lij,nj->lni", T[:, :3, :3], a)
+        facing = -np.sum(a_cam * c_cam, axis=-1) / np.linalg.norm(c_cam, axis=-1) > np.cos(np.radians(FACING_DEG))
+        share = np.sum(facing & (rate < GLARE_RATE), axis=0) / np.maximum(np.sum(facing, axis=0), 1)
+        named = {h.name or f"hole {j + 1}": round(float(share[j]), 3) for j, h in enumerate(holes)
+                 if share[j] >= GLARE_SHARE}
+        if named:
+            found[label] = named
+    if not found:
+        return None
+    what = "; ".join(f"{DESIGN_WORDS.get(k, k)}: {', '.join(f'{h} ({100 * v:.0f} %)' for h, v in d.items())}"
+                     for k, d in found.items())
+    warning = (f"the {mode} check renders bores dark, but in this {config.cell.material.name} cell the part's own "
+               f"light leaves these blind rims without contrast at the share of poses given ({what}): the raster "
+               "verdict cannot see it; confirm under physical light with `cadfeat run --track pbr` or `cadfeat "
+               "track --renderer pbr`")
+    return {"holes": found, "warning": warning}
+
+
+DESIGN_WORDS = {"before": "original", "after": "recommended", "move_only": "move-only"}
 
 
 def camera_views(config: StudyConfig, delivery: Delivery, stage: Path | None,
