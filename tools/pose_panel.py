@@ -464,7 +464,13 @@ def markdown(panels: list[dict]) -> str:
                          f"| {r['pnp_r']:.4f} | {r['sim_pnp_r']:.4f} | {r['iekf_t']:.4f} | {r['sim_iekf_t']:.4f} "
                          f"| {r['iekf_r']:.4f} | {r['sim_iekf_r']:.4f} | {r['propagated_t']:.4f} / "
                          f"{r['propagated_r']:.4f} | {r['seconds']:.0f} |")
-        if "design_space" in pnl:
+        if "added_sites" in pnl.get("design_space", {}):
+            d = pnl["design_space"]
+            lines += ["", "Designs (--added): the original with each subset of the added-target curve's greedy sites "
+                      "s1…s4 " + ", ".join(f"({', '.join(f'{v:g}' for v in c)})" for c in d["added_sites"])
+                      + " mm drilled; the curve's g_POSE for 0–4 holes on the move-only optimum: "
+                      + " → ".join(f"{v:.4f}" for v in d["curve_error_mm"]) + " mm."]
+        elif "design_space" in pnl:
             d = pnl["design_space"]
             lines += ["", f"Design space: {d['feasible']} of {d['candidates']} Sobol candidates keep every "
                       f"requirement; their predicted error (g_POSE on the feature model, rotation at 50 mm) spans "
