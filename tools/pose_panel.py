@@ -180,8 +180,9 @@ def _optimum(path: Path, space) -> np.ndarray:
 
 def pbr_cell(args: argparse.Namespace, study: Path, setup):
     """``--renderer pbr``: the closed loop of ``cadfeat run --track pbr`` in the study's ``[cell]`` (its light, its
-    placement and noise; ``--material`` overrides the finish) — the fast check's frames, ``--runs`` runs, ``--spp``
-    samples — and the prediction with that cell's calibrated models (``design.pose_terms.cell_models``).
+    placement and noise; ``--material`` overrides the finish, ``--light`` the light's kind) — the fast check's
+    frames, ``--runs`` runs, ``--spp`` samples — and the prediction with that cell's calibrated models
+    (``design.pose_terms.cell_models``).
     Returns (TrackingConfig, T (F, 4, 4), times (F,), models, glare maps or None (``study.setup.glare_maps_for``),
     the cell)."""
     from dataclasses import replace
@@ -197,6 +198,10 @@ def pbr_cell(args: argparse.Namespace, study: Path, setup):
 
     cfg = load_study(study)
     cell = cfg.cell if args.material is None else cfg.cell.replace(material=Material(name=args.material))
+    if args.light is not None:  # a light of another kind, at the study's camera distance
+        from cadfeat.cell.light import Light
+
+        cell = cell.replace(light=Light(kind=args.light, reference_mm=cell.light.reference_mm))
     traj = setup.trajectory
     T_all = invert_T(np.asarray(traj.T_task_cam)) @ setup.T_task_part
     spec = fast_spec(cfg, len(T_all)).replace(renderer="pbr", spp=args.spp, runs=args.runs, seed=args.seed)
@@ -589,6 +594,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="pbr: the closed loop of `cadfeat run --track pbr` in the study's [cell] (pbr_cell)")
     ap.add_argument("--spp", type=int, default=16, help="with --renderer pbr: samples per pixel")
     ap.add_argument("--material", default=None, help="with --renderer pbr: the finish (cell.material name)")
+    ap.add_argument("--light", default=None, choices=("ring", "coaxial", "dome", "spot"),
+                    help="with --renderer pbr: the light's kind (default: the study's [cell] light)")
     ap.add_argument("--added", type=Path, default=None,
                     help="results.json of an [add_targets] run: the original with each subset of its greedy sites")
     ap.add_argument("--model", type=Path, default=None,

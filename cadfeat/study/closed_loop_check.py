@@ -247,16 +247,27 @@ def start_design(config: StudyConfig, name: str, shape: Shape, holes: Sequence[H
 
 def _track_design(threads: int | None, arguments: tuple[Any, ...]) -> Any:
     """In a worker: ``closed_loop.track_one(*arguments)`` with the software renderer (llvmpipe,
-    ``LP_NUM_THREADS``, read when the worker's OpenGL context is made) and OpenCV on ``threads`` threads (None:
-    theirs); the images and numbers do not depend on it (tests/study/test_closed_loop_check.py)."""
+    ``LP_NUM_THREADS``, read when the worker's OpenGL context is made), OpenCV and Mitsuba's Dr.Jit on ``threads``
+    threads (None: theirs); the images and numbers do not depend on it (tests/study/test_closed_loop_check.py)."""
     if threads is not None:
         import cv2
 
         os.environ["LP_NUM_THREADS"] = str(threads)
         cv2.setNumThreads(threads)
+        _drjit_threads(threads)
     from cadfeat.vision.closed_loop import track_one  # lazy: scipy.optimize
 
     return track_one(*arguments)
+
+
+def _drjit_threads(threads: int) -> None:
+    """Mitsuba's LLVM back end (Dr.Jit) on ``threads`` threads in this worker, when it is installed: a physically
+    based check beside the optimiser would otherwise take every core (the flagship's optimiser ran 3× slower)."""
+    try:
+        import drjit
+    except ImportError:
+        return
+    drjit.set_thread_count(threads)
 
 
 def _collect(pending: Mapping[str, BackgroundCall | None], progress: StudyProgress | None) -> JsonDict:

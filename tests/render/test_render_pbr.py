@@ -243,3 +243,24 @@ def test_the_part_window_is_the_same_image_at_the_cost_of_the_part():
     assert c.shape == a.shape
     noise = np.sqrt(np.mean((a - b) ** 2))
     assert noise > 0 and np.sqrt(np.mean((c - a) ** 2)) < 1.3 * noise
+
+
+def test_the_image_does_not_depend_on_the_thread_count():
+    """A check beside the optimiser renders on one thread (``closed_loop_check._track_design``): the same image
+    as on every core, bit for bit (the sampler's seed is per pixel and frame, not per thread)."""
+    import drjit as dr
+
+    plate = cq.Workplane("XY").box(40, 30, 6).faces(">Z").workplane().pushPoints([(-10, 0), (10, 4)]).hole(5.0, 4.0)
+    from cadfeat.cad.features import extract_holes
+
+    T = invert_T(look_at(np.array([0.0, -75.0, 130.0]), np.array([2.0, 0.0, 3.0]), up=(0.0, 1.0, 0.0)))
+    before = dr.thread_count()
+    images = []
+    try:
+        for n in (1, 2):
+            dr.set_thread_count(n)
+            with PbrRenderer(plate.val(), extract_holes(plate), CAMERA, spp=4) as r:
+                images.append(r.render(T))
+    finally:
+        dr.set_thread_count(before)
+    assert np.array_equal(images[0], images[1])
