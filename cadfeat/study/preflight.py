@@ -14,7 +14,9 @@
 4. the scored holes are seen somewhere on the trajectory (``check_visibility``);
 5. the camera's depth of field [D2, D1] overlaps the depths of the part along the trajectory (else
    ``camera.focus_distance_mm``); a focus distance outside the depth range but a depth of field reaching
-   it is a warning.
+   it is a warning;
+6. with g_POSE among the objectives, its detection models for the study's cell have been confirmed against the
+   physically based closed loop (a warning otherwise, ``design.pose_terms.model_confirmation``).
 
 Optics the study did not give (focal length, f-number, focus distance: ``Camera`` defaults) are returned as
 ``assumptions`` (printed and shown in the report); a calibration whose fold-over radius lies inside the
@@ -152,8 +154,21 @@ def preflight(config: StudyConfig, camera: Camera, trajectory: Trajectory, T_tas
     if hidden_warning:
         out.warnings.append(hidden_warning)
     _check_focus(label, camera, pts, T_cam_part, out)                            # 5. depth of field
+    _check_models(config, out)                                                   # 6. g_POSE's models confirmed
     out.assumptions = optics_assumptions(config.camera.table, camera)
     return out
+
+
+def _check_models(config: StudyConfig, out: Preflight) -> None:
+    """With g_POSE among the objectives, a warning when its models for the study's cell have not been confirmed
+    against the physically based closed loop (``design.pose_terms.model_confirmation``)."""
+    if "pose" not in config.objective.measures:
+        return
+    from cadfeat.design.pose_terms import model_confirmation  # lazy: the design layer's models
+
+    warning = model_confirmation(config.cell)
+    if warning is not None:
+        out.warnings.append(warning)
 
 
 def _check_field_of_view(label: str, camera: Camera, out: Preflight) -> None:
