@@ -105,8 +105,9 @@ class Settings(BaseModel):
         return {k: getattr(self, k) for k in type(self).model_fields if k in self.model_fields_set}
 
     def replace(self, **changes: object) -> Self:
-        """A validated copy with ``changes`` (``dataclasses.replace`` for a settings model)."""
-        return type(self)(**{**self.model_dump(), **changes})
+        """A validated copy with ``changes`` (``dataclasses.replace`` for a settings model); the other fields as
+        they are (a nested model stays that model)."""
+        return type(self)(**{**{k: getattr(self, k) for k in type(self).model_fields}, **changes})
 
 
 def _extra_of(extra: object) -> dict[str, Any]:

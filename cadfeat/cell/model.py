@@ -21,7 +21,7 @@ Where each reaches (the same object, so a prediction and the check that confirms
   association term, the noise of the centre's σ model;
 - the robust draws (``design.uncertainty.Uncertainty.from_cell``): the mount and placement tolerances ±t, the
   noise σ ± its spread;
-- the closed loop (``vision.closed_loop.TrackingConfig`` via ``study.tracking.tracking_config``): each run's
+- the closed loop (``vision.config.TrackingConfig.in_cell``, the study's ``[tracking]`` in its cell): each run's
   placement drawn from a normal of σ = ``PLACEMENT_SIGMA_PER_TOLERANCE`` · t per axis (``placement_sigma``), the
   noise σ, the gain σ, the gate and the detector.
 

@@ -106,10 +106,10 @@ def track_design(study: StudySource, values: Mapping[str, float] | None = None, 
 
 def _with_keys(spec: TrackingSpec, keys: Mapping[str, Any], label: str) -> TrackingSpec:
     """``spec`` with the ``[tracking]`` ``keys`` replaced; an unknown key is one error listing the allowed ones."""
-    unknown = sorted(set(keys) - set(TrackingSpec.model_fields))
+    unknown = sorted(set(keys) - set(TrackingSpec.study_keys()))
     if unknown:
         raise StudyError(f"{label}: track_design: unknown [tracking] key(s) {', '.join(unknown)}; allowed: "
-                         f"{', '.join(sorted(TrackingSpec.model_fields))}")
+                         f"{', '.join(sorted(TrackingSpec.study_keys()))}")
     return spec.replace(**keys) if keys else spec
 
 

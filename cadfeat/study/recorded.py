@@ -64,7 +64,7 @@ def track_recording(config: StudyConfig, out: Path, images: Path, poses: Path, h
     """Replay the recording and return the ``tracking/recorded.json`` section (module docstring)."""
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.study.pose_accuracy import predict
-    from cadfeat.study.tracking import exported_designs, tracking_config
+    from cadfeat.study.tracking import exported_designs
     from cadfeat.vision.replay import match_images, read_hand_eye, read_reported_poses, replay
 
     shape, holes = exported_designs(config, out)[DESIGN_KEYS[design]]
@@ -74,7 +74,7 @@ def track_recording(config: StudyConfig, out: Path, images: Path, poses: Path, h
     T_ref = cam_from_part(T_task_cam, T_task_part)
     files, problems = match_images(images, reported.rows)
     exclude, hidden, mesh = _exclusions(shape, list(holes), camera, T_ref)
-    tc = tracking_config(spec, config.cell)
+    tc = spec.in_cell(config.cell)
     sig_mm, sig_rad = reference_sigma(config.cell)
     c, n, r = holes_to_arrays(holes)
     rep = replay(camera, c, n, r, T_ref, reported.times_s, files, detector=tc.detector, gate_px=tc.gate_px,

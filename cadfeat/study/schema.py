@@ -128,8 +128,8 @@ ConstraintSpec = ConstraintSettings
 """``[constraints]`` (``cadfeat.study.settings``)."""
 
 
-#: The keys of ``[tracking]`` (the fields of ``TrackingSettings``).
-TRACKING_KEYS = tuple(TrackingSettings.model_fields)
+#: The keys of ``[tracking]`` (the study keys of ``TrackingSettings``: its cell is the study's ``[cell]``).
+TRACKING_KEYS = TrackingSettings.study_keys()
 TrackingSpec = TrackingSettings
 ShopSpec = ShopSettings
 RobustnessSpec = RobustnessSettings
@@ -264,7 +264,7 @@ def load_study(path_or_dict: StudySource, base_dir: str | Path | None = None) ->
         "cell": cell.model_dump(mode="json"),
     }
     if tracking is not None:
-        echo["tracking"] = tracking.model_dump(mode="json")
+        echo["tracking"] = tracking.study_dump()
     if add_targets is not None:
         echo["add_targets"] = add_targets.model_dump(mode="json")
     return StudyConfig(path, base, info, camera, pose, trajectory, design, constraints, objective, optimizer,

@@ -1,7 +1,8 @@
 """A study's ``[tracking]`` section run on its original and optimised designs (``cadfeat track``, ``cadfeat run``).
 
-Glue between the study (camera, trajectory, part pose, ``TrackingSpec``) and ``cadfeat.vision.closed_loop``:
-builds the ``TrackingConfig``, runs the closed loop on both designs, and returns the results.json ``tracking``
+Glue between the study (camera, trajectory, part pose, ``[tracking]``) and ``cadfeat.vision.closed_loop``:
+the ``[tracking]`` section IS the closed loop's ``TrackingConfig`` (``cadfeat.vision.config``), run in the study's
+``[cell]`` (``TrackingConfig.in_cell``); runs the closed loop on both designs, and returns the results.json ``tracking``
 section: the Monte-Carlo summaries and paired verdicts (``BeforeAfter.to_json``), per-frame error curves
 (median and 10–90 % band over runs, for the report's error-against-time plot, thesis Fig. 6.7 style) and a few
 frames drawn with detected vs predicted ellipses (PNG files under ``tracking/`` in the output folder).
@@ -23,13 +24,11 @@ from cadfeat.cad.export import import_step
 from cadfeat.cad.features import Hole, extract_holes
 from cadfeat.cad.features.identity import named
 from cadfeat.cad.parts import load_part
-from cadfeat.cell import Cell
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 from cadfeat.study.setup import camera_direction, load_scene
-from cadfeat.vision import FilterTuning, SensorModel
-from cadfeat.vision.closed_loop import TrackingConfig, draw_frame, frame_image, report_frames
+from cadfeat.vision.closed_loop import draw_frame, frame_image, report_frames
 from cadfeat.vision.motion import so3_log
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -38,7 +37,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
     from cadfeat.results import JsonDict
-    from cadfeat.vision.closed_loop import BeforeAfter, TrackingConfig
+    from cadfeat.vision.closed_loop import BeforeAfter
 
 Design = tuple["Shape", "Sequence[Hole]"]
 """A design the closed loop tracks: its solid (part frame, mm) and its holes."""
@@ -51,29 +50,6 @@ SWEEPS: dict[str, tuple[float, ...]] = {
     "focal_length": (0.99, 0.995, 1.0, 1.005, 1.01),            # factor on fx, fy assumed by the estimators
     "sample_time": (1, 2, 4),                                   # frame step (sample time = step × dt)
 }
-
-
-def tracking_config(spec: TrackingSpec, cell: Cell | None = None) -> TrackingConfig:
-    """The ``cadfeat.vision`` configuration of a ``[tracking]`` section in the study's cell (``[cell]``; the
-    default cell if None): each run's part placement σ = 0.4 t per axis (``Cell.placement_sigma``), the sensor
-    noise σ, the light's gain σ, the detector and its gate."""
-    cell = cell or Cell()
-    placement_mm, placement_deg = cell.placement_sigma()
-    tuning = FilterTuning(r_px2=spec.r_px2, q_rate_mm2_s2=spec.q_rate_mm2_s2, q_omega_rad2_s2=spec.q_omega_rad2_s2,
-                          iterations=spec.iterations, tau=spec.tau,
-                          sigma0_mm=max(spec.initial_error_mm, 1.0), sigma0_rad=max(np.radians(spec.initial_error_deg),
-                                                                                    0.01))
-    return TrackingConfig(estimators=tuple(spec.estimators), runs=spec.runs,
-                          sensor=SensorModel(noise_grey=cell.noise_sigma_grey, defocus=spec.defocus,
-                                             exposure_s=spec.exposure_s),
-                          initial_error_mm=spec.initial_error_mm, initial_error_deg=spec.initial_error_deg,
-                          tuning=tuning, frame_step=spec.frame_step, settle_frames=spec.settle_frames,
-                          converged_mm=spec.converged_mm, converged_deg=spec.converged_deg, gate_px=cell.gate_px,
-                          rim_model=spec.rim_model, seed=spec.seed, alpha=spec.alpha,
-                          min_change=spec.min_change_percent / 100.0, gain_sigma=cell.gain_sigma,
-                          placement_mm=placement_mm, placement_deg=placement_deg, detector=cell.detector,
-                          renderer=spec.renderer, spp=spec.spp, light=cell.light, material=cell.material,
-                          hole_ends=cell.hole_ends)
 
 
 def _scene(config: StudyConfig) -> tuple[Camera, np.ndarray, np.ndarray, np.ndarray]:
@@ -242,7 +218,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     _check_frames(config, spec, len(T_cam_part))
     from cadfeat.vision.closed_loop import track_designs  # lazy: looked up per call (tests replace it)
 
-    result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec, config.cell),
+    result = track_designs(camera, T_cam_part, times, screws, dict(designs), spec.in_cell(config.cell),
                            estimator_camera=camera_override, tracked=tracked, pairs=pairs)
     section = result.to_json()
     section["warnings"] = _motion_warnings(T_cam_part[result.frame_indices], times[result.frame_indices])
@@ -260,7 +236,7 @@ def track_arguments(config: StudyConfig, spec: TrackingSpec, design: Design) -> 
     camera, T_cam_part, times, screws = _scene(config)
     _check_frames(config, spec, len(T_cam_part))
     _, T, t, sc = tracked_frames(T_cam_part, times, screws, spec.frame_step)
-    return camera, T, t, sc, (design[0], _named(design[1])), tracking_config(spec, config.cell)
+    return camera, T, t, sc, (design[0], _named(design[1])), spec.in_cell(config.cell)
 
 
 def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,
@@ -305,7 +281,7 @@ def pbr_seconds(config: StudyConfig, spec: TrackingSpec, design: Design) -> tupl
 
     camera, T_cam_part, times, screws = _scene(config)
     _, T, _, _ = tracked_frames(T_cam_part, times, screws, spec.frame_step)
-    tc = tracking_config(spec.replace(renderer="pbr"), config.cell)
+    tc = spec.replace(renderer="pbr").in_cell(config.cell)
     with PbrRenderer(design[0], list(design[1]), camera, **tc.render_options()) as renderer:
         seconds = renderer.estimate_seconds(T[len(T) // 2])
     return seconds, len(T) * (spec.runs if placed(tc) else 1)

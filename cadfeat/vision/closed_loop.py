@@ -32,15 +32,15 @@ import numpy as np
 from cadfeat.cad.export import mesh_from_shape
 from cadfeat.cad.features import holes_to_arrays
 from cadfeat.camera import Camera
-from cadfeat.cell import defaults as D
 from cadfeat.measures import hole_ellipse
 from cadfeat.measures.ellipse import Ellipse as _E
 from cadfeat.measures.pose_models import RIM_GAP_MIN_PX as _RIM_GAP_MIN_PX
 from cadfeat.measures.pose_models import hole_geometry
 from cadfeat.measures.rim_occlusion import rim_occlusion
+from cadfeat.vision.config import TrackingConfig
 from cadfeat.vision.detection import Detections, associate
 from cadfeat.vision.detectors import detect
-from cadfeat.vision.estimate import FilterTuning, estimate_poses
+from cadfeat.vision.estimate import estimate_poses
 from cadfeat.vision.images import SensorModel, apply_optics, optics_kernels, render_sequence, sensor_images
 from cadfeat.vision.metrics import aggregate_runs, hold_last, paired_verdict, pose_errors, run_summary
 from cadfeat.vision.motion import so3_exp
@@ -49,8 +49,6 @@ if TYPE_CHECKING:  # pragma: no cover
     import trimesh
 
     from cadfeat.cad.features import Hole, ShapeLike
-    from cadfeat.cell.light import Light
-    from cadfeat.cell.material import Material
     from cadfeat.measures.ellipse import Ellipse
     from cadfeat.results import JsonDict
 
@@ -63,64 +61,6 @@ RIM_HIDDEN_MAX = 0.03
 #: A hole whose predicted rim comes closer than this (px) to another hole's rim is not associated
 #: (``measures.pose_models.RIM_GAP_MIN_PX``: a neighbouring edge inside the surround ring shifts the centre).
 RIM_GAP_MIN_PX = _RIM_GAP_MIN_PX
-
-
-@dataclass(frozen=True)
-class TrackingConfig:
-    """Closed-loop settings (the ``[tracking]`` study section maps onto these; units in the names).
-
-    ``estimators`` subset of ("ekf", "iekf", "pnp"); ``runs`` Monte-Carlo runs; ``sensor`` noise and blur;
-    ``initial_error_mm`` / ``initial_error_deg`` the size of the initial pose error (random direction per
-    run); ``tuning`` the filters' R, Q, P₀, n, τ; ``frame_step`` uses every k-th trajectory sample;
-    ``settle_frames`` frames skipped before the error statistics; ``converged_mm`` / ``converged_deg``
-    convergence bounds; ``gate_px`` association gate; ``rim_model`` measure ellipse centres (True) or
-    treat holes as points (False); ``seed`` base seed; ``alpha`` significance of the paired test;
-    ``min_change`` smallest relative change of the median RMS error that counts (``metrics.paired_verdict``);
-    run-to-run variability (module docstring): ``placement_mm`` / ``placement_deg`` σ (one, or one per axis) of
-    the part's placement error (0 = every run at the nominal placement, rendered once), ``gain_sigma`` relative σ of the
-    illumination gain per run; ``detector`` the hole detector (``cadfeat.cell.DETECTORS``); ``renderer`` "raster"
-    (VTK, holes painted dark) or "pbr" (Mitsuba 3: the cell's ``light``, ``material`` and ``hole_ends``, ``spp``
-    samples per pixel).
-    """
-
-    estimators: tuple[str, ...] = ("ekf", "iekf", "pnp")
-    runs: int = 20
-    sensor: SensorModel = field(default_factory=SensorModel)
-    initial_error_mm: float = 10.0
-    initial_error_deg: float = 2.0
-    tuning: FilterTuning = field(default_factory=FilterTuning)
-    frame_step: int = 1
-    settle_frames: int = 5
-    converged_mm: float = 2.0
-    converged_deg: float = 1.0
-    gate_px: float = D.GATE_PX
-    rim_model: bool = True
-    seed: int = 0
-    alpha: float = 0.05
-    min_change: float = 0.05
-    placement_mm: float | tuple[float, ...] = D.PLACEMENT_SIGMA_MM
-    placement_deg: float | tuple[float, ...] = D.PLACEMENT_SIGMA_DEG
-    gain_sigma: float = D.GAIN_SIGMA
-    detector: str = "cadfeat"
-    renderer: str = "raster"
-    spp: int = 16
-    light: Light | None = None
-    material: Material | None = None
-    hole_ends: str = "as_modelled"
-
-    def render_options(self) -> JsonDict:
-        """The keyword arguments of ``render.camera_renderer`` for this config's renderer: none for the raster
-        one; the cell's light, material and hole ends, the samples per pixel and a metered exposure for the
-        physically based one (``render.sensor``: the part's median at a fixed fraction of full scale)."""
-        if self.renderer != "pbr":
-            return {}
-        from cadfeat.render.sensor import Sensor  # lazy: pydantic
-
-        return {"light": self.light, "material": self.material, "spp": self.spp, "hole_ends": self.hole_ends,
-                "sensor": Sensor(exposure="meter")}
-
-    def with_changes(self, **changes: Any) -> TrackingConfig:
-        return replace(self, **changes)
 
 
 @dataclass
