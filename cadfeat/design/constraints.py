@@ -37,7 +37,7 @@ from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import ShapeLike
-    from cadfeat.results import JsonDict
+    from cadfeat.results import RequirementData
 
 __all__ = [
     "ConstraintCheck",
@@ -106,7 +106,7 @@ class ConstraintCheck:
     unit: str
     ok: bool
 
-    def to_dict(self) -> JsonDict:
+    def to_dict(self) -> RequirementData:
         return {"name": self.name, "holes": list(self.holes), "required": float(self.required),
                 "value": float(self.value), "margin": float(self.margin), "unit": self.unit, "ok": bool(self.ok)}
 

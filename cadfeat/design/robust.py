@@ -41,7 +41,7 @@ import numpy as np
 
 from cadfeat.design.objectives import ObjectiveConfig
 from cadfeat.design.optimize import _result  # pyright: ignore[reportPrivateUsage] (the optimisers' result)
-from cadfeat.design.optimize.evaluator import FEAS_TOL, Best, Evaluator
+from cadfeat.design.optimize.evaluator import FEAS_TOL, Best, Evaluator, HistoryEntry, StartSummary
 from cadfeat.design.robustness import cell_objectives, shop_objectives
 from cadfeat.design.uncertainty import Draws
 from cadfeat.errors import CadfeatError
@@ -49,7 +49,6 @@ from cadfeat.errors import CadfeatError
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.optimize import OptimizerConfig, OptimResult
     from cadfeat.design.problem import Problem
-    from cadfeat.results import JsonDict
 
 __all__ = ["BLOCKS", "FLOOR_PERCENTILE", "STATISTICS", "TIE_TOL", "RobustObjective", "RobustProblem",
            "robust_optimise", "statistic", "tie_break"]
@@ -343,7 +342,7 @@ def tie_break(problem: RobustProblem, best: Best | None, pool: Sequence[Best]) -
 
 
 def robust_optimise(problem: RobustProblem, config: OptimizerConfig, starts: Sequence[np.ndarray],
-                    progress: Callable[[JsonDict], None] | None = None) -> OptimResult:
+                    progress: Callable[[HistoryEntry], None] | None = None) -> OptimResult:
     """Local solves of ``problem`` (COBYLA, ``ROBUST_EVALS_PER_VARIABLE`` evaluations per free variable) from
     each of ``starts`` in turn, one evaluator keeping the best feasible design (ties: the earlier); standard-size
     variables (``snap_standard_sizes``) stay at each start's (snapped) sizes. The delivered design: among the
@@ -358,7 +357,7 @@ def robust_optimise(problem: RobustProblem, config: OptimizerConfig, starts: Seq
     ev = _PoolEvaluator(problem, np.asarray(starts[0], float), free, progress=progress, t0=t0)
     ev.phase = "robust"
     interrupted = False
-    summaries: list[JsonDict] = []
+    summaries: list[StartSummary] = []
     try:
         for k, x in enumerate(starts):
             sub = ev.sub(np.asarray(x, float), free)

@@ -56,7 +56,6 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.objectives import Normaliser
     from cadfeat.design.problem import Problem
     from cadfeat.measures.glare import GlareMaps
-    from cadfeat.results import JsonDict
     from cadfeat.study.settings.design import DesignSpec, Selector
     from cadfeat.trajectory import Trajectory
 
@@ -99,7 +98,7 @@ class StudySetup:
     constraints: ConstraintConfig
     rebuild_shape: Callable[[np.ndarray], Shape]
     rebuild_holes: Callable[[Shape], list[Hole]]
-    values: Callable[[np.ndarray], JsonDict]
+    values: Callable[[np.ndarray], Mapping[str, object]]
     linear: bool = True
     int_values: dict[str, int] = field(default_factory=dict[str, int])
     part: Part | StepPart | None = None

@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypedDict, cast
 
 import numpy as np
 
@@ -36,11 +36,26 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
-    from cadfeat.results import JsonDict
-    from cadfeat.vision.closed_loop import BeforeAfter
+    from cadfeat.results import JsonDict, TrackingData
+    from cadfeat.vision.closed_loop import BeforeAfter, DesignTracking, Observation
+    from cadfeat.vision.config import TrackingConfig
 
 Design = tuple["Shape", "Sequence[Hole]"]
 """A design the closed loop tracks: its solid (part frame, mm) and its holes."""
+TrackArguments = tuple["Camera", np.ndarray, np.ndarray, "np.ndarray | None", Design, "TrackingConfig"]
+"""The arguments of ``closed_loop.track_one`` (``track_arguments``): camera, tracked poses, times, screws, the
+design, the configuration."""
+Tracked = tuple["DesignTracking", "Observation", dict[str, float]]
+"""What ``closed_loop.track_one`` gives: the design's tracking, its observation, wall-clock timings."""
+
+class SweepData(TypedDict):
+    """A sweep (``sweep``): the setting varied, its values, and per value a row: the value, per design and estimator
+    the Monte-Carlo mean RMS errors and convergence time, the verdicts per estimator."""
+
+    kind: str
+    values: list[float]
+    rows: list[JsonDict]
+
 
 #: Sweep kinds and their default values (thesis §6.3.3 ranges where they apply to this scene).
 SWEEPS: dict[str, tuple[float, ...]] = {
@@ -87,15 +102,16 @@ def _curves(result: BeforeAfter) -> JsonDict:
     """Per design and estimator: frame times and the median / 10 % / 90 % over runs of both errors."""
     out: JsonDict = {}
     for name, d in result.designs.items():
-        out[name] = {"times_s": [round(float(t), 6) for t in d.times_s]}
+        design: JsonDict = {"times_s": [round(float(t), 6) for t in d.times_s]}
         for m, (et, er) in d.errors.items():
-            entry = {}
+            entry: dict[str, dict[str, list[float]]] = {}
             for key, e in (("trans_mm", et), ("rot_deg", er)):
                 with np.errstate(all="ignore"):
                     q = np.nanpercentile(np.where(np.isfinite(e), e, np.nan), [10, 50, 90], axis=0) \
                         if np.isfinite(e).any() else np.full((3, e.shape[1]), np.nan)
                 entry[key] = {"p10": q[0].tolist(), "median": q[1].tolist(), "p90": q[2].tolist()}
-            out[name][m] = entry
+            design[m] = entry
+        out[name] = design
     return out
 
 
@@ -159,11 +175,12 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
     holes: dict[str, list[Hole]] = {}
     if results_path.is_file():
         try:
-            block: JsonDict = json.loads(results_path.read_text(encoding="utf-8")).get("holes") or {}
+            block: Mapping[str, object] = json.loads(results_path.read_text(encoding="utf-8")).get("holes") or {}
         except (ValueError, AttributeError) as exc:
             raise CadfeatError(f"{results_path}: not a results.json of `cadfeat run` ({exc})") from None
-        if all(isinstance(block.get(k), list) and block[k] for k in EXPORTED):
-            holes = {k: [_hole_from_json(h, results_path, k, i) for i, h in enumerate(block[k])] for k in EXPORTED}
+        entries = {k: cast("list[object]", v) for k in EXPORTED if isinstance(v := block.get(k), list) and v}
+        if len(entries) == len(EXPORTED):
+            holes = {k: [_hole_from_json(h, results_path, k, i) for i, h in enumerate(v)] for k, v in entries.items()}
     if not holes:
         view = _view_direction(config, Path(out) / EXPORTED["before"])
 
@@ -171,13 +188,23 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
     return {k: (shapes[k], _named(holes[k])) for k in EXPORTED}
 
 
-def _hole_from_json(h: JsonDict, path: Path, key: str, i: int) -> Hole:
+def _number(value: object) -> float:
+    """``float(value)`` of a number read from JSON (``TypeError`` as ``float`` gives it for anything else)."""
+    if isinstance(value, int | float | str):
+        return float(value)
+    raise TypeError(f"float() argument must be a string or a real number, not '{type(value).__name__}'")
+
+
+def _hole_from_json(entry: object, path: Path, key: str, i: int) -> Hole:
     """A ``Hole`` from a results.json hole entry (``study.outputs.hole_dict``). The closed loop uses the entrance
     rim only (centre, axis, radius, depth, through); the narrowest bore is not stored and is taken as the rim."""
     try:
+        if not isinstance(entry, Mapping):
+            raise TypeError(f"expected a table, got {entry!r}")
+        h = cast("Mapping[str, object]", entry)
         return Hole(centre=np.asarray(h["centre_mm"], float), axis=np.asarray(h["axis"], float),
-                    radius_mm=float(h["radius_mm"]), bore_radius_mm=float(h["radius_mm"]),
-                    depth_mm=float(h["depth_mm"]), through=bool(h["through"]), kind=str(h.get("kind", "plain")),
+                    radius_mm=_number(h["radius_mm"]), bore_radius_mm=_number(h["radius_mm"]),
+                    depth_mm=_number(h["depth_mm"]), through=bool(h["through"]), kind=str(h.get("kind", "plain")),
                     host_face=-1, outline=None, name=str(h.get("name") or ""))
     except (KeyError, TypeError, ValueError) as exc:
         raise CadfeatError(f"{path}: holes.{key}[{i}]: {exc!s}; allowed: a hole entry of `cadfeat run` "
@@ -202,8 +229,8 @@ def _view_direction(config: StudyConfig, original_step: Path) -> np.ndarray | No
 
 def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Path | None = None,
                  spec: TrackingSpec | None = None, camera_override: Camera | None = None,
-                 tracked: Mapping[str, Any] | None = None, pairs: Mapping[str, tuple[str, str]] | None = None
-                 ) -> JsonDict:
+                 tracked: Mapping[str, Tracked] | None = None, pairs: Mapping[str, tuple[str, str]] | None = None
+                 ) -> TrackingData:
     """The results.json ``tracking`` section for ``designs`` = {"before": (shape, holes), "after": (...)}.
 
     ``out_dir``: where the frame PNGs go (``tracking/``); None writes nothing. ``camera_override``: the camera
@@ -227,7 +254,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     return section
 
 
-def track_arguments(config: StudyConfig, spec: TrackingSpec, design: Design) -> tuple[Any, ...]:
+def track_arguments(config: StudyConfig, spec: TrackingSpec, design: Design) -> TrackArguments:
     """The arguments of ``closed_loop.track_one`` that track one design (shape, holes) of the study as
     ``run_tracking`` tracks it with ``spec`` (the same holes' names, frames and runs), for ``run_tracking``'s
     ``tracked``; plain arrays and dataclasses (picklable: the study's check tracks the original in a worker)."""
@@ -240,7 +267,7 @@ def track_arguments(config: StudyConfig, spec: TrackingSpec, design: Design) -> 
 
 
 def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,
-          values: Sequence[float] | None = None, spec: TrackingSpec | None = None) -> JsonDict:
+          values: Sequence[float] | None = None, spec: TrackingSpec | None = None) -> SweepData:
     """Thesis §6.3.3 sensitivity: the tracking summary per value of one setting (module docstring).
 
     Returns {"kind", "values", "rows": [{"value", design: {estimator: {trans_mm_rms, rot_deg_rms, convergence_s}}}]}.

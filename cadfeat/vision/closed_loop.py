@@ -25,7 +25,7 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -37,7 +37,7 @@ from cadfeat.measures.ellipse import Ellipse as _E
 from cadfeat.measures.pose_models import RIM_GAP_MIN_PX as _RIM_GAP_MIN_PX
 from cadfeat.measures.pose_models import hole_geometry
 from cadfeat.measures.rim_occlusion import rim_occlusion
-from cadfeat.vision.config import TrackingConfig
+from cadfeat.vision.config import RenderOptions, TrackingConfig
 from cadfeat.vision.detection import Detections, associate
 from cadfeat.vision.detectors import detect
 from cadfeat.vision.estimate import estimate_poses
@@ -50,7 +50,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cadfeat.cad.features import Hole, ShapeLike
     from cadfeat.measures.ellipse import Ellipse
-    from cadfeat.results import JsonDict
+    from cadfeat.results import ComparisonData, DesignTrackingData, EstimatorVerdictData, TrackingData
 
 #: Pixels around the part kept per frame (blur and the contour tracer need a margin of background).
 ROI_MARGIN_PX = 12
@@ -79,11 +79,12 @@ class Observation:
     radii: np.ndarray
     names: list[str]
     rim_hidden: np.ndarray | None = None
-    scene: tuple[Any, Sequence[Hole], SensorModel, np.ndarray | None] | None = None  # (shape, holes, sensor, screws)
+    # (shape, holes, sensor, screws)
+    scene: tuple[ShapeLike, Sequence[Hole], SensorModel, np.ndarray | None] | None = None
     rim_gap: np.ndarray | None = None  # (F, N) px to the nearest other rim at the nominal pose (None: not computed)
     camera: Camera | None = None  # the detector undistorts the rims' edges with it (``detection.undistorted_centre``)
     renderer: str = "raster"  # the renderer kind and options that made the images (placement re-renders use them)
-    render_options: JsonDict = field(default_factory=dict)
+    render_options: RenderOptions = field(default_factory=lambda: RenderOptions())
 
 
 @dataclass
@@ -111,7 +112,7 @@ class DesignTracking:
 def observe(shape: ShapeLike, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, sensor: SensorModel,
             screws: np.ndarray | None = None, predict_occlusion: bool = True,
             frames: Sequence[int] | None = None, renderer: str = "raster",
-            render_options: Mapping[str, Any] | None = None) -> Observation:
+            render_options: RenderOptions | None = None) -> Observation:
     """Render + blur once (module docstring). T_cam_part (F, 4, 4) mm, screws (F, 6) for motion blur;
     ``predict_occlusion``: the rims' hidden fractions at these poses (``Observation.rim_hidden``); ``frames``:
     render only these frame indices (the others' images are empty, 1 x 1 black at (0, 0): for runs that render
@@ -120,7 +121,7 @@ def observe(shape: ShapeLike, holes: Sequence[Hole], camera: Camera, T_cam_part:
     centres, normals, radii = holes_to_arrays(holes)
     T = np.asarray(T_cam_part, dtype=float)
     keep = np.arange(len(T)) if frames is None else np.unique(np.asarray(frames, dtype=int))
-    clean = render_sequence(shape, holes, camera, T[keep], renderer, **dict(render_options or {}))
+    clean = render_sequence(shape, holes, camera, T[keep], renderer, **(render_options or {}))
     kernels = optics_kernels(camera, T, centres, sensor, screws)
     some, some_offsets = _regions(camera, clean, apply_optics(clean, [kernels[k] for k in keep]))
     optical = [np.zeros((1, 1), np.float32) for _ in range(len(T))]
@@ -137,7 +138,8 @@ def observe(shape: ShapeLike, holes: Sequence[Hole], camera: Camera, T_cam_part:
 
     gap = hole_geometry(camera, T, centres, normals, radii).rim_gap_px(hidden)
     return Observation(optical, offsets, predicted, centres, normals, radii, names, hidden,
-                       (shape, list(holes), sensor, screws), gap, camera, renderer, dict(render_options or {}))
+                       (shape, list(holes), sensor, screws), gap, camera, renderer,
+                       RenderOptions(**(render_options or {})))
 
 
 def _regions(camera: Camera, clean: np.ndarray, blurred: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
@@ -376,7 +378,7 @@ def estimate_runs(camera: Camera, obs: Observation, pixels: np.ndarray, T_runs: 
     return errors, summaries
 
 
-def design_json(result: DesignTracking) -> JsonDict:
+def design_json(result: DesignTracking) -> DesignTrackingData:
     """results.json form of one design's tracking: per estimator the Monte-Carlo means and intervals."""
     rate = result.detection_rate
     found = np.all(np.isfinite(result.pixels), axis=-1)
@@ -391,14 +393,14 @@ def design_json(result: DesignTracking) -> JsonDict:
 
 
 def compare(before: DesignTracking, after: DesignTracking, alpha: float = 0.05,
-            min_change: float = 0.0) -> JsonDict:
+            min_change: float = 0.0) -> dict[str, EstimatorVerdictData]:
     """Paired verdicts per estimator on the per-run translation and rotation RMS errors, and an overall line.
 
     Per estimator: ``better`` when the translation or the rotation RMS is significantly lower after and the
     other not significantly higher (symmetrically ``worse``), ``mixed`` when one is significantly lower and
     the other significantly higher, else ``no significant difference``.
     """
-    out: JsonDict = {}
+    out: dict[str, EstimatorVerdictData] = {}
     for m in before.summaries:
         if m not in after.summaries:
             continue
@@ -426,17 +428,17 @@ class BeforeAfter:
 
     designs: dict[str, DesignTracking]
     observations: dict[str, Observation]
-    verdicts: JsonDict
+    verdicts: dict[str, EstimatorVerdictData]
     config: TrackingConfig
     frame_indices: np.ndarray
     timings_s: dict[str, float]
-    comparisons: dict[str, Any] = field(default_factory=dict[str, Any])
+    comparisons: dict[str, ComparisonData] = field(default_factory=dict[str, "ComparisonData"])
     """More paired comparisons: label → {"before": name, "after": name, "verdicts": per estimator}."""
 
-    def to_json(self) -> JsonDict:
+    def to_json(self) -> TrackingData:
         """The results.json ``tracking`` section (plain data; infinities as None)."""
         c = self.config
-        out = {
+        out: TrackingData = {
             "settings": {"estimators": list(c.estimators), "runs": c.runs, "noise_grey": c.sensor.noise_grey,
                          "defocus": c.sensor.defocus, "exposure_s": c.sensor.exposure_s,
                          "initial_error_mm": c.initial_error_mm, "initial_error_deg": c.initial_error_deg,
@@ -455,15 +457,15 @@ class BeforeAfter:
             **({"comparisons": self.comparisons} if self.comparisons else {}),
             "timings_s": {k: round(v, 3) for k, v in self.timings_s.items()},
         }
-        return _finite_json(out)
+        return cast("TrackingData", _finite_json(out))  # (the same keys; a non-finite number is None)
 
 
-def _finite_json(value: Any) -> Any:
+def _finite_json(value: object) -> object:
     """Replace NaN/inf by None and numpy scalars by Python numbers (strict JSON)."""
     if isinstance(value, dict):
-        return {k: _finite_json(v) for k, v in value.items()}
+        return {k: _finite_json(v) for k, v in cast("dict[str, object]", value).items()}
     if isinstance(value, list | tuple):
-        return [_finite_json(v) for v in value]
+        return [_finite_json(v) for v in cast("Sequence[object]", value)]
     if isinstance(value, np.generic):
         value = value.item()
     if isinstance(value, float) and not np.isfinite(value):
@@ -471,7 +473,8 @@ def _finite_json(value: Any) -> Any:
     return value
 
 
-def track_one(camera: Camera, T: np.ndarray, t: np.ndarray, sc: np.ndarray | None, design: tuple[Any, Sequence[Hole]],
+def track_one(camera: Camera, T: np.ndarray, t: np.ndarray, sc: np.ndarray | None,
+              design: tuple[ShapeLike, Sequence[Hole]],
               config: TrackingConfig, estimator_camera: Camera | None = None
               ) -> tuple[DesignTracking, Observation, dict[str, float]]:
     """One design of ``track_designs`` on its tracked frames ``T`` (F, 4, 4), times ``t`` (F,) s and screws ``sc``
@@ -497,7 +500,7 @@ def tracked_frames(T_cam_part: np.ndarray, times_s: np.ndarray, screws: np.ndarr
 
 
 def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, screws: np.ndarray | None,
-                  designs: dict[str, tuple[Any, Sequence[Hole]]], config: TrackingConfig,
+                  designs: dict[str, tuple[ShapeLike, Sequence[Hole]]], config: TrackingConfig,
                   before: str = "before", after: str = "after", estimator_camera: Camera | None = None,
                   tracked: Mapping[str, tuple[DesignTracking, Observation, dict[str, float]]] | None = None,
                   pairs: Mapping[str, tuple[str, str]] | None = None) -> BeforeAfter:
