@@ -11,7 +11,7 @@ objective and constraint configurations. Everything the solvers need comes from 
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any, TypeAlias
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
 
@@ -46,7 +46,11 @@ from cadfeat.poses import cam_from_part
 if TYPE_CHECKING:  # pragma: no cover
     from collections.abc import Mapping, Sequence
 
+    import trimesh
+    from numpy.typing import ArrayLike
+
     from cadfeat.camera import Camera
+    from cadfeat.design.unseen import ScoredMeasures
     from cadfeat.measures.glare import GlareMaps
     from cadfeat.trajectory import Trajectory
 
@@ -79,7 +83,7 @@ class _BatchPose:
     """g_POSE's per-pose predicted errors (..., L) mm and aggregated value (...,) (``design.pose_terms``), read
     by ``objectives.per_pose_values`` as ``measures.pose``."""
 
-    def __init__(self, errors_mm: np.ndarray, g: Any):
+    def __init__(self, errors_mm: np.ndarray, g: np.ndarray):
         self.errors_mm, self.g = errors_mm, g
 
     def error_mm(self, rotation_length_mm: float | None = None) -> np.ndarray:
@@ -89,10 +93,10 @@ class _BatchPose:
 class _WithPose:
     """A ``Measures`` with ``pose`` attached (None when g_POSE is not chosen)."""
 
-    def __init__(self, measures: Any, pose: Any):
+    def __init__(self, measures: object, pose: _BatchPose | None):
         self._m, self.pose = measures, pose
 
-    def __getattr__(self, name: str) -> Any:
+    def __getattr__(self, name: str) -> object:
         return getattr(self._m, name)
 
 
@@ -110,8 +114,8 @@ class Problem:
 
     def __init__(self, space: DesignSpace, model: FeatureModel, camera: Camera, trajectory: Trajectory,
                  T_task_part: np.ndarray, objective_config: ObjectiveConfig, constraint_config: ConstraintConfig,
-                 fixed_mask: Any = None, *, occlusion_mesh: Any = None, normaliser: Normaliser | None = None,
-                 feature_mask: Any = None, cell: Cell | None = None):
+                 fixed_mask: ArrayLike | None = None, *, occlusion_mesh: trimesh.Trimesh | None = None,
+                 normaliser: Normaliser | None = None, feature_mask: ArrayLike | None = None, cell: Cell | None = None):
         self.space = space
         self.cell = cell if cell is not None else Cell()
         """The robot cell (``cadfeat.cell.Cell``): g_POSE's models see its gate, placement and sensor noise."""
@@ -297,7 +301,7 @@ class Problem:
         return maps
 
     def measures_from_features(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                               exact_occlusion: bool = False) -> Any:
+                               exact_occlusion: bool = False) -> ScoredMeasures:
         """``measures.evaluate`` of hole features (part frame) along the trajectory, as the objectives score them
         (``design.unseen.scored_measures``: the unseen-hole rule applied); occlusion by the optimiser's depth maps,
         or by the exact ray test against the mesh with ``exact_occlusion``."""
@@ -310,7 +314,7 @@ class Problem:
         return scored_measures(m, self.camera, cfg.min_axis_px)
 
     @property
-    def occlusion(self) -> Any:
+    def occlusion(self) -> DepthMaps | None:
         """The optimiser's occlusion test: depth maps of ``occlusion_mesh`` at the trajectory's poses
         (``measures.depth.DepthMaps``, built once on first use), or None without a mesh."""
         if self.occlusion_mesh is None:
@@ -326,7 +330,7 @@ class Problem:
             return maps.tile(n // maps.n_poses)
         return maps
 
-    def measures(self, x: np.ndarray) -> Any:
+    def measures(self, x: np.ndarray) -> ScoredMeasures:
         return self.measures_from_features(*self.model.features(np.asarray(x, dtype=float)))
 
     def features_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,

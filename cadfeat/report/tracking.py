@@ -21,7 +21,7 @@ if TYPE_CHECKING:  # pragma: no cover
     import numpy as np
     from matplotlib.figure import Figure
 
-    from cadfeat.study.tracking import SweepData
+    from cadfeat.results import SweepData
 
 COLOURS = {"before": "#d95f02", "after": "#1b9e77", "move_only": "#7570b3"}
 VERDICT_TEXT = {"better": "tracks better after the redesign", "worse": "tracks WORSE after the redesign",

@@ -19,8 +19,8 @@ __all__ = ["AddedTargetsData", "CheckData", "ComparisonData", "DesignTrackingDat
            "FeatureData", "FindingData", "HistoryPointData", "HoleData", "HolesData", "IntervalData",
            "LoopSettingsData", "MeasureSummaryData", "MeasuresData", "MoveOnlyData", "ObjectiveChangeData",
            "ObjectiveChangesData", "ObjectivesData", "PairedTestData", "PerPoseData", "RefinementData",
-           "RequirementData", "ResultsData", "ShopData", "StudyData", "TrackingData", "VariableData", "VerdictData",
-           "VerificationData"]
+           "RequirementData", "ResultsData", "ShopData", "StudyData", "SweepData", "TrackingData", "VariableData",
+           "VerdictData", "VerificationData"]
 
 
 class StudyData(TypedDict):
@@ -339,6 +339,16 @@ class TrackingData(TypedDict):
     curves: NotRequired[JsonDict]
     frames: NotRequired[list[JsonDict]]
     check: NotRequired[CheckData]
+
+
+class SweepData(TypedDict):
+    """A ``cadfeat track --sweep`` (``study.tracking.sweep``, thesis §6.3.3): the setting varied, its values, and per
+    value a row: the value, per design and estimator the Monte-Carlo mean RMS errors and convergence time, the
+    verdicts per estimator."""
+
+    kind: str
+    values: list[float]
+    rows: list[JsonDict]
 
 
 # ------------------------------------------------------------------------------------------ added targets

@@ -159,7 +159,7 @@ def check_spec(config: StudyConfig, n_samples: int) -> tuple[str, TrackingSpec |
 
 
 def start_design(config: StudyConfig, name: str, shape: Shape, holes: Sequence[Hole], n_samples: int
-                 ) -> BackgroundCall | None:
+                 ) -> BackgroundCall[Tracked] | None:
     """Start tracking one design (``shape``, ``holes``; ``name`` "before" or "after") in a worker process, so
     that the check runs on another core while this process goes on: the original while the optimiser runs,
     the recommended design during the analysis, export and the report's renders (neither depends on what this
@@ -196,7 +196,8 @@ def _track_design(threads: int | None, arguments: TrackArguments) -> Tracked:
     return track_one(*arguments)
 
 
-def _collect(pending: Mapping[str, BackgroundCall | None], progress: StudyProgress | None) -> dict[str, Tracked]:
+def _collect(pending: Mapping[str, BackgroundCall[Tracked] | None], progress: StudyProgress | None
+             ) -> dict[str, Tracked]:
     """{design name: its worker's tracking} for the workers ``start_design`` started that delivered (a design
     whose worker failed is tracked here by the check, where a failure is reported as the check reports it)."""
     out: dict[str, Tracked] = {}

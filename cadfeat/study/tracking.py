@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, TypedDict, cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -36,7 +36,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
-    from cadfeat.results import JsonDict, TrackingData
+    from cadfeat.results import JsonDict, SweepData, TrackingData
     from cadfeat.vision.closed_loop import BeforeAfter, DesignTracking, Observation
     from cadfeat.vision.config import TrackingConfig
 
@@ -47,15 +47,6 @@ TrackArguments = tuple["Camera", np.ndarray, np.ndarray, "np.ndarray | None", De
 design, the configuration."""
 Tracked = tuple["DesignTracking", "Observation", dict[str, float]]
 """What ``closed_loop.track_one`` gives: the design's tracking, its observation, wall-clock timings."""
-
-class SweepData(TypedDict):
-    """A sweep (``sweep``): the setting varied, its values, and per value a row: the value, per design and estimator
-    the Monte-Carlo mean RMS errors and convergence time, the verdicts per estimator."""
-
-    kind: str
-    values: list[float]
-    rows: list[JsonDict]
-
 
 #: Sweep kinds and their default values (thesis §6.3.3 ranges where they apply to this scene).
 SWEEPS: dict[str, tuple[float, ...]] = {

@@ -16,7 +16,7 @@ that every field arrives.
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, ClassVar, Literal, TypedDict, TypeVar
+from typing import ClassVar, Literal, TypeVar
 
 import numpy as np
 from pydantic import Field, ValidationInfo, field_validator, model_validator
@@ -28,10 +28,7 @@ from cadfeat.cell.material import Material
 from cadfeat.cell.model import Cell, PerAxis
 from cadfeat.settings import Settings, Tuple, boolean, choice, integer, number, seed_from_context
 from cadfeat.vision.estimate import FilterTuning
-from cadfeat.vision.images import SensorModel
-
-if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.render.sensor import Sensor
+from cadfeat.vision.images import RenderOptions, SensorModel
 
 __all__ = ["CHECK_MODES", "SENSOR_DERIVED", "TRACKING_ESTIMATORS", "TUNING_DERIVED", "RenderOptions",
            "TrackingConfig"]
@@ -41,16 +38,6 @@ CHECK_MODES = ("fast", "full", "off", "pbr")
 """``[tracking] check``: the closed loop inside ``cadfeat run`` (``cadfeat.study.closed_loop_check``)."""
 
 _FT, _SM = FilterTuning(), SensorModel()  # the estimators' and the images' own defaults are the section's
-
-
-class RenderOptions(TypedDict, total=False):
-    """The keyword arguments of ``render.camera_renderer`` a closed loop renders with (``render_options``)."""
-
-    light: Light
-    material: Material
-    spp: int
-    hole_ends: str
-    sensor: Sensor
 
 
 class TrackingConfig(Settings):

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Unpack
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 
@@ -34,10 +34,22 @@ from cadfeat.measures.focus import defocus_diameter_px
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole, ShapeLike
-    from cadfeat.vision.config import RenderOptions
+    from cadfeat.cell.light import Light
+    from cadfeat.cell.material import Material
+    from cadfeat.render.sensor import Sensor
 
 #: Kernels are drawn on a grid this many times finer than the pixel grid, then summed (area coverage).
 SUPERSAMPLE = 8
+
+
+class RenderOptions(TypedDict, total=False):
+    """The keyword arguments of ``render.camera_renderer`` a closed loop renders with (``render_options``)."""
+
+    light: Light
+    material: Material
+    spp: int
+    hole_ends: str
+    sensor: Sensor
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ Units are in the key names (mm, percent, deg, s, px², grey levels on the 0..255
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Literal
+from typing import ClassVar, Literal
 
 from pydantic import field_validator, model_validator
 
@@ -111,7 +111,7 @@ class RobustnessSettings(Settings):
 
     @field_validator("path_offset_mm")
     @classmethod
-    def _mm(cls, value: Any) -> float | tuple[float, ...]:
+    def _mm(cls, value: object) -> float | tuple[float, ...]:
         return per_axis(value, 100.0)
 
     @model_validator(mode="after")
