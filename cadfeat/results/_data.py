@@ -11,9 +11,12 @@ numpy scalars (``np.float64`` is a ``float``) until ``study.outputs.plain``; a s
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import NotRequired, TypedDict
+from typing import TYPE_CHECKING, NotRequired, TypedDict
 
 from cadfeat.results._record import JsonDict
+
+if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.camera import CameraFields
 
 __all__ = ["AddedTargetsData", "CheckData", "ComparisonData", "DesignTrackingData", "EstimatorVerdictData",
            "FeatureData", "FindingData", "HistoryPointData", "HoleData", "HolesData", "IntervalData",
@@ -410,7 +413,7 @@ class ResultsData(TypedDict):
     evaluation_only: NotRequired[bool]
     study: StudyData
     inputs: JsonDict
-    camera: JsonDict
+    camera: CameraFields
     trajectory: JsonDict
     part_pose: NotRequired[JsonDict]
     variables: NotRequired[list[VariableData]]

@@ -155,7 +155,7 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
     ``VIEW_DIRECTION``, or the direction towards the trajectory's cameras), so through holes enter on the side
     the camera sees, and named ``H<i+1>``.
     """
-    shapes = {}
+    shapes: dict[str, Shape] = {}
     for name, file in EXPORTED.items():
         path = Path(out) / file
         if not path.is_file():
