@@ -134,7 +134,7 @@ def _replay_rows(folder: Path) -> tuple[list[tuple[str, ...]], str]:
     from cadfeat.poses import cam_from_part
     from cadfeat.study.schema import TrackingSpec, load_study
     from cadfeat.study.setup import load_scene
-    from cadfeat.study.tracking import exported_designs, tracking_config
+    from cadfeat.study.tracking import exported_designs
     from cadfeat.vision.closed_loop import detect_sequence, frame_image, observe
 
     text = (ROOT / "studies" / "nema17_mount.toml").read_text()
@@ -152,7 +152,7 @@ def _replay_rows(folder: Path) -> tuple[list[tuple[str, ...]], str]:
     camera, traj, T_task_part = load_scene(config)
     assert len(traj.times_s) == FRAMES
     T = cam_from_part(traj.T_task_cam, T_task_part)
-    tc = tracking_config(config.tracking or TrackingSpec(), config.cell)
+    tc = (config.tracking or TrackingSpec()).in_cell(config.cell)
     start = time.perf_counter()
     obs = observe(shape, holes, camera, T, tc.sensor)
     render_s = time.perf_counter() - start

@@ -14,11 +14,14 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 
 from cadfeat.errors import CadfeatError
+
+if TYPE_CHECKING:  # pragma: no cover
+    import cv2
 
 #: Depth (mm) below which a point counts as at or behind the camera centre; projection clamps to it.
 MIN_DEPTH_MM = 1e-6
@@ -38,7 +41,34 @@ _POSITIVE_FIELDS = ("fx", "fy", "focal_length_mm", "focus_distance_mm")
 _OPTIONAL_POSITIVE_FIELDS = ("f_number", "aperture_mm", "blur_circle_mm")
 
 
-def _is_real(value: Any) -> bool:
+class CameraFields(TypedDict, total=False):
+    """``Camera``'s fields as keyword arguments (a preset, a calibration file, a study's overrides, ``to_dict``)."""
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+    dist: tuple[float, ...] | list[float]
+    focal_length_mm: float
+    f_number: float | None
+    aperture_mm: float | None
+    focus_distance_mm: float
+    blur_circle_mm: float | None
+    name: str
+    source: str
+
+
+class Optics(TypedDict, total=False):
+    """The lens's optics a calibration may be given with (``Camera.from_opencv_file``, ``OPTICS_NODES``)."""
+
+    focal_length_mm: float
+    f_number: float
+    focus_distance_mm: float
+
+
+def _is_real(value: object) -> bool:
     """A real number (int, float, numpy scalar) and not a bool."""
     return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool | np.bool_)
 
@@ -286,7 +316,7 @@ class Camera:
         )
 
     # ------------------------------------------------------------------ construction
-    def replace(self, **changes: Any) -> Camera:
+    def replace(self, **changes: Unpack[CameraFields]) -> Camera:
         """A copy with some fields changed (validated again)."""
         if "f_number" in changes and "aperture_mm" not in changes:
             changes["aperture_mm"] = None
@@ -298,9 +328,9 @@ class Camera:
         """The same camera as an ideal pinhole (the thesis simulations, chapter 5)."""
         return self.replace(dist=(0.0, 0.0, 0.0, 0.0, 0.0), name=f"{self.name} (pinhole)")
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> CameraFields:
         """Plain-data form (JSON/TOML friendly)."""
-        d = dataclasses.asdict(self)
+        d = CameraFields(**dataclasses.asdict(self))
         d["dist"] = list(self.dist)
         return d
 
@@ -313,7 +343,7 @@ class Camera:
         return cls(**PRESETS[key])
 
     @classmethod
-    def from_opencv_file(cls, path: str | Path, **optics: Any) -> Camera:
+    def from_opencv_file(cls, path: str | Path, **optics: Unpack[Optics]) -> Camera:
         """Load an OpenCV calibration (``cv2.FileStorage`` YAML/XML/JSON) with camera matrix and distortion.
 
         Reads ``camera_matrix`` (or ``K``/``cameraMatrix``), ``distortion_coefficients`` (or ``D``/
@@ -328,7 +358,7 @@ _MATRIX_KEYS = ("camera_matrix", "K", "cameraMatrix", "intrinsics")
 _DIST_KEYS = ("distortion_coefficients", "D", "dist_coeffs", "distCoeffs", "distortion")
 
 
-def read_opencv_calibration(path: str | Path) -> dict[str, Any]:
+def read_opencv_calibration(path: str | Path) -> CameraFields:
     """Parse a calibration file into ``Camera`` keyword arguments.
 
     Reads what ``cv2.FileStorage`` reads (YAML, XML, JSON): matrices stored by OpenCV
@@ -362,9 +392,9 @@ def read_opencv_calibration(path: str | Path) -> dict[str, Any]:
         optics = _optics_nodes(fs, path)
     finally:
         fs.release()
-    return dict(fx=float(K[0, 0]), fy=float(K[1, 1]), cx=float(K[0, 2]), cy=float(K[1, 2]),
-                width=width, height=height, dist=tuple(float(v) for v in dist), name=path.stem,
-                source=str(path), **optics)
+    return CameraFields(fx=float(K[0, 0]), fy=float(K[1, 1]), cx=float(K[0, 2]), cy=float(K[1, 2]),
+                        width=width, height=height, dist=tuple(float(v) for v in dist), name=path.stem,
+                        source=str(path), **optics)
 
 
 #: The lens's optics a calibration file may carry as extra scalar nodes (``cadfeat calibrate --focal-length-mm
@@ -372,9 +402,9 @@ def read_opencv_calibration(path: str | Path) -> dict[str, Any]:
 OPTICS_NODES = ("focal_length_mm", "f_number", "focus_distance_mm")
 
 
-def _optics_nodes(fs: Any, path: Path) -> dict[str, float]:
+def _optics_nodes(fs: cv2.FileStorage, path: Path) -> Optics:
     """The ``OPTICS_NODES`` present in the file, each a positive number (else ``CameraError`` naming it)."""
-    out = {}
+    out: dict[str, float] = {}
     for key in OPTICS_NODES:
         node = fs.getNode(key)
         if node.empty():
@@ -383,10 +413,10 @@ def _optics_nodes(fs: Any, path: Path) -> dict[str, float]:
         if not (np.isfinite(value) and value > 0):
             raise CameraError(f"{path}: {key}: not a positive number", key, "a number > 0")
         out[key] = value
-    return out
+    return Optics(**out)
 
 
-def _first_matrix(fs: Any, keys: tuple[str, ...], path: Path) -> np.ndarray | None:
+def _first_matrix(fs: cv2.FileStorage, keys: tuple[str, ...], path: Path) -> np.ndarray | None:
     import cv2
 
     for key in keys:
@@ -403,7 +433,7 @@ def _first_matrix(fs: Any, keys: tuple[str, ...], path: Path) -> np.ndarray | No
     return None
 
 
-def _node_array(node: Any) -> np.ndarray | None:
+def _node_array(node: cv2.FileNode) -> np.ndarray | None:
     """Numbers of a FileStorage node: an OpenCV matrix, a ``{rows, cols, data}`` map or a (nested) list."""
     if node.isMap():
         if not node.getNode("dt").empty():
@@ -422,7 +452,7 @@ def _node_array(node: Any) -> np.ndarray | None:
     return None
 
 
-def _image_size(fs: Any, path: Path) -> tuple[int, int]:
+def _image_size(fs: cv2.FileStorage, path: Path) -> tuple[int, int]:
     w, h = fs.getNode("image_width"), fs.getNode("image_height")
     if w.empty() or h.empty():
         w, h = fs.getNode("width"), fs.getNode("height")
@@ -449,7 +479,7 @@ def write_opencv_calibration(camera: Camera, path: str | Path) -> None:
 
 
 # Each preset documents its source. Optics not given by a source are stated as assumptions.
-PRESETS: dict[str, dict[str, Any]] = {
+PRESETS: dict[str, CameraFields] = {
     "dalsa-cad1-128a": dict(
         name="dalsa-cad1-128a",
         fx=231.4119, fy=231.25, cx=64.2, cy=61.5, width=128, height=128,
@@ -484,7 +514,7 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 
 
-def build_camera(overrides: Mapping[str, Any], preset: str | None = None, calibration: str | Path | None = None
+def build_camera(overrides: Mapping[str, object], preset: str | None = None, calibration: str | Path | None = None
                  ) -> Camera:
     """A camera from a preset name or an OpenCV calibration file (or neither) and ``overrides`` (``Camera``
     fields; an override of ``f_number`` or ``aperture_mm`` alone recomputes the other). The checks are

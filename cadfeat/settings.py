@@ -19,8 +19,9 @@ configuration with it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from typing import Annotated, Any, ClassVar, Self, TypeVar, cast
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Annotated, ClassVar, Literal, Self, TypedDict, TypeVar, cast, overload
 
 from pydantic import (
     BaseModel,
@@ -36,12 +37,29 @@ from pydantic_core import ErrorDetails, PydanticCustomError
 
 from cadfeat.errors import CadfeatError
 
-__all__ = ["Finite", "Settings", "StudyError", "Tuple", "boolean", "check_limit", "choice", "context_of", "integer",
-           "number", "range_text", "reject", "seed_from_context", "validate_nested", "validate_section"]
+__all__ = ["Finite", "Settings", "StudyError", "Tuple", "ValidationContext", "boolean", "check_limit", "choice",
+           "context_of", "integer", "number", "range_text", "reject", "seed_from_context", "validate_nested",
+           "validate_section"]
 
 
 class StudyError(CadfeatError):
     """A study file is invalid: the message names the file, the dotted key and what is allowed."""
+
+
+class ValidationContext(TypedDict, total=False):
+    """What ``validate_section`` gives the validators (``info.context``; module docstring): ``study`` (a study
+    file's rules), ``seed`` (the study's), ``limits`` (``cadfeat.study.schema.LIMITS``), ``base_dir`` (files relative
+    to the study), ``part_kind`` / ``part`` (the part's kind, its label), ``part_params`` (name → the part's
+    ``cad.parts.PartParameter``) and ``parameter`` (the one a ``[design.parameters]`` entry names)."""
+
+    study: bool
+    seed: int
+    limits: Mapping[str, int]
+    base_dir: Path
+    part_kind: str
+    part: str
+    part_params: Mapping[str, object]
+    parameter: object
 
 
 def _as_tuple(value: object) -> object:
@@ -68,7 +86,7 @@ class Settings(BaseModel):
     """Keys that moved elsewhere → where (a one-line error names it: ``tracking.placement_mm: this key moved; allowed:
     [robustness] placement_position_mm …``)."""
 
-    def __init__(self, /, **data: Any) -> None:
+    def __init__(self, /, **data: object) -> None:
         """Built in Python: a bad value is one ``CadfeatError`` line (``objective.aggregate: 'median' is not
         allowed; allowed: sum, mean, min, smoothmin``), as from a study file."""
         try:
@@ -85,7 +103,7 @@ class Settings(BaseModel):
         """The keys a study file may set (the fields not declared ``internal``)."""
         return tuple(n for n, f in cls.model_fields.items() if not _extra_of(f.json_schema_extra).get("x-internal"))
 
-    def study_dump(self) -> dict[str, Any]:
+    def study_dump(self) -> dict[str, object]:
         """The study-file keys as plain JSON data (tuples as lists): the echo in results.json."""
         return self.model_dump(mode="json", include=set(self.study_keys()))
 
@@ -93,38 +111,40 @@ class Settings(BaseModel):
     def _enumerations(self) -> Self:
         """A field declared with ``choice(default, names)`` holds one of ``names`` (its schema ``enum``)."""
         for name, field in type(self).model_fields.items():
-            extra = cast("dict[str, Any] | None", field.json_schema_extra)
-            value = getattr(self, name)
-            if isinstance(extra, dict) and "enum" in extra and value is not None and value not in extra["enum"]:
+            extra = _extra_of(field.json_schema_extra)
+            enum, value = extra.get("enum"), getattr(self, name)
+            if isinstance(enum, list) and value is not None and value not in cast("list[object]", enum):
                 raise reject(name, f"{_fmt(value)} is not allowed", str(extra["x-allowed"]))
         return self
 
     @property
-    def table(self) -> dict[str, Any]:
+    def table(self) -> dict[str, object]:
         """The keys the study file (or the caller) gave, as validated (defaults left out)."""
         return {k: getattr(self, k) for k in type(self).model_fields if k in self.model_fields_set}
 
     def replace(self, **changes: object) -> Self:
-        """A validated copy with ``changes`` (``dataclasses.replace`` for a settings model)."""
-        return type(self)(**{**self.model_dump(), **changes})
+        """A validated copy with ``changes`` (``dataclasses.replace`` for a settings model); the other fields as
+        they are (a nested model stays that model)."""
+        return type(self)(**{**{k: getattr(self, k) for k in type(self).model_fields}, **changes})
 
 
-def _extra_of(extra: object) -> dict[str, Any]:
+def _extra_of(extra: object) -> dict[str, object]:
     """A field's JSON Schema extra as a dict (empty when it has none)."""
-    return dict(cast("dict[str, Any]", extra)) if isinstance(extra, dict) else {}
+    return dict(cast("dict[str, object]", extra)) if isinstance(extra, dict) else {}
 
 
-def context_of(info: ValidationInfo) -> dict[str, Any]:
+def context_of(info: ValidationInfo) -> ValidationContext:
     """The validation context (empty when the model is built in Python)."""
-    return dict(cast("dict[str, Any] | None", info.context) or {})
+    context: ValidationContext | None = info.context  # (what validate_section gave pydantic)
+    return ValidationContext(**(context or {}))
 
 
 def seed_from_context(data: object, info: ValidationInfo) -> object:
     """A section's table with ``seed`` defaulting to the study's (validation context ``seed``)."""
-    context = cast("dict[str, Any] | None", info.context)
-    if not isinstance(data, dict) or not context or "seed" not in context:
+    context = context_of(info)
+    if not isinstance(data, dict) or "seed" not in context:
         return cast(object, data)
-    table = cast("dict[str, Any]", data)
+    table = cast("dict[str, object]", data)
     return table if "seed" in table else {**table, "seed": context["seed"]}
 
 
@@ -143,8 +163,14 @@ def _extra(allowed: str, internal: bool, **more: JsonValue) -> dict[str, JsonVal
     return {"x-allowed": allowed, **({"x-internal": True} if internal else {}), **more}
 
 
-def number(default: Any, lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
-           hi_open: bool = False, description: str = "", internal: bool = False) -> Any:
+F = TypeVar("F")
+"""A field's value type. The field helpers return the field's definition (pydantic's ``FieldInfo``) typed as the
+value it gives, as ``dataclasses.field`` is typed: ``x: float = number(1.0, 0.0)`` checks the default against the
+declared type."""
+
+
+def number(default: F, lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
+           hi_open: bool = False, description: str = "", internal: bool = False) -> F:
     """A finite float field in [lo, hi] (lo/hi excluded when ``lo_open``/``hi_open``); integers are accepted."""
     text = range_text(lo, hi, lo_open)
     if hi_open and lo is not None and hi is not None:
@@ -154,25 +180,32 @@ def number(default: Any, lo: float | None = None, hi: float | None = None, *, lo
                  json_schema_extra=_extra(text, internal))
 
 
-def integer(default: Any, lo: int, hi: int | None = None, *, description: str = "", internal: bool = False) -> Any:
+def integer(default: F, lo: int, hi: int | None = None, *, description: str = "", internal: bool = False) -> F:
     """An integer field in [lo, hi] (a float or a boolean is refused)."""
     text = f"an integer ≥ {lo}" if hi is None else f"an integer in [{lo}, {hi}]"
     return Field(default, ge=lo, le=hi, description=description, json_schema_extra=_extra(text, internal))
 
 
-def boolean(default: bool, *, description: str = "", internal: bool = False) -> Any:
+def boolean(default: bool, *, description: str = "", internal: bool = False) -> bool:
     return Field(default, description=description, json_schema_extra=_extra("true or false", internal))
 
 
-def choice(default: Any, allowed: Sequence[str] | str, *, description: str = "", internal: bool = False,
-           factory: bool = False) -> Any:
+@overload
+def choice(default: Callable[[], F], allowed: Sequence[str] | str, *, description: str = "",
+           internal: bool = False, factory: Literal[True]) -> F: ...
+@overload
+def choice(default: F, allowed: Sequence[str] | str, *, description: str = "", internal: bool = False,
+           factory: Literal[False] = False) -> F: ...
+def choice(default: object, allowed: Sequence[str] | str, *, description: str = "", internal: bool = False,
+           factory: bool = False) -> object:
     """A field of an enumeration (``allowed``: its names) or any field with a hand-written allowed text
     (``allowed``: the text); ``factory``: ``default`` is a zero-argument callable (a mutable default)."""
-    first: dict[str, Any] = {"default_factory": default} if factory else {"default": default}
-    if isinstance(allowed, str):
-        return Field(**first, description=description, json_schema_extra=_extra(allowed, internal))
-    return Field(**first, description=description,
-                 json_schema_extra=_extra(", ".join(allowed), internal, enum=list(allowed)))
+    extra = _extra(allowed, internal) if isinstance(allowed, str) else \
+        _extra(", ".join(allowed), internal, enum=list(allowed))
+    if factory:
+        return Field(default_factory=cast("Callable[[], object]", default), description=description,
+                     json_schema_extra=extra)
+    return Field(default, description=description, json_schema_extra=extra)
 
 
 def reject(key: str, problem: str, allowed: str) -> PydanticCustomError:
@@ -197,14 +230,14 @@ M = TypeVar("M", bound=Settings)
 
 
 def validate_section(model: type[M], data: object, section: str, label: str,
-                     context: Mapping[str, Any] | None = None) -> M:
+                     context: ValidationContext | None = None) -> M:
     """``data`` (the TOML table of ``[section]``) validated as ``model`` with the study's rules (validation
     context ``study=True`` plus ``context``); one ``StudyError`` line otherwise."""
     keys = model.study_keys()
     if not isinstance(data, Mapping):
         raise StudyError(f"{label}: {section}: expected a table, got {_fmt(data)}; allowed: a table with keys "
                          f"{', '.join(keys)}")
-    table = dict(cast("Mapping[str, Any]", data))
+    table = dict(cast("Mapping[str, object]", data))
     for key in table:
         if key in model.moved:
             raise StudyError(f"{label}: {section}.{key}: this key moved; allowed: {model.moved[key]}")
@@ -219,7 +252,7 @@ def validate_section(model: type[M], data: object, section: str, label: str,
 def _parts(model: type[Settings], err: ErrorDetails, data: Mapping[str, object], section: str) -> tuple[str, str, str]:
     """(key relative to the section, problem, allowed) of a pydantic error."""
     loc = [str(x) for x in err["loc"]]
-    ctx: dict[str, Any] = dict(err.get("ctx") or {})
+    ctx: dict[str, object] = dict(err.get("ctx") or {})
     if err["type"] == "cadfeat":
         return str(ctx["key"]), str(ctx["problem"]), str(ctx["allowed"])
     name = loc[0] if loc else ""
@@ -238,14 +271,14 @@ def _message(model: type[Settings], err: ErrorDetails, data: Mapping[str, object
     return f"{key}: {problem}; allowed: {allowed}"
 
 
-def validate_nested(model: type[M], data: object, key: str, section: str, context: Mapping[str, Any]) -> M:
+def validate_nested(model: type[M], data: object, key: str, section: str, context: ValidationContext) -> M:
     """A sub-table (``data`` at ``key``, relative to the enclosing section) validated as ``model`` inside a
     validator of the enclosing model: an error becomes that model's error with the full dotted key
     (``holes[0].select``); unknown keys are named with the sub-table's allowed keys (``[section.key]``)."""
     where = f"{section}.{key}"
     if not isinstance(data, Mapping):
         raise reject(key, f"expected a table, got {_fmt(data)}", f"a table with keys {', '.join(model.study_keys())}")
-    table = dict(cast("Mapping[str, Any]", data))
+    table = dict(cast("Mapping[str, object]", data))
     for k in table:
         if k not in model.study_keys():
             raise reject(f"{key}.{k}", "unknown key", f"keys of [{where}]: {', '.join(model.study_keys())}")

@@ -30,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 from cadfeat.cell.material import Material  # noqa: E402
 from cadfeat.study.closed_loop_check import fast_spec  # noqa: E402
 from cadfeat.study.schema import load_study  # noqa: E402
-from cadfeat.study.tracking import _named, _scene, exported_designs, tracking_config  # noqa: E402
+from cadfeat.study.tracking import _named, _scene, exported_designs  # noqa: E402
 from cadfeat.vision import closed_loop as cl  # noqa: E402
 
 DETECTORS = ("cadfeat", "edcircles", "blob")
@@ -41,7 +41,7 @@ def design_runs(config, design, spec) -> dict:
     run_observations``), then per detector on the same images: holes found per frame and the per-run RMS errors of
     PnP and the IEKF (``closed_loop.detect_runs``, ``estimate_runs``)."""
     camera, T_all, times, screws = _scene(config)
-    tc = tracking_config(spec, config.cell)
+    tc = spec.in_cell(config.cell)
     _, T, t, sc = cl.tracked_frames(T_all, times, screws, tc.frame_step)
     shape, holes = design
     obs = cl.observe(shape, _named(holes), camera, T, tc.sensor, sc, frames=cl.report_frames(len(T)),
@@ -50,7 +50,7 @@ def design_runs(config, design, spec) -> dict:
     expected = cl.expected_visible(camera, obs, T)
     out = {}
     for detector in DETECTORS:
-        config_d = tc.with_changes(detector=detector)
+        config_d = tc.in_cell(tc.cell.replace(detector=detector))
         pixels, _ = cl.detect_runs(runs_obs, config_d)
         _, summaries = cl.estimate_runs(camera, obs, pixels, T_runs, t, config_d)
         found = np.all(np.isfinite(pixels), -1) & expected

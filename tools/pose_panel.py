@@ -193,7 +193,6 @@ def pbr_cell(args: argparse.Namespace, study: Path, setup):
     from cadfeat.study.closed_loop_check import fast_spec
     from cadfeat.study.schema import load_study
     from cadfeat.study.setup import glare_maps_for
-    from cadfeat.study.tracking import tracking_config
     from cadfeat.vision.closed_loop import tracked_frames
 
     cfg = load_study(study)
@@ -205,7 +204,7 @@ def pbr_cell(args: argparse.Namespace, study: Path, setup):
     traj = setup.trajectory
     T_all = invert_T(np.asarray(traj.T_task_cam)) @ setup.T_task_part
     spec = fast_spec(cfg, len(T_all)).replace(renderer="pbr", spp=args.spp, runs=args.runs, seed=args.seed)
-    config = replace(tracking_config(spec, cell), estimators=("pnp", "iekf"))
+    config = spec.replace(estimators=("pnp", "iekf")).in_cell(cell)
     _, T, times, _ = tracked_frames(T_all, np.asarray(traj.times_s), None, config.frame_step)
     glare = glare_maps_for(replace(cfg, cell=cell), setup.shape0, setup.holes0, setup.camera, T)
     return config, T, times, cell_models(cell), glare, cell
@@ -215,10 +214,11 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     """Panel rows of one study (module docstring) and, with ``optimum``, the paired closed-loop test of the
     optimum vs the original on the same runs (common random numbers)."""
     from cadfeat.cad.features import holes_to_arrays
+    from cadfeat.cell import PLACEMENT_SIGMA_PER_TOLERANCE, Cell
     from cadfeat.measures.pose_information import pose_information
     from cadfeat.measures.rim_centre import measure
     from cadfeat.poses import invert_T
-    from cadfeat.vision import FilterTuning, SensorModel
+    from cadfeat.vision import FilterTuning
     from cadfeat.vision.closed_loop import (
         TrackingConfig,
         compare,
@@ -233,15 +233,17 @@ def run_panel(args: argparse.Namespace, study: Path, optimum: Path | None) -> di
     idx = np.arange(0, len(traj.T_task_cam), args.frame_step)
     T = (invert_T(np.asarray(traj.T_task_cam)) @ setup.T_task_part)[idx]
     times = np.asarray(traj.times_s)[idx]
-    tuning = FilterTuning()
     model = None
     if args.model is not None:
         from cadfeat.measures.pose_models import PoseModels
 
         model = PoseModels(**json.loads(args.model.read_text()))
-    config = TrackingConfig(estimators=("pnp", "iekf"), runs=args.runs, sensor=SensorModel(noise_grey=2.0),
-                            tuning=tuning, placement_mm=args.placement_mm, placement_deg=args.placement_deg,
-                            gain_sigma=args.gain_sigma, seed=args.seed)
+    tuning = FilterTuning()
+    k = PLACEMENT_SIGMA_PER_TOLERANCE  # the cell's placement tolerance t of the σ asked for (σ = k t)
+    config = TrackingConfig(estimators=("pnp", "iekf"), runs=args.runs, seed=args.seed, sigma0_mm=tuning.sigma0_mm,
+                            sigma0_rad=tuning.sigma0_rad,
+                            cell=Cell(noise_sigma_grey=2.0, placement_position_mm=args.placement_mm / k,
+                                      placement_angle_deg=args.placement_deg / k, gain_sigma=args.gain_sigma))
     glare = cell = None
     if args.renderer == "pbr":
         config, T, times, model, glare, cell = pbr_cell(args, study, setup)

@@ -15,7 +15,12 @@ The public names below are imported lazily (CadQuery is heavy), so ``import cadf
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover (the names ``__getattr__`` gives, for the type checker)
+    from cadfeat.cad.features import Hole, extract_holes
+    from cadfeat.cad.parts import load_part
+    from cadfeat.cad.step_parts import load_step, redrill
 
 __all__ = ["Hole", "extract_holes", "load_part", "load_step", "redrill"]
 
@@ -28,7 +33,7 @@ _HOMES = {
 }
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     if name in _HOMES:
         return getattr(importlib.import_module(_HOMES[name]), name)
     raise AttributeError(f"module 'cadfeat.cad' has no attribute {name!r}")

@@ -23,10 +23,10 @@ import contextlib
 import hashlib
 import os
 import re
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,6 +38,9 @@ from cadfeat.output_folder import staged_output
 if TYPE_CHECKING:  # pragma: no cover
     import cadquery as cq
     import trimesh
+    from OCP.BRepCheck import BRepCheck_Analyzer
+    from OCP.TopAbs import TopAbs_ShapeEnum
+    from OCP.TopoDS import TopoDS_Shape
 
     from cadfeat.cad.features import Hole, ShapeLike
 
@@ -67,7 +70,7 @@ class ExportError(CadfeatError):
 
 
 # --------------------------------------------------------------------------------------------- helpers
-def _occ_shape(shape: ShapeLike) -> Any:
+def _occ_shape(shape: ShapeLike | TopoDS_Shape) -> TopoDS_Shape:
     """The ``TopoDS_Shape`` of a cadquery Shape/Workplane or of an OCP shape."""
     if hasattr(shape, "vals") and hasattr(shape, "objects"):  # cadquery Workplane
         import cadquery as cq
@@ -261,7 +264,7 @@ def check_solid(shape: ShapeLike) -> list[str]:
     return problems
 
 
-def _statuses(analyzer: Any, occ: Any, label: str, kind: Any) -> list[str]:
+def _statuses(analyzer: BRepCheck_Analyzer, occ: TopoDS_Shape, label: str, kind: TopAbs_ShapeEnum) -> list[str]:
     """Non-``NoError`` BRepCheck statuses of the sub-shapes of one kind, also those found in the context
     of an ancestor (e.g. a shell that is not closed in its solid)."""
     from OCP.BRepCheck import BRepCheck_NoError
@@ -291,7 +294,7 @@ MESH_INTERIOR_RETRIES = (4.0, 10.0)
 """Then: face interiors meshed with this many times the chord tolerance (edges keep it): a last resort."""
 
 
-def _untriangulated_faces(occ: Any) -> int:
+def _untriangulated_faces(occ: TopoDS_Shape) -> int:
     from OCP.BRep import BRep_Tool
     from OCP.TopAbs import TopAbs_FACE
     from OCP.TopExp import TopExp_Explorer
@@ -306,7 +309,7 @@ def _untriangulated_faces(occ: Any) -> int:
     return missing
 
 
-def _triangulate(occ: Any, tolerance_mm: float, angular_tolerance_rad: float) -> None:
+def _triangulate(occ: TopoDS_Shape, tolerance_mm: float, angular_tolerance_rad: float) -> None:
     """Mesh ``occ`` in place with an ABSOLUTE chord tolerance (mm) and an angular tolerance (rad).
 
     BRepMesh leaves some faces of real exports without triangles at a small angular tolerance (the 0.5 × 45°
@@ -337,7 +340,7 @@ def _triangulate(occ: Any, tolerance_mm: float, angular_tolerance_rad: float) ->
     _triangulate_as_nurbs(occ, tolerance_mm, angular_tolerance_rad)
 
 
-def _triangulate_as_nurbs(occ: Any, tolerance_mm: float, angular_tolerance_rad: float) -> None:
+def _triangulate_as_nurbs(occ: TopoDS_Shape, tolerance_mm: float, angular_tolerance_rad: float) -> None:
     """Last resort of ``_triangulate``: mesh a copy of the shape with every surface converted to NURBS (exact for
     planes, cylinders, cones: ``BRepBuilderAPI_NurbsConvert``) and give each face of ``occ`` its converted twin's
     triangulation. BRepMesh leaves some analytic faces of real exports empty at any tolerance (a Fusion 360 45°
@@ -586,7 +589,8 @@ def expected_step_volume(design: ShapeLike, original: ShapeLike,
 
 
 def _hole_errors(expected: Sequence[Hole], matched: Sequence[Hole],
-                 holes_to_arrays: Any) -> tuple[dict[str, np.ndarray], np.ndarray]:
+                 holes_to_arrays: Callable[[Sequence[Hole]], tuple[np.ndarray, np.ndarray, np.ndarray]]
+                 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """Per-hole deviations (mm) between matched holes, and the axis angles (rad).
 
     The axis deviation is tested as ``angle · max(depth, radius)``: how far the tilt moves the far end of

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,7 +18,12 @@ from cadfeat.cad.tolerance import ModelTolerance
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
+    import os
+
     import cadquery as cq
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
+    from OCP.gp import gp_Dir, gp_Pnt, gp_Vec
+    from OCP.TopoDS import TopoDS_Face, TopoDS_Shape
 
     from cadfeat.cad.features import Hole, ShapeLike
     from cadfeat.cad.tolerance import ModelTolerance
@@ -164,11 +169,11 @@ class HoleProfile:
 
 
 # --------------------------------------------------------------------------------------------- reading
-def _vec(p: Any) -> np.ndarray:
+def _vec(p: gp_Pnt | gp_Dir | gp_Vec) -> np.ndarray:
     return np.array([p.X(), p.Y(), p.Z()], dtype=float)
 
 
-def hole_label(hole: Hole, path: Any = None) -> str:
+def hole_label(hole: Hole, path: str | os.PathLike[str] | None = None) -> str:
     """``"<file>: hole H2 at (x, y, z) mm"``, for error messages."""
     c = np.asarray(hole.centre, dtype=float)
     name = getattr(hole, "name", "") or "hole"
@@ -179,13 +184,13 @@ def hole_label(hole: Hole, path: Any = None) -> str:
 class _Reader:
     """Reads one hole's wall from the faces of a shape, with the model's tolerances."""
 
-    def __init__(self, occ: Any, hole: Hole, tol: ModelTolerance, label: str) -> None:
+    def __init__(self, occ: TopoDS_Shape, hole: Hole, tol: ModelTolerance, label: str) -> None:
         self.occ, self.hole, self.label = occ, hole, label
         self.lin, self.ang = tol.linear_mm, tol.angular_rad
         self.centre = np.asarray(hole.centre, float)
         self.axis = np.asarray(hole.axis, float)
 
-    def coaxial(self, location: Any, direction: Any) -> bool:
+    def coaxial(self, location: gp_Pnt, direction: gp_Dir) -> bool:
         d = _vec(direction)
         return (np.linalg.norm(np.cross(d, self.axis)) <= self.ang
                 and np.linalg.norm(np.cross(_vec(location) - self.centre, self.axis)) <= self.lin)
@@ -193,7 +198,7 @@ class _Reader:
     def depth(self, p: np.ndarray) -> float:
         return float(np.dot(self.centre - p, self.axis))
 
-    def levels(self, face: Any) -> tuple[list[tuple[float, float]], bool]:
+    def levels(self, face: TopoDS_Face) -> tuple[list[tuple[float, float]], bool]:
         """(depth, radius) of each circular boundary of a wall face, and whether it has another boundary
         (an oblique entrance or exit, another feature cutting into it; ``self.span`` is then the depth range
         of those other boundaries). Straight edges in a plane through the axis (the seams between split wall
@@ -234,7 +239,7 @@ class _Reader:
         self.span = span
         return levels, other
 
-    def _sampled(self, curve: Any, n: int = 9) -> tuple[float, float] | str | None:
+    def _sampled(self, curve: BRepAdaptor_Curve, n: int = 9) -> tuple[float, float] | str | None:
         """A free-form edge that is a coaxial circle within the tolerance: its (depth, radius); a straight seam
         in a plane through the axis: ``"seam"``; anything else: None. From ``n`` points along the edge."""
         u = np.linspace(curve.FirstParameter(), curve.LastParameter(), n)
@@ -259,7 +264,7 @@ class _Reader:
                             "entrance/exit, or another feature cuts into it); re-drilling supports holes that start "
                             "and end on planes perpendicular to their axis")
 
-    def concave(self, face: Any) -> bool:
+    def concave(self, face: TopoDS_Face) -> bool:
         """The face bounds the material from outside (a hole wall), not a boss, pin or outer rounded edge:
         its outward normal points towards the axis."""
         from OCP.BRepGProp import BRepGProp_Face
@@ -273,7 +278,7 @@ class _Reader:
         radial = d - (d @ self.axis) * self.axis
         return float(_vec(n) @ radial) < 0.0
 
-    def _generator(self, curve: Any) -> bool:
+    def _generator(self, curve: BRepAdaptor_Curve) -> bool:
         """A straight edge lying in a plane through the axis (a split seam of a cylinder or cone)."""
         a = _vec(curve.Value(curve.FirstParameter()))
         b = _vec(curve.Value(curve.LastParameter()))
@@ -285,7 +290,7 @@ class _Reader:
         normal = np.cross(self.axis, radial / np.linalg.norm(radial))
         return abs(float(d @ normal)) <= self.lin + self.ang * float(np.linalg.norm(d))
 
-    def segment(self, face: Any) -> tuple[float, float, float, float, int, float] | None:
+    def segment(self, face: TopoDS_Face) -> tuple[float, float, float, float, int, float] | None:
         """(t0, t1, r0, r1, type, area) of a face if it is part of the hole's wall, else None."""
         from OCP.BRepAdaptor import BRepAdaptor_Surface
         from OCP.GeomAbs import GeomAbs_Cone, GeomAbs_Cylinder, GeomAbs_Torus
@@ -337,7 +342,7 @@ class _Reader:
             return t0, depth, r0, r1, typ, self._area_within(face, t0, depth, max(r0, r1))
         return t0, t1, r0, r1, typ, _face_area(face)
 
-    def _area_within(self, face: Any, t0: float, t1: float, radius: float) -> float:
+    def _area_within(self, face: TopoDS_Face, t0: float, t1: float, radius: float) -> float:
         """Area (mm²) of the part of ``face`` between depths ``t0`` and ``t1`` (a Boolean common with a coaxial
         cylinder a little wider than the face)."""
         from OCP.BRepAlgoAPI import BRepAlgoAPI_Common
@@ -354,7 +359,7 @@ class _Reader:
         return _face_area(common.Shape())
 
 
-def _face_area(face: Any) -> float:
+def _face_area(face: TopoDS_Shape) -> float:
     from OCP.BRepGProp import BRepGProp
     from OCP.GProp import GProp_GProps
 
@@ -363,7 +368,8 @@ def _face_area(face: Any) -> float:
     return float(props.Mass())
 
 
-def hole_profile(shape: ShapeLike, hole: Hole, tol: ModelTolerance | None = None, path: Any = None) -> HoleProfile:
+def hole_profile(shape: ShapeLike, hole: Hole, tol: ModelTolerance | None = None,
+                 path: str | os.PathLike[str] | None = None) -> HoleProfile:
     """The wall profile of ``hole`` read from the faces of ``shape`` (exact B-rep geometry).
 
     Collects the cylindrical and conical faces (and the entrance fillet of a ``"..., filleted rim"`` hole)

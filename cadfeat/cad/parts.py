@@ -37,11 +37,11 @@ import math
 import os
 import sys
 import traceback
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -62,10 +62,11 @@ from cadfeat.cad.sandbox import (
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
+    from multiprocessing.connection import Connection
+
     import cadquery as cq
 
     from cadfeat.cad.features import Hole
-    from cadfeat.results import JsonDict
 
 __all__ = [
     "PARTS_DIR",
@@ -100,7 +101,7 @@ class Parameter:
     description: str = ""
     is_int: bool = False
 
-    def check(self, value: Any, where: str) -> float | int:
+    def check(self, value: object, where: str) -> float | int:
         """``value`` as a float (int for integer parameters) within bounds, or ``CadfeatError``."""
         allowed = f"allowed: {'an integer' if self.is_int else 'a number'} in [{self.lower:g}, {self.upper:g}]" \
                   f"{' ' + self.unit if self.unit else ''}"
@@ -125,7 +126,7 @@ class Parameter:
         return f"{self.name} = {self.default:g}{unit} in [{self.lower:g}, {self.upper:g}]{kind}  {self.description}"
 
 
-def _parse_parameter(name: Any, spec: Any, where: str) -> Parameter:
+def _parse_parameter(name: object, spec: object, where: str) -> Parameter:
     """One ``PARAMETERS`` entry, validated (errors name the file, the key and what is allowed)."""
     if not isinstance(name, str) or not name.isidentifier():
         raise CadfeatError(f"{where}: PARAMETERS key {name!r} is not a valid Python identifier "
@@ -180,7 +181,7 @@ class Part:
     """The time limit (s) of each ``build``, in a worker process; None: in this process, no limit. Given to
     ``load_part``, so a part carries its own limit."""
 
-    def __reduce__(self) -> tuple[Any, tuple[str]]:
+    def __reduce__(self) -> tuple[Callable[[str], Part], tuple[str]]:
         """Pickled as its path (re-loaded on unpickling, in a worker: no limit of its own), so parts can be sent
         to worker processes."""
         return load_part, (str(self.path),)
@@ -189,7 +190,7 @@ class Part:
         """The default value of every parameter."""
         return {n: p.default for n, p in self.parameters.items()}
 
-    def resolve(self, **overrides: Any) -> dict[str, float | int]:
+    def resolve(self, **overrides: object) -> dict[str, float | int]:
         """Defaults updated by ``overrides``, validated: unknown names / bad values raise ``CadfeatError``."""
         unknown = sorted(set(overrides) - set(self.parameters))
         if unknown:
@@ -200,7 +201,7 @@ class Part:
             values[name] = self.parameters[name].check(value, str(self.path))
         return values
 
-    def build(self, **overrides: Any) -> cq.Solid:
+    def build(self, **overrides: object) -> cq.Solid:
         """Build the part: one ``cadquery.Solid`` (mm), in this process, or within the part's ``time_limit_s``
         in a worker process (``build_shape``). Raises ``PartBuildError``."""
         if self.time_limit_s is not None:
@@ -217,13 +218,13 @@ class Part:
             raise PartBuildError(f"{self.path}: build({_fmt(params)}) raised {type(exc).__name__}: {exc}") from exc
         return _one_solid(result, f"{self.path}: build({_fmt(params)})")
 
-    def holes(self, **overrides: Any) -> list[Hole]:
+    def holes(self, **overrides: object) -> list[Hole]:
         """The extracted holes of ``build(**overrides)`` (through holes enter on the ``view_direction`` side),
         named by ``name_holes``."""
         holes = extract_holes(self.build(**overrides), prefer_direction=self.view_direction)
         return self.name_holes(holes, overrides)
 
-    def holes_timed(self, params: Mapping[str, Any] | None = None, timeout_s: float | None = None) -> list[Hole]:
+    def holes_timed(self, params: Mapping[str, object] | None = None, timeout_s: float | None = None) -> list[Hole]:
         """``holes(**params)``, built in a worker process with a time limit when ``timeout_s`` is given."""
         if timeout_s is None:
             return self.holes(**dict(params or {}))
@@ -231,7 +232,7 @@ class Part:
         holes = extract_holes(build_shape(self, params, timeout_s), prefer_direction=self.view_direction)
         return self.name_holes(holes, params)
 
-    def name_holes(self, holes: Sequence[Hole], params: Mapping[str, Any] | None = None,
+    def name_holes(self, holes: Sequence[Hole], params: Mapping[str, object] | None = None,
                    tol_mm: float = 1e-3) -> list[Hole]:
         """``holes`` (extracted at ``params``) with names that stay with the physical hole:
 
@@ -282,13 +283,13 @@ class Part:
             object.__setattr__(self, "_default_holes_cache", cache)
         return cache
 
-    def expected_holes(self, **overrides: Any) -> list[dict] | None:
+    def expected_holes(self, **overrides: object) -> list[dict[str, object]] | None:
         """The script's analytic holes (``expected_holes(**params)``: dicts centre, axis, radius_mm, optional
         kind, fixed, name), or None if the script has none."""
         func = getattr(self.module, "expected_holes", None)
         return None if func is None else func(**self.resolve(**overrides))
 
-    def fixed_mask(self, holes: Sequence[Hole], params: Mapping[str, Any] | None = None,
+    def fixed_mask(self, holes: Sequence[Hole], params: Mapping[str, object] | None = None,
                    tol_mm: float = 1e-6) -> np.ndarray:
         """(N,) bool: which of ``holes`` (extracted at ``params``) the script marks ``"fixed": True`` in
         ``expected_holes`` (functional holes that may not move); matched by centre within ``tol_mm``.
@@ -301,11 +302,11 @@ class Part:
         return (np.linalg.norm(centres[:, None] - fixed[None], axis=-1) <= tol_mm).any(axis=1)
 
 
-def _fmt(params: Mapping[str, Any]) -> str:
+def _fmt(params: Mapping[str, object]) -> str:
     return ", ".join(f"{k}={v!r}" for k, v in params.items())
 
 
-def _one_solid(result: Any, what: str) -> cq.Solid:
+def _one_solid(result: object, what: str) -> cq.Solid:
     """The single solid of a build result (Workplane, Shape or OCP shape)."""
     if result is None:
         raise PartBuildError(f"{what} returned None; it must return a cadquery Workplane or Shape with one solid")
@@ -397,7 +398,7 @@ def load_part(path: str | os.PathLike[str], time_limit_s: float | None = None) -
                 limit)
 
 
-def _check_signature(build: Any, parameters: Mapping[str, Parameter], where: str) -> None:
+def _check_signature(build: Callable[..., object], parameters: Mapping[str, Parameter], where: str) -> None:
     """``build`` must accept every parameter as a keyword, and require no other argument."""
     try:
         sig = inspect.signature(build)
@@ -430,7 +431,7 @@ def load_parts(directory: str | os.PathLike[str] | None = None) -> list[Part]:
 
 
 # ------------------------------------------------------------------------------ time-limited builds
-def _worker(path: str, params: JsonDict | None, conn: Any) -> None:
+def _worker(path: str, params: Mapping[str, float | int] | None, conn: Connection) -> None:
     """Worker process: import the script, build (``params`` None: import only), send ('ok', BRep bytes) or
     ('error', message)."""
     worker_setup()
@@ -449,7 +450,7 @@ def _worker(path: str, params: JsonDict | None, conn: Any) -> None:
         conn.close()
 
 
-def build_shape(part: Part, params: Mapping[str, Any] | None = None, timeout_s: float = 30.0) -> cq.Solid:
+def build_shape(part: Part, params: Mapping[str, object] | None = None, timeout_s: float = 30.0) -> cq.Solid:
     """Build ``part`` with ``params`` in a worker process, within ``timeout_s`` seconds.
 
     The solid comes back as BRep text (``Shape.exportBrep``/``importBrep``: exact geometry). A build that
@@ -469,7 +470,7 @@ def _import_in_worker(path: Path, timeout_s: float) -> None:
     _in_worker(path, None, timeout_s, "importing the part script")
 
 
-def _in_worker(path: Path, values: JsonDict | None, timeout_s: float, what: str) -> bytes:
+def _in_worker(path: Path, values: Mapping[str, float | int] | None, timeout_s: float, what: str) -> bytes:
     status, payload = run_worker(_worker, (str(path), values), timeout_s, f"{path}: {what}")
     if status != "ok":
         message = payload if payload.startswith(str(path)) else f"{path}: {payload}"

@@ -21,7 +21,12 @@ import sys
 import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Generic, TypeVar, cast
+
+if TYPE_CHECKING:  # pragma: no cover
+    from multiprocessing.connection import Connection
+    from multiprocessing.context import BaseContext
+    from types import FrameType
 
 from cadfeat.errors import CadfeatError
 
@@ -73,7 +78,7 @@ def contained(path: Path, what: str, echo: bool = False) -> Iterator[None]:
     main = threading.current_thread() is threading.main_thread()
     previous = signal.getsignal(signal.SIGINT) if main else None
 
-    def on_sigint(signum: int, frame: Any) -> None:
+    def on_sigint(signum: int, frame: FrameType | None) -> None:
         interrupted.append(signum)
         raise KeyboardInterrupt
 
@@ -120,10 +125,10 @@ def worker_setup() -> None:
         os.close(devnull)
 
 
-_CONTEXT: Any = None
+_CONTEXT: BaseContext | None = None
 
 
-def _context() -> Any:
+def _context() -> BaseContext:
     """The multiprocessing context: forkserver (cadquery preloaded) where available, spawn otherwise."""
     global _CONTEXT
     if _CONTEXT is None:
@@ -148,14 +153,14 @@ class _Worker:
     """``target(*args, conn)`` in a worker process (the forkserver; a daemon: it dies with cadfeat), started now;
     its one ``(status, payload)`` reply read later (``reply``); ``stop`` kills it if it still runs."""
 
-    def __init__(self, target: Any, args: tuple) -> None:
+    def __init__(self, target: Callable[..., None], args: tuple[object, ...]) -> None:
         ctx = _context()
         self._receive, send = ctx.Pipe(duplex=False)
         self.proc = ctx.Process(target=target, args=(*args, send), daemon=True)
         self.proc.start()
         send.close()
 
-    def reply(self, timeout_s: float, what: str) -> tuple[str, Any] | None:
+    def reply(self, timeout_s: float, what: str) -> tuple[str, object] | None:
         """The worker's reply, None when none came within ``timeout_s``; ``PartBuildError`` if it died."""
         if not self._receive.poll(timeout_s):
             return None
@@ -174,7 +179,8 @@ class _Worker:
         self.proc.join()
 
 
-def run_worker(target: Any, args: tuple, timeout_s: float, what: str) -> tuple[str, Any]:
+def run_worker(target: Callable[..., None], args: tuple[object, ...], timeout_s: float, what: str
+               ) -> tuple[str, object]:
     """``target(*args, conn)`` in a worker process: its ``(status, payload)`` reply, or ``PartBuildError`` when
     no reply comes within ``timeout_s`` (the worker is killed) or the worker dies."""
     worker = _Worker(target, args)
@@ -187,7 +193,7 @@ def run_worker(target: Any, args: tuple, timeout_s: float, what: str) -> tuple[s
     return reply
 
 
-def _payload(reply: tuple[str, Any], what: str) -> Any:
+def _payload(reply: tuple[str, object], what: str) -> object:
     """The payload of ``_call_worker``'s ``("ok", payload)``; its ``("error", message)`` as ``PartBuildError``."""
     status, payload = reply
     if status != "ok":
@@ -195,7 +201,7 @@ def _payload(reply: tuple[str, Any], what: str) -> Any:
     return payload
 
 
-def _call_worker(func: Any, args: tuple, conn: Any) -> None:
+def _call_worker(func: Callable[..., object], args: tuple[object, ...], conn: Connection) -> None:
     """Worker process: send ('ok', func(*args)) or ('error', message)."""
     worker_setup()
     try:
@@ -209,27 +215,27 @@ def _call_worker(func: Any, args: tuple, conn: Any) -> None:
 R = TypeVar("R")
 
 
-def call_with_time_limit(func: Callable[..., R], args: tuple[Any, ...], what: str, timeout_s: float | None) -> R:
+def call_with_time_limit(func: Callable[..., R], args: tuple[object, ...], what: str, timeout_s: float | None) -> R:
     """``func(*args)`` in a worker process within ``timeout_s`` (None: in this process). ``func`` must be
     importable and ``args`` and the result picklable (CadQuery shapes are). A timeout, a dead worker or an
     exception raises ``PartBuildError`` starting with ``what``. Used for the CAD work that is not a part
     script's build, e.g. re-drilling a STEP part's holes."""
     if check_time_limit(timeout_s) is None:
         return func(*args)
-    return _payload(run_worker(_call_worker, (func, args), timeout_s, what), what)
+    return cast(R, _payload(run_worker(_call_worker, (func, args), timeout_s, what), what))  # (func's result)
 
 
-class BackgroundCall:
+class BackgroundCall(Generic[R]):
     """``func(*args)`` in a worker process started now, its result collected later (``result``) or the worker
     killed (``cancel``): work that does not depend on what this process does meanwhile runs on another core
     (the study's closed-loop check tracks the original design while the optimiser runs). ``func`` must be
     importable and ``args`` and the result picklable. The worker is a daemon: it dies with cadfeat."""
 
-    def __init__(self, func: Any, args: tuple, what: str) -> None:
+    def __init__(self, func: Callable[..., R], args: tuple[object, ...], what: str) -> None:
         self.what = what
         self._worker = _Worker(_call_worker, (func, args))
 
-    def result(self, timeout_s: float) -> Any:
+    def result(self, timeout_s: float) -> R:
         """``func(*args)``; ``PartBuildError`` (starting with ``what``) when the worker raised, died or did not
         answer within ``timeout_s``. The worker is gone afterwards."""
         try:
@@ -238,7 +244,7 @@ class BackgroundCall:
             self.cancel()
         if reply is None:
             raise PartBuildError(f"{self.what} gave no result within {timeout_s:g} s")
-        return _payload(reply, self.what)
+        return cast(R, _payload(reply, self.what))  # (what ``func`` returned, pickled back)
 
     def cancel(self) -> None:
         """Kill the worker (if it still runs) and free the pipe."""

@@ -26,7 +26,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -37,6 +37,8 @@ from cadfeat.cad.tolerance import ModelTolerance, step_uncertainty_mm
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
+    import os
+
     import cadquery as cq
 
     from cadfeat.cad.features import Hole, ShapeLike
@@ -192,7 +194,7 @@ def _host_normal(hole: Hole) -> np.ndarray:
     return np.asarray(hole.axis, dtype=float)
 
 
-def _check_on_host_plane(move: HoleMove, tol: ModelTolerance, path: Any) -> None:
+def _check_on_host_plane(move: HoleMove, tol: ModelTolerance, path: str | os.PathLike[str] | None) -> None:
     offset = float(np.dot(move.centre - np.asarray(move.hole.centre, float), _host_normal(move.hole)))
     if abs(offset) > tol.linear_mm:
         raise CadfeatError(f"{hole_label(move.hole, path)}: new centre {move.centre.tolist()} is {offset:.3g} mm off "
@@ -230,7 +232,7 @@ def volume_change_mm3(before: ShapeLike, after: ShapeLike) -> float:
     return shape_volume_mm3(after.cut(before)) - shape_volume_mm3(before.cut(after))
 
 
-def _material_in(shape: ShapeLike, tools: Sequence[Any], tol: ModelTolerance) -> tuple[float, float]:
+def _material_in(shape: ShapeLike, tools: Sequence[cq.Solid], tol: ModelTolerance) -> tuple[float, float]:
     """(volume of the union of ``tools``, volume of ``shape``'s material inside it), mm³: Booleans of the
     part with small solids bounded by a hole's own surfaces, which OCCT integrates exactly."""
     union = tools[0].fuse(*tools[1:]) if len(tools) > 1 else tools[0]
@@ -246,7 +248,7 @@ def _volume_tolerance(profiles: Sequence[HoleProfile], expected: float, tol: Mod
 
 
 def fill_holes(shape: ShapeLike, holes: Sequence[Hole], tol: ModelTolerance | None = None,
-               path: Any = None) -> cq.Solid:
+               path: str | os.PathLike[str] | None = None) -> cq.Solid:
     """``shape`` with ``holes`` filled: fused with the solid of revolution of each hole's own profile,
     then same-domain faces unified so the filled host faces merge back into one face.
 
@@ -258,7 +260,7 @@ def fill_holes(shape: ShapeLike, holes: Sequence[Hole], tol: ModelTolerance | No
 
 
 def _fill(shape: ShapeLike, holes: Sequence[Hole], profiles: Sequence[HoleProfile], tol: ModelTolerance,
-          path: Any) -> cq.Solid:
+          path: str | os.PathLike[str] | None) -> cq.Solid:
     """``fill_holes`` with the holes' profiles already read."""
     if not holes:
         return _single_solid(shape, "the part")
@@ -277,8 +279,8 @@ def _fill(shape: ShapeLike, holes: Sequence[Hole], profiles: Sequence[HoleProfil
     return filled
 
 
-def redrill(shape: ShapeLike, moves: Sequence[HoleMove], tol: ModelTolerance | None = None, path: Any = None,
-            verify: bool = True) -> cq.Solid:
+def redrill(shape: ShapeLike, moves: Sequence[HoleMove], tol: ModelTolerance | None = None,
+            path: str | os.PathLike[str] | None = None, verify: bool = True) -> cq.Solid:
     """Re-drill holes of ``shape``: fill each ``move.hole`` (``fill_holes``), then cut it again at
     ``move.centre`` with entrance radius ``move.radius_mm`` (``HoleProfile.resized``, same axis direction),
     then unify same-domain faces. The rest of the solid is untouched.
@@ -325,8 +327,8 @@ def redrill(shape: ShapeLike, moves: Sequence[HoleMove], tol: ModelTolerance | N
     return result
 
 
-def _verify(result: Any, moves: Sequence[HoleMove], profiles: Sequence[HoleProfile], tol: ModelTolerance,
-            path: Any) -> None:
+def _verify(result: cq.Solid, moves: Sequence[HoleMove], profiles: Sequence[HoleProfile], tol: ModelTolerance,
+            path: str | os.PathLike[str] | None) -> None:
     """Each new hole is found again by extraction at its centre, axis and entrance radius (a through hole may
     be found from its other end: on the same axis line, with its exit radius)."""
     found = extract_holes(result, tol=tol)
@@ -348,7 +350,8 @@ def _verify(result: Any, moves: Sequence[HoleMove], profiles: Sequence[HoleProfi
                                "feature or lost its rim)")
 
 
-def _check_through(filled: Any, move: HoleMove, depth_mm: float, tol: ModelTolerance, path: Any) -> None:
+def _check_through(filled: cq.Solid, move: HoleMove, depth_mm: float, tol: ModelTolerance,
+                   path: str | os.PathLike[str] | None) -> None:
     """A through hole must still exit at ``depth_mm``: material just above the exit, none just below."""
     from OCP.BRepClass3d import BRepClass3d_SolidClassifier
     from OCP.gp import gp_Pnt
@@ -399,7 +402,7 @@ def dry_run(part: StepPart, holes: Sequence[Hole], resize: Sequence[bool] | None
                                f"{text[len(where):] if text.startswith(where) else text}") from None
 
 
-def _step_round_trip(part: StepPart, result: Any, originals: dict[str, float]) -> None:
+def _step_round_trip(part: StepPart, result: cq.Solid, originals: dict[str, float]) -> None:
     """Write the re-drilled ``result`` as STEP and check the re-read file as a run's export does
     (``export.verify_step_roundtrip``: holes to 1e-6 mm, the volume against the re-read original's plus the change,
     ``export.expected_step_volume``), so that a part whose export cannot be verified is refused now. ``originals``

@@ -20,10 +20,11 @@ import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape, Workplane
+    from OCP.TopoDS import TopoDS_Shape
 
 __all__ = ["ModelTolerance", "step_uncertainty_mm"]
 
@@ -66,7 +67,7 @@ class ModelTolerance:
                 f"across, B-rep tolerance {self.brep_tol_mm:.3g} mm, STEP uncertainty {unc})")
 
 
-def _diagonal_mm(occ: Any) -> float:
+def _diagonal_mm(occ: TopoDS_Shape) -> float:
     from OCP.Bnd import Bnd_Box
     from OCP.BRepBndLib import BRepBndLib
 
@@ -78,7 +79,7 @@ def _diagonal_mm(occ: Any) -> float:
     return math.sqrt((x1 - x0) ** 2 + (y1 - y0) ** 2 + (z1 - z0) ** 2)
 
 
-def _max_brep_tolerance_mm(occ: Any) -> float:
+def _max_brep_tolerance_mm(occ: TopoDS_Shape) -> float:
     from OCP.BRep import BRep_Tool
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_VERTEX
     from OCP.TopExp import TopExp_Explorer

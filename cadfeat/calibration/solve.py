@@ -16,7 +16,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TypedDict
 
 import numpy as np
 
@@ -24,9 +24,6 @@ from cadfeat.calibration.boards import BoardSpec
 from cadfeat.camera import Camera, CameraError
 from cadfeat.errors import CadfeatError
 from cadfeat.vision.image_files import ImageFileError, read_grey
-
-if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.results import JsonDict
 
 #: Fewest images with the board found that a calibration accepts (5 intrinsics + 5 distortion terms need several
 #: views at different tilts; OpenCV's own sample asks for more).
@@ -101,6 +98,41 @@ class Coverage:
     radius_fraction: float
 
 
+class CoverageData(TypedDict):
+    """The report's ``coverage``: the share of the image grid the corners cover, the image corners they miss, how
+    far out (fraction of the corner radius) they reach."""
+
+    grid_fraction: float
+    uncovered_corners: list[str]
+    radius_fraction: float
+
+
+class ViewData(TypedDict):
+    """One image used (the report's ``views``): its path, reprojection RMS (px), corners found, board tilt (deg)."""
+
+    image: str
+    rms_px: float
+    corners: int
+    tilt_deg: float
+
+
+class CalibrationReport(TypedDict):
+    """A calibration's ``<stem>_report.json`` (``CalibrationResult.to_json``)."""
+
+    board: str
+    image_size: list[int]
+    rms_px: float
+    parameters: dict[str, dict[str, float]]
+    """Per parameter (fx, fy, cx, cy, k1 …) its value and 1-sigma standard deviation."""
+    edge_distortion_px: float
+    views: list[ViewData]
+    rejected: list[dict[str, str]]
+    coverage: CoverageData
+    normal_spread_deg: float
+    warnings: list[str]
+    fixed_k3: bool
+
+
 @dataclass
 class CalibrationResult:
     """A calibration: the ``camera``, overall ``rms_px``, per-parameter standard deviations ``std`` (``PARAMETERS``;
@@ -119,7 +151,7 @@ class CalibrationResult:
     warnings: list[str] = field(default_factory=list)
     fixed_k3: bool = False
 
-    def to_json(self) -> JsonDict:
+    def to_json(self) -> CalibrationReport:
         """Plain-data form (the ``<stem>_report.json`` beside the calibration file)."""
         cam = self.camera
         return {
@@ -196,7 +228,7 @@ def _detect_all(paths: Sequence[str | Path], board: BoardSpec
     return found, rejected, size or (0, 0)
 
 
-def _require_views(found: list[Any], rejected: list[Rejected], board: BoardSpec, n: int) -> None:
+def _require_views(found: Sequence[object], rejected: list[Rejected], board: BoardSpec, n: int) -> None:
     if len(found) >= MIN_VIEWS:
         return
     why = "; ".join(f"{r.path.name}: {r.reason}" for r in rejected[:6]) + (" ..." if len(rejected) > 6 else "")

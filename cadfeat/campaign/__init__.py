@@ -12,7 +12,12 @@
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover (the names ``__getattr__`` gives, for the type checker)
+    from cadfeat.campaign.plan import load_campaign
+    from cadfeat.campaign.runner import CampaignResult, run_campaign
+    from cadfeat.campaign.spec import CampaignError
 
 __all__ = ["CampaignError", "CampaignResult", "load_campaign", "run_campaign"]
 
@@ -20,7 +25,7 @@ _HOMES = {"CampaignError": "cadfeat.campaign.spec", "load_campaign": "cadfeat.ca
           "CampaignResult": "cadfeat.campaign.runner", "run_campaign": "cadfeat.campaign.runner"}
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     if name in _HOMES:
         return getattr(importlib.import_module(_HOMES[name]), name)
     raise AttributeError(f"module 'cadfeat.campaign' has no attribute {name!r}")

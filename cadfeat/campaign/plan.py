@@ -20,10 +20,10 @@ import json
 import os
 import re
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
 from cadfeat.campaign.spec import CampaignError, CampaignFile, case_values, mode_of, parse_campaign
 from cadfeat.study.inputs import canonical_json, sha256_file
@@ -87,11 +87,11 @@ def _absolute_paths(study: JsonDict, base: Path) -> None:
     """Make the study's file paths (part, calibration, trajectory CSV) absolute, relative to ``base``."""
     for section, key in _PATH_KEYS:
         table = study.get(section)
-        if isinstance(table, dict) and isinstance(table.get(key), str):
-            table[key] = str((base / table[key]).resolve())
+        if isinstance(table, dict) and isinstance(path := cast("dict[str, object]", table).get(key), str):
+            cast("dict[str, object]", table)[key] = str((base / path).resolve())
 
 
-def _expand_parts(label: str, key: str, values: list[Any], base: Path, single: bool) -> list[str]:
+def _expand_parts(label: str, key: str, values: Sequence[object], base: Path, single: bool) -> list[str]:
     """Part paths or globs (relative to the campaign file) → absolute paths, sorted per glob."""
     out: list[str] = []
     for v in values:
@@ -110,36 +110,42 @@ def _expand_parts(label: str, key: str, values: list[Any], base: Path, single: b
     return out
 
 
-def _camera(value: Any, base: Path, label: str, key: str) -> JsonDict:
+def _camera(value: object, base: Path, label: str, key: str) -> JsonDict:
     if isinstance(value, str):
         return {"preset": value}
     if isinstance(value, Mapping):
-        table = copy.deepcopy(dict(value))
-        if isinstance(table.get("calibration"), str):
-            table["calibration"] = str((base / table["calibration"]).resolve())
+        table = copy.deepcopy(dict(cast("Mapping[str, object]", value)))
+        if isinstance(calibration := table.get("calibration"), str):
+            table["calibration"] = str((base / calibration).resolve())
         return table
     raise CampaignError(f"{label}: {key}: {value!r} is not a camera; allowed: a preset name (cadfeat cameras) or "
                         "a [camera] table ({preset = ...}, {calibration = \"file.yaml\"} or intrinsics)")
 
 
-def _apply(study: JsonDict, key: str, value: Any) -> None:
+def _table(study: JsonDict, section: str) -> dict[str, object]:
+    """The study's table ``[section]`` (an empty one added when it has none)."""
+    table = study.setdefault(section, {})
+    if not isinstance(table, dict):
+        raise CampaignError(f"[{section}] of the base study is not a table")
+    return cast("dict[str, object]", table)
+
+
+def _apply(study: JsonDict, key: str, value: object) -> None:
     if key == "part":
-        study.setdefault("study", {})["part"] = value
+        _table(study, "study")["part"] = value
     elif key == "camera":
         study["camera"] = value
     else:
         section, _, name = key.partition(".")
-        table = study.setdefault(section, {})
-        if not isinstance(table, dict):
-            raise CampaignError(f"[{section}] of the base study is not a table")
-        table[name] = copy.deepcopy(value)
+        _table(study, section)[name] = copy.deepcopy(value)
 
 
-def _shown(key: str, value: Any, base: Path) -> Any:
+def _shown(key: str, value: object, base: Path) -> object:
     """A swept value as the summary shows it: parts relative to the campaign folder, cameras by name."""
     if key == "part":
-        return Path(os.path.relpath(value, base)).as_posix()
-    if key == "camera":
+        return Path(os.path.relpath(str(value), base)).as_posix()
+    if key == "camera" and isinstance(value, Mapping):
+        value = cast("Mapping[str, object]", value)  # (``_camera``'s table)
         named = {"preset": value.get("preset"), "calibration": Path(str(value.get("calibration"))).name}
         key_ = "preset" if "preset" in value else "calibration" if "calibration" in value else None
         rest = ", ".join(f"{k}={v}" for k, v in value.items() if k != key_)
@@ -149,42 +155,43 @@ def _shown(key: str, value: Any, base: Path) -> Any:
     return value
 
 
-def _slug_part(key: str, value: Any) -> str:
+def _slug_part(key: str, value: object) -> str:
     if key == "part":
         return Path(str(value)).stem
     if key == "camera":
         return str(value).split(" (")[0].removesuffix(".yaml").removesuffix(".yml").removesuffix(".json")
     if isinstance(value, list):
-        return "x".join(map(str, value))
+        return "x".join(map(str, cast("list[object]", value)))
     return str(value)
 
 
-def case_name(values: Mapping[str, Any]) -> str:
+def case_name(values: Mapping[str, object]) -> str:
     """A case's folder and study name: its values, shortened, and a hash of them (unique per value set)."""
     slug = _SLUG_CHARS.sub("-", "_".join(_slug_part(k, v) for k, v in values.items())).strip("-._")[:48]
     digest = hashlib.sha256(_canonical(values)).hexdigest()[:8]
     return f"{slug}-{digest}" if slug else f"case-{digest}"
 
 
-def _file_hashes(study: Mapping[str, Any]) -> dict[str, str]:
-    out = {}
+def _file_hashes(study: Mapping[str, object]) -> dict[str, str]:
+    out: dict[str, str] = {}
     for section, key in _PATH_KEYS:
-        value = (study.get(section) or {}).get(key)
+        table = study.get(section)
+        value = cast("Mapping[str, object]", table).get(key) if isinstance(table, Mapping) else None
         if isinstance(value, str) and Path(value).is_file():
             out[value] = sha256_file(value)
     return out
 
 
-def input_hash(config_dict: Mapping[str, Any], files: Mapping[str, str]) -> str:
+def input_hash(config_dict: Mapping[str, object], files: Mapping[str, str]) -> str:
     """SHA-256 of the resolved study and the bytes of the files it reads (their hashes)."""
     return hashlib.sha256(_canonical({"study": config_dict, "files": dict(sorted(files.items()))})).hexdigest()
 
 
-def _describe(values: Mapping[str, Any]) -> str:
+def _describe(values: Mapping[str, object]) -> str:
     return ", ".join(f"{k}={v}" for k, v in values.items())
 
 
-def _validated(label: str, index: int, shown: Mapping[str, Any], study: JsonDict) -> JsonDict:
+def _validated(label: str, index: int, shown: Mapping[str, object], study: JsonDict) -> JsonDict:
     """The study's own validator on one case: its resolved dict (defaults filled in), or ``CampaignError``."""
     from cadfeat.study.schema import StudyError, load_study  # lazy: would import scipy.spatial at module load
 
@@ -196,7 +203,7 @@ def _validated(label: str, index: int, shown: Mapping[str, Any], study: JsonDict
     return config.to_dict()
 
 
-def _overridden(label: str, base: JsonDict, overrides: Mapping[str, Mapping[str, Any]],
+def _overridden(label: str, base: JsonDict, overrides: Mapping[str, Mapping[str, object]],
                 folder: Path) -> JsonDict:
     from cadfeat.study.schema import SECTIONS  # lazy: would import scipy.spatial at module load
 
@@ -205,8 +212,7 @@ def _overridden(label: str, base: JsonDict, overrides: Mapping[str, Mapping[str,
         if section not in SECTIONS:
             raise CampaignError(f"{label}: overrides.{section}: unknown study section; allowed: "
                                 f"{', '.join(SECTIONS)}")
-        target = study.setdefault(section, {})
-        target.update(copy.deepcopy(dict(table)))
+        _table(study, section).update(copy.deepcopy(dict(table)))
     _absolute_paths({k: v for k, v in study.items() if k in overrides}, folder)
     return study
 
@@ -246,7 +252,7 @@ def load_campaign(path: str | Path) -> Campaign:
         study = copy.deepcopy(base)
         for key, value in values.items():
             _apply(study, key, value)
-        study.setdefault("study", {})["name"] = name
+        _table(study, "study")["name"] = name
         resolved = _validated(label, i, shown, study)
         files = _file_hashes(study)
         cases.append(Case(i, name, shown, study, input_hash(resolved, files), files, timeout))

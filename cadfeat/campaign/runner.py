@@ -31,7 +31,7 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from cadfeat.campaign.plan import Campaign, Case, load_campaign
 from cadfeat.campaign.store import CampaignStore
@@ -40,6 +40,12 @@ from cadfeat.campaign.task import EVENT_TOPIC, run_case
 from cadfeat.output_folder import pid_alive
 
 if TYPE_CHECKING:  # pragma: no cover
+    from types import FrameType
+
+    from distributed import Client, Future
+    from rich.progress import Progress
+
+    from cadfeat.campaign.task import CaseOutcome, CasePayload
     from cadfeat.results import JsonDict
 
 __all__ = ["EXPORTS_DIR", "CampaignResult", "local_cluster", "run_campaign"]
@@ -72,7 +78,7 @@ class CampaignResult:
 
 
 @contextlib.contextmanager
-def local_cluster(workers: int | None, retries: int = 1) -> Iterator[Any]:
+def local_cluster(workers: int | None, retries: int = 1) -> Iterator[Client]:
     """A ``LocalCluster`` client: ``workers`` processes (default: the CPU count), one thread each, non-daemonic
     (a study starts CAD build processes), no dashboard, the cores shared out among the workers' render threads
     (``LP_NUM_THREADS``, Mesa llvmpipe); a case is re-run ``retries`` times if its worker dies."""
@@ -99,7 +105,7 @@ def local_cluster(workers: int | None, retries: int = 1) -> Iterator[Any]:
 
 
 @contextlib.contextmanager
-def _client(scheduler: str | None, workers: int | None, retries: int, client: Any) -> Iterator[Any]:
+def _client(scheduler: str | None, workers: int | None, retries: int, client: Client | None) -> Iterator[Client]:
     if client is not None:
         yield client
     elif scheduler:
@@ -113,7 +119,7 @@ def _client(scheduler: str | None, workers: int | None, retries: int, client: An
 
 
 def run_campaign(path_or_campaign: str | os.PathLike[str] | Campaign, out_dir: str | os.PathLike[str] | None = None,
-                 *, scheduler: str | None = None, workers: int | None = None, client: Any = None,
+                 *, scheduler: str | None = None, workers: int | None = None, client: Client | None = None,
                  quiet: bool = False, progress: bool = True) -> CampaignResult:
     """Run every unfinished case of a campaign (see the module docstring); returns the records of all cases.
 
@@ -171,7 +177,7 @@ class _Stop:
 
     def __init__(self) -> None:
         self.signum: int | None = None
-        self.previous: dict[int, Any] = {}
+        self.previous: dict[int, object] = {}
 
     def check(self) -> None:
         if self.signum is None:
@@ -192,7 +198,7 @@ def _deferred_signals() -> Iterator[_Stop]:
         yield stop
         return
 
-    def note(signum: int, frame: Any) -> None:
+    def note(signum: int, frame: FrameType | None) -> None:
         stop.signum = signum
 
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -207,7 +213,7 @@ def _deferred_signals() -> Iterator[_Stop]:
 class _Execution:
     """Submit the cases, follow them, enforce the hard time limit, record outcomes as they arrive."""
 
-    def __init__(self, client: Any, store: CampaignStore, todo: list[Case], display: _Display,
+    def __init__(self, client: Client, store: CampaignStore, todo: list[Case], display: _Display,
                  outcomes: dict[str, JsonDict]) -> None:
         self.client, self.store, self.display, self.outcomes = client, store, display, outcomes
         self.started: dict[str, JsonDict] = {}
@@ -218,7 +224,7 @@ class _Execution:
     def _key(self, case: Case) -> str:
         return f"cadfeat-case-{case.name}-{case.input_hash[:8]}-{os.getpid()}-{time.monotonic_ns()}"
 
-    def _on_event(self, event: Any) -> None:
+    def _on_event(self, event: object) -> None:
         msg = event[1] if isinstance(event, tuple) else event
         if isinstance(msg, dict) and msg.get("key") in self.cases:
             with self.lock:
@@ -229,8 +235,8 @@ class _Execution:
             self.client.subscribe_topic(EVENT_TOPIC, self._on_event)
         futures = {}
         for key, case in self.cases.items():
-            payload = {"key": key, "study": case.study, "out_dir": str(self.store.case_dir(case)),
-                       "timeout_s": case.timeout_s, "files": case.files}
+            payload: CasePayload = {"key": key, "study": case.study, "out_dir": str(self.store.case_dir(case)),
+                                    "timeout_s": case.timeout_s, "files": case.files}
             futures[key] = self.client.submit(run_case, payload, key=key, pure=False)
         pending = dict(futures)
         try:
@@ -269,10 +275,10 @@ class _Execution:
                 with contextlib.suppress(OSError, TypeError, ValueError):
                     os.kill(int(start["pid"]), signal.SIGKILL)
 
-    def _outcome(self, key: str, fut: Any) -> JsonDict | None:
+    def _outcome(self, key: str, fut: Future) -> CaseOutcome | None:
         """The outcome of a finished future; None while it runs (after enforcing the hard time limit)."""
         if fut.status == "finished":
-            out = dict(fut.result())
+            out: CaseOutcome = {**fut.result()}
             out["worker"] = self.started.get(key, {}).get("worker")
             return out
         if fut.status in ("error", "cancelled"):
@@ -303,7 +309,7 @@ class _Display:
     def __init__(self, total: int, skipped: int, enabled: bool) -> None:
         self.total, self.skipped, self.enabled = total, skipped, enabled
         self.done = self.failed = 0
-        self.progress: Any = None
+        self.progress: Progress | None = None
 
     def __enter__(self) -> _Display:
         if self.enabled:

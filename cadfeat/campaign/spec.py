@@ -21,9 +21,10 @@ import itertools
 import re
 import tomllib
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic_core import ErrorDetails
 
 from cadfeat.errors import CadfeatError
 
@@ -67,13 +68,13 @@ class CampaignFile(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     campaign: CampaignInfo
-    overrides: dict[str, dict[str, Any]] = Field(default_factory=dict)
-    axes: dict[str, list[Any]] = Field(default_factory=dict)
-    cases: list[dict[str, Any]] = Field(default_factory=list)
+    overrides: dict[str, dict[str, object]] = Field(default_factory=dict)
+    axes: dict[str, list[object]] = Field(default_factory=dict)
+    cases: list[dict[str, object]] = Field(default_factory=list)
 
     @field_validator("axes")
     @classmethod
-    def _axis_names(cls, axes: dict[str, list[Any]]) -> dict[str, list[Any]]:
+    def _axis_names(cls, axes: dict[str, list[object]]) -> dict[str, list[object]]:
         for key, values in axes.items():
             check_axis_key(key)
             if not values:
@@ -82,7 +83,7 @@ class CampaignFile(BaseModel):
 
     @field_validator("cases")
     @classmethod
-    def _case_keys(cls, cases: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    def _case_keys(cls, cases: list[dict[str, object]]) -> list[dict[str, object]]:
         for case in cases:
             for key in case:
                 if key != "timeout_s":
@@ -97,7 +98,7 @@ class CampaignFile(BaseModel):
         return self
 
 
-def _allowed(err: dict[str, Any]) -> str:
+def _allowed(err: ErrorDetails) -> str:
     """The allowed values of one pydantic error, in words."""
     loc = [str(p) for p in err["loc"]]
     kind = err["type"]
@@ -112,7 +113,7 @@ def _allowed(err: dict[str, Any]) -> str:
     return "see docs/guide/campaigns.md"
 
 
-def _dotted(loc: tuple[Any, ...]) -> str:
+def _dotted(loc: tuple[int | str, ...]) -> str:
     out = ""
     for p in loc:
         out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
@@ -146,7 +147,7 @@ def parse_campaign(path: str | Path) -> CampaignFile:
         raise one_line(label, exc) from None
 
 
-def case_values(model: CampaignFile) -> list[dict[str, Any]]:
+def case_values(model: CampaignFile) -> list[dict[str, object]]:
     """The raw axis values of every case (grid: the Cartesian product, first axis slowest), ``timeout_s`` kept."""
     if model.cases:
         return [dict(c) for c in model.cases]

@@ -22,14 +22,14 @@ import json
 import os
 import secrets
 import time
-from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from cadfeat.campaign.plan import Campaign, Case, sha256_file
 from cadfeat.campaign.spec import CampaignError
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.campaign.task import CaseOutcome
     from cadfeat.results import JsonDict
 
 __all__ = ["MARKER", "CampaignStore", "atomic_write"]
@@ -103,7 +103,7 @@ class CampaignStore:
         results = self.case_dir(case) / "results.json"
         return results.is_file() and sha256_file(results) == rec.get("results_sha256")
 
-    def save(self, case: Case, outcome: Mapping[str, Any]) -> JsonDict:
+    def save(self, case: Case, outcome: CaseOutcome) -> JsonDict:
         """Record a case's outcome (atomically); returns the record."""
         rec = {"case": case.name, "index": case.index, "values": case.values, "input_hash": case.input_hash,
                "recorded": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), **dict(outcome)}

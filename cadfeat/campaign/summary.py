@@ -21,12 +21,14 @@ import io
 import json
 import math
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
 from cadfeat.campaign.plan import Campaign
 from cadfeat.campaign.store import CampaignStore, atomic_write
 
 if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
     from cadfeat.results import JsonDict
 
 __all__ = ["case_row", "write_csv", "write_summary"]
@@ -34,11 +36,16 @@ __all__ = ["case_row", "write_csv", "write_summary"]
 _PREDICTED_KEYS = ("pose_accuracy", "accuracy", "pose_information", "predicted_pose_error")
 
 
-def _num(x: Any) -> float | None:
+def _num(x: object) -> float | None:
     return float(x) if isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) else None
 
 
-def verdict(results: Mapping[str, Any]) -> str | None:
+def _table(value: object) -> Mapping[str, object]:
+    """A JSON object of results.json (an empty one for anything else: a summary reads odd results too)."""
+    return cast("Mapping[str, object]", value) if isinstance(value, Mapping) else {}
+
+
+def verdict(results: Mapping[str, object]) -> str | None:
     """The report's decision for a study (None when the report module cannot decide)."""
     try:
         from cadfeat.report.verdict import decide
@@ -48,69 +55,70 @@ def verdict(results: Mapping[str, Any]) -> str | None:
         return None
 
 
-def _leaves(data: Any, prefix: str) -> dict[str, float]:
+def _leaves(data: object, prefix: str) -> dict[str, float]:
     """Numeric leaves of nested dicts, keyed by dotted path."""
     out: dict[str, float] = {}
     if isinstance(data, Mapping):
-        for k, v in data.items():
+        for k, v in _table(data).items():
             out.update(_leaves(v, f"{prefix}.{k}" if prefix else str(k)))
-    elif _num(data) is not None:
-        out[prefix] = _num(data)  # type: ignore[assignment]
+    elif (value := _num(data)) is not None:
+        out[prefix] = value
     return out
 
 
-def predicted_pose_error(results: Mapping[str, Any]) -> dict[str, float]:
+def predicted_pose_error(results: Mapping[str, object]) -> dict[str, float]:
     """Predicted pose errors (mm, deg) before/after if a pose-accuracy section is in results.json."""
     for key in _PREDICTED_KEYS:
         section = results.get(key)
         if isinstance(section, Mapping):
-            leaves = {}
+            leaves: dict[str, float] = {}
             for side in ("before", "after"):
-                for path, v in _leaves(section.get(side), "").items():
+                for path, v in _leaves(_table(section).get(side), "").items():
                     if "_mm" in path or "_deg" in path:
                         leaves[f"predicted.{path}.{side}"] = v
             return leaves
     return {}
 
 
-def closed_loop_pose_error(results: Mapping[str, Any]) -> dict[str, float | str]:
+def closed_loop_pose_error(results: Mapping[str, object]) -> dict[str, float | str]:
     """Closed-loop tracking errors (results.json ``tracking``): Monte-Carlo mean RMS per estimator and its
     paired verdict."""
     tr = results.get("tracking")
     if not isinstance(tr, Mapping):
         return {}
+    tr = _table(tr)
     out: dict[str, float | str] = {}
-    designs = tr.get("designs") or {}
+    designs = _table(tr.get("designs"))
     for side in ("before", "after"):
-        for est, summary in ((designs.get(side) or {}).get("estimators") or {}).items():
+        for est, summary in _table(_table(designs.get(side)).get("estimators")).items():
             for metric in ("trans_mm_rms", "rot_deg_rms"):
-                v = _num(((summary or {}).get(metric) or {}).get("mean"))
+                v = _num(_table(_table(summary).get(metric)).get("mean"))
                 if v is not None:
                     out[f"tracking.{est}.{metric}.{side}"] = v
-    for est, v in (tr.get("verdicts") or {}).items():
-        out[f"tracking.{est}.verdict"] = str(v.get("verdict", "")) if isinstance(v, Mapping) else str(v)
+    for est, v in _table(tr.get("verdicts")).items():
+        out[f"tracking.{est}.verdict"] = str(_table(v).get("verdict", "")) if isinstance(v, Mapping) else str(v)
     return out
 
 
-def case_row(record: Mapping[str, Any], results: Mapping[str, Any] | None, axes: Sequence[str]) -> JsonDict:
+def case_row(record: Mapping[str, object], results: Mapping[str, object] | None, axes: Sequence[str]) -> JsonDict:
     """One summary row of a case from its record and (if it finished) its results.json."""
-    values = record.get("values") or {}
+    values = _table(record.get("values"))
     row: JsonDict = {"case": record.get("case"), "status": record.get("status")}
     for axis in axes:
         v = values.get(axis)
         row[axis] = json.dumps(v) if isinstance(v, list | dict) else v
     row.update({"combined_before": None, "combined_after": None, "verdict": None})
     if results:
-        obj = results.get("objectives") or {}
+        obj = _table(results.get("objectives"))
         row["combined_before"], row["combined_after"] = _num(obj.get("combined_before")), \
             _num(obj.get("combined_after"))
         row["verdict"] = verdict(results)
         for side in ("before", "after"):
-            for name, v in (obj.get(side) or {}).items():
+            for name, v in _table(obj.get(side)).items():
                 row[f"{name}.{side}"] = _num(v)
         row.update(predicted_pose_error(results))
         row.update(closed_loop_pose_error(results))
-        timings = results.get("timings_s") or {}
+        timings = _table(results.get("timings_s"))
         row["study_s"] = sum(v for v in map(_num, timings.values()) if v is not None) or None
     row["wall_s"] = _num(record.get("wall_s"))
     row["worker"] = record.get("worker") or record.get("host")
@@ -133,7 +141,7 @@ def rows(store: CampaignStore, campaign: Campaign) -> tuple[list[JsonDict], list
     return records, out
 
 
-def _columns(table: Sequence[Mapping[str, Any]]) -> list[str]:
+def _columns(table: Sequence[Mapping[str, object]]) -> list[str]:
     cols: dict[str, None] = {}
     for r in table:
         cols.update(dict.fromkeys(r))
@@ -141,7 +149,7 @@ def _columns(table: Sequence[Mapping[str, Any]]) -> list[str]:
     return [c for c in cols if c not in tail] + tail
 
 
-def _csv_text(table: Sequence[Mapping[str, Any]]) -> str:
+def _csv_text(table: Sequence[Mapping[str, object]]) -> str:
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=_columns(table), lineterminator="\n")
     writer.writeheader()
@@ -192,7 +200,7 @@ tr.interrupted td.status,tr.pending td.status{color:#8a6d00}
 td.num{text-align:right;font-variant-numeric:tabular-nums}.plots img{max-width:100%;margin:.5em 0}"""
 
 
-def _cell(v: Any) -> tuple[str, str]:
+def _cell(v: object) -> tuple[str, str]:
     if isinstance(v, float):
         return f"{v:.6g}", "num"
     if isinstance(v, int) and not isinstance(v, bool):
@@ -200,7 +208,7 @@ def _cell(v: Any) -> tuple[str, str]:
     return ("" if v is None else str(v)), ""
 
 
-def _table_html(table: Sequence[Mapping[str, Any]]) -> str:
+def _table_html(table: Sequence[Mapping[str, object]]) -> str:
     cols = _columns(table)
     head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
     body = []
@@ -218,13 +226,13 @@ def _table_html(table: Sequence[Mapping[str, Any]]) -> str:
     return f'<table class="sortable" id="cases"><thead><tr>{head}</tr></thead><tbody>{"".join(body)}</tbody></table>'
 
 
-def _png(fig: Any) -> str:
+def _png(fig: Figure) -> str:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def axis_plot(table: Sequence[Mapping[str, Any]], axis: str) -> str | None:
+def axis_plot(table: Sequence[Mapping[str, object]], axis: str) -> str | None:
     """Base64 PNG: combined objective before/after and verdict counts against one swept axis (finished cases)."""
     import matplotlib
 
@@ -234,14 +242,14 @@ def axis_plot(table: Sequence[Mapping[str, Any]], axis: str) -> str | None:
     done = [r for r in table if r.get("status") == "done"]
     if not done:
         return None
-    def label(r: Mapping[str, Any]) -> str:  # a case of a list that does not set this axis: the base study's value
+    def label(r: Mapping[str, object]) -> str:  # a case of a list that does not set this axis: the base study's value
         return "(base)" if r.get(axis) is None else str(r.get(axis))
 
     labels = sorted({label(r) for r in done})
     pos = {lab: i for i, lab in enumerate(labels)}
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.4))
     for side, marker, face in (("before", "o", "none"), ("after", "s", "C0")):
-        pts = [(pos[label(r)], r[f"combined_{side}"]) for r in done if _num(r.get(f"combined_{side}")) is not None]
+        pts = [(pos[label(r)], y) for r in done if (y := _num(r.get(f"combined_{side}"))) is not None]
         if pts:
             x, y = zip(*pts, strict=True)
             ax1.scatter(x, y, marker=marker, facecolors=face, edgecolors="C1" if side == "before" else "C0",
@@ -267,7 +275,7 @@ def axis_plot(table: Sequence[Mapping[str, Any]], axis: str) -> str | None:
         plt.close(fig)
 
 
-def html_page(campaign: Campaign, table: Sequence[Mapping[str, Any]]) -> str:
+def html_page(campaign: Campaign, table: Sequence[Mapping[str, object]]) -> str:
     """The self-contained campaign.html."""
     counts: dict[str, int] = {}
     for r in table:

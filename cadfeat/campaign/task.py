@@ -23,7 +23,7 @@ import socket
 import threading
 import time
 from collections.abc import Iterator, Mapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, NotRequired, TypedDict
 
 from cadfeat.errors import CadfeatError
 
@@ -132,41 +132,67 @@ def _daemonic() -> bool:
     return bool(multiprocessing.current_process().daemon)
 
 
-def run_case(payload: Mapping[str, Any]) -> JsonDict:
+class CasePayload(TypedDict):
+    """What the runner sends a worker for one case (``run_case``)."""
+
+    key: str
+    study: JsonDict
+    out_dir: str
+    timeout_s: float
+    files: dict[str, str]
+
+
+class CaseOutcome(TypedDict):
+    """A case's outcome (``run_case``; the runner's own for a lost or overdue case): its status ("done" | "failed"
+    | "timeout"), the error (one line or None), the wall time (s; None when unknown), where it ran, and for a
+    finished study the SHA-256 of its results.json; the runner adds the Dask worker."""
+
+    status: str
+    error: str | None
+    wall_s: float | None
+    host: NotRequired[str | None]
+    pid: NotRequired[int | None]
+    results_sha256: NotRequired[str]
+    worker: NotRequired[str | None]
+
+
+def run_case(payload: CasePayload) -> CaseOutcome:
     """Run one case (keys: ``key``, ``study``, ``out_dir``, ``timeout_s``, ``files``); returns its outcome:
     ``status`` ("done" | "failed" | "timeout"), ``error`` (one line or None), ``wall_s``, ``host``, ``pid``,
     and for a finished study ``results_sha256`` (of its results.json)."""
     _announce(payload.get("key"))
     t0 = time.perf_counter()
-    out = {"host": socket.gethostname(), "pid": os.getpid(), "error": None}
+    host, pid = socket.gethostname(), os.getpid()
     problem = _check_files(payload.get("files", {}))
     if problem is None and _daemonic():
         problem = ("this Dask worker is a daemonic process, which may not start the CAD build processes a study "
                    "needs; start workers with DASK_DISTRIBUTED__WORKER__DAEMON=False (docs/guide/campaigns.md)")
     if problem is not None:
-        return {**out, "status": "failed", "error": problem, "wall_s": time.perf_counter() - t0}
+        return {"host": host, "pid": pid, "error": problem, "status": "failed", "wall_s": time.perf_counter() - t0}
     try:
         with time_limit(float(payload["timeout_s"])):
             _run(payload)
     except CaseTimeout:
-        return {**out, "status": "timeout", "wall_s": time.perf_counter() - t0,
+        return {"host": host, "pid": pid,
                 "error": f"exceeded the case time limit of {float(payload['timeout_s']):g} s and was stopped "
-                         "(campaign.timeout_s or the case's timeout_s)"}
+                         "(campaign.timeout_s or the case's timeout_s)",
+                "status": "timeout", "wall_s": time.perf_counter() - t0}
     except Exception as exc:  # noqa: BLE001 - a failing study is an outcome, recorded with its error
         text = " ".join(str(exc).split()) or type(exc).__name__
-        return {**out, "status": "failed", "wall_s": time.perf_counter() - t0,
-                "error": text if _is_cadfeat(exc) else f"{type(exc).__name__}: {text}"}
+        return {"host": host, "pid": pid, "error": text if _is_cadfeat(exc) else f"{type(exc).__name__}: {text}",
+                "status": "failed", "wall_s": time.perf_counter() - t0}
     from cadfeat.campaign.plan import sha256_file  # lazy: would import pydantic at module load
 
     results = os.path.join(payload["out_dir"], "results.json")
-    return {**out, "status": "done", "wall_s": time.perf_counter() - t0, "results_sha256": sha256_file(results)}
+    return {"host": host, "pid": pid, "error": None, "status": "done", "wall_s": time.perf_counter() - t0,
+            "results_sha256": sha256_file(results)}
 
 
 def _is_cadfeat(exc: BaseException) -> bool:
     return isinstance(exc, CadfeatError)
 
 
-def _run(payload: Mapping[str, Any]) -> None:
+def _run(payload: CasePayload) -> None:
     """The study itself, as ``cadfeat run`` runs it (no progress display in a worker)."""
     from cadfeat.study import run_study  # lazy: its package loads it on first use
 

@@ -10,7 +10,7 @@ measures, design, render and vision all read it, and it imports none of them.
 the ``Cell`` model (pydantic) is imported on first use of a name below.
 """
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 __all__ = ["BOUND_KEYS", "DETECTORS", "HOLE_ENDS", "PER_AXIS", "PLACEMENT_SIGMA_PER_TOLERANCE", "SIGMA_KEYS", "Cell",
            "per_axis", "triple"]
@@ -29,7 +29,7 @@ if TYPE_CHECKING:  # pragma: no cover
     )
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     """The model's names, imported on first use (PEP 562): ``cadfeat.cell.defaults`` stays free of pydantic."""
     if name in __all__:
         from cadfeat.cell import model

@@ -23,7 +23,8 @@ Where the numbers come from (engineering estimates, not measurements of a given 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+
+from pydantic import JsonValue
 
 from cadfeat.settings import Settings, choice, number
 
@@ -42,11 +43,11 @@ class MaterialSpec:
     name: str
     kind: str
     alpha: float
-    params: tuple[tuple[str, Any], ...]
+    params: tuple[tuple[str, JsonValue], ...]
     description: str
 
 
-def _metal(name: str, alpha: float, description: str, **index: Any) -> MaterialSpec:
+def _metal(name: str, alpha: float, description: str, **index: JsonValue) -> MaterialSpec:
     return MaterialSpec(name, "roughconductor", alpha, tuple(index.items()), description)
 
 
@@ -94,7 +95,7 @@ def bores_return_light(material: Material) -> bool:
     return material_spec(material).kind == "roughconductor"
 
 
-def bsdf_dict(material: Material) -> dict[str, Any]:
+def bsdf_dict(material: Material) -> dict[str, JsonValue]:
     """The Mitsuba 3 BSDF of ``material`` as a ``mi.load_dict`` table (GGX, α from ``roughness`` or the name)."""
     spec = material_spec(material)
     if spec.kind == "diffuse":

@@ -21,7 +21,7 @@ Where each reaches (the same object, so a prediction and the check that confirms
   association term, the noise of the centre's σ model;
 - the robust draws (``design.uncertainty.Uncertainty.from_cell``): the mount and placement tolerances ±t, the
   noise σ ± its spread;
-- the closed loop (``vision.closed_loop.TrackingConfig`` via ``study.tracking.tracking_config``): each run's
+- the closed loop (``vision.config.TrackingConfig.in_cell``, the study's ``[tracking]`` in its cell): each run's
   placement drawn from a normal of σ = ``PLACEMENT_SIGMA_PER_TOLERANCE`` · t per axis (``placement_sigma``), the
   noise σ, the gain σ, the gate and the detector.
 
@@ -30,9 +30,10 @@ Units are in the names: mm, degrees, grey levels, px.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Literal, cast
+from typing import ClassVar, Literal, TypeVar, cast
 
-from pydantic import Field, ValidationInfo, field_validator
+from pydantic import Field, JsonValue, ValidationInfo, field_validator
+from pydantic.fields import FieldInfo
 
 from cadfeat.cell import defaults as D
 from cadfeat.cell.light import Light
@@ -69,14 +70,19 @@ def triple(value: PerAxis) -> tuple[float, float, float]:
     return (t[0], t[1], t[2])
 
 
-def _stat(field: Any, statistic: Literal["bound", "sigma"]) -> Any:
-    """A field whose JSON Schema says whether its number is a ± bound or a standard deviation."""
-    extra = dict(cast("dict[str, Any]", field.json_schema_extra))
+F = TypeVar("F")
+
+
+def _stat(field: F, statistic: Literal["bound", "sigma"]) -> F:
+    """A field whose JSON Schema says whether its number is a ± bound or a standard deviation. (Made anew from
+    ``field``'s default, description and JSON Schema extra: ``number``'s bounds do not carry over.)"""
+    info = cast(FieldInfo, field)  # (a settings helper's field definition, typed as its value: settings.F)
+    extra = dict(cast("dict[str, JsonValue]", info.json_schema_extra))
     extra["x-statistic"] = statistic
-    return Field(field.default, description=field.description, json_schema_extra=extra)
+    return Field(info.default, description=info.description, json_schema_extra=extra)
 
 
-def _bound(default: PerAxis, what: str) -> Any:
+def _bound(default: PerAxis, what: str) -> PerAxis:
     return _stat(choice(default, PER_AXIS, description=f"± tolerance of the {what}, per axis"), "bound")
 
 
@@ -116,7 +122,7 @@ class Cell(Settings):
 
     @field_validator("light", "material", mode="before")
     @classmethod
-    def _table(cls, value: Any, info: ValidationInfo) -> Any:
+    def _table(cls, value: object, info: ValidationInfo) -> object:
         """A sub-table validated as its model, its errors keyed ``cell.light.kind``."""
         model = Light if info.field_name == "light" else Material
         if isinstance(value, model):
@@ -125,12 +131,12 @@ class Cell(Settings):
 
     @field_validator("camera_position_mm", "placement_position_mm")
     @classmethod
-    def _mm(cls, value: Any) -> PerAxis:
+    def _mm(cls, value: object) -> PerAxis:
         return per_axis(value, 100.0)
 
     @field_validator("camera_angle_deg", "placement_angle_deg")
     @classmethod
-    def _deg(cls, value: Any) -> PerAxis:
+    def _deg(cls, value: object) -> PerAxis:
         return per_axis(value, 30.0)
 
     def placement_sigma(self) -> tuple[PerAxis, PerAxis]:
@@ -144,7 +150,7 @@ class Cell(Settings):
 
 def _keys(statistic: str) -> tuple[str, ...]:
     return tuple(n for n, f in Cell.model_fields.items()
-                 if dict(cast("dict[str, Any]", f.json_schema_extra or {})).get("x-statistic") == statistic)
+                 if dict(cast("dict[str, JsonValue]", f.json_schema_extra or {})).get("x-statistic") == statistic)
 
 
 BOUND_KEYS = _keys("bound")

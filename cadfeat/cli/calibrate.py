@@ -16,7 +16,7 @@ from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.results import JsonDict
+    from cadfeat.calibration.solve import CalibrationReport
 
 BOARD_CHOICES = ("chessboard", "charuco")
 
@@ -82,7 +82,7 @@ def calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-def summary_lines(report: JsonDict) -> list[str]:
+def summary_lines(report: CalibrationReport) -> list[str]:
     """The console summary of a calibration report (``CalibrationResult.to_json``)."""
     lines = [f"calibration: {report['board']}; {len(report['views'])} images used, {len(report['rejected'])} "
              f"rejected; reprojection RMS {report['rms_px']:.3f} px"]

@@ -14,14 +14,14 @@ import argparse
 import csv
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from cadfeat.cell.defaults import DETECTORS
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.vision.image_detection import ImageResult
+    from cadfeat.vision.image_detection import ImageResult, Summary
 
 ALL = "all"
 
@@ -95,7 +95,7 @@ def _write_outputs(results: list[ImageResult], detectors: list[str], args: argpa
     return written
 
 
-def summary_lines(section: dict[str, Any]) -> list[str]:
+def summary_lines(section: Summary) -> list[str]:
     """Console summary of ``image_detection.summary``: per detector the ellipses found and their spread."""
     lines = [f"detect: {section['images_detected']} of {section['images']} images detected"]
     for name, s in section["detectors"].items():

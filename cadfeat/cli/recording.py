@@ -10,8 +10,9 @@ Writes into DIR: ``poses.csv`` (the study's trajectory, camera poses T_task_cam:
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from cadfeat.cli.command import Command
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.calibration.boards import BoardSpec
-    from cadfeat.results import JsonDict
+    from cadfeat.study.recorded import RecordedData
     from cadfeat.study.schema import StudyConfig, TrackingSpec
 
 #: Decimals of the poses written (mm and quaternion components; 1 µm, ~1e-6 rad: below any robot's repeatability).
@@ -94,7 +95,7 @@ def checklist(config: StudyConfig, args: argparse.Namespace, board: BoardSpec, p
 """
 
 
-def _fmt(value: Any) -> str:
+def _fmt(value: float | Sequence[float]) -> str:
     return ", ".join(f"{v:g}" for v in np.atleast_1d(np.asarray(value, dtype=float)))
 
 
@@ -140,7 +141,7 @@ def track_recorded(config: StudyConfig, spec: TrackingSpec, out: Path, args: arg
     return 0
 
 
-def recorded_lines(section: JsonDict) -> list[str]:
+def recorded_lines(section: RecordedData) -> list[str]:
     """Console summary of a replayed recording: measured vs predicted, NEES, detection rates, problems."""
     p = section["predicted"]
     lines = [f"recorded {section['design']} design: {section['frames_used']} of {section['poses_parsed']} poses "
@@ -158,7 +159,7 @@ def recorded_lines(section: JsonDict) -> list[str]:
     return lines
 
 
-def _g(x: Any) -> str:
+def _g(x: float | None) -> str:
     return "n/a" if x is None else f"{x:.3g}"
 
 

@@ -13,15 +13,16 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from cadfeat.cell.defaults import DETECTORS, RENDERERS
 from cadfeat.cli.command import Command
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.results import JsonDict
+    from cadfeat.results import TrackingData
     from cadfeat.study.schema import StudyConfig, TrackingSpec
 
 SWEEP_KINDS = ("initial_error", "q", "r", "focal_length", "sample_time")
@@ -48,7 +49,7 @@ def _track_args(parser: argparse.ArgumentParser) -> None:
                         help="with --images: the design the recorded part has (default optimised)")
 
 
-def _write_json(path: Path, data: JsonDict) -> None:
+def _write_json(path: Path, data: Mapping[str, object]) -> None:
     from cadfeat.study.outputs import write_json  # lazy: keeps `cadfeat --help` fast
 
     tmp = path.with_name(path.name + ".tmp")
@@ -56,7 +57,7 @@ def _write_json(path: Path, data: JsonDict) -> None:
     tmp.replace(path)
 
 
-def summary_lines(section: JsonDict) -> list[str]:
+def summary_lines(section: TrackingData) -> list[str]:
     """Console table: per design and estimator, RMS errors with intervals; the verdict per estimator."""
     lines = []
     for name, d in section["designs"].items():
@@ -65,15 +66,15 @@ def summary_lines(section: JsonDict) -> list[str]:
             lines.append(f"  {name:<7} {m:<5} translation RMS {_f(t['mean'])} mm [{_f(t['ci_low'])}, "
                          f"{_f(t['ci_high'])}]   rotation RMS {_f(r['mean'])} deg [{_f(r['ci_low'])}, "
                          f"{_f(r['ci_high'])}]   lost {_f(e['frames_lost']['mean'])} frames"
-                         + (f" ({_f(100 * e['lost_frac']['mean'])} % after settling, counted at the last "
-                            "estimate's error)" if (e.get("lost_frac") or {}).get("mean") else ""))
+                         + (f" ({_f(100 * lost)} % after settling, counted at the last estimate's error)"
+                            if (lost := (e.get("lost_frac") or {}).get("mean")) else ""))
     for m, v in section.get("verdicts", {}).items():
         lines.append(f"  {m}: {v['verdict']} (Wilcoxon p = {_f(v['translation']['p_value'])} translation, "
                      f"{_f(v['rotation']['p_value'])} rotation; {v['translation']['runs']} paired runs)")
     return lines
 
 
-def _f(x: Any) -> str:
+def _f(x: float | None) -> str:
     return "n/a" if x is None else f"{x:.3g}"
 
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,8 +36,12 @@ from cadfeat.cad.features.identity import hole_name
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
+    import cadquery as cq
+    from OCP.TopoDS import TopoDS_Edge, TopoDS_Face, TopoDS_Shape
+
     from cadfeat.cad.features import ShapeLike
-    from cadfeat.results import JsonDict
+    from cadfeat.cad.outline_motion import OutlineRates
+    from cadfeat.results import RequirementData
 
 __all__ = [
     "ConstraintCheck",
@@ -106,7 +110,7 @@ class ConstraintCheck:
     unit: str
     ok: bool
 
-    def to_dict(self) -> JsonDict:
+    def to_dict(self) -> RequirementData:
         return {"name": self.name, "holes": list(self.holes), "required": float(self.required),
                 "value": float(self.value), "margin": float(self.margin), "unit": self.unit, "ok": bool(self.ok)}
 
@@ -184,7 +188,8 @@ class ConstraintSet:
     batched: ``margins(centres (...,N,3), radii (...,N)) -> {name: (..., M_name)}``."""
 
     def __init__(self, holes: Sequence[Hole], config: ConstraintConfig, fixed_mask: Sequence[bool] | np.ndarray,
-                 radii0: Sequence[float] | np.ndarray | None = None, outline_rates: Sequence[Any] | None = None,
+                 radii0: Sequence[float] | np.ndarray | None = None,
+                 outline_rates: Sequence[OutlineRates | None] | None = None,
                  x_anchor: Sequence[float] | None = None):
         """``holes``: the reference holes (host face outlines, depths, names); ``radii0`` (N,) mm: the original
         part's radii for the volume requirement (default: the reference holes'); ``outline_rates`` (per hole,
@@ -319,10 +324,10 @@ def constraint_margins(centres: np.ndarray, radii: np.ndarray, holes: Sequence[H
 @dataclass
 class _RealHole:
     hole: Hole
-    rim_edges: list = field(default_factory=list)
+    rim_edges: list[TopoDS_Edge] = field(default_factory=list["TopoDS_Edge"])
 
 
-def _face_circles(face: Any) -> Iterator[tuple[Any, np.ndarray, float]]:
+def _face_circles(face: TopoDS_Face) -> Iterator[tuple[TopoDS_Edge, np.ndarray, float]]:
     """(edge, centre mm (3,), radius mm) of every circular edge of ``face`` (OCP)."""
     from OCP.BRepAdaptor import BRepAdaptor_Curve
     from OCP.GeomAbs import GeomAbs_Circle
@@ -341,12 +346,12 @@ def _face_circles(face: Any) -> Iterator[tuple[Any, np.ndarray, float]]:
         exp.Next()
 
 
-def _circle_edges(face: Any, centre: np.ndarray, radius: float, tol: float) -> list:
+def _circle_edges(face: TopoDS_Face, centre: np.ndarray, radius: float, tol: float) -> list[TopoDS_Edge]:
     """The circular edges of ``face`` (OCP) with centre ``centre`` and ``radius`` (the hole's rim)."""
     return [e for e, c, r in _face_circles(face) if np.linalg.norm(c - centre) < tol and abs(r - radius) < tol]
 
 
-def _is_hole_wire(wire: Any, holes: Sequence[Hole], tol: float = 1e-5) -> bool:
+def _is_hole_wire(wire: cq.Wire, holes: Sequence[Hole], tol: float = 1e-5) -> bool:
     """True if every edge of ``wire`` (cadquery Wire) is a circle centred on some hole's axis line (a rim
     or exit of a hole, not a keep-out)."""
     from OCP.BRepAdaptor import BRepAdaptor_Curve
@@ -363,7 +368,7 @@ def _is_hole_wire(wire: Any, holes: Sequence[Hole], tol: float = 1e-5) -> bool:
     return True
 
 
-def _min_distance(shapes_a: Sequence[Any], shapes_b: Sequence[Any]) -> float:
+def _min_distance(shapes_a: Sequence[TopoDS_Shape], shapes_b: Sequence[TopoDS_Shape]) -> float:
     """Minimum distance (mm) between two sets of OCP shapes (``BRepExtrema_DistShapeShape``)."""
     from OCP.BRepExtrema import BRepExtrema_DistShapeShape
 
@@ -377,7 +382,7 @@ def _min_distance(shapes_a: Sequence[Any], shapes_b: Sequence[Any]) -> float:
     return float(best)
 
 
-def _axis_circle_edges(face: Any, hole: Hole, tol: float = 1e-5) -> list:
+def _axis_circle_edges(face: TopoDS_Face, hole: Hole, tol: float = 1e-5) -> list[TopoDS_Edge]:
     """Circular edges of ``face`` (OCP) of the hole's radius centred on its axis line, between its entrance and
     its depth: its rim on its host face, or its exit rim on the far face of a through hole (not the rim of a
     coaxial hole in another wall further along the line: the two plates of a clevis)."""
@@ -389,7 +394,7 @@ def _axis_circle_edges(face: Any, hole: Hole, tol: float = 1e-5) -> list:
             and -depth - slack <= float((c - hole.centre) @ axis) <= slack]
 
 
-def _shared_face_distance(faces: Sequence[Any], a: Hole, b: Hole) -> float | None:
+def _shared_face_distance(faces: Sequence[cq.Face], a: Hole, b: Hole) -> float | None:
     """Rim-to-rim distance (mm) of two holes on a face they both open into, or None if they share none.
 
     A through hole opens into two faces; extraction without a preferred direction may report it from either
@@ -414,7 +419,7 @@ def _check(name: str, holes: list[str], required: float, value: float, unit: str
 def verify_on_brep(shape: ShapeLike, design_holes: Sequence[Hole], config: ConstraintConfig,
                    fixed_mask: Sequence[bool] | np.ndarray,
                    reference: Sequence[Hole] | None = None, *, match_tol_mm: float = 1e-3,
-                   reference_shape: Any = None, tol_mm: float = 1e-6,
+                   reference_shape: ShapeLike | None = None, tol_mm: float = 1e-6,
                    prefer_direction: Sequence[float] | np.ndarray | None = None) -> list[ConstraintCheck]:
     """Measure the kept requirements on the real solid ``shape`` (independent of the 2-D form).
 

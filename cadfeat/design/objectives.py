@@ -45,7 +45,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, cast
+from typing import TYPE_CHECKING, ClassVar, Protocol, cast, overload
 
 import numpy as np
 from pydantic import ValidationInfo, field_validator, model_validator
@@ -54,7 +54,9 @@ from cadfeat.errors import CadfeatError
 from cadfeat.settings import Settings, Tuple, boolean, choice, context_of, number, reject
 
 if TYPE_CHECKING:  # pragma: no cover
+
     from cadfeat.camera import Camera
+    from cadfeat.design.unseen import UnseenFields
 
 __all__ = [
     "AGGREGATES",
@@ -97,7 +99,17 @@ SCORES = ("movable", "all")
 _KEY = {v: k for k, v in MEASURES.items()}
 
 
-def _choice(key: str, value: Any, allowed: Sequence[str]) -> None:
+class PosePrediction(Protocol):
+    """What g_POSE reads of the predicted pose error along the trajectory (``measures.PoseInformation``; the
+    optimiser's batches give ``error_mm`` alone)."""
+
+    @property
+    def information(self) -> np.ndarray: ...
+
+    def error_mm(self, rotation_length_mm: float | None = None) -> np.ndarray: ...
+
+
+def _choice(key: str, value: object, allowed: Sequence[str]) -> None:
     """A function argument's enumeration check (the config's fields are checked by the model)."""
     if value not in allowed:
         raise CadfeatError(f"objective.{key}: {value!r} is not one of {', '.join(map(repr, allowed))}")
@@ -138,10 +150,10 @@ class ObjectiveConfig(Settings):
                                   'the thesis measures')
     aggregate: str = choice("sum", AGGREGATES)
     combine: str = choice("maxmin", COMBINES)
-    weights: dict[str, float] = choice(dict, "a table measure = number ≥ 0, measures from objective.measures",
-                                       factory=True)
-    thresholds: dict[str, float] = choice(dict, "a table measure = minimum value, measures from objective.measures",
-                                          factory=True)
+    weights: dict[str, float] = choice(dict[str, float], "a table measure = number ≥ 0, measures from "
+                                       "objective.measures", factory=True)
+    thresholds: dict[str, float] = choice(dict[str, float], "a table measure = minimum value, measures from "
+                                          "objective.measures", factory=True)
     min_axis_px: float = number(5.0, 0.0, lo_open=True)
     rotation_length_mm: float = number(1.0, 0.0, lo_open=True)
     smoothmin_beta: float = number(20.0, 0.0, lo_open=True)
@@ -247,7 +259,7 @@ def _reduce_features(values: np.ndarray, how: str) -> np.ndarray:
     return {"min": np.min, "mean": np.mean, "sum": np.sum}[how](values, axis=-1)
 
 
-def _scored(measures: Any, config: ObjectiveConfig, camera: Camera | None) -> dict[str, np.ndarray] | None:
+def _scored(measures: object, config: ObjectiveConfig, camera: Camera | None) -> dict[str, np.ndarray] | None:
     """The scored margins (``unseen.scored_arrays``) of ``evaluate``'s measures, or None when ``measures`` are scored
     already, carry no unseen flags (arrays of another origin) or no chosen measure is ruled (module docstring)."""
     if getattr(measures, "scored", False) or getattr(measures, "rim_hidden", None) is None \
@@ -259,10 +271,10 @@ def _scored(measures: Any, config: ObjectiveConfig, camera: Camera | None) -> di
         raise CadfeatError("objective values of measures.evaluate's measures need the camera, for the unseen-hole "
                            "rule (design.unseen): pass camera=..., or score them first with "
                            "cadfeat.design.unseen.scored_measures(measures, camera, min_axis_px)")
-    return scored_arrays(measures, camera, config.min_axis_px)
+    return scored_arrays(cast("UnseenFields", measures), camera, config.min_axis_px)  # (measures.evaluate's)
 
 
-def per_pose_values(measures: Any, config: ObjectiveConfig, feature_mask: np.ndarray | None = None,
+def per_pose_values(measures: object, config: ObjectiveConfig, feature_mask: np.ndarray | None = None,
                     camera: Camera | None = None) -> dict[str, np.ndarray]:
     """Per-pose value (..., L) of each chosen measure: the features selected by ``feature_mask`` (N,) bool
     (default all) reduced by ``config.feature_reduce``; resolvability uses every feature (the Jacobian).
@@ -276,7 +288,7 @@ def per_pose_values(measures: Any, config: ObjectiveConfig, feature_mask: np.nda
             out[m] = -_pose_errors(_pose_of(measures), config.pose_rotation_length_mm)
             continue
         if m == "resolvability":
-            out[m] = np.asarray(measures.resolvability, dtype=float)
+            out[m] = np.asarray(getattr(measures, "resolvability"), dtype=float)  # noqa: B009 (any measures)
             continue
         attr = {"fov": "fov" if config.fov_measure == "cone" else "fov_px", "focus": "focus",
                 "resolution": "resolution_px"}[m]
@@ -301,7 +313,7 @@ def aggregate(values: np.ndarray, how: str, beta: float = 20.0, unit: float = 1.
     raise CadfeatError(f"objective.aggregate: {how!r} is not one of {', '.join(AGGREGATES)}")
 
 
-def objective_values(measures: Any, config: ObjectiveConfig, units: Mapping[str, float] | None = None,
+def objective_values(measures: object, config: ObjectiveConfig, units: Mapping[str, float] | None = None,
                      feature_mask: np.ndarray | None = None, camera: Camera | None = None) -> dict[str, float]:
     """The aggregated objectives {g_FOV, g_FOC, g_RES, g_DIR} (those chosen) of one ``Measures``; ``units``
     (measure → natural unit, ``natural_units``) sets the smooth-min scale (1 if not given);
@@ -317,22 +329,22 @@ def objective_values(measures: Any, config: ObjectiveConfig, units: Mapping[str,
     return out
 
 
-def _pose_of(measures: Any) -> Any:
-    pose = getattr(measures, "pose", None)
+def _pose_of(measures: object) -> PosePrediction:
+    pose: PosePrediction | None = getattr(measures, "pose", None)
     if pose is None:
         raise CadfeatError("objective.measures: 'pose' (g_POSE) needs the pose information of the same poses "
                            "(measures.pose = cadfeat.measures.pose_information(...)); none was computed")
     return pose
 
 
-def _pose_errors(pose: Any, rotation_length_mm: float) -> np.ndarray:
+def _pose_errors(pose: PosePrediction, rotation_length_mm: float) -> np.ndarray:
     """(..., L) predicted error per pose, mm: √(e_t² + (ℓ e_r)²) with bias and noise (``PoseInformation``),
     unobservable poses at ``POSE_UNOBSERVABLE_MM``."""
     e = np.asarray(pose.error_mm(rotation_length_mm), dtype=float)
     return np.where(np.isfinite(e), np.minimum(e, POSE_UNOBSERVABLE_MM), POSE_UNOBSERVABLE_MM)
 
 
-def pose_objective(pose: Any, how: str = "rms", rotation_length_mm: float = 50.0) -> float:
+def pose_objective(pose: PosePrediction, how: str = "rms", rotation_length_mm: float = 50.0) -> float:
     """g_POSE (mm, larger is better) of a ``PoseInformation`` along the trajectory.
 
     Per pose the predicted error e_k = √(‖δ_b,p‖² + σ_t² + ℓ² (‖δ_b,θ‖² + σ_θ²)) (bias and noise; δθ in rad,
@@ -413,7 +425,7 @@ class Normaliser:
     note: str = ""
     offset: dict[str, float] = field(default_factory=dict[str, float])
     constant: tuple[str, ...] = ()
-    payoff: dict[str, Any] | None = None
+    payoff: dict[str, object] | None = None
 
     @classmethod
     def build(cls, method: str, initial: Mapping[str, float], natural: Mapping[str, float]) -> Normaliser:
@@ -473,15 +485,22 @@ class Normaliser:
                 "other objectives' optima — independent of the starting design")
         if constant:
             note += f"; constant over the design space (left out of the combination): {', '.join(constant)}"
-        payoff = {"names": list(names), "table": table.tolist(), "ideal": ideal.tolist(), "nadir": nadir.tolist()}
+        payoff: dict[str, object] = {"names": list(names), "table": table.tolist(), "ideal": ideal.tolist(),
+                                     "nadir": nadir.tolist()}
         return cls("payoff", ref, src, note + _UNITS_NOTE, off, tuple(constant), payoff)
 
-    def normalise(self, values: Mapping[str, Any]) -> dict[str, Any]:
+    @overload
+    def normalise(self, values: Mapping[str, float]) -> dict[str, float]: ...
+    @overload
+    def normalise(self, values: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]: ...
+    def normalise(self, values: Mapping[str, float] | Mapping[str, np.ndarray]
+                  ) -> dict[str, float] | dict[str, np.ndarray]:
+        """ĝ = (g − offset) / reference per objective (a value gives a numpy float, an array an array)."""
         return {k: (np.asarray(v) - self.offset.get(k, 0.0)) / self.reference[k] for k, v in values.items()}
 
-    def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"method": self.method, "reference": dict(self.reference), "sources": dict(self.sources),
-               "note": self.note}
+    def to_dict(self) -> dict[str, object]:
+        out: dict[str, object] = {"method": self.method, "reference": dict(self.reference),
+                                  "sources": dict(self.sources), "note": self.note}
         if self.offset:
             out["offset"] = dict(self.offset)
         if self.constant:

@@ -11,7 +11,7 @@ objective and constraint configurations. Everything the solvers need comes from 
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
 
@@ -44,11 +44,14 @@ from cadfeat.measures.resolvability import resolvability_from_parts, scale_jacob
 from cadfeat.poses import cam_from_part
 
 if TYPE_CHECKING:  # pragma: no cover
-    from collections.abc import Sequence
+    from collections.abc import Mapping, Sequence
+
+    import trimesh
+    from numpy.typing import ArrayLike
 
     from cadfeat.camera import Camera
+    from cadfeat.design.unseen import ScoredMeasures
     from cadfeat.measures.glare import GlareMaps
-    from cadfeat.results import JsonDict
     from cadfeat.trajectory import Trajectory
 
 __all__ = ["Problem"]
@@ -64,10 +67,15 @@ def _resolvability(J: np.ndarray, screws: np.ndarray, rotation_length_mm: float)
                                     diag["sigma_min"])
 
 
+PoseArray: TypeAlias = "np.ndarray | tuple[np.ndarray, ...]"
+"""One entry of ``Problem.pose_arrays``: a measure's (B, L, N) or Λ's (B, L) values, or g_POSE's (errors (B, L) mm,
+information (B, L, 6, 6))."""
+
+
 class _Arrays:
     """Measures-like attribute access to a dict of arrays."""
 
-    def __init__(self, arrays: dict[str, np.ndarray]):
+    def __init__(self, arrays: Mapping[str, object]):
         self.__dict__.update(arrays)
 
 
@@ -75,7 +83,7 @@ class _BatchPose:
     """g_POSE's per-pose predicted errors (..., L) mm and aggregated value (...,) (``design.pose_terms``), read
     by ``objectives.per_pose_values`` as ``measures.pose``."""
 
-    def __init__(self, errors_mm: np.ndarray, g: Any):
+    def __init__(self, errors_mm: np.ndarray, g: np.ndarray):
         self.errors_mm, self.g = errors_mm, g
 
     def error_mm(self, rotation_length_mm: float | None = None) -> np.ndarray:
@@ -85,10 +93,10 @@ class _BatchPose:
 class _WithPose:
     """A ``Measures`` with ``pose`` attached (None when g_POSE is not chosen)."""
 
-    def __init__(self, measures: Any, pose: Any):
+    def __init__(self, measures: object, pose: _BatchPose | None):
         self._m, self.pose = measures, pose
 
-    def __getattr__(self, name: str) -> Any:
+    def __getattr__(self, name: str) -> object:
         return getattr(self._m, name)
 
 
@@ -106,8 +114,8 @@ class Problem:
 
     def __init__(self, space: DesignSpace, model: FeatureModel, camera: Camera, trajectory: Trajectory,
                  T_task_part: np.ndarray, objective_config: ObjectiveConfig, constraint_config: ConstraintConfig,
-                 fixed_mask: Any = None, *, occlusion_mesh: Any = None, normaliser: Normaliser | None = None,
-                 feature_mask: Any = None, cell: Cell | None = None):
+                 fixed_mask: ArrayLike | None = None, *, occlusion_mesh: trimesh.Trimesh | None = None,
+                 normaliser: Normaliser | None = None, feature_mask: ArrayLike | None = None, cell: Cell | None = None):
         self.space = space
         self.cell = cell if cell is not None else Cell()
         """The robot cell (``cadfeat.cell.Cell``): g_POSE's models see its gate, placement and sensor noise."""
@@ -293,7 +301,7 @@ class Problem:
         return maps
 
     def measures_from_features(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                               exact_occlusion: bool = False) -> Any:
+                               exact_occlusion: bool = False) -> ScoredMeasures:
         """``measures.evaluate`` of hole features (part frame) along the trajectory, as the objectives score them
         (``design.unseen.scored_measures``: the unseen-hole rule applied); occlusion by the optimiser's depth maps,
         or by the exact ray test against the mesh with ``exact_occlusion``."""
@@ -306,7 +314,7 @@ class Problem:
         return scored_measures(m, self.camera, cfg.min_axis_px)
 
     @property
-    def occlusion(self) -> Any:
+    def occlusion(self) -> DepthMaps | None:
         """The optimiser's occlusion test: depth maps of ``occlusion_mesh`` at the trajectory's poses
         (``measures.depth.DepthMaps``, built once on first use), or None without a mesh."""
         if self.occlusion_mesh is None:
@@ -322,7 +330,7 @@ class Problem:
             return maps.tile(n // maps.n_poses)
         return maps
 
-    def measures(self, x: np.ndarray) -> Any:
+    def measures(self, x: np.ndarray) -> ScoredMeasures:
         return self.measures_from_features(*self.model.features(np.asarray(x, dtype=float)))
 
     def features_objectives(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
@@ -363,7 +371,8 @@ class Problem:
         return self.aggregate_arrays(self.pose_arrays(centres, axes, radii, depth_mm=depth_mm))
 
     def pose_arrays(self, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray,
-                    noise_grey: Any = None, depth_mm: np.ndarray | None = None) -> JsonDict:
+                    noise_grey: np.ndarray | None = None, depth_mm: np.ndarray | None = None
+                    ) -> dict[str, PoseArray]:
         """Per-pose arrays of B designs at the problem's L poses: each chosen measure's (B, L, N) feature values
         (``seen``, the Jacobian rows' weights, for Λ), Λ as (B, L), and for g_POSE
         ``("pose", (errors (B, L) mm, information (B, L, 6, 6)))``.
@@ -386,7 +395,7 @@ class Problem:
             return np.moveaxis(a.reshape(L, B, N), 1, 0)
         attrs = {"fov": "fov" if cfg.fov_measure == "cone" else "fov_px", "focus": "focus",
                  "resolution": "resolution_px", "resolvability": "seen"}
-        arrays: JsonDict = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
+        arrays: dict[str, PoseArray] = {attrs[k]: per_design(getattr(m, attrs[k])) for k in cfg.measures if k != "pose"}
         if "pose" in cfg.measures:  # g_POSE: one pose_information on the B·L stacked poses (``design.pose_terms``)
 
             info = stacked_information(self, centres, axes, radii, noise_grey, depth_mm)
@@ -398,22 +407,23 @@ class Problem:
             R, t = self.T_cam_part[:, :3, :3], self.T_cam_part[:, :3, 3]
             pts = centres[:, None] @ np.swapaxes(R, 1, 2)[None] + t[None, :, None, :]  # (B, L, N, 3)
             J = measures.stacked_jacobian(self.camera, pts.reshape(B * L, N, 3),
-                                          arrays["seen"].reshape(B * L, N))
+                                          np.asarray(arrays["seen"]).reshape(B * L, N))
             arrays["resolvability"] = _resolvability(J, np.tile(self.screws, (B, 1)),
                                                      cfg.rotation_length_mm).reshape(B, L)
         return arrays
 
-    def aggregate_arrays(self, arrays: JsonDict) -> np.ndarray:
+    def aggregate_arrays(self, arrays: Mapping[str, PoseArray]) -> np.ndarray:
         """Raw aggregated objectives (B, K) of ``pose_arrays`` (any leading batch shape B of the (B, L, …) arrays)."""
         cfg = self.objective_config
-        arrays = dict(arrays)
+        fields: dict[str, object] = dict(arrays)
+        pose: _BatchPose | None = None
         if "pose" in arrays:
             e, info = arrays["pose"]
             g = pose_aggregate_batch(e, info, cfg.pose_aggregate, cfg.pose_rotation_length_mm)
             per_pose = -np.where(np.isfinite(e), np.minimum(e, POSE_UNOBSERVABLE_MM), POSE_UNOBSERVABLE_MM)
-            arrays["pose"] = _BatchPose(-per_pose, g)
-        values = per_pose_values(_Arrays(arrays), cfg, self.feature_mask)
-        return np.stack([arrays["pose"].g if k == "pose" else
+            fields["pose"] = pose = _BatchPose(-per_pose, g)
+        values = per_pose_values(_Arrays(fields), cfg, self.feature_mask)
+        return np.stack([pose.g if k == "pose" and pose is not None else
                          aggregate(values[k], cfg.aggregate, cfg.smoothmin_beta, self.units[k])
                          for k in cfg.measures], axis=-1)
 

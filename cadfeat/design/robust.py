@@ -35,26 +35,43 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Protocol, cast
 
 import numpy as np
 
 from cadfeat.design.objectives import ObjectiveConfig
 from cadfeat.design.optimize import _result  # pyright: ignore[reportPrivateUsage] (the optimisers' result)
-from cadfeat.design.optimize.evaluator import FEAS_TOL, Best, Evaluator
+from cadfeat.design.optimize.evaluator import FEAS_TOL, Best, Evaluator, HistoryEntry, StartSummary
 from cadfeat.design.robustness import cell_objectives, shop_objectives
 from cadfeat.design.uncertainty import Draws
 from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
+    from numpy.typing import ArrayLike
+
     from cadfeat.design.optimize import OptimizerConfig, OptimResult
+    from cadfeat.design.optimize.evaluator import HistoryEntry, OptimProblem
     from cadfeat.design.problem import Problem
-    from cadfeat.results import JsonDict
 
 __all__ = ["BLOCKS", "FLOOR_PERCENTILE", "STATISTICS", "TIE_TOL", "RobustObjective", "RobustProblem",
            "robust_optimise", "statistic", "tie_break"]
 
 STATISTICS = ("percentile", "mean", "chance")
+
+
+class RobustSpec(Protocol):
+    """The robust objective's settings (the study's ``[robustness]``, ``study.settings.RobustnessSettings``)."""
+
+    @property
+    def statistic(self) -> str: ...
+    @property
+    def percentile(self) -> float: ...
+    @property
+    def chance_measure(self) -> str | None: ...
+    @property
+    def chance_min(self) -> float | None: ...
+    @property
+    def chance_probability(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -68,7 +85,7 @@ class RobustObjective:
     chance_probability: float = 0.95
 
     @staticmethod
-    def from_settings(spec: Any) -> RobustObjective:
+    def from_settings(spec: RobustSpec) -> RobustObjective:
         return RobustObjective(spec.statistic, float(spec.percentile), spec.chance_measure,
                                None if spec.chance_min is None else float(spec.chance_min),
                                float(spec.chance_probability))
@@ -114,8 +131,8 @@ class RobustProblem:
     original) whose combined 5th percentile under each source of ``BLOCKS`` is a constraint (margin ≥ 0): the
     robust optimum is never more fragile than it, in sample."""
 
-    def __init__(self, problem: Problem, objective: RobustObjective, draws: Draws, changed: Any = None,
-                 floor_x: Any = None):
+    def __init__(self, problem: Problem, objective: RobustObjective, draws: Draws, changed: ArrayLike | None = None,
+                 floor_x: ArrayLike | None = None):
         if problem.objective_config.combine == "pareto":
             raise CadfeatError("robustness.robust: a robust objective needs one combined value; allowed: "
                                "objective.combine = maxmin, weighted or constraint, or robustness.robust = false")
@@ -254,7 +271,7 @@ class _Stalled(Exception):
     """Raised inside COBYLA's objective to end a local solve that has stopped improving."""
 
 
-def _local(ev: Any, u0: np.ndarray, maxiter: int) -> None:
+def _local(ev: Evaluator, u0: np.ndarray, maxiter: int) -> None:
     """One derivative-free local solve (COBYLA) of the evaluator's robust objective from u0 under its margins:
     the statistic over the draws is piecewise smooth with steps (a hole leaving the view in one draw), where
     finite-difference gradients mislead a gradient solver. The evaluator keeps the best feasible design. The
@@ -277,10 +294,11 @@ def _local(ev: Any, u0: np.ndarray, maxiter: int) -> None:
             raise _Stalled
         return -value
 
-    def callback(*args: Any) -> None:
+    def callback(*args: object) -> None:
         iteration[0] += 1
         if iteration[0] % 10 == 0:  # one history entry every ten iterations
-            G, C = ev.batch(np.clip(np.asarray(args[0] if not hasattr(args[0], "x") else args[0].x), 0, 1)[None])
+            u = getattr(args[0], "x", args[0])  # (an OptimizeResult, or the point itself)
+            G, C = ev.batch(np.clip(np.asarray(u), 0, 1)[None])
             ev.record(iteration[0], G[0], C[0])
 
     n_cons = ev.batch(u0[None])[1].shape[1]
@@ -301,8 +319,11 @@ class _PoolEvaluator(Evaluator):
     """An ``Evaluator`` that also keeps every feasible design it evaluates (in ``pool``, shared with the evaluators
     of ``sub``): the candidates of ``tie_break``."""
 
-    def __init__(self, *args: Any, pool: list[Best] | None = None, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
+    def __init__(self, problem: OptimProblem, x_base: np.ndarray, free: np.ndarray | None = None,
+                 progress: Callable[[HistoryEntry], None] | None = None, t0: float | None = None,
+                 history: list[HistoryEntry] | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None,
+                 pool: list[Best] | None = None) -> None:
+        super().__init__(problem, x_base, free, progress, t0, history, bounds)
         self.pool: list[Best] = [] if pool is None else pool
 
     def sub(self, x_base: np.ndarray, free: np.ndarray) -> _PoolEvaluator:
@@ -343,7 +364,7 @@ def tie_break(problem: RobustProblem, best: Best | None, pool: Sequence[Best]) -
 
 
 def robust_optimise(problem: RobustProblem, config: OptimizerConfig, starts: Sequence[np.ndarray],
-                    progress: Callable[[JsonDict], None] | None = None) -> OptimResult:
+                    progress: Callable[[HistoryEntry], None] | None = None) -> OptimResult:
     """Local solves of ``problem`` (COBYLA, ``ROBUST_EVALS_PER_VARIABLE`` evaluations per free variable) from
     each of ``starts`` in turn, one evaluator keeping the best feasible design (ties: the earlier); standard-size
     variables (``snap_standard_sizes``) stay at each start's (snapped) sizes. The delivered design: among the
@@ -358,7 +379,7 @@ def robust_optimise(problem: RobustProblem, config: OptimizerConfig, starts: Seq
     ev = _PoolEvaluator(problem, np.asarray(starts[0], float), free, progress=progress, t0=t0)
     ev.phase = "robust"
     interrupted = False
-    summaries: list[JsonDict] = []
+    summaries: list[StartSummary] = []
     try:
         for k, x in enumerate(starts):
             sub = ev.sub(np.asarray(x, float), free)

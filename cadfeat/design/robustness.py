@@ -24,7 +24,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -130,8 +130,8 @@ def _cell_chunk(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: 
 
     def per_draw(a: np.ndarray) -> np.ndarray:  # (B, S·L, …) → (B·S, L, …)
         return a.reshape((B * S, L) + a.shape[2:])
-    arrays = {k: tuple(map(per_draw, cast("tuple[np.ndarray, ...]", v))) if isinstance(v, tuple) else
-              per_draw(np.asarray(v)) for k, v in arrays.items()}
+    arrays = {k: tuple(map(per_draw, v)) if isinstance(v, tuple) else per_draw(np.asarray(v))
+              for k, v in arrays.items()}
     return problem.aggregate_arrays(arrays).reshape(B, S, -1)
 
 
@@ -173,7 +173,8 @@ def shop_objectives(problem: Problem, centres: np.ndarray, axes: np.ndarray, rad
 
 def robustness(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: np.ndarray, changed: np.ndarray, *,
                position_tol_mm: float = 0.1, size_steps: int = 1, sizes: Sequence[float] = (),
-               camera_position_mm: Any = 2.0, camera_angle_deg: Any = 1.0, samples: int = 200,
+               camera_position_mm: float | Sequence[float] = 2.0, camera_angle_deg: float | Sequence[float] = 1.0,
+               samples: int = 200,
                combined_before: float | None = None, seed: int = 0) -> JsonDict:
     """The robustness block of results.json for the design with features (N,3), (N,3), (N,) (part frame, mm);
     ``changed`` (N,) bool: the holes the shop makes anew (moved or resized)."""
@@ -185,9 +186,10 @@ def robustness(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: n
     nominal = problem.features_objectives(c, a, r)
     pareto = problem.objective_config.combine == "pareto"
     comb: Callable[[np.ndarray], np.ndarray] | None = problem.combined_from if not pareto else None
+    razor: list[str] = []
     out: JsonDict = {"position_tol_mm": position_tol_mm, "size_steps": size_steps,
-                           "camera_position_mm": cam_mm.tolist(), "camera_angle_deg": cam_deg.tolist(),
-                           "samples": samples, "names": names, "razor_edge": []}
+                     "camera_position_mm": cam_mm.tolist(), "camera_angle_deg": cam_deg.tolist(),
+                     "samples": samples, "names": names, "razor_edge": razor}
     if samples <= 0:
         return out
     # manufacturing
@@ -218,6 +220,6 @@ def robustness(problem: Problem, centres: np.ndarray, axes: np.ndarray, radii: n
                 gain = c0 - combined_before
                 floor = combined_before + RAZOR_KEEP * gain if gain > 0 else combined_before
                 if block["combined"]["p05"] < floor:
-                    out["razor_edge"].append(key)
+                    razor.append(key)
         out[key] = block
     return out

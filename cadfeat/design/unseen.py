@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar, Protocol
 
 import numpy as np
 
@@ -57,7 +57,31 @@ class ScoredMeasures(Measures):
     scored: ClassVar[bool] = True
 
 
-def is_scored(measures: Any) -> bool:
+class UnseenFields(Protocol):
+    """What the rule reads of a ``Measures`` (or of any object with its fields): the margins it scores, and what
+    tells a hole unseen."""
+
+    @property
+    def fov(self) -> np.ndarray: ...
+    @property
+    def fov_px(self) -> np.ndarray: ...
+    @property
+    def focus(self) -> np.ndarray: ...
+    @property
+    def resolution_px(self) -> np.ndarray: ...
+    @property
+    def facing(self) -> np.ndarray: ...
+    @property
+    def folded(self) -> np.ndarray: ...
+    @property
+    def hidden(self) -> np.ndarray: ...
+    @property
+    def rim_hidden(self) -> np.ndarray: ...
+    @property
+    def visible(self) -> np.ndarray: ...
+
+
+def is_scored(measures: object) -> bool:
     """True for measures the rule was applied to (a ``ScoredMeasures``, or a wrapper that forwards ``scored``)."""
     return bool(getattr(measures, "scored", False))
 
@@ -89,7 +113,7 @@ def apply_unseen(camera: Camera, out: dict[str, np.ndarray], hidden: np.ndarray,
             out[key][hard] = floors[key]
 
 
-def scored_arrays(measures: Any, camera: Camera, min_axis_px: float) -> dict[str, np.ndarray]:
+def scored_arrays(measures: UnseenFields, camera: Camera, min_axis_px: float) -> dict[str, np.ndarray]:
     """The scored ``UNSEEN_KEYS`` margins and ``visible`` (L, N) of ``measures`` (a ``Measures``, or any object with
     its fields, computed with this ``camera`` and ``min_axis_px``): new arrays, ``measures`` is left as it is."""
     out = {key: np.array(getattr(measures, key), dtype=float) for key in UNSEEN_KEYS}
@@ -102,7 +126,7 @@ def scored_arrays(measures: Any, camera: Camera, min_axis_px: float) -> dict[str
     return out
 
 
-def scored_measures(measures: Any, camera: Camera, min_axis_px: float) -> ScoredMeasures:
+def scored_measures(measures: Measures, camera: Camera, min_axis_px: float) -> ScoredMeasures:
     """``measures`` (``measures.evaluate``'s, computed with this ``camera`` and ``min_axis_px``) as the objectives
     score them (module docstring; ``scored_arrays``); already scored measures are returned as they are."""
     if isinstance(measures, ScoredMeasures):

@@ -16,7 +16,7 @@ with the predicted rim ellipses; current vs optimum; write the design as a study
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.explore.loader import SessionLoader
@@ -29,7 +29,7 @@ _HOMES = {"ExploreServer": "server", "serve": "server", "ExploreSession": "sessi
           "SetupStatus": "status"}
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     """The public names, imported on first use (the server starts before numpy and the measures are imported)."""
     if name in _HOMES:
         return getattr(importlib.import_module(f"cadfeat.explore.{_HOMES[name]}"), name)

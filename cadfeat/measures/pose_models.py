@@ -170,7 +170,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
 from importlib import resources
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -182,6 +182,8 @@ from cadfeat.measures.fov import image_margin_from_ellipse
 from cadfeat.measures.visibility import facing_margin
 
 if TYPE_CHECKING:  # pragma: no cover
+    from numpy.typing import ArrayLike
+
     from cadfeat.cell import Cell
 
 DATA = "data"
@@ -215,7 +217,7 @@ class HoleGeometry(NamedTuple):
     shift_px_per_mm: np.ndarray | None = None
     shift_px_per_rad: np.ndarray | None = None
 
-    def rim_gap_px(self, occlusion: Any = None) -> np.ndarray | None:
+    def rim_gap_px(self, occlusion: ArrayLike | None = None) -> np.ndarray | None:
         """(L, N) image gap to the nearest other rim that shows as an edge (``rim_gap_px``): in front, facing
         the camera and, given the rims' hidden fractions ``occlusion`` (L, N), less than half hidden."""
         if self.rims is None:
@@ -359,8 +361,8 @@ def rim_gap_px(centre_px: np.ndarray, axes_px: np.ndarray, angle_rad: np.ndarray
     return np.where(ok, gap, np.inf).min(axis=-1)
 
 
-def interior_contrast(facing: Any, depth_ratio: Any, through: Any, minor_px: Any, light_face: Any = None,
-                      light_wall: Any = None) -> np.ndarray:
+def interior_contrast(facing: ArrayLike, depth_ratio: ArrayLike, through: ArrayLike, minor_px: ArrayLike,
+                      light_face: ArrayLike | None = None, light_wall: ArrayLike | None = None) -> np.ndarray:
     """g · ΔI (module docstring, dimensionless): the grey-level difference just inside an oblique rim between the
     wall's side and the d̂ side, over the face's level, faded in with the wall's band. ``facing`` cos θ (θ from
     the line of sight), ``depth_ratio`` depth/diameter, ``through`` bool, ``minor_px`` the rim's minor axis,
@@ -385,7 +387,7 @@ def interior_contrast(facing: Any, depth_ratio: Any, through: Any, minor_px: Any
     return np.tanh(band) * delta
 
 
-def _kind_is(kinds: Any, n: int, test: Callable[[str, str], bool]) -> np.ndarray:
+def _kind_is(kinds: ArrayLike | None, n: int, test: Callable[[str, str], bool]) -> np.ndarray:
     """(N,) or (L, N) bool: ``test(base, rim)`` of each hole's kind (``Hole.kind``, "<base>[, <rim>]");
     None = plain holes with sharp rims."""
     if kinds is None:
@@ -438,8 +440,8 @@ class PoseModels:
     placement_deg: float = D.PLACEMENT_SIGMA_DEG
     source: str = "defaults (not calibrated)"
 
-    def detection_probability(self, geo: HoleGeometry, occlusion: np.ndarray, *, depth_ratio: Any = None,
-                              through: Any = None) -> np.ndarray:
+    def detection_probability(self, geo: HoleGeometry, occlusion: np.ndarray, *, depth_ratio: ArrayLike | None = None,
+                              through: ArrayLike | None = None) -> np.ndarray:
         """p (L, N) in [0, 1] (module docstring); ``occlusion`` (L, N) hidden fraction of the rim (or bool);
         ``depth_ratio`` / ``through`` (N,) or (L, N) the holes' depth/diameter and through flags for the
         flat-floor term (None: plain through holes, no floor term)."""
@@ -454,7 +456,8 @@ class PoseModels:
         return np.where(geo.valid & geo.in_front & (geo.facing > 0),
                         size * fov * facing * occl * near * floor * self.association(geo), 0.0)
 
-    def floor_term(self, geo: HoleGeometry, depth_ratio: Any, through: Any) -> np.ndarray | float:
+    def floor_term(self, geo: HoleGeometry, depth_ratio: ArrayLike | None, through: ArrayLike | None
+                   ) -> np.ndarray | float:
         """s((q − q₀)/w_q) for blind holes, q = depth/diameter · tan θ (module docstring "Flat floors"), (L, N);
         1 for through holes, with no depth given, or when the term is off (w_q = 0)."""
         if self.floor_w_q <= 0 or depth_ratio is None:
@@ -476,8 +479,9 @@ class PoseModels:
                + (geo.shift_px_per_rad * np.radians(self.placement_deg)) ** 2)
         return -np.expm1(-gate ** 2 / (2.0 * np.maximum(var, 1e-12)))
 
-    def measurement_model(self, geo: HoleGeometry, *, depth_ratio: Any = None, kinds: Any = None,
-                          through: Any = None, noise_grey: float = D.NOISE_SIGMA_GREY) -> tuple[np.ndarray, np.ndarray]:
+    def measurement_model(self, geo: HoleGeometry, *, depth_ratio: ArrayLike | None = None,
+                          kinds: ArrayLike | None = None, through: ArrayLike | None = None,
+                          noise_grey: float = D.NOISE_SIGMA_GREY) -> tuple[np.ndarray, np.ndarray]:
         """Centre noise σ (L, N) px and systematic offset b (L, N, 2) px (module docstring)."""
         rho = np.maximum(geo.rim_px, 1.0)
         edge = self.k_sigma * (noise_grey / 2.0) * np.sqrt(self.w0_px ** 2 + geo.blur_px ** 2)

@@ -9,11 +9,10 @@ optimum, the move-only optimum against the original). Empty without the section.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from cadfeat.report.html import esc, figure, fmt, note, num, table, text
+from cadfeat.report.html import Relative, esc, figure, fmt, note, num, table, text
 from cadfeat.results import AddedTargets, Results, section
 
 __all__ = ["added_targets_section", "curve_plot"]
@@ -105,7 +104,7 @@ def _tracking(block: AddedTargets) -> str:
                     "added-tracking"))
 
 
-def added_targets_section(results: Results, out_dir: Path, rel: Callable[[Path], Any]) -> str:
+def added_targets_section(results: Results, out_dir: Path, rel: Relative) -> str:
     """The section's HTML ('' when the results have no ``added_targets``)."""
     block = section(results, "added_targets", AddedTargets)
     if block is None or block.curve is None:

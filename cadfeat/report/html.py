@@ -11,9 +11,9 @@ from __future__ import annotations
 import base64
 import html
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TypeAlias
 
 CSS = """
 body{font-family:-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:0 auto;max-width:1200px;
@@ -40,13 +40,17 @@ tr.active td{background:#fff3cd} tr.active td.status{color:#8a6d00;font-weight:b
 details{margin:.6em 0} summary{cursor:pointer;color:#444}
 """
 
+Relative: TypeAlias = Callable[[Path], "str | tuple[str, str]"]
+"""How a section links a file of the output folder in the report: its path relative to report.html, or (data URI,
+that path) when the report embeds it (``figure``'s ``src``)."""
 
-def esc(value: Any) -> str:
+
+def esc(value: object) -> str:
     """HTML-escape any value's text (quotes too, so it is safe in attributes)."""
     return html.escape(str(value), quote=True)
 
 
-def fmt(value: Any, digits: int = 4) -> str:
+def fmt(value: object, digits: int = 4) -> str:
     """A number as shown in the report: ``digits`` significant digits; bools, None and text as text."""
     if value is None:
         return "–"
@@ -63,7 +67,7 @@ def fmt(value: Any, digits: int = 4) -> str:
     return str(value)
 
 
-def num(value: Any, css: str = "", digits: int = 4) -> str:
+def num(value: object, css: str = "", digits: int = 4) -> str:
     """A table cell for a number; the exact value is kept in ``data-value`` (repr of the float)."""
     cls = f' class="{esc(css)}"' if css else ""
     if isinstance(value, int | float) and not isinstance(value, bool):
@@ -71,7 +75,7 @@ def num(value: Any, css: str = "", digits: int = 4) -> str:
     return f'<td{cls}>{esc(fmt(value, digits))}</td>'
 
 
-def text(value: Any, css: str = "text") -> str:
+def text(value: object, css: str = "text") -> str:
     """A table cell for text."""
     return f'<td class="{esc(css)}">{esc(fmt(value))}</td>'
 
@@ -109,7 +113,7 @@ def figure(src: str | tuple[str, str], caption: str, alt: str = "") -> str:
             f"<figcaption>{esc(caption)}</figcaption></figure>")
 
 
-def data_uri(path: Any) -> str:
+def data_uri(path: str | Path) -> str:
     """The file as a ``data:`` URI (PNG, SVG, JPEG by suffix; base64)."""
     path = Path(path)
     mime = {".png": "image/png", ".svg": "image/svg+xml", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}.get(

@@ -11,11 +11,10 @@ results have no ``pose_accuracy``. Reads the typed sections ``results.PoseAccura
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from cadfeat.report.html import esc, figure, fmt, note, num, table, text
+from cadfeat.report.html import Relative, esc, figure, fmt, note, num, table, text
 from cadfeat.results import PoseAccuracy, PoseDesign, Results, Tracking, present, section
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -132,7 +131,7 @@ def _closed_loop(pose: PoseAccuracy, tracking: Tracking | None) -> str:
                     rows, "pose-closed-loop"))
 
 
-def pose_section(results: Results, out_dir: Path, rel: Callable[[Path], Any]) -> str:
+def pose_section(results: Results, out_dir: Path, rel: Relative) -> str:
     """The section's HTML ('' when the results have no ``pose_accuracy``)."""
     pose = section(results, "pose_accuracy", PoseAccuracy)
     if pose is None or not present(pose):

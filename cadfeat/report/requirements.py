@@ -11,10 +11,12 @@ the verified rows; any that does not is listed as "not verified" (a verification
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypeVar
 
 from cadfeat.report.html import esc, fmt, note, num, table, text
-from cadfeat.results import Holes, RequirementCheck, RequirementUsed, Results, section, value
+from cadfeat.results import Holes, Record, RequirementCheck, RequirementUsed, Results, section, value
+
+R = TypeVar("R", bound=Record)
 
 #: Margin (mm) below which a kept requirement counts as active (= the default position tolerance).
 ACTIVE_MARGIN_MM = 0.1
@@ -65,12 +67,13 @@ class Requirement:
         return "active" if self.active() else "ok"
 
 
-def _key(name: Any, holes: Any) -> tuple[str, tuple[str, ...]]:
-    hs = holes if isinstance(holes, list | tuple) else ([] if holes is None else [holes])
+def _key(name: object, holes: object) -> tuple[str, tuple[str, ...]]:
+    hs: list[object] | tuple[object, ...] = holes if isinstance(holes, list | tuple) else \
+        ([] if holes is None else [holes])
     return str(name), tuple(sorted(str(h) for h in hs))
 
 
-def _records(results: Results, name: str, model: type[Any]) -> list[Any]:
+def _records(results: Results, name: str, model: type[R]) -> list[R]:
     return [it if isinstance(it, model) else model.model_validate(it) for it in value(results, name) or []]
 
 

@@ -9,11 +9,9 @@ section ``results.Robustness``.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
-from cadfeat.report.html import esc, figure, note, num, table, text
+from cadfeat.report.html import Relative, esc, figure, note, num, table, text
 from cadfeat.results import Results, Robustness, Spread, section
 
 __all__ = ["box_plot", "robust_designs_section"]
@@ -110,7 +108,7 @@ def _out_of_sample(rb: Robustness) -> str:
             + table(["design", "in sample", "out of sample", "change"], rows, "robust-out-of-sample"))
 
 
-def robust_designs_section(results: Results, out_dir: Path, rel: Callable[[Path], Any]) -> str:
+def robust_designs_section(results: Results, out_dir: Path, rel: Relative) -> str:
     """The sub-section's HTML ('' when results.json has no ``robustness.designs``)."""
     rb = section(results, "robustness", Robustness)
     if rb is None or not rb.designs:

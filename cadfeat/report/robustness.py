@@ -4,18 +4,16 @@ section ``results.Robustness``)."""
 
 from __future__ import annotations
 
-from typing import Any
-
 from cadfeat.report.html import esc, fmt, note, num, table, text
 from cadfeat.results import Results, Robustness, Spread, section
 
 
-def _given(rb: Robustness, name: str) -> Any:
+def _given(rb: Robustness, name: str) -> object:
     """A key as results.json gives it (None when absent, not the model's default)."""
     return getattr(rb, name) if name in rb.model_fields_set else None
 
 
-def _drop(nominal: Any, value: Any) -> float | None:
+def _drop(nominal: float | None, value: float | None) -> float | None:
     ok = all(isinstance(v, int | float) and not isinstance(v, bool) for v in (nominal, value))
     return 100.0 * (value - nominal) / abs(nominal) if ok and nominal else None
 

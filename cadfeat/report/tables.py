@@ -8,7 +8,7 @@ Each function returns an HTML fragment, or "" when its data is absent. Numbers k
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import numpy as np
 
@@ -18,7 +18,9 @@ from cadfeat.results import (
     FileEntry,
     Holes,
     Measures,
+    Number,
     Objectives,
+    Record,
     RequirementCheck,
     Results,
     StudyRecord,
@@ -48,11 +50,15 @@ class _Indexed(Protocol):
     name: str
 
 
-def _by_index(items: Sequence[_Indexed] | None) -> dict[int, Any]:
+I = TypeVar("I", bound=_Indexed)
+R = TypeVar("R", bound=Record)
+
+
+def _by_index(items: Sequence[I] | None) -> dict[int, I]:
     return {it.index: it for it in items or []}
 
 
-def _records(results: Results, name: str, model: type[Any]) -> list[Any]:
+def _records(results: Results, name: str, model: type[R]) -> list[R]:
     """A list section (``variables``, ``constraints``, ``files``) as typed records ([] when absent)."""
     items = value(results, name)
     return [it if isinstance(it, model) else model.model_validate(it) for it in items or []]
@@ -176,13 +182,13 @@ def variables_table(results: Results) -> str:
                  "variables")
 
 
-def objective_changes(obj: Objectives | None) -> list[tuple[str, Any, Any, float | None]]:
+def objective_changes(obj: Objectives | None) -> list[tuple[str, Number | None, Number | None, float | None]]:
     """(name, before, after, relative change in % of |before| or None) for each named objective."""
     if obj is None:
         return []
     before, after = obj.before, obj.after or {}
     names = list(obj.names) or list(dict.fromkeys([*before, *after]))
-    out: list[tuple[str, Any, Any, float | None]] = []
+    out: list[tuple[str, Number | None, Number | None, float | None]] = []
     for name in names:
         b, a = before.get(name), after.get(name)
         ok = all(isinstance(x, int | float) and not isinstance(x, bool) for x in (a, b))
@@ -254,7 +260,7 @@ def constraints_table(results: Results) -> str:
                         rows, "constraints", row_classes=classes)
 
 
-def _given(record: Any, name: str, absent: Any) -> Any:
+def _given(record: Record, name: str, absent: object) -> object:
     """``record.name`` when the data gave it (None included), else ``absent`` (the model's default may differ)."""
     return getattr(record, name) if name in record.model_fields_set else absent
 
@@ -300,7 +306,7 @@ def verification_table(results: Results) -> str:
     return table(["check", "result"], rows, "verification")
 
 
-def key_value_table(data: Mapping[str, Any] | None, table_id: str, header: tuple[str, str]) -> str:
+def key_value_table(data: Mapping[str, object] | None, table_id: str, header: tuple[str, str]) -> str:
     """A two-column table of a flat dict (versions, timings)."""
     if not isinstance(data, dict) or not data:
         return ""
@@ -327,7 +333,7 @@ def setup_table(results: Results) -> str:
     """Study, part, camera and trajectory in one short table."""
     study = section(results, "study", StudyRecord, partial=True)
     cam, traj = value(results, "camera") or {}, section(results, "trajectory", TrajectoryRecord, partial=True)
-    items: list[tuple[str, Any]] = [
+    items: list[tuple[str, object]] = [
         ("study", study.name if study else None), ("study file", study.file if study else None),
         ("part", study.part if study else None), ("part kind", study.part_kind if study else None),
         ("seed", study.seed if study else None),

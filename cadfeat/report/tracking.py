@@ -9,15 +9,19 @@ typed section ``results.Tracking``.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
-from cadfeat.report.html import esc, figure, fmt, note, table
+from cadfeat.report.html import Relative, esc, figure, fmt, note, table
 from cadfeat.results import Interval, PhysicalViews, Results, Tracking, TrackingComparison, present, section
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.results import JsonDict
+    import numpy as np
+    from matplotlib.figure import Figure
+
+    from cadfeat.results import SweepData
 
 COLOURS = {"before": "#d95f02", "after": "#1b9e77", "move_only": "#7570b3"}
 VERDICT_TEXT = {"better": "tracks better after the redesign", "worse": "tracks WORSE after the redesign",
@@ -25,7 +29,18 @@ VERDICT_TEXT = {"better": "tracks better after the redesign", "worse": "tracks W
                 "mixed": "is significantly better in one of translation / rotation and worse in the other"}
 
 
-def _figure(ncols: int, nrows: int, size: tuple[float, float]) -> tuple[Any, Any]:
+def _table(value: object) -> Mapping[str, object]:
+    """A JSON object of the section (an empty one for anything else)."""
+    return cast("Mapping[str, object]", value) if isinstance(value, Mapping) else {}
+
+
+def _series(value: object) -> list[float]:
+    """A JSON list of numbers as floats (None, a number JSON could not hold, as NaN)."""
+    items = cast("list[object]", value) if isinstance(value, list) else []
+    return [float(v) if isinstance(v, int | float) else math.nan for v in items]
+
+
+def _figure(ncols: int, nrows: int, size: tuple[float, float]) -> tuple[Figure, np.ndarray]:
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=size, dpi=110)
@@ -35,7 +50,7 @@ def _figure(ncols: int, nrows: int, size: tuple[float, float]) -> tuple[Any, Any
 
 def error_plot(tracking: Tracking, path: Path) -> Path:
     """Translation (mm) and rotation (deg) error against time, one column per estimator, both designs."""
-    curves: JsonDict = tracking.curves
+    curves = tracking.curves
     if tracking.settings is None:
         raise KeyError("tracking.settings")
     estimators = list(tracking.settings.estimators)
@@ -44,13 +59,12 @@ def error_plot(tracking: Tracking, path: Path) -> Path:
         rows = (("trans_mm", "translation error (mm)"), ("rot_deg", "rotation error (deg)"))
         for row, (key, unit) in enumerate(rows):
             ax = axes[row][col]
-            for name, c in curves.items():
+            for name, curve in curves.items():
+                c = _table(curve)
                 if m not in c:
                     continue
-                t, e = c["times_s"], c[m][key]
-                med = [float("nan") if v is None else v for v in e["median"]]
-                lo = [float("nan") if v is None else v for v in e["p10"]]
-                hi = [float("nan") if v is None else v for v in e["p90"]]
+                t, e = _series(c["times_s"]), _table(_table(c[m])[key])
+                med, lo, hi = _series(e["median"]), _series(e["p10"]), _series(e["p90"])
                 ax.plot(t, med, color=COLOURS.get(name, "k"), label=name, lw=1.5)
                 ax.fill_between(t, lo, hi, color=COLOURS.get(name, "k"), alpha=0.2, lw=0)
             ax.set_yscale("log")
@@ -68,7 +82,7 @@ def error_plot(tracking: Tracking, path: Path) -> Path:
     return path
 
 
-def sweep_plot(result: JsonDict, path: Path) -> Path:
+def sweep_plot(result: SweepData, path: Path) -> Path:
     """RMS translation error against the swept value, per design and estimator (``cadfeat track --sweep``)."""
     rows = result["rows"]
     x = [r["value"] for r in rows]
@@ -77,9 +91,9 @@ def sweep_plot(result: JsonDict, path: Path) -> Path:
     for col, key in enumerate(("trans_mm_rms", "rot_deg_rms")):
         ax = axes[0][col]
         for name in ("before", "after"):
-            methods = rows[0].get(name, {}) if rows else {}
+            methods = _table(rows[0].get(name)) if rows else {}
             for m in methods:
-                y = [r[name][m][key] if r[name][m][key] is not None else float("nan") for r in rows]
+                y = [_series([_table(_table(r[name])[m])[key]])[0] for r in rows]
                 ax.plot(x, y, styles.get(m, "-"), color=COLOURS[name], label=f"{name} {m}", ms=4)
         ax.set_xlabel(result["kind"].replace("_", " "))
         ax.set_ylabel("RMS translation error (mm)" if col == 0 else "RMS rotation error (deg)")
@@ -216,7 +230,7 @@ def tracking_section(results: Results, out_dir: Path, rel: Callable[[Path], str]
     return "".join(parts)
 
 
-def physical_views_section(results: Results, out_dir: Path, rel: Callable[[Path], Any]) -> str:
+def physical_views_section(results: Results, out_dir: Path, rel: Relative) -> str:
     """"What the robot's camera will see": results.json ``physical_views`` (both designs rendered physically at
     three poses, the cell's detector's detections drawn, the misses named); '' when absent."""
     views = section(results, "physical_views", PhysicalViews)

@@ -8,19 +8,16 @@ measure: it reads what the study computed and verified.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypeGuard
 
 from cadfeat.report.html import esc, fmt, num, table, text
 from cadfeat.report.patterns import patterns
 from cadfeat.report.requirements import ACTIVE_MARGIN_MM, requirement_rows
-from cadfeat.results import AddedTargets, Measures, Objectives, Robustness, StudyResults, Tracking, section, value
-from cadfeat.results import Finding as FindingRecord
-from cadfeat.results import Verdict as VerdictRecord
+from cadfeat.results import AddedTargets, Measures, Objectives, Results, Robustness, Tracking, section, value
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.results import JsonDict
+    from cadfeat.results import VerdictData
 
 ADOPT, CARE, REJECT = "adopt", "adopt with care", "do not adopt"
 _SEVERITY = {ADOPT: 0, CARE: 1, REJECT: 2}
@@ -97,11 +94,11 @@ class Verdict:
     limiting: str | None = None
 
 
-def _is_num(x: Any) -> bool:
+def _is_num(x: object) -> TypeGuard[int | float]:
     return isinstance(x, int | float) and not isinstance(x, bool)
 
 
-def hole_changes(results: StudyResults | Mapping[str, Any]) -> list[HoleChange]:
+def hole_changes(results: Results) -> list[HoleChange]:
     """Per hole and measure: worst value over the trajectory before and after (own units), changed ones only."""
     m = section(results, "measures", Measures)
     if m is None or m.after is None:
@@ -131,7 +128,7 @@ def limiting_objective(obj: Objectives | None) -> str | None:
     return min(vals, key=lambda k: vals[k]) if vals else None
 
 
-def decide(results: StudyResults | Mapping[str, Any]) -> Verdict:
+def decide(results: Results) -> Verdict:
     """Apply ``RULES`` to the results (typed, or plain data as read); the decision is the most severe outcome."""
     findings: list[Finding] = []
     obj = section(results, "objectives", Objectives)
@@ -197,16 +194,16 @@ def decide(results: StudyResults | Mapping[str, Any]) -> Verdict:
     return Verdict(decision, findings, changes, limiting)
 
 
-def verdict_json(results: StudyResults | Mapping[str, Any]) -> JsonDict:
+def verdict_json(results: Results) -> VerdictData:
     """results.json ``verdict`` (``cadfeat.results.Verdict``): the decision (one of ``adopt``, ``adopt with
     care``, ``do not adopt``), the limiting objective and each applied rule's outcome, so that a pipeline can
     gate on the run's outcome."""
     v = decide(results)
-    return VerdictRecord(decision=v.decision, limiting=v.limiting, findings=[
-        FindingRecord(rule=f.rule, outcome=f.outcome, detail=f.detail) for f in v.findings]).to_data()
+    return {"decision": v.decision, "limiting": v.limiting,
+            "findings": [{"rule": f.rule, "outcome": f.outcome, "detail": f.detail} for f in v.findings]}
 
 
-def _failing_after(results: StudyResults | Mapping[str, Any]) -> list[tuple[str, int, int]]:
+def _failing_after(results: Results) -> list[tuple[str, int, int]]:
     """(measure, holes with a negative worst margin, holes) of the design after, for each margin measure."""
     m = section(results, "measures", Measures)
     feats = m.after.per_feature if m is not None and m.after is not None else []
@@ -219,7 +216,7 @@ def _failing_after(results: StudyResults | Mapping[str, Any]) -> list[tuple[str,
     return out
 
 
-def _tracking(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
+def _tracking(results: Results) -> list[Finding]:
     """The closed-loop pose-tracking verdicts (results.json ``tracking.verdicts``: per estimator "better",
     "worse", "mixed" or "no significant difference", ``cadfeat.vision.closed_loop.compare``).
 
@@ -236,7 +233,7 @@ def _tracking(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
     return [Finding("tracking", outcome, text)]
 
 
-def _added(results: StudyResults | Mapping[str, Any]) -> int:
+def _added(results: Results) -> int:
     """The number of added target holes of the delivered design (``added_targets.delivered``), 0 without."""
     block = section(results, "added_targets", AddedTargets)
     if block is None or not block.delivered:
@@ -244,7 +241,7 @@ def _added(results: StudyResults | Mapping[str, Any]) -> int:
     return int(block.recommended)
 
 
-def _robust_combined(results: StudyResults | Mapping[str, Any]) -> tuple[float, float, str] | None:
+def _robust_combined(results: Results) -> tuple[float, float, str] | None:
     """(original, delivered, label) of the robust statistic out of sample when the delivered design is the robust
     optimum of a robust study (results.json ``robustness.out_of_sample``), else None."""
     rb = section(results, "robustness", Robustness)
@@ -258,7 +255,7 @@ def _robust_combined(results: StudyResults | Mapping[str, Any]) -> tuple[float, 
     return float(a), float(b), f"robust {oos.statistic} (held-out draws)"
 
 
-def _robustness(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
+def _robustness(results: Results) -> list[Finding]:
     rb = section(results, "robustness", Robustness)
     if rb is not None and rb.recommended:  # the robust comparison (issue 18) decides
         rec, delivered = rb.recommended, str(rb.delivered)
@@ -281,7 +278,7 @@ def _robustness(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
                      else "the combined objective keeps at least half of its gain under the tolerances") + of)]
 
 
-def _patterns(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
+def _patterns(results: Results) -> list[Finding]:
     pats = patterns(results)
     if not pats:
         return []
@@ -296,7 +293,7 @@ def _patterns(results: StudyResults | Mapping[str, Any]) -> list[Finding]:
 _CSS = {ADOPT: "adopt", CARE: "care", REJECT: "reject"}
 
 
-def verdict_section(results: JsonDict) -> str:
+def verdict_section(results: Results) -> str:
     """The decision banner, the rules with what each saw, and the per-hole gains and losses."""
     v = decide(results)
     rows = []

@@ -20,14 +20,14 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from cadfeat.errors import CadfeatError
 from cadfeat.report import tables, trust
 from cadfeat.report.added_targets import added_targets_section
 from cadfeat.report.context import ReportContext
 from cadfeat.report.holes import hole_table
-from cadfeat.report.html import data_uri, esc, figure, fmt, note, page, section
+from cadfeat.report.html import Relative, data_uri, esc, figure, fmt, note, page, section
 from cadfeat.report.patterns import patterns_section
 from cadfeat.report.plots import Plot, make_plots
 from cadfeat.report.pose import pose_section
@@ -294,7 +294,7 @@ def _document(out_dir: Path, results: JsonDict, renders: Renders, plots: list[Pl
     return page(title, subtitle, sections)
 
 
-def _relative(out_dir: Path, embed: bool = True) -> Callable[[Path], str | tuple[str, str]]:
+def _relative(out_dir: Path, embed: bool = True) -> Relative:
     """Image source for ``figure``: the path relative to report.html, or (data URI, that path) when ``embed``."""
     def rel(path: Path) -> str | tuple[str, str]:
         relpath = Path(os.path.relpath(Path(path).resolve(), out_dir.resolve())).as_posix()
@@ -302,7 +302,7 @@ def _relative(out_dir: Path, embed: bool = True) -> Callable[[Path], str | tuple
     return rel
 
 
-def _renders_section(renders: Renders, rel: Callable[[Path], Any]) -> str:
+def _renders_section(renders: Renders, rel: Relative) -> str:
     if not renders.comparison:
         return note("No renders of the part: " + ("; ".join(renders.notes) or "rendering unavailable."))
     captions = {"current": "The current design (evaluation: nothing was moved).",
@@ -328,7 +328,7 @@ def _renders_section(renders: Renders, rel: Callable[[Path], Any]) -> str:
     return "".join(out)
 
 
-def _views_section(renders: Renders, rel: Callable[[Path], Any]) -> str:
+def _views_section(renders: Renders, rel: Relative) -> str:
     if not renders.views:
         return note("No camera views: " + ("; ".join(renders.notes) or "rendering unavailable.")) \
             if renders.samples else ""

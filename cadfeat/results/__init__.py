@@ -10,7 +10,8 @@ passes through unchanged and is written back, so the model never drops data.
 
 A sub-package: the base ``Record`` in ``_record``, the robustness section in ``_robustness``, the pose-accuracy
 and tracking sections in ``_closed_loop``, all re-exported here; the report reads every section through
-``section(results, "x", Model)``.
+``section(results, "x", Model)``. ``_data``: the ``TypedDict``s of the dicts a run builds and reads back before
+the file is written (``ResultsData``).
 
 Writing is the identity on the data: ``StudyResults.from_data(d).to_data() == d`` for every results.json
 cadfeat writes (keys never given stay absent: ``exclude_unset``; strict types: an integer stays an integer).
@@ -48,6 +49,39 @@ from cadfeat.results._closed_loop import (
     TrackingVerdict,
     WeakestPhase,
 )
+from cadfeat.results._data import (
+    AddedTargetsData,
+    CheckData,
+    ComparisonData,
+    DesignTrackingData,
+    EstimatorVerdictData,
+    FeatureData,
+    FindingData,
+    GlareCaveatData,
+    HistoryPointData,
+    HoleData,
+    HolesData,
+    IntervalData,
+    LoopSettingsData,
+    MeasuresData,
+    MeasureSummaryData,
+    MoveOnlyData,
+    ObjectiveChangeData,
+    ObjectiveChangesData,
+    ObjectivesData,
+    PairedTestData,
+    PerPoseData,
+    RefinementData,
+    RequirementData,
+    ResultsData,
+    ShopData,
+    StudyData,
+    SweepData,
+    TrackingData,
+    VariableData,
+    VerdictData,
+    VerificationData,
+)
 from cadfeat.results._record import Json, JsonDict, Number, Record
 from cadfeat.results._robustness import (
     DesignDraws,
@@ -59,16 +93,21 @@ from cadfeat.results._robustness import (
     Spread,
 )
 
-__all__ = ["AddedTargetCurve", "AddedTargetHole", "AddedTargets", "DesignDraws", "DesignMatrix", "EstimatorErrors",
-           "FeatureSummary", "FileEntry", "Finding", "HelpMost", "HelpMostBest", "HistoryPoint", "HoleRecord",
-           "Holes", "Interval", "Json", "JsonDict", "MeasureSummary", "Measures",
-           "Normalisation", "ObjectiveChange", "Objectives", "OptimizerRecord", "OutOfSample", "PairedTest",
-           "Pareto", "Pattern", "PhysicalFrame", "PhysicalViews", "PoseAccuracy", "PoseDesign", "PoseErrors",
-           "Record", "RequirementCheck", "RequirementUsed", "Results", "RobustObjective", "Robustness", "SCHEMA_ID",
-           "SCHEMA_VERSION", "SampleShift", "Sensitivity", "Shop", "Spread", "StudyRecord", "StudyResults", "Sweep",
-           "Tracking", "TrackingCheck", "TrackingComparison", "TrackingDesign", "TrackingFrame", "TrackingSettings",
-           "TrackingVerdict", "TrajectoryRecord", "Variable", "Verdict", "Verification", "WeakestPhase",
-           "partial_model", "present", "results_json_schema", "section", "value"]
+__all__ = ["SCHEMA_ID", "SCHEMA_VERSION", "AddedTargetCurve", "AddedTargetHole", "AddedTargets", "AddedTargetsData",
+           "CheckData", "ComparisonData", "DesignDraws", "DesignMatrix", "DesignTrackingData", "EstimatorErrors",
+           "GlareCaveatData",
+           "EstimatorVerdictData", "FeatureData", "FeatureSummary", "FileEntry", "Finding", "FindingData", "HelpMost",
+           "HelpMostBest", "HistoryPoint", "HistoryPointData", "HoleData", "HoleRecord", "Holes", "HolesData",
+           "Interval", "IntervalData", "Json", "JsonDict", "LoopSettingsData", "MeasureSummary", "MeasureSummaryData",
+           "Measures", "MeasuresData", "MoveOnlyData", "Normalisation", "ObjectiveChange", "ObjectiveChangeData",
+           "ObjectiveChangesData", "Objectives", "ObjectivesData", "OptimizerRecord", "OutOfSample", "PairedTest",
+           "PairedTestData", "Pareto", "Pattern", "PerPoseData", "PhysicalFrame", "PhysicalViews", "PoseAccuracy",
+           "PoseDesign", "PoseErrors", "Record", "RefinementData", "RequirementCheck", "RequirementData",
+           "RequirementUsed", "Results", "ResultsData", "RobustObjective", "Robustness", "SampleShift", "Sensitivity",
+           "Shop", "ShopData", "Spread", "StudyData", "StudyRecord", "StudyResults", "Sweep", "SweepData", "Tracking",
+           "TrackingCheck", "TrackingComparison", "TrackingData", "TrackingDesign", "TrackingFrame", "TrackingSettings",
+           "TrackingVerdict", "TrajectoryRecord", "Variable", "VariableData", "Verdict", "VerdictData", "Verification",
+           "VerificationData", "WeakestPhase", "partial_model", "present", "results_json_schema", "section", "value"]
 
 SCHEMA_VERSION = 4
 """results.json layout version (``schema_version``): 1 first layout; 2 ``shop``, ``patterns`` and
@@ -428,7 +467,7 @@ class StudyResults(Record):
 
 R = TypeVar("R", bound=Record)
 
-Results: TypeAlias = StudyResults | Mapping[str, Any]
+Results: TypeAlias = StudyResults | Mapping[str, object]
 """What ``cadfeat.report`` reads: the typed results, or plain data (as read from results.json, or partial data
 built by hand)."""
 

@@ -10,10 +10,12 @@ __all__ = ["Json", "JsonDict", "Number", "Record"]
 
 Json: TypeAlias = JsonValue
 """A section (or value) kept as plain JSON: not typed here yet."""
-JsonDict: TypeAlias = dict[str, Any]
-"""A JSON object being built, or read back by key, before it is written (a results.json section, an optimiser's
-history entry, a ``score_design`` answer): plain data whose numbers may still be numpy scalars or arrays until
-``study.outputs.plain``. Its typed form, where there is one, is a ``Record`` of this package (``StudyResults``)."""
+JsonDict: TypeAlias = dict[str, object]
+"""A JSON object being built and passed on to be written (a results.json section, an optimiser's history entry, a
+``score_design`` answer): plain data whose numbers may still be numpy scalars or arrays until
+``study.outputs.plain``. Its values are opaque (``object``): a reader that looks inside narrows them, or the
+object has a ``TypedDict`` of its keys; its typed form, where there is one, is a ``Record`` of this package
+(``StudyResults``)."""
 Number: TypeAlias = int | float
 """A JSON number as written (an integer stays an integer, a float a float: strict, no coercion)."""
 

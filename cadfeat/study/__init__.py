@@ -13,7 +13,7 @@ imports numpy-heavy modules only when used.
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # pragma: no cover (the names ``__getattr__`` gives, for the type checker)
     from cadfeat.study.designs import score_design, track_design
@@ -23,7 +23,7 @@ __all__ = ["StudyResult", "evaluate_study", "run_study", "score_design", "track_
 _HOMES = {"score_design": "cadfeat.study.designs", "track_design": "cadfeat.study.designs"}
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     if name in __all__:
         return getattr(importlib.import_module(_HOMES.get(name, "cadfeat.study.run")), name)
     raise AttributeError(f"module 'cadfeat.study' has no attribute {name!r}")

@@ -28,7 +28,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -43,7 +43,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cadfeat.cad.features import Hole
     from cadfeat.measures.evaluate import Measures
-    from cadfeat.results import JsonDict
+    from cadfeat.results import HoleData, JsonDict, RequirementData, ResultsData
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import StudySetup
 
@@ -58,10 +58,10 @@ def delivered(delivery: Delivery) -> bool:
     return delivery.move_only is not None
 
 
-def _hole_records(setup: StudySetup, holes: Sequence[Hole], n_old: int) -> list[JsonDict]:
+def _hole_records(setup: StudySetup, holes: Sequence[Hole], n_old: int) -> list[HoleData]:
     """results.json ``holes.after`` of the delivered design: the part's holes as the set-up marks them, then the
     added ones (neither fixed nor movable: new, ``"added": true``)."""
-    out: list[JsonDict] = []
+    out: list[HoleData] = []
     for i, h in enumerate(holes):
         if i < n_old:
             out.append(hole_dict(h, i, bool(setup.fixed_mask[i]), bool(setup.movable_mask[i])))
@@ -91,7 +91,7 @@ def _objectives(config: StudyConfig, setup: StudySetup, holes: Sequence[Hole], m
     return values, float(problem.combined_from(np.array([values[n] for n in problem.names], float)))
 
 
-def deliver(config: StudyConfig, setup: StudySetup, base: StudySetup, results: JsonDict, delivery: Delivery,
+def deliver(config: StudyConfig, setup: StudySetup, base: StudySetup, results: ResultsData, delivery: Delivery,
             added: AddedDesign, measure: Callable[[Sequence[Hole], Shape], Measures],
             patterns: Callable[[Sequence[Hole]], list[JsonDict]]) -> Delivery:
     """Make the added design (``added``: ``added_targets.run_phase``'s) the delivered one: ``results``'
@@ -104,22 +104,24 @@ def deliver(config: StudyConfig, setup: StudySetup, base: StudySetup, results: J
     from cadfeat.study.trust import objective_changes
 
     shape2, holes2, n_old = added.shape, list(added.holes), int(added.n_old)
-    block = results["added_targets"]
+    block, variables = results.get("added_targets"), results.get("variables")
+    constraints, holes_after = results.get("constraints"), results["holes"].get("after")
+    assert block is not None and variables is not None and constraints is not None and holes_after is not None, \
+        "a run's results (pipeline.compute) with the added-target phase's block"
     obj = results["objectives"]
     block["move_only"] = {
-        "file": MOVE_ONLY_STEP, "holes": results["holes"]["after"],
+        "file": MOVE_ONLY_STEP, "holes": holes_after,
         "objectives": obj.get("after"), "combined": obj.get("combined_after"),
-        "variables": {v["name"]: v["after"] for v in results["variables"]},
-        "constraints": list(results["constraints"]),
+        "variables": {v["name"]: v["after"] for v in variables},
+        "constraints": list(constraints),
         "predicted_error_mm": block["predicted"]["move_only"]["error_mm"]}
     mesh2 = part_mesh(config, shape2)
     m2 = measure(holes2, shape2)
     after, combined = _objectives(config, setup, holes2, m2, mesh2)
     changes = objective_changes(setup.problem, obj["before"], after)
-    obj.update({"after": after, "combined_after": combined, "limiting": changes["limiting"],
-                "changes": changes["changes"]})
-    if isinstance(obj.get("score"), str):
-        obj["score"] += f"; after: the added target holes ({', '.join(hole_names(holes2[n_old:]))}) too"
+    obj["after"], obj["combined_after"] = after, combined
+    obj["limiting"], obj["changes"] = changes["limiting"], changes["changes"]
+    obj["score"] += f"; after: the added target holes ({', '.join(hole_names(holes2[n_old:]))}) too"
     results["holes"]["after"] = _hole_records(setup, holes2, n_old)
     results["measures"]["after"] = measures_summary(m2, hole_names(holes2), setup.trajectory.times_s,
                                                     config.objective.min_axis_px,
@@ -128,9 +130,9 @@ def deliver(config: StudyConfig, setup: StudySetup, base: StudySetup, results: J
     results["pose_accuracy"] = pose_accuracy(config, base, base.holes0,
                                              part_mesh(config, base.shape0, base.problem.occlusion_mesh), setup,
                                              holes2, mesh2)
-    refinement: JsonDict = block.get("refinement") or {}
-    moved: dict[str, float] = refinement.get("variables") or {}
-    for v in results["variables"]:
+    refinement = block.get("refinement")
+    moved = (None if refinement is None else refinement.get("variables")) or {}
+    for v in variables:
         if v["name"] in moved:
             v["move_only"], v["after"] = v["after"], float(moved[v["name"]])
     results["patterns"] = patterns(holes2[:n_old])
@@ -140,7 +142,7 @@ def deliver(config: StudyConfig, setup: StudySetup, base: StudySetup, results: J
                                move_only=MoveOnly(delivery.shape1, delivery.holes1), n_old=n_old)
 
 
-def step_checks(config: StudyConfig, delivery: Delivery, label: str) -> Callable[[Shape], list[JsonDict]]:
+def step_checks(config: StudyConfig, delivery: Delivery, label: str) -> Callable[[Shape], list[RequirementData]]:
     """What ``verify.export_and_verify`` measures on the re-imported ``optimised.step`` of the delivered added
     design: every hole found where it was put — the part's holes unchanged, each added hole at its centre, axis,
     rim radius and depth (``verify_drilled``: ``CadfeatError`` naming a missing one) — and every kept requirement
@@ -150,14 +152,14 @@ def step_checks(config: StudyConfig, delivery: Delivery, label: str) -> Callable
     setup, holes = delivery.setup, list(delivery.holes1)
     n_old = len(holes) if delivery.n_old is None else delivery.n_old
 
-    def checks(reimported: Shape) -> list[JsonDict]:
+    def checks(reimported: Shape) -> list[RequirementData]:
         found = verify_drilled(reimported, holes[:n_old], [as_added(h) for h in holes[n_old:]], label=label,
                                prefer_direction=setup.view_direction)
         return brep_checks(config, setup, reimported, found, n_old, "step")
     return checks
 
 
-def export_move_only(config: StudyConfig, stage: Path, results: JsonDict, delivery: Delivery) -> None:
+def export_move_only(config: StudyConfig, stage: Path, results: ResultsData, delivery: Delivery) -> None:
     """Write ``move_only.step`` (the move-only optimum) and verify it as ``optimised.step`` is verified without
     added holes: the re-imported STEP's holes equal to the design's within 1e-6 mm (and its volume), every kept
     requirement on the re-imported solid (``CadfeatError`` naming a violated one). Then
@@ -183,18 +185,21 @@ def export_move_only(config: StudyConfig, stage: Path, results: JsonDict, delive
     step_holes = order_like(holes, setup.rebuild_holes(reimported), 1e-3, f"re-imported {MOVE_ONLY_STEP}")
     checks = requirement_checks(setup, reimported, step_holes, "step")
     fail_on(checks, f"{config.label}: {MOVE_ONLY_STEP}")
-    move = block["move_only"]
+    move = block.get("move_only")
+    if move is None:
+        return
     move["constraints"] = list(move["constraints"]) + checks
     move["step"] = {"file": MOVE_ONLY_STEP, "max_error_mm": max(trip.max_centre_error_mm, trip.max_radius_error_mm,
                                                                 trip.max_depth_error_mm), "holes": trip.n_holes}
-    block["constraints"] = list(results["constraints"])
+    block["constraints"] = list(results.get("constraints", []))
     block["requirements_hold"] = all(bool(c["ok"]) for c in block["constraints"])
-    ver: JsonDict = results.get("verification") or {}
-    block["step"] = {"file": "optimised.step", "max_error_mm": ver.get("step_roundtrip_max_error_mm"),
+    ver = results.get("verification")
+    block["step"] = {"file": "optimised.step",
+                     "max_error_mm": None if ver is None else ver.get("step_roundtrip_max_error_mm"),
                      "holes": len(delivery.holes1), "added_found": len(delivery.holes1) - int(delivery.n_old or 0)}
 
 
-def tracking_summary(results: JsonDict) -> None:
+def tracking_summary(results: ResultsData) -> None:
     """``added_targets.tracking`` from the closed-loop check's section (``tracking``): the mode, per comparison
     and estimator the paired verdict — the delivered design against the original (the check's verdicts), the
     move-only optimum against the original and the delivered design against the move-only optimum — and per
@@ -202,26 +207,20 @@ def tracking_summary(results: JsonDict) -> None:
     block = results.get("added_targets")
     if block is None or "delivered" not in block:
         return
-    tr = results.get("tracking")
-    if not isinstance(tr, dict):
+    section = results.get("tracking")
+    if section is None:
         skipped = [w for w in results.get("warnings", []) if "closed-loop check skipped" in str(w)]
         block["tracking"] = {"skipped": skipped[0]} if skipped else None
         return
-    section = cast("JsonDict", tr)
-
-    def part(d: JsonDict, key: str) -> dict[str, JsonDict]:
-        return d.get(key) or {}
-
-    verdicts = {"added_vs_original": {m: v.get("verdict") for m, v in part(section, "verdicts").items()}}
-    for label, c in part(section, "comparisons").items():
-        verdicts[label] = {m: v.get("verdict") for m, v in part(c, "verdicts").items()}
+    verdicts = {"added_vs_original": {m: v.get("verdict") for m, v in section["verdicts"].items()}}
+    for label, c in section.get("comparisons", {}).items():
+        verdicts[label] = {m: v.get("verdict") for m, v in c["verdicts"].items()}
     names = {"before": "original", "move_only": "move_only", "after": "added"}
-    check: JsonDict = section.get("check") or {}
-    settings: JsonDict = section.get("settings") or {}
+    check = section.get("check")
     block["tracking"] = {
-        "mode": check.get("mode"), "runs": settings.get("runs"),
+        "mode": None if check is None else check["mode"], "runs": section["settings"]["runs"],
         "verdicts": verdicts,
         "designs": {names[d]: {m: {"trans_mm_rms": e.get("trans_mm_rms"), "rot_deg_rms": e.get("rot_deg_rms")}
-                               for m, e in part(v, "estimators").items()}
-                    for d, v in part(section, "designs").items() if d in names}}
+                               for m, e in v["estimators"].items()}
+                    for d, v in section["designs"].items() if d in names}}
 

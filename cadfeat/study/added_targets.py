@@ -65,7 +65,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape
 
     from cadfeat.cad.features import Hole
-    from cadfeat.results import JsonDict
+    from cadfeat.results import AddedTargetsData, JsonDict, RequirementData
     from cadfeat.study.progress import StudyProgress
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.settings.add_targets import AddTargetsSettings
@@ -445,7 +445,7 @@ def added_holes(config: StudyConfig, choice: Choice, holes: Sequence[Hole]) -> l
 
 # ------------------------------------------------------------------------------------------------- phase
 def brep_checks(config: StudyConfig, setup: StudySetup, shape: Shape, holes: Sequence[Hole], n_old: int,
-                where: str) -> list[JsonDict]:
+                where: str) -> list[RequirementData]:
     """Every kept requirement of the added design measured on the solid ``shape`` (its holes ``holes``: the
     part's ``n_old`` then the added): OCCT edge, keep-out and ligament distances of the movable and added holes,
     the fixed holes unchanged from the original (``verify_on_brep``), and the keep-out boxes (distance of each
@@ -460,7 +460,7 @@ def brep_checks(config: StudyConfig, setup: StudySetup, shape: Shape, holes: Seq
     fixed = np.concatenate([np.asarray(setup.fixed_mask, bool), np.zeros(k, bool)]) if same else \
         np.arange(len(holes)) < n_old
     reference = list(setup.holes0) + [added_hole(as_added(h)) for h in holes[n_old:]] if same else None
-    checks = [{**c.to_dict(), "checked_on": where}
+    checks: list[RequirementData] = [{**c.to_dict(), "checked_on": where}
               for c in verify_on_brep(shape, holes, setup.constraints, fixed, reference=reference,
                                       reference_shape=setup.shape0 if same else None,
                                       prefer_direction=setup.view_direction)]
@@ -510,7 +510,7 @@ def _base_design(setup: StudySetup, x: np.ndarray | None, choice: Choice, shape1
 
 def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tuple[Shape, Sequence[Hole]]],
               progress: StudyProgress | None = None, x: np.ndarray | None = None
-              ) -> tuple[JsonDict, AddedDesign]:
+              ) -> tuple[AddedTargetsData, AddedDesign]:
     """The added-target phase on the move-only optimum ``designs["after"]`` (its design vector ``x``;
     ``designs["before"]``: the original, for the comparison): returns (results.json ``added_targets``, the added
     design)."""
@@ -529,9 +529,10 @@ def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tupl
                  "move_only": _predicted(config, setup, holes1, mesh1),
                  "added": _predicted(config, setup, holes2, mesh2)}
     block = _block(config, _spec(config), choice, added, checks, predicted)
-    if moved_x is not None:
-        block["refinement"]["variables"] = moved_x
-        block["refinement"]["moved_holes"] = [
+    refinement = block["refinement"]
+    if moved_x is not None and refinement is not None:
+        refinement["variables"] = moved_x
+        refinement["moved_holes"] = [
             {"name": b.name, "before": np.asarray(a.centre).tolist(), "after": np.asarray(b.centre).tolist()}
             for a, b in zip(holes1, base_holes, strict=True) if np.linalg.norm(np.asarray(a.centre) - b.centre) > 1e-9]
     if progress is not None:
@@ -541,7 +542,7 @@ def run_phase(config: StudyConfig, setup: StudySetup, designs: Mapping[str, tupl
 
 
 def _block(config: StudyConfig, spec: AddTargetsSettings, choice: Choice, added: Sequence[AddedHole],
-           checks: list[JsonDict], predicted: Mapping[str, Mapping[str, float]]) -> JsonDict:
+           checks: list[RequirementData], predicted: Mapping[str, Mapping[str, float]]) -> AddedTargetsData:
     sites = choice.allowed.sites
     ref = choice.refined
     drop = 1.0 - predicted["added"]["error_mm"] / max(predicted["move_only"]["error_mm"], 1e-300)

@@ -45,7 +45,7 @@ import os
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -58,10 +58,17 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cadfeat.cad.features import Hole
     from cadfeat.cad.sandbox import BackgroundCall
-    from cadfeat.results import JsonDict
+    from cadfeat.results import (
+        EstimatorVerdictData,
+        GlareCaveatData,
+        JsonDict,
+        PairedTestData,
+        ResultsData,
+        TrackingData,
+    )
     from cadfeat.study.delivery import Delivery
     from cadfeat.study.progress import StudyProgress
-    from cadfeat.study.tracking import Design
+    from cadfeat.study.tracking import Design, TrackArguments, Tracked
 
 ENV = "CADFEAT_TRACKING_CHECK"
 FAST_ESTIMATORS = ("pnp", "iekf")
@@ -110,7 +117,7 @@ def fast_spec(config: StudyConfig, n_samples: int) -> TrackingSpec:
                         settle_frames=max(0, min(base.settle_frames, FAST_SETTLE, frames - 3)))
 
 
-def attach(config: StudyConfig, results: JsonDict, delivery: Delivery, stage: Path | None,
+def attach(config: StudyConfig, results: ResultsData, delivery: Delivery, stage: Path | None,
            progress: StudyProgress | None = None) -> None:
     """Run this study's closed-loop check and put it into ``results``: the ``tracking`` section (with a ``check``
     block: mode, runs, frames, estimators, seconds), nothing when the mode is ``off``, or a ``warnings`` line
@@ -119,17 +126,19 @@ def attach(config: StudyConfig, results: JsonDict, delivery: Delivery, stage: Pa
     section, skipped = closed_loop_check(config, delivery, stage, progress)
     if section is not None:
         results["tracking"] = section
-        caveat = glare_caveat(config, delivery, section["check"]["mode"], section["settings"].get("renderer"))
-        if caveat is not None:
-            section["check"]["glare"] = caveat
-            results.setdefault("warnings", []).append(caveat["warning"])
+        check = section.get("check")
+        caveat = None if check is None else glare_caveat(config, delivery, check["mode"],
+                                                         section["settings"].get("renderer"))
+        if check is not None and caveat is not None:
+            check["glare"] = caveat
+            results["warnings"].append(caveat["warning"])
     if skipped:
-        results.setdefault("warnings", []).append(skipped)
+        results["warnings"].append(skipped)
     views, why = camera_views(config, delivery, stage, progress)
     if views is not None:
         results["physical_views"] = views
     if why:
-        results.setdefault("warnings", []).append(why)
+        results["warnings"].append(why)
 
 
 #: A hole is named by ``glare_caveat`` when g_POSE's glare factor is below ``GLARE_RATE`` at ``GLARE_SHARE`` or more
@@ -139,7 +148,8 @@ GLARE_SHARE = 0.1
 FACING_DEG = 75.0
 
 
-def glare_caveat(config: StudyConfig, delivery: Delivery, mode: str, renderer: str | None) -> JsonDict | None:
+def glare_caveat(config: StudyConfig, delivery: Delivery, mode: str, renderer: str | None
+                 ) -> GlareCaveatData | None:
     """What the raster check cannot see (issue 28): the raster renderer paints every bore dark, so in a metal cell
     (``cell.material.bores_return_light``) a blind rim the part's own light leaves without contrast
     (``measures.glare``: g_POSE's factor on its detection rate, from the set-up's physically based maps) is
@@ -222,7 +232,7 @@ def check_spec(config: StudyConfig, n_samples: int) -> tuple[str, TrackingSpec |
 
 
 def start_design(config: StudyConfig, name: str, shape: Shape, holes: Sequence[Hole], n_samples: int
-                 ) -> BackgroundCall | None:
+                 ) -> BackgroundCall[Tracked] | None:
     """Start tracking one design (``shape``, ``holes``; ``name`` "before" or "after") in a worker process, so
     that the check runs on another core while this process goes on: the original while the optimiser runs,
     the recommended design during the analysis, export and the report's renders (neither depends on what this
@@ -245,7 +255,7 @@ def start_design(config: StudyConfig, name: str, shape: Shape, holes: Sequence[H
         return None
 
 
-def _track_design(threads: int | None, arguments: tuple[Any, ...]) -> Any:
+def _track_design(threads: int | None, arguments: TrackArguments) -> Tracked:
     """In a worker: ``closed_loop.track_one(*arguments)`` with the software renderer (llvmpipe,
     ``LP_NUM_THREADS``, read when the worker's OpenGL context is made), OpenCV and Mitsuba's Dr.Jit on ``threads``
     threads (None: theirs); the images and numbers do not depend on it (tests/study/test_closed_loop_check.py)."""
@@ -270,10 +280,11 @@ def _drjit_threads(threads: int) -> None:
     drjit.set_thread_count(threads)
 
 
-def _collect(pending: Mapping[str, BackgroundCall | None], progress: StudyProgress | None) -> JsonDict:
+def _collect(pending: Mapping[str, BackgroundCall[Tracked] | None], progress: StudyProgress | None
+             ) -> dict[str, Tracked]:
     """{design name: its worker's tracking} for the workers ``start_design`` started that delivered (a design
     whose worker failed is tracked here by the check, where a failure is reported as the check reports it)."""
-    out: JsonDict = {}
+    out: dict[str, Tracked] = {}
     for name, call in pending.items():
         if call is None:
             continue
@@ -292,7 +303,7 @@ def _designs(delivery: Delivery) -> dict[str, Design]:
 
 
 def closed_loop_check(config: StudyConfig, delivery: Delivery, stage: Path | None,
-                      progress: StudyProgress | None = None) -> tuple[JsonDict | None, str | None]:
+                      progress: StudyProgress | None = None) -> tuple[TrackingData | None, str | None]:
     """(the results.json ``tracking`` section or None, why it was skipped or None) — ``attach``. The designs
     ``delivery.workers`` track are not tracked again here (a worker that failed leaves its design to this
     process); the workers are collected or cancelled."""
@@ -329,7 +340,7 @@ def closed_loop_check(config: StudyConfig, delivery: Delivery, stage: Path | Non
     return section, None
 
 
-def _inconclusive(section: JsonDict) -> None:
+def _inconclusive(section: TrackingData) -> None:
     """When neither design is tracked — at least 3 holes detected in fewer than ``TRACKED_MIN`` of the frames of
     both (e.g. holes a few pixels wide in a small sensor's image) — the paired test compares two failures: its
     verdicts are kept under ``check.verdicts_not_used`` and the verdict's tracking rule stays silent (a warning
@@ -337,10 +348,10 @@ def _inconclusive(section: JsonDict) -> None:
     frames = max(int(section["settings"]["frames"]), 1)
     tracked = {k: 1.0 - float(d.get("frames_under_3_holes") or 0.0) / frames for k, d in section["designs"].items()}
     if tracked and max(tracked.values()) < TRACKED_MIN and section.get("verdicts"):
-        section["check"]["verdicts_not_used"] = section["verdicts"]
+        if "check" in section:
+            section["check"]["verdicts_not_used"] = section["verdicts"]
         section["verdicts"] = {}
-        comparisons: JsonDict = section.get("comparisons") or {}
-        for c in comparisons.values():
+        for c in section.get("comparisons", {}).values():
             c["verdicts_not_used"], c["verdicts"] = c["verdicts"], {}
         share = ", ".join(f"{k} {100 * v:.0f} %" for k, v in tracked.items())
         section.setdefault("warnings", []).append(
@@ -349,40 +360,39 @@ def _inconclusive(section: JsonDict) -> None:
             "camera's images)")
 
 
-def _phase(progress: StudyProgress | None) -> Any:
+def _phase(progress: StudyProgress | None) -> contextlib.AbstractContextManager[object]:
     return progress.phase("tracking") if progress is not None else contextlib.nullcontext()
 
 
-def summary_lines(results: Mapping[str, Any]) -> list[str]:
+def summary_lines(results: ResultsData) -> list[str]:
     """The printout's lines about the closed loop (``run.summarise``): mode, cost and each estimator's paired
     verdict with its p-values, or why it was skipped / that it was off."""
     tr = results.get("tracking")
-    if not isinstance(tr, dict):
+    if tr is None:
         if any(str(w).startswith(SKIPPED) for w in results.get("warnings", [])):
             return []  # the warning line says why
         return ["  closed loop: off (the verdict rests on the predicted objectives; `cadfeat run --track fast` "
                 "or `cadfeat track` confirms it)"]
-    tr = cast("JsonDict", tr)
-    check: JsonDict = tr.get("check") or {}
-    head = (f"  closed loop ({check.get('mode', 'full')}: {check.get('runs', '?')} paired runs, "
-            f"{check.get('frames', '?')} frames, {check.get('seconds', '?')} s), "
+    check = tr.get("check")
+    mode, runs, frames, seconds = (("full", "?", "?", "?") if check is None else
+                                   (check["mode"], check["runs"], check["frames"], check["seconds"]))
+    head = (f"  closed loop ({mode}: {runs} paired runs, {frames} frames, {seconds} s), "
             + ("the delivered design (with the added holes) vs the original:" if tr.get("comparisons")
                else "after vs before:"))
     lines = [head] + [f"    WARNING: {w}" for w in tr.get("warnings", []) if "no tracking verdict" in str(w)]
-    verdicts: JsonDict = tr.get("verdicts") or {}
-    for m, v in verdicts.items():
-        t, r = v.get("translation", {}), v.get("rotation", {})
+    for m, v in tr["verdicts"].items():
         rms = _rms(tr, m)
-        lines.append(f"    {m.upper():<5} {v.get('verdict')} (translation p = {_p(t)}, rotation p = {_p(r)}){rms}")
-    comparisons: JsonDict = tr.get("comparisons") or {}
-    for label, c in comparisons.items():
+        lines.append(f"    {m.upper():<5} {_verdict_line(v)}{rms}")
+    for label, c in tr.get("comparisons", {}).items():
         lines.append(f"  closed loop, {COMPARISON_TEXT.get(label, label)}:")
-        pair: JsonDict = c.get("verdicts") or {}
-        for m, v in pair.items():
-            t, r = v.get("translation", {}), v.get("rotation", {})
-            lines.append(f"    {m.upper():<5} {v.get('verdict')} (translation p = {_p(t)}, rotation p = {_p(r)})"
-                         f"{_rms(tr, m, c.get('before', 'before'), c.get('after', 'after'))}")
+        for m, v in c["verdicts"].items():
+            lines.append(f"    {m.upper():<5} {_verdict_line(v)}{_rms(tr, m, c['before'], c['after'])}")
     return lines
+
+
+def _verdict_line(v: EstimatorVerdictData) -> str:
+    """'better (translation p = 0.0078, rotation p = 0.02)'."""
+    return f"{v['verdict']} (translation p = {_p(v['translation'])}, rotation p = {_p(v['rotation'])})"
 
 
 #: How the printout and the report name the comparisons of ``ADDED_PAIRS``.
@@ -390,7 +400,7 @@ COMPARISON_TEXT = {"move_only_vs_original": "the move-only optimum vs the origin
                    "added_vs_move_only": "the delivered design (with the added holes) vs the move-only optimum"}
 
 
-def _p(v: Mapping[str, Any]) -> str:
+def _p(v: PairedTestData) -> str:
     """'0.0078', with ' (change under 5 %)' when significant but too small to count (``metrics.paired_verdict``)."""
     p = v.get("p_value")
     if p is None:
@@ -399,7 +409,7 @@ def _p(v: Mapping[str, Any]) -> str:
     return f"{p:.2g}" + (f" (change under {100 * v.get('min_change', 0.0):.0f} %)" if small else "")
 
 
-def _rms(tr: Mapping[str, Any], m: str, before: str = "before", after: str = "after") -> str:
+def _rms(tr: TrackingData, m: str, before: str = "before", after: str = "after") -> str:
     """'; RMS 0.039 → 0.034 mm, 0.027° → 0.027°' from the designs' Monte-Carlo means."""
     try:
         b, a = (tr["designs"][k]["estimators"][m] for k in (before, after))

@@ -18,6 +18,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
     from cadfeat.cad.sandbox import BackgroundCall
     from cadfeat.study.setup import StudySetup
+    from cadfeat.study.tracking import Tracked
 
 __all__ = ["AddedDesign", "Delivery", "MoveOnly", "TrackingWorkers"]
 
@@ -29,11 +30,12 @@ class TrackingWorkers:
     move-only optimum, started before the added-target phase says whether it is the delivered design
     (``pipeline._add_targets``: it becomes ``after`` when no hole is recommended)."""
 
-    before: BackgroundCall | None = None
-    after: BackgroundCall | None = None
-    move_only: BackgroundCall | None = None
+    before: BackgroundCall[Tracked] | None = None
+    after: BackgroundCall[Tracked] | None = None
+    move_only: BackgroundCall[Tracked] | None = None
 
-    def pending(self, names: Collection[str] = ("before", "after", "move_only")) -> dict[str, BackgroundCall | None]:
+    def pending(self, names: Collection[str] = ("before", "after", "move_only")
+                ) -> dict[str, BackgroundCall[Tracked] | None]:
         """{design name: its worker or None} of the designs ``names``."""
         workers = {"before": self.before, "after": self.after, "move_only": self.move_only}
         return {name: worker for name, worker in workers.items() if name in names}

@@ -25,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,13 +33,16 @@ from cadfeat.errors import CadfeatError
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadquery import Shape
+
     from cadfeat.cad.features import Hole
     from cadfeat.results import JsonDict
+    from cadfeat.study.settings.design import ParameterSpec
     from cadfeat.study.setup import StudySetup
 
 __all__ = ["score_design", "track_design"]
 
-StudySource = str | Path | Mapping[str, Any] | StudyConfig
+StudySource = str | Path | Mapping[str, object] | StudyConfig
 
 
 def score_design(study: StudySource, values: Mapping[str, float] | None = None, *,
@@ -69,7 +72,7 @@ def score_design(study: StudySource, values: Mapping[str, float] | None = None, 
 
 def track_design(study: StudySource, values: Mapping[str, float] | None = None, *, against: str | None = "original",
                  mode: str = "fast", seed: int | None = None, out_dir: str | Path | None = None,
-                 **tracking: Any) -> JsonDict:
+                 **tracking: object) -> JsonDict:
     """The closed loop on the design ``values`` of ``study`` ("after") and, with ``against="original"``, on the
     study's original ("before", paired run by run: the verdict per estimator). ``mode``: "fast" (``cadfeat
     run``'s default check: PnP + IEKF, 8 runs, ≤ 20 frames) or "full" (the study's ``[tracking]`` settings);
@@ -104,17 +107,17 @@ def track_design(study: StudySource, values: Mapping[str, float] | None = None, 
         return plain(run_tracking(config, designs, stage, spec))
 
 
-def _with_keys(spec: TrackingSpec, keys: Mapping[str, Any], label: str) -> TrackingSpec:
+def _with_keys(spec: TrackingSpec, keys: Mapping[str, object], label: str) -> TrackingSpec:
     """``spec`` with the ``[tracking]`` ``keys`` replaced; an unknown key is one error listing the allowed ones."""
-    unknown = sorted(set(keys) - set(TrackingSpec.model_fields))
+    unknown = sorted(set(keys) - set(TrackingSpec.study_keys()))
     if unknown:
         raise StudyError(f"{label}: track_design: unknown [tracking] key(s) {', '.join(unknown)}; allowed: "
-                         f"{', '.join(sorted(TrackingSpec.model_fields))}")
+                         f"{', '.join(sorted(TrackingSpec.study_keys()))}")
     return spec.replace(**keys) if keys else spec
 
 
 def _design(study: StudySource, values: Mapping[str, float] | None, seed: int | None
-            ) -> tuple[StudyConfig, StudySetup, np.ndarray, tuple[Any, list[Hole], float]]:
+            ) -> tuple[StudyConfig, StudySetup, np.ndarray, tuple[Shape, list[Hole], float]]:
     """(config, the set-up of the design's integer parameters, the design vector, ``verify.rebuild`` at it). A part
     script's values are checked against the study's parameters before any CAD work; a STEP part's variables (its
     holes') are known once its set-up has read them."""
@@ -145,7 +148,7 @@ def _design(study: StudySource, values: Mapping[str, float] | None, seed: int | 
                            "design at which every hole of the part stays a hole of its own") from None
 
 
-def _int_value(config: StudyConfig, parameter: Any, value: Any) -> int:
+def _int_value(config: StudyConfig, parameter: ParameterSpec, value: object) -> int:
     lo, hi = parameter.lower, parameter.upper
     if isinstance(value, bool) or not isinstance(value, int | float) or not float(value).is_integer() \
             or not lo <= int(value) <= hi:
@@ -154,7 +157,7 @@ def _int_value(config: StudyConfig, parameter: Any, value: Any) -> int:
     return int(value)
 
 
-def _check(config: StudyConfig, values: Mapping[str, Any], bounds: Mapping[str, tuple[float, float, str]],
+def _check(config: StudyConfig, values: Mapping[str, float], bounds: Mapping[str, tuple[float, float, str]],
            ints: list[str]) -> None:
     """One error for the first unknown name or value outside its bounds (lower, upper, unit) of ``values``."""
     unknown = sorted(set(values) - set(bounds))

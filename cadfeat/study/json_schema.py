@@ -13,7 +13,7 @@ with taplo / Even Better TOML by a first line ``#:schema ./study.schema.json`` i
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 from cadfeat.cell import Cell
 from cadfeat.settings import Settings
@@ -74,7 +74,7 @@ def study_json_schema() -> JsonDict:
     for name in study_schema.SECTIONS:
         if name in _MODELS:
             sub = _model_schema(_MODELS[name])
-            defs.update(sub.pop("$defs", {}))
+            defs.update(cast("JsonDict", sub.pop("$defs", {})))  # (pydantic's $defs: a JSON object)
             props[name] = sub
         else:
             props[name] = _trajectory_schema()

@@ -17,7 +17,7 @@ import re
 from collections.abc import Mapping, Sequence
 from importlib import metadata
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, cast, overload
 
 import numpy as np
 
@@ -26,17 +26,21 @@ from cadfeat.cad.features.identity import hole_name
 from cadfeat.results import SCHEMA_VERSION, StudyResults
 
 if TYPE_CHECKING:  # pragma: no cover
+    from cadfeat.cad.features import Hole
     from cadfeat.measures.evaluate import Measures
-    from cadfeat.results import JsonDict
+    from cadfeat.results import FeatureData, HoleData, JsonDict, MeasureSummaryData, PerPoseData
 
 __all__ = [
     "DIGITS",
+
     "SCHEMA_VERSION",
     "file_entry",
     "hole_dict",
     "measures_summary",
     "normalise_step_header",
     "plain",
+    "plain_float",
+    "plain_floats",
     "versions",
     "write_json",
     "write_results",
@@ -50,7 +54,11 @@ _PRODUCT = re.compile(rb"'Open CASCADE STEP translator[^']*'")
 _FILE_NAME = re.compile(rb"(FILE_NAME\s*\(\s*'(?:[^']|'')*'\s*,\s*')([^']*)(')")
 
 
-def plain(value: Any, digits: int = DIGITS) -> Any:
+@overload
+def plain(value: Mapping[str, object], digits: int = DIGITS) -> JsonDict: ...
+@overload
+def plain(value: object, digits: int = DIGITS) -> object: ...
+def plain(value: object, digits: int = DIGITS) -> object:
     """JSON-ready copy: numpy → Python, floats rounded to ``digits`` significant digits, non-finite → None,
     tuples → lists, Paths → str. Integers stay integers."""
     if isinstance(value, Mapping):
@@ -64,16 +72,26 @@ def plain(value: Any, digits: int = DIGITS) -> Any:
     if isinstance(value, int | np.integer):
         return int(cast(int, value))
     if isinstance(value, float | np.floating):
-        x = float(cast(float, value))
-        if not math.isfinite(x):
-            return None
-        return 0.0 if x == 0 else float(f"{x:.{digits}g}")
+        return plain_float(cast(float, value), digits)
     if isinstance(value, Path):
         return str(value)
     return value
 
 
-def write_json(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path:
+def plain_float(value: float, digits: int = DIGITS) -> float | None:
+    """``plain`` of a float (a numpy float too): rounded to ``digits`` significant digits, None when not finite."""
+    x = float(value)
+    if not math.isfinite(x):
+        return None
+    return 0.0 if x == 0 else float(f"{x:.{digits}g}")
+
+
+def plain_floats(values: np.ndarray | Sequence[float]) -> list[float | None]:
+    """``plain`` of a 1-D float array: each value as ``plain_float`` gives it."""
+    return [plain_float(v) for v in np.asarray(values, float).tolist()]
+
+
+def write_json(path: str | os.PathLike[str], data: Mapping[str, object]) -> Path:
     """Write ``data`` as deterministic JSON (sorted keys, 2-space indent, trailing newline)."""
     path = Path(path)
     path.write_text(json.dumps(plain(data), indent=2, sort_keys=True, ensure_ascii=False, allow_nan=False) + "\n",
@@ -81,7 +99,7 @@ def write_json(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path:
     return path
 
 
-def write_results(path: str | os.PathLike[str], data: Mapping[str, Any]) -> StudyResults:
+def write_results(path: str | os.PathLike[str], data: Mapping[str, object]) -> StudyResults:
     """Write results.json through the typed model: ``data`` made JSON-ready (``plain``), validated as
     ``StudyResults`` (a missing or mistyped section fails here, before the file exists) and written as the
     model gives it back (the same data). Returns the typed results."""
@@ -90,7 +108,7 @@ def write_results(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Stud
     return results
 
 
-def hole_dict(hole: Any, index: int, fixed: bool, movable: bool) -> JsonDict:
+def hole_dict(hole: Hole, index: int, fixed: bool, movable: bool) -> HoleData:
     """One hole as results.json ``H`` = {index, name, centre_mm, axis, radius_mm, depth_mm, through, kind,
     fixed, movable} (part frame, mm)."""
     return {
@@ -122,7 +140,7 @@ def worst_poses(m: Measures, min_axis_px: float, half_image_px: float) -> np.nda
 
 
 def measures_summary(m: Measures, names: Sequence[str], times_s: np.ndarray, min_axis_px: float,
-                     half_image_px: float) -> JsonDict:
+                     half_image_px: float) -> MeasureSummaryData:
     """results.json ``M``: per-feature minima over the trajectory and per-pose series (contracts); per feature
     also ``hidden_frac`` (share of poses where the part hides it, occlusion ray test), ``hidden_worst_pose``
     (first such pose, or None) and ``folded_frac`` (share past the lens's fold radius)."""
@@ -134,17 +152,20 @@ def measures_summary(m: Measures, names: Sequence[str], times_s: np.ndarray, min
     worst = worst_poses(m, min_axis_px, half_image_px)
     hidden = np.asarray(getattr(m, "hidden", np.zeros((L, N), bool)), bool)
     folded = np.asarray(getattr(m, "folded", np.zeros((L, N), bool)), bool)
-    per_feature = [{"index": j, "name": names[j], "fov_min": fov[:, j].min(), "fov_px_min": fov_px[:, j].min(),
-                    "focus_min": focus[:, j].min(), "resolution_px_min": res[:, j].min(),
-                    "visible_frac": visible[:, j].mean(), "worst_pose": int(worst[j]),
-                    "hidden_frac": hidden[:, j].mean(),
-                    "hidden_worst_pose": int(np.argmax(hidden[:, j])) if hidden[:, j].any() else None,
-                    "folded_frac": folded[:, j].mean()} for j in range(N)]
-    per_pose = {"time_s": np.asarray(times_s, float), "resolvability": _arr(m, "resolvability", (L,)),
-                "sigma_min": _arr(m, "sigma_min", (L,)), "condition": _arr(m, "condition", (L,)),
-                "fov_min": fov.min(axis=1), "focus_min": focus.min(axis=1), "resolution_px_min": res.min(axis=1),
-                "visible": visible.sum(axis=1), "centre_px": _arr(m, "centre_px", (L, N, 2))}
-    return plain({"per_feature": per_feature, "per_pose": per_pose})
+    per_feature: list[FeatureData] = [
+        {"index": j, "name": names[j], "fov_min": plain_float(fov[:, j].min()),
+         "fov_px_min": plain_float(fov_px[:, j].min()), "focus_min": plain_float(focus[:, j].min()),
+         "resolution_px_min": plain_float(res[:, j].min()), "visible_frac": plain_float(visible[:, j].mean()),
+         "worst_pose": int(worst[j]), "hidden_frac": plain_float(hidden[:, j].mean()),
+         "hidden_worst_pose": int(np.argmax(hidden[:, j])) if hidden[:, j].any() else None,
+         "folded_frac": plain_float(folded[:, j].mean())} for j in range(N)]
+    per_pose: PerPoseData = {
+        "time_s": plain_floats(times_s), "resolvability": plain_floats(_arr(m, "resolvability", (L,))),
+        "sigma_min": plain_floats(_arr(m, "sigma_min", (L,))), "condition": plain_floats(_arr(m, "condition", (L,))),
+        "fov_min": plain_floats(fov.min(axis=1)), "focus_min": plain_floats(focus.min(axis=1)),
+        "resolution_px_min": plain_floats(res.min(axis=1)), "visible": [int(v) for v in visible.sum(axis=1)],
+        "centre_px": plain(_arr(m, "centre_px", (L, N, 2)))}
+    return {"per_feature": per_feature, "per_pose": per_pose}
 
 
 def normalise_step_header(path: str | os.PathLike[str], product: str) -> None:

@@ -52,12 +52,11 @@ def physical_views(config: StudyConfig, designs: Mapping[str, Design], out_dir: 
     from cadfeat.study.tracking import (  # (the closed loop's own scene and hole names)
         _named,  # pyright: ignore[reportPrivateUsage]
         _scene,  # pyright: ignore[reportPrivateUsage]
-        tracking_config,
     )
     from cadfeat.vision.closed_loop import report_frames
 
     spec = (spec or config.tracking_settings()).replace(renderer="pbr")
-    tc = tracking_config(spec, config.cell)
+    tc = spec.in_cell(config.cell)
     camera, T_cam_part, times, _ = _scene(config)
     idx = report_frames(len(T_cam_part), count)
     t0 = time.perf_counter()

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ParamSpec, Protocol, TypeAlias, TypeVar, cast
+from typing import TYPE_CHECKING, ParamSpec, Protocol, TypeAlias, TypeVar, cast
 
 import numpy as np
 
@@ -28,7 +28,16 @@ from cadfeat.design.shop import ShopDesign, hole_sizes, refine_on_rebuild, shop_
 from cadfeat.design.unseen import scored_measures
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
-from cadfeat.results import JsonDict
+from cadfeat.results import (
+    AddedTargetsData,
+    HistoryPointData,
+    HolesData,
+    JsonDict,
+    RequirementData,
+    ResultsData,
+    ShopData,
+    VariableData,
+)
 from cadfeat.study import added_design, added_targets, closed_loop_check
 from cadfeat.study import setup as study_setup  # (called through the module: tests replace setup_*)
 from cadfeat.study.delivery import AddedDesign, Delivery, TrackingWorkers
@@ -64,6 +73,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.design_space import FeatureModel
     from cadfeat.design.objectives import Normaliser
     from cadfeat.design.optimize import OptimResult
+    from cadfeat.design.optimize.evaluator import HistoryEntry, ParetoFront
     from cadfeat.measures.evaluate import Measures
     from cadfeat.study.preflight import Preflight
     from cadfeat.study.setup import Scene, StudySetup
@@ -173,9 +183,9 @@ class _Interrupted:
 
     x_best: np.ndarray
     f_best: float
-    history: list[JsonDict] = dataclasses.field(default_factory=list[JsonDict])
+    history: list[HistoryEntry] = dataclasses.field(default_factory=list["HistoryEntry"])
     interrupted: bool = True
-    pareto: JsonDict | None = None
+    pareto: ParetoFront | None = None
     n_evals: int = 0
 
 
@@ -189,12 +199,12 @@ def _violations(setup: StudySetup, x: np.ndarray, most: int = 5) -> str:
 
 
 def _refresh_outlines(setup: StudySetup, res: OptimResult, scene: Scene, normaliser: Normaliser,
-                      prog: StudyProgress, label: str) -> tuple[StudySetup, OptimResult, list[JsonDict], bool]:
+                      prog: StudyProgress, label: str) -> tuple[StudySetup, OptimResult, list[HistoryPointData], bool]:
     """The optimiser's 2-D constraints use the host-face outlines of the design it was linearised at; when a
     parameter also changes the faces (e.g. a block that grows with the hole spacing), rebuild at the
     optimum, linearise again there (new outlines) and re-optimise from it, until the outlines agree (at
     most ``OUTLINE_ROUNDS`` rounds; a round is kept only if it improves the objective)."""
-    history: list[JsonDict] = []
+    history: list[HistoryPointData] = []
     stopped = False
     for k in range(OUTLINE_ROUNDS):
         x = np.asarray(res.x_best, float)
@@ -221,15 +231,12 @@ def _refresh_outlines(setup: StudySetup, res: OptimResult, scene: Scene, normali
     return setup, res, history, stopped
 
 
-def _history(res: OptimResult, label: str) -> list[JsonDict]:
-    out: list[JsonDict] = []
-    entries: list[object] = getattr(res, "history", None) or []
-    for i, entry in enumerate(entries):
-        h: JsonDict = dict(cast("Mapping[str, Any]", entry)) if isinstance(entry, Mapping) else {"f": entry}
-        out.append({"iteration": int(h.get("iteration", i)), "f": h.get("f"), "combined": h.get("combined"),
-                    "feasible": bool(h.get("feasible", True)), "phase": (label + " " if label else "")
-                    + str(h.get("phase", "")).strip()})
-    return out
+def _history(res: OptimResult, label: str) -> list[HistoryPointData]:
+    """results.json ``history`` of an optimiser's iterations (``OptimResult.history``), their phase after
+    ``label``."""
+    return [{"iteration": int(h.get("iteration", i)), "f": h["f"], "combined": h["combined"],
+             "feasible": bool(h.get("feasible", True)), "phase": (label + " " if label else "")
+             + str(h.get("phase", "")).strip()} for i, h in enumerate(res.history or [])]
 
 
 def _sweep(setup: StudySetup) -> JsonDict | None:
@@ -250,8 +257,8 @@ def _sweep(setup: StudySetup) -> JsonDict | None:
 
 
 def _variables(setup: StudySetup, x0: np.ndarray, x1: np.ndarray, ints0: Mapping[str, int],
-               ints1: Mapping[str, int]) -> list[JsonDict]:
-    out: list[JsonDict] = []
+               ints1: Mapping[str, int]) -> list[VariableData]:
+    out: list[VariableData] = []
     for v, a, b in zip(setup.space.variables, x0, x1, strict=True):
         out.append({"name": v.name, "unit": v.unit, "kind": v.kind, "lower": v.lower, "upper": v.upper,
                     "before": float(a), "after": float(b),
@@ -265,7 +272,7 @@ def _variables(setup: StudySetup, x0: np.ndarray, x1: np.ndarray, ints0: Mapping
 
 
 def _holes_block(setup0: StudySetup, holes0: Sequence[Hole], setup1: StudySetup,
-                 holes1: Sequence[Hole]) -> JsonDict:
+                 holes1: Sequence[Hole]) -> HolesData:
     return {"before": [hole_dict(h, i, setup0.fixed_mask[i], setup0.movable_mask[i]) for i, h in enumerate(holes0)],
             "after": [hole_dict(h, i, setup1.fixed_mask[i], setup1.movable_mask[i]) for i, h in enumerate(holes1)]}
 
@@ -322,7 +329,7 @@ class _Optimum:
 
     setup: StudySetup
     res: OptimResult
-    history: list[JsonDict]
+    history: list[HistoryPointData]
     interrupted: bool
 
 
@@ -335,13 +342,13 @@ class _Delivered:
     shape1: Shape
     holes1: list[Hole]
     pred_err: float
-    shop: JsonDict
+    shop: ShopData
     res: OptimResult
     rebuild_failure: str | None
 
 
 def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None = None,
-            cache: SetupCache | None = None) -> tuple[JsonDict, Delivery]:
+            cache: SetupCache | None = None) -> tuple[ResultsData, Delivery]:
     """The study's phases in order: set up, optimise, deliver (shop rounding, CAD rebuild, scores and
     requirement checks on the B-rep), analyse; returns (results, the designs for the export, the report and the
     closed-loop check).
@@ -361,7 +368,7 @@ def compute(config: StudyConfig, prog: StudyProgress, time_limit_s: float | None
 
 
 def _after_set_up(config: StudyConfig, prog: StudyProgress, start: _Start, workers: TrackingWorkers
-                  ) -> tuple[JsonDict, Delivery]:
+                  ) -> tuple[ResultsData, Delivery]:
     """``compute``'s phases after the set-up: optimise, deliver, analyse; ``workers`` gains the recommended
     design's closed loop (``closed_loop_check.start_design``, before the analysis)."""
     interrupts = prog.interrupts
@@ -424,7 +431,7 @@ def _optional(interrupts: RunInterrupts, func: Callable[_P, _T], *args: _P.args,
 
 
 def _add_targets(config: StudyConfig, prog: StudyProgress, start: _Start, opt: _Optimum, done: _Delivered,
-                 results: JsonDict, delivery: Delivery) -> Delivery:
+                 results: ResultsData, delivery: Delivery) -> Delivery:
     """The added-target phase (``study.added_targets``) on the move-only optimum; when it recommends holes, that
     design is delivered (``study.added_design.deliver``: the returned ``Delivery``) and its closed loop starts in a
     worker; otherwise the move-only optimum's worker is the delivered design's. An interrupted run
@@ -433,14 +440,15 @@ def _add_targets(config: StudyConfig, prog: StudyProgress, start: _Start, opt: _
     base = start.base
     recommended = 0
     interrupts = prog.interrupts
-    found: tuple[JsonDict, AddedDesign] | None = None
+    found: tuple[AddedTargetsData, AddedDesign] | None = None
     if not opt.interrupted and not interrupts.requested:
         with prog.phase("add targets"):
             found = _optional(interrupts, added_targets.run_phase, config, opt.setup, {
                 "before": (base.shape0, base.holes0), "after": (done.shape1, done.holes1)}, prog, done.x1)
     if found is not None:
-        results["added_targets"], added = found
-        recommended = int(results["added_targets"]["recommended"])
+        block, added = found
+        results["added_targets"] = block
+        recommended = int(block["recommended"])
         if recommended:  # (from here on Ctrl-C is noted, not raised: the results are not left half-changed)
             with prog.phase("add targets"):
                 delivery = added_design.deliver(config, opt.setup, base, results, delivery, added,
@@ -499,7 +507,7 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
     """One optimisation per set-up (integer combination), the best kept; Ctrl-C keeps the best so far."""
     best = None
     interrupted = False
-    history: list[JsonDict] = []
+    history: list[HistoryPointData] = []
     setups = start.setups
     for s in setups:
         if best is not None and prog.interrupts.requested:  # interrupted: the combinations left are not tried
@@ -530,7 +538,7 @@ def _optimise_all(config: StudyConfig, start: _Start, prog: StudyProgress) -> _O
 
 
 def _rebuild_delivered(setup: StudySetup, x1: np.ndarray, x_opt: np.ndarray, verified: Sequence[Hole] | None,
-                       model: AnchoredModel, shop: JsonDict, targets: ShopDesign | None
+                       model: AnchoredModel, shop: ShopData, targets: ShopDesign | None
                        ) -> tuple[np.ndarray, ShopDesign | None, tuple[Shape, list[Hole], float]]:
     """The CAD rebuild of the delivered design: the shop-rounded ``x1``; when that does not build (a CAD failure
     is an infeasible point, issue 16), the optimum ``x_opt`` unrounded (``shop`` notes it). Returns (x, shop
@@ -546,7 +554,7 @@ def _rebuild_delivered(setup: StudySetup, x1: np.ndarray, x_opt: np.ndarray, ver
     return x_opt, None, rebuild(setup, x_opt, verified)
 
 
-Shopped: TypeAlias = "tuple[np.ndarray, np.ndarray, JsonDict, ShopDesign | None, AnchoredModel, Sequence[Hole] | None]"
+Shopped: TypeAlias = "tuple[np.ndarray, np.ndarray, ShopData, ShopDesign | None, AnchoredModel, Sequence[Hole] | None]"
 """The shop phase's outcome: (the optimum, the shop-rounded design, the results.json ``shop`` block, the rounding's
 targets (None: not rounded), the anchored feature model, the holes the CAD loop verified at the optimum or None)."""
 
@@ -579,8 +587,8 @@ def _deliver(setup: StudySetup, opt: _Optimum, prog: StudyProgress, shopped: Sho
 
 
 def _results(config: StudyConfig, start: _Start, opt: _Optimum, done: _Delivered,
-             after: tuple[Measures, dict[str, float], float | None, list[JsonDict]],
-             analysis: tuple[JsonDict | None, JsonDict | None, JsonDict | None]) -> JsonDict:
+             after: tuple[Measures, dict[str, float], float | None, list[RequirementData]],
+             analysis: tuple[JsonDict | None, JsonDict | None, JsonDict | None]) -> ResultsData:
     """The results.json content of a run (before export: files, verification, timings and verdict follow)."""
     m1, obj1, comb1, checks = after
     sweep, dmat, robust = analysis
@@ -659,7 +667,7 @@ def scored_mask(setup: StudySetup) -> np.ndarray:
 
 
 def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Shape, list[Hole], float], targets: ShopDesign,
-                 info: JsonDict, model: FeatureModel) -> tuple[np.ndarray, Shape, list[Hole], float]:
+                 info: ShopData, model: FeatureModel) -> tuple[np.ndarray, Shape, list[Hole], float]:
     """``shop.refine_on_rebuild`` on the study's CAD rebuild; ``info["rebuilt_off_target_mm"]``: what remains."""
     x, (shape, holes, err), off = refine_on_rebuild(setup.space, model, setup.problem, x, rebuilt, targets,
                                                     lambda x_new, guess: rebuild(setup, x_new, guess))
@@ -669,14 +677,14 @@ def _shop_refine(setup: StudySetup, x: np.ndarray, rebuilt: tuple[Shape, list[Ho
 
 
 def _shop(setup: StudySetup, x: np.ndarray, model: FeatureModel | None = None
-          ) -> tuple[np.ndarray, JsonDict, ShopDesign | None]:
+          ) -> tuple[np.ndarray, ShopData, ShopDesign | None]:
     """The shop-ready design near the optimum ``x`` (``cadfeat.design.shop``, study ``[shop]``) and its
     results.json block; the optimum itself when rounding would break a kept requirement of the model (the
     rebuilt design is verified on the B-rep and the STEP either way)."""
     spec = setup.config.shop
     sizes = hole_sizes(spec.hole_sizes)
-    info: JsonDict = {"grid_mm": spec.grid_mm, "hole_sizes": spec.hole_sizes if isinstance(spec.hole_sizes, str)
-                            else list(spec.hole_sizes), "applied": False, "notes": []}
+    info: ShopData = {"grid_mm": spec.grid_mm, "hole_sizes": spec.hole_sizes if isinstance(spec.hole_sizes, str)
+                      else list(spec.hole_sizes), "applied": False, "notes": []}
     if spec.grid_mm <= 0 and not sizes:
         info["notes"].append("rounding off ([shop] grid_mm = 0, hole_sizes = \"none\")")
         return x, info, None
@@ -685,13 +693,14 @@ def _shop(setup: StudySetup, x: np.ndarray, model: FeatureModel | None = None
     info["notes"] += sd.notes
     margins = np.asarray(setup.problem.constraints(sd.x), float)
     names = setup.space.names
-    info.update(x_optimum=dict(zip(names, map(float, x), strict=True)),
-                x_shop=dict(zip(names, map(float, sd.x), strict=True)), residual_mm=sd.residual_mm,
-                moved=[h for h, m in zip(setup.hole_names, sd.moved, strict=True) if m],
-                resized=[h for h, m in zip(setup.hole_names, sd.resized, strict=True) if m])
+    info["x_optimum"] = dict(zip(names, map(float, x), strict=True))
+    info["x_shop"] = dict(zip(names, map(float, sd.x), strict=True))
+    info["residual_mm"] = sd.residual_mm
+    info["moved"] = [h for h, m in zip(setup.hole_names, sd.moved, strict=True) if m]
+    info["resized"] = [h for h, m in zip(setup.hole_names, sd.resized, strict=True) if m]
     if setup.config.objective.combine != "pareto":
-        info.update(combined_optimum=float(setup.problem.combined(x)),
-                    combined_shop=float(setup.problem.combined(sd.x)))
+        info["combined_optimum"] = float(setup.problem.combined(x))
+        info["combined_shop"] = float(setup.problem.combined(sd.x))
     if margins.size and margins.min() < -1e-9:
         labels = setup.problem.constraint_labels()
         k = int(np.argmin(margins))

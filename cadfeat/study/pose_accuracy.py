@@ -87,9 +87,7 @@ class HoleHelp(TypedDict):
 
 
 def _tuning(config: StudyConfig) -> FilterTuning:
-    from cadfeat.study.tracking import tracking_config
-
-    return tracking_config(config.tracking_settings()).tuning  # (the filter tuning only: no placement)
+    return config.tracking_settings().tuning  # (the filter tuning only: no placement)
 
 
 def _arrays(holes: Sequence[Hole]) -> tuple[np.ndarray, ...]:

@@ -8,15 +8,18 @@ handling (``interrupts``: ``study.interrupts.RunInterrupts``).
 from __future__ import annotations
 
 import contextlib
+import numbers
 import time
 from collections.abc import Generator, Mapping
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from cadfeat.study.interrupts import RunInterrupts
 
 if TYPE_CHECKING:  # pragma: no cover
+    from types import TracebackType
+
     from rich.progress import Progress, TaskID
 
     from cadfeat.results import JsonDict
@@ -52,10 +55,11 @@ class StudyProgress:
             self._progress.console.print(f"[bold]cadfeat[/bold] study {self.title}")
         return self
 
-    def __exit__(self, *exc: Any) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         self.timings["total"] = time.perf_counter() - self._t0
         if self._progress is not None:
-            self._progress.__exit__(*exc)
+            self._progress.__exit__(exc_type, exc, tb)
 
     def log(self, text: str) -> None:
         if self._progress is not None:
@@ -77,13 +81,13 @@ class StudyProgress:
                 self._progress.update(task, completed=total if total is not None else 1, total=total or 1,
                                       info=f"{dt:.2f} s")
 
-    def iteration(self, *args: Any, **kwargs: Any) -> None:
+    def iteration(self, *args: object, **kwargs: object) -> None:
         """Optimiser callback: accepts a dict (``iteration``, ``f``, ``x``, ...), keyword arguments, or
         positional ``(x, f)``; keeps the best design seen."""
         info: JsonDict = {}
         for a in args:
             if isinstance(a, Mapping):
-                info.update(cast("Mapping[str, Any]", a))
+                info.update(cast("Mapping[str, object]", a))
         info.update(kwargs)
         if not info and len(args) >= 2:
             info = {"x": args[0], "f": args[1]}
@@ -91,12 +95,13 @@ class StudyProgress:
         self._keep_best(info)
         self.interrupts.check()  # an interrupt requested after the optimiser: a solve started now stops here
 
-    def _keep_best(self, info: Mapping[str, Any]) -> None:
-        f = info.get("f", info.get("f_best"))
+    def _keep_best(self, info: Mapping[str, object]) -> None:
+        value = info.get("f", info.get("f_best"))
+        f = float(value) if isinstance(value, numbers.Real) else None  # (a Python or numpy number)
         x = info.get("x", info.get("x_best"))
         feasible = info.get("feasible", True)
         if f is not None and x is not None and bool(feasible) and np.isfinite(f) and f < self.best_f:
-            self.best_f, self.best_x = float(f), np.array(x, dtype=float)
+            self.best_f, self.best_x = f, np.array(x, dtype=float)
         if self._progress is not None and self._tasks and self._tasks[-1] is not None:
             best = f"best {self.best_f:.6g}" if np.isfinite(self.best_f) else ""
             phase = info.get("phase", "")

@@ -10,7 +10,7 @@ study's ``[cell]`` — the camera mount and the part placement bounds, each take
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
@@ -28,6 +28,43 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.measures.pose_information import PoseInformation
     from cadfeat.results import JsonDict
     from cadfeat.vision.replay import Replay, ReportedPoses
+
+class MeasuredData(TypedDict):
+    """One estimator on the recording (``measured.<m>``): RMS errors against the reference, lost frames, the NEES
+    (mean, expected, 95 % band, with the reference taken as exact) and its verdict."""
+
+    trans_mm_rms: float | None
+    rot_deg_rms: float | None
+    frames_lost: int
+    nees_mean: float | None
+    nees_filter_only_mean: float | None
+    nees_expected: float
+    nees_95: list[float]
+    consistency: str
+
+
+class PredictedData(TypedDict):
+    """cadfeat's predicted RMS errors at the recorded poses (``predicted``) and the model that gave them."""
+
+    trans_mm_rms: float | None
+    rot_deg_rms: float | None
+    model: str
+
+
+class RecordedData(TypedDict):
+    """``tracking/recorded.json`` (``track_recording``): the recording replayed, measured against predicted."""
+
+    design: str
+    poses_parsed: int
+    frames_used: int
+    reference: str
+    predicted: PredictedData
+    measured: dict[str, MeasuredData]
+    detection_rate: dict[str, float | None]
+    predicted_detection: dict[str, float | None]
+    frames: list[JsonDict]
+    problems: list[str]
+
 
 #: The designs a recording may be of, and their key in ``tracking.exported_designs``.
 DESIGN_KEYS = {"original": "before", "optimised": "after"}
@@ -60,11 +97,11 @@ def _exclusions(shape: Shape, holes: list[Hole], camera: Camera, T: np.ndarray
 
 
 def track_recording(config: StudyConfig, out: Path, images: Path, poses: Path, hand_eye: Path | None,
-                    design: str, spec: TrackingSpec) -> JsonDict:
+                    design: str, spec: TrackingSpec) -> RecordedData:
     """Replay the recording and return the ``tracking/recorded.json`` section (module docstring)."""
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.study.pose_accuracy import predict
-    from cadfeat.study.tracking import exported_designs, tracking_config
+    from cadfeat.study.tracking import exported_designs
     from cadfeat.vision.replay import match_images, read_hand_eye, read_reported_poses, replay
 
     shape, holes = exported_designs(config, out)[DESIGN_KEYS[design]]
@@ -74,7 +111,7 @@ def track_recording(config: StudyConfig, out: Path, images: Path, poses: Path, h
     T_ref = cam_from_part(T_task_cam, T_task_part)
     files, problems = match_images(images, reported.rows)
     exclude, hidden, mesh = _exclusions(shape, list(holes), camera, T_ref)
-    tc = tracking_config(spec, config.cell)
+    tc = spec.in_cell(config.cell)
     sig_mm, sig_rad = reference_sigma(config.cell)
     c, n, r = holes_to_arrays(holes)
     rep = replay(camera, c, n, r, T_ref, reported.times_s, files, detector=tc.detector, gate_px=tc.gate_px,
@@ -90,22 +127,23 @@ def track_recording(config: StudyConfig, out: Path, images: Path, poses: Path, h
 
 def _section(rep: Replay, reported: ReportedPoses, files: list[Path | None], used: np.ndarray,
              info: PoseInformation, names: list[str], design: str, sig_mm: np.ndarray, sig_rad: np.ndarray,
-             problems: list[str], estimators: tuple[str, ...]) -> JsonDict:
+             problems: list[str], estimators: tuple[str, ...]) -> RecordedData:
     """The JSON section: per frame (image, time, errors, NEES, predicted error), per hole detection rate, summary."""
     from scipy.stats import chi2  # pyright: ignore[reportMissingTypeStubs]
 
     frames: list[JsonDict] = []
     pred_t, pred_r = np.asarray(info.error_translation_mm), np.asarray(info.error_rotation_deg)
     for j, k in enumerate(used):
-        row: JsonDict = {"image": files[k].name if files[k] else None,  # type: ignore[union-attr]
-                               "time_s": float(reported.times_s[k]), "csv_line": reported.lines[k],
-                               "holes_found": int(np.all(np.isfinite(rep.pixels[k]), axis=-1).sum()),
-                               "predicted_trans_mm": float(pred_t[j]), "predicted_rot_deg": float(pred_r[j])}
+        file = files[int(k)]
+        row: JsonDict = {"image": file.name if file else None,
+                         "time_s": float(reported.times_s[k]), "csv_line": reported.lines[k],
+                         "holes_found": int(np.all(np.isfinite(rep.pixels[k]), axis=-1).sum()),
+                         "predicted_trans_mm": float(pred_t[j]), "predicted_rot_deg": float(pred_r[j])}
         for m in estimators:
             row[m] = {"trans_mm": _num(rep.errors[m][0][k]), "rot_deg": _num(rep.errors[m][1][k]),
                       "nees": _num(rep.nees[m][k])}
         frames.append(row)
-    summary: JsonDict = {}
+    summary: dict[str, MeasuredData] = {}
     for m in estimators:
         e_t, e_r, ne, nf = (np.asarray(a)[used] for a in (*rep.errors[m], rep.nees[m], rep.nees_filter[m]))
         ok = np.isfinite(ne)

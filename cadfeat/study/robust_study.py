@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol, TypedDict
+from typing import TYPE_CHECKING, Protocol, TypedDict
 
 import numpy as np
 
@@ -42,13 +42,13 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole
     from cadfeat.design.design_space import DesignSpace
     from cadfeat.design.optimize import OptimResult
-    from cadfeat.results import JsonDict
+    from cadfeat.results import HistoryPointData, JsonDict, ResultsData
     from cadfeat.study.progress import StudyProgress
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import StudySetup
 
-__all__ = ["HELD_OUT_SEED_OFFSET", "SOURCES", "RobustDesigns", "RobustRun", "attach_robust", "check_robust",
-           "design_statistics",
+__all__ = ["HELD_OUT_SEED_OFFSET", "SOURCES", "DesignStats", "RobustDesigns", "RobustRun", "attach_robust",
+           "check_robust", "design_statistics",
            "robust_designs", "robust_phase", "source_objectives", "statistics_of"]
 
 SOURCES = ("cell", *KINDS)
@@ -90,7 +90,7 @@ class Optimum(Protocol):
 
     setup: StudySetup
     res: OptimResult
-    history: list[JsonDict]
+    history: list[HistoryPointData]
     interrupted: bool
 
 
@@ -113,13 +113,12 @@ def _starts(opt: Optimum, space: DesignSpace, most: int = 2) -> list[np.ndarray]
     """The nominal optimum, the ``most`` best other end-points of the nominal multi-start, the initial design
     (distinct, in that order)."""
     out = [np.asarray(opt.res.x_best, float)]
-    summaries: list[JsonDict] = getattr(opt.res, "starts", None) or []
-    ends = sorted((s for s in summaries if s.get("max_violation", 0.0) <= 1e-6),
-                  key=lambda s: -float(s["combined"]))
-    for s in ends:
+    ends = sorted(((s["x_end"], s["combined"] or 0.0) for s in opt.res.starts
+                   if "x_end" in s and s.get("max_violation", 0.0) <= 1e-6), key=lambda s: -float(s[1]))
+    for x_end, _ in ends:
         if len(out) > most:
             break
-        out.append(np.asarray(s["x_end"], float))
+        out.append(np.asarray(x_end, float))
     out.append(np.asarray(space.x0, float))
     span = np.maximum(np.asarray(space.upper, float) - np.asarray(space.lower, float), 1e-12)
     distinct: list[np.ndarray] = []
@@ -130,7 +129,7 @@ def _starts(opt: Optimum, space: DesignSpace, most: int = 2) -> list[np.ndarray]
 
 
 def robust_phase(config: StudyConfig, opt: Optimum, progress: StudyProgress,
-                 history: Callable[[OptimResult, str], list[JsonDict]]) -> RobustRun | None:
+                 history: Callable[[OptimResult, str], list[HistoryPointData]]) -> RobustRun | None:
     """The robust optimum of the best set-up (module docstring); ``opt.res`` becomes the delivered design's
     optimiser result and ``opt.history`` gains the robust solves (phase "robust") as ``history(result, label)``
     formats them (the pipeline's ``_history``)."""
@@ -195,12 +194,12 @@ def _choose(setup: StudySetup, rp: RobustProblem, nominal: OptimResult, robust: 
     return "robust", ""
 
 
-def _below(stats: JsonDict, original: JsonDict) -> list[str]:
+def _below(stats: DesignStats, original: DesignStats) -> list[str]:
     """The sources the rule covers (``design.robust.BLOCKS``: the whole cell, the camera mount, the shop) under
     which a design's combined 5th percentile is below the original's."""
     out: list[str] = []
     for src in BLOCKS:
-        a, b = stats[src].get("combined", {}), original[src].get("combined", {})
+        a, b = stats.blocks[src].get("combined"), original.blocks[src].get("combined")
         if a and b and a["p05"] < b["p05"] - TOL * max(1.0, abs(b["p05"])):
             out.append(src)
     return out
@@ -219,6 +218,17 @@ def _block(G: np.ndarray, G0: np.ndarray, names: list[str], combined: np.ndarray
 
 
 Features = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+@dataclass
+class DesignStats:
+    """One design's statistics per source of uncertainty (``statistics_of``): per source, ``_block`` of its draws
+    (``blocks``: per objective and "combined" a ``Spread``); with ``values``, the combined value per draw and source
+    (``values``) and each objective's per draw under the whole cell (``objective_values``), for the report."""
+
+    blocks: dict[str, dict[str, Spread]] = field(default_factory=dict[str, dict[str, Spread]])
+    values: dict[str, list[float]] = field(default_factory=dict[str, list[float]])
+    objective_values: dict[str, list[float]] = field(default_factory=dict[str, list[float]])
 
 
 Depths = np.ndarray | Sequence[np.ndarray | None] | None
@@ -270,31 +280,30 @@ def _distinct_designs(*arrays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def statistics_of(rp: RobustProblem, G0: np.ndarray, G: dict[str, np.ndarray],
-                  values: bool = False) -> list[JsonDict]:
+                  values: bool = False) -> list[DesignStats]:
     """Per design, per source: ``_block`` of ``source_objectives``' arrays (``design_statistics``)."""
     p = rp.inner
     pareto = p.objective_config.combine == "pareto"
     c0 = None if pareto else np.asarray(p.combined_from(G0), float)
-    out: list[JsonDict] = [{} for _ in range(len(G0))]
+    out = [DesignStats() for _ in range(len(G0))]
     for src, Gs in G.items():
         comb = None if pareto else np.asarray(p.combined_from(Gs), float)
         for b in range(len(G0)):
-            out[b][src] = _block(Gs[b], G0[b], list(p.names), None if comb is None else comb[b],
-                                 None if c0 is None else float(c0[b]))
+            out[b].blocks[src] = _block(Gs[b], G0[b], list(p.names), None if comb is None else comb[b],
+                                        None if c0 is None else float(c0[b]))
             if values and comb is not None:
-                out[b].setdefault("_values", {})[src] = comb[b].tolist()
+                out[b].values[src] = comb[b].tolist()
                 if src == "cell":
-                    out[b].setdefault("_objective_values", {}).update(
-                        {n: Gs[b, :, k].tolist() for k, n in enumerate(p.names)})
+                    out[b].objective_values.update({n: Gs[b, :, k].tolist() for k, n in enumerate(p.names)})
     return out
 
 
 def design_statistics(rp: RobustProblem, features: list[Features], D: Draws, values: bool = False,
-                      sources: tuple[str, ...] = SOURCES, depths: Depths = None) -> list[JsonDict]:
+                      sources: tuple[str, ...] = SOURCES, depths: Depths = None) -> list[DesignStats]:
     """Per design (features (N, 3), (N, 3), (N,) each; ``depths``: its hole depths (N,) mm or None for the
     reference holes'), per source of ``sources``: ``_block`` of the draws ``D`` with only that source (the cell
     sources together for "cell"); the designs evaluated as one batch per source (``source_objectives``).
-    ``values``: also each source's combined value per draw (``"_values"``, for the report's plots)."""
+    ``values``: also each source's combined value per draw (``DesignStats.values``, for the report's plots)."""
     c, a, r = (np.stack([np.asarray(f[i], float) for f in features]) for i in range(3))
     G0, G = source_objectives(rp, (c, a, r), D, sources, depths)
     return statistics_of(rp, G0, G, values)
@@ -321,14 +330,15 @@ class RobustDesigns:
 
     objective: JsonDict
     uncertainty: JsonDict
-    designs: dict[str, JsonDict]
+    designs: dict[str, dict[str, dict[str, Spread]]]
     recommended: str
     delivered: str
     reason: str
     out_of_sample: JsonDict
     sensitivity: JsonDict
     flagged: list[str] = field(default_factory=list[str])
-    distributions: JsonDict = field(default_factory=dict[str, Any])
+    distributions: dict[str, dict[str, dict[str, list[float]]]] = field(
+        default_factory=dict[str, dict[str, dict[str, list[float]]]])
 
     def to_json(self) -> JsonDict:
         return dataclasses.asdict(self)
@@ -359,8 +369,7 @@ def robust_designs(setup: StudySetup, run: RobustRun | None, holes0: Sequence[Ho
     held = draws(Uncertainty.from_settings(spec, config.cell), samples, len(rp.changed), seed_out, spec.sampling)
     stats = dict(zip(order, design_statistics(rp, [feats[k] for k in order], held, values=True,
                                               depths=[depths[k] for k in order]), strict=True))
-    dists = {k: {"combined": v.pop("_values", {}), "objectives_cell": v.pop("_objective_values", {})}
-             for k, v in stats.items()}
+    dists = {k: {"combined": v.values, "objectives_cell": v.objective_values} for k, v in stats.items()}
     below = {k: _below(stats[k], stats["original"]) for k in order[1:]}
     if not below[run.delivered]:
         recommended, reason = run.delivered, (
@@ -377,20 +386,20 @@ def robust_designs(setup: StudySetup, run: RobustRun | None, holes0: Sequence[Ho
         reason = "the robust solve kept the nominal optimum (no design beats it on the draws); " + reason
     if run.note:
         reason = run.note + "; " + reason
-    designs = {"original": stats["original"], "recommended": stats[recommended]}
+    designs = {"original": stats["original"].blocks, "recommended": stats[recommended].blocks}
     for k in (run.delivered, other):
         if k != recommended:
-            designs[k] = stats[k]
+            designs[k] = stats[k].blocks
     flagged = [k for k in order[1:] if below[k]]
     in_vals = _robust_value(rp, [feats[k] for k in order], [depths[k] for k in order])
     stat = rp.objective if rp.objective.statistic != "chance" else RobustObjective()
     out_vals = [float(min(statistic(np.asarray(dists[k]["combined"][b]), stat) for b in BLOCKS))
                 for k in order]  # the held-out draws' combined values, already evaluated per source
     label = rp.objective.label if rp.objective.statistic != "chance" else "p10"
-    oos = {"statistic": label, "draws_in_sample": rp.draws.size, "seed_in_sample": config.study.seed,
-           "draws_out_of_sample": samples, "seed_out_of_sample": seed_out,
-           "designs": {k: {"in_sample": i, "out_of_sample": o} for k, i, o in zip(order, in_vals, out_vals,
-                                                                                   strict=True)}}
+    oos: JsonDict = {"statistic": label, "draws_in_sample": rp.draws.size, "seed_in_sample": config.study.seed,
+                     "draws_out_of_sample": samples, "seed_out_of_sample": seed_out,
+                     "designs": {k: {"in_sample": i, "out_of_sample": o}
+                                 for k, i, o in zip(order, in_vals, out_vals, strict=True)}}
     unc, objective = _uncertainty(config)
     return RobustDesigns(
         objective={"robust": bool(spec.robust), "statistic": objective.statistic, "label": objective.label,
@@ -398,17 +407,17 @@ def robust_designs(setup: StudySetup, run: RobustRun | None, holes0: Sequence[Ho
                    "chance_min": objective.chance_min, "chance_probability": objective.chance_probability,
                    "draws": rp.draws.size, "sampling": spec.sampling, "seed": config.study.seed},
         uncertainty=unc.to_dict(), designs=designs, recommended=recommended, delivered=run.delivered, reason=reason,
-        out_of_sample=oos, sensitivity=sensitivity(stats[recommended]), flagged=flagged, distributions=dists)
+        out_of_sample=oos, sensitivity=sensitivity(stats[recommended].blocks), flagged=flagged, distributions=dists)
 
 
-def attach_robust(results: JsonDict, designs: RobustDesigns | None) -> None:
+def attach_robust(results: ResultsData, designs: RobustDesigns | None) -> None:
     """results.json ``robustness`` gains the ``RobustDesigns`` keys (the block is created when the delivered
     design's own analysis is off)."""
     if designs is not None:
         results["robustness"] = {**(results.get("robustness") or {}), **designs.to_json()}
 
 
-def sensitivity(stats: JsonDict) -> JsonDict:
+def sensitivity(stats: Mapping[str, Mapping[str, Spread]]) -> JsonDict:
     """Where a design's robustness comes from: per source, the combined value's one-at-a-time drop from nominal
     to the 5th percentile and its share of the sum of these drops; ``words``: the ranking in a sentence."""
     drops: dict[str, float] = {}

@@ -28,7 +28,7 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -46,7 +46,7 @@ from cadfeat.output_folder import staged_output
 from cadfeat.poses import cam_from_part
 from cadfeat.report.holes import write_holes_csv
 from cadfeat.report.verdict import verdict_json
-from cadfeat.results import JsonDict, StudyResults
+from cadfeat.results import JsonDict, ObjectivesData, ResultsData, StudyResults
 from cadfeat.study import added_design, added_targets, closed_loop_check
 from cadfeat.study.interrupts import RunInterrupts
 from cadfeat.study.outputs import (
@@ -101,7 +101,7 @@ class StudyResult:
     """Where a study wrote its outputs and the results (the content of results.json)."""
 
     out_dir: Path | None
-    results: JsonDict
+    results: ResultsData
 
     @property
     def typed(self) -> StudyResults:
@@ -113,41 +113,47 @@ class StudyResult:
         return summarise(self.results, self.out_dir)
 
 
-def summarise(results: Mapping[str, Any], out_dir: Path | None) -> str:
+def _table(value: object) -> Mapping[str, object]:
+    """``value`` as a JSON object (an empty one when it is none)."""
+    return cast("Mapping[str, object]", value) if isinstance(value, Mapping) else {}
+
+
+def summarise(results: ResultsData, out_dir: Path | None) -> str:
     obj = results["objectives"]
     lines = [f"study {results['study']['name']}" + (" (INTERRUPTED: best design so far)"
                                                      if results.get("interrupted") else "")]
-    for v in results["variables"]:
+    for v in results.get("variables", []):
         lines.append(f"  {v['name']:<16} {_num(v['before']):>10} -> {_num(v['after']):>10} {v['unit']}")
     units = {c["name"]: c.get("unit", "") for c in obj.get("changes", [])}
+    after = obj.get("after") or {}
     for name in obj["names"]:
-        lines.append(f"  {name:<16} {_num(obj['before'].get(name)):>10} -> {_num(obj['after'].get(name)):>10}"
+        lines.append(f"  {name:<16} {_num(obj['before'].get(name)):>10} -> {_num(after.get(name)):>10}"
                      f"  {units.get(name, '')}")
     lines.append(f"  {'combined':<16} {_num(obj.get('combined_before')):>10} -> "
                  f"{_num(obj.get('combined_after')):>10}  ({obj['combine']}, larger is better)")
-    if obj.get("limiting"):
-        lines.append(f"  limiting objective: {obj['limiting']} (before: {obj.get('limiting_before')})")
+    if limiting := obj.get("limiting"):
+        lines.append(f"  limiting objective: {limiting} (before: {obj.get('limiting_before')})")
     if obj.get("score"):
         lines.append(f"  scored holes: {obj['score']}")
     for w in obj.get("warnings", []) + list(results.get("warnings", [])):
         lines.append(f"  WARNING: {w}")
-    preflight_block: JsonDict = results.get("preflight") or {}
-    for a in preflight_block.get("assumptions", []):
+    assumptions = _table(results.get("preflight")).get("assumptions", [])
+    for a in cast("list[object]", assumptions) if isinstance(assumptions, list) else []:
         lines.append(f"  ASSUMED: {a}")
     lines += closed_loop_check.summary_lines(results)
-    failed = [c for c in results["constraints"] if not c["ok"]]
+    constraints = results.get("constraints", [])
+    failed = [c for c in constraints if not c["ok"]]
     verdict = results.get("verdict")
-    lines.append(f"  kept requirements: {len(results['constraints']) - len(failed)} of {len(results['constraints'])} "
+    lines.append(f"  kept requirements: {len(constraints) - len(failed)} of {len(constraints)} "
                  "hold (B-rep and re-imported STEP)")
     if verdict:
         lines.append(f"  verdict: {verdict['decision']}" + "".join(
             f"\n    {f['rule']}: {f['outcome']} ({f['detail']})" for f in verdict["findings"]
             if f["outcome"] != "adopt"))
-    added: JsonDict = results.get("added_targets") or {}
-    if added.get("delivered"):
-        holes: list[JsonDict] = added.get("holes", [])
-        names = ", ".join(str(h["name"]) for h in holes)
-        p: dict[str, JsonDict | None] = added.get("predicted") or {}
+    added = results.get("added_targets")
+    if added is not None and added.get("delivered"):
+        names = ", ".join(str(h["name"]) for h in added["holes"])
+        p = added["predicted"]
         lines.append(f"  delivered: the move-only optimum with {added['recommended']} added target hole(s) ({names}); "
                      "predicted RMS pose error (mm) original {0} -> move-only {1} -> delivered {2}".format(
                          *(_num((p.get(k) or {}).get("error_mm")) for k in ("original", "move_only", "added"))))
@@ -243,14 +249,14 @@ def _preflight_added(config: StudyConfig, shape: Shape, holes: list[Hole], traj:
     return added_targets.preflight_part(config, shape, viewed, view)
 
 
-def _write_outputs(config: StudyConfig, stage: Path, results: JsonDict, delivery: Delivery,
+def _write_outputs(config: StudyConfig, stage: Path, results: ResultsData, delivery: Delivery,
                    prog: StudyProgress) -> None:
     """Write and verify the outputs into the staging folder ``stage`` (published by the caller). The report's
     renders are made before the closed-loop check collects its workers' tracking (they run meanwhile)."""
     t0 = time.perf_counter()
     added = added_design.delivered(delivery)  # issue 31: the delivered design has added target holes
     results["constraints"], results["verification"] = export_and_verify(
-        config, stage, delivery, results["constraints"],
+        config, stage, delivery, results.get("constraints", []),
         step_checks=added_design.step_checks(config, delivery, f"{config.label}: optimised.step") if added else None)
     added_design.export_move_only(config, stage, results, delivery)  # issue 31: move_only.step beside it, verified
     write_holes_csv(stage / "holes.csv", plain(results))
@@ -269,7 +275,7 @@ def _write_outputs(config: StudyConfig, stage: Path, results: JsonDict, delivery
         finish_report(results)
 
 
-def _closed_loop(config: StudyConfig, results: JsonDict, delivery: Delivery, stage: Path,
+def _closed_loop(config: StudyConfig, results: ResultsData, delivery: Delivery, stage: Path,
                  prog: StudyProgress) -> None:
     """The closed-loop check (``closed_loop_check.attach``); skipped — its workers stopped, whatever it had written
     into the stage removed, a warning saying so — when the run is interrupted before or during it
@@ -286,19 +292,19 @@ def _closed_loop(config: StudyConfig, results: JsonDict, delivery: Delivery, sta
         for name in ("tracking", VIEWS):  # (the frames and views drawn so far: no half-written folder)
             if (stage / name).is_dir():
                 shutil.rmtree(stage / name)
-        results.setdefault("warnings", []).append(
+        results["warnings"].append(
             f"{closed_loop_check.SKIPPED}: the run was interrupted (`cadfeat track` on this study confirms the "
             "design in the closed loop)")
 
 
-def _report(stage: Path, results: JsonDict, context: report.ReportContext, prog: StudyProgress
-            ) -> Callable[[JsonDict], None]:
+def _report(stage: Path, results: Mapping[str, object], context: report.ReportContext, prog: StudyProgress
+            ) -> Callable[[Mapping[str, object]], None]:
     """The report's renders now (they need the designs and their measures, not the closed loop, whose workers
     run meanwhile); returns what writes the report from the final results (``report.build_report``)."""
     with prog.phase("report"):
         renders = report.report_renders(stage, plain(results), context)
 
-    def finish(final: JsonDict) -> None:
+    def finish(final: Mapping[str, object]) -> None:
         with prog.phase("report"):
             report.build_report(stage, plain(final), context, renders=renders)
     return finish
@@ -352,7 +358,7 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
                 m = with_pose(setup, holes, traj, m)
             values = _plain_objectives(config, m, setup.problem)
             pre = preflight_setup(config, setup, m if pose is None else measure_holes(setup, holes, full_traj))
-            trust = objective_changes(setup.problem, values, None) if pose is None else {}
+            trust = objective_changes(setup.problem, values, None) if pose is None else None
             combined = float(setup.problem.combined_from(np.array([values[n] for n in setup.problem.names]))) \
                 if pose is None and config.objective.combine != "pareto" else None
             save(setup)  # (its normaliser built above, when the evaluation needs one)
@@ -366,7 +372,14 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
         if pose is not None:  # pose indices of the full trajectory
             for f in summary["per_feature"]:
                 f["worst_pose"] = pose
-        results: JsonDict = {
+        o = config.objective
+        score, occlusion = score_rule(config, holes, scored_mask(setup)), bool(o.occlusion)
+        objectives: ObjectivesData = {
+            "names": list(values), "combine": o.combine, "aggregate": o.aggregate, "before": values,
+            "combined_before": combined, "score": score, "occlusion": occlusion} if trust is None else {
+            "names": list(values), "combine": o.combine, "aggregate": o.aggregate, "before": values,
+            "combined_before": combined, **trust, "score": score, "occlusion": occlusion}
+        results: ResultsData = {
             "schema_version": SCHEMA_VERSION, "cadfeat_version": __version__, "created": now_iso(),
             "evaluation_only": True,
             "study": {"name": config.study.name, "file": str(config.file) if config.file else None,
@@ -376,22 +389,20 @@ def _evaluate(config: StudyConfig, stage: Path | None, pose: int | None, quiet: 
             "trajectory": {**trajectory_info(traj), "kind": config.trajectory.table.get("kind", "csv"),
                            "pose": pose},
             "holes": {"before": [hole_dict(h, i, fixed[i], setup.movable_mask[i]) for i, h in enumerate(holes)]},
-            "objectives": {"names": list(values), "combine": config.objective.combine,
-                           "aggregate": config.objective.aggregate, "before": values, "combined_before": combined,
-                           **trust, "score": score_rule(config, holes, scored_mask(setup)),
-                           "occlusion": bool(config.objective.occlusion)},
+            "objectives": objectives,
             "measures": {"before": summary}, "timings_s": dict(prog.timings), "versions": versions(),
             "preflight": pre.to_dict(), "warnings": list(pre.warnings),
-            **({"pose_accuracy": pose_block} if pose_block is not None else {}),
         }
+        if pose_block is not None:
+            results["pose_accuracy"] = pose_block
     if echo:
         print(format_table(results, pose))
     if stage is not None:
         write_results(stage / "results.json", results)
-        same = {**results,
-                "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
-                "measures": {"before": summary, "after": summary},
-                "objectives": {**results["objectives"], "after": values}}
+        same: ResultsData = {**results,
+                             "holes": {"before": results["holes"]["before"], "after": results["holes"]["before"]},
+                             "measures": {"before": summary, "after": summary},
+                             "objectives": {**objectives, "after": values}}
         context = report.ReportContext(shape_before=setup.shape0, shape_after=setup.shape0, holes_before=holes,
                                        holes_after=holes, fixed_mask=np.asarray(fixed, bool), camera=camera,
                                        trajectory=full_traj, T_task_part=T_task_part)
@@ -448,7 +459,7 @@ def _plain_objectives(config: StudyConfig, m: Measures, problem: Problem) -> dic
     return objective_values(m, config.objective, problem.units, problem.feature_mask)
 
 
-def format_table(results: Mapping[str, Any], pose: int | None = None) -> str:
+def format_table(results: ResultsData, pose: int | None = None) -> str:
     """The per-feature table of thesis Table 5.1 (margins: positive = satisfied) and a per-pose summary."""
     from rich.console import Console
     from rich.table import Table
@@ -460,7 +471,7 @@ def format_table(results: Mapping[str, Any], pose: int | None = None) -> str:
         table.add_column(col, justify="right" if col != "feature" else "left")
     for f in m["per_feature"]:
         table.add_row(f["name"], _num(f["fov_min"]), _num(f["fov_px_min"]), _num(f["focus_min"]),
-                      _num(f["resolution_px_min"]), f"{100 * f['visible_frac']:.0f}%", str(f["worst_pose"]))
+                      _num(f["resolution_px_min"]), f"{100 * (f['visible_frac'] or 0.0):.0f}%", str(f["worst_pose"]))
     pp = m["per_pose"]
     res = np.asarray([np.nan if v is None else v for v in pp["resolvability"]], float)
     cond = np.asarray([np.inf if v is None else v for v in pp["condition"]], float)
@@ -471,7 +482,7 @@ def format_table(results: Mapping[str, Any], pose: int | None = None) -> str:
                   f"Jacobian condition: max {np.max(cond):.6g}; poses with < 3 visible features: "
                   f"{int(np.sum(np.asarray(pp['visible']) < 3))}")
     for name, g in results["objectives"]["before"].items():
-        how = (results.get("inputs", {}).get("objective", {}).get("pose_aggregate", "rms") if name == "g_POSE"
+        how = (_table(results["inputs"].get("objective")).get("pose_aggregate", "rms") if name == "g_POSE"
                else results["objectives"]["aggregate"])  # g_POSE: pose_aggregate (predicted error, mm)
         console.print(f"{name} = {_num(g)} ({how} over the trajectory)")
     return buffer.getvalue().rstrip()

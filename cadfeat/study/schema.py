@@ -41,7 +41,7 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, cast, overload
 
 from cadfeat.cell import Cell
 from cadfeat.design.objectives import AGGREGATES, COMBINES, ObjectiveConfig
@@ -110,7 +110,7 @@ STUDY_KEYS = StudyInfo.study_keys()
 PART_POSE_KEYS = PartPose.study_keys()
 DESIGN_KEYS = DesignSpec.study_keys()
 
-StudySource = str | Path | Mapping[str, Any]
+StudySource = str | Path | Mapping[str, object]
 """A study: a TOML file's path, or a dict with the same tables."""
 
 SECTIONS = ("study", "camera", "part_pose", "trajectory", "design", "constraints", "objective", "optimizer", "shop",
@@ -128,8 +128,8 @@ ConstraintSpec = ConstraintSettings
 """``[constraints]`` (``cadfeat.study.settings``)."""
 
 
-#: The keys of ``[tracking]`` (the fields of ``TrackingSettings``).
-TRACKING_KEYS = tuple(TrackingSettings.model_fields)
+#: The keys of ``[tracking]`` (the study keys of ``TrackingSettings``: its cell is the study's ``[cell]``).
+TRACKING_KEYS = TrackingSettings.study_keys()
 TrackingSpec = TrackingSettings
 ShopSpec = ShopSettings
 RobustnessSpec = RobustnessSettings
@@ -151,7 +151,7 @@ class StudyConfig:
     objective: ObjectiveConfig
     optimizer: OptimizerConfig
     part_params: Mapping[str, PartParameter] = field(default_factory=dict[str, PartParameter], repr=False)
-    data: Mapping[str, Any] = field(default_factory=dict[str, Any], repr=False)
+    data: Mapping[str, object] = field(default_factory=dict[str, object], repr=False)
     shop: ShopSpec = field(default_factory=ShopSpec)
     robustness: RobustnessSpec = field(default_factory=RobustnessSpec)
     tracking: TrackingSpec | None = None
@@ -181,8 +181,8 @@ class StudyConfig:
         """The same study with ``study.seed`` and ``optimizer.seed`` replaced."""
         check_seed(seed, self.label, "seed")
         data = copy.deepcopy(dict(self.data))
-        data["study"]["seed"] = int(seed)
-        data["optimizer"]["seed"] = int(seed)
+        for section in ("study", "optimizer"):  # (the echo's tables: load_study made them)
+            cast("dict[str, object]", data[section])["seed"] = int(seed)
         return dataclasses.replace(self, study=self.study.replace(seed=int(seed)),
                                    optimizer=self.optimizer.replace(seed=int(seed)), data=data)
 
@@ -264,7 +264,7 @@ def load_study(path_or_dict: StudySource, base_dir: str | Path | None = None) ->
         "cell": cell.model_dump(mode="json"),
     }
     if tracking is not None:
-        echo["tracking"] = tracking.model_dump(mode="json")
+        echo["tracking"] = tracking.study_dump()
     if add_targets is not None:
         echo["add_targets"] = add_targets.model_dump(mode="json")
     return StudyConfig(path, base, info, camera, pose, trajectory, design, constraints, objective, optimizer,
@@ -272,7 +272,11 @@ def load_study(path_or_dict: StudySource, base_dir: str | Path | None = None) ->
                        cell=cell, add_targets=add_targets)
 
 
-def _drop_none(value: object) -> Any:
+@overload
+def _drop_none(value: Mapping[str, object]) -> JsonDict: ...
+@overload
+def _drop_none(value: object) -> object: ...
+def _drop_none(value: object) -> object:
     """Plain data without None entries (TOML has no null): the echo can be loaded again."""
     if isinstance(value, Mapping):
         return {k: _drop_none(v) for k, v in cast("Mapping[object, object]", value).items() if v is not None}

@@ -22,7 +22,7 @@ import itertools
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
 
@@ -56,7 +56,6 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.objectives import Normaliser
     from cadfeat.design.problem import Problem
     from cadfeat.measures.glare import GlareMaps
-    from cadfeat.results import JsonDict
     from cadfeat.study.settings.design import DesignSpec, Selector
     from cadfeat.trajectory import Trajectory
 
@@ -75,6 +74,20 @@ class Scene(NamedTuple):
     camera: Camera
     trajectory: Trajectory
     T_task_part: np.ndarray
+
+
+class CacheRecord(Protocol):
+    """What a set-up tells of its place in the set-up cache (``setup_cache.CacheEntry``, which keeps the rest): its
+    key, whether it was read from the cache, and the seconds the fresh set-up took."""
+
+    @property
+    def key(self) -> str: ...
+
+    @property
+    def hit(self) -> bool: ...
+
+    @property
+    def setup_s(self) -> float: ...
 
 
 @dataclass
@@ -99,7 +112,7 @@ class StudySetup:
     constraints: ConstraintConfig
     rebuild_shape: Callable[[np.ndarray], Shape]
     rebuild_holes: Callable[[Shape], list[Hole]]
-    values: Callable[[np.ndarray], JsonDict]
+    values: Callable[[np.ndarray], Mapping[str, object]]
     linear: bool = True
     int_values: dict[str, int] = field(default_factory=dict[str, int])
     part: Part | StepPart | None = None
@@ -108,7 +121,7 @@ class StudySetup:
     view_direction: np.ndarray | None = None
     """(3,) unit vector, part frame, from the part towards the camera (``study_view_direction``): the end of a
     through hole that is its entrance, in set-up, rebuilds and every check alike; None: extraction's own rule."""
-    cache_entry: Any = field(default=None, repr=False, compare=False)
+    cache_entry: CacheRecord | None = field(default=None, repr=False, compare=False)
     """Where the set-up cache keeps this set-up (``setup_cache.CacheEntry``), None when it was not cached."""
 
     @property
@@ -285,7 +298,7 @@ def int_grid(config: StudyConfig) -> list[dict[str, int]]:
 
 def setup_script(config: StudyConfig, int_values: Mapping[str, int] | None = None,
                  scene: Scene | None = None, normaliser: Normaliser | None = None,
-                 at: Mapping[str, Any] | None = None, time_limit_s: float | None = None) -> StudySetup:
+                 at: Mapping[str, float] | None = None, time_limit_s: float | None = None) -> StudySetup:
     """Setup of a part-script study with the integer parameters at ``int_values`` (default: their defaults);
     ``normaliser``: the objective scales of another setup (so that integer combinations compare); ``at``:
     linearise at these continuous parameter values instead of the part's defaults; ``time_limit_s``: as
@@ -356,18 +369,18 @@ class ScriptValues:
     the set-up linearised at, with the design variables (``names``, in x's order) replaced (``ints``: cast to
     int). A class, not a closure, so that a set-up's products can be kept in the set-up cache."""
 
-    at: dict[str, Any]
+    at: dict[str, float]
     names: tuple[str, ...]
     ints: frozenset[str] = frozenset()
 
-    def __call__(self, x: np.ndarray) -> dict[str, Any]:
+    def __call__(self, x: np.ndarray) -> dict[str, float]:
         out = dict(self.at)
         for name, value in zip(self.names, np.asarray(x, float).reshape(-1), strict=True):
             out[name] = int(round(value)) if name in self.ints else float(value)
         return out
 
 
-def script_rebuilders(part: Callable[[], Part], values: Callable[[np.ndarray], dict[str, Any]],
+def script_rebuilders(part: Callable[[], Part], values: Callable[[np.ndarray], Mapping[str, object]],
                       view: np.ndarray | None) -> tuple[Callable[[np.ndarray], Shape], Callable[[Shape], list[Hole]]]:
     """(``rebuild_shape``, ``rebuild_holes``) of a part-script set-up; ``part()`` gives the loaded part (the set-up
     cache loads it on first use)."""
@@ -458,7 +471,7 @@ def _timed_redrill(config: StudyConfig, step: StepPart, moves: Sequence[HoleMove
 
 
 def study_view_direction(config: StudyConfig, shape: Shape, trajectory: Trajectory, T_task_part: np.ndarray,
-                         part: Any = None) -> np.ndarray | None:
+                         part: Part | StepPart | None = None) -> np.ndarray | None:
     """The study's view (unit vector, part frame, towards the camera) that decides which end of a through hole is
     its entrance: ``design.view_direction`` (STEP studies), else the part script's ``VIEW_DIRECTION``, else the
     mean direction from ``shape``'s bounding-box centre to the trajectory's cameras (``camera_direction``)."""

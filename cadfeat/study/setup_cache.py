@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, TypedDict, TypeVar, cast
 
 import numpy as np
 
@@ -65,9 +65,13 @@ from cadfeat.study.setup import StudySetup
 if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape
 
+    from cadfeat.cad.features import Hole
     from cadfeat.cad.parts import Part
     from cadfeat.cad.step_parts import StepPart
+    from cadfeat.design.constraints import ConstraintConfig
+    from cadfeat.design.design_space import DesignSpace, FeatureModel
     from cadfeat.design.objectives import Normaliser
+    from cadfeat.measures.glare import GlareMaps
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import Scene
 
@@ -159,7 +163,7 @@ def resolved_ints(config: StudyConfig, int_values: Mapping[str, int] | None) -> 
     return dict(sorted(ints.items()))
 
 
-def _array_digest(*arrays: Any) -> str:
+def _array_digest(*arrays: np.ndarray) -> str:
     h = hashlib.sha256()
     for a in arrays:
         a = np.ascontiguousarray(np.asarray(a, float))
@@ -249,7 +253,7 @@ class SetupCache:
     def path(self, key: str) -> Path:
         return self.entries / f"{key}.pkl"
 
-    def load(self, key: str) -> dict[str, Any] | None:
+    def load(self, key: str) -> Products | None:
         """The products of entry ``key``, or None (no entry; an unreadable one: a ``CacheWarning``)."""
         path = self.path(key)
         try:
@@ -269,14 +273,14 @@ class SetupCache:
             products = entry["products"]
             if not isinstance(products, dict):
                 raise ValueError("no products")
-            products = cast("dict[str, Any]", products)
+            products = cast("Products", products)  # (an entry of this format and key: what ``_products`` kept)
         except Exception as exc:  # noqa: BLE001 - whatever a damaged file raises, it is a miss
             _warn(f"set-up cache: entry {path} is damaged ({type(exc).__name__}: {exc}); ignored, the study is set "
                   "up again and the entry replaced")
             return None
         return products
 
-    def store(self, key: str, products: Mapping[str, Any], label: str = "") -> Path | None:
+    def store(self, key: str, products: Products, label: str = "") -> Path | None:
         """Write entry ``key`` (atomically); None (with a ``CacheWarning``) when it cannot be written."""
         entry = {"format": FORMAT, "key": key, "created": _now(), "cadfeat": __version__, "study": label,
                  "products": dict(products)}
@@ -323,8 +327,8 @@ class CacheEntry:
     key: str
     hit: bool
     own_normaliser: bool = True
-    products: dict[str, Any] | None = None
-    extras: dict[str, Any] = field(default_factory=dict[str, Any])
+    products: Products | None = None
+    extras: dict[str, object] = field(default_factory=dict[str, object])
     setup_s: float = 0.0
     """The wall time of the fresh set-up (s): on a hit, what the cache saved (about)."""
 
@@ -446,19 +450,23 @@ def save(setups: StudySetup | Iterable[StudySetup]) -> None:
     normaliser): what is built by then is kept."""
     for setup in [setups] if not isinstance(setups, Iterable) else setups:
         entry = getattr(setup, "cache_entry", None)
-        if entry is None or entry.hit or entry.products is not None:
+        if not isinstance(entry, CacheEntry) or entry.hit or entry.products is not None:
             continue
         entry.products = _products(setup, entry)
         entry.extras = dict(entry.products["extras"])
         entry.cache.store(entry.key, entry.products, setup.config.label)
 
 
-def product(setup: StudySetup, name: str, compute: Callable[[], Any]) -> Any:
+T = TypeVar("T")
+
+
+def product(setup: StudySetup, name: str, compute: Callable[[], T]) -> T:
     """A value kept with the set-up in its cache entry (e.g. the explorer's display mesh): read from the entry,
     else ``compute()``d and added to it (the entry is written again when it exists already)."""
     entry = getattr(setup, "cache_entry", None)
+    entry = entry if isinstance(entry, CacheEntry) else None
     if entry is not None and name in entry.extras:
-        return entry.extras[name]
+        return cast(T, entry.extras[name])  # (what ``compute`` gave under this name before)
     value = compute()
     if entry is not None:
         entry.extras[name] = value
@@ -468,7 +476,29 @@ def product(setup: StudySetup, name: str, compute: Callable[[], Any]) -> Any:
     return value
 
 
-def _products(setup: StudySetup, entry: CacheEntry) -> dict[str, Any]:
+class Products(TypedDict):
+    """A set-up's cache entry (``_products``; read back by ``_from_products``)."""
+
+    holes0: list[Hole]
+    fixed_mask: np.ndarray
+    movable_mask: np.ndarray
+    space: DesignSpace
+    model: FeatureModel
+    constraints: ConstraintConfig
+    feature_mask: np.ndarray | None
+    linear: bool
+    int_values: dict[str, int]
+    view_direction: np.ndarray | None
+    values: Callable[[np.ndarray], Mapping[str, object]] | None
+    mesh: tuple[np.ndarray, np.ndarray] | None
+    normaliser: Normaliser | None
+    glare: GlareMaps | None
+    brep: bytes | None
+    extras: dict[str, object]
+    setup_s: float
+
+
+def _products(setup: StudySetup, entry: CacheEntry) -> Products:
     """What a set-up's cache entry keeps: everything the set-up computed, the CAD side as BRep (scripts), and the
     part's display mesh (``report.view3d.mesh_arrays``: the explorer's 3-D view) among the extras."""
     from cadfeat.report.view3d import mesh_arrays  # lazy: would import pydantic at module load
@@ -494,7 +524,7 @@ def _products(setup: StudySetup, entry: CacheEntry) -> dict[str, Any]:
     }
 
 
-def _from_products(config: StudyConfig, scene: Scene, p: Mapping[str, Any], normaliser: Normaliser | None,
+def _from_products(config: StudyConfig, scene: Scene, p: Products, normaliser: Normaliser | None,
                    time_limit_s: float | None) -> StudySetup:
     """A ``CachedSetup`` of an entry's products (the problem built by ``setup.build_problem``, as a fresh one)."""
     from cadfeat.measures.raycache import cache_rays
@@ -513,11 +543,15 @@ def _from_products(config: StudyConfig, scene: Scene, p: Mapping[str, Any], norm
         problem.set_glare(p["glare"])
     cad = _LazyCad(config, p["view_direction"], p["brep"], time_limit_s)
     view = p["view_direction"]
+    model, values = p["model"], p["values"]
     if config.study.part_kind == "step":
-        rebuild_shape, rebuild_holes = step_rebuilders(config, cad.step, p["model"], view, time_limit_s)
+        from cadfeat.design.design_space import HoleMoveModel
+
+        assert isinstance(model, HoleMoveModel)  # (a STEP set-up's model)
+        rebuild_shape, rebuild_holes = step_rebuilders(config, cad.step, model, view, time_limit_s)
         values = p["space"].as_dict
     else:
-        values = p["values"]
+        assert values is not None  # (a part script's set-up keeps its ``ScriptValues``)
         rebuild_shape, rebuild_holes = script_rebuilders(cad.script, values, view)
     return CachedSetup(cad, config=config, camera=camera, trajectory=trajectory, T_task_part=T_task_part,
                        holes0=list(p["holes0"]), fixed_mask=p["fixed_mask"], movable_mask=p["movable_mask"],

@@ -1,7 +1,8 @@
 """A study's ``[tracking]`` section run on its original and optimised designs (``cadfeat track``, ``cadfeat run``).
 
-Glue between the study (camera, trajectory, part pose, ``TrackingSpec``) and ``cadfeat.vision.closed_loop``:
-builds the ``TrackingConfig``, runs the closed loop on both designs, and returns the results.json ``tracking``
+Glue between the study (camera, trajectory, part pose, ``[tracking]``) and ``cadfeat.vision.closed_loop``:
+the ``[tracking]`` section IS the closed loop's ``TrackingConfig`` (``cadfeat.vision.config``), run in the study's
+``[cell]`` (``TrackingConfig.in_cell``); runs the closed loop on both designs, and returns the results.json ``tracking``
 section: the Monte-Carlo summaries and paired verdicts (``BeforeAfter.to_json``), per-frame error curves
 (median and 10–90 % band over runs, for the report's error-against-time plot, thesis Fig. 6.7 style) and a few
 frames drawn with detected vs predicted ellipses (PNG files under ``tracking/`` in the output folder).
@@ -15,7 +16,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -23,13 +24,11 @@ from cadfeat.cad.export import import_step
 from cadfeat.cad.features import Hole, extract_holes
 from cadfeat.cad.features.identity import named
 from cadfeat.cad.parts import load_part
-from cadfeat.cell import Cell
 from cadfeat.errors import CadfeatError
 from cadfeat.poses import cam_from_part
 from cadfeat.study.schema import StudyConfig, StudyError, TrackingSpec
 from cadfeat.study.setup import camera_direction, load_scene
-from cadfeat.vision import FilterTuning, SensorModel
-from cadfeat.vision.closed_loop import TrackingConfig, draw_frame, frame_image, report_frames
+from cadfeat.vision.closed_loop import draw_frame, frame_image, report_frames
 from cadfeat.vision.motion import so3_log
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -37,11 +36,17 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from cadfeat.cad.features import Hole
     from cadfeat.camera import Camera
-    from cadfeat.results import JsonDict
-    from cadfeat.vision.closed_loop import BeforeAfter, TrackingConfig
+    from cadfeat.results import JsonDict, SweepData, TrackingData
+    from cadfeat.vision.closed_loop import BeforeAfter, DesignTracking, Observation
+    from cadfeat.vision.config import TrackingConfig
 
 Design = tuple["Shape", "Sequence[Hole]"]
 """A design the closed loop tracks: its solid (part frame, mm) and its holes."""
+TrackArguments = tuple["Camera", np.ndarray, np.ndarray, "np.ndarray | None", Design, "TrackingConfig"]
+"""The arguments of ``closed_loop.track_one`` (``track_arguments``): camera, tracked poses, times, screws, the
+design, the configuration."""
+Tracked = tuple["DesignTracking", "Observation", dict[str, float]]
+"""What ``closed_loop.track_one`` gives: the design's tracking, its observation, wall-clock timings."""
 
 #: Sweep kinds and their default values (thesis §6.3.3 ranges where they apply to this scene).
 SWEEPS: dict[str, tuple[float, ...]] = {
@@ -51,29 +56,6 @@ SWEEPS: dict[str, tuple[float, ...]] = {
     "focal_length": (0.99, 0.995, 1.0, 1.005, 1.01),            # factor on fx, fy assumed by the estimators
     "sample_time": (1, 2, 4),                                   # frame step (sample time = step × dt)
 }
-
-
-def tracking_config(spec: TrackingSpec, cell: Cell | None = None) -> TrackingConfig:
-    """The ``cadfeat.vision`` configuration of a ``[tracking]`` section in the study's cell (``[cell]``; the
-    default cell if None): each run's part placement σ = 0.4 t per axis (``Cell.placement_sigma``), the sensor
-    noise σ, the light's gain σ, the detector and its gate."""
-    cell = cell or Cell()
-    placement_mm, placement_deg = cell.placement_sigma()
-    tuning = FilterTuning(r_px2=spec.r_px2, q_rate_mm2_s2=spec.q_rate_mm2_s2, q_omega_rad2_s2=spec.q_omega_rad2_s2,
-                          iterations=spec.iterations, tau=spec.tau,
-                          sigma0_mm=max(spec.initial_error_mm, 1.0), sigma0_rad=max(np.radians(spec.initial_error_deg),
-                                                                                    0.01))
-    return TrackingConfig(estimators=tuple(spec.estimators), runs=spec.runs,
-                          sensor=SensorModel(noise_grey=cell.noise_sigma_grey, defocus=spec.defocus,
-                                             exposure_s=spec.exposure_s),
-                          initial_error_mm=spec.initial_error_mm, initial_error_deg=spec.initial_error_deg,
-                          tuning=tuning, frame_step=spec.frame_step, settle_frames=spec.settle_frames,
-                          converged_mm=spec.converged_mm, converged_deg=spec.converged_deg, gate_px=cell.gate_px,
-                          rim_model=spec.rim_model, seed=spec.seed, alpha=spec.alpha,
-                          min_change=spec.min_change_percent / 100.0, gain_sigma=cell.gain_sigma,
-                          placement_mm=placement_mm, placement_deg=placement_deg, detector=cell.detector,
-                          renderer=spec.renderer, spp=spec.spp, light=cell.light, material=cell.material,
-                          hole_ends=cell.hole_ends)
 
 
 def _scene(config: StudyConfig) -> tuple[Camera, np.ndarray, np.ndarray, np.ndarray]:
@@ -111,15 +93,16 @@ def _curves(result: BeforeAfter) -> JsonDict:
     """Per design and estimator: frame times and the median / 10 % / 90 % over runs of both errors."""
     out: JsonDict = {}
     for name, d in result.designs.items():
-        out[name] = {"times_s": [round(float(t), 6) for t in d.times_s]}
+        design: JsonDict = {"times_s": [round(float(t), 6) for t in d.times_s]}
         for m, (et, er) in d.errors.items():
-            entry = {}
+            entry: dict[str, dict[str, list[float]]] = {}
             for key, e in (("trans_mm", et), ("rot_deg", er)):
                 with np.errstate(all="ignore"):
                     q = np.nanpercentile(np.where(np.isfinite(e), e, np.nan), [10, 50, 90], axis=0) \
                         if np.isfinite(e).any() else np.full((3, e.shape[1]), np.nan)
                 entry[key] = {"p10": q[0].tolist(), "median": q[1].tolist(), "p90": q[2].tolist()}
-            out[name][m] = entry
+            design[m] = entry
+        out[name] = design
     return out
 
 
@@ -172,7 +155,7 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
     ``VIEW_DIRECTION``, or the direction towards the trajectory's cameras), so through holes enter on the side
     the camera sees, and named ``H<i+1>``.
     """
-    shapes = {}
+    shapes: dict[str, Shape] = {}
     for name, file in EXPORTED.items():
         path = Path(out) / file
         if not path.is_file():
@@ -183,11 +166,12 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
     holes: dict[str, list[Hole]] = {}
     if results_path.is_file():
         try:
-            block: JsonDict = json.loads(results_path.read_text(encoding="utf-8")).get("holes") or {}
+            block: Mapping[str, object] = json.loads(results_path.read_text(encoding="utf-8")).get("holes") or {}
         except (ValueError, AttributeError) as exc:
             raise CadfeatError(f"{results_path}: not a results.json of `cadfeat run` ({exc})") from None
-        if all(isinstance(block.get(k), list) and block[k] for k in EXPORTED):
-            holes = {k: [_hole_from_json(h, results_path, k, i) for i, h in enumerate(block[k])] for k in EXPORTED}
+        entries = {k: cast("list[object]", v) for k in EXPORTED if isinstance(v := block.get(k), list) and v}
+        if len(entries) == len(EXPORTED):
+            holes = {k: [_hole_from_json(h, results_path, k, i) for i, h in enumerate(v)] for k, v in entries.items()}
     if not holes:
         view = _view_direction(config, Path(out) / EXPORTED["before"])
 
@@ -195,13 +179,23 @@ def exported_designs(config: StudyConfig, out: Path) -> dict[str, tuple[Shape, l
     return {k: (shapes[k], _named(holes[k])) for k in EXPORTED}
 
 
-def _hole_from_json(h: JsonDict, path: Path, key: str, i: int) -> Hole:
+def _number(value: object) -> float:
+    """``float(value)`` of a number read from JSON (``TypeError`` as ``float`` gives it for anything else)."""
+    if isinstance(value, int | float | str):
+        return float(value)
+    raise TypeError(f"float() argument must be a string or a real number, not '{type(value).__name__}'")
+
+
+def _hole_from_json(entry: object, path: Path, key: str, i: int) -> Hole:
     """A ``Hole`` from a results.json hole entry (``study.outputs.hole_dict``). The closed loop uses the entrance
     rim only (centre, axis, radius, depth, through); the narrowest bore is not stored and is taken as the rim."""
     try:
+        if not isinstance(entry, Mapping):
+            raise TypeError(f"expected a table, got {entry!r}")
+        h = cast("Mapping[str, object]", entry)
         return Hole(centre=np.asarray(h["centre_mm"], float), axis=np.asarray(h["axis"], float),
-                    radius_mm=float(h["radius_mm"]), bore_radius_mm=float(h["radius_mm"]),
-                    depth_mm=float(h["depth_mm"]), through=bool(h["through"]), kind=str(h.get("kind", "plain")),
+                    radius_mm=_number(h["radius_mm"]), bore_radius_mm=_number(h["radius_mm"]),
+                    depth_mm=_number(h["depth_mm"]), through=bool(h["through"]), kind=str(h.get("kind", "plain")),
                     host_face=-1, outline=None, name=str(h.get("name") or ""))
     except (KeyError, TypeError, ValueError) as exc:
         raise CadfeatError(f"{path}: holes.{key}[{i}]: {exc!s}; allowed: a hole entry of `cadfeat run` "
@@ -226,8 +220,8 @@ def _view_direction(config: StudyConfig, original_step: Path) -> np.ndarray | No
 
 def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Path | None = None,
                  spec: TrackingSpec | None = None, camera_override: Camera | None = None,
-                 tracked: Mapping[str, Any] | None = None, pairs: Mapping[str, tuple[str, str]] | None = None
-                 ) -> JsonDict:
+                 tracked: Mapping[str, Tracked] | None = None, pairs: Mapping[str, tuple[str, str]] | None = None
+                 ) -> TrackingData:
     """The results.json ``tracking`` section for ``designs`` = {"before": (shape, holes), "after": (...)}.
 
     ``out_dir``: where the frame PNGs go (``tracking/``); None writes nothing. ``camera_override``: the camera
@@ -242,7 +236,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     _check_frames(config, spec, len(T_cam_part))
     from cadfeat.vision.closed_loop import track_designs  # lazy: looked up per call (tests replace it)
 
-    result = track_designs(camera, T_cam_part, times, screws, dict(designs), tracking_config(spec, config.cell),
+    result = track_designs(camera, T_cam_part, times, screws, dict(designs), spec.in_cell(config.cell),
                            estimator_camera=camera_override, tracked=tracked, pairs=pairs)
     section = result.to_json()
     section["warnings"] = _motion_warnings(T_cam_part[result.frame_indices], times[result.frame_indices])
@@ -251,7 +245,7 @@ def run_tracking(config: StudyConfig, designs: Mapping[str, Design], out_dir: Pa
     return section
 
 
-def track_arguments(config: StudyConfig, spec: TrackingSpec, design: Design) -> tuple[Any, ...]:
+def track_arguments(config: StudyConfig, spec: TrackingSpec, design: Design) -> TrackArguments:
     """The arguments of ``closed_loop.track_one`` that track one design (shape, holes) of the study as
     ``run_tracking`` tracks it with ``spec`` (the same holes' names, frames and runs), for ``run_tracking``'s
     ``tracked``; plain arrays and dataclasses (picklable: the study's check tracks the original in a worker)."""
@@ -260,11 +254,11 @@ def track_arguments(config: StudyConfig, spec: TrackingSpec, design: Design) -> 
     camera, T_cam_part, times, screws = _scene(config)
     _check_frames(config, spec, len(T_cam_part))
     _, T, t, sc = tracked_frames(T_cam_part, times, screws, spec.frame_step)
-    return camera, T, t, sc, (design[0], _named(design[1])), tracking_config(spec, config.cell)
+    return camera, T, t, sc, (design[0], _named(design[1])), spec.in_cell(config.cell)
 
 
 def sweep(config: StudyConfig, designs: Mapping[str, Design], kind: str,
-          values: Sequence[float] | None = None, spec: TrackingSpec | None = None) -> JsonDict:
+          values: Sequence[float] | None = None, spec: TrackingSpec | None = None) -> SweepData:
     """Thesis §6.3.3 sensitivity: the tracking summary per value of one setting (module docstring).
 
     Returns {"kind", "values", "rows": [{"value", design: {estimator: {trans_mm_rms, rot_deg_rms, convergence_s}}}]}.
@@ -305,7 +299,7 @@ def pbr_seconds(config: StudyConfig, spec: TrackingSpec, design: Design) -> tupl
 
     camera, T_cam_part, times, screws = _scene(config)
     _, T, _, _ = tracked_frames(T_cam_part, times, screws, spec.frame_step)
-    tc = tracking_config(spec.replace(renderer="pbr"), config.cell)
+    tc = spec.replace(renderer="pbr").in_cell(config.cell)
     with PbrRenderer(design[0], list(design[1]), camera, **tc.render_options()) as renderer:
         seconds = renderer.estimate_seconds(T[len(T) // 2])
     return seconds, len(T) * (spec.runs if placed(tc) else 1)

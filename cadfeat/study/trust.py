@@ -15,6 +15,7 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.objectives import ObjectiveConfig
     from cadfeat.design.problem import Problem
+    from cadfeat.results import ObjectiveChangeData, ObjectiveChangesData
 
 __all__ = ["OBJECTIVE_UNITS", "objective_changes", "objective_unit"]
 
@@ -38,7 +39,7 @@ def objective_unit(name: str, objective_config: ObjectiveConfig) -> str:
 
 
 def objective_changes(problem: Problem, before: Mapping[str, float], after: Mapping[str, float] | None
-                      ) -> dict[str, object]:
+                      ) -> ObjectiveChangesData:
     """{"limiting", "limiting_before", "constant", "changes": [{name, before, after, change, unit,
     normalised_before, normalised_after, in_combination}]}: the limiting objective is the smallest normalised
     one among those combined (max-min); ``constant``: objectives that do not depend on the design variables
@@ -50,18 +51,19 @@ def objective_changes(problem: Problem, before: Mapping[str, float], after: Mapp
     g1 = None if after is None else np.array([after[n] for n in names], float)
     n0 = problem.normalised(g0)
     n1 = None if g1 is None else problem.normalised(g1)
-    rows: list[dict[str, object]] = []
+    rows: list[ObjectiveChangeData] = []
     for i, name in enumerate(names):
         rows.append({"name": name, "unit": objective_unit(name, cfg), "before": float(g0[i]),
                      "after": None if g1 is None else float(g1[i]),
                      "change": None if g1 is None else float(g1[i] - g0[i]),
                      "normalised_before": float(n0[i]), "normalised_after": None if n1 is None else float(n1[i]),
                      "in_combination": name in used})
-    constant = list(getattr(problem.normaliser, "constant", ()))
+    constant: list[str] = list(getattr(problem.normaliser, "constant", ()))
     warnings = [f"{n} does not depend on the design variables on this trajectory (the same value at every "
                 "design that meets the kept requirements): it is left out of the combination" for n in constant]
-    out: dict[str, object] = {"limiting_before": problem.limiting(g0) if cfg.combine in ("maxmin", "pareto") else None,
-           "limiting": None, "constant": constant, "changes": rows, "warnings": warnings}
+    out: ObjectiveChangesData = {
+        "limiting_before": problem.limiting(g0) if cfg.combine in ("maxmin", "pareto") else None,
+        "limiting": None, "constant": constant, "changes": rows, "warnings": warnings}
     if g1 is not None and cfg.combine in ("maxmin", "pareto"):
         out["limiting"] = problem.limiting(g1)
     return out

@@ -15,9 +15,9 @@ entrance, and its entrance is the same in set-up, rebuild, checks and the re-imp
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -41,7 +41,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape
 
     from cadfeat.cad.features import Hole
-    from cadfeat.results import JsonDict
+    from cadfeat.design.design_space import FeatureModel
+    from cadfeat.results import RequirementData, VerificationData
     from cadfeat.study.delivery import Delivery
     from cadfeat.study.schema import StudyConfig
     from cadfeat.study.setup import StudySetup
@@ -123,7 +124,7 @@ def rebuild(setup: StudySetup, x: np.ndarray, verified: Sequence[Hole] | None = 
     return shape, holes, err
 
 
-def requirement_checks(setup: StudySetup, shape: Shape, holes: Sequence[Hole], where: str) -> list[JsonDict]:
+def requirement_checks(setup: StudySetup, shape: Shape, holes: Sequence[Hole], where: str) -> list[RequirementData]:
     """Every kept requirement measured on the solid ``shape`` whose holes are ``holes`` (design order).
 
     ``verify_on_brep`` re-extracts the holes with the study's view (``StudySetup.view_direction``: a through
@@ -148,11 +149,11 @@ def pair_by_axis(reference: Sequence[Hole], holes: Sequence[Hole], what: str, to
                                                    what=what))
 
 
-def fail_on(checks: Sequence[Mapping[str, Any]], label: str) -> None:
+def fail_on(checks: Sequence[RequirementData], label: str) -> None:
     bad = [c for c in checks if not c["ok"]]
     if bad:
         text = "; ".join(f"{c['name']} {'/'.join(c['holes'])}: {c['value']:.6g} {c['unit']} (required "
-                         f"{c['required']:.6g}, checked on {c['checked_on']})" for c in bad[:6])
+                         f"{c['required']:.6g}, checked on {c.get('checked_on')})" for c in bad[:6])
         raise CadfeatError(f"{label}: the optimised design violates kept requirement(s): {text}")
 
 
@@ -172,7 +173,7 @@ class AnchoredModel:
     ``features(x) = verified(x0) + model(x) − model(x0)``, so a nonlinear part's small shop rounding is
     predicted around the real optimum, not around the linearisation point."""
 
-    def __init__(self, model: Any, x0: np.ndarray, verified: Sequence[Hole] | None) -> None:
+    def __init__(self, model: FeatureModel, x0: np.ndarray, verified: Sequence[Hole] | None) -> None:
         self.model, self.holes = model, model.holes
         c0, _, r0 = model.features(x0)
         self.dc, self.dr = np.zeros_like(c0), np.zeros_like(r0)
@@ -192,9 +193,9 @@ class AnchoredModel:
         return holes_at(self, x)
 
 
-def export_and_verify(config: StudyConfig, stage: Path, delivery: Delivery, constraints: list[JsonDict],
-                      step_checks: Callable[[Shape], list[JsonDict]] | None = None
-                      ) -> tuple[list[JsonDict], JsonDict]:
+def export_and_verify(config: StudyConfig, stage: Path, delivery: Delivery, constraints: list[RequirementData],
+                      step_checks: Callable[[Shape], list[RequirementData]] | None = None
+                      ) -> tuple[list[RequirementData], VerificationData]:
     """Write original.step, optimised.step and optimised.stl into ``stage`` and verify them: a valid solid, the
     re-imported STEP's holes equal to the design's within ``ROUNDTRIP_TOL_MM`` (and its volume), every kept
     requirement again on the re-imported solid (raises ``CadfeatError`` naming a violated one), a watertight
@@ -229,7 +230,7 @@ def export_and_verify(config: StudyConfig, stage: Path, delivery: Delivery, cons
                              original=delivery.shape0 if config.study.part_kind == "step" else None)
     if stl_problems:
         raise CadfeatError(f"{config.label}: optimised.stl: {'; '.join(stl_problems[:3])}")
-    verification = {
+    verification: VerificationData = {
         "step_roundtrip_max_error_mm": max(trip.max_centre_error_mm, trip.max_radius_error_mm,
                                            trip.max_depth_error_mm),
         "step_roundtrip_max_axis_error_rad": trip.max_axis_error_rad, "brep_valid": True,

@@ -7,7 +7,7 @@ import types
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Annotated, Any
+from typing import Annotated
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -31,11 +31,12 @@ class ArgType:
     which ``cadfeat.trajectory.TrajectorySettings`` validates. ``array``: passed on as a float array."""
 
     description: str
-    annotation: Any
+    annotation: object
+    """A runtime type (for pydantic), not an annotation of this module."""
     array: bool = False
 
 
-def _shape(inner: Any, n: int | None = None) -> Any:
+def _shape(inner: object, n: int | None = None) -> object:
     """A TOML array of ``inner`` (a tuple), of exactly ``n`` items when ``n`` is given."""
     return Annotated[Tuple[inner], Field(min_length=n, max_length=n)] if n else Tuple[inner]
 
@@ -231,7 +232,7 @@ class KindArgument:
     name: str
     arg_type: ArgType
     required: bool
-    default: Any
+    default: object
 
 
 def kind_arguments(kind: str) -> list[KindArgument]:

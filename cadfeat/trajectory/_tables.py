@@ -13,13 +13,22 @@ from __future__ import annotations
 from collections.abc import Mapping
 from functools import cache
 from pathlib import Path
-from typing import Any, ClassVar, Self, cast
+from typing import ClassVar, Self, cast
 
 import numpy as np
 from pydantic import Field, PrivateAttr, ValidationInfo, create_model, model_validator
 
 from cadfeat.errors import CadfeatError
-from cadfeat.settings import Settings, StudyError, check_limit, choice, context_of, reject, validate_section
+from cadfeat.settings import (
+    Settings,
+    StudyError,
+    ValidationContext,
+    check_limit,
+    choice,
+    context_of,
+    reject,
+    validate_section,
+)
 from cadfeat.trajectory._core import Trajectory, TrajectoryError
 from cadfeat.trajectory._csv import read_csv
 from cadfeat.trajectory._library import TRAJECTORY_KINDS, kind_arguments
@@ -51,7 +60,7 @@ class TrajectorySettings(Settings):
                                                                       traj.screws)
         return self
 
-    def _make(self, context: Mapping[str, Any]) -> Trajectory:
+    def _make(self, context: ValidationContext) -> Trajectory:
         raise NotImplementedError
 
     def build(self) -> Trajectory:
@@ -65,7 +74,7 @@ class CsvTrajectory(TrajectorySettings):
     csv: str = Field(description="CSV of poses, relative to the study file",
                      json_schema_extra={"x-allowed": "a CSV file of poses, relative to the study file"})
 
-    def _make(self, context: Mapping[str, Any]) -> Trajectory:
+    def _make(self, context: ValidationContext) -> Trajectory:
         base_dir = context.get("base_dir")
         path = Path(base_dir) / self.csv if base_dir is not None and not Path(self.csv).is_absolute() else \
             Path(self.csv)
@@ -87,8 +96,8 @@ class _KindTrajectory(TrajectorySettings):
 
     kind: str = choice(..., tuple(TRAJECTORY_KINDS))
 
-    def _make(self, context: Mapping[str, Any]) -> Trajectory:
-        values: dict[str, Any] = {}
+    def _make(self, context: ValidationContext) -> Trajectory:
+        values: dict[str, object] = {}
         for a in kind_arguments(self.kind):
             if a.name in self.model_fields_set:
                 value = getattr(self, a.name)
@@ -106,7 +115,7 @@ def trajectory_model(kind: str | None) -> type[TrajectorySettings]:
     of the kind's function, with its type (``ArgType.annotation``), required when the function requires it."""
     if kind is None:
         return CsvTrajectory
-    fields: dict[str, Any] = {"kind": (str, choice(kind, (kind,), description="library kind"))}
+    fields: dict[str, tuple[object, object]] = {"kind": (str, choice(kind, (kind,), description="library kind"))}
     for a in kind_arguments(kind):
         default = ... if a.required else None
         annotation = a.arg_type.annotation if a.required else a.arg_type.annotation | None
@@ -117,11 +126,11 @@ def trajectory_model(kind: str | None) -> type[TrajectorySettings]:
     return cast("type[TrajectorySettings]", model)
 
 
-def validate_trajectory(data: object, label: str, context: Mapping[str, Any] | None = None) -> TrajectorySettings:
+def validate_trajectory(data: object, label: str, context: ValidationContext | None = None) -> TrajectorySettings:
     """``[trajectory]`` (a TOML table) validated by its model (``trajectory_model``); one ``StudyError`` line."""
     if not isinstance(data, Mapping):
         raise StudyError(f"{label}: trajectory: expected a table, got {data!r}; allowed: {_FORMS}")
-    table = cast("Mapping[str, Any]", data)
+    table = cast("Mapping[str, object]", data)
     if ("kind" in table) == ("csv" in table):
         problem = "kind and csv given together" if "kind" in table else "neither kind nor csv given"
         raise StudyError(f"{label}: trajectory: {problem}; allowed: {_FORMS}")
@@ -131,7 +140,7 @@ def validate_trajectory(data: object, label: str, context: Mapping[str, Any] | N
     return validate_section(trajectory_model(cast("str | None", kind)), dict(table), "trajectory", label, context)
 
 
-def trajectory_from_dict(spec: Mapping[str, Any], origin: str = "trajectory",
+def trajectory_from_dict(spec: Mapping[str, object], origin: str = "trajectory",
                          base_dir: str | Path | None = None) -> Trajectory:
     """Build a trajectory from plain data: ``{"kind": name, **arguments}`` or ``{"csv": path}`` (either may add
     ``name``), validated as a study's ``[trajectory]``. ``origin`` names the source (``"study.toml"``) in error

@@ -1,6 +1,7 @@
 """The closed loop: synthetic image sequences, OpenCV hole detection and EKF/IEKF/PnP pose tracking.
 
-Modules (one concept each, docs/design.md "Closed loop"): ``images`` (render along a trajectory, thin-lens
+Modules (one concept each, docs/design.md "Closed loop"): ``config`` (``TrackingConfig``: the study's
+``[tracking]`` section, run in a cell), ``images`` (render along a trajectory, thin-lens
 defocus, motion blur, grey-level noise, 8-bit quantisation), ``detection`` (threshold + contours +
 ``cv2.fitEllipse``; association by prediction with a gate), ``detectors`` (``detect(kind, ...)`` over
 ``DETECTORS``: ``edge_detector`` — cadfeat's rim edges around the predicted ellipses, for physically lit

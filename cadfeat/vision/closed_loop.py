@@ -25,22 +25,22 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from cadfeat.cad.export import mesh_from_shape
 from cadfeat.cad.features import holes_to_arrays
 from cadfeat.camera import Camera
-from cadfeat.cell import defaults as D
 from cadfeat.measures import hole_ellipse
 from cadfeat.measures.ellipse import Ellipse as _E
 from cadfeat.measures.pose_models import RIM_GAP_MIN_PX as _RIM_GAP_MIN_PX
 from cadfeat.measures.pose_models import hole_geometry
 from cadfeat.measures.rim_occlusion import rim_occlusion
+from cadfeat.vision.config import RenderOptions, TrackingConfig
 from cadfeat.vision.detection import Detections, associate
 from cadfeat.vision.detectors import detect
-from cadfeat.vision.estimate import FilterTuning, estimate_poses
+from cadfeat.vision.estimate import estimate_poses
 from cadfeat.vision.images import SensorModel, apply_optics, optics_kernels, render_sequence, sensor_images
 from cadfeat.vision.metrics import aggregate_runs, hold_last, paired_verdict, pose_errors, run_summary
 from cadfeat.vision.motion import so3_exp
@@ -49,10 +49,8 @@ if TYPE_CHECKING:  # pragma: no cover
     import trimesh
 
     from cadfeat.cad.features import Hole, ShapeLike
-    from cadfeat.cell.light import Light
-    from cadfeat.cell.material import Material
     from cadfeat.measures.ellipse import Ellipse
-    from cadfeat.results import JsonDict
+    from cadfeat.results import ComparisonData, DesignTrackingData, EstimatorVerdictData, TrackingData
 
 #: Pixels around the part kept per frame (blur and the contour tracer need a margin of background).
 ROI_MARGIN_PX = 12
@@ -63,64 +61,6 @@ RIM_HIDDEN_MAX = 0.03
 #: A hole whose predicted rim comes closer than this (px) to another hole's rim is not associated
 #: (``measures.pose_models.RIM_GAP_MIN_PX``: a neighbouring edge inside the surround ring shifts the centre).
 RIM_GAP_MIN_PX = _RIM_GAP_MIN_PX
-
-
-@dataclass(frozen=True)
-class TrackingConfig:
-    """Closed-loop settings (the ``[tracking]`` study section maps onto these; units in the names).
-
-    ``estimators`` subset of ("ekf", "iekf", "pnp"); ``runs`` Monte-Carlo runs; ``sensor`` noise and blur;
-    ``initial_error_mm`` / ``initial_error_deg`` the size of the initial pose error (random direction per
-    run); ``tuning`` the filters' R, Q, P₀, n, τ; ``frame_step`` uses every k-th trajectory sample;
-    ``settle_frames`` frames skipped before the error statistics; ``converged_mm`` / ``converged_deg``
-    convergence bounds; ``gate_px`` association gate; ``rim_model`` measure ellipse centres (True) or
-    treat holes as points (False); ``seed`` base seed; ``alpha`` significance of the paired test;
-    ``min_change`` smallest relative change of the median RMS error that counts (``metrics.paired_verdict``);
-    run-to-run variability (module docstring): ``placement_mm`` / ``placement_deg`` σ (one, or one per axis) of
-    the part's placement error (0 = every run at the nominal placement, rendered once), ``gain_sigma`` relative σ of the
-    illumination gain per run; ``detector`` the hole detector (``cadfeat.cell.DETECTORS``); ``renderer`` "raster"
-    (VTK, holes painted dark) or "pbr" (Mitsuba 3: the cell's ``light``, ``material`` and ``hole_ends``, ``spp``
-    samples per pixel).
-    """
-
-    estimators: tuple[str, ...] = ("ekf", "iekf", "pnp")
-    runs: int = 20
-    sensor: SensorModel = field(default_factory=SensorModel)
-    initial_error_mm: float = 10.0
-    initial_error_deg: float = 2.0
-    tuning: FilterTuning = field(default_factory=FilterTuning)
-    frame_step: int = 1
-    settle_frames: int = 5
-    converged_mm: float = 2.0
-    converged_deg: float = 1.0
-    gate_px: float = D.GATE_PX
-    rim_model: bool = True
-    seed: int = 0
-    alpha: float = 0.05
-    min_change: float = 0.05
-    placement_mm: float | tuple[float, ...] = D.PLACEMENT_SIGMA_MM
-    placement_deg: float | tuple[float, ...] = D.PLACEMENT_SIGMA_DEG
-    gain_sigma: float = D.GAIN_SIGMA
-    detector: str = "cadfeat"
-    renderer: str = "raster"
-    spp: int = 16
-    light: Light | None = None
-    material: Material | None = None
-    hole_ends: str = "as_modelled"
-
-    def render_options(self) -> JsonDict:
-        """The keyword arguments of ``render.camera_renderer`` for this config's renderer: none for the raster
-        one; the cell's light, material and hole ends, the samples per pixel and a metered exposure for the
-        physically based one (``render.sensor``: the part's median at a fixed fraction of full scale)."""
-        if self.renderer != "pbr":
-            return {}
-        from cadfeat.render.sensor import Sensor  # lazy: pydantic
-
-        return {"light": self.light, "material": self.material, "spp": self.spp, "hole_ends": self.hole_ends,
-                "sensor": Sensor(exposure="meter")}
-
-    def with_changes(self, **changes: Any) -> TrackingConfig:
-        return replace(self, **changes)
 
 
 @dataclass
@@ -139,11 +79,12 @@ class Observation:
     radii: np.ndarray
     names: list[str]
     rim_hidden: np.ndarray | None = None
-    scene: tuple[Any, Sequence[Hole], SensorModel, np.ndarray | None] | None = None  # (shape, holes, sensor, screws)
+    # (shape, holes, sensor, screws)
+    scene: tuple[ShapeLike, Sequence[Hole], SensorModel, np.ndarray | None] | None = None
     rim_gap: np.ndarray | None = None  # (F, N) px to the nearest other rim at the nominal pose (None: not computed)
     camera: Camera | None = None  # the detector undistorts the rims' edges with it (``detection.undistorted_centre``)
     renderer: str = "raster"  # the renderer kind and options that made the images (placement re-renders use them)
-    render_options: JsonDict = field(default_factory=dict)
+    render_options: RenderOptions = field(default_factory=lambda: RenderOptions())
 
 
 @dataclass
@@ -171,7 +112,7 @@ class DesignTracking:
 def observe(shape: ShapeLike, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray, sensor: SensorModel,
             screws: np.ndarray | None = None, predict_occlusion: bool = True,
             frames: Sequence[int] | None = None, renderer: str = "raster",
-            render_options: Mapping[str, Any] | None = None) -> Observation:
+            render_options: RenderOptions | None = None) -> Observation:
     """Render + blur once (module docstring). T_cam_part (F, 4, 4) mm, screws (F, 6) for motion blur;
     ``predict_occlusion``: the rims' hidden fractions at these poses (``Observation.rim_hidden``); ``frames``:
     render only these frame indices (the others' images are empty, 1 x 1 black at (0, 0): for runs that render
@@ -180,7 +121,7 @@ def observe(shape: ShapeLike, holes: Sequence[Hole], camera: Camera, T_cam_part:
     centres, normals, radii = holes_to_arrays(holes)
     T = np.asarray(T_cam_part, dtype=float)
     keep = np.arange(len(T)) if frames is None else np.unique(np.asarray(frames, dtype=int))
-    clean = render_sequence(shape, holes, camera, T[keep], renderer, **dict(render_options or {}))
+    clean = render_sequence(shape, holes, camera, T[keep], renderer, **(render_options or {}))
     kernels = optics_kernels(camera, T, centres, sensor, screws)
     some, some_offsets = _regions(camera, clean, apply_optics(clean, [kernels[k] for k in keep]))
     optical = [np.zeros((1, 1), np.float32) for _ in range(len(T))]
@@ -197,7 +138,8 @@ def observe(shape: ShapeLike, holes: Sequence[Hole], camera: Camera, T_cam_part:
 
     gap = hole_geometry(camera, T, centres, normals, radii).rim_gap_px(hidden)
     return Observation(optical, offsets, predicted, centres, normals, radii, names, hidden,
-                       (shape, list(holes), sensor, screws), gap, camera, renderer, dict(render_options or {}))
+                       (shape, list(holes), sensor, screws), gap, camera, renderer,
+                       RenderOptions(**(render_options or {})))
 
 
 def _regions(camera: Camera, clean: np.ndarray, blurred: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
@@ -436,7 +378,7 @@ def estimate_runs(camera: Camera, obs: Observation, pixels: np.ndarray, T_runs: 
     return errors, summaries
 
 
-def design_json(result: DesignTracking) -> JsonDict:
+def design_json(result: DesignTracking) -> DesignTrackingData:
     """results.json form of one design's tracking: per estimator the Monte-Carlo means and intervals."""
     rate = result.detection_rate
     found = np.all(np.isfinite(result.pixels), axis=-1)
@@ -451,14 +393,14 @@ def design_json(result: DesignTracking) -> JsonDict:
 
 
 def compare(before: DesignTracking, after: DesignTracking, alpha: float = 0.05,
-            min_change: float = 0.0) -> JsonDict:
+            min_change: float = 0.0) -> dict[str, EstimatorVerdictData]:
     """Paired verdicts per estimator on the per-run translation and rotation RMS errors, and an overall line.
 
     Per estimator: ``better`` when the translation or the rotation RMS is significantly lower after and the
     other not significantly higher (symmetrically ``worse``), ``mixed`` when one is significantly lower and
     the other significantly higher, else ``no significant difference``.
     """
-    out: JsonDict = {}
+    out: dict[str, EstimatorVerdictData] = {}
     for m in before.summaries:
         if m not in after.summaries:
             continue
@@ -486,17 +428,17 @@ class BeforeAfter:
 
     designs: dict[str, DesignTracking]
     observations: dict[str, Observation]
-    verdicts: JsonDict
+    verdicts: dict[str, EstimatorVerdictData]
     config: TrackingConfig
     frame_indices: np.ndarray
     timings_s: dict[str, float]
-    comparisons: dict[str, Any] = field(default_factory=dict[str, Any])
+    comparisons: dict[str, ComparisonData] = field(default_factory=dict[str, "ComparisonData"])
     """More paired comparisons: label → {"before": name, "after": name, "verdicts": per estimator}."""
 
-    def to_json(self) -> JsonDict:
+    def to_json(self) -> TrackingData:
         """The results.json ``tracking`` section (plain data; infinities as None)."""
         c = self.config
-        out = {
+        out: TrackingData = {
             "settings": {"estimators": list(c.estimators), "runs": c.runs, "noise_grey": c.sensor.noise_grey,
                          "defocus": c.sensor.defocus, "exposure_s": c.sensor.exposure_s,
                          "initial_error_mm": c.initial_error_mm, "initial_error_deg": c.initial_error_deg,
@@ -515,15 +457,15 @@ class BeforeAfter:
             **({"comparisons": self.comparisons} if self.comparisons else {}),
             "timings_s": {k: round(v, 3) for k, v in self.timings_s.items()},
         }
-        return _finite_json(out)
+        return cast("TrackingData", _finite_json(out))  # (the same keys; a non-finite number is None)
 
 
-def _finite_json(value: Any) -> Any:
+def _finite_json(value: object) -> object:
     """Replace NaN/inf by None and numpy scalars by Python numbers (strict JSON)."""
     if isinstance(value, dict):
-        return {k: _finite_json(v) for k, v in value.items()}
+        return {k: _finite_json(v) for k, v in cast("dict[str, object]", value).items()}
     if isinstance(value, list | tuple):
-        return [_finite_json(v) for v in value]
+        return [_finite_json(v) for v in cast("Sequence[object]", value)]
     if isinstance(value, np.generic):
         value = value.item()
     if isinstance(value, float) and not np.isfinite(value):
@@ -531,7 +473,8 @@ def _finite_json(value: Any) -> Any:
     return value
 
 
-def track_one(camera: Camera, T: np.ndarray, t: np.ndarray, sc: np.ndarray | None, design: tuple[Any, Sequence[Hole]],
+def track_one(camera: Camera, T: np.ndarray, t: np.ndarray, sc: np.ndarray | None,
+              design: tuple[ShapeLike, Sequence[Hole]],
               config: TrackingConfig, estimator_camera: Camera | None = None
               ) -> tuple[DesignTracking, Observation, dict[str, float]]:
     """One design of ``track_designs`` on its tracked frames ``T`` (F, 4, 4), times ``t`` (F,) s and screws ``sc``
@@ -557,7 +500,7 @@ def tracked_frames(T_cam_part: np.ndarray, times_s: np.ndarray, screws: np.ndarr
 
 
 def track_designs(camera: Camera, T_cam_part: np.ndarray, times_s: np.ndarray, screws: np.ndarray | None,
-                  designs: dict[str, tuple[Any, Sequence[Hole]]], config: TrackingConfig,
+                  designs: dict[str, tuple[ShapeLike, Sequence[Hole]]], config: TrackingConfig,
                   before: str = "before", after: str = "after", estimator_camera: Camera | None = None,
                   tracked: Mapping[str, tuple[DesignTracking, Observation, dict[str, float]]] | None = None,
                   pairs: Mapping[str, tuple[str, str]] | None = None) -> BeforeAfter:

@@ -26,7 +26,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
@@ -117,31 +117,63 @@ def ellipse_rows(found: Detections) -> list[dict[str, float | None]]:
     return rows
 
 
-def csv_rows(results: Sequence[ImageResult]) -> list[dict[str, Any]]:
+class PerImage(TypedDict):
+    """The fewest, median and most ellipses a detector found per detected image."""
+
+    min: int
+    median: float
+    max: int
+
+
+class DetectorSummary(TypedDict):
+    """One detector's counts over the run (``summary``)."""
+
+    ellipses: int
+    images_with_ellipses: int
+    per_image: PerImage | None
+
+
+class NotDetected(TypedDict):
+    """An image that could not be detected: its path as given and the problem (one line)."""
+
+    image: str
+    problem: str | None
+
+
+class Summary(TypedDict):
+    """``summary``: images given and detected, per detector its counts, the images not detected."""
+
+    images: int
+    images_detected: int
+    detectors: dict[str, DetectorSummary]
+    not_detected: list[NotDetected]
+
+
+def csv_rows(results: Sequence[ImageResult]) -> list[dict[str, str | int | float | None]]:
     """One row per ellipse found (``CSV_COLUMNS``): the image's path as given, the detector, the ellipse's index
     in that image (from 0) and ``ellipse_rows``'s numbers."""
     return [{"image": str(r.path), "detector": name, "index": k, **row}
             for r in results for name, found in r.found.items() for k, row in enumerate(ellipse_rows(found))]
 
 
-def summary(results: Sequence[ImageResult], detectors: Sequence[str]) -> dict[str, Any]:
+def summary(results: Sequence[ImageResult], detectors: Sequence[str]) -> Summary:
     """Per detector: images detected, images with at least one ellipse, ellipses found in all, and the fewest,
     median and most per detected image; plus the images not detected (path and problem)."""
     done = [r for r in results if r.problem is None]
-    out: dict[str, Any] = {"images": len(results), "images_detected": len(done), "detectors": {},
-                           "not_detected": [{"image": str(r.path), "problem": r.problem}
-                                            for r in results if r.problem is not None]}
+    out: Summary = {"images": len(results), "images_detected": len(done), "detectors": {},
+                    "not_detected": [{"image": str(r.path), "problem": r.problem}
+                                     for r in results if r.problem is not None]}
     for name in detectors:
         n = np.array([r.counts.get(name, 0) for r in done], int)
-        out["detectors"][name] = {
-            "ellipses": int(n.sum()), "images_with_ellipses": int(np.sum(n > 0)),
-            "per_image": {"min": int(n.min()), "median": float(np.median(n)), "max": int(n.max())} if len(n) else None,
-        }
+        per: PerImage | None = ({"min": int(n.min()), "median": float(np.median(n)), "max": int(n.max())}
+                                if len(n) else None)
+        out["detectors"][name] = {"ellipses": int(n.sum()), "images_with_ellipses": int(np.sum(n > 0)),
+                                  "per_image": per}
     return out
 
 
 def to_json(results: Sequence[ImageResult], detectors: Sequence[str], holes: str,
-            calibration: str | None = None) -> dict[str, Any]:
+            calibration: str | None = None) -> dict[str, object]:
     """The whole run as plain data: the settings, ``summary`` and per image its size, counts and ellipses."""
     return {
         "settings": {"detectors": list(detectors), "holes": holes, "calibration": calibration,

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 
@@ -34,9 +34,22 @@ from cadfeat.measures.focus import defocus_diameter_px
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.cad.features import Hole, ShapeLike
+    from cadfeat.cell.light import Light
+    from cadfeat.cell.material import Material
+    from cadfeat.render.sensor import Sensor
 
 #: Kernels are drawn on a grid this many times finer than the pixel grid, then summed (area coverage).
 SUPERSAMPLE = 8
+
+
+class RenderOptions(TypedDict, total=False):
+    """The keyword arguments of ``render.camera_renderer`` a closed loop renders with (``render_options``)."""
+
+    light: Light
+    material: Material
+    spp: int
+    hole_ends: str
+    sensor: Sensor
 
 
 @dataclass(frozen=True)
@@ -51,7 +64,7 @@ class SensorModel:
 
 
 def render_sequence(shape: ShapeLike, holes: Sequence[Hole], camera: Camera, T_cam_part: np.ndarray,
-                    renderer: str = "raster", **options: Any) -> np.ndarray:
+                    renderer: str = "raster", **options: Unpack[RenderOptions]) -> np.ndarray:
     """Noiseless grey images (F, H, W) float32 (0..255) of the part at poses T_cam_part (F, 4, 4), mm, by the
     ``renderer`` kind (``render.camera_renderer``: "raster" VTK, "pbr" Mitsuba 3 with the cell's ``options``:
     light, material, spp, hole_ends, sensor)."""

@@ -28,7 +28,7 @@ import numpy as np
 from cadfeat.vision.motion import so3_log
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.results import JsonDict
+    from cadfeat.results import IntervalData, PairedTestData
 
 
 def pose_errors(T_est: np.ndarray, T_true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -107,10 +107,10 @@ def bootstrap_ci(values: np.ndarray, level: float = 0.95, n_boot: int = 2000, se
     return float(lo), float(hi)
 
 
-def aggregate_runs(runs: Sequence[dict[str, float]], level: float = 0.95) -> dict[str, dict[str, float]]:
+def aggregate_runs(runs: Sequence[dict[str, float]], level: float = 0.95) -> dict[str, IntervalData]:
     """Per key over runs: ``mean``, ``ci_low``, ``ci_high`` (bootstrap), ``median`` of the finite values, and
     ``runs_not_finite`` (e.g. runs that never converged, or lost every frame)."""
-    out: dict[str, dict[str, float]] = {}
+    out: dict[str, IntervalData] = {}
     for key in runs[0]:
         v = np.array([r[key] for r in runs], dtype=float)
         finite = v[np.isfinite(v)]
@@ -122,7 +122,7 @@ def aggregate_runs(runs: Sequence[dict[str, float]], level: float = 0.95) -> dic
 
 
 def paired_verdict(before: np.ndarray, after: np.ndarray, alpha: float = 0.05,
-                   min_change: float = 0.0) -> JsonDict:
+                   min_change: float = 0.0) -> PairedTestData:
     """Wilcoxon signed-rank test of per-run errors ``after − before`` (paired by run), two-sided.
 
     Returns ``verdict`` ("better" = after lower, "worse", "no significant difference"), ``p_value``,
@@ -136,13 +136,13 @@ def paired_verdict(before: np.ndarray, after: np.ndarray, alpha: float = 0.05,
     b, a = np.asarray(before, dtype=float), np.asarray(after, dtype=float)
     ok = np.isfinite(a) & np.isfinite(b)
     d = a[ok] - b[ok]
-    result: JsonDict = {"test": "Wilcoxon signed-rank, two-sided, paired by Monte-Carlo run",
-                              "runs": int(ok.sum()), "alpha": alpha}
+    test, runs = "Wilcoxon signed-rank, two-sided, paired by Monte-Carlo run", int(ok.sum())
     if d.size < 5 or np.all(d == 0):
-        return {**result, "verdict": "no significant difference", "p_value": 1.0,
+        return {"test": test, "runs": runs, "alpha": alpha, "verdict": "no significant difference", "p_value": 1.0,
                 "median_change": float(np.median(d)) if d.size else 0.0}
     p = float(wilcoxon(b[ok], a[ok]).pvalue)
     med = float(np.median(d))
     small = abs(med) < min_change * float(np.median(b[ok]))
     verdict = "no significant difference" if p >= alpha or small else ("better" if med < 0 else "worse")
-    return {**result, "verdict": verdict, "p_value": p, "median_change": med, "min_change": min_change}
+    return {"test": test, "runs": runs, "alpha": alpha, "verdict": verdict, "p_value": p, "median_change": med,
+            "min_change": min_change}

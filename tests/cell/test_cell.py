@@ -116,11 +116,10 @@ def test_the_study_cell_reaches_the_closed_loop(celled):
     from scipy.stats import norm
 
     from cadfeat.study.settings import TrackingSettings
-    from cadfeat.study.tracking import tracking_config
     from cadfeat.vision.closed_loop import placement_errors
 
     config, _ = celled
-    tc = tracking_config(TrackingSettings(runs=1000), config.cell)
+    tc = TrackingSettings(runs=1000).in_cell(config.cell)
     assert (tc.sensor.noise_grey, tc.gain_sigma, tc.gate_px, tc.detector) == (3.0, 0.1, 3.0, "edcircles")
     t = np.abs(placement_errors(tc, tc.runs)[:, :3, 3])
     inside = (t <= 2.0).mean()
@@ -137,7 +136,6 @@ def test_the_lower_layers_default_to_the_default_cell():
     from cadfeat.measures import pose_information
     from cadfeat.measures.pose_models import PoseModels
     from cadfeat.study.settings import RobustnessSettings, TrackingSettings
-    from cadfeat.study.tracking import tracking_config
     from cadfeat.vision.closed_loop import TrackingConfig
     from cadfeat.vision.images import SensorModel
 
@@ -146,7 +144,7 @@ def test_the_lower_layers_default_to_the_default_cell():
     assert SensorModel().noise_grey == cell.noise_sigma_grey
     assert (tc.gate_px, tc.gain_sigma, (tc.placement_mm, tc.placement_deg), tc.detector) == \
         (cell.gate_px, cell.gain_sigma, cell.placement_sigma(), cell.detector)
-    assert tracking_config(TrackingSettings()) == tracking_config(TrackingSettings(), cell)
+    assert TrackingSettings() == TrackingSettings().in_cell(cell) and TrackingSettings is TrackingConfig
     assert PoseModels().for_cell(cell) == PoseModels()
     assert Uncertainty() == Uncertainty.from_settings(RobustnessSettings(), cell)
     assert inspect.signature(pose_information).parameters["noise_grey"].default == cell.noise_sigma_grey
@@ -157,14 +155,13 @@ def test_the_cell_light_and_material_are_sub_tables_with_one_line_errors(tmp_pat
     reach the physically based closed loop's renderer options."""
     from cadfeat.study.schema import load_study
     from cadfeat.study.settings import TrackingSettings
-    from cadfeat.study.tracking import tracking_config
 
     config = load_study(study(tmp_path, cell={"light": {"kind": "dome", "intensity": 2.0},
                                               "material": {"name": "grey_plastic"}, "hole_ends": "drilled"}))
-    options = tracking_config(TrackingSettings(renderer="pbr", spp=4), config.cell).render_options()
+    options = TrackingSettings(renderer="pbr", spp=4).in_cell(config.cell).render_options()
     assert (options["light"].kind, options["light"].intensity, options["material"].name, options["hole_ends"],
             options["spp"]) == ("dome", 2.0, "grey_plastic", "drilled", 4)
-    assert tracking_config(TrackingSettings(), config.cell).render_options() == {}  # the raster loop takes none
+    assert TrackingSettings().in_cell(config.cell).render_options() == {}  # the raster loop takes none
     for cell, where in (({"light": {"kind": "laser"}}, "cell.light.kind: 'laser' is not allowed; allowed: ring"),
                         ({"material": {"name": "oak"}}, "cell.material.name: 'oak' is not allowed; allowed: "),
                         ({"light": {"colour": 1}}, "cell.light.colour: unknown key; allowed: keys of [cell.light]")):

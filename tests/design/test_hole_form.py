@@ -143,11 +143,11 @@ def test_robust_design_statistics_see_the_designs_depths(setup):
     assert np.ptp(np.stack(depths), axis=0).max() > 2.0
     stats = design_statistics(rp, feats, D, values=True, sources=("camera",), depths=depths)
     for (c, a, r), d, st in zip(feats, depths, stats, strict=True):
-        assert st["camera"]["g_POSE"]["nominal"] == pytest.approx(p.features_objectives(c, a, r, depth_mm=d)[0],
+        assert st.blocks["camera"]["g_POSE"]["nominal"] == pytest.approx(p.features_objectives(c, a, r, depth_mm=d)[0],
                                                                   rel=1e-9)
         for s in range(D.size):
             ref = problem(Trajectory(np.asarray(traj.T_task_cam) @ D.dC[s], np.asarray(traj.times_s)))
             g, g_ref_depth = (float(p.combined_from(ref.features_objectives(c, a, r, depth_mm=dd)))
                               for dd in (d, None))
-            assert st["_values"]["camera"][s] == pytest.approx(g, rel=1e-8, abs=1e-10)
+            assert st.values["camera"][s] == pytest.approx(g, rel=1e-8, abs=1e-10)
             assert abs(g - g_ref_depth) > 1e-4  # the test sees the depth

@@ -74,18 +74,16 @@ def test_one_placement_tolerance(tmp_path):
     from scipy.stats import norm
 
     from cadfeat.cell import Cell
-    from cadfeat.study.tracking import tracking_config
     from cadfeat.vision.closed_loop import TrackingConfig, placement_errors
 
     for key in ("placement_mm", "placement_deg"):
         msg = str(pytest.raises(StudyError, load_study, study(tmp_path, tracking={key: 0.3})).value)
         assert f"tracking.{key}: this key moved; allowed: [cell] placement_" in msg and "\n" not in msg
-    default = tracking_config(TrackingSettings())
+    default = TrackingSettings()
     assert (default.placement_mm, default.placement_deg) == (TrackingConfig().placement_mm,
                                                              TrackingConfig().placement_deg)
     t = 1.5
-    per_axis = tracking_config(TrackingSettings(runs=2000), Cell(placement_position_mm=t,
-                                                                placement_angle_deg=(0.5, 1.0, 2.0)))
+    per_axis = TrackingSettings(runs=2000).in_cell(Cell(placement_position_mm=t, placement_angle_deg=(0.5, 1.0, 2.0)))
     assert per_axis.placement_deg == pytest.approx((0.2, 0.4, 0.8))
     inside = np.abs(placement_errors(per_axis, per_axis.runs)[:, :3, 3]) <= t
     coverage = 2 * norm.cdf(2.5) - 1  # ≈ 0.988

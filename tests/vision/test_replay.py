@@ -46,7 +46,7 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> dict:
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.poses import cam_from_part
     from cadfeat.study.setup import load_scene
-    from cadfeat.study.tracking import exported_designs, tracking_config
+    from cadfeat.study.tracking import exported_designs
     from cadfeat.vision.closed_loop import detect_sequence, expected_visible, frame_image, observe
     from cadfeat.vision.estimate import estimate_poses
     from cadfeat.vision.metrics import pose_errors
@@ -64,7 +64,7 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> dict:
     shape, holes = exported_designs(config, out)["after"]
     camera, traj, T_task_part = load_scene(config)
     T = cam_from_part(traj.T_task_cam, T_task_part)
-    tc = tracking_config(config.tracking_settings(), config.cell)
+    tc = config.tracking_settings().in_cell(config.cell)
     obs = observe(shape, holes, camera, T, tc.sensor)
     frames = [frame_image(camera, obs, k, tc.sensor.noise_grey, NOISE_SEED) for k in range(len(T))]
     pixels, _ = detect_sequence(obs, tc.sensor.noise_grey, NOISE_SEED, tc.gate_px, 1.0, tc.detector)

@@ -18,11 +18,11 @@ cq = pytest.importorskip("cadquery")
 
 from cadfeat.cad.features import extract_holes, holes_to_arrays  # noqa: E402
 from cadfeat.camera import Camera  # noqa: E402
+from cadfeat.cell import Cell  # noqa: E402
 from cadfeat.measures import hole_ellipse  # noqa: E402
 from cadfeat.measures.focus import defocus_diameter_px  # noqa: E402
 from cadfeat.poses import invert_T, look_at  # noqa: E402
 from cadfeat.trajectory import orbit_arc  # noqa: E402
-from cadfeat.vision import FilterTuning, SensorModel  # noqa: E402
 from cadfeat.vision.closed_loop import TrackingConfig, compare, design_json, observe, track_design  # noqa: E402
 from cadfeat.vision.detection import Detections, associate, detect_holes  # noqa: E402
 from cadfeat.vision.images import render_sequence, sensor_images  # noqa: E402
@@ -89,9 +89,9 @@ def test_spread_holes_track_better_end_to_end():
     traj = orbit_arc(centre=[0, 0, 2.5], radius_mm=300, elevation_deg=70, azimuth_start_deg=-110,
                      azimuth_end_deg=-70, n=12, duration_s=1.2)
     T = invert_T(traj.T_task_cam)
-    config = TrackingConfig(runs=8, sensor=SensorModel(noise_grey=4.0, exposure_s=0.005), settle_frames=3,
-                            tuning=FilterTuning(r_px2=0.05, q_rate_mm2_s2=10.0, q_omega_rad2_s2=1e-4),
-                            initial_error_mm=5.0, initial_error_deg=1.0)
+    config = TrackingConfig(runs=8, exposure_s=0.005, settle_frames=3, r_px2=0.05, q_rate_mm2_s2=10.0,
+                            q_omega_rad2_s2=1e-4, initial_error_mm=5.0, initial_error_deg=1.0, sigma0_mm=20.0,
+                            sigma0_rad=0.1, cell=Cell(noise_sigma_grey=4.0))
     results = {}
     for name, wp in (("before", before), ("after", after)):
         obs = observe(wp.val(), extract_holes(wp), CAMERA, T, config.sensor, traj.velocity_screws())

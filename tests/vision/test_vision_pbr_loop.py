@@ -14,12 +14,12 @@ pytest.importorskip("mitsuba")
 
 from cadfeat.cad.features import extract_holes  # noqa: E402
 from cadfeat.camera import Camera  # noqa: E402
+from cadfeat.cell import Cell  # noqa: E402
 from cadfeat.cell.light import Light  # noqa: E402
 from cadfeat.cell.material import Material  # noqa: E402
 from cadfeat.measures import hole_ellipse  # noqa: E402
 from cadfeat.poses import invert_T  # noqa: E402
 from cadfeat.trajectory import orbit_arc  # noqa: E402
-from cadfeat.vision import FilterTuning, SensorModel  # noqa: E402
 from cadfeat.vision.closed_loop import TrackingConfig, observe, placement_errors, track_design  # noqa: E402
 
 CAMERA = Camera(fx=700.0, fy=700.0, cx=160.0, cy=120.0, width=320, height=240, focus_distance_mm=300.0)
@@ -31,9 +31,9 @@ def test_the_pbr_loop_finds_the_holes_and_tracks_the_part():
     traj = orbit_arc(centre=[0, 0, 2.5], radius_mm=300, elevation_deg=75, azimuth_start_deg=-100,
                      azimuth_end_deg=-80, n=5, duration_s=0.5)
     T = invert_T(traj.T_task_cam)
-    config = TrackingConfig(runs=2, estimators=("pnp",), sensor=SensorModel(noise_grey=2.0), settle_frames=0,
-                            tuning=FilterTuning(), initial_error_mm=2.0, initial_error_deg=0.5, renderer="pbr",
-                            spp=8, light=Light(), material=Material(name="grey_plastic"))
+    config = TrackingConfig(runs=2, estimators=("pnp",), settle_frames=0, initial_error_mm=2.0, initial_error_deg=0.5,
+                            renderer="pbr", spp=8,
+                            cell=Cell(noise_sigma_grey=2.0, light=Light(), material=Material(name="grey_plastic")))
     obs = observe(wp.val(), extract_holes(wp), CAMERA, T, config.sensor, None, renderer="pbr",
                   render_options=config.render_options())
     result = track_design(CAMERA, obs, T, traj.times_s, config)

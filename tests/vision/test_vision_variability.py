@@ -23,6 +23,7 @@ cv2 = pytest.importorskip("cv2")
 
 from cadfeat.cad.features import extract_holes, holes_to_arrays  # noqa: E402
 from cadfeat.camera import Camera  # noqa: E402
+from cadfeat.cell import Cell  # noqa: E402
 from cadfeat.measures import hole_ellipse  # noqa: E402
 from cadfeat.poses import invert_T  # noqa: E402
 from cadfeat.trajectory import orbit_arc  # noqa: E402
@@ -98,8 +99,8 @@ def test_runs_are_identical_without_variability(scene):
     """The negative control: no noise, no placement error, no illumination change → identical runs."""
     holes, obs, T, times = scene
     config = TrackingConfig(estimators=("pnp",), runs=2, settle_frames=0, initial_error_mm=1.0,
-                            sensor=SensorModel(noise_grey=0.0), placement_mm=0.0, placement_deg=0.0,
-                            gain_sigma=0.0)
+                            cell=Cell(noise_sigma_grey=0.0, placement_position_mm=0.0, placement_angle_deg=0.0,
+                                      gain_sigma=0.0))
     res = track_design(CAMERA, obs, T, times, config)
     assert np.array_equal(res.pixels[0], res.pixels[1], equal_nan=True)
 

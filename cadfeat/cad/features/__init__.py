@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TypeAlias
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
 
@@ -26,6 +26,11 @@ from cadfeat.errors import CadfeatError
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadquery import Shape, Workplane
+    from numpy.typing import ArrayLike
+    from OCP.gp import gp_Pnt
+    from OCP.TopoDS import TopoDS_Shape
+
+    from cadfeat.cad.tolerance import ModelTolerance
 
 ShapeLike: TypeAlias = "Shape | Workplane"
 """A solid as cadfeat's CAD functions take it: a ``cadquery.Shape`` (Solid, Compound, ...) or a ``cadquery.Workplane``
@@ -47,7 +52,7 @@ OUTLINE_CHORD_ERROR_MM = 0.01
 _ORDER_DECIMALS = 9  # rounding (1e-9 mm) used only for the deterministic ordering
 
 
-def _frozen_array(value: Any, shape: tuple[int, ...] | None = None, name: str = "array") -> np.ndarray:
+def _frozen_array(value: ArrayLike, shape: tuple[int, ...] | None = None, name: str = "array") -> np.ndarray:
     """A read-only float64 copy of ``value`` (checked against ``shape``; -1 = any length)."""
     arr = np.array(value, dtype=float)
     if shape is not None and (arr.ndim != len(shape) or any(s not in (-1, a) for s, a in zip(shape, arr.shape,
@@ -194,7 +199,7 @@ def match_holes(reference: Sequence[Hole], candidates: Sequence[Hole], tol_mm: f
 # ------------------------------------------------------------------------------------------ shape input
 
 
-def as_shape(obj: ShapeLike | Any) -> Shape:
+def as_shape(obj: ShapeLike | TopoDS_Shape) -> Shape:
     """The ``cadquery.Shape`` whose faces ``Hole.host_face`` indexes.
 
     Accepts a ``cadquery.Shape`` (Solid, Compound, ...), a ``cadquery.Workplane`` (its
@@ -215,7 +220,7 @@ def as_shape(obj: ShapeLike | Any) -> Shape:
     raise CadfeatError(f"expected a cadquery Shape/Workplane or an OCP TopoDS_Shape, got {type(obj).__name__}")
 
 
-def extract_points(shape: Any, tol_mm: float = 1e-7) -> np.ndarray:
+def extract_points(shape: ShapeLike, tol_mm: float = 1e-7) -> np.ndarray:
     """The vertices of ``shape`` (M, 3) mm: the thesis's point objects.
 
     Vertices closer than ``tol_mm`` are merged (the first kept); the order is lexicographic in the
@@ -242,8 +247,8 @@ def extract_points(shape: Any, tol_mm: float = 1e-7) -> np.ndarray:
     return pts[np.lexsort((r[:, 2], r[:, 1], r[:, 0]))]
 
 
-def extract_holes(shape: Any, prefer_direction: Sequence[float] | np.ndarray | None = None,
-                  tol: Any = None) -> list[Hole]:
+def extract_holes(shape: ShapeLike, prefer_direction: Sequence[float] | np.ndarray | None = None,
+                  tol: ModelTolerance | None = None) -> list[Hole]:
     """All circular holes of ``shape`` (algorithm in ``cadfeat.cad.features.extraction``).
 
     A hole is a connected set of coaxial concave cylinders and cones (plus the annular steps and flat
@@ -272,5 +277,5 @@ def extract_holes(shape: Any, prefer_direction: Sequence[float] | np.ndarray | N
     return extraction.extract_holes(as_shape(shape), prefer_direction, tol)
 
 
-def _xyz(p: Any) -> np.ndarray:
+def _xyz(p: gp_Pnt) -> np.ndarray:
     return np.array([p.X(), p.Y(), p.Z()])

@@ -26,12 +26,21 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, cast
+from typing import TYPE_CHECKING, ClassVar, cast
 
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
 
-from cadfeat.design.optimize.evaluator import FEAS_TOL, Best, Evaluator, best_of
+from cadfeat.design.optimize.evaluator import (
+    FEAS_TOL,
+    Best,
+    CadRound,
+    Evaluator,
+    HistoryEntry,
+    ParetoFront,
+    StartSummary,
+    best_of,
+)
 from cadfeat.design.optimize.solvers import (
     global_solve,
     leximin_refine,
@@ -40,7 +49,6 @@ from cadfeat.design.optimize.solvers import (
     pareto_solve,
     snap_candidates,
 )
-from cadfeat.results import JsonDict
 from cadfeat.settings import Settings, boolean, choice, context_of, integer, number, reject, seed_from_context
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -112,9 +120,9 @@ class OptimResult:
 
     x_best: np.ndarray
     f_best: float
-    history: list[JsonDict]
+    history: list[HistoryEntry]
     interrupted: bool
-    pareto: JsonDict | None
+    pareto: ParetoFront | None
     n_evals: int
     time_s: float
     combined_best: float = float("nan")
@@ -122,13 +130,14 @@ class OptimResult:
     feasible: bool = False
     max_violation: float = 0.0
     message: str = ""
-    starts: list[JsonDict] = field(default_factory=list[JsonDict])
-    cad_rounds: list[JsonDict] = field(default_factory=list[JsonDict])
+    starts: list[StartSummary] = field(default_factory=list[StartSummary])
+    cad_rounds: list[CadRound] = field(default_factory=list[CadRound])
     holes: list[Hole] | None = None
 
 
-def _result(ev: Evaluator, problem: OptimProblem, t0: float, interrupted: bool, n0: int, pareto: JsonDict | None = None,
-            starts: list[JsonDict] | None = None, message: str = "") -> OptimResult:
+def _result(ev: Evaluator, problem: OptimProblem, t0: float, interrupted: bool, n0: int,
+            pareto: ParetoFront | None = None, starts: list[StartSummary] | None = None,
+            message: str = "") -> OptimResult:
     best = ev.best
     if best is None:  # interrupted before any evaluation
         x = problem.space.x0.copy()
@@ -144,7 +153,7 @@ def _result(ev: Evaluator, problem: OptimProblem, t0: float, interrupted: bool, 
 
 
 def optimise(problem: OptimProblem, config: OptimizerConfig | None = None,
-             progress: Callable[[JsonDict], None] | None = None, *, x_start: np.ndarray | None = None,
+             progress: Callable[[HistoryEntry], None] | None = None, *, x_start: np.ndarray | None = None,
              bounds: tuple[np.ndarray, np.ndarray] | None = None) -> OptimResult:
     """Optimise ``problem`` (module docstring). ``x_start`` replaces the initial design; ``bounds`` (lower,
     upper) restricts the search box (the trust region of ``solve_with_cad``)."""
@@ -153,8 +162,8 @@ def optimise(problem: OptimProblem, config: OptimizerConfig | None = None,
     n0 = problem.n_evals
     x_start = problem.space.x0 if x_start is None else np.asarray(x_start, dtype=float)
     ev = Evaluator(problem, x_start, progress=progress, t0=t0, bounds=bounds)
-    pareto: JsonDict | None = None
-    starts: list[JsonDict] = []
+    pareto: ParetoFront | None = None
+    starts: list[StartSummary] = []
     interrupted = False
     try:
         if config.method == "pareto":
@@ -204,9 +213,12 @@ def _snap(ev: Evaluator, problem: OptimProblem, config: OptimizerConfig) -> None
     ev.best = best
 
 
-def solve_with_cad(*args: Any, **kwargs: Any) -> OptimResult:
-    """The trust-region loop with CAD rebuilds: see ``cadfeat.design.optimize.cad.solve_with_cad``."""
-    # lazy: import cycle (cadfeat.design.optimize.cad imports cadfeat.design.optimize)
-    from cadfeat.design.optimize.cad import solve_with_cad as _solve
+if TYPE_CHECKING:  # the checker sees the function itself
+    from cadfeat.design.optimize.cad import solve_with_cad
+else:
+    def solve_with_cad(*args, **kwargs):
+        """The trust-region loop with CAD rebuilds: see ``cadfeat.design.optimize.cad.solve_with_cad``."""
+        # lazy: import cycle (cadfeat.design.optimize.cad imports cadfeat.design.optimize)
+        from cadfeat.design.optimize.cad import solve_with_cad as _solve
 
-    return _solve(*args, **kwargs)
+        return _solve(*args, **kwargs)

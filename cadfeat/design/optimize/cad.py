@@ -25,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
@@ -33,10 +33,9 @@ from cadfeat.cad.features import Hole, holes_to_arrays, match_holes
 from cadfeat.design.design_space import FeatureModel, LinearFeatureModel
 from cadfeat.design.optimize import FEAS_TOL, OptimizerConfig, OptimResult, optimise
 from cadfeat.errors import CadfeatError
-from cadfeat.results import JsonDict
 
 if TYPE_CHECKING:  # pragma: no cover
-    from cadfeat.design.optimize.evaluator import CadProblem
+    from cadfeat.design.optimize.evaluator import CadProblem, CadRound, HistoryEntry
 
 
 def _predicted_holes(model: FeatureModel, x: np.ndarray) -> list[Hole]:
@@ -58,7 +57,18 @@ def _ordered(model: FeatureModel, x: np.ndarray, holes: list[Hole], match_tol_mm
     return ordered, err
 
 
-def _candidate(problem: CadProblem, x: np.ndarray, holes: list[Hole]) -> JsonDict:
+class Candidate(TypedDict):
+    """A CAD-evaluated design (``_candidate``)."""
+
+    x: np.ndarray
+    combined: float
+    objectives: dict[str, float]
+    feasible: bool
+    violation: float
+    holes: list[Hole]
+
+
+def _candidate(problem: CadProblem, x: np.ndarray, holes: list[Hole]) -> Candidate:
     """A CAD-evaluated design: ``x`` with its extracted ``holes`` (model order), its true combined objective,
     objectives, feasibility and largest constraint violation."""
     c, a, r = holes_to_arrays(holes)
@@ -70,7 +80,7 @@ def _candidate(problem: CadProblem, x: np.ndarray, holes: list[Hole]) -> JsonDic
             "violation": violation, "holes": holes}
 
 
-def _anchor_candidate(problem: CadProblem, x: np.ndarray) -> JsonDict | None:
+def _anchor_candidate(problem: CadProblem, x: np.ndarray) -> Candidate | None:
     """The feature model's anchor as a CAD-evaluated design: the set-up built it (the model's reference holes are
     its extracted holes), so it is the fallback when no round's design builds (issue 16: a failing region next to
     the anchor must not leave the loop without a buildable answer)."""
@@ -90,16 +100,16 @@ class _TrustRegionLoop:
     (refreshed each round), the rounds so far and the best CAD-evaluated design ``verified``."""
 
     def __init__(self, problem: CadProblem, rebuild: Callable[[np.ndarray], list[Hole]], config: OptimizerConfig,
-                 refresh: Callable[[np.ndarray, list[Hole]], Any] | None, *, max_rounds: int, tol_mm: float,
+                 refresh: Callable[[np.ndarray, list[Hole]], FeatureModel] | None, *, max_rounds: int, tol_mm: float,
                  match_tol_mm: float, shrink: float, fd_rel_step: float,
-                 progress: Callable[[JsonDict], None] | None) -> None:
+                 progress: Callable[[HistoryEntry], None] | None) -> None:
         self.t0 = time.perf_counter()
         self.n0 = problem.n_evals
         self.problem, self.rebuild, self.config, self.progress = problem, rebuild, config, progress
         self.max_rounds, self.tol_mm, self.match_tol_mm = max_rounds, tol_mm, match_tol_mm
         self.shrink, self.fd_rel_step = shrink, fd_rel_step
         self.space = problem.space
-        self.history: list[JsonDict] = []
+        self.history: list[HistoryEntry] = []
         self.refresh = refresh or self._default_refresh
         self.prob = problem
         # the first centre of the trust region: the feature model's own anchor (a design that was built), not the
@@ -109,19 +119,19 @@ class _TrustRegionLoop:
         self.x_c = space.x0.copy() if anchor is None or np.shape(anchor) != space.x0.shape else space.clip(anchor)
         self.centre_value: float | None = None
         self.radius: np.ndarray | None = None
-        self.rounds: list[JsonDict] = []
-        self.verified: JsonDict | None = _anchor_candidate(problem, self.x_c) if anchor is not None else None
+        self.rounds: list[CadRound] = []
+        self.verified: Candidate | None = _anchor_candidate(problem, self.x_c) if anchor is not None else None
         self.rebuilt = False  # whether a round's design has been rebuilt yet (an interrupt before: the feature optimum)
         self.agreed = 0  # the round whose rebuild agreed with the model, when failed rebuilds had cut the region short
         self.last: OptimResult | None = None
 
-    def _default_refresh(self, x: np.ndarray, holes: list[Hole]) -> Any:
+    def _default_refresh(self, x: np.ndarray, holes: list[Hole]) -> FeatureModel:
         steps = self.fd_rel_step * self.space.span
         steps = np.where(x + steps > self.space.upper, -steps, steps)  # backward at an upper bound: stay buildable
         return LinearFeatureModel.from_rebuild(self.rebuild, x, steps, holes0=holes,
                                                names=self.space.names, match_tol_mm=self.match_tol_mm)
 
-    def _progress_all(self, entry: JsonDict) -> None:
+    def _progress_all(self, entry: HistoryEntry) -> None:
         self.history.append(entry)
         if self.progress is not None:
             self.progress(entry)
@@ -178,8 +188,8 @@ class _TrustRegionLoop:
             return self._finish(last, True, _BEST_VERIFIED)
         self.last = res
         x_new = res.x_best
-        entry: JsonDict = {"round": k + 1, "x": x_new.tolist(), "predicted_combined": res.combined_best,
-                                 "radius": None if radius is None else radius.tolist()}
+        entry: CadRound = {"round": k + 1, "x": x_new.tolist(), "predicted_combined": res.combined_best,
+                           "radius": None if radius is None else radius.tolist()}
         try:
             extracted = list(self.rebuild(x_new))
             holes, err = _ordered(self.prob.model, x_new, extracted, self.match_tol_mm)
@@ -203,9 +213,9 @@ class _TrustRegionLoop:
             return self._agree(k, res, candidate, err)
         return self._move(res, candidate["combined"], holes, entry)
 
-    def _agree(self, k: int, res: OptimResult, candidate: JsonDict, err: float) -> OptimResult | None:
+    def _agree(self, k: int, res: OptimResult, candidate: Candidate, err: float) -> OptimResult | None:
         """The rebuild agreed with the model: the answer, unless failed rebuilds had cut the region short."""
-        cut_short = self.radius is not None and any(r["status"] == "rebuild failed" for r in self.rounds)
+        cut_short = self.radius is not None and any(r.get("status") == "rebuild failed" for r in self.rounds)
         if not cut_short or k == self.max_rounds - 1:
             self.verified = candidate if not cut_short else self.verified
             return self._finish(res, False, f"CAD-verified in round {k + 1} (prediction error {err:.2g} mm)")
@@ -218,7 +228,7 @@ class _TrustRegionLoop:
         self._shrink_region()
         return None
 
-    def _move(self, res: OptimResult, combined: float, holes: list[Hole], entry: JsonDict) -> OptimResult | None:
+    def _move(self, res: OptimResult, combined: float, holes: list[Hole], entry: CadRound) -> OptimResult | None:
         """The rebuild differed from the model: move the centre there (or shrink the region if it is worse) and
         refresh the map at the rebuilt point; the result if interrupted, else None."""
         x_new = res.x_best
@@ -248,9 +258,9 @@ MATCH_TOL_MM = 5.0
 
 def solve_with_cad(problem: CadProblem, rebuild: Callable[[np.ndarray], list[Hole]],
                    config: OptimizerConfig | None = None,
-                   *, refresh: Callable[[np.ndarray, list[Hole]], Any] | None = None, max_rounds: int = 6,
+                   *, refresh: Callable[[np.ndarray, list[Hole]], FeatureModel] | None = None, max_rounds: int = 6,
                    tol_mm: float = 1e-6, match_tol_mm: float = MATCH_TOL_MM, shrink: float = 0.5,
-                   fd_rel_step: float = 1e-4, progress: Callable[[JsonDict], None] | None = None) -> OptimResult:
+                   fd_rel_step: float = 1e-4, progress: Callable[[HistoryEntry], None] | None = None) -> OptimResult:
     """Optimise ``problem`` on its feature model and verify with CAD (module docstring).
 
     ``rebuild(x) -> list[Hole]``: build the part at design x and extract its holes (any order; raising =

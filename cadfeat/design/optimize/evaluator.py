@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any, Protocol, TypedDict
+from typing import TYPE_CHECKING, NotRequired, Protocol, TypedDict
 
 import numpy as np
 
 from cadfeat.design.objectives import leximin_better
-from cadfeat.results import JsonDict
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.design_space import DesignSpace, FeatureModel
@@ -36,6 +35,69 @@ class Best(TypedDict):
     C: np.ndarray
     feasible: bool
     violation: float
+
+
+class HistoryEntry(TypedDict):
+    """One solver iteration (``OptimResult.history``, results.json ``history``): the iteration, phase and start,
+    the solver's own iteration count, the minimised f = −combined, feasibility and largest violation, the best
+    combined objective so far, evaluations and seconds so far; ``front_size`` for NSGA-II."""
+
+    iteration: int
+    phase: str
+    start: int
+    local_iteration: int
+    f: float
+    combined: float
+    feasible: bool
+    max_violation: float
+    best_combined: float | None
+    n_evals: int
+    time_s: float
+    front_size: NotRequired[int]
+
+
+class StartSummary(TypedDict):
+    """One start's local solve (``OptimResult.starts``): where it started and ended, its combined objective (None:
+    a robust start that found no design) and largest violation there (the robust solves give neither end nor
+    violation)."""
+
+    start: int
+    x_start: list[float]
+    x_end: NotRequired[list[float]]
+    combined: float | None
+    max_violation: NotRequired[float]
+
+
+class ParetoFront(TypedDict):
+    """The NSGA-II front (``OptimResult.pareto``, results.json ``pareto``): objective names, raw and normalised
+    values per point, the designs, feasibility, the chosen point and why."""
+
+    names: list[str]
+    points: list[list[float]]
+    normalised: list[list[float]]
+    x: list[list[float]]
+    feasible: list[bool]
+    chosen: int
+    chosen_by: str
+
+
+class CadRound(TypedDict):
+    """One round of ``solve_with_cad``'s trust-region loop (``OptimResult.cad_rounds``): the model's optimum ``x`` in
+    the region (``radius``, None: the whole box) and its predicted combined objective; the rebuild's ``status``
+    (agree, differ, rebuild failed) with its error, or its largest prediction error, true combined objective and
+    feasibility; where the map was refreshed (or why not)."""
+
+    round: int
+    x: list[float]
+    predicted_combined: float
+    radius: list[float] | None
+    status: NotRequired[str]
+    error: NotRequired[str]
+    max_error_mm: NotRequired[float]
+    true_combined: NotRequired[float]
+    feasible: NotRequired[bool]
+    refresh_failed: NotRequired[str]
+    refreshed_at: NotRequired[list[float]]
 
 
 def best_of(x: np.ndarray, combined: float, G: np.ndarray, C: np.ndarray) -> Best:
@@ -110,8 +172,8 @@ class Evaluator:
     """Batched, cached evaluation of a ``Problem`` on the free variables ``free`` (others at ``x_base``)."""
 
     def __init__(self, problem: OptimProblem, x_base: np.ndarray, free: np.ndarray | None = None,
-                 progress: Callable[[JsonDict], None] | None = None, t0: float | None = None,
-                 history: list[JsonDict] | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None):
+                 progress: Callable[[HistoryEntry], None] | None = None, t0: float | None = None,
+                 history: list[HistoryEntry] | None = None, bounds: tuple[np.ndarray, np.ndarray] | None = None):
         self.problem = problem
         space = problem.space
         lower, upper = (space.lower, space.upper) if bounds is None else bounds
@@ -200,14 +262,17 @@ class Evaluator:
         return G[0], C[0], dG, dC
 
     # -------------------------------------------------------------------------------------- history
-    def record(self, iteration: int, G: np.ndarray, C: np.ndarray, **extra: Any) -> JsonDict:
+    def record(self, iteration: int, G: np.ndarray, C: np.ndarray, front_size: int | None = None) -> HistoryEntry:
         """Append a history entry (and report it to ``progress``, which may raise KeyboardInterrupt)."""
         violation = float(max(0.0, -np.min(C, initial=0.0)))
-        entry = {"iteration": len(self.history), "phase": self.phase, "start": self.start, "local_iteration": iteration,
-                 "f": float(-self.problem.combined_from(G)), "combined": float(self.problem.combined_from(G)),
-                 "feasible": violation <= FEAS_TOL, "max_violation": violation,
-                 "best_combined": None if self.best is None else self.best["combined"],
-                 "n_evals": int(self.problem.n_evals), "time_s": time.perf_counter() - self.t0, **extra}
+        entry: HistoryEntry = {
+            "iteration": len(self.history), "phase": self.phase, "start": self.start, "local_iteration": iteration,
+            "f": float(-self.problem.combined_from(G)), "combined": float(self.problem.combined_from(G)),
+            "feasible": violation <= FEAS_TOL, "max_violation": violation,
+            "best_combined": None if self.best is None else self.best["combined"],
+            "n_evals": int(self.problem.n_evals), "time_s": time.perf_counter() - self.t0}
+        if front_size is not None:
+            entry["front_size"] = front_size
         self.history.append(entry)
         if self.progress is not None:
             self.progress(entry)

@@ -9,8 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cadfeat.design.optimize.evaluator import Evaluator
-from cadfeat.results import JsonDict
+from cadfeat.design.optimize.evaluator import Evaluator, ParetoFront, StartSummary
 
 if TYPE_CHECKING:  # pragma: no cover
     from cadfeat.design.design_space import DesignSpace
@@ -194,7 +193,7 @@ def sobol_starts(p: int, n: int, seed: int) -> np.ndarray:
     return qmc.Sobol(d=p, scramble=True, seed=seed).random_base2(m)[:n]
 
 
-def multistart(ev: Evaluator, config: OptimizerConfig) -> list[JsonDict]:
+def multistart(ev: Evaluator, config: OptimizerConfig) -> list[StartSummary]:
     """Local solves from ``config.starts`` points of a seeded Sobol design of the search box (they cover it
     whatever the initial design), then from the initial design as one extra start; one summary per start.
 
@@ -203,7 +202,7 @@ def multistart(ev: Evaluator, config: OptimizerConfig) -> list[JsonDict]:
     the answer does not depend on where the part's current values happen to be (issue 16)."""
     u0 = ev.to_u(ev.x_base)
     starts = np.vstack([sobol_starts(u0.size, config.starts, config.seed), u0[None]])
-    summaries: list[JsonDict] = []
+    summaries: list[StartSummary] = []
     for k, u in enumerate(starts):
         ev.start = k
         u_end = local_solve(ev, u, config)
@@ -242,7 +241,7 @@ def global_solve(ev: Evaluator, config: OptimizerConfig) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------- Pareto
-def pareto_solve(ev: Evaluator, config: OptimizerConfig) -> JsonDict:
+def pareto_solve(ev: Evaluator, config: OptimizerConfig) -> ParetoFront:
     """NSGA-II (pymoo, seeded) on the normalised objectives; the front and its max-min point."""
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.callback import Callback
@@ -257,7 +256,7 @@ def pareto_solve(ev: Evaluator, config: OptimizerConfig) -> JsonDict:
         def __init__(self) -> None:
             super().__init__(n_var=ev.free.size, n_obj=use.size, n_ieq_constr=n_cons, xl=0.0, xu=1.0)
 
-        def _evaluate(self, U: np.ndarray, out: JsonDict, *args: Any, **kwargs: Any) -> None:
+        def _evaluate(self, U: np.ndarray, out: dict[str, np.ndarray], *args: object, **kwargs: object) -> None:
             G, C = ev.batch(U)
             out["F"] = -problem.normalised(G)[:, use]
             if n_cons:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import re
 from typing import ClassVar, Self
 
-from pydantic import ValidationInfo, field_validator, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from cadfeat.study.settings._base import Settings, Tuple, boolean, choice, integer, number, reject
 
@@ -39,7 +39,8 @@ class AddTargetsSettings(Settings):
 
     section: ClassVar[str] = "add_targets"
 
-    faces: Tuple[str] = choice(..., FACE_TEXT, description="the planar faces new holes may be drilled into")
+    faces: Tuple[str] = Field(..., description="the planar faces new holes may be drilled into",
+                              json_schema_extra={"x-allowed": FACE_TEXT})  # (required: no default)
     keepout_boxes: Tuple[Tuple[float]] = choice(
         (), "a list of boxes [xmin, ymin, zmin, xmax, ymax, zmax] (mm, part frame), each min < max",
         description="regions no added hole's rim may enter (e.g. a motor's outline), plus [constraints] ligament_mm")

@@ -73,9 +73,8 @@ class _CameraTable(Settings):
         if limits is not None:
             for side in ("width", "height"):
                 check_limit(side, given.get(side), limits, "image_side_px", "pixels")
-            if isinstance(given.get("width"), int) and isinstance(given.get("height"), int):
-                check_limit("width * camera.height", given["width"] * given["height"], limits, "image_pixels",
-                            "pixels")
+            if isinstance(width := given.get("width"), int) and isinstance(height := given.get("height"), int):
+                check_limit("width * camera.height", width * height, limits, "image_pixels", "pixels")
         if self.preset is not None and self.calibration is not None:
             raise reject("calibration", "given together with camera.preset", "one of preset or calibration")
         if self.preset is None and self.calibration is None:
@@ -86,7 +85,7 @@ class _CameraTable(Settings):
         self._camera = self._camera_of(given)
         return self
 
-    def _camera_of(self, given: dict[str, Any]) -> Camera:
+    def _camera_of(self, given: dict[str, object]) -> Camera:
         overrides = {k: v for k, v in given.items() if k in CAMERA_FIELDS}
         try:
             return build_camera(overrides, self.preset, self.calibration)
@@ -102,14 +101,16 @@ class _CameraTable(Settings):
         return self._camera
 
 
-def _field(name: str, hint: object) -> tuple[object, Any]:
+def _field(name: str, hint: object) -> tuple[object, object]:
     """A ``Camera`` field as an optional study key of the same type (strict; tuples as TOML arrays)."""
     union = typing.get_origin(hint) in (typing.Union, types.UnionType)
     kind = next(a for a in typing.get_args(hint) if a is not type(None)) if union else hint
     if typing.get_origin(kind) is tuple:
-        return cast(Any, Tuple[Finite]) | None, choice(None, "a list of finite numbers", description=f"Camera.{name}")
+        return (typing.Optional[Tuple[Finite]],  # noqa: UP045 (a runtime type, not an annotation)
+                choice(None, "a list of finite numbers", description=f"Camera.{name}"))
     if kind is float:
-        return cast(Any, Finite) | None, choice(None, "a finite number", description=f"Camera.{name}")
+        return (typing.Optional[Finite],  # noqa: UP045 (a runtime type, not an annotation)
+                choice(None, "a finite number", description=f"Camera.{name}"))
     if kind is int:
         return int | None, choice(None, "an integer", description=f"Camera.{name}")
     if kind is str:
@@ -121,5 +122,6 @@ _HINTS = typing.get_type_hints(Camera)
 CameraSettings = create_model("CameraSettings", __base__=_CameraTable, __module__=__name__,
                               __doc__="``[camera]``: ``preset`` or ``calibration`` and any ``Camera`` field "
                                       "(an override), or all of fx, fy, cx, cy, width, height.",
+                              # (create_model takes its field definitions untyped: pydantic's dynamic API)
                               **{f: cast(Any, _field(f, _HINTS[f])) for f in CAMERA_FIELDS})
 """``[camera]``: the ``_CameraTable`` keys plus one optional key per ``Camera`` field."""

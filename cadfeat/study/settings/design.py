@@ -12,11 +12,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Annotated, Any, ClassVar, TypeGuard, cast
+from typing import Annotated, ClassVar, TypeGuard, cast
 
-from pydantic import Field, ValidationInfo, WithJsonSchema, field_validator, model_validator
+from pydantic import Field, JsonValue, ValidationInfo, WithJsonSchema, field_validator, model_validator
 
-from cadfeat.settings import Settings, boolean, context_of, number, range_text, reject, validate_nested
+from cadfeat.settings import (
+    Settings,
+    ValidationContext,
+    boolean,
+    context_of,
+    number,
+    range_text,
+    reject,
+    validate_nested,
+)
 from cadfeat.study.part_parameters import PartParameter
 
 __all__ = ["DesignSpec", "HoleSpec", "ParameterSpec", "Selector"]
@@ -24,9 +33,9 @@ __all__ = ["DesignSpec", "HoleSpec", "ParameterSpec", "Selector"]
 Selector = int | str | tuple[float, float, float]
 """A hole: 1-based index, name ("H2") or position (x, y, z) in mm (part frame)."""
 _SELECTOR_TEXT = "a 1-based hole index, a hole name (\"H2\") or a position [x, y, z] in mm"
-_SELECTOR_SCHEMA: dict[str, Any] = {"anyOf": [{"type": "integer", "minimum": 1}, {"type": "string", "minLength": 1},
-                                              {"type": "array", "items": {"type": "number"}, "minItems": 3,
-                                               "maxItems": 3}]}
+_SELECTOR_SCHEMA: dict[str, JsonValue] = {"anyOf": [
+    {"type": "integer", "minimum": 1}, {"type": "string", "minLength": 1},
+    {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}]}
 
 
 def _is_list(value: object) -> TypeGuard[list[object]]:
@@ -99,7 +108,7 @@ class HoleSpec(Settings):
             raise reject("", "neither move nor resize is true", "move = true and/or resize = true")
         return self
 
-    def echo(self) -> dict[str, Any]:
+    def echo(self) -> dict[str, object]:
         return {"select": _echo_selector(self.select), "move": self.move, "resize": self.resize,
                 "max_offset_mm": self.max_offset_mm}
 
@@ -155,7 +164,7 @@ class ParameterSpec(Settings):
         return {"lower": lo, "upper": hi, "standard_sizes": sizes, "start": start, "name": p.name,
                 "default": p.default, "unit": p.unit, "is_int": p.is_int}
 
-    def echo(self) -> dict[str, Any]:
+    def echo(self) -> dict[str, object]:
         return {"lower": self.lower, "upper": self.upper,
                 **({"standard_sizes": list(self.standard_sizes)} if self.standard_sizes else {}),
                 **({"start": self.start} if self.start is not None else {})}
@@ -176,7 +185,7 @@ def _bound(table: Mapping[str, object], which: str, p: PartParameter) -> float |
     return v
 
 
-_PARAMETERS_SCHEMA: dict[str, Any] = {
+_PARAMETERS_SCHEMA: dict[str, JsonValue] = {
     "anyOf": [{"type": "array", "items": {"type": "string"}},
               {"type": "object", "additionalProperties": {
                   "type": "object", "additionalProperties": False,
@@ -184,7 +193,7 @@ _PARAMETERS_SCHEMA: dict[str, Any] = {
                                  "standard_sizes": {"type": "array", "items": {"type": "number"}},
                                  "start": {"type": "number"}}}}],
     "description": "script parts: the parameters that vary (names, or name = {lower, upper, standard_sizes, start})"}
-_HOLES_SCHEMA: dict[str, Any] = {
+_HOLES_SCHEMA: dict[str, JsonValue] = {
     "type": "array", "minItems": 1, "description": "STEP parts: the holes that move or are resized",
     "items": {"type": "object", "additionalProperties": False, "required": ["select"],
               "properties": {"select": _SELECTOR_SCHEMA, "move": {"type": "boolean"}, "resize": {"type": "boolean"},
@@ -263,9 +272,9 @@ class DesignSpec(Settings):
             out["view_direction"] = tuple(v / norm for v in view)
         return out
 
-    def echo(self) -> dict[str, Any]:
+    def echo(self) -> dict[str, object]:
         """The design as plain data for results.json ``inputs.design`` (loads again as the same design)."""
-        out: dict[str, Any] = {}
+        out: dict[str, object] = {}
         if self.parameters:
             out["parameters"] = {p.name: p.echo() for p in self.parameters}
         if self.holes:
@@ -279,14 +288,14 @@ class DesignSpec(Settings):
         return out
 
 
-def _too_many(n: int, key: str, what: str, context: Mapping[str, Any]) -> None:
-    limit = cast("dict[str, int]", context.get("limits", {})).get("design_variables")
+def _too_many(n: int, key: str, what: str, context: ValidationContext) -> None:
+    limit = context.get("limits", {}).get("design_variables")
     if limit is not None and n > limit:
         raise reject(key, f"{n} {what} is more than the limit of {limit:,}",
                      f"at most {limit:,} (cadfeat.study.schema.LIMITS['design_variables'])")
 
 
-def _parameters(raw: object, context: Mapping[str, Any]) -> tuple[ParameterSpec, ...]:
+def _parameters(raw: object, context: ValidationContext) -> tuple[ParameterSpec, ...]:
     params = cast("Mapping[str, PartParameter]", context.get("part_params", {}))
     part = context.get("part", "the part")
     names_allowed = ", ".join(params) or "(the part has no parameters)"
@@ -317,7 +326,7 @@ def _parameters(raw: object, context: Mapping[str, Any]) -> tuple[ParameterSpec,
     return tuple(out)
 
 
-def _holes(raw: object, context: Mapping[str, Any]) -> tuple[HoleSpec, ...]:
+def _holes(raw: object, context: ValidationContext) -> tuple[HoleSpec, ...]:
     if _is_list(raw):
         _too_many(len(raw), "holes", "holes", context)
     if not _is_list(raw) or not raw:

@@ -9,7 +9,7 @@ vector (deg) or a unit quaternion [x, y, z, w] (converted to the rotation vector
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, ClassVar, cast
+from typing import ClassVar, TypeVar, cast
 
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
@@ -29,8 +29,12 @@ Vector = Tuple[Finite]
 """A list of finite numbers (mm, deg, …); its length is checked by the field's validator."""
 
 
-def vector(default: Any, n: int, *, description: str = "") -> Any:
-    """A field of ``n`` finite numbers (a TOML array); integers become floats."""
+F = TypeVar("F")
+
+
+def vector(default: F, n: int, *, description: str = "") -> F:
+    """A field of ``n`` finite numbers (a TOML array); integers become floats (a field definition typed as its
+    value, as ``cadfeat.settings.number``)."""
     return Field(default, min_length=n, max_length=n, description=description,
                  json_schema_extra={"x-allowed": f"a list of {n} finite numbers"})
 
@@ -60,7 +64,7 @@ class StudyInfo(Settings):
         context = context_of(info)
         if not isinstance(data, dict) or "base_dir" not in context:
             return cast(object, data)
-        table = cast("dict[str, Any]", data)
+        table = cast("dict[str, object]", data)
         part = table.get("part")
         if not isinstance(part, str):
             return table

@@ -6,12 +6,11 @@ Units are in the key names (mm, percent, deg, s, px², grey levels on the 0..255
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Literal
+from typing import ClassVar, Literal
 
-from pydantic import ValidationInfo, field_validator, model_validator
+from pydantic import field_validator, model_validator
 
 from cadfeat.cell import PER_AXIS, per_axis
-from cadfeat.cell.defaults import RENDERERS
 from cadfeat.design.shop import HOLE_SIZE_TABLES, hole_sizes
 from cadfeat.study.settings._base import (
     Settings,
@@ -21,19 +20,13 @@ from cadfeat.study.settings._base import (
     integer,
     number,
     reject,
-    seed_from_context,
 )
-from cadfeat.vision.closed_loop import TrackingConfig
-from cadfeat.vision.estimate import FilterTuning
-from cadfeat.vision.images import SensorModel
+from cadfeat.vision.config import CHECK_MODES, TRACKING_ESTIMATORS, TrackingConfig
 
 __all__ = ["CHECK_MODES", "ROBUST_STATISTICS", "SYMMETRIES", "TRACKING_ESTIMATORS", "ConstraintSettings",
            "RobustnessSettings", "ShopSettings", "TrackingSettings"]
 
 SYMMETRIES = ("none", "x", "y", "xy")
-TRACKING_ESTIMATORS = ("ekf", "iekf", "pnp")
-CHECK_MODES = ("fast", "full", "off", "pbr")
-"""``[tracking] check``: the closed loop inside ``cadfeat run`` (``cadfeat.study.closed_loop_check``)."""
 
 
 class ConstraintSettings(Settings):
@@ -118,7 +111,7 @@ class RobustnessSettings(Settings):
 
     @field_validator("path_offset_mm")
     @classmethod
-    def _mm(cls, value: Any) -> float | tuple[float, ...]:
+    def _mm(cls, value: object) -> float | tuple[float, ...]:
         return per_axis(value, 100.0)
 
     @model_validator(mode="after")
@@ -129,75 +122,5 @@ class RobustnessSettings(Settings):
         return self
 
 
-_CL, _FT, _SM = TrackingConfig, FilterTuning, SensorModel  # the vision defaults are the section's defaults
-
-
-class TrackingSettings(Settings):
-    """``[tracking]``: the closed-loop check of ``cadfeat track`` (``cadfeat.vision.closed_loop.TrackingConfig``,
-    built by ``cadfeat.study.tracking.tracking_config``; the defaults are vision's own).
-
-    Estimators, Monte-Carlo runs and seed (default: the study's); sensor: grey-level noise σ (0..255 scale),
-    thin-lens defocus on/off, exposure (s, 0 = no motion blur); initial pose error (mm, deg); filter tuning
-    (thesis §6.3.3): R = r I (px²), Q = diag(0, q, …) on the linear (mm²/s²) and angular (rad²/s²) rates, IEKF
-    iterations n and threshold τ; every ``frame_step``-th trajectory sample; statistics after ``settle_frames``;
-    convergence bounds; association gate (px); rim ellipse-centre model; significance ``alpha`` of the paired
-    test, and the smallest change of the median RMS error (percent of the error before) that a verdict counts.
-    ``check``: the closed loop inside ``cadfeat run`` — "fast" (PnP and IEKF, few runs and frames), "full" (these
-    settings) or "off"; unset: full when the study has a ``[tracking]`` table, else fast
-    (``cadfeat.study.closed_loop_check``).
-    ``renderer``: "raster" (VTK: holes painted dark, a headlight) or "pbr" (Mitsuba 3: the ``[cell]``'s light,
-    material and hole ends; ``spp`` samples per pixel).
-    The cell it runs in is the study's ``[cell]`` (``cadfeat.cell.Cell``): each run's part placement (σ = 0.4 t of the
-    placement tolerance), the sensor noise σ, the light's gain σ, the detector and its gate; the initial error's
-    direction is drawn per run too. Keys that moved to ``[cell]`` are refused with where to (``moved``).
-    """
-
-    section: ClassVar[str] = "tracking"
-    moved: ClassVar[dict[str, str]] = {
-        "placement_mm": "[cell] placement_position_mm = t, the part's placement tolerance ±t per axis (mm); "
-                        "the closed loop draws σ = 0.4 t (t = 0.5 gives the former default 0.2)",
-        "placement_deg": "[cell] placement_angle_deg = t, the part's placement tolerance ±t per axis (deg); "
-                         "the closed loop draws σ = 0.4 t (t = 0.5 gives the former default 0.2)",
-        "noise_grey": "[cell] noise_sigma_grey (σ of the sensor's grey-level noise)",
-        "gate_px": "[cell] gate_px (the association gate, px)",
-        "gain_sigma": "[cell] gain_sigma (relative σ of the light's gain from run to run)",
-    }
-
-    estimators: Tuple[Literal["ekf", "iekf", "pnp"]] = choice(
-        _CL.estimators, f"a non-empty list of distinct names from {', '.join(TRACKING_ESTIMATORS)}")
-    runs: int = integer(_CL.runs, 1, 10_000)
-    seed: int = integer(_CL.seed, 0, 2**32 - 1)
-    defocus: bool = boolean(_SM.defocus)
-    exposure_s: float = number(_SM.exposure_s, 0.0, 1.0)
-    initial_error_mm: float = number(_CL.initial_error_mm, 0.0, 10_000.0)
-    initial_error_deg: float = number(_CL.initial_error_deg, 0.0, 180.0)
-    r_px2: float = number(_FT.r_px2, 0.0, lo_open=True)
-    q_rate_mm2_s2: float = number(_FT.q_rate_mm2_s2, 0.0)
-    q_omega_rad2_s2: float = number(_FT.q_omega_rad2_s2, 0.0)
-    iterations: int = integer(_FT.iterations, 1, 1000)
-    tau: float = number(_FT.tau, 0.0)
-    frame_step: int = integer(_CL.frame_step, 1)
-    settle_frames: int = integer(_CL.settle_frames, 0)
-    converged_mm: float = number(_CL.converged_mm, 0.0, lo_open=True)
-    converged_deg: float = number(_CL.converged_deg, 0.0, lo_open=True)
-    rim_model: bool = boolean(_CL.rim_model)
-    alpha: float = number(_CL.alpha, 0.0, 0.5, lo_open=True)
-    min_change_percent: float = number(100.0 * _CL.min_change, 0.0, 100.0)
-    renderer: Literal["raster", "pbr"] = choice(_CL.renderer, RENDERERS, description="raster: VTK, holes painted "
-                                                "dark; pbr: Mitsuba 3 path tracer with the [cell] light and material")
-    spp: int = integer(_CL.spp, 1, 4096, description="pbr: samples per pixel")
-    check: Literal["fast", "full", "off", "pbr"] | None = choice(
-        None, f"one of {', '.join(CHECK_MODES)}", description="the closed loop inside cadfeat run (unset: full "
-        "with a [tracking] table, else fast)")
-
-    @model_validator(mode="before")
-    @classmethod
-    def _study_seed(cls, data: object, info: ValidationInfo) -> object:
-        return seed_from_context(data, info)
-
-    @field_validator("estimators")
-    @classmethod
-    def _distinct(cls, value: tuple[str, ...]) -> tuple[str, ...]:
-        if not value or len(set(value)) != len(value):
-            raise ValueError("not a non-empty list of distinct names")
-        return value
+TrackingSettings = TrackingConfig
+"""``[tracking]``: ``cadfeat.vision.config.TrackingConfig`` (the closed loop's configuration; one declaration)."""
