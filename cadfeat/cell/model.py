@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from typing import ClassVar, Literal, TypeVar, cast
 
-from pydantic import Field, JsonValue, ValidationInfo, field_validator
+from pydantic import JsonValue, ValidationInfo, field_validator
 from pydantic.fields import FieldInfo
 
 from cadfeat.cell import defaults as D
@@ -74,12 +74,12 @@ F = TypeVar("F")
 
 
 def _stat(field: F, statistic: Literal["bound", "sigma"]) -> F:
-    """A field whose JSON Schema says whether its number is a ± bound or a standard deviation. (Made anew from
-    ``field``'s default, description and JSON Schema extra: ``number``'s bounds do not carry over.)"""
+    """A field whose JSON Schema says whether its number is a ± bound or a standard deviation: ``field`` with
+    its constraints (``number``'s range and finiteness) and ``x-statistic`` added to its JSON Schema extra."""
     info = cast(FieldInfo, field)  # (a settings helper's field definition, typed as its value: settings.F)
     extra = dict(cast("dict[str, JsonValue]", info.json_schema_extra))
     extra["x-statistic"] = statistic
-    return Field(info.default, description=info.description, json_schema_extra=extra)
+    return cast(F, FieldInfo.merge_field_infos(info, json_schema_extra=extra))
 
 
 def _bound(default: PerAxis, what: str) -> PerAxis:

@@ -168,3 +168,11 @@ def test_the_cell_light_and_material_are_sub_tables_with_one_line_errors(tmp_pat
         with pytest.raises(StudyError) as err:
             load_study(study(tmp_path, cell=cell))
         assert where in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(("key", "value"), [("noise_sigma_grey", 500.0), ("noise_spread_grey", -1.0),
+                                            ("gain_sigma", float("nan")), ("gain_sigma", 2.0)])
+def test_a_statistic_out_of_its_range_is_refused_naming_the_key(key, value):
+    """The σ / spread keys keep their ranges (a field marked bound or σ for the JSON Schema once lost them)."""
+    with pytest.raises(Exception, match=rf"cell\.{key}: .* is not allowed; allowed: a number in \["):
+        Cell(**{key: value})
