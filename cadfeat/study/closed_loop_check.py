@@ -160,11 +160,13 @@ def glare_caveat(config: StudyConfig, delivery: Delivery, mode: str, renderer: s
     from cadfeat.cell.material import bores_return_light
 
     problem = delivery.setup.problem
-    maps = problem.glare if hasattr(problem, "glare") else None
+    maps = problem.glare
     if renderer == "pbr" or maps is None or not bores_return_light(config.cell.material):
         return None
     from cadfeat.cad.features import holes_to_arrays
     from cadfeat.design.pose_terms import designs_glare_rate
+    from cadfeat.measures.visibility import facing_margin
+    from cadfeat.poses import points_in_frames, rotate_vectors
 
     T = np.asarray(problem.T_cam_part, float)
     if maps.n_poses != len(T):
@@ -177,9 +179,7 @@ def glare_caveat(config: StudyConfig, delivery: Delivery, mode: str, renderer: s
                                   config.cell.noise_sigma_grey)
         if rate is None:
             return None
-        c_cam = np.einsum("lij,nj->lni", T[:, :3, :3], c) + T[:, None, :3, 3]
-        a_cam = np.einsum("lij,nj->lni", T[:, :3, :3], a)
-        facing = -np.sum(a_cam * c_cam, axis=-1) / np.linalg.norm(c_cam, axis=-1) > np.cos(np.radians(FACING_DEG))
+        facing = facing_margin(points_in_frames(T, c), rotate_vectors(T[:, None], a)) > np.cos(np.radians(FACING_DEG))
         share = np.sum(facing & (rate < GLARE_RATE), axis=0) / np.maximum(np.sum(facing, axis=0), 1)
         named = {h.name or f"hole {j + 1}": round(float(share[j]), 3) for j, h in enumerate(holes)
                  if share[j] >= GLARE_SHARE}
@@ -248,7 +248,7 @@ def start_design(config: StudyConfig, name: str, shape: Shape, holes: Sequence[H
         return None
     threads = 1 if name == "before" else None  # beside the optimiser (one core): the renderer and OpenCV on one
     try:
-        what = {"before": "original", "move_only": "move-only"}.get(name, "recommended")
+        what = DESIGN_WORDS.get(name, "recommended")
         return BackgroundCall(_track_design, (threads, track_arguments(config, spec, (shape, list(holes)))),
                               f"the closed loop of the {what} design")
     except Exception:  # noqa: BLE001 - an optimisation: the check then runs here, where errors are reported
