@@ -147,8 +147,8 @@ def score(setup, x, T, times, tuning, model=None, glare=None, cell=None, added=(
 def added_designs(path: Path, setup) -> tuple[list[np.ndarray], list[str], list[tuple], dict]:
     """(``--added``) The original design with each subset of the greedy sites of a ``[add_targets]`` run's curve
     drilled (results.json ``added_targets.curve.sites``, in their greedy order; the drill's diameter, depth and
-    chamfer from ``added_targets.settings``, the axis from the face of each delivered hole — the outward normal of
-    the face the site lies on): (xs, names, added holes per design, info)."""
+    chamfer from ``added_targets.settings``; each site's axis that of the delivered added hole nearest to it — the
+    outward normal of the face both lie on): (xs, names, added holes per design, info)."""
     from itertools import combinations
 
     from cadfeat.cad.drill_targets import AddedHole
@@ -156,11 +156,12 @@ def added_designs(path: Path, setup) -> tuple[list[np.ndarray], list[str], list[
     at = json.loads(path.read_text())["added_targets"]
     sites = np.asarray(at["curve"]["sites"], float)[:4]
     st = at["settings"]
-    axes = {tuple(np.round(h["centre"], 6)): h["axis"] for h in at["holes"]}
-    face_axis = np.asarray(next(iter(axes.values())), float)
+    centres = np.array([h["centre"] for h in at["holes"]], float)
+    axes = np.array([h["axis"] for h in at["holes"]], float)
+    nearest = np.argmin(np.linalg.norm(sites[:, None] - centres[None], axis=-1), axis=1)
     n_old = len(setup.holes0)
-    holes = [AddedHole(c, face_axis, st["diameter_mm"] / 2, st["depth_mm"], st["chamfer_mm"], f"H{n_old + 1 + i}")
-             for i, c in enumerate(sites)]
+    holes = [AddedHole(c, axes[k], st["diameter_mm"] / 2, st["depth_mm"], st["chamfer_mm"], f"H{n_old + 1 + i}")
+             for i, (c, k) in enumerate(zip(sites, nearest, strict=True))]
     x0 = np.asarray(setup.space.x0, float)
     xs, names, added = [], [], []
     for k in range(len(holes) + 1):

@@ -148,15 +148,16 @@ def designs_glare_rate(glare: GlareMaps | None, cell: Cell, T_cam_part: np.ndarr
     return np.where(np.asarray(through, bool), 1.0, rate)
 
 
-#: The cells whose g_POSE models a physically based panel has checked (docs/results.md "Under physical light"):
-#: (detector, material, light kind, hole ends) → what the panel found. A study in another cell is told so.
+#: The cells whose g_POSE models a physically based panel has checked (docs/results.md "Under physical light"),
+#: by the calibration's file key (``measures.pose_models.model_key``) → what the panel found. A study in another
+#: cell is told so.
 CONFIRMED_CELLS = {
-    ("cadfeat", "machined_aluminium", "ring", "as_modelled"):
+    "cadfeat-pbr-machined_aluminium-ring-as_modelled":
         "16 designs ranked as the physical loop ranks them (Spearman ρ 0.74–0.99)",
 }
 #: The cells whose models a panel found wrong, and how.
 FAILED_CELLS = {
-    ("cadfeat", "machined_aluminium", "dome", "as_modelled"):
+    "cadfeat-pbr-machined_aluminium-dome-as_modelled":
         "on the industrial plate they called blind dowels undetectable that the renders find in 94 % of frames "
         "(Spearman ρ 0.31–0.58)",
 }
@@ -165,7 +166,9 @@ FAILED_CELLS = {
 def model_confirmation(cell: Cell) -> str | None:
     """A warning when g_POSE's models for ``cell`` have not been confirmed against the physically based closed
     loop (``CONFIRMED_CELLS``), saying whether a panel found them wrong (``FAILED_CELLS``); None when they were."""
-    key = (str(cell.detector), str(cell.material.name), str(cell.light.kind), str(cell.hole_ends))
+    from cadfeat.measures.pose_models import model_key
+
+    key = model_key(str(cell.detector), "pbr", str(cell.material.name), str(cell.light.kind), str(cell.hole_ends))
     if key in CONFIRMED_CELLS:
         return None
     where = f"{cell.detector} detector, {cell.material.name}, {cell.light.kind} light, hole ends {cell.hole_ends}"
