@@ -116,11 +116,13 @@ class PbrRenderer:
         self.sensor = sensor or Sensor()
         self._frame, self.crop = seed, crop
         self._tmp = tempfile.TemporaryDirectory(prefix="cadfeat_pbr_")
-        self._part, self._corners = self._load_part(_shaped_holes(shape, self.holes, hole_ends))
+        self._part, self._corners, self._hull = self._load_part(_shaped_holes(shape, self.holes, hole_ends))
         self._emitter = emitter_mesh_ply(self.light, Path(self._tmp.name) / "emitter.ply")
         self._geometry()
 
-    def _load_part(self, shape: ShapeLike) -> tuple[Any, np.ndarray]:
+    def _load_part(self, shape: ShapeLike) -> tuple[Any, np.ndarray, np.ndarray]:
+        """(the loaded Mitsuba mesh, its bounding box's 8 corners (near/far planes), its convex hull's vertices
+        (``part_window``)), part frame, mm."""
         import mitsuba as mi
 
         vertices, tris, normals = part_mesh_arrays(shape, TOLERANCE_MM, ANGULAR_TOLERANCE_RAD)
@@ -129,8 +131,7 @@ class PbrRenderer:
                              "bsdf": bsdf_dict(self.material)})
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
         corners = np.array(np.meshgrid(*zip(lo, hi, strict=True), indexing="ij")).reshape(3, -1).T
-        self._hull = _hull_points(vertices)
-        return part, corners
+        return part, corners, _hull_points(vertices)
 
     def _geometry(self) -> None:
         """The pinhole camera (padded for the distortion remap) and the square-pixel one Mitsuba renders."""
@@ -170,7 +171,7 @@ class PbrRenderer:
         scene = self.scene(T_cam_part, spp=spp, crop=crop, decimate=decimate)
         rgb = np.asarray(mi.render(scene, spp=spp or self.spp, seed=self._frame), dtype=np.float32)
         self._frame += 1
-        return (rgb[..., :3] @ LUMINANCE_RGB) * np.float32(math.pi)
+        return _film_radiance(rgb)
 
     def part_window(self, T_cam_part: np.ndarray) -> tuple[int, int, int, int] | None:
         """(x, y, w, h) of the render film (square pixels, before the row resampling and the distortion) holding
@@ -197,9 +198,8 @@ class PbrRenderer:
         window = self.part_window(T_cam_part) if self.crop else None
         if window is None:
             return self.render_raw(T_cam_part)
-        rgb = np.full(3, background_radiance(self.light), dtype=np.float32)   # as ``render_raw`` reads a miss
-        film = np.full((self.render_height, self.pinhole.width), (rgb @ LUMINANCE_RGB) * np.float32(math.pi),
-                       dtype=np.float32)
+        miss = _film_radiance(np.full(3, background_radiance(self.light), dtype=np.float32))  # as render_raw reads it
+        film = np.full((self.render_height, self.pinhole.width), miss, dtype=np.float32)
         x, y, w, h = window
         if w and h:
             film[y:y + h, x:x + w] = self.render_raw(T_cam_part, crop=window)
@@ -267,6 +267,11 @@ def _shaped_holes(shape: ShapeLike, holes: Sequence[Hole], hole_ends: str) -> An
     from cadfeat.cad.hole_ends import with_hole_ends
 
     return with_hole_ends(shape, holes, hole_ends)
+
+
+def _film_radiance(rgb: np.ndarray) -> np.ndarray:
+    """Radiance × π (luminance, ``LUMINANCE_RGB``) of Mitsuba's RGB(A) film values (..., ≥ 3), float32."""
+    return (rgb[..., :3] @ LUMINANCE_RGB) * np.float32(math.pi)
 
 
 def _hull_points(vertices: np.ndarray) -> np.ndarray:
