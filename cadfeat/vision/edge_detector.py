@@ -32,6 +32,12 @@ Method (``detect_rims``), per hole with a prior ellipse (the closed loop's predi
    moved less than ``reach_px``.
 4. The fit is repeated once on rays of the first fit with the short reach ``refine_reach_px`` (rays normal to
    the true rim; neighbouring edges outside the reach are no longer seen); its seed keeps the prior's shape.
+   It reads the image smoothed by only ``fine_sigma_px``: a shallow blind hole in machined metal seen
+   obliquely shows its far wall as a dark crescent about a pixel wide between the face and the mirror floor,
+   and smoothed by ``smooth_sigma_px`` the face-to-wall step merges into the stronger wall-to-floor one, so the
+   fit is pulled inwards on that arc (0.38 px on ``tests/vision/test_detectors.py``'s ``mirror_thin``, 0.17 px
+   at 0.5). Where the sharper image gives too few edges (a wall lit to nearly the face's grey, a step the
+   coarse smoothing lifts out of the noise), the refinement reads the coarse one, as the first fit.
 5. The **surround test** (as ``detection``'s, sign-free): the grey levels on the ellipse grown by
    ``ring_gap_px`` (the face just outside the rim) must be one homogeneous face — the spread (98th − 2nd
    percentile) of the levels minus their first harmonic (the light's smooth fall-off across the hole,
@@ -61,8 +67,13 @@ grey plastic (0.5 mm chamfer)       208 / 0.09    179 / 0.87    57 / 0.11    0
 =================================== ============= ============= ============ =========
 
 With the prior shifted by (2, −1.5) or (−3, 2) px: aluminium 199 / 0.24 and 206 / 0.22, plastic 206 / 0.11
-both. The largest errors are the blind targets' mirror floors on aluminium (RMS 0.36 px): their thin far wall,
-lit to nearly the face's grey, hides the rim on that arc and the wall/floor boundary there pulls the fit.
+both. The largest errors were the blind targets' mirror floors on aluminium (RMS 0.36 px): their far wall, a
+dark crescent about a pixel wide, merged into the wall/floor edge in the smoothed image and pulled the fit
+inwards. That table is of the single-scale detector (every step at ``smooth_sigma_px`` 0.8); with step 4 at
+``fine_sigma_px`` 0.5, on 20 frames of the flagship's original (fast check poses, 16 spp, nominal placement)
+aluminium 100 → 108 of the rims found, RMS per hole 0.14–0.30 → 0.11–0.21 px (the shallow target 0.30 →
+0.21), plastic 124 → 124, 0.06–0.15 → 0.04–0.13 px; in the flagship's 16-run physical check (docs/results.md)
+aluminium 93 → 96 % of the expected rims, the shallow target 0.38 → 0.28 px RMS.
 
 Limits (measured, tests/vision/test_detectors.py): a prior off by more than ``reach_px`` or whose axes are off
 by more than ``size_ratio`` finds nothing (never another hole); a wall lit to exactly the face's grey hides
@@ -97,12 +108,14 @@ MAD_FACTOR = 3.5
 
 @dataclass(frozen=True)
 class RimSettings:
-    """Parameters of ``detect_rims`` (module docstring): lengths in px, gradients in grey levels per px."""
+    """Parameters of ``detect_rims`` (module docstring): lengths in px, gradients in grey levels per px;
+    ``smooth_sigma_px`` the Gaussian of steps 1–3, ``fine_sigma_px`` that of the refinement (step 4)."""
 
     rays: int = 96
     reach_px: float = 6.0
     refine_reach_px: float = 2.5
     smooth_sigma_px: float = 0.8
+    fine_sigma_px: float = 0.5
     min_gradient: float = 3.0
     noise_factor: float = 6.0
     rel_gradient: float = 0.2
@@ -356,6 +369,25 @@ def _grey(image: np.ndarray, sigma_px: float) -> np.ndarray:
     return cv2.GaussianBlur(img, (0, 0), sigma_px) if sigma_px > 0 else img
 
 
+def _refined(image: np.ndarray, img: np.ndarray, noise: float, start: tuple[np.ndarray, np.ndarray, np.ndarray],
+             shape: tuple[np.ndarray, np.ndarray], cfg: RimSettings) -> list[_Rim | None]:
+    """Step 4: the fit repeated on rays of the first fits ``start`` (centres, axes, angles) with the short reach,
+    in the image smoothed by ``fine_sigma_px`` (a thin dark wall between the face and a mirror floor stays
+    resolved); where that finds too few edges (a rim lit to nearly the face's grey, whose step the coarse
+    smoothing lifts out of the noise), in ``img`` smoothed by ``smooth_sigma_px`` (``noise`` its gradient noise)."""
+    fine: list[_Rim | None] = [None] * len(start[0])
+    if cfg.fine_sigma_px != cfg.smooth_sigma_px:
+        sharp = _grey(image, cfg.fine_sigma_px)
+        fine = _fit_rims(sharp, gradient_noise(sharp), *start, cfg.refine_reach_px, cfg, shape=shape)
+    redo = [j for j, rim in enumerate(fine) if rim is None]
+    if redo:
+        again = _fit_rims(img, noise, *(a[redo] for a in start), cfg.refine_reach_px, cfg,
+                          shape=(shape[0][redo], shape[1][redo]))
+        for j, rim in zip(redo, again, strict=True):
+            fine[j] = rim
+    return fine
+
+
 def detect_rims(image: np.ndarray, predicted: Ellipse | None, *, camera: Camera | None = None,
                 origin_px: ArrayLike = (0.0, 0.0), settings: RimSettings | None = None) -> Detections:
     """Rims found as the outermost step edge around each prior ellipse (module docstring) in a grey (H, W)
@@ -376,11 +408,10 @@ def detect_rims(image: np.ndarray, predicted: Ellipse | None, *, camera: Camera 
             and rim.axes[1] >= cfg.min_minor_px]
     if not keep:
         return _empty()
-    coarse = [first[j] for j in keep]
-    fine = _fit_rims(img, noise, np.array([r.centre for r in coarse if r is not None]),
-                     np.array([r.axes for r in coarse if r is not None]),
-                     np.array([r.angle for r in coarse if r is not None]), cfg.refine_reach_px, cfg,
-                     shape=(ax[keep], ang[keep]))
+    coarse = [r for r in (first[j] for j in keep) if r is not None]
+    start = (np.array([r.centre for r in coarse]), np.array([r.axes for r in coarse]),
+             np.array([r.angle for r in coarse]))
+    fine = _refined(image, img, noise, start, (ax[keep], ang[keep]), cfg)
     rows = []
     for j, rim in zip(keep, fine, strict=True):
         if rim is None or not _accepted(rim, c[j], ax[j], img, cfg):
