@@ -5,7 +5,8 @@ Renders the original and the optimised design of a study's output folder with Mi
 light; the material given here), the fast check's frames and 8 paired runs (each at its own part placement, the
 same seeds for both designs), detects the holes with cadfeat's rim-edge detector, EDCircles and SimpleBlobDetector on
 the SAME images, tracks with PnP and the IEKF, and prints per detector the holes found per frame and the median
-per-run RMS errors with the paired Wilcoxon p-values. Run:
+per-run RMS errors with the paired Wilcoxon p-values, then per hole the share of its expected frames in which it
+was found and its centre RMS (px) against the rim at the run's true pose. Run:
 
     python tools/physical_check.py studies/nema17_mount.toml exports/nema17_mount --material grey_plastic
 
@@ -28,6 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from cadfeat.cell.material import Material  # noqa: E402
+from cadfeat.measures.rim_centre import measure  # noqa: E402
 from cadfeat.study.closed_loop_check import fast_spec  # noqa: E402
 from cadfeat.study.schema import load_study  # noqa: E402
 from cadfeat.study.tracking import _named, _scene, exported_designs  # noqa: E402
@@ -48,6 +50,7 @@ def design_runs(config, design, spec) -> dict:
                      renderer="pbr", render_options=tc.render_options())
     T_runs, runs_obs = cl.run_observations(camera, obs, T, tc)
     expected = cl.expected_visible(camera, obs, T)
+    truth = np.stack([measure(camera, T_r, obs.centres, obs.normals, obs.radii, jacobian=False)[0] for T_r in T_runs])
     out = {}
     for detector in DETECTORS:
         config_d = tc.in_cell(tc.cell.replace(detector=detector))
@@ -56,9 +59,38 @@ def design_runs(config, design, spec) -> dict:
         found = np.all(np.isfinite(pixels), -1) & expected
         out[detector] = {"found_per_frame": float(found.sum(-1).mean()),
                          "expected_per_frame": float(expected.sum(-1).mean()),
+                         "holes": per_hole(obs.names, pixels, truth, expected),
                          **{m: {"trans": [x["trans_mm_rms"] for x in s], "rot": [x["rot_deg_rms"] for x in s]}
                             for m, s in summaries.items()}}
     return out
+
+
+def per_hole(names: list[str], pixels: np.ndarray, truth: np.ndarray, expected: np.ndarray) -> dict:
+    """Per hole expected in some frame: the share of its expected (run, frame)s in which it was found and the
+    RMS and mean (u, v) of the found centres' error (px) against the rim centre at each run's true pose
+    (``measures.rim_centre.measure``, the quantity the detectors estimate)."""
+    exp = np.broadcast_to(expected, pixels.shape[:3])
+    out = {}
+    for j, name in enumerate(names):
+        if not exp[..., j].any():
+            continue
+        hit = np.isfinite(pixels[..., j, 0]) & exp[..., j]
+        err = (pixels[..., j, :] - truth[..., j, :])[hit]
+        out[name] = {"found": float(hit.sum() / exp[..., j].sum()),
+                     "rms_px": float(np.sqrt(np.mean(np.sum(err ** 2, -1)))) if len(err) else None,
+                     "mean_px": err.mean(0).round(3).tolist() if len(err) else None}
+    return out
+
+
+def hole_lines(before: dict, after: dict) -> list[str]:
+    """Per detector and design, each expected hole's found share and centre RMS (px)."""
+    lines = []
+    for d in DETECTORS:
+        for name, runs in (("before", before[d]), ("after", after[d])):
+            cells = [f"{h} {v['found']:.2f}" + (f"/{v['rms_px']:.2f}px" if v["rms_px"] is not None else "")
+                     for h, v in runs["holes"].items()]
+            lines.append(f"  {d:9s} {name:6s} found/RMS: " + ", ".join(cells))
+    return lines
 
 
 def summary(before: dict, after: dict) -> list[str]:
@@ -100,6 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{config.study.name}: {config.cell.material.name}, {config.cell.light.kind} light, {args.spp} spp, "
           f"{spec.runs} paired runs")
     print("\n".join(summary(runs["before"], runs["after"])))
+    print("\n".join(hole_lines(runs["before"], runs["after"])))
     if args.json:
         args.json.write_text(json.dumps(runs, indent=1), encoding="utf-8")
     return 0
