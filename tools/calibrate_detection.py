@@ -64,7 +64,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from cadfeat.camera import Camera  # noqa: E402
-from cadfeat.measures.pose_models import PoseModels, hole_geometry, model_key  # noqa: E402
+from cadfeat.measures.pose_models import DEEP_RATIO, SHALLOW_RATIO, PoseModels, hole_geometry, model_key  # noqa: E402
 
 DATA = ROOT / "cadfeat" / "measures" / "data"
 CAMERA = Camera(fx=800.0, fy=800.0, cx=160.0, cy=120.0, width=320, height=240, focus_distance_mm=300.0)
@@ -441,8 +441,17 @@ def fit(rows: list[dict], floor: bool | None = None) -> PoseModels:
     o0 = float(RIM_HIDDEN_MAX)
     off_fit = np.zeros(len(rows))
     off_fit[np.flatnonzero(ok)] = A @ np.array([k_b, k_w, k_d, k_i])
-    unexplained = offset_unexplained_px(a, ok & np.isfinite(a["offset_axis_px"]), off_fit)
-    return replace(base, offset_rms_px=unexplained, m0_px=float(m0), w_m_px=float(w_m), kappa_blur=float(kappa),
+    measured = ok & np.isfinite(a["offset_axis_px"])
+    cham = np.nan_to_num(a["chamfer_mm"], nan=0.0) > 0
+    blind = a["through"] == 0
+    described = measured & ~cham & (~blind | (a["depth_ratio"] >= DEEP_RATIO - 1e-9))
+    shallow = measured & ~cham & blind & (a["depth_ratio"] <= SHALLOW_RATIO + 1e-9)
+    unexplained = offset_unexplained_px(a, described, off_fit)
+    by_class = {"offset_rms_shallow_px": offset_unexplained_px(a, shallow, off_fit) if shallow.any() else None,
+                "offset_rms_chamfer_px": offset_unexplained_px(a, measured & cham, off_fit)
+                if (measured & cham).any() else None}
+    return replace(base, offset_rms_px=unexplained, **by_class, m0_px=float(m0), w_m_px=float(w_m),
+                   kappa_blur=float(kappa),
                    c0=float(c0), w_c=float(w_c), sigma0_px=float(s0), k_sigma=float(k_s), w0_px=float(w0),
                    k_b=float(k_b), k_d=float(k_d), k_w_px=float(k_w), k_i=float(k_i),
                    k_alias_px=k_alias, alias_floor_px=alias_floor,
@@ -495,7 +504,8 @@ def residuals(rows: list[dict], model: PoseModels) -> dict[str, dict[str, float]
                      np.ones((1, n), bool))
     p = model.detection_probability(g, a["hidden"][None], depth_ratio=a["depth_ratio"][None],
                                     through=a["through"][None] > 0)[0]
-    noise, off = replace(model, k_alias_px=0.0, alias_floor_px=0.0, offset_rms_px=0.0).measurement_model(
+    noise, off = replace(model, k_alias_px=0.0, alias_floor_px=0.0, offset_rms_px=0.0, offset_rms_shallow_px=None,
+                         offset_rms_chamfer_px=None).measurement_model(
         g, depth_ratio=a["depth_ratio"][None], through=a["through"][None] > 0, noise_grey=NOISE_GREY)
     alias = np.sqrt(model.alias_floor_px ** 2 + model.k_alias_px ** 2 / np.maximum(a["rim_px"], 1.0))
     cham = np.nan_to_num(a["chamfer_mm"], nan=0.0)
@@ -591,7 +601,7 @@ def predict(model: PoseModels, hole, T: np.ndarray, blur: float) -> dict[str, fl
     geo = geo._replace(blur_px=np.full((1, 1), blur))
     ratio, thr = [float(hole.depth_mm) / (2 * float(hole.radius_mm))], [bool(hole.through)]
     p = float(model.detection_probability(geo, np.zeros((1, 1)), depth_ratio=ratio, through=thr)[0, 0])
-    sig, off = model.measurement_model(geo, depth_ratio=ratio, through=thr, noise_grey=NOISE_GREY)
+    sig, off = model.measurement_model(geo, depth_ratio=ratio, kinds=[hole.kind], through=thr, noise_grey=NOISE_GREY)
     return {"p": p, "offset_axis_px": float(off[0, 0] @ geo.axis_dir_px[0, 0]), "sigma_px": float(sig[0, 0])}
 
 
