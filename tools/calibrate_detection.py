@@ -172,7 +172,8 @@ def detect_rim(frame: np.ndarray, predicted: Any) -> tuple[np.ndarray, float]:
     if WORLD.detector == "threshold":
         d = detect_holes(frame)
     else:
-        d = detect(WORLD.detector, frame, camera=CAMERA, predicted=predicted)
+        d = detect(WORLD.detector, frame, camera=CAMERA, predicted=predicted,
+                   point_sampled=WORLD.renderer == "raster")
     z = associate(predicted, d, gate_px=GATE_PX)[0]
     if not np.all(np.isfinite(z)) or len(d.centre_px) == 0:
         return z, float("nan")
@@ -582,7 +583,8 @@ def measure_holes(image: np.ndarray, holes, T: np.ndarray, blur: float, seeds: i
     geo = hole_geometry(CAMERA, T[None], c, n, r)
     optical = apply_optics(image, [_disk_kernel(blur)])
     z = np.array([associate(e, detect(WORLD.detector, sensor_images(optical, NOISE_GREY, 1000 + s)[0],
-                                      camera=CAMERA, predicted=e), GATE_PX) for s in range(seeds)])
+                                      camera=CAMERA, predicted=e, point_sampled=WORLD.renderer == "raster"), GATE_PX)
+                  for s in range(seeds)])
     found = np.all(np.isfinite(z), axis=-1)                                          # (seeds, N)
     d = np.where(found[..., None], z - np.asarray(e.centre_px)[None], np.nan)
     mean = np.nanmean(np.where(found.any(axis=0)[None, :, None], d, 0.0), axis=0)    # (N, 2)

@@ -114,7 +114,7 @@ world (key)                                      rows  rate    offset    m₀ px
                                                                                        chamfered)
 ================================================ ===== ======= ========= ======= ===== =======================
 threshold, raster (``detection_model.json``)     366   0.032   0.028     2.38    —     —
-cadfeat, raster                                  546   0.032   0.026     4.07    —     0.000 (0.009, 0.007)
+cadfeat, raster                                  546   0.030   0.026     4.02    —     0.000 (0.000, 0.004)
 cadfeat, pbr machined_aluminium ring as_modelled 396   0.235   0.188     3.95    0.11  0.063 (0.248, 0.144)
 cadfeat, pbr blasted_aluminium ring as_modelled  396   0.187   0.122     4.08    0.14  0.026 (0.152, 0.122)
 cadfeat, pbr machined_aluminium ring drilled     396   0.218   0.120     3.96    −0.19 0.068 (0.023, 0.104)

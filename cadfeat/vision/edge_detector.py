@@ -37,7 +37,9 @@ Method (``detect_rims``), per hole with a prior ellipse (the closed loop's predi
    and smoothed by ``smooth_sigma_px`` the face-to-wall step merges into the stronger wall-to-floor one, so the
    fit is pulled inwards on that arc (0.38 px on ``tests/vision/test_detectors.py``'s ``mirror_thin``, 0.17 px
    at 0.5). Where the sharper image gives too few edges (a wall lit to nearly the face's grey, a step the
-   coarse smoothing lifts out of the noise), the refinement reads the coarse one, as the first fit.
+   coarse smoothing lifts out of the noise), the refinement reads the coarse one, as the first fit. On the
+   raster renderer's point-sampled images, whose edges no lens or pixel area has blurred, the closed loop and
+   its calibration keep the coarse image (``detectors.POINT_SAMPLED``).
 5. The **surround test** (as ``detection``'s, sign-free): the grey levels on the ellipse grown by
    ``ring_gap_px`` (the face just outside the rim) must be one homogeneous face — the spread (98th − 2nd
    percentile) of the levels minus their first harmonic (the light's smooth fall-off across the hole,
