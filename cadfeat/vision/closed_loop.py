@@ -288,18 +288,21 @@ def draw_frame(image: np.ndarray, predicted: Ellipse, detections: Detections, pi
 
 
 def detect_sequence(obs: Observation, noise_grey: float, seed: int, gate_px: float,
-                    gain: float = 1.0, detector: str = "cadfeat") -> tuple[np.ndarray, list[Detections]]:
+                    gain: float = 1.0, detector: str = "cadfeat",
+                    point_sampled: bool | None = None) -> tuple[np.ndarray, list[Detections]]:
     """Pixels (F, N, 2) of one Monte-Carlo run (NaN = missing) and the raw detections per frame; ``gain``
     scales the optical image (the run's illumination) before the noise; ``detector``: ``vision.detectors``'s
     kind (cadfeat's rim-edge detector takes the nominal predicted rims as its prior; the others see the image
-    alone)."""
+    alone); ``point_sampled``: ``detectors.detect``'s (None: the raster renderer's images are)."""
+    if point_sampled is None:
+        point_sampled = obs.renderer == "raster"
     F_, N = len(obs.optical), len(obs.centres)
     pixels = np.full((F_, N, 2), np.nan)
     dets: list[Detections] = []
     for k, img in enumerate(obs.optical):
         frame = sensor_images(img[None] * np.float32(gain), noise_grey, frame_seed(seed, k))[0]
         d = detect(detector, frame, camera=obs.camera, origin_px=obs.offsets[k], predicted=obs.predicted[k],
-                   point_sampled=obs.renderer == "raster")
+                   point_sampled=point_sampled)
         d = Detections(d.centre_px + obs.offsets[k], d.axes_px, d.angle_rad, d.residual_px)
         dets.append(d)
         pixels[k] = associate(obs.predicted[k], d, gate_px)

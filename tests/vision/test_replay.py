@@ -67,7 +67,10 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> dict:
     tc = config.tracking_settings().in_cell(config.cell)
     obs = observe(shape, holes, camera, T, tc.sensor)
     frames = [frame_image(camera, obs, k, tc.sensor.noise_grey, NOISE_SEED) for k in range(len(T))]
-    pixels, _ = detect_sequence(obs, tc.sensor.noise_grey, NOISE_SEED, tc.gate_px, 1.0, tc.detector)
+    # the frames stand for a recording: detected as the replay detects a photograph's (not as point-sampled
+    # raster renders, detectors.POINT_SAMPLED)
+    pixels, _ = detect_sequence(obs, tc.sensor.noise_grey, NOISE_SEED, tc.gate_px, 1.0, tc.detector,
+                                point_sampled=False)
     c, n, r = holes_to_arrays(holes)
     errors = {}
     for m in tc.estimators:
