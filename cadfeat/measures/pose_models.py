@@ -105,9 +105,10 @@ light and the hole ends — as ``detection_model_<key>.json`` + ``detection_cali
 Fitted on their own tables (rate: mean |p − rate| over the unoccluded rows; offset: RMS axis residual px;
 ``offset_rms_px``: the unexplained systematic offset per axis, added to σ, of the rims the offset model describes
 — through holes and sharp-rimmed blind holes of depth/diameter 1.0 —, then of the shallow blind holes (d/D 0.3)
-and the chamfered rims, ``PoseModels.unexplained_px``). The rim-edge detector's worlds were re-rendered
-2026-11-28 after its refinement step read a less smoothed image (``vision.edge_detector``); the single constant
-of every rim before was 0.159 px on machined aluminium, now 0.063 for the rims described, 0.248 for shallow ones:
+and the chamfered rims, ``PoseModels.unexplained_px``). The rim-edge detector's physically based worlds were
+re-rendered 2026-11-28 after its refinement step read a less smoothed image (``vision.edge_detector``); the single
+constant of every rim before was 0.159 px on machined aluminium, now 0.063 for the rims described, 0.248 for
+shallow ones:
 
 ================================================ ===== ======= ========= ======= ===== =======================
 world (key)                                      rows  rate    offset    m₀ px   q₀    offset_rms_px (shallow,

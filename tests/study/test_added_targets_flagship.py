@@ -30,8 +30,9 @@ def test_flagship_recommendation(run: Path) -> None:
     block = r["added_targets"]
     p = block["predicted"]
     assert 1 <= block["recommended"] <= 3 and len(block["holes"]) == block["recommended"]
-    # issue 31 asked >= 35 % with <= 3 holes (under the raster-calibrated models: 36 %); with the glare term the
-    # flagship's three holes gain 34 % (docs/results.md, "Added target holes")
+    # issue 31 asked >= 35 % with <= 3 holes (under the raster-calibrated models: 36 %); with the glare term and
+    # Ø5.5 x 3 mm holes 34 %; with the per-class unexplained offset and Ø3.4 x 4 mm holes 36 %
+    # (docs/guide/added-targets.md, "On the flagship")
     assert p["added"]["error_mm"] <= 0.70 * p["move_only"]["error_mm"]
     assert p["move_only"]["error_mm"] < p["original"]["error_mm"]
     assert block["curve"]["error_mm"][0] == pytest.approx(p["move_only"]["error_mm"], rel=1e-6)
