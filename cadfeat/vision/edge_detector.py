@@ -36,8 +36,10 @@ Method (``detect_rims``), per hole with a prior ellipse (the closed loop's predi
    obliquely shows its far wall as a dark crescent about a pixel wide between the face and the mirror floor,
    and smoothed by ``smooth_sigma_px`` the face-to-wall step merges into the stronger wall-to-floor one, so the
    fit is pulled inwards on that arc (0.38 px on ``tests/vision/test_detectors.py``'s ``mirror_thin``, 0.17 px
-   at 0.5). Where the sharper image gives too few edges (a wall lit to nearly the face's grey, a step the
-   coarse smoothing lifts out of the noise), the refinement reads the coarse one, as the first fit. On the
+   at 0.5). Where the sharper fit is not accepted (too few edges: a wall lit to nearly the face's grey, a step
+   the coarse smoothing lifts out of the noise; or a fit that fails step 3's and 5's tests, as the low-contrast
+   rims under a dome light), the refinement reads the coarse image, as the first fit (on the flagship's frames
+   under a dome: 31 of the rims found without that fallback, 70 with it, 66 single-scale). On the
    raster renderer's point-sampled images, whose edges no lens or pixel area has blurred, the closed loop and
    its calibration keep the coarse image (``detectors.POINT_SAMPLED``).
 5. The **surround test** (as ``detection``'s, sign-free): the grey levels on the ellipse grown by
@@ -84,6 +86,7 @@ the rim on those rays (accepted while ≥ ``min_coverage`` of the rim still show
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -372,22 +375,25 @@ def _grey(image: np.ndarray, sigma_px: float) -> np.ndarray:
 
 
 def _refined(image: np.ndarray, img: np.ndarray, noise: float, start: tuple[np.ndarray, np.ndarray, np.ndarray],
-             shape: tuple[np.ndarray, np.ndarray], cfg: RimSettings) -> list[_Rim | None]:
+             shape: tuple[np.ndarray, np.ndarray], cfg: RimSettings,
+             accept: Callable[[int, _Rim | None], bool]) -> list[_Rim | None]:
     """Step 4: the fit repeated on rays of the first fits ``start`` (centres, axes, angles) with the short reach,
     in the image smoothed by ``fine_sigma_px`` (a thin dark wall between the face and a mirror floor stays
-    resolved); where that finds too few edges (a rim lit to nearly the face's grey, whose step the coarse
-    smoothing lifts out of the noise), in ``img`` smoothed by ``smooth_sigma_px`` (``noise`` its gradient noise)."""
-    fine: list[_Rim | None] = [None] * len(start[0])
+    resolved); a hole whose sharper fit is not accepted (``accept(i, rim)``: too few edges — a rim lit to nearly
+    the face's grey, a step the coarse smoothing lifts out of the noise — or a fit that fails the acceptance
+    tests, as low-contrast rims under a dome) is refitted in ``img`` smoothed by ``smooth_sigma_px`` (``noise``
+    its gradient noise), as the first fit."""
+    rims: list[_Rim | None] = [None] * len(start[0])
     if cfg.fine_sigma_px != cfg.smooth_sigma_px:
         sharp = _grey(image, cfg.fine_sigma_px)
-        fine = _fit_rims(sharp, gradient_noise(sharp), *start, cfg.refine_reach_px, cfg, shape=shape)
-    redo = [j for j, rim in enumerate(fine) if rim is None]
+        rims = _fit_rims(sharp, gradient_noise(sharp), *start, cfg.refine_reach_px, cfg, shape=shape)
+    redo = [i for i, rim in enumerate(rims) if not accept(i, rim)]
     if redo:
         again = _fit_rims(img, noise, *(a[redo] for a in start), cfg.refine_reach_px, cfg,
                           shape=(shape[0][redo], shape[1][redo]))
-        for j, rim in zip(redo, again, strict=True):
-            fine[j] = rim
-    return fine
+        for i, rim in zip(redo, again, strict=True):
+            rims[i] = rim
+    return rims
 
 
 def detect_rims(image: np.ndarray, predicted: Ellipse | None, *, camera: Camera | None = None,
@@ -413,10 +419,14 @@ def detect_rims(image: np.ndarray, predicted: Ellipse | None, *, camera: Camera 
     coarse = [r for r in (first[j] for j in keep) if r is not None]
     start = (np.array([r.centre for r in coarse]), np.array([r.axes for r in coarse]),
              np.array([r.angle for r in coarse]))
-    fine = _refined(image, img, noise, start, (ax[keep], ang[keep]), cfg)
+
+    def accept(i: int, rim: _Rim | None) -> bool:
+        return rim is not None and _accepted(rim, c[keep[i]], ax[keep[i]], img, cfg)
+
+    fine = _refined(image, img, noise, start, (ax[keep], ang[keep]), cfg, accept)
     rows = []
-    for j, rim in zip(keep, fine, strict=True):
-        if rim is None or not _accepted(rim, c[j], ax[j], img, cfg):
+    for i, rim in enumerate(fine):
+        if rim is None or not accept(i, rim):
             continue
         centre = rim.centre
         if camera is not None and camera.has_distortion:
