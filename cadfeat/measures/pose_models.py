@@ -107,7 +107,7 @@ Fitted on their own tables (rate: mean |p − rate| over the unoccluded rows; of
 — through holes and sharp-rimmed blind holes of depth/diameter 1.0 —, then of the shallow blind holes (d/D 0.3)
 and the chamfered rims, ``PoseModels.unexplained_px``). The rim-edge detector's physically based worlds were
 re-rendered 2026-11-28 after its refinement step read a less smoothed image (``vision.edge_detector``); the single
-constant of every rim before was 0.159 px on machined aluminium, now 0.063 for the rims described, 0.248 for
+constant of every rim before was 0.159 px on machined aluminium, now 0.069 for the rims described, 0.255 for
 shallow ones:
 
 ================================================ ===== ======= ========= ======= ===== =======================
@@ -116,14 +116,14 @@ world (key)                                      rows  rate    offset    m₀ px
 ================================================ ===== ======= ========= ======= ===== =======================
 threshold, raster (``detection_model.json``)     366   0.032   0.028     2.38    —     —
 cadfeat, raster                                  546   0.030   0.026     4.02    —     0.000 (0.000, 0.004)
-cadfeat, pbr machined_aluminium ring as_modelled 396   0.235   0.188     3.95    0.11  0.063 (0.248, 0.144)
-cadfeat, pbr blasted_aluminium ring as_modelled  396   0.187   0.122     4.08    0.14  0.026 (0.152, 0.122)
-cadfeat, pbr machined_aluminium ring drilled     396   0.218   0.120     3.96    −0.19 0.068 (0.023, 0.104)
-cadfeat, pbr grey_plastic ring as_modelled       396   0.179   0.275     4.23    −0.25 0.125 (0.191, 0.283)
-cadfeat, pbr machined_aluminium coaxial          396   0.235   0.183     3.92    0.11  0.046 (0.198, 0.168)
-cadfeat, pbr grey_plastic ring drilled           396   0.161   0.191     4.11    −0.50 0.090 (0.088, 0.212)
-cadfeat, pbr machined_steel ring as_modelled     396   0.235   0.209     4.01    0.14  0.056 (0.280, 0.169)
-cadfeat, pbr machined_aluminium dome             396   0.219   0.256     3.50    0.38  0.045 (0.124, 0.334)
+cadfeat, pbr machined_aluminium ring as_modelled 396   0.245   0.199     3.93    0.06  0.069 (0.255, 0.155)
+cadfeat, pbr blasted_aluminium ring as_modelled  396   0.183   0.140     4.06    0.10  0.035 (0.170, 0.127)
+cadfeat, pbr machined_aluminium ring drilled     396   0.200   0.125     3.95    −0.16 0.075 (0.030, 0.102)
+cadfeat, pbr grey_plastic ring as_modelled       396   0.172   0.287     4.26    −0.27 0.137 (0.207, 0.286)
+cadfeat, pbr machined_aluminium coaxial          396   0.218   0.185     3.92    0.10  0.047 (0.204, 0.171)
+cadfeat, pbr grey_plastic ring drilled           396   0.134   0.207     4.11    −0.50 0.099 (0.088, 0.226)
+cadfeat, pbr machined_steel ring as_modelled     396   0.225   0.236     3.97    0.11  0.109 (0.288, 0.178)
+cadfeat, pbr machined_aluminium dome             396   0.224   0.266     3.81    0.37  0.040 (0.175, 0.304)
 edcircles, raster                                546   0.112   0.046     7.56    —     0.021
 edcircles, pbr machined_aluminium ring           396   0.199   1.403     8.36    −0.30 0.977
 ================================================ ===== ======= ========= ======= ===== =======================

@@ -41,7 +41,7 @@ AL = "cadfeat-pbr-machined_aluminium-ring-as_modelled"
 PLASTIC = "cadfeat-pbr-grey_plastic-ring-as_modelled"
 #: (rate MAE, axis-offset residual RMS px, RMS log σ ratio) bounds per world: the measured residuals rounded up.
 BOUNDS = {"cadfeat-raster": (0.04, 0.035, 0.55), AL: (0.27, 0.25, 0.65), PLASTIC: (0.22, 0.33, 0.75),
-          "cadfeat-pbr-blasted_aluminium-ring-as_modelled": (0.22, 0.17, 0.6),
+          "cadfeat-pbr-blasted_aluminium-ring-as_modelled": (0.22, 0.17, 0.65),
           "cadfeat-pbr-machined_aluminium-ring-drilled": (0.25, 0.17, 0.65),
           # EDCircles (the independent detector): its centres snap to a few values per noise draw (σ off by
           # e^1.7 on the raster) and on aluminium it takes other arcs (axis-offset residual 1.4 px)
