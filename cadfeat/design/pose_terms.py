@@ -153,7 +153,7 @@ def designs_glare_rate(glare: GlareMaps | None, cell: Cell, T_cam_part: np.ndarr
 #: cell is told so.
 CONFIRMED_CELLS = {
     "cadfeat-pbr-machined_aluminium-ring-as_modelled":
-        "16 designs ranked as the physical loop ranks them (Spearman ρ 0.76–0.92, this calibration)",
+        "16 designs ranked as the physical loop ranks them (Spearman ρ 0.76–0.92)",
 }
 #: The cells whose models a panel found wrong, and how.
 FAILED_CELLS = {
