@@ -382,17 +382,19 @@ def _refined(image: np.ndarray, img: np.ndarray, noise: float, start: tuple[np.n
     resolved); a hole whose sharper fit is not accepted (``accept(i, rim)``: too few edges — a rim lit to nearly
     the face's grey, a step the coarse smoothing lifts out of the noise — or a fit that fails the acceptance
     tests, as low-contrast rims under a dome) is refitted in ``img`` smoothed by ``smooth_sigma_px`` (``noise``
-    its gradient noise), as the first fit."""
+    its gradient noise), as the first fit. Returns the accepted rims, None where neither fit is (each rim's
+    acceptance tested once)."""
     rims: list[_Rim | None] = [None] * len(start[0])
     if cfg.fine_sigma_px != cfg.smooth_sigma_px:
         sharp = _grey(image, cfg.fine_sigma_px)
-        rims = _fit_rims(sharp, gradient_noise(sharp), *start, cfg.refine_reach_px, cfg, shape=shape)
-    redo = [i for i, rim in enumerate(rims) if not accept(i, rim)]
+        fits = _fit_rims(sharp, gradient_noise(sharp), *start, cfg.refine_reach_px, cfg, shape=shape)
+        rims = [rim if accept(i, rim) else None for i, rim in enumerate(fits)]
+    redo = [i for i, rim in enumerate(rims) if rim is None]
     if redo:
         again = _fit_rims(img, noise, *(a[redo] for a in start), cfg.refine_reach_px, cfg,
                           shape=(shape[0][redo], shape[1][redo]))
         for i, rim in zip(redo, again, strict=True):
-            rims[i] = rim
+            rims[i] = rim if accept(i, rim) else None
     return rims
 
 
@@ -425,8 +427,8 @@ def detect_rims(image: np.ndarray, predicted: Ellipse | None, *, camera: Camera 
 
     fine = _refined(image, img, noise, start, (ax[keep], ang[keep]), cfg, accept)
     rows = []
-    for i, rim in enumerate(fine):
-        if rim is None or not accept(i, rim):
+    for rim in fine:
+        if rim is None:
             continue
         centre = rim.centre
         if camera is not None and camera.has_distortion:
