@@ -511,8 +511,6 @@ class PoseModels:
         ``offset_rms_shallow_px`` at ``SHALLOW_RATIO`` to ``offset_rms_px`` at ``DEEP_RATIO`` (the table's two
         depths); ``offset_rms_chamfer_px`` for a chamfered rim (the model sees it as its plain hole)."""
         base2 = self.offset_rms_px ** 2
-        if self.offset_rms_shallow_px is None and self.offset_rms_chamfer_px is None:
-            return np.full(np.shape(ratio), self.offset_rms_px)
         shallow2 = base2 if self.offset_rms_shallow_px is None else self.offset_rms_shallow_px ** 2
         w = np.where(through, 0.0, np.clip((DEEP_RATIO - ratio) / (DEEP_RATIO - SHALLOW_RATIO), 0.0, 1.0))
         var = base2 + w * (shallow2 - base2)
